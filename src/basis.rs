@@ -1,0 +1,180 @@
+//! Cumulative basis functions `B~_i(t)` of KKS section 4.2, with their first two derivatives.
+//!
+//! A Euclidean spline `p(t) = sum p_i B_i(t)` rewritten as `p_0 B~_0 + sum (p_i - p_{i-1}) B~_i`
+//! with `B~_i = sum_{j >= i} B_j` becomes the quaternion curve `q_0 prod exp(w_i B~_i(t))`.
+//! Every family's basis lives here once; evaluators only multiply exponentials.
+
+/// A basis value with its first and second derivatives in the basis' own parameter.
+pub type BasisJet = [f64; 3];
+
+/// Cumulative Bernstein basis of degree `n` at `u in [0, 1]` (KKS eq. 9): entries
+/// `i = 1..=n` as `out[i - 1] = [B~_{i,n}(u), d/du, d2/du2]`.
+///
+/// Uses `d/du B~_{i,n} = n B_{i-1,n-1}` and `d2/du2 B~_{i,n} = n (n-1) (B_{i-2,n-2} - B_{i-1,n-2})`;
+/// the Bernstein rows come from the de Casteljau triangle, which is stable for any degree.
+/// Sums run from the top (`B~_n` first) so that values near `u = 0` keep full precision.
+#[must_use]
+pub fn bernstein_cumulative(n: usize, u: f64) -> Vec<BasisJet> {
+    let mut rows: Vec<Vec<f64>> = vec![vec![1.0]];
+    for m in 1..=n {
+        let prev = &rows[m - 1];
+        let row: Vec<f64> = (0..=m)
+            .map(|j| {
+                let keep = if j < m { (1.0 - u) * prev[j] } else { 0.0 };
+                let up = if j > 0 { u * prev[j - 1] } else { 0.0 };
+                keep + up
+            })
+            .collect();
+        rows.push(row);
+    }
+    let at = |m: isize, j: isize| -> f64 {
+        if m < 0 || j < 0 || j > m {
+            0.0
+        } else {
+            rows[m as usize][j as usize]
+        }
+    };
+    let (n_i, nf) = (n as isize, n as f64);
+    let mut out = vec![[0.0; 3]; n];
+    let mut tail = 0.0;
+    for i in (1..=n_i).rev() {
+        tail += at(n_i, i);
+        out[(i - 1) as usize] = [
+            tail,
+            nf * at(n_i - 1, i - 1),
+            nf * (nf - 1.0) * (at(n_i - 2, i - 2) - at(n_i - 2, i - 1)),
+        ];
+    }
+    out
+}
+
+/// Cumulative B-spline basis of order `k` (degree `k - 1`) at time `t` in knot span `l`
+/// (`knots[l] <= t < knots[l + 1]`, or the closed last span): entries for
+/// `i = l-k+2 ..= l` as `out[i - (l-k+2)] = [B~_{i,k}(t), d/dt, d2/dt2]` (KKS section 5.3).
+/// Outside that window `B~_i` is 1 (`i <= l-k+1`) or 0 (`i > l`), constant.
+///
+/// Values: `B~_i = sum_{j=i}^{l} B_{j,k}` from the Cox-de Boor triangle. Derivatives: KKS's
+/// `B~'_{i,k} = (k-1) B_{i,k-1} / (t_{i+k-1} - t_i)`, differentiated once more with the same
+/// rule. Quotients with a zero-length denominator (repeated knots) are 0 by convention.
+#[must_use]
+pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<BasisJet> {
+    // tri[m][r] = B_{l-m+1+r, m}(t) for orders m = 1..=k, r = 0..m.
+    let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
+    let mut tri: Vec<Vec<f64>> = vec![vec![], vec![1.0]];
+    for m in 1..k {
+        let prev = &tri[m];
+        let b = |j: isize| -> f64 {
+            let r = j - (l as isize - m as isize + 1);
+            if r < 0 || r >= m as isize {
+                0.0
+            } else {
+                prev[r as usize]
+            }
+        };
+        let row: Vec<f64> = (0..=m)
+            .map(|r| {
+                let j = l as isize - m as isize + r as isize;
+                let ju = j.max(0) as usize;
+                let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
+                let right = div(knots[(j + m as isize + 1) as usize] - t, knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize]) * b(j + 1);
+                left + right
+            })
+            .collect();
+        tri.push(row);
+    }
+    // B_{j,m}(t), zero outside the triangle.
+    let basis = |m: usize, j: isize| -> f64 {
+        if m == 0 {
+            return 0.0;
+        }
+        let r = j - (l as isize - m as isize + 1);
+        if r < 0 || r >= m as isize {
+            0.0
+        } else {
+            tri[m][r as usize]
+        }
+    };
+    let kn = |j: isize| knots[j as usize];
+    let kf = k as f64;
+    let first = l as isize - k as isize + 2;
+    let mut out = vec![[0.0; 3]; k - 1];
+    let mut tail = 0.0;
+    for i in (first..=l as isize).rev() {
+        tail += basis(k, i);
+        let d1 = (kf - 1.0) * div(basis(k - 1, i), kn(i + k as isize - 1) - kn(i));
+        let d2 = if k >= 3 {
+            let inner = div(basis(k - 2, i), kn(i + k as isize - 2) - kn(i))
+                - div(basis(k - 2, i + 1), kn(i + k as isize - 1) - kn(i + 1));
+            (kf - 1.0) * (kf - 2.0) * div(inner, kn(i + k as isize - 1) - kn(i))
+        } else {
+            0.0
+        };
+        out[(i - first) as usize] = [tail, d1, d2];
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Plain (non-cumulative) B-spline basis by the textbook recursion, independent of the
+    /// triangle above; used to check values.
+    fn cox_de_boor(knots: &[f64], j: usize, k: usize, t: f64) -> f64 {
+        if k == 1 {
+            return if knots[j] <= t && t < knots[j + 1] { 1.0 } else { 0.0 };
+        }
+        let a = knots[j + k - 1] - knots[j];
+        let b = knots[j + k] - knots[j + 1];
+        let left = if a > 0.0 { (t - knots[j]) / a * cox_de_boor(knots, j, k - 1, t) } else { 0.0 };
+        let right = if b > 0.0 { (knots[j + k] - t) / b * cox_de_boor(knots, j + 1, k - 1, t) } else { 0.0 };
+        left + right
+    }
+
+    #[test]
+    fn bernstein_cumulative_cubic_is_kks_hermite_basis() {
+        for &u in &[0.0, 0.2, 0.5, 0.9, 1.0] {
+            let b = bernstein_cumulative(3, u);
+            let expect = [1.0 - (1.0 - u).powi(3), 3.0 * u * u - 2.0 * u.powi(3), u.powi(3)];
+            let d1 = [3.0 * (1.0 - u).powi(2), 6.0 * u * (1.0 - u), 3.0 * u * u];
+            let d2 = [-6.0 * (1.0 - u), 6.0 - 12.0 * u, 6.0 * u];
+            for i in 0..3 {
+                assert!((b[i][0] - expect[i]).abs() < 1e-15);
+                assert!((b[i][1] - d1[i]).abs() < 1e-14);
+                assert!((b[i][2] - d2[i]).abs() < 1e-13);
+            }
+        }
+    }
+
+    #[test]
+    fn bspline_cumulative_matches_textbook_recursion_and_differences() {
+        let knots = [0.0, 0.0, 0.5, 1.0, 1.0, 2.0, 3.5, 4.0, 5.0, 5.0, 5.5, 6.0];
+        for k in 2..=5 {
+            let m = knots.len() - k - 1; // control points 0..=m-1... (n+1 = len - k)
+            let n = m;
+            for l in (k - 1)..=n {
+                if knots[l] == knots[l + 1] {
+                    continue;
+                }
+                for s in 1..8 {
+                    let t = knots[l] + (knots[l + 1] - knots[l]) * s as f64 / 8.0;
+                    let cum = bspline_cumulative(&knots, k, l, t);
+                    let first = l + 2 - k;
+                    for (off, jet) in cum.iter().enumerate() {
+                        let i = first + off;
+                        let plain: f64 = (i..=n).map(|j| cox_de_boor(&knots, j, k, t)).sum();
+                        assert!((jet[0] - plain).abs() < 1e-14, "k {k} l {l} i {i}");
+                        let h = 1e-5;
+                        let f = |t: f64| bspline_cumulative(&knots, k, l, t)[off][0];
+                        let d1 = (f(t + h) - f(t - h)) / (2.0 * h);
+                        let d2 = (f(t + h) - 2.0 * f(t) + f(t - h)) / (h * h);
+                        assert!((jet[1] - d1).abs() < 1e-7, "k {k} d1 {} vs {d1}", jet[1]);
+                        if k >= 3 {
+                            assert!((jet[2] - d2).abs() < 1e-4, "k {k} d2 {} vs {d2}", jet[2]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

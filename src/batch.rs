@@ -1,0 +1,481 @@
+//! The offline builder: validates user tracks and packs them into the flat batch layout that
+//! every evaluator (reference, fast CPU, GPU) consumes (DESIGN section 4).
+//!
+//! All per-track preparation happens here, once, in `f64`: normalization and hemisphere
+//! alignment of the keys, tangent estimation, the log-coefficients `w_i`, squad's auxiliary
+//! points, Hermite's three coefficients per segment, B-spline control points (with phantom
+//! points) and full knot vectors. Evaluators then only locate a segment and multiply
+//! exponentials; they never branch on knot modes or tangent sources.
+//!
+//! What the packed arrays hold per family (`coefs` entries are `[x, y, z, extra]`):
+//!
+//! | family  | points            | knots                   | coefs                                   |
+//! |---------|-------------------|-------------------------|-----------------------------------------|
+//! | slerp   | keys              | key times               | `w_i`, i = 1..=n                        |
+//! | squad   | keys              | key times               | auxiliary quaternion `s_i` (xyzw), per key |
+//! | bezier  | keys              | `[tau_0, tau_n]`        | `w_i`, i = 1..=n                        |
+//! | hermite | keys              | key times               | `w1, w2, w3` per segment; `w2.extra` = segment sign (+-1) |
+//! | nam-kim | keys              | key times               | `a, b` per segment (half angle per unit segment parameter) |
+//! | bspline | control points    | full knot vector (n+k+1) | `w_i`, i = 1..=m over control points  |
+
+use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
+use crate::error::{Error, Result, TrackId};
+use crate::quat::{DQuat, DVec3};
+use crate::track::Track;
+use std::f64::consts::PI;
+
+/// Keys with a norm below this are errors (they carry no direction).
+pub const MIN_KEY_NORM: f64 = 1e-6;
+/// Relative tolerance on key spacing for knot modes that need uniform times.
+pub const UNIFORM_TIME_TOLERANCE: f64 = 1e-3;
+/// Below this length Hermite's middle coefficient has no axis for extra turns.
+pub const MIN_TURN_AXIS: f64 = 1e-12;
+
+/// One track's slice of the packed arrays and its parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PackedTrack {
+    /// The curve family.
+    pub curve: Curve,
+    /// B-spline order k; for Bezier the degree n; 0 otherwise.
+    pub order: usize,
+    /// Nam-Kim blend function.
+    pub blend: crate::curve::Blend,
+    /// First entry in [`Batch::points`].
+    pub point_offset: usize,
+    /// Number of entries in [`Batch::points`].
+    pub point_count: usize,
+    /// First entry in [`Batch::coefs`].
+    pub coef_offset: usize,
+    /// Number of entries in [`Batch::coefs`].
+    pub coef_count: usize,
+    /// First entry in [`Batch::knots`].
+    pub knot_offset: usize,
+    /// Number of entries in [`Batch::knots`].
+    pub knot_count: usize,
+    /// The domain `[start, end]`; sample times are clamped to it.
+    pub domain: [f64; 2],
+}
+
+/// Many tracks packed flat (CSR style). Build one with [`BatchBuilder`] or [`Batch::from_tracks`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Batch {
+    /// Per-track parameters and offsets.
+    pub tracks: Vec<PackedTrack>,
+    /// Per-track identities, for messages.
+    pub ids: Vec<TrackId>,
+    /// Unit quaternions: keys or control points, sign-continuous within each track.
+    pub points: Vec<DQuat>,
+    /// Derived coefficients, `[x, y, z, extra]` (see the module table).
+    pub coefs: Vec<[f64; 4]>,
+    /// Segment boundaries or B-spline knot vectors.
+    pub knots: Vec<f64>,
+}
+
+impl Batch {
+    /// Builds a batch of `tracks`, all with the same curve `spec`.
+    ///
+    /// # Errors
+    /// The first rule broken, naming the track and key ([`Error`]).
+    pub fn from_tracks(tracks: &[Track], spec: &CurveSpec) -> Result<Self> {
+        let mut builder = BatchBuilder::new();
+        for track in tracks {
+            builder.add(track, spec)?;
+        }
+        builder.build()
+    }
+
+    /// Number of tracks.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.tracks.len()
+    }
+
+    /// Whether the batch has no track.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.tracks.is_empty()
+    }
+
+    /// The slices of the packed arrays that belong to track `index`.
+    #[must_use]
+    pub fn view(&self, index: usize) -> TrackView<'_> {
+        let t = &self.tracks[index];
+        TrackView {
+            track: t,
+            points: &self.points[t.point_offset..t.point_offset + t.point_count],
+            coefs: &self.coefs[t.coef_offset..t.coef_offset + t.coef_count],
+            knots: &self.knots[t.knot_offset..t.knot_offset + t.knot_count],
+        }
+    }
+}
+
+/// Borrowed view of one packed track.
+#[derive(Clone, Copy, Debug)]
+pub struct TrackView<'a> {
+    /// Parameters.
+    pub track: &'a PackedTrack,
+    /// Keys or control points.
+    pub points: &'a [DQuat],
+    /// Derived coefficients.
+    pub coefs: &'a [[f64; 4]],
+    /// Segment boundaries or knot vector.
+    pub knots: &'a [f64],
+}
+
+/// Builds a [`Batch`] track by track; tracks may use different curve specs.
+#[derive(Debug, Default)]
+pub struct BatchBuilder {
+    batch: Batch,
+}
+
+impl BatchBuilder {
+    /// An empty builder.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Validates `track` for `spec` and appends it; returns its index in the batch.
+    ///
+    /// # Errors
+    /// The first rule broken, naming the track and key; the builder is unchanged then.
+    pub fn add(&mut self, track: &Track, spec: &CurveSpec) -> Result<usize> {
+        let index = self.batch.tracks.len();
+        let id = TrackId { index, name: track.name.clone() };
+        let packed = prepare(&id, track, spec)?;
+        let b = &mut self.batch;
+        b.tracks.push(PackedTrack {
+            curve: spec.curve,
+            order: packed.order,
+            blend: spec.blend,
+            point_offset: b.points.len(),
+            point_count: packed.points.len(),
+            coef_offset: b.coefs.len(),
+            coef_count: packed.coefs.len(),
+            knot_offset: b.knots.len(),
+            knot_count: packed.knots.len(),
+            domain: packed.domain,
+        });
+        b.points.extend(packed.points);
+        b.coefs.extend(packed.coefs);
+        b.knots.extend(packed.knots);
+        b.ids.push(id);
+        Ok(index)
+    }
+
+    /// Finishes the batch.
+    ///
+    /// # Errors
+    /// [`Error::EmptyBatch`] when no track was added.
+    pub fn build(self) -> Result<Batch> {
+        if self.batch.is_empty() {
+            return Err(Error::EmptyBatch);
+        }
+        Ok(self.batch)
+    }
+}
+
+/// One track's packed data before it is appended.
+struct Prepared {
+    order: usize,
+    points: Vec<DQuat>,
+    coefs: Vec<[f64; 4]>,
+    knots: Vec<f64>,
+    domain: [f64; 2],
+}
+
+fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
+    let keys = aligned_keys(id, &track.rotations, spec)?;
+    let times = key_times(id, track.times.as_deref(), keys.len())?;
+    let n = keys.len() - 1;
+    let (t0, tn) = (times[0], times[n]);
+    let vec_coef = |v: DVec3| [v.x, v.y, v.z, 0.0];
+    let steps = || (1..=n).map(|i| vec_coef(relative_log(keys[i - 1], keys[i])));
+    Ok(match spec.curve {
+        Curve::Slerp => Prepared { order: 0, coefs: steps().collect(), points: keys, knots: times, domain: [t0, tn] },
+        Curve::Bezier => Prepared { order: n, coefs: steps().collect(), points: keys, knots: vec![t0, tn], domain: [t0, tn] },
+        Curve::Squad => {
+            let coefs = squad_points(&keys).into_iter().map(DQuat::to_array).collect();
+            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
+        }
+        Curve::Hermite => {
+            let omega = key_velocities(id, track, spec.tangents, &keys, &times)?;
+            let coefs = hermite_coefs(id, track, &keys, &times, &omega)?;
+            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
+        }
+        Curve::NamKim => {
+            let omega = key_velocities(id, track, spec.tangents, &keys, &times)?;
+            let coefs = (0..n)
+                .flat_map(|i| {
+                    let half_t = 0.5 * (times[i + 1] - times[i]);
+                    [vec_coef(omega[i].scale(half_t)), vec_coef(omega[i + 1].scale(half_t))]
+                })
+                .collect();
+            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
+        }
+        Curve::BSpline => bspline(id, track, spec, keys, &times)?,
+    })
+}
+
+/// `log(a^-1 b)` with `b` folded into `a`'s hemisphere: the shortest relative rotation.
+#[must_use]
+pub fn relative_log(a: DQuat, b: DQuat) -> DVec3 {
+    (a.conjugate() * b.aligned_with(a)).log()
+}
+
+/// Normalizes keys and makes them sign-continuous (DESIGN section 1).
+fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<DQuat>> {
+    let min = spec.min_keys();
+    if rotations.len() < min {
+        let curve = match spec.curve {
+            Curve::BSpline => format!("bspline order {} with {} knots", spec.order, spec.knots),
+            other => other.to_string(),
+        };
+        return Err(Error::TooFewKeys { track: id.clone(), curve, min, found: rotations.len() });
+    }
+    let mut keys: Vec<DQuat> = Vec::with_capacity(rotations.len());
+    for (key, &value) in rotations.iter().enumerate() {
+        let q = DQuat::from_array(value);
+        if !q.is_finite() {
+            return Err(Error::NonFiniteKey { track: id.clone(), key, value });
+        }
+        let norm = q.length();
+        if norm < MIN_KEY_NORM {
+            return Err(Error::ZeroKey { track: id.clone(), key, norm });
+        }
+        let q = q.mul_scalar(1.0 / norm);
+        keys.push(match keys.last() {
+            Some(&prev) => q.aligned_with(prev),
+            None => q,
+        });
+    }
+    Ok(keys)
+}
+
+/// The key times, defaulting to `0, 1, ..., n`; finite and strictly increasing.
+fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Result<Vec<f64>> {
+    let Some(times) = times else {
+        return Ok((0..count).map(|i| i as f64).collect());
+    };
+    if times.len() != count {
+        return Err(Error::TimesCount { track: id.clone(), expected: count, found: times.len() });
+    }
+    for (key, &value) in times.iter().enumerate() {
+        if !value.is_finite() {
+            return Err(Error::NonFiniteTime { track: id.clone(), key, value });
+        }
+        if key > 0 && value <= times[key - 1] {
+            return Err(Error::TimesNotIncreasing { track: id.clone(), key, value, previous: times[key - 1] });
+        }
+    }
+    Ok(times.to_vec())
+}
+
+/// Squad's auxiliary points `s_i = q_i exp(-(log(q_i^-1 q_{i+1}) + log(q_i^-1 q_{i-1})) / 4)`
+/// (P eq. 19), with `s_0 = q_0` and `s_n = q_n`.
+fn squad_points(keys: &[DQuat]) -> Vec<DQuat> {
+    let n = keys.len() - 1;
+    (0..=n)
+        .map(|i| {
+            if i == 0 || i == n {
+                return keys[i];
+            }
+            let sum = relative_log(keys[i], keys[i + 1]) + relative_log(keys[i], keys[i - 1]);
+            keys[i] * DQuat::exp(sum.scale(-0.25))
+        })
+        .collect()
+}
+
+/// Body angular velocity (rad/s) at each key, from the chosen source (DESIGN section 3).
+fn key_velocities(id: &TrackId, track: &Track, tangents: Tangents, keys: &[DQuat], times: &[f64]) -> Result<Vec<DVec3>> {
+    let n = keys.len() - 1;
+    match tangents {
+        Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
+        Tangents::Given => {
+            let given = track.angular_velocities.as_deref().unwrap_or(&[]);
+            if given.len() != n + 1 {
+                return Err(Error::VelocityCount { track: id.clone(), expected: n + 1, found: given.len() });
+            }
+            given
+                .iter()
+                .enumerate()
+                .map(|(key, &value)| {
+                    if value.iter().all(|c| c.is_finite()) {
+                        Ok(DVec3::from_array(value))
+                    } else {
+                        Err(Error::NonFiniteVelocity { track: id.clone(), key, value })
+                    }
+                })
+                .collect()
+        }
+        Tangents::CatmullRom => Ok((0..=n)
+            .map(|i| {
+                if i == 0 {
+                    relative_log(keys[0], keys[1]).scale(2.0 / (times[1] - times[0]))
+                } else if i == n {
+                    relative_log(keys[n - 1], keys[n]).scale(2.0 / (times[n] - times[n - 1]))
+                } else {
+                    let (d0, d1) = (times[i] - times[i - 1], times[i + 1] - times[i]);
+                    let back = -relative_log(keys[i], keys[i - 1]).scale(1.0 / d0);
+                    let ahead = relative_log(keys[i], keys[i + 1]).scale(1.0 / d1);
+                    (back.scale(d1 / (d0 + d1)) + ahead.scale(d0 / (d0 + d1))).scale(2.0)
+                }
+            })
+            .collect()),
+    }
+}
+
+/// KKS section 5.2 per segment: `w1 = w_a/3`, `w3 = w_b/3` used as given (never folded), and
+/// `w2 = log(q_1^-1 q_2)` with `q_1 = q_a exp(w1)`, `q_2 = q_b exp(-w3)` folded to the short
+/// way, plus `pi * m` along its axis for `m` extra turns.
+///
+/// When the fold negates `q_2`, the product ends on `-q_b`; the segment then records sign -1
+/// (in `w2`'s fourth slot) so the evaluator multiplies by it and the curve still ends on `+q_b`,
+/// keeping the output sign-continuous from segment to segment.
+fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], omega: &[DVec3]) -> Result<Vec<[f64; 4]>> {
+    let n = keys.len() - 1;
+    let turns = match &track.extra_turns {
+        Some(turns) if turns.len() != n => {
+            return Err(Error::ExtraTurnsCount { track: id.clone(), expected: n, found: turns.len() })
+        }
+        Some(turns) => turns.clone(),
+        None => vec![0; n],
+    };
+    let mut coefs = Vec::with_capacity(3 * n);
+    for i in 0..n {
+        let half_t = 0.5 * (times[i + 1] - times[i]);
+        let w1 = omega[i].scale(half_t / 3.0);
+        let w3 = omega[i + 1].scale(half_t / 3.0);
+        let q1 = keys[i] * DQuat::exp(w1);
+        let q2 = keys[i + 1] * DQuat::exp(-w3);
+        let sign = if q1.dot(q2) < 0.0 { -1.0 } else { 1.0 };
+        let mut w2 = (q1.conjugate() * q2.mul_scalar(sign)).log();
+        if turns[i] != 0 {
+            let len = w2.length();
+            if len < MIN_TURN_AXIS {
+                return Err(Error::ExtraTurnOnZeroArc { track: id.clone(), segment: i, turns: turns[i] });
+            }
+            w2 = w2 + w2.scale(PI * turns[i] as f64 / len);
+        }
+        coefs.push([w1.x, w1.y, w1.z, 0.0]);
+        coefs.push([w2.x, w2.y, w2.z, sign]);
+        coefs.push([w3.x, w3.y, w3.z, 0.0]);
+    }
+    Ok(coefs)
+}
+
+/// Checks `|tau_i - tau_0 - i dt| <= 1e-3 dt` (DESIGN section 3).
+fn check_uniform(id: &TrackId, times: &[f64], mode: KnotMode) -> Result<()> {
+    let n = times.len() - 1;
+    let dt = (times[n] - times[0]) / n as f64;
+    for (key, &value) in times.iter().enumerate() {
+        let expected = times[0] + key as f64 * dt;
+        if (value - expected).abs() > UNIFORM_TIME_TOLERANCE * dt {
+            return Err(Error::NonUniformTimes { track: id.clone(), key, value, expected, mode: mode.to_string() });
+        }
+    }
+    Ok(())
+}
+
+/// `a + (b - a) s` written so that `s = 0` gives `a` and `s = 1` gives `b` exactly.
+fn lerp(a: f64, b: f64, s: f64) -> f64 {
+    a * (1.0 - s) + b * s
+}
+
+/// Control points, knot vector and coefficients of a B-spline track (DESIGN section 3).
+fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, times: &[f64]) -> Result<Prepared> {
+    let k = spec.order;
+    if !(2..=8).contains(&k) {
+        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside 2..=8") });
+    }
+    let n = keys.len() - 1;
+    let (t0, tn) = (times[0], times[n]);
+    let (points, knots) = match spec.knots {
+        KnotMode::Phantom => {
+            if k != 4 {
+                return Err(Error::BadOrder {
+                    track: id.clone(),
+                    reason: format!("phantom knots are defined for order 4 only, not {k}; use uniform, clamped or explicit"),
+                });
+            }
+            check_uniform(id, times, spec.knots)?;
+            let first = keys[0] * keys[1].conjugate() * keys[0];
+            let last = keys[n] * keys[n - 1].conjugate() * keys[n];
+            let mut points = Vec::with_capacity(n + 3);
+            points.push(first);
+            points.extend_from_slice(&keys);
+            points.push(last);
+            // Control points c_0..c_{n+2}; knots t_j = tau_0 + (j - 3) dt, j = 0..=n+6.
+            let knots = (0..n + 7).map(|j| lerp(t0, tn, (j as f64 - 3.0) / n as f64)).collect();
+            (points, knots)
+        }
+        KnotMode::Uniform => {
+            check_uniform(id, times, spec.knots)?;
+            let knots = (0..=n + k).map(|j| lerp(t0, tn, (j as f64 - (k as f64 - 1.0)) / n as f64)).collect();
+            (keys, knots)
+        }
+        KnotMode::Clamped => {
+            let inner = n + 2 - k;
+            let mut knots = vec![t0; k];
+            knots.extend((1..inner).map(|j| lerp(t0, tn, j as f64 / inner as f64)));
+            knots.extend(std::iter::repeat(tn).take(k));
+            (keys, knots)
+        }
+        KnotMode::Explicit => {
+            let knots = explicit_knots(id, track.knots.as_deref(), k, n)?;
+            (keys, knots)
+        }
+    };
+    let m = points.len() - 1;
+    let mut coefs: Vec<[f64; 4]> = (1..=m)
+        .map(|i| {
+            let w = relative_log(points[i - 1], points[i]);
+            [w.x, w.y, w.z, 0.0]
+        })
+        .collect();
+    if spec.knots == KnotMode::Phantom {
+        // q_-1^-1 q_0 = q_0^-1 q_1 exactly (and likewise at the end): reuse the key's
+        // coefficient so the curve passes through q_0 and q_n to rounding.
+        coefs[0] = coefs[1];
+        coefs[m - 1] = coefs[m - 2];
+    }
+    let domain = [knots[k - 1], knots[m + 1]];
+    Ok(Prepared { order: k, points, coefs, knots, domain })
+}
+
+/// Validates a user knot vector: length n + k + 1, finite, non-decreasing, multiplicity at most
+/// k - 1 strictly inside the domain and at most k elsewhere, non-empty domain.
+fn explicit_knots(id: &TrackId, knots: Option<&[f64]>, k: usize, n: usize) -> Result<Vec<f64>> {
+    let expected = n + k + 1;
+    let knots = knots.unwrap_or(&[]);
+    if knots.len() != expected {
+        return Err(Error::KnotCount { track: id.clone(), order: k, keys: n + 1, expected, found: knots.len() });
+    }
+    for (knot, &value) in knots.iter().enumerate() {
+        if !value.is_finite() {
+            return Err(Error::NonFiniteKnot { track: id.clone(), knot, value });
+        }
+        if knot > 0 && value < knots[knot - 1] {
+            return Err(Error::KnotsDecreasing { track: id.clone(), knot, value, previous: knots[knot - 1] });
+        }
+    }
+    let (start, end) = (knots[k - 1], knots[n + 1]);
+    if start >= end {
+        return Err(Error::EmptyDomain { track: id.clone(), first: k - 1, last: n + 1, start, end });
+    }
+    let mut run_start = 0;
+    for knot in 1..=knots.len() {
+        if knot < knots.len() && knots[knot] == knots[run_start] {
+            continue;
+        }
+        let multiplicity = knot - run_start;
+        let value = knots[run_start];
+        let inside = value > start && value < end;
+        let (max, place) = if inside { (k - 1, "inside the domain") } else { (k, "at or outside the domain ends") };
+        if multiplicity > max {
+            return Err(Error::KnotMultiplicity { track: id.clone(), knot: run_start, value, multiplicity, max, order: k, place });
+        }
+        run_start = knot;
+    }
+    Ok(knots.to_vec())
+}

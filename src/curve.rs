@@ -1,0 +1,129 @@
+//! The curve families and their options (DESIGN section 3), as the user chooses them.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// A curve family.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Curve {
+    /// Piecewise geodesic through the keys (glTF LINEAR). C0.
+    Slerp,
+    /// Shoemake's spherical quadrangle through the keys. C1 in the segment parameter.
+    Squad,
+    /// One KKS Bezier curve of degree n with the keys as control points.
+    Bezier,
+    /// Per-segment KKS cubic Hermite through the keys with end angular velocities. C1.
+    Hermite,
+    /// Per-segment Nam-Kim blend of two great arcs through the keys. C1.
+    NamKim,
+    /// KKS order-k B-spline with the keys as control points. C^(k-2), approximating.
+    BSpline,
+}
+
+/// How a B-spline's knot vector is made (DESIGN section 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum KnotMode {
+    /// KKS appendix uniform cubic B-spline with phantom end points; passes through the end keys.
+    Phantom,
+    /// Plain uniform knots (robotics convention).
+    Uniform,
+    /// End knots repeated k times; interpolates both end keys.
+    Clamped,
+    /// The track's own knot vector.
+    Explicit,
+}
+
+/// Where Hermite and Nam-Kim take their key angular velocities from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Tangents {
+    /// Non-uniform Catmull-Rom estimate from the neighbouring keys.
+    CatmullRom,
+    /// Zero angular velocity at every key.
+    Zero,
+    /// The track's `angular_velocities` (body frame, rad/s).
+    Given,
+}
+
+/// Nam-Kim's blend function `f(s)` with `f(0) = 0, f(1) = 1, f'(0) = f'(1) = 0`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Blend {
+    /// `f = 3 s^2 - 2 s^3`.
+    Cubic,
+    /// NK's piecewise quadratic: `2 s^2` then `1 - 2 (s - 1)^2`.
+    Quadratic,
+}
+
+/// Everything that selects and shapes a curve, besides the track data itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct CurveSpec {
+    /// The family.
+    pub curve: Curve,
+    /// B-spline order k (degree k - 1), 2..=8. Ignored by other families.
+    pub order: usize,
+    /// B-spline knot mode. Ignored by other families.
+    pub knots: KnotMode,
+    /// Tangent source for Hermite and Nam-Kim.
+    pub tangents: Tangents,
+    /// Blend function for Nam-Kim.
+    pub blend: Blend,
+}
+
+impl Default for CurveSpec {
+    /// The CLI defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend.
+    fn default() -> Self {
+        Self { curve: Curve::BSpline, order: 4, knots: KnotMode::Phantom, tangents: Tangents::CatmullRom, blend: Blend::Cubic }
+    }
+}
+
+impl CurveSpec {
+    /// A spec for `curve` with every other option at its default.
+    #[must_use]
+    pub fn new(curve: Curve) -> Self {
+        Self { curve, ..Self::default() }
+    }
+
+    /// Minimum key count for this spec (DESIGN section 3).
+    #[must_use]
+    pub fn min_keys(&self) -> usize {
+        match (self.curve, self.knots) {
+            (Curve::BSpline, KnotMode::Phantom) => 2,
+            (Curve::BSpline, _) => self.order,
+            _ => 2,
+        }
+    }
+}
+
+/// Names as the CLI and JSON spell them.
+macro_rules! names {
+    ($ty:ty, $what:literal, $($variant:ident => $name:literal),+ $(,)?) => {
+        impl $ty {
+            /// Every accepted name, in order.
+            pub const NAMES: &'static [&'static str] = &[$($name),+];
+
+            /// The name as the CLI spells it.
+            #[must_use]
+            pub fn name(self) -> &'static str {
+                match self { $(Self::$variant => $name),+ }
+            }
+        }
+        impl fmt::Display for $ty {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+        impl FromStr for $ty {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($name => Ok(Self::$variant),)+
+                    _ => Err(format!("unknown {} '{}' (expected one of: {})", $what, s, Self::NAMES.join(", "))),
+                }
+            }
+        }
+    };
+}
+
+names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim", BSpline => "bspline");
+names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");
+names!(Tangents, "tangent source", CatmullRom => "catmull-rom", Zero => "zero", Given => "given");
+names!(Blend, "blend", Cubic => "cubic", Quadratic => "quadratic");

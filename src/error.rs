@@ -1,0 +1,93 @@
+//! Errors of the library: every message names the track, the key (or sample) and the rule.
+
+use std::fmt;
+
+/// Identifies a track in messages: its index in the batch and, when it has one, its name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TrackId {
+    /// Position in the batch (0-based).
+    pub index: usize,
+    /// The track's `name`, if given.
+    pub name: Option<String>,
+}
+
+impl fmt::Display for TrackId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.name {
+            Some(name) => write!(f, "track {} \"{}\"", self.index, name),
+            None => write!(f, "track {}", self.index),
+        }
+    }
+}
+
+/// Why a batch could not be built or an evaluation job could not run.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Error {
+    /// The batch holds no track.
+    #[error("the batch is empty: at least one track is required")]
+    EmptyBatch,
+    /// A key quaternion has a NaN or infinite component.
+    #[error("{track}: key {key} is not finite ({value:?}); rotations must be finite numbers")]
+    NonFiniteKey { track: TrackId, key: usize, value: [f64; 4] },
+    /// A key quaternion is (nearly) zero and has no direction.
+    #[error("{track}: key {key} has norm {norm:e}, below 1e-6; a rotation key must be a non-zero quaternion")]
+    ZeroKey { track: TrackId, key: usize, norm: f64 },
+    /// Fewer keys than the curve needs.
+    #[error("{track}: {curve} needs at least {min} keys, got {found}")]
+    TooFewKeys { track: TrackId, curve: String, min: usize, found: usize },
+    /// `times` has a different length from `rotations`.
+    #[error("{track}: times has {found} entries but there are {expected} keys; give one time per key")]
+    TimesCount { track: TrackId, expected: usize, found: usize },
+    /// A key time is NaN or infinite.
+    #[error("{track}: time of key {key} is not finite ({value})")]
+    NonFiniteTime { track: TrackId, key: usize, value: f64 },
+    /// Key times do not strictly increase.
+    #[error("{track}: time of key {key} ({value}) is not greater than the time of key {} ({previous}); key times must strictly increase", key - 1)]
+    TimesNotIncreasing { track: TrackId, key: usize, value: f64, previous: f64 },
+    /// The knot mode needs uniformly spaced key times and they are not.
+    #[error("{track}: key {key} is at time {value} but {mode} knots need uniform times (expected {expected} within 1e-3 of the step)")]
+    NonUniformTimes { track: TrackId, key: usize, value: f64, expected: f64, mode: String },
+    /// An order outside 2..=8, or phantom knots with an order other than 4.
+    #[error("{track}: {reason}")]
+    BadOrder { track: TrackId, reason: String },
+    /// Explicit knots are missing or their count is wrong.
+    #[error("{track}: explicit knots for order {order} with {keys} keys need {expected} knots (n + k + 1), got {found}")]
+    KnotCount { track: TrackId, order: usize, keys: usize, expected: usize, found: usize },
+    /// A knot is NaN or infinite.
+    #[error("{track}: knot {knot} is not finite ({value})")]
+    NonFiniteKnot { track: TrackId, knot: usize, value: f64 },
+    /// Knots decrease.
+    #[error("{track}: knot {knot} ({value}) is smaller than knot {} ({previous}); knots must be non-decreasing", knot - 1)]
+    KnotsDecreasing { track: TrackId, knot: usize, value: f64, previous: f64 },
+    /// A knot value repeats too often.
+    #[error("{track}: knot {knot} (value {value}) has multiplicity {multiplicity}, more than {max} allowed {place} for order {order}")]
+    KnotMultiplicity { track: TrackId, knot: usize, value: f64, multiplicity: usize, max: usize, order: usize, place: &'static str },
+    /// The B-spline domain `[t_{k-1}, t_{n+1}]` is empty.
+    #[error("{track}: the curve's domain [knot {first}, knot {last}] = [{start}, {end}] is empty")]
+    EmptyDomain { track: TrackId, first: usize, last: usize, start: f64, end: f64 },
+    /// `angular_velocities` is needed and missing, or its length is wrong.
+    #[error("{track}: angular_velocities has {found} entries but there are {expected} keys (tangents = given needs one body angular velocity per key)")]
+    VelocityCount { track: TrackId, expected: usize, found: usize },
+    /// An angular velocity is NaN or infinite.
+    #[error("{track}: angular velocity of key {key} is not finite ({value:?})")]
+    NonFiniteVelocity { track: TrackId, key: usize, value: [f64; 3] },
+    /// `extra_turns` has the wrong length.
+    #[error("{track}: extra_turns has {found} entries but there are {expected} segments; give one integer per segment")]
+    ExtraTurnsCount { track: TrackId, expected: usize, found: usize },
+    /// An extra turn was asked on a segment whose middle coefficient has no axis.
+    #[error("{track}: segment {segment} (keys {segment}..{}) asks for {turns} extra turns but its middle rotation w2 is zero, so the turn axis is undefined", segment + 1)]
+    ExtraTurnOnZeroArc { track: TrackId, segment: usize, turns: i64 },
+    /// A sample time is NaN or infinite.
+    #[error("{track}: sample time {sample} is not finite ({value})")]
+    NonFiniteSampleTime { track: TrackId, sample: usize, value: f64 },
+    /// A sampling request that cannot produce samples.
+    #[error("{0}")]
+    BadSampling(String),
+    /// Output buffers or per-track sample lists do not match the batch.
+    #[error("{0}")]
+    BadJob(String),
+}
+
+/// Short-hand result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

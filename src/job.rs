@@ -1,0 +1,109 @@
+//! The evaluation job: borrowed inputs, `validate()`, then `run()` (the ozz-animation shape).
+
+use crate::batch::Batch;
+use crate::error::{Error, Result};
+use crate::reference;
+use crate::sampling::SampleTimes;
+
+/// Order of samples in the output arrays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Layout {
+    /// Track 0's samples, then track 1's, ...
+    #[default]
+    Track,
+    /// All tracks at frame 0, then all at frame 1, ... (an animation texture). Needs the same
+    /// sample count in every track.
+    Frame,
+}
+
+/// Evaluated samples; derivative arrays are empty unless requested.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Output {
+    /// Unit rotations `[x, y, z, w]`, sign-continuous within each track.
+    pub rotations: Vec<[f64; 4]>,
+    /// Body angular velocities (rad per unit time).
+    pub angular_velocity: Vec<[f64; 3]>,
+    /// Body angular accelerations.
+    pub angular_acceleration: Vec<[f64; 3]>,
+}
+
+/// Evaluates every track of a batch at its sample times with the f64 reference.
+#[derive(Clone, Copy, Debug)]
+pub struct EvalJob<'a> {
+    /// The packed tracks.
+    pub batch: &'a Batch,
+    /// Per-track sample times.
+    pub times: &'a SampleTimes,
+    /// Output order.
+    pub layout: Layout,
+    /// Whether to fill the derivative arrays.
+    pub derivatives: bool,
+}
+
+impl EvalJob<'_> {
+    /// Checks that the inputs fit together, before any work.
+    ///
+    /// # Errors
+    /// [`Error::EmptyBatch`], [`Error::BadJob`] when the sample lists do not match the batch or
+    /// a frame-major layout meets unequal sample counts, [`Error::NonFiniteSampleTime`].
+    pub fn validate(&self) -> Result<()> {
+        if self.batch.is_empty() {
+            return Err(Error::EmptyBatch);
+        }
+        if self.times.track_count() != self.batch.len() || self.times.offsets.last() != Some(&self.times.times.len()) {
+            return Err(Error::BadJob(format!(
+                "sample times cover {} tracks but the batch has {}",
+                self.times.track_count(),
+                self.batch.len()
+            )));
+        }
+        for index in 0..self.batch.len() {
+            let times = self.times.track(index);
+            if let Some(sample) = times.iter().position(|t| !t.is_finite()) {
+                let track = self.batch.ids[index].clone();
+                return Err(Error::NonFiniteSampleTime { track, sample, value: times[sample] });
+            }
+            if self.layout == Layout::Frame && times.len() != self.times.track(0).len() {
+                return Err(Error::BadJob(format!(
+                    "frame-major layout needs the same sample count in every track: {} has {}, {} has {}",
+                    self.batch.ids[0],
+                    self.times.track(0).len(),
+                    self.batch.ids[index],
+                    times.len()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Validates, then evaluates.
+    ///
+    /// # Errors
+    /// As [`EvalJob::validate`].
+    pub fn run(&self) -> Result<Output> {
+        self.validate()?;
+        let total = self.times.times.len();
+        let tracks = self.batch.len();
+        let mut out = Output { rotations: vec![[0.0; 4]; total], ..Output::default() };
+        if self.derivatives {
+            out.angular_velocity = vec![[0.0; 3]; total];
+            out.angular_acceleration = vec![[0.0; 3]; total];
+        }
+        for index in 0..tracks {
+            let view = self.batch.view(index);
+            for (j, &t) in self.times.track(index).iter().enumerate() {
+                let slot = match self.layout {
+                    Layout::Track => self.times.offsets[index] + j,
+                    Layout::Frame => j * tracks + index,
+                };
+                let sample = reference::evaluate(view, t);
+                out.rotations[slot] = sample.rotation.to_array();
+                if self.derivatives {
+                    out.angular_velocity[slot] = sample.angular_velocity.to_array();
+                    out.angular_acceleration[slot] = sample.angular_acceleration.to_array();
+                }
+            }
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,36 @@
+//! # quatcurve
+//!
+//! Smooth rotation curves for huge batches of animation tracks.
+//!
+//! The core is Kim, Kim & Shin's cumulative form (SIGGRAPH 1995):
+//! `q(t) = q_0 prod_i exp(w_i B~_i(t))` with `w_i = log(q_{i-1}^-1 q_i)`, which turns any
+//! Euclidean spline basis into a unit-quaternion curve with the same continuity, local control
+//! and closed-form derivatives. quatcurve evaluates slerp, squad, KKS Bezier, KKS Hermite,
+//! Nam-Kim great-arc blends and order-k KKS B-splines.
+//!
+//! Flow: user [`Track`]s -> [`BatchBuilder`] (validation, hemisphere alignment, coefficients,
+//! knots: done once, in f64) -> packed [`Batch`] -> an [`EvalJob`] with `validate()` then
+//! `run()`. Conventions (quaternion order `x, y, z, w`, half-angle exp/log, body-frame
+//! derivatives) are those of the project's DESIGN document and are summarized in the README.
+
+pub mod basis;
+pub mod batch;
+pub mod curve;
+pub mod error;
+pub mod io;
+pub mod job;
+pub mod quat;
+pub mod real;
+pub mod reference;
+pub mod sampling;
+pub mod segment;
+pub mod track;
+
+pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
+pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+pub use error::{Error, Result, TrackId};
+pub use job::{EvalJob, Layout, Output};
+pub use quat::{DQuat, DVec3, Quat, Vec3};
+pub use reference::{evaluate, Sample};
+pub use sampling::{SampleTimes, Sampling};
+pub use track::{Track, TrackFile};

@@ -1,0 +1,218 @@
+//! Scalars the quaternion math is generic over: `f64`, and [`Jet`], a second-order
+//! forward-mode dual number.
+//!
+//! Why generic: the KKS families have closed-form derivatives (DESIGN section 2), but squad
+//! and Nam-Kim are compositions of slerps whose derivatives are exact only through the chain
+//! rule. Writing the quaternion math once over [`Real`] and evaluating it on [`Jet`]s *is* that
+//! chain rule, applied mechanically, with no finite differences and no second copy of the math.
+
+use std::fmt::Debug;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// A real scalar: `f64` or a [`Jet`] carrying first and second derivatives.
+///
+/// Branch decisions (small-angle series, hemisphere folds) are taken on [`Real::value`], so a
+/// jet follows exactly the same formula as the plain value it carries.
+pub trait Real:
+    Copy
+    + Debug
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// A constant (zero derivatives).
+    fn cst(x: f64) -> Self;
+    /// The plain value, without derivatives.
+    fn value(self) -> f64;
+    /// Square root.
+    #[must_use]
+    fn sqrt(self) -> Self;
+    /// Sine.
+    #[must_use]
+    fn sin(self) -> Self;
+    /// Cosine.
+    #[must_use]
+    fn cos(self) -> Self;
+    /// Four-quadrant arctangent of `self / x`.
+    #[must_use]
+    fn atan2(self, x: Self) -> Self;
+    /// Multiplication by a plain constant.
+    #[must_use]
+    fn scale(self, k: f64) -> Self {
+        self * Self::cst(k)
+    }
+}
+
+impl Real for f64 {
+    #[inline]
+    fn cst(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline]
+    fn sin(self) -> Self {
+        f64::sin(self)
+    }
+    #[inline]
+    fn cos(self) -> Self {
+        f64::cos(self)
+    }
+    #[inline]
+    fn atan2(self, x: Self) -> Self {
+        f64::atan2(self, x)
+    }
+    #[inline]
+    fn scale(self, k: f64) -> Self {
+        self * k
+    }
+}
+
+/// A value with its first and second derivatives with respect to one parameter (time).
+///
+/// Arithmetic applies the product and chain rules, so any formula evaluated on jets yields
+/// its exact first and second derivatives (up to rounding).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Jet {
+    /// The value f(t).
+    pub v: f64,
+    /// The first derivative f'(t).
+    pub d: f64,
+    /// The second derivative f''(t).
+    pub dd: f64,
+}
+
+impl Jet {
+    /// The independent variable `t` itself (f' = 1, f'' = 0).
+    #[must_use]
+    pub fn variable(t: f64) -> Self {
+        Self { v: t, d: 1.0, dd: 0.0 }
+    }
+
+    /// Applies a scalar function given its value and first two derivatives at `self.v`.
+    #[inline]
+    fn chain(self, f: f64, f1: f64, f2: f64) -> Self {
+        Self { v: f, d: f1 * self.d, dd: f2 * self.d * self.d + f1 * self.dd }
+    }
+}
+
+impl Add for Jet {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self { v: self.v + o.v, d: self.d + o.d, dd: self.dd + o.dd }
+    }
+}
+
+impl Sub for Jet {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        Self { v: self.v - o.v, d: self.d - o.d, dd: self.dd - o.dd }
+    }
+}
+
+impl Neg for Jet {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        Self { v: -self.v, d: -self.d, dd: -self.dd }
+    }
+}
+
+impl Mul for Jet {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        Self {
+            v: self.v * o.v,
+            d: self.d * o.v + self.v * o.d,
+            dd: self.dd * o.v + 2.0 * self.d * o.d + self.v * o.dd,
+        }
+    }
+}
+
+impl Div for Jet {
+    type Output = Self;
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let r = 1.0 / o.v;
+        self * o.chain(r, -r * r, 2.0 * r * r * r)
+    }
+}
+
+impl Real for Jet {
+    #[inline]
+    fn cst(x: f64) -> Self {
+        Self { v: x, d: 0.0, dd: 0.0 }
+    }
+    #[inline]
+    fn value(self) -> f64 {
+        self.v
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        self.chain(s, 0.5 / s, -0.25 / (s * self.v))
+    }
+    #[inline]
+    fn sin(self) -> Self {
+        let (s, c) = self.v.sin_cos();
+        self.chain(s, c, -s)
+    }
+    #[inline]
+    fn cos(self) -> Self {
+        let (s, c) = self.v.sin_cos();
+        self.chain(c, -s, -c)
+    }
+    fn atan2(self, x: Self) -> Self {
+        // d/dt atan2(y, x) = (x y' - y x') / (x^2 + y^2); differentiate that quotient once more.
+        let y = self;
+        let r2 = x.v * x.v + y.v * y.v;
+        let num = x.v * y.d - y.v * x.d;
+        let num_d = x.v * y.dd - y.v * x.dd; // the x'y' terms cancel
+        let r2_d = 2.0 * (x.v * x.d + y.v * y.d);
+        Self { v: y.v.atan2(x.v), d: num / r2, dd: num_d / r2 - num * r2_d / (r2 * r2) }
+    }
+    #[inline]
+    fn scale(self, k: f64) -> Self {
+        Self { v: self.v * k, d: self.d * k, dd: self.dd * k }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Central differences of a scalar function: (f', f'').
+    fn fd(f: impl Fn(f64) -> f64, t: f64) -> (f64, f64) {
+        let h = 1e-4;
+        ((f(t + h) - f(t - h)) / (2.0 * h), (f(t + h) - 2.0 * f(t) + f(t - h)) / (h * h))
+    }
+
+    fn check(jet: Jet, f: impl Fn(f64) -> f64, t: f64) {
+        let (d, dd) = fd(&f, t);
+        assert!((jet.v - f(t)).abs() < 1e-14, "value {} vs {}", jet.v, f(t));
+        assert!((jet.d - d).abs() < 1e-7 * (1.0 + d.abs()), "d {} vs {d}", jet.d);
+        assert!((jet.dd - dd).abs() < 1e-5 * (1.0 + dd.abs()), "dd {} vs {dd}", jet.dd);
+    }
+
+    #[test]
+    fn jet_rules_match_finite_differences() {
+        for &t in &[0.3, 1.1, 2.5] {
+            let x = Jet::variable(t);
+            check(x * x.sin() / (x + Jet::cst(1.0)), |t| t * t.sin() / (t + 1.0), t);
+            check((x * x + Jet::cst(0.5)).sqrt().cos(), |t| (t * t + 0.5).sqrt().cos(), t);
+            check((x * x).sin().atan2(x.cos() - Jet::cst(2.0)), |t| (t * t).sin().atan2(t.cos() - 2.0), t);
+            check(-(x - x.scale(3.0)), |t| 2.0 * t, t);
+        }
+    }
+}

@@ -1,0 +1,53 @@
+//! Segment lookup and clamping: the one place that decides which piece of a curve a sample
+//! time falls in.
+
+/// Clamps `t` to `[knots[first], knots[last + 1]]` and returns `(span, t_clamped)` where
+/// `span` is the largest index in `first..=last` with `knots[span] <= t < knots[span + 1]`
+/// among non-empty spans; at the right end of the domain the last non-empty span is used
+/// (closed on the right), so a sample exactly at a knot belongs to the span that starts there.
+///
+/// Piecewise families pass their key times (`first = 0`, `last = n - 1`); B-splines of order
+/// `k` pass their knot vector (`first = k - 1`, `last = n`). NaN is clamped to the domain start.
+///
+/// # Preconditions
+/// `knots` is non-decreasing and `knots[first] < knots[last + 1]` (the builder checks both).
+#[must_use]
+pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) {
+    let lo = knots[first];
+    let hi = knots[last + 1];
+    let t = if t >= lo { t.min(hi) } else { lo };
+    // Count of knots[first..=last] that are <= t is at least 1 because t >= knots[first].
+    let below = knots[first..=last].partition_point(|&k| k <= t);
+    let mut span = first + below - 1;
+    while knots[span] == knots[span + 1] && span > first {
+        span -= 1;
+    }
+    (span, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::locate;
+
+    #[test]
+    fn spans_are_right_open_except_the_last() {
+        let times = [0.0, 1.0, 2.0, 4.0];
+        assert_eq!(locate(&times, 0, 2, -5.0), (0, 0.0));
+        assert_eq!(locate(&times, 0, 2, 0.0), (0, 0.0));
+        assert_eq!(locate(&times, 0, 2, 1.0), (1, 1.0));
+        assert_eq!(locate(&times, 0, 2, 3.9), (2, 3.9));
+        assert_eq!(locate(&times, 0, 2, 4.0), (2, 4.0));
+        assert_eq!(locate(&times, 0, 2, 9.0), (2, 4.0));
+        assert_eq!(locate(&times, 0, 2, f64::NAN), (0, 0.0));
+    }
+
+    #[test]
+    fn repeated_knots_skip_empty_spans() {
+        // Order 3, n = 5: domain [knots[2], knots[6]] = [0, 3]; knot 2 has multiplicity 2.
+        let knots = [0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 3.0, 3.0, 3.0];
+        assert_eq!(locate(&knots, 2, 5, 2.0), (5, 2.0));
+        assert_eq!(locate(&knots, 2, 5, 1.999), (3, 1.999));
+        assert_eq!(locate(&knots, 2, 5, 3.0), (5, 3.0));
+        assert_eq!(locate(&knots, 2, 5, 0.0), (2, 0.0));
+    }
+}
