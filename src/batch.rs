@@ -14,7 +14,7 @@
 //! | slerp   | keys              | key times               | `w_i`, i = 1..=n                        |
 //! | squad   | keys              | key times               | auxiliary quaternion `s_i` (xyzw), per key |
 //! | bezier  | keys              | `[tau_0, tau_n]`        | `w_i`, i = 1..=n                        |
-//! | hermite | keys              | key times               | `w1, w2, w3` per segment; `w2.extra` = segment sign (+-1) |
+//! | hermite | keys              | key times               | `w1, w2, w3` per segment; `w2.extra` = start sign (+-1) |
 //! | nam-kim | keys              | key times               | `a, b` per segment (half angle per unit segment parameter) |
 //! | bspline | control points    | full knot vector (n+k+1) | `w_i`, i = 1..=m over control points  |
 
@@ -329,9 +329,9 @@ fn key_velocities(id: &TrackId, track: &Track, tangents: Tangents, keys: &[DQuat
 /// `w2 = log(q_1^-1 q_2)` with `q_1 = q_a exp(w1)`, `q_2 = q_b exp(-w3)` folded to the short
 /// way, plus `pi * m` along its axis for `m` extra turns.
 ///
-/// When the fold negates `q_2`, the product ends on `-q_b`; the segment then records sign -1
-/// (in `w2`'s fourth slot) so the evaluator multiplies by it and the curve still ends on `+q_b`,
-/// keeping the output sign-continuous from segment to segment.
+/// When the fold negates `q_2`, the segment's product runs from `q_a` to `-q_b`. To keep the
+/// output sign-continuous, segment `i` starts from `sigma_i q_i` where `sigma_i` is the product
+/// of the fold signs of segments `0..i`, stored in `w2`'s fourth slot. Rotations are unchanged.
 fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], omega: &[DVec3]) -> Result<Vec<[f64; 4]>> {
     let n = keys.len() - 1;
     let turns = match &track.extra_turns {
@@ -342,6 +342,7 @@ fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], ome
         None => vec![0; n],
     };
     let mut coefs = Vec::with_capacity(3 * n);
+    let mut start_sign = 1.0;
     for i in 0..n {
         let half_t = 0.5 * (times[i + 1] - times[i]);
         let w1 = omega[i].scale(half_t / 3.0);
@@ -358,8 +359,9 @@ fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], ome
             w2 = w2 + w2.scale(PI * turns[i] as f64 / len);
         }
         coefs.push([w1.x, w1.y, w1.z, 0.0]);
-        coefs.push([w2.x, w2.y, w2.z, sign]);
+        coefs.push([w2.x, w2.y, w2.z, start_sign]);
         coefs.push([w3.x, w3.y, w3.z, 0.0]);
+        start_sign *= sign;
     }
     Ok(coefs)
 }

@@ -274,6 +274,14 @@ impl<R: Real> Quat<R> {
         self * Self::exp(rel.mul_scalar(h))
     }
 
+    /// The geodesic `self * exp(h log(self^-1 end))` with no hemisphere fold: it ends exactly
+    /// on `end` (not `-end`) and varies continuously when `end` moves across the equator of
+    /// `self`. Nam-Kim's blend uses it (see [`crate::reference`]).
+    #[must_use]
+    pub fn geodesic(self, end: Self, h: R) -> Self {
+        self * Self::exp((self.conjugate() * end).log().mul_scalar(h))
+    }
+
     /// Rotates a vector: `self v self^-1` (for unit `self`).
     #[must_use]
     pub fn rotate(self, v: Vec3<R>) -> Vec3<R> {

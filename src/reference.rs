@@ -6,6 +6,15 @@
 //! DESIGN section 2. Squad and Nam-Kim are compositions of shortest-path slerps; their
 //! derivatives come from evaluating the same closed form on [`Jet`]s (exact differentiation by
 //! the chain rule, see [`crate::real`]).
+//!
+//! Squad's three slerps and Nam-Kim's blend use the *unfolded* geodesic
+//! ([`Quat::geodesic`]), as Shoemake and NK eq. 3 write them (`log` with `th = arccos w in
+//! [0, pi]`), on keys already made sign-continuous and squad points `s_i` in `q_i`'s
+//! hemisphere. A shortest-path fold inside a blend flips wherever its two moving endpoints
+//! drift more than a quarter turn apart (near-antipodal keys, large velocities), tearing the
+//! curve mid-segment; unfolded, each segment is continuous and ends exactly on `+q_{i+1}`.
+//! Both rules give the same curve whenever those endpoints stay within a quarter turn, which
+//! covers ordinary animation data.
 
 use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
 use crate::batch::TrackView;
@@ -109,9 +118,9 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
             let u = (t - knots[i]) / len;
             let basis = bernstein_cumulative(3, u);
             let seg = &coefs[3 * i..3 * i + 3];
-            let sign = seg[1][3];
+            let start_sign = seg[1][3];
             let factors = seg.iter().zip(basis).map(|(&c, b)| Factor { v: coef_vec(c), b: per_time(b, len) });
-            cumulative_product(points[i].mul_scalar(sign), factors)
+            cumulative_product(points[i].mul_scalar(start_sign), factors)
         }
         Curve::BSpline => {
             let k = track.order;
@@ -126,9 +135,9 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
             let (i, t, len) = key_segment(knots, t);
             let h = (Jet::variable(t) - Jet::cst(knots[i])).scale(1.0 / len);
             let lift = Quat::<Jet>::from_f64;
-            let path = lift(points[i]).slerp(lift(points[i + 1]), h);
-            let aux = lift(coef_quat(coefs[i])).slerp(lift(coef_quat(coefs[i + 1])), h);
-            sample_from_jets(path.slerp(aux, (h - h * h).scale(2.0)))
+            let path = lift(points[i]).geodesic(lift(points[i + 1]), h);
+            let aux = lift(coef_quat(coefs[i])).geodesic(lift(coef_quat(coefs[i + 1])), h);
+            sample_from_jets(path.geodesic(aux, (h - h * h).scale(2.0)))
         }
         Curve::NamKim => {
             let (i, t, len) = key_segment(knots, t);
@@ -136,7 +145,7 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
             let (a, b) = (coef_vec(coefs[2 * i]), coef_vec(coefs[2 * i + 1]));
             let c1 = Quat::from_f64(points[i]) * Quat::exp(Vec3::from_f64(a).mul_scalar(s));
             let c2 = Quat::from_f64(points[i + 1]) * Quat::exp(Vec3::from_f64(b).mul_scalar(s - Jet::cst(1.0)));
-            sample_from_jets(c1.slerp(c2, blend(track.blend, s)))
+            sample_from_jets(c1.geodesic(c2, blend(track.blend, s)))
         }
     }
 }
@@ -180,7 +189,7 @@ pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: us
     (0..=steps)
         .map(|j| {
             let f = blend(view.track.blend, j as f64 / steps as f64);
-            forward[j].slerp(backward[j], f)
+            forward[j].geodesic(backward[j], f)
         })
         .collect()
 }

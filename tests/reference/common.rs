@@ -1,0 +1,230 @@
+//! Shared generators and oracles for the reference tests.
+
+use quatcurve::{Batch, CurveSpec, DQuat, DVec3, Sample, Track};
+
+/// SplitMix64: a tiny deterministic generator, so each proptest case is one `u64` seed and
+/// adversarial track shapes are plain functions.
+pub struct Gen(u64);
+
+impl Gen {
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.unit()
+    }
+    pub fn direction(&mut self) -> DVec3 {
+        loop {
+            let v = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+            let len = v.length();
+            if len > 0.1 && len <= 1.0 {
+                return v.scale(1.0 / len);
+            }
+        }
+    }
+    pub fn rotation(&mut self) -> DQuat {
+        let d = self.direction();
+        DQuat::exp(d.scale(self.range(0.0, std::f64::consts::PI)))
+    }
+    pub fn coin(&mut self) -> bool {
+        self.next_u64() & 1 == 1
+    }
+}
+
+/// How consecutive keys relate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Kind {
+    /// Steps of 0 to 140 degrees about random axes.
+    Random,
+    /// Steps of 1e-9 to 1e-6 rad.
+    NearIdentical,
+    /// Steps of 170 to 179.9 degrees.
+    NearAntipodal,
+    /// Random steps, each key given with a random sign.
+    SignFlipped,
+}
+
+pub const KINDS: [Kind; 4] = [Kind::Random, Kind::NearIdentical, Kind::NearAntipodal, Kind::SignFlipped];
+
+/// `count` keys whose consecutive physical rotation steps follow `kind`.
+pub fn keys(g: &mut Gen, count: usize, kind: Kind) -> Vec<[f64; 4]> {
+    let mut q = g.rotation();
+    let mut out = vec![q.to_array()];
+    for _ in 1..count {
+        let angle = match kind {
+            Kind::Random | Kind::SignFlipped => g.range(0.0, 140f64.to_radians()),
+            Kind::NearIdentical => 10f64.powf(g.range(-9.0, -6.0)),
+            Kind::NearAntipodal => g.range(170f64.to_radians(), 179.9f64.to_radians()),
+        };
+        q = q * DQuat::exp(g.direction().scale(angle / 2.0));
+        let sign = if kind == Kind::SignFlipped && g.coin() { -1.0 } else { 1.0 };
+        out.push(q.mul_scalar(sign).to_array());
+    }
+    if kind == Kind::SignFlipped && g.coin() {
+        out[0] = DQuat::from_array(out[0]).mul_scalar(-1.0).to_array();
+    }
+    out
+}
+
+/// Strictly increasing key times: uniform steps or random ones in [0.2, 1.5].
+pub fn times(g: &mut Gen, count: usize, uniform: bool) -> Vec<f64> {
+    let start = g.range(-1.0, 1.0);
+    let dt = g.range(0.2, 1.5);
+    let mut t = start;
+    (0..count)
+        .map(|i| {
+            if i > 0 {
+                t += if uniform { dt } else { g.range(0.2, 1.5) };
+            }
+            if uniform {
+                start + dt * i as f64
+            } else {
+                t
+            }
+        })
+        .collect()
+}
+
+/// Body angular velocities with magnitude up to `max` rad/s.
+pub fn velocities(g: &mut Gen, count: usize, max: f64) -> Vec<[f64; 3]> {
+    (0..count).map(|_| g.direction().scale(g.range(0.0, max)).to_array()).collect()
+}
+
+/// A random track for `spec`: key count within the curve's needs, times uniform where the
+/// knot mode needs them, velocities up to 20 rad/s, explicit knots with repeats when asked.
+pub fn track(g: &mut Gen, spec: &CurveSpec, count: usize, kind: Kind) -> Track {
+    use quatcurve::{Curve, KnotMode};
+    let uniform = spec.curve == Curve::BSpline && matches!(spec.knots, KnotMode::Phantom | KnotMode::Uniform);
+    let times = times(g, count, uniform);
+    let knots = (spec.curve == Curve::BSpline && spec.knots == KnotMode::Explicit).then(|| explicit_knots(g, spec.order, count));
+    Track {
+        name: Some(format!("{kind:?}")),
+        times: Some(times),
+        rotations: keys(g, count, kind),
+        angular_velocities: Some(velocities(g, count, 20.0)),
+        knots,
+        extra_turns: None,
+        sample_times: None,
+    }
+}
+
+/// A valid explicit knot vector for `count` control points of order `k`, with some interior
+/// knots repeated (multiplicity up to k - 1) and clamped or open ends at random.
+pub fn explicit_knots(g: &mut Gen, k: usize, count: usize) -> Vec<f64> {
+    let len = count + k;
+    let mut knots = Vec::with_capacity(len);
+    let mut t = g.range(-1.0, 1.0);
+    let clamp = g.coin();
+    while knots.len() < len {
+        let interior = knots.len() >= k && knots.len() < count;
+        let run = if clamp && (knots.is_empty() || knots.len() + k >= len) {
+            k.min(len - knots.len())
+        } else if interior && g.range(0.0, 1.0) < 0.3 {
+            (1 + (g.next_u64() % (k as u64 - 1)) as usize).min(len - knots.len())
+        } else {
+            1
+        };
+        for _ in 0..run {
+            knots.push(t);
+        }
+        t += g.range(0.2, 1.2);
+    }
+    knots
+}
+
+/// Times strictly inside each segment `[b_j, b_{j+1}]` of `bounds` (non-empty ones only),
+/// at fractions away from the ends so finite-difference stencils stay inside, and away from
+/// the middle, where Nam-Kim's quadratic blend is only C1 by construction.
+pub fn interior_times(bounds: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    for w in bounds.windows(2) {
+        if w[1] > w[0] {
+            for f in [0.07, 0.31, 0.45, 0.55, 0.77, 0.93] {
+                out.push(w[0] + f * (w[1] - w[0]));
+            }
+        }
+    }
+    out
+}
+
+/// The segment boundaries inside a track's domain: key times, or distinct knots in the domain.
+pub fn segment_bounds(batch: &Batch, index: usize) -> Vec<f64> {
+    let view = batch.view(index);
+    let [lo, hi] = view.track.domain;
+    let mut b: Vec<f64> = view.knots.iter().copied().filter(|&t| t >= lo && t <= hi).collect();
+    b.dedup();
+    b
+}
+
+/// Body angular velocity and acceleration of `curve` at `t` from finite differences of the
+/// quaternion (stencil aligned with q(t)): five-point central differences at `h` and `h/2`
+/// combined by Richardson extrapolation (error O(h^6)), then `W = q^-1 q'`,
+/// `W' = q^-1 q'' - W^2`.
+pub fn finite_difference(curve: impl Fn(f64) -> DQuat, t: f64, h: f64) -> (DVec3, DVec3) {
+    let q0 = curve(t);
+    let at = |dt: f64| curve(t + dt).aligned_with(q0);
+    let stencil = |h: f64| {
+        let (m2, m1, p1, p2) = (at(-2.0 * h), at(-h), at(h), at(2.0 * h));
+        let d1 = (m2 - p2 + (p1 - m1).mul_scalar(8.0)).mul_scalar(1.0 / (12.0 * h));
+        let d2 = ((p1 + m1).mul_scalar(16.0) - (p2 + m2) - q0.mul_scalar(30.0)).mul_scalar(1.0 / (12.0 * h * h));
+        (d1, d2)
+    };
+    let ((a1, a2), (b1, b2)) = (stencil(h), stencil(h / 2.0));
+    let richardson = |coarse: DQuat, fine: DQuat| (fine.mul_scalar(16.0) - coarse).mul_scalar(1.0 / 15.0);
+    let (d1, d2) = (richardson(a1, b1), richardson(a2, b2));
+    let w = q0.conjugate() * d1;
+    let w_dot = q0.conjugate() * d2 - w * w;
+    (w.vec().scale(2.0), w_dot.vec().scale(2.0))
+}
+
+/// Derivative of a vector function by Richardson-extrapolated five-point central differences.
+pub fn derivative(f: impl Fn(f64) -> DVec3, t: f64, h: f64) -> DVec3 {
+    let stencil = |h: f64| (f(t - 2.0 * h) - f(t + 2.0 * h) + (f(t + h) - f(t - h)).scale(8.0)).scale(1.0 / (12.0 * h));
+    (stencil(h / 2.0).scale(16.0) - stencil(h)).scale(1.0 / 15.0)
+}
+
+/// DESIGN section 6 relative error: `max|a - b| / max(1, max|b|)`.
+pub fn rel_err(a: DVec3, b: DVec3) -> f64 {
+    (a - b).max_abs() / b.max_abs().max(1.0)
+}
+
+/// Evaluates track `index` of `batch` at `t`.
+pub fn eval(batch: &Batch, index: usize, t: f64) -> Sample {
+    quatcurve::evaluate(batch.view(index), t)
+}
+
+/// Every curve spec the reference supports: all families, tangent sources, blends, and
+/// B-spline orders 2..=8 with every knot mode.
+pub fn all_specs() -> Vec<CurveSpec> {
+    use quatcurve::{Blend, Curve, KnotMode, Tangents};
+    let mut specs = vec![CurveSpec::new(Curve::Slerp), CurveSpec::new(Curve::Squad), CurveSpec::new(Curve::Bezier)];
+    for tangents in [Tangents::CatmullRom, Tangents::Zero, Tangents::Given] {
+        specs.push(CurveSpec { tangents, ..CurveSpec::new(Curve::Hermite) });
+        for blend in [Blend::Cubic, Blend::Quadratic] {
+            specs.push(CurveSpec { tangents, blend, ..CurveSpec::new(Curve::NamKim) });
+        }
+    }
+    specs.push(CurveSpec::new(Curve::BSpline));
+    for order in 2..=8 {
+        for knots in [KnotMode::Uniform, KnotMode::Clamped, KnotMode::Explicit] {
+            specs.push(CurveSpec { order, knots, ..CurveSpec::new(Curve::BSpline) });
+        }
+    }
+    specs
+}
+
+/// A readable name for a spec in failure messages.
+pub fn describe(spec: &CurveSpec) -> String {
+    format!("{} k={} knots={} tangents={} blend={}", spec.curve, spec.order, spec.knots, spec.tangents, spec.blend)
+}

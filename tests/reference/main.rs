@@ -1,0 +1,11 @@
+//! Tests of the f64 reference evaluator against the mathematics (one test binary).
+
+mod common;
+
+mod bspline;
+mod families;
+mod hermite;
+mod nam_kim;
+mod single_axis;
+mod squad_slerp;
+mod validation;

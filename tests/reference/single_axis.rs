@@ -1,0 +1,168 @@
+//! When every key rotates about one fixed axis, each KKS family is `exp(phi(t) u)` where
+//! `phi` is the scalar spline of the key half-angles with the same basis (KKS section 4).
+//! The scalar splines here are independent textbook algorithms (de Casteljau, de Boor,
+//! cubic Hermite), not the crate's cumulative bases.
+
+use crate::common::Gen;
+use proptest::prelude::*;
+use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode, Tangents, Track};
+
+fn de_casteljau(points: &[f64], u: f64) -> f64 {
+    let mut p = points.to_vec();
+    for r in 1..p.len() {
+        for j in 0..p.len() - r {
+            p[j] = (1.0 - u) * p[j] + u * p[j + 1];
+        }
+    }
+    p[0]
+}
+
+/// de Boor's algorithm for a scalar B-spline of order `k` on `knots` (domain
+/// `[knots[k-1], knots[n+1]]`, last span closed).
+fn de_boor(points: &[f64], knots: &[f64], k: usize, t: f64) -> f64 {
+    let n = points.len() - 1;
+    let p = k - 1;
+    let mut l = k - 1;
+    for j in (k - 1)..=n {
+        if knots[j] <= t && knots[j] < knots[j + 1] {
+            l = j;
+        }
+    }
+    let mut d: Vec<f64> = (0..=p).map(|j| points[j + l - p]).collect();
+    for r in 1..=p {
+        for j in (r..=p).rev() {
+            let a = (t - knots[j + l - p]) / (knots[j + 1 + l - r] - knots[j + l - p]);
+            d[j] = (1.0 - a) * d[j - 1] + a * d[j];
+        }
+    }
+    d[p]
+}
+
+fn hermite(p0: f64, p1: f64, m0: f64, m1: f64, len: f64, u: f64) -> f64 {
+    let (u2, u3) = (u * u, u * u * u);
+    (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * len * m0 + (-2.0 * u3 + 3.0 * u2) * p1 + (u3 - u2) * len * m1
+}
+
+/// The scalar spline of `phi` for `spec`, as DESIGN section 3 defines the time parameterization.
+fn scalar_curve(spec: &CurveSpec, phi: &[f64], times: &[f64], rates: &[f64], knots: Option<&[f64]>, t: f64) -> f64 {
+    let n = phi.len() - 1;
+    let (t0, tn) = (times[0], times[n]);
+    let seg = |t: f64| (0..n).rev().find(|&i| times[i] <= t).unwrap_or(0);
+    match spec.curve {
+        Curve::Slerp => {
+            let i = seg(t);
+            let u = (t - times[i]) / (times[i + 1] - times[i]);
+            phi[i] + u * (phi[i + 1] - phi[i])
+        }
+        Curve::Bezier => de_casteljau(phi, (t - t0) / (tn - t0)),
+        Curve::Hermite => {
+            let i = seg(t);
+            let len = times[i + 1] - times[i];
+            hermite(phi[i], phi[i + 1], rates[i], rates[i + 1], len, (t - times[i]) / len)
+        }
+        Curve::BSpline => {
+            let k = spec.order;
+            let dt = (tn - t0) / n as f64;
+            match spec.knots {
+                KnotMode::Phantom => {
+                    let mut c = vec![2.0 * phi[0] - phi[1]];
+                    c.extend_from_slice(phi);
+                    c.push(2.0 * phi[n] - phi[n - 1]);
+                    let kv: Vec<f64> = (0..n + 7).map(|j| t0 + (j as f64 - 3.0) * dt).collect();
+                    de_boor(&c, &kv, 4, t)
+                }
+                KnotMode::Uniform => {
+                    let kv: Vec<f64> = (0..=n + k).map(|j| t0 + (j as f64 - (k as f64 - 1.0)) * dt).collect();
+                    de_boor(phi, &kv, k, t)
+                }
+                KnotMode::Clamped => {
+                    let inner = n + 2 - k;
+                    let mut kv = vec![t0; k];
+                    kv.extend((1..inner).map(|j| t0 + j as f64 * (tn - t0) / inner as f64));
+                    kv.extend(vec![tn; k]);
+                    de_boor(phi, &kv, k, t)
+                }
+                KnotMode::Explicit => de_boor(phi, knots.unwrap(), k, t),
+            }
+        }
+        Curve::Squad | Curve::NamKim => unreachable!("not KKS families"),
+    }
+}
+
+fn check(seed: u64, spec: CurveSpec) -> Result<(), TestCaseError> {
+    let mut g = Gen::new(seed);
+    let count = spec.min_keys().max(2) + (g.next_u64() % 6) as usize;
+    let count = if spec.curve == Curve::Bezier { count.min(9) } else { count };
+    let axis = g.direction();
+    let mut phi = vec![g.range(-3.0, 3.0)];
+    for _ in 1..count {
+        let last = *phi.last().unwrap();
+        phi.push(last + g.range(-1.4, 1.4));
+    }
+    let rates: Vec<f64> = (0..count).map(|_| g.range(-10.0, 10.0)).collect();
+    let uniform = spec.curve == Curve::BSpline && matches!(spec.knots, KnotMode::Phantom | KnotMode::Uniform);
+    let times = crate::common::times(&mut g, count, uniform);
+    let knots = (spec.knots == KnotMode::Explicit).then(|| crate::common::explicit_knots(&mut g, spec.order, count));
+    let track = Track {
+        name: Some("axis".into()),
+        times: Some(times.clone()),
+        // Some keys given with the opposite sign: alignment must undo it.
+        rotations: phi.iter().map(|&p| DQuat::exp(axis.scale(p)).mul_scalar(if g.coin() { -1.0 } else { 1.0 }).to_array()).collect(),
+        angular_velocities: Some(rates.iter().map(|&r| axis.scale(2.0 * r).to_array()).collect()),
+        knots: knots.clone(),
+        ..Track::default()
+    };
+    // KKS Hermite folds w2 into (-pi/2, pi/2]; the scalar Hermite's middle step
+    // Delta = phi_1 - phi_0 - T (m_0 + m_1) / 3 is reached with the matching extra turns.
+    let track = if spec.curve == Curve::Hermite {
+        let turns = (0..count - 1)
+            .map(|i| {
+                let len = times[i + 1] - times[i];
+                let delta = phi[i + 1] - phi[i] - len * (rates[i] + rates[i + 1]) / 3.0;
+                let m = (delta / std::f64::consts::PI).round();
+                let folded = delta - m * std::f64::consts::PI;
+                (m * folded.signum()) as i64
+            })
+            .collect();
+        Track { extra_turns: Some(turns), ..track }
+    } else {
+        track
+    };
+    let batch = Batch::from_tracks(&[track], &spec).unwrap();
+    let [lo, hi] = batch.tracks[0].domain;
+    for i in 0..=200 {
+        let t = lo + (hi - lo) * i as f64 / 200.0;
+        let q = quatcurve::evaluate(batch.view(0), t).rotation;
+        let scalar = scalar_curve(&spec, &phi, &times, &rates, knots.as_deref(), t);
+        let expected = DQuat::exp(axis.scale(scalar));
+        let err = q.angle_to(expected);
+        prop_assert!(err < 1e-12, "{spec:?}: t={t} off the scalar spline by {err:e} rad");
+    }
+    Ok(())
+}
+
+fn kks_specs() -> Vec<CurveSpec> {
+    let mut specs = vec![
+        CurveSpec::new(Curve::Slerp),
+        CurveSpec::new(Curve::Bezier),
+        CurveSpec { tangents: Tangents::Given, ..CurveSpec::new(Curve::Hermite) },
+        CurveSpec::new(Curve::BSpline),
+    ];
+    for order in 2..=8 {
+        for knots in [KnotMode::Uniform, KnotMode::Clamped, KnotMode::Explicit] {
+            specs.push(CurveSpec { order, knots, ..CurveSpec::new(Curve::BSpline) });
+        }
+    }
+    specs
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+    #[test]
+    fn kks_families_equal_the_scalar_spline_on_one_axis(seed in any::<u64>()) {
+        for spec in kks_specs() {
+            check(seed, spec)?;
+        }
+    }
+}
