@@ -1,0 +1,152 @@
+//! `quatcurve eval` end to end: files in, files out, values checked; exit codes and messages.
+
+use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Tangents, Track, TrackFile};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn quatcurve(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_quatcurve")).args(args).output().expect("binary runs")
+}
+
+fn write_tracks(dir: &Path, tracks: &[Track]) -> String {
+    let path = dir.join("tracks.json");
+    std::fs::write(&path, serde_json::to_string(&TrackFile { tracks: tracks.to_vec() }).unwrap()).unwrap();
+    path.display().to_string()
+}
+
+fn sample_tracks() -> Vec<Track> {
+    let keys = |phase: f64| -> Vec<[f64; 4]> {
+        (0..5).map(|i| DQuat::exp(DVec3::new(0.3 * (i as f64 + phase).sin(), 0.2 * i as f64, 0.1)).to_array()).collect()
+    };
+    vec![
+        Track {
+            name: Some("hips".into()),
+            times: Some(vec![0.0, 0.5, 1.0, 1.5, 2.0]),
+            angular_velocities: Some(vec![[0.5, 0.0, -2.0]; 5]),
+            ..Track::from_rotations(keys(0.0))
+        },
+        Track {
+            name: Some("spine".into()),
+            angular_velocities: Some(vec![[0.0, 1.0, 0.0]; 5]),
+            sample_times: Some(vec![3.0, -1.0, 0.25]),
+            ..Track::from_rotations(keys(1.0))
+        },
+    ]
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn eval_writes_json_that_matches_the_library() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracks = sample_tracks();
+    let input = write_tracks(dir.path(), &tracks);
+    let output = dir.path().join("out.json");
+    let out = quatcurve(&[
+        "eval", "--input", &input, "--output", output.to_str().unwrap(), "--curve", "hermite", "--tangents", "given",
+        "--samples", "7", "--derivatives", "--device", "reference",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
+    assert_eq!(doc["curve"], "hermite");
+    assert_eq!(doc["device"], "reference");
+    let spec = CurveSpec { tangents: Tangents::Given, ..CurveSpec::new(Curve::Hermite) };
+    let batch = Batch::from_tracks(&tracks, &spec).unwrap();
+    // Track 0: 7 samples over [0, 2]; track 1: its own sample_times, echoed unclamped.
+    let expected_times = [vec![0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0, 4.0 / 3.0, 5.0 / 3.0, 2.0], vec![3.0, -1.0, 0.25]];
+    for (i, times) in expected_times.iter().enumerate() {
+        let t = &doc["tracks"][i];
+        assert_eq!(t["name"], ["hips", "spine"][i]);
+        let got_times: Vec<f64> = serde_json::from_value(t["times"].clone()).unwrap();
+        assert_eq!(got_times.len(), times.len());
+        for (j, &time) in times.iter().enumerate() {
+            assert!((got_times[j] - time).abs() < 1e-15);
+            let s = quatcurve::evaluate(batch.view(i), got_times[j]);
+            let q: [f64; 4] = serde_json::from_value(t["rotations"][j].clone()).unwrap();
+            assert_eq!(q, s.rotation.to_array(), "JSON must round-trip f64 exactly");
+            let w: [f64; 3] = serde_json::from_value(t["angular_velocity"][j].clone()).unwrap();
+            assert_eq!(w, s.angular_velocity.to_array());
+            let a: [f64; 3] = serde_json::from_value(t["angular_acceleration"][j].clone()).unwrap();
+            assert_eq!(a, s.angular_acceleration.to_array());
+        }
+    }
+}
+
+#[test]
+fn eval_rate_sampling_and_no_derivative_fields_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_tracks(dir.path(), &sample_tracks()[..1]);
+    let out = quatcurve(&["eval", "--input", &input, "--curve", "slerp", "--rate", "4"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let times: Vec<f64> = serde_json::from_value(doc["tracks"][0]["times"].clone()).unwrap();
+    assert_eq!(times, vec![0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0]);
+    assert!(doc["tracks"][0].get("angular_velocity").is_none());
+}
+
+#[test]
+fn eval_defaults_run_on_the_built_in_demo() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("demo.json");
+    let out = quatcurve(&["eval", "--output", output.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("built-in demo"));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
+    assert_eq!(doc["curve"], "bspline");
+    assert_eq!(doc["tracks"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn bad_input_exits_2_naming_file_track_and_key_and_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut tracks = sample_tracks();
+    tracks[1].rotations[3] = [0.0, 0.0, 0.0, 0.0];
+    let input = write_tracks(dir.path(), &tracks);
+    let output = dir.path().join("out.json");
+    std::fs::write(&output, "previous result").unwrap();
+    let out = quatcurve(&["eval", "--input", &input, "--output", output.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let msg = stderr(&out);
+    assert!(msg.contains("tracks.json") && msg.contains("track 1 \"spine\"") && msg.contains("key 3"), "{msg}");
+    assert_eq!(msg.lines().count(), 1, "one line: {msg}");
+    assert_eq!(std::fs::read_to_string(&output).unwrap(), "previous result", "old output must survive");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(leftovers.len(), 2, "no temporary file left: {leftovers:?}");
+}
+
+#[test]
+fn malformed_json_and_missing_file_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.json");
+    std::fs::write(&path, "{\"tracks\": [{\"rotations\": [[0, 0, 0, 1], [0, 0]]}]}").unwrap();
+    let out = quatcurve(&["eval", "--input", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("broken.json") && stderr(&out).contains("line 1"), "{}", stderr(&out));
+    let out = quatcurve(&["eval", "--input", dir.path().join("absent.json").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("absent.json"), "{}", stderr(&out));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    for args in [
+        &["eval", "--curve", "spiral"][..],
+        &["eval", "--samples", "3", "--rate", "4"],
+        &["eval", "--samples", "0"],
+        &["eval", "--rate", "-2"],
+        &["eval", "--curve", "bspline", "--order", "5"],
+    ] {
+        let out = quatcurve(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+    }
+}
+
+#[test]
+fn unavailable_device_exits_1_without_fallback() {
+    let out = quatcurve(&["eval", "--device", "gpu"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("gpu"), "{}", stderr(&out));
+    assert!(out.stdout.is_empty(), "no silent fallback output");
+}
