@@ -62,7 +62,7 @@ pub struct TrackResult<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub name: Option<&'a str>,
     /// The requested times, before clamping.
-    pub times: &'a [f64],
+    pub times: Vec<f64>,
     /// Rotations `[x, y, z, w]`.
     pub rotations: &'a [[f64; 4]],
     /// Body angular velocities, with `--derivatives`.
@@ -96,7 +96,7 @@ impl<'a> ResultFile<'a> {
                 let range = times.offsets[i]..times.offsets[i + 1];
                 TrackResult {
                     name: track.name.as_deref(),
-                    times: times.track(i),
+                    times: times.track_times(i),
                     rotations: &out.rotations[range.clone()],
                     angular_velocity: derivs.then(|| &out.angular_velocity[range.clone()]),
                     angular_acceleration: derivs.then(|| &out.angular_acceleration[range]),

@@ -3,7 +3,7 @@
 use crate::batch::Batch;
 use crate::error::{Error, Result};
 use crate::reference;
-use crate::sampling::SampleTimes;
+use crate::sampling::{SampleTimes, TrackTimes};
 
 /// Order of samples in the output arrays.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -50,26 +50,32 @@ impl EvalJob<'_> {
         if self.batch.is_empty() {
             return Err(Error::EmptyBatch);
         }
-        if self.times.track_count() != self.batch.len() || self.times.offsets.last() != Some(&self.times.times.len()) {
+        if self.times.track_count() != self.batch.len() || self.times.offsets.len() != self.batch.len() + 1 {
             return Err(Error::BadJob(format!(
                 "sample times cover {} tracks but the batch has {}",
                 self.times.track_count(),
                 self.batch.len()
             )));
         }
-        for index in 0..self.batch.len() {
-            let times = self.times.track(index);
-            if let Some(sample) = times.iter().position(|t| !t.is_finite()) {
-                let track = self.batch.ids[index].clone();
-                return Err(Error::NonFiniteSampleTime { track, sample, value: times[sample] });
+        for (index, times) in self.times.tracks.iter().enumerate() {
+            if let TrackTimes::Explicit { offset, count } = *times {
+                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| {
+                    Error::BadJob(format!("{}: explicit sample times out of range", self.batch.ids[index]))
+                })?;
+                if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
+                    let track = self.batch.ids[index].clone();
+                    return Err(Error::NonFiniteSampleTime { track, sample, value: own[sample] });
+                }
             }
-            if self.layout == Layout::Frame && times.len() != self.times.track(0).len() {
+        }
+        let first = self.times.count(0);
+        if self.layout == Layout::Frame {
+            if let Some(index) = (0..self.batch.len()).find(|&i| self.times.count(i) != first) {
                 return Err(Error::BadJob(format!(
-                    "frame-major layout needs the same sample count in every track: {} has {}, {} has {}",
+                    "frame-major layout needs the same sample count in every track: {} has {first}, {} has {}",
                     self.batch.ids[0],
-                    self.times.track(0).len(),
                     self.batch.ids[index],
-                    times.len()
+                    self.times.count(index)
                 )));
             }
         }
@@ -82,7 +88,7 @@ impl EvalJob<'_> {
     /// As [`EvalJob::validate`].
     pub fn run(&self) -> Result<Output> {
         self.validate()?;
-        let total = self.times.times.len();
+        let total = self.times.total();
         let tracks = self.batch.len();
         let mut out = Output { rotations: vec![[0.0; 4]; total], ..Output::default() };
         if self.derivatives {
@@ -91,7 +97,8 @@ impl EvalJob<'_> {
         }
         for index in 0..tracks {
             let view = self.batch.view(index);
-            for (j, &t) in self.times.track(index).iter().enumerate() {
+            for j in 0..self.times.count(index) {
+                let t = self.times.time(index, j);
                 let slot = match self.layout {
                     Layout::Track => self.times.offsets[index] + j,
                     Layout::Frame => j * tracks + index,

@@ -150,7 +150,7 @@ fn eval(args: &EvalArgs) -> Result<(), Failure> {
             eprintln!(
                 "evaluated {} tracks, {} samples ({} on {device}) from {source} -> {}",
                 batch.len(),
-                times.times.len(),
+                times.total(),
                 args.curve,
                 path.display()
             );

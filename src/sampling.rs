@@ -1,4 +1,8 @@
 //! Which times each track is sampled at (DESIGN section 5).
+//!
+//! Uniform sampling is kept as `(start, step, count)` rather than a list of times, so that a
+//! batch of millions of samples costs nothing to describe and a GPU can generate its own
+//! times; tracks with their own `sample_times` keep an explicit list.
 
 use crate::batch::Batch;
 use crate::error::{Error, Result};
@@ -16,44 +20,77 @@ pub enum Sampling {
     Rate(f64),
 }
 
-/// Sample times of every track, packed CSR style like the batch.
+/// One track's sample times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TrackTimes {
+    /// `start + j * step` for `j < count`; with `last` set, the final sample is exactly `last`.
+    Uniform {
+        /// First sample time.
+        start: f64,
+        /// Spacing.
+        step: f64,
+        /// Number of samples.
+        count: usize,
+        /// Exact time of the final sample when it must land on the domain end (`--samples`).
+        last: Option<f64>,
+    },
+    /// `SampleTimes::explicit[offset..offset + count]`.
+    Explicit {
+        /// First entry in the explicit list.
+        offset: usize,
+        /// Number of samples.
+        count: usize,
+    },
+}
+
+impl TrackTimes {
+    /// Number of samples.
+    #[must_use]
+    pub fn count(&self) -> usize {
+        match *self {
+            TrackTimes::Uniform { count, .. } | TrackTimes::Explicit { count, .. } => count,
+        }
+    }
+}
+
+/// Sample times of every track of a batch.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SampleTimes {
-    /// `offsets[i]..offsets[i + 1]` indexes track `i`'s times; `len = tracks + 1`.
+    /// Per-track description, in batch order.
+    pub tracks: Vec<TrackTimes>,
+    /// `offsets[i]..offsets[i + 1]` is track `i`'s range in track-major output; `len = tracks + 1`.
     pub offsets: Vec<usize>,
-    /// All sample times, track after track.
-    pub times: Vec<f64>,
+    /// Times of tracks with their own lists.
+    pub explicit: Vec<f64>,
 }
 
 impl Sampling {
-    /// The sample times over `[start, end]`.
+    /// The uniform sampling of `[start, end]`.
     ///
     /// # Errors
     /// [`Error::BadSampling`] for `Count(0)`, a rate that is not finite and positive, or more
     /// than [`MAX_SAMPLES_PER_TRACK`] samples.
-    pub fn times(self, start: f64, end: f64) -> Result<Vec<f64>> {
+    pub fn over(self, start: f64, end: f64) -> Result<TrackTimes> {
         let span = end - start;
         match self {
             Sampling::Count(0) => Err(Error::BadSampling("--samples must be at least 1".into())),
             Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => {
                 Err(Error::BadSampling(format!("--samples {n} is more than {MAX_SAMPLES_PER_TRACK} per track")))
             }
-            Sampling::Count(1) => Ok(vec![start]),
-            Sampling::Count(n) => Ok((0..n)
-                .map(|i| if i + 1 == n { end } else { start + span * i as f64 / (n - 1) as f64 })
-                .collect()),
+            Sampling::Count(1) => Ok(TrackTimes::Uniform { start, step: 0.0, count: 1, last: None }),
+            Sampling::Count(n) => Ok(TrackTimes::Uniform { start, step: span / (n - 1) as f64, count: n, last: Some(end) }),
             Sampling::Rate(hz) if !(hz.is_finite() && hz > 0.0) => {
                 Err(Error::BadSampling(format!("--rate must be a positive number of samples per second, got {hz}")))
             }
             Sampling::Rate(hz) => {
-                // A relative slack of 1e-9 keeps the end when i / hz lands a rounding error past it.
+                // A relative slack of 1e-9 keeps the end when j / hz lands a rounding error past it.
                 let count = (span * hz * (1.0 + 1e-9)).floor() + 1.0;
                 if count > MAX_SAMPLES_PER_TRACK as f64 {
                     return Err(Error::BadSampling(format!(
                         "--rate {hz} gives {count} samples over a domain of {span}, more than {MAX_SAMPLES_PER_TRACK} per track"
                     )));
                 }
-                Ok((0..count as usize).map(|i| start + i as f64 / hz).collect())
+                Ok(TrackTimes::Uniform { start, step: 1.0 / hz, count: count as usize, last: None })
             }
         }
     }
@@ -64,22 +101,25 @@ impl SampleTimes {
     /// else `sampling` over the track's domain. `overrides` may be shorter than the batch.
     ///
     /// # Errors
-    /// As [`Sampling::times`], and [`Error::NonFiniteSampleTime`] for a NaN or infinite
+    /// As [`Sampling::over`], and [`Error::NonFiniteSampleTime`] for a NaN or infinite
     /// override, naming the track and sample.
     pub fn new(batch: &Batch, overrides: &[Option<&[f64]>], sampling: Sampling) -> Result<Self> {
-        let mut out = SampleTimes { offsets: vec![0], times: Vec::new() };
+        let mut out = SampleTimes { offsets: vec![0], ..Self::default() };
         for (index, track) in batch.tracks.iter().enumerate() {
-            match overrides.get(index).copied().flatten() {
+            let times = match overrides.get(index).copied().flatten() {
                 Some(own) => {
                     if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
                         let (track, value) = (batch.ids[index].clone(), own[sample]);
                         return Err(Error::NonFiniteSampleTime { track, sample, value });
                     }
-                    out.times.extend_from_slice(own);
+                    let offset = out.explicit.len();
+                    out.explicit.extend_from_slice(own);
+                    TrackTimes::Explicit { offset, count: own.len() }
                 }
-                None => out.times.extend(sampling.times(track.domain[0], track.domain[1])?),
-            }
-            out.offsets.push(out.times.len());
+                None => sampling.over(track.domain[0], track.domain[1])?,
+            };
+            out.offsets.push(out.offsets[index] + times.count());
+            out.tracks.push(times);
         }
         Ok(out)
     }
@@ -87,20 +127,44 @@ impl SampleTimes {
     /// The same `sampling` for every track.
     ///
     /// # Errors
-    /// As [`Sampling::times`].
+    /// As [`Sampling::over`].
     pub fn uniform(batch: &Batch, sampling: Sampling) -> Result<Self> {
         Self::new(batch, &[], sampling)
     }
 
-    /// Track `index`'s times.
+    /// Sample `j` of track `index`.
     #[must_use]
-    pub fn track(&self, index: usize) -> &[f64] {
-        &self.times[self.offsets[index]..self.offsets[index + 1]]
+    pub fn time(&self, index: usize, j: usize) -> f64 {
+        match self.tracks[index] {
+            TrackTimes::Uniform { start, step, count, last } => match last {
+                Some(end) if j + 1 == count => end,
+                _ => start + j as f64 * step,
+            },
+            TrackTimes::Explicit { offset, .. } => self.explicit[offset + j],
+        }
+    }
+
+    /// All of track `index`'s times.
+    #[must_use]
+    pub fn track_times(&self, index: usize) -> Vec<f64> {
+        (0..self.count(index)).map(|j| self.time(index, j)).collect()
+    }
+
+    /// Number of samples of track `index`.
+    #[must_use]
+    pub fn count(&self, index: usize) -> usize {
+        self.tracks[index].count()
     }
 
     /// Number of tracks covered.
     #[must_use]
     pub fn track_count(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
+        self.tracks.len()
+    }
+
+    /// Total number of samples.
+    #[must_use]
+    pub fn total(&self) -> usize {
+        self.offsets.last().copied().unwrap_or(0)
     }
 }
