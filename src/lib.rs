@@ -16,6 +16,7 @@
 pub mod basis;
 pub mod batch;
 pub mod curve;
+pub mod gpu;
 pub mod error;
 pub mod io;
 pub mod job;

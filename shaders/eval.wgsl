@@ -1,0 +1,271 @@
+// The batch evaluation kernel: the twin of src/reference.rs. One invocation per sample.
+// The packed batch is the reference's, converted to f32 (times and knots as double-floats).
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+// Curve codes (checked against the Rust side by a test).
+const CURVE_SLERP: u32 = 0u;
+const CURVE_SQUAD: u32 = 1u;
+const CURVE_BEZIER: u32 = 2u;
+const CURVE_HERMITE: u32 = 3u;
+const CURVE_NAM_KIM: u32 = 4u;
+const CURVE_BSPLINE: u32 = 5u;
+const ANY_CURVE: u32 = 255u;
+const BLEND_QUADRATIC: u32 = 1u;
+
+// GpuTrack.flags bits.
+const FLAG_EXPLICIT_TIMES: u32 = 1u;
+const FLAG_HAS_LAST: u32 = 2u;
+
+/// Specialization: evaluate only this curve (ANY_CURVE: switch per track).
+override ONLY_CURVE: u32 = 255u;
+/// Whether to compute and write angular velocity and acceleration.
+override DERIVATIVES: bool = true;
+/// Whether to write the 3x3 rotation matrix.
+override MATRIX: bool = false;
+
+struct Params {
+    sample_count: u32,
+    track_count: u32,
+    channels: u32,
+    frame_major: u32,
+    groups_x: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+struct GpuTrack {
+    curve: u32,
+    order: u32,
+    blend: u32,
+    flags: u32,
+    point_offset: u32,
+    point_count: u32,
+    coef_offset: u32,
+    knot_offset: u32,
+    knot_count: u32,
+    sample_offset: u32,
+    sample_count: u32,
+    time_offset: u32,
+    // Uniform sampling start and exact last sample, 32.32 fixed point (low word first).
+    start_lo: u32,
+    start_hi: u32,
+    last_lo: u32,
+    last_hi: u32,
+    // The sample step in 32.64 fixed point.
+    step_whole: u32,
+    step_frac_hi: u32,
+    step_frac_lo: u32,
+    pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> tracks: array<GpuTrack>;
+@group(0) @binding(2) var<storage, read> points: array<vec4f>;
+@group(0) @binding(3) var<storage, read> coefs: array<vec4f>;
+@group(0) @binding(4) var<storage, read> knots: array<vec2u>;
+@group(0) @binding(5) var<storage, read> times: array<vec2u>;
+@group(0) @binding(6) var<storage, read_write> out: array<f32>;
+
+struct Sample {
+    q: vec4f,
+    omega: vec3f,
+    alpha: vec3f,
+}
+
+/// Sample j's time: explicit, the exact domain end, or start + j * step (exact integers).
+fn sample_time(tr: GpuTrack, j: u32) -> vec2u {
+    if (tr.flags & FLAG_EXPLICIT_TIMES) != 0u {
+        return times[tr.time_offset + j];
+    }
+    if (tr.flags & FLAG_HAS_LAST) != 0u && j + 1u == tr.sample_count {
+        return vec2u(tr.last_lo, tr.last_hi);
+    }
+    return time_step(vec2u(tr.start_lo, tr.start_hi), j, tr.step_whole, tr.step_frac_hi, tr.step_frac_lo);
+}
+
+/// Running state of a cumulative product q_s prod exp(v_j b_j) with W = q^-1 q' and W'.
+struct Product {
+    q: vec4f,
+    w: vec3f,
+    w_dot: vec3f,
+}
+
+fn product_start(q: vec4f) -> Product {
+    return Product(q, vec3f(0.0), vec3f(0.0));
+}
+
+/// One factor exp(v b): W_j = A^-1 W A + v b', W_j' = A^-1 W' A + 2 (A^-1 W A) x (v b') + v b''.
+fn product_step(p: Product, v: vec3f, b: vec3f) -> Product {
+    let a = quat_exp(v * b.x);
+    if !DERIVATIVES {
+        return Product(quat_mul(p.q, a), p.w, p.w_dot);
+    }
+    let a_inv = quat_conjugate(a);
+    let carried = quat_rotate(a_inv, p.w);
+    let spin = v * b.y;
+    let w_dot = quat_rotate(a_inv, p.w_dot) + 2.0 * cross(carried, spin) + v * b.z;
+    return Product(quat_mul(p.q, a), carried + spin, w_dot);
+}
+
+fn product_sample(p: Product) -> Sample {
+    return Sample(p.q, 2.0 * p.w, 2.0 * p.w_dot);
+}
+
+fn sample_from_jets(q: JetQuat) -> Sample {
+    let inv = quat_conjugate(q.v);
+    let w = quat_mul(inv, q.d);
+    let w_dot = quat_mul(inv, q.dd) - quat_mul(w, w);
+    return Sample(q.v, 2.0 * w.xyz, 2.0 * w_dot.xyz);
+}
+
+/// Segment of a piecewise track: index, local parameter u, 1 / segment length.
+struct Piece {
+    i: u32,
+    u: f32,
+    inv_len: f32,
+}
+
+fn key_segment(tr: GpuTrack, t: vec2u) -> Piece {
+    let loc = locate(tr.knot_offset, 0u, tr.knot_count - 2u, t);
+    let k0 = knot(tr.knot_offset, loc.span);
+    let len = time_sub(knot(tr.knot_offset, loc.span + 1u), k0);
+    return Piece(loc.span, time_sub(loc.t, k0) / len, 1.0 / len);
+}
+
+fn eval_slerp(tr: GpuTrack, t: vec2u) -> Sample {
+    let s = key_segment(tr, t);
+    let p = product_start(points[tr.point_offset + s.i]);
+    return product_sample(product_step(p, coefs[tr.coef_offset + s.i].xyz, vec3f(s.u, s.inv_len, 0.0)));
+}
+
+fn eval_bezier(tr: GpuTrack, t: vec2u) -> Sample {
+    let s = key_segment(tr, t);
+    var basis: array<vec3f, 32>;
+    bernstein_cumulative(tr.order, s.u, &basis);
+    let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
+    var p = product_start(points[tr.point_offset]);
+    for (var i = 0u; i < tr.order; i++) {
+        p = product_step(p, coefs[tr.coef_offset + i].xyz, basis[i] * scale);
+    }
+    return product_sample(p);
+}
+
+fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
+    let s = key_segment(tr, t);
+    var basis: array<vec3f, 32>;
+    bernstein_cumulative(3u, s.u, &basis);
+    let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
+    let c = tr.coef_offset + 3u * s.i;
+    let start_sign = coefs[c + 1u].w;
+    var p = product_start(points[tr.point_offset + s.i] * start_sign);
+    for (var j = 0u; j < 3u; j++) {
+        p = product_step(p, coefs[c + j].xyz, basis[j] * scale);
+    }
+    return product_sample(p);
+}
+
+fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
+    let k = tr.order;
+    let m = tr.point_count - 1u;
+    let loc = locate(tr.knot_offset, k - 1u, m, t);
+    let l = loc.span;
+    var basis: array<vec3f, 7>;
+    bspline_cumulative(tr.knot_offset, k, l, loc.t, &basis);
+    let first = l + 2u - k;
+    var p = product_start(points[tr.point_offset + l + 1u - k]);
+    for (var r = 0u; r + 1u < k; r++) {
+        p = product_step(p, coefs[tr.coef_offset + first + r - 1u].xyz, basis[r]);
+    }
+    return product_sample(p);
+}
+
+fn eval_squad(tr: GpuTrack, t: vec2u) -> Sample {
+    let s = key_segment(tr, t);
+    let h = vec3f(s.u, s.inv_len, 0.0);
+    let q0 = jet_quat_const(points[tr.point_offset + s.i]);
+    let q1 = jet_quat_const(points[tr.point_offset + s.i + 1u]);
+    let s0 = jet_quat_const(coefs[tr.coef_offset + s.i]);
+    let s1 = jet_quat_const(coefs[tr.coef_offset + s.i + 1u]);
+    let path = jet_quat_geodesic(q0, q1, h);
+    let aux = jet_quat_geodesic(s0, s1, h);
+    return sample_from_jets(jet_quat_geodesic(path, aux, 2.0 * (h - jet_mul(h, h))));
+}
+
+fn blend(kind: u32, s: vec3f) -> vec3f {
+    if kind == BLEND_QUADRATIC {
+        if s.x <= 0.5 {
+            return 2.0 * jet_mul(s, s);
+        }
+        let r = s - jet_const(1.0);
+        return jet_const(1.0) - 2.0 * jet_mul(r, r);
+    }
+    return jet_mul(jet_mul(s, s), jet_const(3.0) - 2.0 * s);
+}
+
+fn eval_nam_kim(tr: GpuTrack, t: vec2u) -> Sample {
+    let seg = key_segment(tr, t);
+    let s = vec3f(seg.u, seg.inv_len, 0.0);
+    let a = coefs[tr.coef_offset + 2u * seg.i].xyz;
+    let b = coefs[tr.coef_offset + 2u * seg.i + 1u].xyz;
+    let c1 = jet_quat_mul(jet_quat_const(points[tr.point_offset + seg.i]), jet_quat_exp(jet_vec_from(a, s)));
+    let c2 = jet_quat_mul(jet_quat_const(points[tr.point_offset + seg.i + 1u]), jet_quat_exp(jet_vec_from(b, s - jet_const(1.0))));
+    return sample_from_jets(jet_quat_geodesic(c1, c2, blend(tr.blend, s)));
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index) local: u32) {
+    let g = (group.y * params.groups_x + group.x) * WORKGROUP_SIZE + local;
+    if g >= params.sample_count {
+        return;
+    }
+    // The track of sample g: the last one whose first sample is <= g.
+    var a = 0u;
+    var b = params.track_count - 1u;
+    while a < b {
+        let mid = (a + b + 1u) / 2u;
+        if tracks[mid].sample_offset <= g {
+            a = mid;
+        } else {
+            b = mid - 1u;
+        }
+    }
+    let tr = tracks[a];
+    let j = g - tr.sample_offset;
+    let t = sample_time(tr, j);
+    let curve = select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE);
+    var s: Sample;
+    switch curve {
+        case CURVE_SLERP: { s = eval_slerp(tr, t); }
+        case CURVE_SQUAD: { s = eval_squad(tr, t); }
+        case CURVE_BEZIER: { s = eval_bezier(tr, t); }
+        case CURVE_HERMITE: { s = eval_hermite(tr, t); }
+        case CURVE_NAM_KIM: { s = eval_nam_kim(tr, t); }
+        default: { s = eval_bspline(tr, t); }
+    }
+    let slot = select(g, j * params.track_count + a, params.frame_major != 0u);
+    var o = slot * params.channels;
+    out[o] = s.q.x;
+    out[o + 1u] = s.q.y;
+    out[o + 2u] = s.q.z;
+    out[o + 3u] = s.q.w;
+    o += 4u;
+    if DERIVATIVES {
+        out[o] = s.omega.x;
+        out[o + 1u] = s.omega.y;
+        out[o + 2u] = s.omega.z;
+        out[o + 3u] = s.alpha.x;
+        out[o + 4u] = s.alpha.y;
+        out[o + 5u] = s.alpha.z;
+        o += 6u;
+    }
+    if MATRIX {
+        let m = quat_to_mat3(s.q);
+        for (var r = 0u; r < 3u; r++) {
+            out[o + 3u * r] = m[r].x;
+            out[o + 3u * r + 1u] = m[r].y;
+            out[o + 3u * r + 2u] = m[r].z;
+        }
+    }
+}

@@ -1,0 +1,443 @@
+//! [`GpuEvaluator`]: device and pipelines made once, then any number of batch evaluations.
+
+use super::layout::{self, Chunk, GpuTrack, Params, ANY_CURVE};
+use super::shader;
+use super::GpuError;
+use crate::batch::Batch;
+use crate::job::{Layout, Output};
+use crate::sampling::SampleTimes;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use wgpu::util::DeviceExt;
+
+/// What to evaluate besides rotations, and in which order.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Output order.
+    pub layout: Layout,
+    /// Also write body angular velocity and acceleration.
+    pub derivatives: bool,
+    /// Also write the 3x3 rotation matrix (row-major).
+    pub matrix: bool,
+    /// Use the generic kernel (a switch per track) even for single-family batches; the default
+    /// specializes the kernel to the family when the whole batch has one.
+    pub generic_kernel: bool,
+}
+
+/// Host result: `samples x channels` floats in the requested layout. Per sample: rotation
+/// `x, y, z, w`, then with derivatives `omega`, `alpha`, then with a matrix its 9 entries.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuOutput {
+    /// Floats per sample.
+    pub channels: usize,
+    /// The samples.
+    pub data: Vec<f32>,
+}
+
+impl GpuOutput {
+    /// Converts to the reference's [`Output`] (f64, rotations and derivatives).
+    #[must_use]
+    pub fn to_output(&self, derivatives: bool) -> Output {
+        let mut out = Output::default();
+        for row in self.data.chunks_exact(self.channels) {
+            let r = |i: usize| f64::from(row[i]);
+            out.rotations.push([r(0), r(1), r(2), r(3)]);
+            if derivatives {
+                out.angular_velocity.push([r(4), r(5), r(6)]);
+                out.angular_acceleration.push([r(7), r(8), r(9)]);
+            }
+        }
+        out
+    }
+}
+
+/// Pipelines are specialized by these override constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct PipelineKey {
+    only_curve: u32,
+    derivatives: bool,
+    matrix: bool,
+}
+
+/// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch.
+pub struct GpuEvaluator {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter_name: String,
+    module: wgpu::ShaderModule,
+    bind_group_layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
+    workgroup_size: u32,
+    binding_limit: u64,
+    max_groups_per_dim: u32,
+    lost: Arc<Mutex<Option<String>>>,
+}
+
+impl std::fmt::Debug for GpuEvaluator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuEvaluator").field("adapter", &self.adapter_name).field("binding_limit", &self.binding_limit).finish()
+    }
+}
+
+impl GpuEvaluator {
+    /// Picks the best adapter (high performance first; software adapters such as lavapipe
+    /// count) and creates a device of its own.
+    ///
+    /// # Errors
+    /// [`GpuError::NoAdapter`] when there is none, [`GpuError::Device`] when the device
+    /// cannot be created.
+    pub fn new() -> Result<Self, GpuError> {
+        pollster::block_on(async {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+            let adapter = instance
+                .request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..wgpu::RequestAdapterOptions::default()
+                })
+                .await
+                .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+            let info = adapter.get_info();
+            let (device, queue) = adapter
+                .request_device(&wgpu::DeviceDescriptor {
+                    label: Some("quatcurve"),
+                    required_limits: adapter.limits(),
+                    ..wgpu::DeviceDescriptor::default()
+                })
+                .await
+                .map_err(|e| GpuError::Device(e.to_string()))?;
+            // Errors outside our error scopes must not abort the process (wgpu's default).
+            device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
+            let name = format!("{} ({:?})", info.name, info.backend);
+            Self::build(device, queue, name)
+        })
+    }
+
+    /// Embeds in an existing wgpu application: uses its device and queue (and leaves its
+    /// uncaptured-error handler alone; this evaluator reports through error scopes).
+    ///
+    /// # Errors
+    /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
+    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter_name: impl Into<String>) -> Result<Self, GpuError> {
+        Self::build(device, queue, adapter_name.into())
+    }
+
+    fn build(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String) -> Result<Self, GpuError> {
+        let (naga_module, _) = shader::module().map_err(GpuError::Shader)?;
+        let workgroup_size = shader::workgroup_size(&naga_module).map_err(GpuError::Shader)?;
+        let limits = device.limits();
+        let scope = ErrorScope::push(&device);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("quatcurve eval"),
+            source: wgpu::ShaderSource::Wgsl(shader::source().into()),
+        });
+        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("quatcurve eval"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1, true),
+                storage(2, true),
+                storage(3, true),
+                storage(4, true),
+                storage(5, true),
+                storage(6, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("quatcurve eval"),
+            bind_group_layouts: &[Some(&bind_group_layout)],
+            immediate_size: 0,
+        });
+        scope.pop()?;
+        let lost = Arc::new(Mutex::new(None));
+        let flag = lost.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            *flag.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!("{reason:?}: {message}"));
+        });
+        Ok(Self {
+            device,
+            queue,
+            adapter_name,
+            module,
+            bind_group_layout,
+            pipeline_layout,
+            pipelines: Mutex::new(HashMap::new()),
+            workgroup_size,
+            binding_limit: u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size),
+            max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
+            lost,
+        })
+    }
+
+    /// The adapter's name, as the CLI reports it (`gpu: <name>`).
+    #[must_use]
+    pub fn adapter_name(&self) -> &str {
+        &self.adapter_name
+    }
+
+    /// The device, for creating buffers that [`GpuEvaluator::evaluate_into`] fills.
+    #[must_use]
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The queue the evaluator submits to.
+    #[must_use]
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The largest buffer binding used (bytes); batches above it are split into chunks.
+    #[must_use]
+    pub fn binding_limit(&self) -> u64 {
+        self.binding_limit
+    }
+
+    /// Lowers the binding limit used for chunking, e.g. to exercise chunking in tests.
+    #[must_use]
+    pub fn with_binding_limit(mut self, bytes: u64) -> Self {
+        self.binding_limit = self.binding_limit.min(bytes);
+        self
+    }
+
+    /// Evaluates every track at its sample times and reads the result back.
+    ///
+    /// # Errors
+    /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
+    /// mismatched inputs, device errors as [`GpuError::Device`] or [`GpuError::DeviceLost`].
+    pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
+        let channels = layout::channels(options.derivatives, options.matrix);
+        let mut data = vec![0.0f32; times.total() * channels];
+        let chunks = self.plan(batch, times, options, channels)?;
+        for chunk in &chunks {
+            let bytes = (chunk.samples * channels * 4) as u64;
+            let output = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("quatcurve output"),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            self.dispatch(chunk, batch, options, channels, &output)?;
+            let local = self.read_back(&output, bytes)?;
+            scatter(&local, chunk, times, options.layout, channels, &mut data);
+        }
+        Ok(GpuOutput { channels, data })
+    }
+
+    /// Evaluates into a caller's buffer (usage `STORAGE`) without reading back, for engines
+    /// that consume the samples on the GPU. The buffer receives `samples x channels` f32 in
+    /// the requested layout, starting at offset 0.
+    ///
+    /// # Errors
+    /// As [`GpuEvaluator::evaluate`], and [`GpuError::Job`] when the buffer is too small or
+    /// the batch needs more than one binding (evaluate it in parts, or use `evaluate`).
+    pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, target: &wgpu::Buffer) -> Result<(), GpuError> {
+        let channels = layout::channels(options.derivatives, options.matrix);
+        let needed = (times.total() * channels * 4) as u64;
+        if target.size() < needed {
+            return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));
+        }
+        let chunks = self.plan(batch, times, options, channels)?;
+        if chunks.len() != 1 {
+            return Err(GpuError::Job(format!(
+                "the batch needs {} bindings of at most {} bytes; evaluate_into takes one",
+                chunks.len(),
+                self.binding_limit
+            )));
+        }
+        self.dispatch(&chunks[0], batch, options, channels, target)?;
+        self.wait()
+    }
+
+    fn plan(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, channels: usize) -> Result<Vec<Chunk>, GpuError> {
+        let job = crate::EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives };
+        job.validate().map_err(|e| GpuError::Job(e.to_string()))?;
+        layout::plan_chunks(batch, times, channels, self.binding_limit).map_err(GpuError::Pack)
+    }
+
+    fn pipeline(&self, key: PipelineKey) -> Result<wgpu::ComputePipeline, GpuError> {
+        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = cache.get(&key) {
+            return Ok(p.clone());
+        }
+        let scope = ErrorScope::push(&self.device);
+        let constants = [
+            ("ONLY_CURVE", f64::from(key.only_curve)),
+            ("DERIVATIVES", f64::from(u8::from(key.derivatives))),
+            ("MATRIX", f64::from(u8::from(key.matrix))),
+        ];
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("quatcurve eval"),
+            layout: Some(&self.pipeline_layout),
+            module: &self.module,
+            entry_point: Some(shader::ENTRY_POINT),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
+            cache: None,
+        });
+        scope.pop()?;
+        cache.insert(key, pipeline.clone());
+        Ok(pipeline)
+    }
+
+    fn dispatch(&self, chunk: &Chunk, batch: &Batch, options: &GpuOptions, channels: usize, output: &wgpu::Buffer) -> Result<(), GpuError> {
+        self.check_lost()?;
+        let tracks = &batch.tracks[chunk.first_track..chunk.first_track + chunk.tracks.len()];
+        let single = tracks.iter().all(|t| t.curve == tracks[0].curve);
+        let only_curve = if single && !options.generic_kernel { layout::curve_code(tracks[0].curve) } else { ANY_CURVE };
+        let pipeline = self.pipeline(PipelineKey { only_curve, derivatives: options.derivatives, matrix: options.matrix })?;
+        let groups = (chunk.samples as u64).div_ceil(u64::from(self.workgroup_size));
+        let groups_x = groups.min(u64::from(self.max_groups_per_dim)).max(1) as u32;
+        let groups_y = groups.div_ceil(u64::from(groups_x)).max(1);
+        if groups_y > u64::from(self.max_groups_per_dim) {
+            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", chunk.samples)));
+        }
+        let params = Params {
+            sample_count: chunk.samples as u32,
+            track_count: chunk.tracks.len() as u32,
+            channels: channels as u32,
+            frame_major: u32::from(options.layout == Layout::Frame),
+            groups_x,
+            ..Params::default()
+        };
+        let scope = ErrorScope::push(&self.device);
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            // Bindings may not be empty: pad to 16 bytes.
+            let mut bytes = contents.to_vec();
+            bytes.resize(bytes.len().max(16), 0);
+            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &bytes, usage })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let buffers = [
+            init("params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
+            init("tracks", bytemuck::cast_slice::<GpuTrack, u8>(&chunk.tracks), storage),
+            init("points", bytemuck::cast_slice(&chunk.points), storage),
+            init("coefs", bytemuck::cast_slice(&chunk.coefs), storage),
+            init("knots", bytemuck::cast_slice(&chunk.knots), storage),
+            init("times", bytemuck::cast_slice(&chunk.times), storage),
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry<'_>> =
+            buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+        entries.push(wgpu::BindGroupEntry { binding: 6, resource: output.as_entire_binding() });
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("quatcurve eval"),
+            layout: &self.bind_group_layout,
+            entries: &entries,
+        });
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve eval"), timestamp_writes: None });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(groups_x, groups_y as u32, 1);
+        }
+        self.queue.submit([encoder.finish()]);
+        scope.pop()
+    }
+
+    fn read_back(&self, output: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
+        if bytes == 0 {
+            return Ok(Vec::new());
+        }
+        let scope = ErrorScope::push(&self.device);
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("quatcurve readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
+        encoder.copy_buffer_to_buffer(output, 0, &staging, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = sender.send(r);
+        });
+        self.wait()?;
+        scope.pop()?;
+        match receiver.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(GpuError::Device(format!("reading results back: {e}"))),
+            Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
+        }
+        let view = staging.get_mapped_range(..).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
+        let data = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(data)
+    }
+
+    fn wait(&self) -> Result<(), GpuError> {
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+        self.check_lost()
+    }
+
+    fn check_lost(&self) -> Result<(), GpuError> {
+        match self.lost.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+            Some(reason) => Err(GpuError::DeviceLost(reason.clone())),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Copies a chunk's local output into its place in the whole output.
+fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, channels: usize, data: &mut [f32]) {
+    match layout {
+        Layout::Track => {
+            let start = times.offsets[chunk.first_track] * channels;
+            data[start..start + chunk.samples * channels].copy_from_slice(&local[..chunk.samples * channels]);
+        }
+        Layout::Frame => {
+            // Local rows are [frame][chunk track]; global rows are [frame][track].
+            let n = chunk.tracks.len();
+            let frames = if n == 0 { 0 } else { chunk.samples / n };
+            for j in 0..frames {
+                let src = j * n * channels;
+                let dst = layout::output_slot(layout, times, chunk.first_track, j) * channels;
+                data[dst..dst + n * channels].copy_from_slice(&local[src..src + n * channels]);
+            }
+        }
+    }
+}
+
+/// Validation and out-of-memory scopes around a group of device calls.
+struct ErrorScope {
+    validation: wgpu::ErrorScopeGuard,
+    memory: wgpu::ErrorScopeGuard,
+}
+
+impl ErrorScope {
+    fn push(device: &wgpu::Device) -> Self {
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        Self { validation, memory }
+    }
+
+    fn pop(self) -> Result<(), GpuError> {
+        // Scopes pop in reverse order of pushing.
+        let memory = pollster::block_on(self.memory.pop());
+        let validation = pollster::block_on(self.validation.pop());
+        match memory.or(validation) {
+            Some(e) => Err(GpuError::Device(e.to_string())),
+            None => Ok(()),
+        }
+    }
+}

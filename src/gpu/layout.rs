@@ -1,0 +1,254 @@
+//! Host twins of the kernel's structs, and the conversion of a packed [`Batch`] into the f32
+//! buffers the kernel reads, split into chunks that respect the device's binding limits.
+//!
+//! `GpuTrack` and `Params` mirror the WGSL structs of `shaders/eval.wgsl` field by field; a
+//! test compares their offsets with naga's layout, so neither side can drift.
+
+use crate::batch::Batch;
+use crate::curve::{Blend, Curve};
+use crate::job::Layout;
+use crate::sampling::{SampleTimes, TrackTimes};
+use bytemuck::{Pod, Zeroable};
+
+/// One track as the kernel reads it (WGSL `GpuTrack`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTrack {
+    /// Curve code (`CURVE_*` in the shader).
+    pub curve: u32,
+    /// B-spline order or Bezier degree.
+    pub order: u32,
+    /// Blend code (`BLEND_*`).
+    pub blend: u32,
+    /// `FLAG_EXPLICIT_TIMES | FLAG_HAS_LAST`.
+    pub flags: u32,
+    /// First entry in the chunk's points.
+    pub point_offset: u32,
+    /// Number of points.
+    pub point_count: u32,
+    /// First entry in the chunk's coefficients.
+    pub coef_offset: u32,
+    /// First entry in the chunk's knots.
+    pub knot_offset: u32,
+    /// Number of knots.
+    pub knot_count: u32,
+    /// First sample of the track in the chunk (track-major numbering).
+    pub sample_offset: u32,
+    /// Number of samples.
+    pub sample_count: u32,
+    /// First entry in the chunk's explicit times.
+    pub time_offset: u32,
+    /// Uniform sampling start, 32.32 fixed point, low word.
+    pub start_lo: u32,
+    /// High word (whole seconds, two's complement).
+    pub start_hi: u32,
+    /// Exact last sample (`--samples`), low word.
+    pub last_lo: u32,
+    /// High word.
+    pub last_hi: u32,
+    /// The sample step in 32.64 fixed point: whole seconds.
+    pub step_whole: u32,
+    /// Fraction, high word.
+    pub step_frac_hi: u32,
+    /// Fraction, low word.
+    pub step_frac_lo: u32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// Per-dispatch parameters (WGSL `Params`, a uniform).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Params {
+    /// Samples in this chunk.
+    pub sample_count: u32,
+    /// Tracks in this chunk.
+    pub track_count: u32,
+    /// Floats per output sample.
+    pub channels: u32,
+    /// 1 for frame-major output.
+    pub frame_major: u32,
+    /// Workgroups per row of the 2D dispatch.
+    pub groups_x: u32,
+    /// Padding to 16 bytes.
+    pub pad0: u32,
+    /// Padding.
+    pub pad1: u32,
+    /// Padding.
+    pub pad2: u32,
+}
+
+/// `FLAG_EXPLICIT_TIMES` in the shader.
+pub const FLAG_EXPLICIT_TIMES: u32 = 1;
+/// `FLAG_HAS_LAST` in the shader.
+pub const FLAG_HAS_LAST: u32 = 2;
+/// `ANY_CURVE` in the shader: no specialization.
+pub const ANY_CURVE: u32 = 255;
+
+/// The shader's code for a curve family (`CURVE_*`).
+#[must_use]
+pub fn curve_code(curve: Curve) -> u32 {
+    match curve {
+        Curve::Slerp => 0,
+        Curve::Squad => 1,
+        Curve::Bezier => 2,
+        Curve::Hermite => 3,
+        Curve::NamKim => 4,
+        Curve::BSpline => 5,
+    }
+}
+
+/// The shader's code for a blend (`BLEND_*`).
+#[must_use]
+pub fn blend_code(blend: Blend) -> u32 {
+    match blend {
+        Blend::Cubic => 0,
+        Blend::Quadratic => 1,
+    }
+}
+
+/// Seconds as 32.32 fixed point `[low word, high word]` (two's complement), rounded to the
+/// nearest 2^-32 s. Times beyond +-2^31 s saturate.
+#[must_use]
+pub fn fixed_time(t: f64) -> [u32; 2] {
+    let ticks = (t * 4_294_967_296.0).round().clamp(i64::MIN as f64, i64::MAX as f64) as i64;
+    [ticks as u32, (ticks >> 32) as u32]
+}
+
+/// A non-negative step as 32.64 fixed point `[whole, fraction high, fraction low]`, so that
+/// `j * step` stays exact to 2^-32 s for any 32-bit `j`.
+#[must_use]
+pub fn fixed_step(step: f64) -> [u32; 3] {
+    let ticks = (step.max(0.0) * 2f64.powi(64)).round() as u128;
+    [(ticks >> 64) as u32, (ticks >> 32) as u32, ticks as u32]
+}
+
+/// Floats per output sample: rotation (4), then omega and alpha (6), then a 3x3 matrix (9).
+#[must_use]
+pub fn channels(derivatives: bool, matrix: bool) -> usize {
+    4 + if derivatives { 6 } else { 0 } + if matrix { 9 } else { 0 }
+}
+
+/// A contiguous range of tracks that fits every binding limit, packed for the kernel.
+#[derive(Clone, Debug, Default)]
+pub struct Chunk {
+    /// First track of the batch in this chunk.
+    pub first_track: usize,
+    /// Tracks, rebased to the chunk's arrays.
+    pub tracks: Vec<GpuTrack>,
+    /// Points `[x, y, z, w]`.
+    pub points: Vec<[f32; 4]>,
+    /// Coefficients.
+    pub coefs: Vec<[f32; 4]>,
+    /// Knots in 32.32 fixed point.
+    pub knots: Vec<[u32; 2]>,
+    /// Explicit sample times in 32.32 fixed point.
+    pub times: Vec<[u32; 2]>,
+    /// Samples in the chunk.
+    pub samples: usize,
+}
+
+/// Why a batch cannot go to the GPU.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PackError {
+    /// One track alone exceeds a binding limit.
+    #[error("{track}: needs {bytes} bytes in one GPU binding, more than the device's {limit}; split the track")]
+    TrackTooLarge { track: String, bytes: u64, limit: u64 },
+    /// A Bezier degree beyond the shader's fixed arrays.
+    #[error("{track}: Bezier degree {degree} is above the GPU limit of {max}; use the cpu or reference device")]
+    BezierTooLong { track: String, degree: usize, max: usize },
+    /// Too many samples in one track for exact in-shader time generation.
+    #[error("{track}: {count} samples is more than the GPU limit of {max} per track")]
+    TooManySamples { track: String, count: usize, max: usize },
+}
+
+/// Largest Bezier degree the shader evaluates (`MAX_BEZIER_DEGREE`, checked by a test).
+pub const MAX_BEZIER_DEGREE: usize = 32;
+/// Samples per track the kernel indexes with one `u32`.
+pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
+
+/// Splits `batch` into chunks whose every buffer stays within `binding_limit` bytes.
+///
+/// # Errors
+/// [`PackError`] naming the track.
+pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<Chunk>, PackError> {
+    let mut chunks = vec![Chunk::default()];
+    for index in 0..batch.len() {
+        let view = batch.view(index);
+        let count = times.count(index);
+        let explicit = match times.tracks[index] {
+            TrackTimes::Explicit { count, .. } => count,
+            TrackTimes::Uniform { .. } => 0,
+        };
+        let name = batch.ids[index].to_string();
+        if view.track.curve == Curve::Bezier && view.track.order > MAX_BEZIER_DEGREE {
+            return Err(PackError::BezierTooLong { track: name, degree: view.track.order, max: MAX_BEZIER_DEGREE });
+        }
+        if count >= MAX_SAMPLES_PER_TRACK {
+            return Err(PackError::TooManySamples { track: name, count, max: MAX_SAMPLES_PER_TRACK - 1 });
+        }
+        // Bytes this track adds to each binding.
+        let needs = |c: &Chunk| -> [u64; 6] {
+            [
+                ((c.tracks.len() + 1) * std::mem::size_of::<GpuTrack>()) as u64,
+                ((c.points.len() + view.points.len()) * 16) as u64,
+                ((c.coefs.len() + view.coefs.len()) * 16) as u64,
+                ((c.knots.len() + view.knots.len()) * 8) as u64,
+                ((c.times.len() + explicit) * 8) as u64,
+                ((c.samples + count) * channels * 4) as u64,
+            ]
+        };
+        let fits = |c: &Chunk| needs(c).iter().all(|&b| b <= binding_limit) && c.samples + count < u32::MAX as usize;
+        if !fits(chunks.last().unwrap()) {
+            if chunks.last().unwrap().tracks.is_empty() || !fits(&Chunk::default()) {
+                let bytes = *needs(&Chunk::default()).iter().max().unwrap();
+                return Err(PackError::TrackTooLarge { track: name, bytes, limit: binding_limit });
+            }
+            chunks.push(Chunk { first_track: index, ..Chunk::default() });
+        }
+        let chunk = chunks.last_mut().unwrap();
+        let mut gpu = GpuTrack {
+            curve: curve_code(view.track.curve),
+            order: view.track.order as u32,
+            blend: blend_code(view.track.blend),
+            point_offset: chunk.points.len() as u32,
+            point_count: view.points.len() as u32,
+            coef_offset: chunk.coefs.len() as u32,
+            knot_offset: chunk.knots.len() as u32,
+            knot_count: view.knots.len() as u32,
+            sample_offset: chunk.samples as u32,
+            sample_count: count as u32,
+            time_offset: chunk.times.len() as u32,
+            ..GpuTrack::default()
+        };
+        match times.tracks[index] {
+            TrackTimes::Explicit { offset, count } => {
+                gpu.flags |= FLAG_EXPLICIT_TIMES;
+                chunk.times.extend(times.explicit[offset..offset + count].iter().map(|&t| fixed_time(t)));
+            }
+            TrackTimes::Uniform { start, step, last, .. } => {
+                [gpu.start_lo, gpu.start_hi] = fixed_time(start);
+                [gpu.step_whole, gpu.step_frac_hi, gpu.step_frac_lo] = fixed_step(step);
+                if let Some(last) = last {
+                    gpu.flags |= FLAG_HAS_LAST;
+                    [gpu.last_lo, gpu.last_hi] = fixed_time(last);
+                }
+            }
+        }
+        chunk.tracks.push(gpu);
+        chunk.points.extend(view.points.iter().map(|q| q.to_array().map(|c| c as f32)));
+        chunk.coefs.extend(view.coefs.iter().map(|c| c.map(|x| x as f32)));
+        chunk.knots.extend(view.knots.iter().map(|&k| fixed_time(k)));
+        chunk.samples += count;
+    }
+    Ok(chunks)
+}
+
+/// Where chunk-local sample `(track, j)` lands in the whole output, in samples.
+#[must_use]
+pub fn output_slot(layout: Layout, times: &SampleTimes, track: usize, j: usize) -> usize {
+    match layout {
+        Layout::Track => times.offsets[track] + j,
+        Layout::Frame => j * times.track_count() + track,
+    }
+}

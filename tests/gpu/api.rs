@@ -1,0 +1,113 @@
+//! The evaluator's API: embedding in an existing device, writing into a caller's buffer,
+//! specialized and generic kernels, and errors as values.
+
+use crate::accuracy::gpu;
+use crate::common::*;
+use quatcurve::gpu::{GpuError, GpuEvaluator, GpuOptions};
+use quatcurve::{Batch, Curve, CurveSpec, SampleTimes, Sampling};
+
+fn small_batch(spec: &CurveSpec) -> Batch {
+    let mut g = Gen::new(2);
+    let tracks: Vec<_> = (0..4).map(|i| track(&mut g, spec, spec.min_keys().max(2) + i, Kind::Random)).collect();
+    Batch::from_tracks(&tracks, spec).unwrap()
+}
+
+#[test]
+fn evaluate_into_a_caller_buffer_without_readback() {
+    let Some(gpu) = gpu() else { return };
+    let batch = small_batch(&CurveSpec::default());
+    let times = SampleTimes::uniform(&batch, Sampling::Count(33)).unwrap();
+    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
+    let expected = gpu.evaluate(&batch, &times, &options).unwrap();
+    let bytes = (expected.data.len() * 4) as u64;
+    let target = gpu.device().create_buffer(&wgpu::BufferDescriptor {
+        label: Some("engine buffer"),
+        size: bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    gpu.evaluate_into(&batch, &times, &options, &target).unwrap();
+    // Read it back here only to check it.
+    let staging = gpu.device().create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device().create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(&target, 0, &staging, 0, bytes);
+    gpu.queue().submit([encoder.finish()]);
+    staging.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    gpu.device().poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let data: Vec<f32> = bytemuck::cast_slice(&staging.get_mapped_range(..).unwrap()).to_vec();
+    assert_eq!(data, expected.data);
+
+    let too_small = gpu.device().create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let err = gpu.evaluate_into(&batch, &times, &options, &too_small).unwrap_err();
+    assert!(matches!(err, GpuError::Job(_)), "{err}");
+}
+
+#[test]
+fn with_device_embeds_in_an_existing_application() {
+    let Some(_) = gpu() else { return };
+    let (device, queue) = pollster::block_on(async {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = instance.request_adapter(&wgpu::RequestAdapterOptions::default()).await.unwrap();
+        adapter.request_device(&wgpu::DeviceDescriptor::default()).await.unwrap()
+    });
+    let evaluator = GpuEvaluator::with_device(device, queue, "host application").unwrap();
+    assert_eq!(evaluator.adapter_name(), "host application");
+    let batch = small_batch(&CurveSpec::new(Curve::Squad));
+    let times = SampleTimes::uniform(&batch, Sampling::Count(9)).unwrap();
+    let out = evaluator.evaluate(&batch, &times, &GpuOptions::default()).unwrap();
+    assert_eq!(out.data.len(), times.total() * 4);
+}
+
+#[test]
+fn specialized_and_generic_kernels_agree() {
+    let Some(gpu) = gpu() else { return };
+    for spec in all_specs() {
+        let batch = small_batch(&spec);
+        let times = SampleTimes::uniform(&batch, Sampling::Rate(17.0)).unwrap();
+        let special = gpu.evaluate(&batch, &times, &GpuOptions { derivatives: true, ..GpuOptions::default() }).unwrap();
+        let generic = gpu.evaluate(&batch, &times, &GpuOptions { derivatives: true, generic_kernel: true, ..GpuOptions::default() }).unwrap();
+        // Same code, different specialization: allow only f32 rounding differences.
+        let diff = special.data.iter().zip(&generic.data).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0f32, f32::max);
+        assert!(diff < 1e-5, "{}: {diff}", describe(&spec));
+    }
+}
+
+#[test]
+fn matrix_output_matches_the_rotation() {
+    let Some(gpu) = gpu() else { return };
+    let batch = small_batch(&CurveSpec::new(Curve::Hermite));
+    let times = SampleTimes::uniform(&batch, Sampling::Count(11)).unwrap();
+    let out = gpu.evaluate(&batch, &times, &GpuOptions { matrix: true, ..GpuOptions::default() }).unwrap();
+    assert_eq!(out.channels, 13);
+    for row in out.data.chunks_exact(13) {
+        let q = quatcurve::DQuat::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
+        let m = q.to_mat3();
+        for r in 0..3 {
+            for c in 0..3 {
+                assert!((m[r][c] - f64::from(row[4 + 3 * r + c])).abs() < 1e-6);
+            }
+        }
+    }
+}
+
+#[test]
+fn unsupported_batches_are_errors_naming_the_track() {
+    let Some(gpu) = gpu() else { return };
+    let spec = CurveSpec::new(Curve::Bezier);
+    let mut g = Gen::new(1);
+    let track = track(&mut g, &spec, 40, Kind::Random);
+    let batch = Batch::from_tracks(&[track], &spec).unwrap();
+    let times = SampleTimes::uniform(&batch, Sampling::Count(3)).unwrap();
+    let err = gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap_err().to_string();
+    assert!(err.contains("track 0") && err.contains("degree 39"), "{err}");
+}

@@ -1,0 +1,103 @@
+//! The WGSL program without a GPU: naga parses and validates it, and every layout fact the
+//! host shares with it (struct offsets, codes, limits, workgroup size) is checked against it.
+
+use quatcurve::gpu::layout::{self, GpuTrack, Params};
+use quatcurve::gpu::shader;
+use quatcurve::{Blend, Curve};
+
+#[test]
+fn every_shader_file_parses_and_the_program_validates() {
+    for (name, text) in shader::FILES {
+        assert!(!text.trim().is_empty(), "{name} is empty");
+    }
+    if let Err(e) = shader::module() {
+        panic!("naga rejected the program:\n{e}");
+    }
+}
+
+#[test]
+fn shader_program_uses_no_f64() {
+    // naga 30 emits invalid SPIR-V for f64 transcendentals, which lavapipe runs silently wrong.
+    let (module, _) = shader::module().unwrap();
+    for (_, ty) in module.types.iter() {
+        let scalar = match &ty.inner {
+            naga::TypeInner::Scalar(s) => Some(*s),
+            naga::TypeInner::Vector { scalar, .. } | naga::TypeInner::Matrix { scalar, .. } => Some(*scalar),
+            _ => None,
+        };
+        if let Some(s) = scalar {
+            assert!(!(s.kind == naga::ScalarKind::Float && s.width == 8), "f64 type in the program: {ty:?}");
+        }
+    }
+}
+
+#[test]
+fn workgroup_size_is_read_from_the_shader() {
+    let (module, _) = shader::module().unwrap();
+    let size = shader::workgroup_size(&module).unwrap();
+    assert!(size.is_power_of_two() && size >= 32, "{size}");
+}
+
+/// (name, offset) of each field of a naga struct.
+fn naga_struct(module: &naga::Module, name: &str) -> (Vec<(String, u32)>, u32) {
+    let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no struct {name}")).1;
+    match &ty.inner {
+        naga::TypeInner::Struct { members, span } => {
+            (members.iter().map(|m| (m.name.clone().unwrap(), m.offset)).collect(), *span)
+        }
+        other => panic!("{name} is not a struct: {other:?}"),
+    }
+}
+
+macro_rules! rust_layout {
+    ($ty:ty, $($field:ident),+ $(,)?) => {
+        (vec![$((stringify!($field).to_string(), std::mem::offset_of!($ty, $field) as u32)),+], std::mem::size_of::<$ty>() as u32)
+    };
+}
+
+#[test]
+fn rust_structs_match_naga_layout_of_their_wgsl_twins() {
+    let (module, _) = shader::module().unwrap();
+    let track = rust_layout!(
+        GpuTrack, curve, order, blend, flags, point_offset, point_count, coef_offset, knot_offset, knot_count,
+        sample_offset, sample_count, time_offset, start_lo, start_hi, last_lo, last_hi, step_whole, step_frac_hi, step_frac_lo, pad,
+    );
+    assert_eq!(naga_struct(&module, "GpuTrack"), track);
+    let params = rust_layout!(Params, sample_count, track_count, channels, frame_major, groups_x, pad0, pad1, pad2);
+    assert_eq!(naga_struct(&module, "Params"), params);
+}
+
+#[test]
+fn codes_and_limits_match_the_shader_constants() {
+    let (module, _) = shader::module().unwrap();
+    let c = |name: &str| shader::constant_u32(&module, name).unwrap_or_else(|| panic!("no constant {name}"));
+    for (curve, name) in [
+        (Curve::Slerp, "CURVE_SLERP"),
+        (Curve::Squad, "CURVE_SQUAD"),
+        (Curve::Bezier, "CURVE_BEZIER"),
+        (Curve::Hermite, "CURVE_HERMITE"),
+        (Curve::NamKim, "CURVE_NAM_KIM"),
+        (Curve::BSpline, "CURVE_BSPLINE"),
+    ] {
+        assert_eq!(layout::curve_code(curve), c(name), "{name}");
+    }
+    assert_eq!(layout::blend_code(Blend::Quadratic), c("BLEND_QUADRATIC"));
+    assert_ne!(layout::blend_code(Blend::Cubic), c("BLEND_QUADRATIC"));
+    assert_eq!(layout::ANY_CURVE, c("ANY_CURVE"));
+    assert_eq!(layout::FLAG_EXPLICIT_TIMES, c("FLAG_EXPLICIT_TIMES"));
+    assert_eq!(layout::FLAG_HAS_LAST, c("FLAG_HAS_LAST"));
+    assert_eq!(layout::MAX_BEZIER_DEGREE as u32, c("MAX_BEZIER_DEGREE"));
+    assert_eq!(8, c("MAX_ORDER"), "B-spline orders 2..=8");
+}
+
+#[test]
+fn fixed_point_times_round_trip() {
+    for t in [0.0, 1.0 / 30.0, -2.75, 1036.6583333333333, -0.1, 1e6 + 0.123456789] {
+        let [lo, hi] = layout::fixed_time(t);
+        let back = (f64::from(hi as i32) * 4294967296.0 + f64::from(lo)) / 4294967296.0;
+        assert!((back - t).abs() <= 2f64.powi(-33) * 1.0001, "{t}: {back}");
+    }
+    let [whole, hi, lo] = layout::fixed_step(1.0 / 30.0);
+    let back = f64::from(whole) + f64::from(hi) * 2f64.powi(-32) + f64::from(lo) * 2f64.powi(-64);
+    assert!((back - 1.0 / 30.0).abs() < 1e-18);
+}
