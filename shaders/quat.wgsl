@@ -1,80 +1,6 @@
-// Quaternion algebra in f32: the twin of src/quat.rs (same names, same branches).
-// Storage x, y, z, w. Half-angle exp/log: exp(th u) = (cos th, sin th u), a physical rotation
-// by 2 th. No f64 anywhere: naga's f64 transcendentals are invalid SPIR-V on lavapipe.
-//
-// sin, cos and atan are computed here rather than by the builtins: Vulkan lets builtin sin
-// and cos err by 2^-11 absolute and atan by 4096 ulp, far above the 1e-5 rad accuracy bar.
-
-/// Below this squared half-angle exp and log use their Taylor series (same as the Rust twin).
-const SERIES_THRESHOLD_SQ: f32 = 1e-4;
-const PI: f32 = 3.14159265358979;
-const HALF_PI: f32 = 1.57079632679490;
-const QUARTER_PI: f32 = 0.785398163397448;
-const TAN_EIGHTH_PI: f32 = 0.414213562373095;
-// pi/2 split for Cody-Waite reduction: k * HALF_PI_1 is exact for |k| < 2^16.
-const HALF_PI_1: f32 = 1.5703125;
-const HALF_PI_2: f32 = 4.837512969970703125e-4;
-const HALF_PI_3: f32 = 7.54978995489188216e-8;
-
-/// (sin x, cos x) with absolute error ~1e-7 for |x| < 1e4.
-fn sin_cos(x: f32) -> vec2f {
-    let k = round(x * 0.636619772367581);
-    let r = ((x - k * HALF_PI_1) - k * HALF_PI_2) - k * HALF_PI_3;
-    let r2 = r * r;
-    // Taylor series on [-pi/4, pi/4]: truncation below 1e-11.
-    let s = r * (1.0 - r2 / 6.0 * (1.0 - r2 / 20.0 * (1.0 - r2 / 42.0 * (1.0 - r2 / 72.0 * (1.0 - r2 / 110.0)))));
-    let c = 1.0 - r2 / 2.0 * (1.0 - r2 / 12.0 * (1.0 - r2 / 30.0 * (1.0 - r2 / 56.0 * (1.0 - r2 / 90.0 * (1.0 - r2 / 132.0)))));
-    switch (i32(k) & 3) {
-        case 0: { return vec2f(s, c); }
-        case 1: { return vec2f(c, -s); }
-        case 2: { return vec2f(-s, -c); }
-        default: { return vec2f(-c, s); }
-    }
-}
-
-/// atan(x) for |x| <= 1, via atan(x) = pi/4 + atan((x - 1) / (x + 1)) above tan(pi/8).
-fn arctan_unit(x: f32) -> f32 {
-    let a = abs(x);
-    var z = a;
-    var base = 0.0;
-    if a > TAN_EIGHTH_PI {
-        z = (a - 1.0) / (a + 1.0);
-        base = QUARTER_PI;
-    }
-    let z2 = z * z;
-    // Taylor series to z^21 on |z| <= tan(pi/8): truncation below 1e-9.
-    var p = 1.0 / 21.0;
-    p = 1.0 / 19.0 - z2 * p;
-    p = 1.0 / 17.0 - z2 * p;
-    p = 1.0 / 15.0 - z2 * p;
-    p = 1.0 / 13.0 - z2 * p;
-    p = 1.0 / 11.0 - z2 * p;
-    p = 1.0 / 9.0 - z2 * p;
-    p = 1.0 / 7.0 - z2 * p;
-    p = 1.0 / 5.0 - z2 * p;
-    p = 1.0 / 3.0 - z2 * p;
-    p = 1.0 - z2 * p;
-    return sign(x) * (base + z * p);
-}
-
-/// Four-quadrant arctangent of y / x.
-fn arctan2(y: f32, x: f32) -> f32 {
-    let ax = abs(x);
-    let ay = abs(y);
-    if ax == 0.0 && ay == 0.0 {
-        return 0.0;
-    }
-    var a: f32;
-    if ay <= ax {
-        a = arctan_unit(ay / ax);
-    } else {
-        a = HALF_PI - arctan_unit(ax / ay);
-    }
-    if x < 0.0 {
-        a = PI - a;
-    }
-    return select(a, -a, y < 0.0);
-}
+// Quaternion algebra in f32: the twin of src/quat.rs (same names, same branches), for plain
+// values and for jets (the Rust `Quat<Jet>`). Storage x, y, z, w. Half-angle exp/log:
+// exp(th u) = (cos th, sin th u), a physical rotation by 2 th.
 
 /// Hamilton product.
 fn quat_mul(a: vec4f, b: vec4f) -> vec4f {
@@ -93,39 +19,21 @@ fn quat_conjugate(q: vec4f) -> vec4f {
 /// Half-angle exponential.
 fn quat_exp(v: vec3f) -> vec4f {
     let th2 = dot(v, v);
-    var c: f32;
-    var sinc: f32;
-    if th2 < SERIES_THRESHOLD_SQ {
-        c = 1.0 - th2 * (0.5 - th2 * (1.0 / 24.0 - th2 / 720.0));
-        sinc = 1.0 - th2 * (1.0 / 6.0 - th2 * (1.0 / 120.0 - th2 / 5040.0));
-    } else {
-        let th = sqrt(th2);
-        let sc = sin_cos(th);
-        c = sc.y;
-        sinc = sc.x / th;
-    }
-    return vec4f(v * sinc, c);
+    return vec4f(v * sinc_sqrt(th2).x, cos_sqrt(th2).x);
 }
 
 /// Half-angle logarithm; (pi, 0, 0) at q = (0, 0, 0, -1).
 fn quat_log(q: vec4f) -> vec3f {
     let s2 = dot(q.xyz, q.xyz);
     let w = q.w;
-    if w > 0.0 && s2 < SERIES_THRESHOLD_SQ * w * w {
-        let x2 = s2 / (w * w);
-        let series = 1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 / 9.0)));
-        return q.xyz * (series / w);
+    if w > 0.0 && s2 < w * w {
+        return q.xyz * (atanc_sqrt(s2 / (w * w)).x / w);
     }
     if s2 == 0.0 {
         return vec3f(PI, 0.0, 0.0);
     }
     let s = sqrt(s2);
     return q.xyz * (arctan2(s, w) / s);
-}
-
-/// Unfolded geodesic a exp(h log(a^-1 b)).
-fn quat_geodesic(a: vec4f, b: vec4f, h: f32) -> vec4f {
-    return quat_mul(a, quat_exp(quat_log(quat_mul(quat_conjugate(a), b)) * h));
 }
 
 /// q v q^-1 for unit q.
@@ -144,4 +52,82 @@ fn quat_to_mat3(q: vec4f) -> mat3x3f {
         vec3f(2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)),
         vec3f(2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)),
     );
+}
+
+// The same operations on jets (each component a value with two time derivatives).
+
+struct JetVec {
+    v: vec3f,
+    d: vec3f,
+    dd: vec3f,
+}
+
+struct JetQuat {
+    v: vec4f,
+    d: vec4f,
+    dd: vec4f,
+}
+
+fn jet_vec_dot(a: JetVec, b: JetVec) -> vec3f {
+    return vec3f(dot(a.v, b.v), dot(a.d, b.v) + dot(a.v, b.d), dot(a.dd, b.v) + 2.0 * dot(a.d, b.d) + dot(a.v, b.dd));
+}
+
+fn jet_vec_scale(a: JetVec, k: vec3f) -> JetVec {
+    return JetVec(a.v * k.x, a.d * k.x + a.v * k.y, a.dd * k.x + 2.0 * a.d * k.y + a.v * k.z);
+}
+
+/// A constant vector times a scalar jet.
+fn jet_vec_from(v: vec3f, k: vec3f) -> JetVec {
+    return JetVec(v * k.x, v * k.y, v * k.z);
+}
+
+fn jet_quat_const(q: vec4f) -> JetQuat {
+    return JetQuat(q, vec4f(0.0), vec4f(0.0));
+}
+
+fn jet_quat_mul(a: JetQuat, b: JetQuat) -> JetQuat {
+    return JetQuat(
+        quat_mul(a.v, b.v),
+        quat_mul(a.d, b.v) + quat_mul(a.v, b.d),
+        quat_mul(a.dd, b.v) + 2.0 * quat_mul(a.d, b.d) + quat_mul(a.v, b.dd),
+    );
+}
+
+fn jet_quat_conjugate(q: JetQuat) -> JetQuat {
+    return JetQuat(quat_conjugate(q.v), quat_conjugate(q.d), quat_conjugate(q.dd));
+}
+
+fn jet_quat_exp(v: JetVec) -> JetQuat {
+    let th2 = jet_vec_dot(v, v);
+    let c = jet_apply(th2, cos_sqrt(th2.x));
+    let xyz = jet_vec_scale(v, jet_apply(th2, sinc_sqrt(th2.x)));
+    return JetQuat(vec4f(xyz.v, c.x), vec4f(xyz.d, c.y), vec4f(xyz.dd, c.z));
+}
+
+fn jet_quat_log(q: JetQuat) -> JetVec {
+    let v = JetVec(q.v.xyz, q.d.xyz, q.dd.xyz);
+    let s2 = jet_vec_dot(v, v);
+    let w = vec3f(q.v.w, q.d.w, q.dd.w);
+    var factor: vec3f;
+    if w.x > 0.0 && s2.x < w.x * w.x {
+        let x = jet_div(s2, jet_mul(w, w));
+        factor = jet_div(jet_apply(x, atanc_sqrt(x.x)), w);
+    } else if s2.x == 0.0 {
+        return JetVec(vec3f(PI, 0.0, 0.0), vec3f(0.0), vec3f(0.0));
+    } else {
+        let s = jet_sqrt(s2);
+        factor = jet_div(jet_atan2(s, w), s);
+    }
+    return jet_vec_scale(v, factor);
+}
+
+/// Unfolded geodesic a exp(h log(a^-1 b)) on jets, evaluated from the nearer end (as
+/// Quat::geodesic): past the middle, b exp((1 - h) log(b^-1 a)).
+fn jet_quat_geodesic(a: JetQuat, b: JetQuat, h: vec3f) -> JetQuat {
+    if h.x <= 0.5 {
+        let rel = jet_quat_log(jet_quat_mul(jet_quat_conjugate(a), b));
+        return jet_quat_mul(a, jet_quat_exp(jet_vec_scale(rel, h)));
+    }
+    let rel = jet_quat_log(jet_quat_mul(jet_quat_conjugate(b), a));
+    return jet_quat_mul(b, jet_quat_exp(jet_vec_scale(rel, jet_const(1.0) - h)));
 }

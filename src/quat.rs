@@ -5,16 +5,13 @@
 //! the physical rotation angle is `2 th`. Everything is generic over [`Real`] so the same
 //! formulas run on `f64` and on derivative-carrying [`Jet`](crate::real::Jet)s.
 //!
-//! Small-angle branches: exp and log switch to Taylor series below [`SERIES_THRESHOLD_SQ`]
-//! (squared half angle). The series are written in squared norms only, so they are exact to
-//! rounding and differentiable through zero (no `sqrt(0)`).
+//! Small angles: exp and log are written through smooth functions of squared norms
+//! ([`cos_sqrt`], [`sinc_sqrt`], [`atanc_sqrt`]) with exact series branches, so they are exact
+//! to rounding and differentiable through zero (no `sqrt(0)`), and their derivatives do not
+//! cancel digits (which matters in f32 on the GPU twin).
 
-use crate::real::Real;
+use crate::real::{atanc_sqrt, cos_sqrt, sinc_sqrt, Real};
 use std::ops::{Add, Mul, Neg, Sub};
-
-/// Below this squared half-angle (|v|^2 for exp, |vec q|^2 / w^2 for log) exp and log use
-/// their Taylor series. At 1e-4 (angle 0.01) the first omitted term is below 1e-20 relative.
-pub const SERIES_THRESHOLD_SQ: f64 = 1e-4;
 
 /// A 3-vector: angular velocities, log-coefficients `w_i`, pure quaternion parts.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -222,36 +219,27 @@ impl<R: Real> Quat<R> {
     #[must_use]
     pub fn exp(v: Vec3<R>) -> Self {
         let th2 = v.length_squared();
-        let (c, sinc) = if th2.value() < SERIES_THRESHOLD_SQ {
-            // cos th and sin th / th as series in th^2: exact to rounding, smooth through 0.
-            let c = R::cst(1.0) - th2 * (R::cst(0.5) - th2 * (R::cst(1.0 / 24.0) - th2.scale(1.0 / 720.0)));
-            let s = R::cst(1.0) - th2 * (R::cst(1.0 / 6.0) - th2 * (R::cst(1.0 / 120.0) - th2.scale(1.0 / 5040.0)));
-            (c, s)
-        } else {
-            let th = th2.sqrt();
-            (th.cos(), th.sin() / th)
-        };
+        let c = th2.apply(cos_sqrt(th2.value()));
+        let sinc = th2.apply(sinc_sqrt(th2.value()));
         Self::from_xyzw(v.x * sinc, v.y * sinc, v.z * sinc, c)
     }
 
     /// Half-angle logarithm: `log (cos th, sin th u) = th u`, `th in [0, pi]`.
     ///
-    /// Only the direction of `self` matters (the norm is ignored). At `th = pi` with a zero
-    /// vector part (`q = (-1, 0, 0, 0)`) the axis is undefined; the result is `(pi, 0, 0)`.
+    /// Only the direction of `self` matters (the norm is ignored). Below a quarter turn
+    /// (`|vec| < w`) the factor is `atan(t)/t / w` with `t^2 = |vec|^2 / w^2`, smooth through 0;
+    /// above, `atan2(|vec|, w) / |vec|`. At `th = pi` with a zero vector part
+    /// (`q = (-1, 0, 0, 0)`) the axis is undefined; the result is `(pi, 0, 0)`.
     #[must_use]
     pub fn log(self) -> Vec3<R> {
         let v = self.vec();
         let s2 = v.length_squared();
         let w = self.w;
-        let wv = w.value();
-        let factor = if wv > 0.0 && s2.value() < SERIES_THRESHOLD_SQ * wv * wv {
-            // atan(x)/x with x = |v|/w, as a series in x^2 = s2/w^2.
-            let x2 = s2 / (w * w);
-            let series = R::cst(1.0)
-                - x2 * (R::cst(1.0 / 3.0) - x2 * (R::cst(1.0 / 5.0) - x2 * (R::cst(1.0 / 7.0) - x2.scale(1.0 / 9.0))));
-            series / w
-        } else if s2.value() == 0.0 {
-            // The vector part vanishes with w <= 0: th = pi about an undefined axis.
+        let (s2v, wv) = (s2.value(), w.value());
+        let factor = if wv > 0.0 && s2v < wv * wv {
+            let x = s2 / (w * w);
+            x.apply(atanc_sqrt(x.value())) / w
+        } else if s2v == 0.0 {
             return Vec3::new(R::cst(std::f64::consts::PI), R::cst(0.0), R::cst(0.0));
         } else {
             let s = s2.sqrt();
@@ -276,10 +264,18 @@ impl<R: Real> Quat<R> {
 
     /// The geodesic `self * exp(h log(self^-1 end))` with no hemisphere fold: it ends exactly
     /// on `end` (not `-end`) and varies continuously when `end` moves across the equator of
-    /// `self`. Nam-Kim's blend uses it (see [`crate::reference`]).
+    /// `self`. Squad and Nam-Kim blend with it (see [`crate::reference`]).
+    ///
+    /// Past the middle it is evaluated from the other end, `end * exp((1 - h) log(end^-1 self))`
+    /// (the same curve, NK eq. 4), so the log, ill-conditioned when the endpoints are far apart,
+    /// is always scaled by the smaller weight: this is what keeps f32 derivatives within 1e-4.
     #[must_use]
     pub fn geodesic(self, end: Self, h: R) -> Self {
-        self * Self::exp((self.conjugate() * end).log().mul_scalar(h))
+        if h.value() <= 0.5 {
+            self * Self::exp((self.conjugate() * end).log().mul_scalar(h))
+        } else {
+            end * Self::exp((end.conjugate() * self).log().mul_scalar(R::cst(1.0) - h))
+        }
     }
 
     /// Rotates a vector: `self v self^-1` (for unit `self`).
@@ -452,7 +448,7 @@ mod tests {
     fn exp_is_half_angle_and_matches_glam_full_angle() {
         // exp(th u) is the rotation by 2 th about u, which glam writes from_axis_angle(u, 2 th).
         let u = DVec3::new(1.0, 2.0, -2.0).scale(1.0 / 3.0);
-        for &th in &[0.0, 1e-9, 1e-3, 0.009_99, 0.010_01, 0.7, 3.0, PI] {
+        for &th in &[0.0, 1e-9, 1e-3, 0.499_999, 0.5, 0.7, 3.0, PI] {
             let ours = DQuat::exp(u.scale(th));
             let theirs = glam::DQuat::from_axis_angle(glam::DVec3::from(u), 2.0 * th);
             assert!(ours.angle_to(theirs.into()) < 1e-15, "th {th}");
@@ -460,9 +456,9 @@ mod tests {
     }
 
     #[test]
-    fn log_inverts_exp_across_the_series_threshold() {
+    fn log_inverts_exp_across_the_branch_thresholds() {
         let u = DVec3::new(0.6, 0.0, 0.8);
-        for &th in &[0.0, 1e-12, 1e-6, 0.009_999, 0.01, 0.010_001, 1.0, 2.5, PI - 1e-9] {
+        for &th in &[0.0, 1e-12, 1e-6, 0.463, 0.4637, 0.785, 0.7854, 1.0, 2.5, PI - 1e-9] {
             let back = DQuat::exp(u.scale(th)).log();
             let err = (back - u.scale(th)).length();
             assert!(err <= 4e-16 * th.max(1.0), "th {th}: err {err}");

@@ -4,8 +4,8 @@
 /// The shader files in the order they are concatenated into one module. WGSL has no
 /// `#include`; module-scope declarations are order-independent, so order is only for reading.
 pub const FILES: [(&str, &str); 5] = [
+    ("real.wgsl", include_str!("../../shaders/real.wgsl")),
     ("quat.wgsl", include_str!("../../shaders/quat.wgsl")),
-    ("jet.wgsl", include_str!("../../shaders/jet.wgsl")),
     ("basis.wgsl", include_str!("../../shaders/basis.wgsl")),
     ("segment.wgsl", include_str!("../../shaders/segment.wgsl")),
     ("eval.wgsl", include_str!("../../shaders/eval.wgsl")),

@@ -53,6 +53,43 @@ impl Worst {
     }
 }
 
+/// Nam-Kim's blend runs along the unfolded geodesic from C1(s) to C2(s); where those are
+/// nearly antipodal (the same rotation with opposite sign) the blend is a near-full turn about
+/// an ill-defined axis, and its derivatives are ill-conditioned in any precision. DESIGN
+/// section 6 excludes the analogous key pairs; this is the same exclusion for the blend:
+/// `1 + dot(C1, C2) >= 1.25e-3` (blend half-angle at most pi - 0.05).
+pub const BLEND_ANTIPODE_MARGIN: f64 = 1.25e-3;
+
+/// `1 + dot(C1(s), C2(s))` at time `t` of a Nam-Kim track (f64), or infinity for others.
+fn blend_margin(batch: &Batch, track: usize, t: f64) -> f64 {
+    let view = batch.view(track);
+    if view.track.curve != Curve::NamKim {
+        return f64::INFINITY;
+    }
+    let k = view.knots;
+    let t = t.clamp(k[0], k[k.len() - 1]);
+    let i = (0..k.len() - 1).rev().find(|&i| k[i] <= t).unwrap_or(0).min(k.len() - 2);
+    let u = (t - k[i]) / (k[i + 1] - k[i]);
+    let v = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
+    let c1 = view.points[i] * DQuat::exp(v(view.coefs[2 * i]).scale(u));
+    let c2 = view.points[i + 1] * DQuat::exp(v(view.coefs[2 * i + 1]).scale(u - 1.0));
+    1.0 + c1.dot(c2)
+}
+
+/// (track, sample) of an output slot.
+fn slot_sample(times: &SampleTimes, layout: Layout, slot: usize) -> (usize, usize) {
+    match layout {
+        Layout::Track => {
+            let track = times.offsets.partition_point(|&o| o <= slot) - 1;
+            (track, slot - times.offsets[track])
+        }
+        Layout::Frame => (slot % times.track_count(), slot / times.track_count()),
+    }
+}
+
+/// Samples left out of the bars by [`BLEND_ANTIPODE_MARGIN`], over the whole test run.
+pub static EXCLUDED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 /// Evaluates `batch` on both paths and returns the worst differences.
 pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: GpuOptions, label: &str) -> Worst {
     let reference = EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives }.run().unwrap();
@@ -60,6 +97,11 @@ pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: 
     assert_eq!(out.rotations.len(), reference.rotations.len(), "{label}");
     let mut worst = Worst::default();
     for i in 0..out.rotations.len() {
+        let (track, j) = slot_sample(times, options.layout, i);
+        if blend_margin(batch, track, times.time(track, j)) < BLEND_ANTIPODE_MARGIN {
+            EXCLUDED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            continue;
+        }
         let rot = DQuat::from_array(out.rotations[i]).angle_to(DQuat::from_array(reference.rotations[i]));
         if rot > worst.rotation.0 || rot.is_nan() {
             worst.rotation = (if rot.is_nan() { f64::INFINITY } else { rot }, format!("{label} slot {i}"));
@@ -121,6 +163,7 @@ fn every_family_order_and_knot_mode_matches_the_reference() {
         }
     }
     all.assert_within_bars("all families, 4 kinds, both layouts");
+    eprintln!("samples excluded by the Nam-Kim blend antipode margin so far: {}", EXCLUDED.load(std::sync::atomic::Ordering::Relaxed));
 }
 
 #[test]
@@ -241,15 +284,24 @@ fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
 
 #[test]
 fn long_clips_keep_full_time_precision() {
-    // 1,400 keys at 37.5 Hz (BrainStem-like): times near 37 s, where an f32 time alone is
-    // off by 3.8e-6 s. Double-float times keep the error at f32 rounding of the math.
+    // 1,400 keys at 37.5 Hz (BrainStem-like) starting at t = 1000 s, where an f32 time alone
+    // is off by up to 6e-5 s. Steps up to 30 degrees keep velocities within 20 rad/s; the
+    // 119.3 Hz grid never lands on a key (where C1 curves' alpha jumps).
     let Some(gpu) = gpu() else { return };
     let mut g = Gen::new(4);
-    let spec = CurveSpec::new(Curve::Hermite);
     let count = 1400;
-    let mut t = track(&mut g, &spec, count, Kind::Random);
-    t.times = Some((0..count).map(|i| 1000.0 + i as f64 / 37.5).collect());
-    let batch = Batch::from_tracks(&[t], &spec).unwrap();
-    let times = SampleTimes::uniform(&batch, Sampling::Rate(120.0)).unwrap();
-    compare(gpu, &batch, &times, GpuOptions { derivatives: true, ..GpuOptions::default() }, "long clip").assert_within_bars("long clip at t = 1000..1037 s");
+    let mut q = g.rotation();
+    let rotations = (0..count)
+        .map(|_| {
+            q = q * DQuat::exp(g.direction().scale(g.range(0.0, 30f64.to_radians()) / 2.0));
+            q.to_array()
+        })
+        .collect();
+    let t = Track { times: Some((0..count).map(|i| 1000.0 + i as f64 / 37.5).collect()), ..Track::from_rotations(rotations) };
+    for spec in [CurveSpec::new(Curve::Hermite), CurveSpec::new(Curve::Squad), CurveSpec { knots: KnotMode::Uniform, order: 6, ..CurveSpec::default() }] {
+        let batch = Batch::from_tracks(std::slice::from_ref(&t), &spec).unwrap();
+        let times = SampleTimes::uniform(&batch, Sampling::Rate(119.3)).unwrap();
+        let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
+        compare(gpu, &batch, &times, options, &describe(&spec)).assert_within_bars("long clip at t = 1000..1037 s");
+    }
 }
