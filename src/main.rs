@@ -5,7 +5,8 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use quatcurve::io::{demo_tracks, read_track_file, write_atomic, ResultFile};
-use quatcurve::{Batch, Blend, Curve, CurveSpec, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Tangents};
+use quatcurve::gpu::{GpuError, GpuEvaluator, GpuOptions};
+use quatcurve::{Batch, Blend, Curve, CurveSpec, EvalJob, KnotMode, Layout, Output, SampleTimes, Sampling, Tangents};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -108,16 +109,53 @@ fn main() -> ExitCode {
     }
 }
 
-fn eval(args: &EvalArgs) -> Result<(), Failure> {
-    let device = match args.device {
-        DeviceArg::Auto | DeviceArg::Reference => "reference",
-        DeviceArg::Gpu | DeviceArg::Cpu => {
-            let name = if args.device == DeviceArg::Gpu { "gpu" } else { "cpu" };
-            return Err(Failure::Internal(format!(
-                "--device {name} is not available in this build yet; use --device reference (or auto)"
-            )));
+/// The device that evaluates: the f64 reference or the GPU kernel.
+enum Device {
+    Reference,
+    Gpu(Box<GpuEvaluator>),
+}
+
+impl Device {
+    /// Resolves `--device`: `gpu` needs an adapter (exit 1 without one, never a silent
+    /// fallback); `auto` takes the GPU when there is one, else the reference.
+    fn open(arg: DeviceArg) -> Result<Self, Failure> {
+        match arg {
+            DeviceArg::Reference => Ok(Device::Reference),
+            DeviceArg::Gpu => GpuEvaluator::new()
+                .map(|g| Device::Gpu(Box::new(g)))
+                .map_err(|e| Failure::Internal(format!("--device gpu: {e}"))),
+            DeviceArg::Auto => Ok(GpuEvaluator::new().map_or(Device::Reference, |g| Device::Gpu(Box::new(g)))),
+            DeviceArg::Cpu => {
+                Err(Failure::Internal("--device cpu is not available in this build yet; use gpu, reference or auto".into()))
+            }
         }
-    };
+    }
+
+    /// The name the output reports: `reference` or `gpu: <adapter>`.
+    fn name(&self) -> String {
+        match self {
+            Device::Reference => "reference".into(),
+            Device::Gpu(g) => format!("gpu: {}", g.adapter_name()),
+        }
+    }
+
+    /// Evaluates; results in f64 whatever the device computed in.
+    fn run(&self, job: &EvalJob<'_>) -> Result<Output, Failure> {
+        match self {
+            Device::Reference => job.run().map_err(|e| Failure::Input(e.to_string())),
+            Device::Gpu(g) => {
+                let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
+                let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
+                    GpuError::Pack(_) | GpuError::Job(_) => Failure::Input(e.to_string()),
+                    _ => Failure::Internal(e.to_string()),
+                })?;
+                Ok(out.to_output(job.derivatives))
+            }
+        }
+    }
+}
+
+fn eval(args: &EvalArgs) -> Result<(), Failure> {
     if let Some(out) = &args.output {
         if out.extension().and_then(|e| e.to_str()) != Some("json") {
             return Err(Failure::Input(format!("{}: only .json output is supported so far", out.display())));
@@ -141,8 +179,14 @@ fn eval(args: &EvalArgs) -> Result<(), Failure> {
     let times = SampleTimes::new(&batch, &overrides, sampling).map_err(input_err)?;
     // JSON output is always track-major (DESIGN section 5); --layout shapes array outputs only.
     let job = EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: args.derivatives };
-    let out = job.run().map_err(input_err)?;
-    let doc = ResultFile::new(args.curve.name(), device, &tracks, &times, &out);
+    job.validate().map_err(input_err)?;
+    let device = Device::open(args.device)?;
+    let out = device.run(&job).map_err(|e| match e {
+        Failure::Input(msg) => Failure::Input(format!("{source}: {msg}")),
+        other => other,
+    })?;
+    let device = device.name();
+    let doc = ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
     match &args.output {
         Some(path) => {
             write_atomic(path, |w| serde_json::to_writer(&mut *w, &doc).map_err(std::io::Error::other))

@@ -145,8 +145,46 @@ fn usage_errors_exit_2() {
 
 #[test]
 fn unavailable_device_exits_1_without_fallback() {
-    let out = quatcurve(&["eval", "--device", "gpu"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("gpu"), "{}", stderr(&out));
+    // A backend that does not exist on Linux: no adapter, so --device gpu must fail.
+    let no_gpu = |device: &str| {
+        Command::new(env!("CARGO_BIN_EXE_quatcurve"))
+            .args(["eval", "--device", device, "--samples", "2"])
+            .env("WGPU_BACKEND", "metal")
+            .output()
+            .unwrap()
+    };
+    let out = no_gpu("gpu");
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--device gpu"), "{}", stderr(&out));
     assert!(out.stdout.is_empty(), "no silent fallback output");
+    // auto falls back to the reference and says so in the output.
+    let out = no_gpu("auto");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(doc["device"], "reference");
+    assert_eq!(quatcurve(&["eval", "--device", "cpu"]).status.code(), Some(1));
+}
+
+#[test]
+fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
+    if quatcurve::gpu::GpuEvaluator::new().is_err() {
+        assert_ne!(std::env::var("QUATCURVE_REQUIRE_GPU").as_deref(), Ok("1"), "QUATCURVE_REQUIRE_GPU=1 but no adapter");
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_tracks(dir.path(), &sample_tracks());
+    let run = |device: &str| {
+        let out = quatcurve(&["eval", "--input", &input, "--curve", "squad", "--samples", "9", "--derivatives", "--device", device]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (gpu, reference) = (run("gpu"), run("reference"));
+    assert!(gpu["device"].as_str().unwrap().starts_with("gpu: "), "{}", gpu["device"]);
+    for t in 0..2 {
+        for j in 0..gpu["tracks"][t]["rotations"].as_array().unwrap().len() {
+            let q = |doc: &serde_json::Value| DQuat::from_array(serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap());
+            assert!(q(&gpu).angle_to(q(&reference)) < 1e-5);
+        }
+    }
 }
