@@ -214,15 +214,13 @@ fn eval_nam_kim(tr: GpuTrack, t: vec2u) -> Sample {
     return sample_from_jets(jet_quat_geodesic(c1, c2, blend(tr.blend, s)));
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index) local: u32) {
-    let g = (group.y * params.groups_x + group.x) * WORKGROUP_SIZE + local;
-    if g >= params.sample_count {
-        return;
-    }
-    // The track of sample g: the last one whose first sample is <= g.
-    var a = 0u;
-    var b = params.track_count - 1u;
+/// The track of the workgroup's first sample, found once per workgroup.
+var<workgroup> group_track: u32;
+
+/// The last track whose first sample is <= g, searching tracks[lo..=hi].
+fn find_track(g: u32, lo: u32, hi: u32) -> u32 {
+    var a = lo;
+    var b = hi;
     while a < b {
         let mid = (a + b + 1u) / 2u;
         if tracks[mid].sample_offset <= g {
@@ -230,6 +228,26 @@ fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index
         } else {
             b = mid - 1u;
         }
+    }
+    return a;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index) local: u32) {
+    let first = (group.y * params.groups_x + group.x) * WORKGROUP_SIZE;
+    let last_track = params.track_count - 1u;
+    // One binary search per workgroup (a per-sample search cost ~75% of the kernel's time on
+    // lavapipe); each invocation then steps forward over the few tracks its group spans.
+    if local == 0u {
+        group_track = find_track(min(first, params.sample_count - 1u), 0u, last_track);
+    }
+    let g = first + local;
+    var a = workgroupUniformLoad(&group_track);
+    while a < last_track && tracks[a + 1u].sample_offset <= g {
+        a += 1u;
+    }
+    if g >= params.sample_count {
+        return;
     }
     let tr = tracks[a];
     let j = g - tr.sample_offset;

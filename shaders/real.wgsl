@@ -69,26 +69,24 @@ fn arctan2(y: f32, x: f32) -> f32 {
     return select(a, -a, y < 0.0);
 }
 
-/// p(x), p'(x), p''(x) of sum c_k x^k given term(k) = c_k, by Horner (highest first).
+/// One Horner step for p, p' and p''/2 at once (coefficients highest first).
 fn horner_step(acc: vec3f, x: f32, ck: f32) -> vec3f {
     // acc = (p, p', p''/2)
     return vec3f(acc.x * x + ck, acc.y * x + acc.x, acc.z * x + acc.y);
 }
 
-/// cos(sqrt x) with its first two derivatives in x.
+/// cos(sqrt x) with its first two derivatives in x. Series: sum (-1)^k x^k / (2k)!, 7 terms
+/// (truncation below 1e-12 at x = 1/4; the f64 twin keeps 10).
 fn cos_sqrt(x: f32) -> vec3f {
     if x < SERIES_LIMIT {
-        // sum (-1)^k x^k / (2k)!, k = 9 down to 0.
-        var c = 1.0;
-        var coefs: array<f32, 10>;
-        for (var k = 0; k < 10; k++) {
-            coefs[k] = c;
-            c *= -1.0 / f32((2 * k + 1) * (2 * k + 2));
-        }
         var acc = vec3f(0.0);
-        for (var k = 9; k >= 0; k--) {
-            acc = horner_step(acc, x, coefs[k]);
-        }
+        acc = horner_step(acc, x, 2.087675699e-09);
+        acc = horner_step(acc, x, -2.755731922e-07);
+        acc = horner_step(acc, x, 2.48015873e-05);
+        acc = horner_step(acc, x, -0.001388888889);
+        acc = horner_step(acc, x, 0.04166666667);
+        acc = horner_step(acc, x, -0.5);
+        acc = horner_step(acc, x, 1.0);
         return vec3f(acc.x, acc.y, 2.0 * acc.z);
     }
     let s = sinc_sqrt(x);
@@ -96,18 +94,17 @@ fn cos_sqrt(x: f32) -> vec3f {
 }
 
 /// sin(sqrt x) / sqrt x with its first two derivatives: S' = (C - S) / 2x, S'' = (C' - 3 S') / 2x.
+/// Series: sum (-1)^k x^k / (2k+1)!, 7 terms.
 fn sinc_sqrt(x: f32) -> vec3f {
     if x < SERIES_LIMIT {
-        var c = 1.0;
-        var coefs: array<f32, 10>;
-        for (var k = 0; k < 10; k++) {
-            coefs[k] = c;
-            c *= -1.0 / f32((2 * k + 2) * (2 * k + 3));
-        }
         var acc = vec3f(0.0);
-        for (var k = 9; k >= 0; k--) {
-            acc = horner_step(acc, x, coefs[k]);
-        }
+        acc = horner_step(acc, x, 1.605904384e-10);
+        acc = horner_step(acc, x, -2.505210839e-08);
+        acc = horner_step(acc, x, 2.755731922e-06);
+        acc = horner_step(acc, x, -0.0001984126984);
+        acc = horner_step(acc, x, 0.008333333333);
+        acc = horner_step(acc, x, -0.1666666667);
+        acc = horner_step(acc, x, 1.0);
         return vec3f(acc.x, acc.y, 2.0 * acc.z);
     }
     let r = sqrt(x);
@@ -119,14 +116,24 @@ fn sinc_sqrt(x: f32) -> vec3f {
 }
 
 /// atan(sqrt x) / sqrt x with its first two derivatives: A' = (B - A) / 2x,
-/// A'' = (-B^2 - 3 A') / 2x with B = 1 / (1 + x).
+/// A'' = (-B^2 - 3 A') / 2x with B = 1 / (1 + x). Series: sum (-1)^k x^k / (2k+1), 13 terms
+/// (truncation below 3e-9 at x = 1/4; the f64 twin keeps 30).
 fn atanc_sqrt(x: f32) -> vec3f {
     if x < SERIES_LIMIT {
-        // sum (-1)^k x^k / (2k+1), 30 terms as in Rust (f32 needs far fewer).
         var acc = vec3f(0.0);
-        for (var k = 29; k >= 0; k--) {
-            acc = horner_step(acc, x, select(1.0, -1.0, (k & 1) == 1) / f32(2 * k + 1));
-        }
+        acc = horner_step(acc, x, 0.04);
+        acc = horner_step(acc, x, -0.04347826087);
+        acc = horner_step(acc, x, 0.04761904762);
+        acc = horner_step(acc, x, -0.05263157895);
+        acc = horner_step(acc, x, 0.05882352941);
+        acc = horner_step(acc, x, -0.06666666667);
+        acc = horner_step(acc, x, 0.07692307692);
+        acc = horner_step(acc, x, -0.09090909091);
+        acc = horner_step(acc, x, 0.1111111111);
+        acc = horner_step(acc, x, -0.1428571429);
+        acc = horner_step(acc, x, 0.2);
+        acc = horner_step(acc, x, -0.3333333333);
+        acc = horner_step(acc, x, 1.0);
         return vec3f(acc.x, acc.y, 2.0 * acc.z);
     }
     let r = sqrt(x);

@@ -25,6 +25,7 @@ pub mod real;
 pub mod reference;
 pub mod sampling;
 pub mod segment;
+pub mod synthetic;
 pub mod track;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};

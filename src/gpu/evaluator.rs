@@ -51,6 +51,32 @@ impl GpuOutput {
     }
 }
 
+/// A batch uploaded to the device by [`GpuEvaluator::prepare`].
+pub struct PreparedBatch {
+    plans: Vec<Chunk>,
+    chunks: Vec<PreparedChunk>,
+    channels: usize,
+    layout: Layout,
+    times: SampleTimes,
+}
+
+impl PreparedBatch {
+    /// Number of chunks (device bindings) the batch was split into.
+    #[must_use]
+    pub fn chunk_count(&self) -> usize {
+        self.chunks.len()
+    }
+}
+
+/// One chunk on the device, ready to dispatch.
+struct PreparedChunk {
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+    output: wgpu::Buffer,
+    output_bytes: u64,
+    groups: [u32; 2],
+}
+
 /// Pipelines are specialized by these override constants.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct PipelineKey {
@@ -219,7 +245,8 @@ impl GpuEvaluator {
         self
     }
 
-    /// Evaluates every track at its sample times and reads the result back.
+    /// Evaluates every track at its sample times and reads the result back. Chunks are
+    /// uploaded, run and read one at a time, so device memory holds one chunk at most.
     ///
     /// # Errors
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
@@ -227,18 +254,49 @@ impl GpuEvaluator {
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
         let channels = layout::channels(options.derivatives, options.matrix);
         let mut data = vec![0.0f32; times.total() * channels];
-        let chunks = self.plan(batch, times, options, channels)?;
-        for chunk in &chunks {
-            let bytes = (chunk.samples * channels * 4) as u64;
-            let output = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("quatcurve output"),
-                size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            self.dispatch(chunk, batch, options, channels, &output)?;
-            let local = self.read_back(&output, bytes)?;
+        for chunk in &self.plan(batch, times, options, channels)? {
+            let prepared = self.upload(chunk, batch, options, channels, None)?;
+            self.submit(&prepared)?;
+            self.wait()?;
+            let local = self.read_back(&prepared.output, prepared.output_bytes)?;
             scatter(&local, chunk, times, options.layout, channels, &mut data);
+        }
+        Ok(GpuOutput { channels, data })
+    }
+
+    /// Uploads a batch once for repeated dispatches (benchmarks, or re-evaluation after the
+    /// output was consumed). Holds every chunk on the device.
+    ///
+    /// # Errors
+    /// As [`GpuEvaluator::evaluate`].
+    pub fn prepare(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<PreparedBatch, GpuError> {
+        let channels = layout::channels(options.derivatives, options.matrix);
+        let plans = self.plan(batch, times, options, channels)?;
+        let chunks = plans.iter().map(|c| self.upload(c, batch, options, channels, None)).collect::<Result<_, _>>()?;
+        Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
+    }
+
+    /// Runs a prepared batch's kernels and waits for them (no transfers).
+    ///
+    /// # Errors
+    /// Device errors.
+    pub fn dispatch(&self, prepared: &PreparedBatch) -> Result<(), GpuError> {
+        for chunk in &prepared.chunks {
+            self.submit(chunk)?;
+        }
+        self.wait()
+    }
+
+    /// Reads a prepared batch's outputs back, in the requested layout.
+    ///
+    /// # Errors
+    /// Device errors.
+    pub fn read(&self, prepared: &PreparedBatch) -> Result<GpuOutput, GpuError> {
+        let channels = prepared.channels;
+        let mut data = vec![0.0f32; prepared.times.total() * channels];
+        for (plan, chunk) in prepared.plans.iter().zip(&prepared.chunks) {
+            let local = self.read_back(&chunk.output, chunk.output_bytes)?;
+            scatter(&local, plan, &prepared.times, prepared.layout, channels, &mut data);
         }
         Ok(GpuOutput { channels, data })
     }
@@ -264,7 +322,8 @@ impl GpuEvaluator {
                 self.binding_limit
             )));
         }
-        self.dispatch(&chunks[0], batch, options, channels, target)?;
+        let prepared = self.upload(&chunks[0], batch, options, channels, Some(target))?;
+        self.submit(&prepared)?;
         self.wait()
     }
 
@@ -298,7 +357,8 @@ impl GpuEvaluator {
         Ok(pipeline)
     }
 
-    fn dispatch(&self, chunk: &Chunk, batch: &Batch, options: &GpuOptions, channels: usize, output: &wgpu::Buffer) -> Result<(), GpuError> {
+    /// Creates a chunk's buffers, bind group and pipeline; output into `target` when given.
+    fn upload(&self, chunk: &Chunk, batch: &Batch, options: &GpuOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
         let tracks = &batch.tracks[chunk.first_track..chunk.first_track + chunk.tracks.len()];
         let single = tracks.iter().all(|t| t.curve == tracks[0].curve);
@@ -326,7 +386,7 @@ impl GpuEvaluator {
             self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &bytes, usage })
         };
         let storage = wgpu::BufferUsages::STORAGE;
-        let buffers = [
+        let inputs = [
             init("params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
             init("tracks", bytemuck::cast_slice::<GpuTrack, u8>(&chunk.tracks), storage),
             init("points", bytemuck::cast_slice(&chunk.points), storage),
@@ -334,20 +394,37 @@ impl GpuEvaluator {
             init("knots", bytemuck::cast_slice(&chunk.knots), storage),
             init("times", bytemuck::cast_slice(&chunk.times), storage),
         ];
+        let output_bytes = (chunk.samples * channels * 4) as u64;
+        let output = match target {
+            Some(buffer) => buffer.clone(),
+            None => self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("quatcurve output"),
+                size: output_bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+        };
         let mut entries: Vec<wgpu::BindGroupEntry<'_>> =
-            buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+            inputs.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         entries.push(wgpu::BindGroupEntry { binding: 6, resource: output.as_entire_binding() });
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("quatcurve eval"),
             layout: &self.bind_group_layout,
             entries: &entries,
         });
+        scope.pop()?;
+        Ok(PreparedChunk { pipeline, bind_group, output, output_bytes, groups: [groups_x, groups_y as u32] })
+    }
+
+    /// Records and submits one chunk's dispatch.
+    fn submit(&self, chunk: &PreparedChunk) -> Result<(), GpuError> {
+        let scope = ErrorScope::push(&self.device);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve eval"), timestamp_writes: None });
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(groups_x, groups_y as u32, 1);
+            pass.set_pipeline(&chunk.pipeline);
+            pass.set_bind_group(0, &chunk.bind_group, &[]);
+            pass.dispatch_workgroups(chunk.groups[0], chunk.groups[1], 1);
         }
         self.queue.submit([encoder.finish()]);
         scope.pop()

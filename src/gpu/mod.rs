@@ -9,7 +9,7 @@ pub mod evaluator;
 pub mod layout;
 pub mod shader;
 
-pub use evaluator::{GpuEvaluator, GpuOptions, GpuOutput};
+pub use evaluator::{GpuEvaluator, GpuOptions, GpuOutput, PreparedBatch};
 
 /// Why the GPU path failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

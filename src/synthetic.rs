@@ -1,0 +1,28 @@
+//! Deterministic synthetic tracks for benchmarks and demos: smooth, walk-like rotations with
+//! a little per-track variation, no randomness crate needed.
+
+use crate::quat::{DQuat, DVec3};
+use crate::track::Track;
+
+/// `tracks` tracks of `keys` keys each at `rate` keys per second: each joint swings about a
+/// tilted axis with a per-track phase, amplitude and twist (up to about 80 degrees).
+#[must_use]
+pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
+    (0..tracks)
+        .map(|i| {
+            // A cheap hash of the track index for variety.
+            let h = |k: u64| ((i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
+            let (phase, amplitude, twist) = (6.3 * h(1), 0.2 + 0.5 * h(2), 0.3 * h(3) - 0.15);
+            let frequency = 0.8 + 0.6 * h(4);
+            let times: Vec<f64> = (0..keys).map(|j| j as f64 / rate).collect();
+            let rotations = times
+                .iter()
+                .map(|&t| {
+                    let a = (std::f64::consts::TAU * frequency * t + phase).sin();
+                    DQuat::exp(DVec3::new(amplitude * a, 0.3 * amplitude * (2.0 * a).cos(), twist)).to_array()
+                })
+                .collect();
+            Track { name: Some(format!("joint{i}")), times: Some(times), ..Track::from_rotations(rotations) }
+        })
+        .collect()
+}
