@@ -258,8 +258,7 @@ impl GpuEvaluator {
             let prepared = self.upload(chunk, batch, options, channels, None)?;
             self.submit(&prepared)?;
             self.wait()?;
-            let local = self.read_back(&prepared.output, prepared.output_bytes)?;
-            scatter(&local, chunk, times, options.layout, channels, &mut data);
+            self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, chunk, times, options.layout, channels, &mut data))?;
         }
         Ok(GpuOutput { channels, data })
     }
@@ -295,8 +294,7 @@ impl GpuEvaluator {
         let channels = prepared.channels;
         let mut data = vec![0.0f32; prepared.times.total() * channels];
         for (plan, chunk) in prepared.plans.iter().zip(&prepared.chunks) {
-            let local = self.read_back(&chunk.output, chunk.output_bytes)?;
-            scatter(&local, plan, &prepared.times, prepared.layout, channels, &mut data);
+            self.read_back(&chunk.output, chunk.output_bytes, |local| scatter(local, plan, &prepared.times, prepared.layout, channels, &mut data))?;
         }
         Ok(GpuOutput { channels, data })
     }
@@ -430,9 +428,11 @@ impl GpuEvaluator {
         scope.pop()
     }
 
-    fn read_back(&self, output: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
+    /// Copies `bytes` of `output` to a mapped staging buffer and hands its floats to `consume`
+    /// (which copies them into place: one host copy, not two).
+    fn read_back(&self, output: &wgpu::Buffer, bytes: u64, consume: impl FnOnce(&[f32])) -> Result<(), GpuError> {
         if bytes == 0 {
-            return Ok(Vec::new());
+            return Ok(());
         }
         let scope = ErrorScope::push(&self.device);
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
@@ -456,10 +456,10 @@ impl GpuEvaluator {
             Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
         }
         let view = staging.get_mapped_range(..).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
-        let data = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+        consume(bytemuck::cast_slice::<u8, f32>(&view));
         drop(view);
         staging.unmap();
-        Ok(data)
+        Ok(())
     }
 
     fn wait(&self) -> Result<(), GpuError> {

@@ -207,7 +207,7 @@ fn repeated_knots_and_mixed_families_in_one_batch() {
                 *knot = mid;
             }
             for i in (2 * k - 1)..knots.len() {
-                knots[i] = knots[i].max(mid + 0.1 * (i - 2 * k + 2) as f64);
+                knots[i] = knots[i].max(mid + 0.1 * (i + 2 - 2 * k) as f64);
             }
             t.knots = Some(knots);
         }
