@@ -427,7 +427,7 @@ impl<R: Real> Neg for Quat<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f64::consts::PI;
+    use std::f64::consts::{FRAC_PI_4, PI};
 
     fn q(x: f64, y: f64, z: f64, w: f64) -> DQuat {
         DQuat::from_xyzw(x, y, z, w).normalize()
@@ -458,7 +458,7 @@ mod tests {
     #[test]
     fn log_inverts_exp_across_the_branch_thresholds() {
         let u = DVec3::new(0.6, 0.0, 0.8);
-        for &th in &[0.0, 1e-12, 1e-6, 0.463, 0.4637, 0.785, 0.7854, 1.0, 2.5, PI - 1e-9] {
+        for &th in &[0.0, 1e-12, 1e-6, 0.463, 0.4637, FRAC_PI_4 - 1e-9, FRAC_PI_4, FRAC_PI_4 + 1e-9, 1.0, 2.5, PI - 1e-9] {
             let back = DQuat::exp(u.scale(th)).log();
             let err = (back - u.scale(th)).length();
             assert!(err <= 4e-16 * th.max(1.0), "th {th}: err {err}");

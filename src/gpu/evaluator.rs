@@ -208,7 +208,7 @@ impl GpuEvaluator {
             pipeline_layout,
             pipelines: Mutex::new(HashMap::new()),
             workgroup_size,
-            binding_limit: u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size),
+            binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
             max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
             lost,
         })
@@ -257,7 +257,7 @@ impl GpuEvaluator {
         for chunk in &self.plan(batch, times, options, channels)? {
             let prepared = self.upload(chunk, batch, options, channels, None)?;
             self.submit(&prepared)?;
-            self.wait()?;
+            // The readback copy is queued behind the dispatch: one wait covers both.
             self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, chunk, times, options.layout, channels, &mut data))?;
         }
         Ok(GpuOutput { channels, data })
@@ -485,7 +485,7 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
         Layout::Frame => {
             // Local rows are [frame][chunk track]; global rows are [frame][track].
             let n = chunk.tracks.len();
-            let frames = if n == 0 { 0 } else { chunk.samples / n };
+            let frames = chunk.samples.checked_div(n).unwrap_or(0);
             for j in 0..frames {
                 let src = j * n * channels;
                 let dst = layout::output_slot(layout, times, chunk.first_track, j) * channels;
