@@ -63,9 +63,36 @@ fn bspline_at(row: ptr<function, array<f32, 8>>, l: u32, m: u32, j: u32) -> f32 
     return (*row)[r];
 }
 
-/// Cumulative B-spline basis of order k in span l at t (knots from `knot_base`):
+/// Where the basis takes knot differences from: the fixed-point knot vector, or (for uniform
+/// knots) exact small integers times the spacing `dt`, with `u` the position in span `l`.
+struct KnotSource {
+    base: u32,
+    uniform: bool,
+    dt: f32,
+    u: f32,
+    l: u32,
+    t: vec2u,
+}
+
+/// t - knot j, in seconds.
+fn t_minus_knot(src: KnotSource, j: u32) -> f32 {
+    if src.uniform {
+        return (src.u - f32(i32(j) - i32(src.l))) * src.dt;
+    }
+    return time_sub(src.t, knot(src.base, j));
+}
+
+/// knot a - knot b, in seconds.
+fn knot_minus_knot(src: KnotSource, a: u32, b: u32) -> f32 {
+    if src.uniform {
+        return f32(i32(a) - i32(b)) * src.dt;
+    }
+    return time_sub(knot(src.base, a), knot(src.base, b));
+}
+
+/// Cumulative B-spline basis of order k in span l at t (knot differences from `src`):
 /// out[r] for i = l-k+2+r, r = 0..k-2, derivatives in time.
-fn bspline_cumulative(knot_base: u32, k: u32, l: u32, t: vec2u, out: ptr<function, array<vec3f, 7>>) {
+fn bspline_cumulative(src: KnotSource, k: u32, l: u32, out: ptr<function, array<vec3f, 7>>) {
     var row: array<f32, 8>;
     var row_k1: array<f32, 8>; // order k - 1
     var row_k2: array<f32, 8>; // order k - 2
@@ -83,12 +110,12 @@ fn bspline_cumulative(knot_base: u32, k: u32, l: u32, t: vec2u, out: ptr<functio
             var left = 0.0;
             var right = 0.0;
             if r >= 1u {
-                let den = time_sub(knot(knot_base, j + m), knot(knot_base, j));
-                left = safe_div(time_sub(t, knot(knot_base, j)), den) * row[r - 1u];
+                let den = knot_minus_knot(src, j + m, j);
+                left = safe_div(t_minus_knot(src, j), den) * row[r - 1u];
             }
             if r < m {
-                let den = time_sub(knot(knot_base, j + m + 1u), knot(knot_base, j + 1u));
-                right = safe_div(time_sub(knot(knot_base, j + m + 1u), t), den) * row[r];
+                let den = knot_minus_knot(src, j + m + 1u, j + 1u);
+                right = safe_div(-t_minus_knot(src, j + m + 1u), den) * row[r];
             }
             next[r] = left + right;
         }
@@ -105,12 +132,12 @@ fn bspline_cumulative(knot_base: u32, k: u32, l: u32, t: vec2u, out: ptr<functio
     var tail = 0.0;
     for (var i = l; i >= first; i--) {
         tail += bspline_at(&row, l, k, i);
-        let span1 = time_sub(knot(knot_base, i + k - 1u), knot(knot_base, i));
+        let span1 = knot_minus_knot(src, i + k - 1u, i);
         let d1 = (kf - 1.0) * safe_div(bspline_at(&row_k1, l, k - 1u, i), span1);
         var d2 = 0.0;
         if k >= 3u {
-            let inner = safe_div(bspline_at(&row_k2, l, k - 2u, i), time_sub(knot(knot_base, i + k - 2u), knot(knot_base, i)))
-                - safe_div(bspline_at(&row_k2, l, k - 2u, i + 1u), time_sub(knot(knot_base, i + k - 1u), knot(knot_base, i + 1u)));
+            let inner = safe_div(bspline_at(&row_k2, l, k - 2u, i), knot_minus_knot(src, i + k - 2u, i))
+                - safe_div(bspline_at(&row_k2, l, k - 2u, i + 1u), knot_minus_knot(src, i + k - 1u, i + 1u));
             d2 = (kf - 1.0) * (kf - 2.0) * safe_div(inner, span1);
         }
         (*out)[i - first] = vec3f(tail, d1, d2);

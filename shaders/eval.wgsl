@@ -16,6 +16,7 @@ const BLEND_QUADRATIC: u32 = 1u;
 // GpuTrack.flags bits.
 const FLAG_EXPLICIT_TIMES: u32 = 1u;
 const FLAG_HAS_LAST: u32 = 2u;
+const FLAG_UNIFORM_KNOTS: u32 = 4u;
 
 /// Specialization: evaluate only this curve (ANY_CURVE: switch per track).
 override ONLY_CURVE: u32 = 255u;
@@ -169,10 +170,38 @@ fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
 fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = tr.order;
     let m = tr.point_count - 1u;
-    let loc = locate(tr.knot_offset, k - 1u, m, t);
-    let l = loc.span;
+    var src = KnotSource(tr.knot_offset, false, 0.0, 0.0, 0u, t);
+    var l: u32;
+    if (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
+        // Span by arithmetic, then checked against the exact knots (so long clips keep
+        // full precision); the basis then uses integer knot differences times dt.
+        let lo = knot(tr.knot_offset, k - 1u);
+        let hi = knot(tr.knot_offset, m + 1u);
+        var tc = t;
+        if !time_le(lo, tc) {
+            tc = lo;
+        }
+        if !time_le(tc, hi) {
+            tc = hi;
+        }
+        let dt = time_sub(knot(tr.knot_offset, k), lo);
+        l = k - 1u + u32(clamp(floor(time_sub(tc, lo) / dt), 0.0, f32(m + 1u - k)));
+        if l > k - 1u && !time_le(knot(tr.knot_offset, l), tc) {
+            l -= 1u;
+        }
+        if l < m && time_le(knot(tr.knot_offset, l + 1u), tc) {
+            l += 1u;
+        }
+        let start = knot(tr.knot_offset, l);
+        let len = time_sub(knot(tr.knot_offset, l + 1u), start);
+        src = KnotSource(tr.knot_offset, true, len, time_sub(tc, start) / len, l, tc);
+    } else {
+        let loc = locate(tr.knot_offset, k - 1u, m, t);
+        l = loc.span;
+        src.t = loc.t;
+    }
     var basis: array<vec3f, 7>;
-    bspline_cumulative(tr.knot_offset, k, l, loc.t, &basis);
+    bspline_cumulative(src, k, l, &basis);
     let first = l + 2u - k;
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {

@@ -86,6 +86,7 @@ fn codes_and_limits_match_the_shader_constants() {
     assert_eq!(layout::ANY_CURVE, c("ANY_CURVE"));
     assert_eq!(layout::FLAG_EXPLICIT_TIMES, c("FLAG_EXPLICIT_TIMES"));
     assert_eq!(layout::FLAG_HAS_LAST, c("FLAG_HAS_LAST"));
+    assert_eq!(layout::FLAG_UNIFORM_KNOTS, c("FLAG_UNIFORM_KNOTS"));
     assert_eq!(layout::MAX_BEZIER_DEGREE as u32, c("MAX_BEZIER_DEGREE"));
     assert_eq!(8, c("MAX_ORDER"), "B-spline orders 2..=8");
 }

@@ -82,6 +82,23 @@ pub struct Params {
 pub const FLAG_EXPLICIT_TIMES: u32 = 1;
 /// `FLAG_HAS_LAST` in the shader.
 pub const FLAG_HAS_LAST: u32 = 2;
+/// `FLAG_UNIFORM_KNOTS` in the shader: B-spline knots equally spaced (to 1e-9 relative),
+/// so the kernel finds spans by arithmetic and uses integer knot differences.
+pub const FLAG_UNIFORM_KNOTS: u32 = 4;
+/// Relative spacing tolerance for [`FLAG_UNIFORM_KNOTS`].
+pub const UNIFORM_KNOT_TOLERANCE: f64 = 1e-9;
+
+/// Whether a knot vector is equally spaced (to [`UNIFORM_KNOT_TOLERANCE`]).
+#[must_use]
+pub fn knots_are_uniform(knots: &[f64]) -> bool {
+    let n = knots.len();
+    if n < 2 || knots[n - 1] <= knots[0] {
+        return false;
+    }
+    let dt = (knots[n - 1] - knots[0]) / (n - 1) as f64;
+    knots.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_KNOT_TOLERANCE * dt)
+}
+
 /// `ANY_CURVE` in the shader: no specialization.
 pub const ANY_CURVE: u32 = 255;
 
@@ -221,6 +238,9 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
             time_offset: chunk.times.len() as u32,
             ..GpuTrack::default()
         };
+        if view.track.curve == Curve::BSpline && knots_are_uniform(view.knots) {
+            gpu.flags |= FLAG_UNIFORM_KNOTS;
+        }
         match times.tracks[index] {
             TrackTimes::Explicit { offset, count } => {
                 gpu.flags |= FLAG_EXPLICIT_TIMES;
