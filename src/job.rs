@@ -16,6 +16,17 @@ pub enum Layout {
     Frame,
 }
 
+impl Layout {
+    /// Where sample `j` of track `track` lands in the output, counted in samples.
+    #[must_use]
+    pub fn slot(self, times: &SampleTimes, track: usize, j: usize) -> usize {
+        match self {
+            Layout::Track => times.offsets[track] + j,
+            Layout::Frame => j * times.track_count() + track,
+        }
+    }
+}
+
 /// Evaluated samples; derivative arrays are empty unless requested.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Output {
@@ -99,10 +110,7 @@ impl EvalJob<'_> {
             let view = self.batch.view(index);
             for j in 0..self.times.count(index) {
                 let t = self.times.time(index, j);
-                let slot = match self.layout {
-                    Layout::Track => self.times.offsets[index] + j,
-                    Layout::Frame => j * tracks + index,
-                };
+                let slot = self.layout.slot(self.times, index, j);
                 let sample = reference::evaluate(view, t);
                 out.rotations[slot] = sample.rotation.to_array();
                 if self.derivatives {

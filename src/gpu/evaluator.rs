@@ -488,7 +488,7 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
             let frames = chunk.samples.checked_div(n).unwrap_or(0);
             for j in 0..frames {
                 let src = j * n * channels;
-                let dst = layout::output_slot(layout, times, chunk.first_track, j) * channels;
+                let dst = layout.slot(times, chunk.first_track, j) * channels;
                 data[dst..dst + n * channels].copy_from_slice(&local[src..src + n * channels]);
             }
         }

@@ -6,7 +6,6 @@
 
 use crate::batch::Batch;
 use crate::curve::{Blend, Curve};
-use crate::job::Layout;
 use crate::sampling::{SampleTimes, TrackTimes};
 use bytemuck::{Pod, Zeroable};
 
@@ -262,13 +261,4 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         chunk.samples += count;
     }
     Ok(chunks)
-}
-
-/// Where chunk-local sample `(track, j)` lands in the whole output, in samples.
-#[must_use]
-pub fn output_slot(layout: Layout, times: &SampleTimes, track: usize, j: usize) -> usize {
-    match layout {
-        Layout::Track => times.offsets[track] + j,
-        Layout::Frame => j * times.track_count() + track,
-    }
 }
