@@ -122,6 +122,7 @@ macro_rules! names {
         }
     };
 }
+pub(crate) use names;
 
 names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim", BSpline => "bspline");
 names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");

@@ -5,6 +5,7 @@ use crate::job::Output;
 use crate::quat::{DQuat, DVec3};
 use crate::sampling::SampleTimes;
 use crate::track::{Track, TrackFile};
+use npyz::WriterBuilder;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
@@ -53,6 +54,23 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
     tmp.as_file().sync_all().map_err(err)?;
     tmp.persist(path).map_err(|e| err(e.error))?;
     Ok(())
+}
+
+/// Writes a float32 `.npy` array of the given shape atomically (C order, little-endian).
+///
+/// # Errors
+/// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
+pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
+    let expected: u64 = shape.iter().product();
+    if expected != data.len() as u64 {
+        let source = std::io::Error::other(format!("{} values do not fill shape {shape:?}", data.len()));
+        return Err(IoError::Write { path: path.display().to_string(), source });
+    }
+    write_atomic(path, |w| {
+        let mut npy = npyz::WriteOptions::<f32>::new().default_dtype().shape(shape).writer(w).begin_nd()?;
+        npy.extend(data.iter().copied())?;
+        npy.finish()
+    })
 }
 
 /// One track of the output JSON.

@@ -16,6 +16,7 @@
 pub mod basis;
 pub mod batch;
 pub mod curve;
+pub mod device;
 pub mod gpu;
 pub mod error;
 pub mod io;
@@ -29,6 +30,7 @@ pub mod synthetic;
 pub mod track;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
+pub use device::{Device, DeviceChoice, DeviceError};
 pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 pub use error::{Error, Result, TrackId};
 pub use job::{EvalJob, Layout, Output};

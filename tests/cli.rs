@@ -188,3 +188,56 @@ fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
         }
     }
 }
+
+/// Reads a float32 `.npy` file: shape and data.
+fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
+#[test]
+fn eval_npy_in_both_layouts_matches_the_json_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut tracks = sample_tracks();
+    tracks[1].sample_times = None;
+    let input = write_tracks(dir.path(), &tracks);
+    let run = |output: &Path, layout: &str| {
+        let out = quatcurve(&[
+            "eval", "--input", &input, "--output", output.to_str().unwrap(), "--samples", "6", "--derivatives",
+            "--layout", layout, "--device", "reference",
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    };
+    let (json, track_npy, frame_npy) = (dir.path().join("o.json"), dir.path().join("t.npy"), dir.path().join("f.npy"));
+    run(&json, "frame");
+    run(&track_npy, "track");
+    run(&frame_npy, "frame");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (track_shape, by_track) = read_npy(&track_npy);
+    let (frame_shape, by_frame) = read_npy(&frame_npy);
+    assert_eq!(track_shape, [2, 6, 10]);
+    assert_eq!(frame_shape, [6, 2, 10]);
+    for t in 0..2 {
+        for j in 0..6 {
+            let q: [f64; 4] = serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap();
+            let w: [f64; 3] = serde_json::from_value(doc["tracks"][t]["angular_velocity"][j].clone()).unwrap();
+            let a: [f64; 3] = serde_json::from_value(doc["tracks"][t]["angular_acceleration"][j].clone()).unwrap();
+            let expected: Vec<f32> = q.iter().chain(&w).chain(&a).map(|&v| v as f32).collect();
+            assert_eq!(&by_track[(t * 6 + j) * 10..][..10], &expected[..], "track-major track {t} sample {j}");
+            assert_eq!(&by_frame[(j * 2 + t) * 10..][..10], &expected[..], "frame-major track {t} sample {j}");
+        }
+    }
+}
+
+#[test]
+fn npy_with_unequal_sample_counts_exits_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_tracks(dir.path(), &sample_tracks());
+    let output = dir.path().join("out.npy");
+    let out = quatcurve(&["eval", "--input", &input, "--output", output.to_str().unwrap(), "--device", "reference"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("same sample count") && stderr(&out).contains("\"spine\""), "{}", stderr(&out));
+    assert!(std::fs::read_dir(dir.path()).unwrap().all(|e| e.unwrap().path().extension().unwrap() == "json"));
+}

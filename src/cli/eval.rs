@@ -1,0 +1,144 @@
+//! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
+
+use super::{parse, print_stdout, CurveArgs, Failure};
+use clap::{Args, ValueEnum};
+use quatcurve::io::{demo_tracks, read_track_file, write_atomic, write_npy, ResultFile};
+use quatcurve::{Batch, Curve, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Input track file ({"tracks": [...]}); without it, a built-in three-joint demo.
+    #[arg(long)]
+    input: Option<PathBuf>,
+    /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
+    #[arg(long)]
+    output: Option<PathBuf>,
+    /// Curve family.
+    #[arg(long, default_value = "bspline", value_parser = parse::<Curve>)]
+    curve: Curve,
+    #[command(flatten)]
+    options: CurveArgs,
+    /// N samples per track from domain start to end, both included.
+    #[arg(long, conflicts_with = "rate")]
+    samples: Option<usize>,
+    /// Samples per second from the domain start (default 30).
+    #[arg(long)]
+    rate: Option<f64>,
+    /// Also output body angular velocity and acceleration.
+    #[arg(long)]
+    derivatives: bool,
+    /// Sample order of .npy output: [tracks, samples, C] or [samples, tracks, C]. JSON is
+    /// always track-major.
+    #[arg(long, value_enum, default_value_t = LayoutArg::Track)]
+    layout: LayoutArg,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum LayoutArg {
+    Track,
+    Frame,
+}
+
+/// Output format, from the file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Format {
+    Json,
+    Npy,
+}
+
+fn format_of(path: &Path) -> Result<Format, Failure> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("json") => Ok(Format::Json),
+        Some("npy") => Ok(Format::Npy),
+        _ => Err(Failure::Input(format!("{}: output must end in .json or .npy", path.display()))),
+    }
+}
+
+pub fn run(args: &EvalArgs) -> Result<(), Failure> {
+    let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
+    let (source, tracks) = match &args.input {
+        Some(path) => {
+            let file = read_track_file(path).map_err(|e| Failure::Input(e.to_string()))?;
+            (path.display().to_string(), file.tracks)
+        }
+        None => ("built-in demo".to_string(), demo_tracks()),
+    };
+    let spec = args.options.spec(args.curve);
+    let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
+    let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
+    let sampling = match (args.samples, args.rate) {
+        (Some(n), _) => Sampling::Count(n),
+        (None, rate) => Sampling::Rate(rate.unwrap_or(30.0)),
+    };
+    let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.sample_times.as_deref()).collect();
+    let times = SampleTimes::new(&batch, &overrides, sampling).map_err(input_err)?;
+    // JSON is always track-major (DESIGN section 5); --layout shapes .npy output.
+    let layout = match (format, args.layout) {
+        (Format::Npy, LayoutArg::Frame) => Layout::Frame,
+        _ => Layout::Track,
+    };
+    if format == Format::Npy {
+        let first = times.count(0);
+        if let Some(i) = (0..batch.len()).find(|&i| times.count(i) != first) {
+            return Err(Failure::Input(format!(
+                "{source}: .npy output needs the same sample count in every track: {} has {first}, {} has {}",
+                batch.ids[0],
+                batch.ids[i],
+                times.count(i)
+            )));
+        }
+    }
+    let job = EvalJob { batch: &batch, times: &times, layout, derivatives: args.derivatives };
+    job.validate().map_err(input_err)?;
+    let device = Device::open(args.options.device)?;
+    let out = device.evaluate(&job).map_err(|e| Failure::from(e).context(&source))?;
+    let device = device.name();
+    let Some(path) = &args.output else {
+        let doc = ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
+        return print_stdout(|w| {
+            serde_json::to_writer(&mut *w, &doc).map_err(std::io::Error::from)?;
+            writeln!(w)
+        });
+    };
+    let written = match format {
+        Format::Json => {
+            let doc = ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
+            write_atomic(path, |w| serde_json::to_writer(&mut *w, &doc).map_err(std::io::Error::from))
+        }
+        Format::Npy => {
+            let (tracks, samples) = (batch.len() as u64, times.count(0) as u64);
+            let (data, channels) = npy_rows(&out);
+            let shape = match layout {
+                Layout::Track => [tracks, samples, channels],
+                Layout::Frame => [samples, tracks, channels],
+            };
+            write_npy(path, &shape, &data)
+        }
+    };
+    written.map_err(|e| Failure::Internal(e.to_string()))?;
+    eprintln!(
+        "evaluated {} tracks, {} samples ({} on {device}) from {source} -> {}",
+        batch.len(),
+        times.total(),
+        args.curve,
+        path.display()
+    );
+    Ok(())
+}
+
+/// Float32 rows of DESIGN section 5's `.npy`: `x, y, z, w` then, with derivatives, omega and
+/// alpha. Returns the data and the channel count.
+fn npy_rows(out: &Output) -> (Vec<f32>, u64) {
+    let derivatives = !out.angular_velocity.is_empty();
+    let channels = if derivatives { 10 } else { 4 };
+    let mut data = Vec::with_capacity(out.rotations.len() * channels);
+    for (i, q) in out.rotations.iter().enumerate() {
+        data.extend(q.iter().map(|&v| v as f32));
+        if derivatives {
+            data.extend(out.angular_velocity[i].iter().map(|&v| v as f32));
+            data.extend(out.angular_acceleration[i].iter().map(|&v| v as f32));
+        }
+    }
+    (data, channels as u64)
+}

@@ -1,0 +1,80 @@
+//! The subcommands. Each parses its arguments, builds library jobs and reports; the maths and
+//! file formats live in the library.
+
+pub mod bake;
+pub mod bench;
+pub mod eval;
+
+use clap::Args;
+use quatcurve::{Blend, Curve, CurveSpec, DeviceChoice, DeviceError, KnotMode, Tangents};
+use std::io::Write;
+
+/// A failure with the exit code it maps to.
+pub enum Failure {
+    /// Bad usage or bad input: exit 2.
+    Input(String),
+    /// Device or internal failure: exit 1.
+    Internal(String),
+}
+
+impl From<DeviceError> for Failure {
+    fn from(e: DeviceError) -> Self {
+        match e {
+            DeviceError::Input(msg) => Failure::Input(msg),
+            DeviceError::Device(msg) => Failure::Internal(msg),
+        }
+    }
+}
+
+impl Failure {
+    /// Prefixes the message with where it happened (a file name).
+    pub fn context(self, what: &str) -> Self {
+        match self {
+            Failure::Input(msg) => Failure::Input(format!("{what}: {msg}")),
+            Failure::Internal(msg) => Failure::Internal(format!("{what}: {msg}")),
+        }
+    }
+}
+
+/// Parses a name with the library's `FromStr` (the error lists the accepted names).
+pub fn parse<T: std::str::FromStr<Err = String>>(s: &str) -> Result<T, String> {
+    s.parse()
+}
+
+/// The curve options every subcommand shares.
+#[derive(Args, Debug, Clone)]
+pub struct CurveArgs {
+    /// B-spline order k (degree k - 1), 2..=8.
+    #[arg(long, default_value_t = 4)]
+    pub order: usize,
+    /// B-spline knot mode.
+    #[arg(long, default_value = "phantom", value_parser = parse::<KnotMode>)]
+    pub knots: KnotMode,
+    /// Tangent source for hermite and nam-kim.
+    #[arg(long, default_value = "catmull-rom", value_parser = parse::<Tangents>)]
+    pub tangents: Tangents,
+    /// Nam-Kim blend function.
+    #[arg(long, default_value = "cubic", value_parser = parse::<Blend>)]
+    pub blend: Blend,
+    /// Evaluation device: auto (GPU if any, else the f64 reference), gpu, cpu, reference.
+    #[arg(long, default_value = "auto", value_parser = parse::<DeviceChoice>)]
+    pub device: DeviceChoice,
+}
+
+impl CurveArgs {
+    /// The spec for `curve` with these options.
+    pub fn spec(&self, curve: Curve) -> CurveSpec {
+        CurveSpec { curve, order: self.order, knots: self.knots, tangents: self.tangents, blend: self.blend }
+    }
+}
+
+/// Writes a finished text document to standard output; a reader that stops early (`| head`)
+/// is not a failure of ours.
+pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<(), Failure> {
+    let mut stdout = std::io::stdout().lock();
+    match write(&mut stdout).and_then(|()| stdout.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(Failure::Internal(format!("standard output: {e}"))),
+        Ok(()) => Ok(()),
+    }
+}

@@ -1,0 +1,106 @@
+//! Which evaluator runs a job: the one place that maps `--device` to a path, so `eval`,
+//! `bake` and `bench` choose and name devices the same way.
+
+use crate::curve::names;
+use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
+use crate::job::{EvalJob, Output};
+use std::fmt;
+use std::str::FromStr;
+
+/// What the user asked for (`--device`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeviceChoice {
+    /// The GPU when an adapter exists, else the best CPU path in this build (the reference).
+    #[default]
+    Auto,
+    /// The GPU; no adapter is an error, never a silent fallback.
+    Gpu,
+    /// The fast f32 CPU path (not in this build yet: an error).
+    Cpu,
+    /// The f64 reference.
+    Reference,
+}
+
+names!(DeviceChoice, "device", Auto => "auto", Gpu => "gpu", Cpu => "cpu", Reference => "reference");
+
+/// Why a device could not be opened or failed while evaluating.
+#[derive(Debug, thiserror::Error)]
+pub enum DeviceError {
+    /// The inputs are wrong (a batch the device cannot take, mismatched sample lists).
+    #[error("{0}")]
+    Input(String),
+    /// The device is missing or failed (exit code 1 in the CLI).
+    #[error("{0}")]
+    Device(String),
+}
+
+/// An opened evaluator.
+pub enum Device {
+    /// The f64 reference ([`EvalJob::run`]).
+    Reference,
+    /// The WGSL kernel.
+    Gpu(Box<GpuEvaluator>),
+}
+
+impl fmt::Debug for Device {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+impl Device {
+    /// Opens what `choice` asks for.
+    ///
+    /// # Errors
+    /// [`DeviceError::Device`] for `gpu` without an adapter and for `cpu` (not in this build).
+    pub fn open(choice: DeviceChoice) -> Result<Self, DeviceError> {
+        match choice {
+            DeviceChoice::Reference => Ok(Device::Reference),
+            DeviceChoice::Gpu => GpuEvaluator::new()
+                .map(|g| Device::Gpu(Box::new(g)))
+                .map_err(|e| DeviceError::Device(format!("--device gpu: {e}"))),
+            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or(Device::Reference, |g| Device::Gpu(Box::new(g)))),
+            DeviceChoice::Cpu => Err(DeviceError::Device(
+                "--device cpu (the fast f32 CPU path) is not in this build yet; use gpu, reference or auto".into(),
+            )),
+        }
+    }
+
+    /// The name outputs report: `reference` or `gpu: <adapter>` (DESIGN section 5).
+    #[must_use]
+    pub fn name(&self) -> String {
+        match self {
+            Device::Reference => "reference".into(),
+            Device::Gpu(g) => format!("gpu: {}", g.adapter_name()),
+        }
+    }
+
+    /// Short kind: `reference` or `gpu`.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Device::Reference => "reference",
+            Device::Gpu(_) => "gpu",
+        }
+    }
+
+    /// Evaluates a job in its layout; results in f64 whatever the device computed in.
+    ///
+    /// # Errors
+    /// [`DeviceError::Input`] for inputs the job or device rejects, [`DeviceError::Device`]
+    /// for device failures.
+    pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
+        match self {
+            Device::Reference => job.run().map_err(|e| DeviceError::Input(e.to_string())),
+            Device::Gpu(g) => {
+                job.validate().map_err(|e| DeviceError::Input(e.to_string()))?;
+                let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
+                let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
+                    GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Input(e.to_string()),
+                    _ => DeviceError::Device(e.to_string()),
+                })?;
+                Ok(out.to_output(job.derivatives))
+            }
+        }
+    }
+}
