@@ -9,16 +9,14 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Batch, CurveSpec, EvalJob, KnotMode, Layout, SampleTimes, Sampling};
+use quatcurve::{synthetic, Batch, CurveSpec, EvalJob, KnotMode, Layout, SampleTimes};
 
 const TRACKS: usize = 10_000;
 const SAMPLES: usize = 1_000;
 
 fn workload(tracks: usize) -> (Batch, SampleTimes) {
     let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
-    let batch = Batch::from_tracks(&synthetic::walk_tracks(tracks, 32, 30.0), &spec).expect("valid synthetic tracks");
-    let times = SampleTimes::uniform(&batch, Sampling::Count(SAMPLES)).expect("valid sampling");
-    (batch, times)
+    synthetic::workload(tracks, SAMPLES, &spec).expect("valid synthetic workload")
 }
 
 fn reference(c: &mut Criterion) {

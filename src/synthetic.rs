@@ -2,6 +2,10 @@
 //! a little per-track variation, no randomness crate needed.
 
 use crate::quat::{DQuat, DVec3};
+use crate::batch::Batch;
+use crate::curve::CurveSpec;
+use crate::error::Result;
+use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
 
 /// `tracks` tracks of `keys` keys each at `rate` keys per second: each joint swings about a
@@ -25,4 +29,19 @@ pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
             Track { name: Some(format!("joint{i}")), times: Some(times), ..Track::from_rotations(rotations) }
         })
         .collect()
+}
+
+/// Keys per track of [`workload`]: a few seconds of animation keyed at 30 Hz.
+pub const WORKLOAD_KEYS: usize = 32;
+
+/// The benchmark workload shared by `quatcurve bench` and the criterion benches:
+/// `tracks` [`walk_tracks`] of [`WORKLOAD_KEYS`] keys at 30 Hz, `samples` samples per track
+/// from domain start to end.
+///
+/// # Errors
+/// The spec's errors (an order outside 2..=8, phantom knots with order other than 4).
+pub fn workload(tracks: usize, samples: usize, spec: &CurveSpec) -> Result<(Batch, SampleTimes)> {
+    let batch = Batch::from_tracks(&walk_tracks(tracks, WORKLOAD_KEYS, 30.0), spec)?;
+    let times = SampleTimes::uniform(&batch, Sampling::Count(samples))?;
+    Ok((batch, times))
 }

@@ -241,3 +241,31 @@ fn npy_with_unequal_sample_counts_exits_2_and_writes_nothing() {
     assert!(stderr(&out).contains("same sample count") && stderr(&out).contains("\"spine\""), "{}", stderr(&out));
     assert!(std::fs::read_dir(dir.path()).unwrap().all(|e| e.unwrap().path().extension().unwrap() == "json"));
 }
+
+#[test]
+fn bench_reports_every_requested_device_as_json() {
+    let require_gpu = std::env::var_os("QUATCURVE_REQUIRE_GPU").is_some();
+    let out = quatcurve(&["bench", "--tracks", "40", "--samples", "25", "--runs", "1", "--derivatives", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(doc["workload"]["tracks"], 40);
+    assert_eq!(doc["workload"]["samples_per_track"], 25);
+    assert_eq!(doc["workload"]["knots"], "uniform");
+    assert_eq!(doc["workload"]["derivatives"], true);
+    let results = doc["results"].as_array().unwrap();
+    let devices: Vec<&str> = results.iter().map(|r| r["device"].as_str().unwrap()).collect();
+    assert_eq!(devices[0], "reference");
+    if require_gpu {
+        assert!(devices.contains(&"gpu"), "{devices:?}");
+    }
+    for r in results {
+        assert!(r["samples_per_s"].as_f64().unwrap() > 0.0 && r["seconds"].as_f64().unwrap() > 0.0, "{r}");
+        assert_eq!(r["samples"], 1000, "the reference slice covers the whole small batch");
+        assert_eq!(r["dispatch_samples_per_s"].is_f64(), r["device"] == "gpu", "{r}");
+    }
+    // A device named explicitly that is not there is a failure, not a skip.
+    let out = quatcurve(&["bench", "--tracks", "4", "--samples", "4", "--devices", "cpu"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let out = quatcurve(&["bench", "--tracks", "0"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}

@@ -1,6 +1,175 @@
-//! `quatcurve bench` (placeholder while being written).
-use super::Failure;
+//! `quatcurve bench`: one synthetic batch through every requested device in one process,
+//! median samples per second side by side (DESIGN section 5).
+
+use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::Args;
+use quatcurve::gpu::{GpuEvaluator, GpuOptions};
+use quatcurve::{synthetic, Batch, Curve, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes};
+use serde::Serialize;
+use std::time::Instant;
+
 #[derive(Args, Debug)]
-pub struct BenchArgs {}
-pub fn run(_: &BenchArgs) -> Result<(), Failure> { Ok(()) }
+pub struct BenchArgs {
+    /// Tracks in the batch.
+    #[arg(long, default_value_t = 10_000)]
+    tracks: usize,
+    /// Samples per track.
+    #[arg(long, default_value_t = 1_000)]
+    samples: usize,
+    /// Curve family.
+    #[arg(long, default_value = "bspline", value_parser = parse::<Curve>)]
+    curve: Curve,
+    #[command(flatten)]
+    options: CurveArgs,
+    /// Also compute angular velocity and acceleration.
+    #[arg(long)]
+    derivatives: bool,
+    /// Devices to time, comma-separated (reference, cpu, gpu). Default: every one available
+    /// in this build; a device named here that is missing is an error (exit 1).
+    #[arg(long, value_delimiter = ',', value_parser = parse::<DeviceChoice>)]
+    devices: Option<Vec<DeviceChoice>>,
+    /// Timed runs per device (after one warm-up); the median is reported.
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+    /// Samples the f64 reference evaluates per run: it times a leading slice of the batch
+    /// (whole tracks), since it is the oracle, not a fast path.
+    #[arg(long, default_value_t = 1_000_000)]
+    reference_samples: usize,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct Report {
+    workload: Workload,
+    results: Vec<Row>,
+}
+
+#[derive(Serialize)]
+struct Workload {
+    tracks: usize,
+    samples_per_track: usize,
+    keys_per_track: usize,
+    curve: &'static str,
+    order: usize,
+    knots: &'static str,
+    derivatives: bool,
+    runs: usize,
+}
+
+#[derive(Serialize)]
+struct Row {
+    device: &'static str,
+    adapter: String,
+    samples_per_s: f64,
+    seconds: f64,
+    samples: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dispatch_samples_per_s: Option<f64>,
+}
+
+pub fn run(args: &BenchArgs) -> Result<(), Failure> {
+    if args.tracks == 0 || args.samples == 0 || args.runs == 0 {
+        return Err(Failure::Input("bench: --tracks, --samples and --runs must be at least 1".into()));
+    }
+    let spec = args.options.spec(args.curve, KnotMode::Uniform);
+    let (batch, times) =
+        synthetic::workload(args.tracks, args.samples, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+    let explicit = args.devices.is_some();
+    let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
+    let mut results = Vec::new();
+    for choice in devices {
+        let device = match (choice, Device::open(choice)) {
+            (DeviceChoice::Auto, _) => return Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into())),
+            (_, Ok(device)) => device,
+            (_, Err(e)) if explicit => return Err(e.into()),
+            (_, Err(e)) => {
+                eprintln!("skipped {choice}: {e}");
+                continue;
+            }
+        };
+        results.push(match &device {
+            Device::Reference => time_reference(args)?,
+            Device::Gpu(gpu) => time_gpu(args, gpu, &batch, &times)?,
+        });
+    }
+    let report = Report {
+        workload: Workload {
+            tracks: args.tracks,
+            samples_per_track: args.samples,
+            keys_per_track: synthetic::WORKLOAD_KEYS,
+            curve: args.curve.name(),
+            order: args.options.order,
+            knots: args.options.spec(args.curve, KnotMode::Uniform).knots.name(),
+            derivatives: args.derivatives,
+            runs: args.runs,
+        },
+        results,
+    };
+    print_stdout(|w| if args.json { writeln!(w, "{}", serde_json::to_string(&report)?) } else { table(w, &report) })
+}
+
+/// Median wall time of `runs` calls after one warm-up.
+fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
+    f()?;
+    let mut seconds = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let start = Instant::now();
+        f()?;
+        seconds.push(start.elapsed().as_secs_f64());
+    }
+    seconds.sort_by(f64::total_cmp);
+    Ok(seconds[runs / 2])
+}
+
+/// The reference times the batch's first tracks (the synthetic batch is a pure function of
+/// the track index, so the slice is exactly those tracks).
+fn time_reference(args: &BenchArgs) -> Result<Row, Failure> {
+    let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
+    let spec = args.options.spec(args.curve, KnotMode::Uniform);
+    let (slice, slice_times) = synthetic::workload(tracks, args.samples, &spec).map_err(|e| Failure::Input(e.to_string()))?;
+    let job = EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives: args.derivatives };
+    let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
+    let samples = slice_times.total();
+    Ok(Row { device: "reference", adapter: "f64, one thread".into(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None })
+}
+
+fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
+    let options = GpuOptions { derivatives: args.derivatives, ..GpuOptions::default() };
+    let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
+    let seconds = median_seconds(args.runs, || gpu.evaluate(batch, times, &options).map(drop).map_err(device_err))?;
+    let prepared = gpu.prepare(batch, times, &options).map_err(device_err)?;
+    let dispatch = median_seconds(args.runs, || gpu.dispatch(&prepared).map_err(device_err))?;
+    let samples = times.total();
+    Ok(Row {
+        device: "gpu",
+        adapter: gpu.adapter_name().to_string(),
+        samples_per_s: samples as f64 / seconds,
+        seconds,
+        samples,
+        dispatch_samples_per_s: Some(samples as f64 / dispatch),
+    })
+}
+
+fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
+    let l = &report.workload;
+    writeln!(
+        w,
+        "workload: {} tracks x {} samples ({} keys each), {} order {} {} knots, {}; median of {} runs",
+        l.tracks,
+        l.samples_per_track,
+        l.keys_per_track,
+        l.curve,
+        l.order,
+        l.knots,
+        if l.derivatives { "with angular velocity and acceleration" } else { "rotation only" },
+        l.runs
+    )?;
+    writeln!(w, "{:<10} {:>12} {:>10} {:>14} {:>20}  adapter", "device", "samples", "seconds", "M samples/s", "dispatch-only M/s")?;
+    for r in &report.results {
+        let dispatch = r.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
+        writeln!(w, "{:<10} {:>12} {:>10.4} {:>14.2} {:>20}  {}", r.device, r.samples, r.seconds, r.samples_per_s / 1e6, dispatch, r.adapter)?;
+    }
+    Ok(())
+}

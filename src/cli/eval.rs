@@ -3,7 +3,7 @@
 use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{demo_tracks, read_track_file, write_atomic, write_npy, ResultFile};
-use quatcurve::{Batch, Curve, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -64,7 +64,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         }
         None => ("built-in demo".to_string(), demo_tracks()),
     };
-    let spec = args.options.spec(args.curve);
+    let spec = args.options.spec(args.curve, KnotMode::Phantom);
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
     let sampling = match (args.samples, args.rate) {

@@ -47,9 +47,10 @@ pub struct CurveArgs {
     /// B-spline order k (degree k - 1), 2..=8.
     #[arg(long, default_value_t = 4)]
     pub order: usize,
-    /// B-spline knot mode.
-    #[arg(long, default_value = "phantom", value_parser = parse::<KnotMode>)]
-    pub knots: KnotMode,
+    /// B-spline knot mode: phantom, uniform, clamped or explicit (default: phantom; bench:
+    /// uniform).
+    #[arg(long, value_parser = parse::<KnotMode>)]
+    pub knots: Option<KnotMode>,
     /// Tangent source for hermite and nam-kim.
     #[arg(long, default_value = "catmull-rom", value_parser = parse::<Tangents>)]
     pub tangents: Tangents,
@@ -62,9 +63,10 @@ pub struct CurveArgs {
 }
 
 impl CurveArgs {
-    /// The spec for `curve` with these options.
-    pub fn spec(&self, curve: Curve) -> CurveSpec {
-        CurveSpec { curve, order: self.order, knots: self.knots, tangents: self.tangents, blend: self.blend }
+    /// The spec for `curve` with these options; `knots` when none was given.
+    pub fn spec(&self, curve: Curve, knots: KnotMode) -> CurveSpec {
+        let knots = self.knots.unwrap_or(knots);
+        CurveSpec { curve, order: self.order, knots, tangents: self.tangents, blend: self.blend }
     }
 }
 
