@@ -253,7 +253,7 @@ fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Resul
 }
 
 /// The key times, defaulting to `0, 1, ..., n`; finite and strictly increasing.
-fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Result<Vec<f64>> {
+pub(crate) fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Result<Vec<f64>> {
     let Some(times) = times else {
         return Ok((0..count).map(|i| i as f64).collect());
     };
@@ -387,46 +387,19 @@ fn lerp(a: f64, b: f64, s: f64) -> f64 {
 /// Control points, knot vector and coefficients of a B-spline track (DESIGN section 3).
 fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, times: &[f64]) -> Result<Prepared> {
     let k = spec.order;
-    if !(2..=8).contains(&k) {
-        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside 2..=8") });
-    }
-    let n = keys.len() - 1;
-    let (t0, tn) = (times[0], times[n]);
-    let (points, knots) = match spec.knots {
-        KnotMode::Phantom => {
-            if k != 4 {
-                return Err(Error::BadOrder {
-                    track: id.clone(),
-                    reason: format!("phantom knots are defined for order 4 only, not {k}; use uniform, clamped or explicit"),
-                });
-            }
-            check_uniform(id, times, spec.knots)?;
-            let first = keys[0] * keys[1].conjugate() * keys[0];
-            let last = keys[n] * keys[n - 1].conjugate() * keys[n];
-            let mut points = Vec::with_capacity(n + 3);
-            points.push(first);
-            points.extend_from_slice(&keys);
-            points.push(last);
-            // Control points c_0..c_{n+2}; knots t_j = tau_0 + (j - 3) dt, j = 0..=n+6.
-            let knots = (0..n + 7).map(|j| lerp(t0, tn, (j as f64 - 3.0) / n as f64)).collect();
-            (points, knots)
-        }
-        KnotMode::Uniform => {
-            check_uniform(id, times, spec.knots)?;
-            let knots = (0..=n + k).map(|j| lerp(t0, tn, (j as f64 - (k as f64 - 1.0)) / n as f64)).collect();
-            (keys, knots)
-        }
-        KnotMode::Clamped => {
-            let inner = n + 2 - k;
-            let mut knots = vec![t0; k];
-            knots.extend((1..inner).map(|j| lerp(t0, tn, j as f64 / inner as f64)));
-            knots.extend(std::iter::repeat(tn).take(k));
-            (keys, knots)
-        }
-        KnotMode::Explicit => {
-            let knots = explicit_knots(id, track.knots.as_deref(), k, n)?;
-            (keys, knots)
-        }
+    let knots = bspline_knots(id, track.knots.as_deref(), spec, times)?;
+    let points = if spec.knots == KnotMode::Phantom {
+        // q_-1 = q_0 q_1^-1 q_0 and q_{n+1} = q_n q_{n-1}^-1 q_n: the key steps mirrored.
+        let n = keys.len() - 1;
+        let first = keys[0] * keys[1].conjugate() * keys[0];
+        let last = keys[n] * keys[n - 1].conjugate() * keys[n];
+        let mut points = Vec::with_capacity(n + 3);
+        points.push(first);
+        points.extend_from_slice(&keys);
+        points.push(last);
+        points
+    } else {
+        keys
     };
     let m = points.len() - 1;
     let mut coefs: Vec<[f64; 4]> = (1..=m)
@@ -443,6 +416,43 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
     }
     let domain = [knots[k - 1], knots[m + 1]];
     Ok(Prepared { order: k, points, coefs, knots, domain })
+}
+
+/// The full knot vector of a B-spline through `times.len()` keys (DESIGN section 3): phantom
+/// knots cover the two phantom control points too (`n + 7` knots), the other modes `n + k + 1`.
+/// Shared with the Euclidean analogue ([`crate::euclidean`]), so both use the same basis.
+pub(crate) fn bspline_knots(id: &TrackId, explicit: Option<&[f64]>, spec: &CurveSpec, times: &[f64]) -> Result<Vec<f64>> {
+    let k = spec.order;
+    if !(2..=8).contains(&k) {
+        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside 2..=8") });
+    }
+    let n = times.len() - 1;
+    let (t0, tn) = (times[0], times[n]);
+    Ok(match spec.knots {
+        KnotMode::Phantom => {
+            if k != 4 {
+                return Err(Error::BadOrder {
+                    track: id.clone(),
+                    reason: format!("phantom knots are defined for order 4 only, not {k}; use uniform, clamped or explicit"),
+                });
+            }
+            check_uniform(id, times, spec.knots)?;
+            // Control points c_0..c_{n+2}; knots t_j = tau_0 + (j - 3) dt, j = 0..=n+6.
+            (0..n + 7).map(|j| lerp(t0, tn, (j as f64 - 3.0) / n as f64)).collect()
+        }
+        KnotMode::Uniform => {
+            check_uniform(id, times, spec.knots)?;
+            (0..=n + k).map(|j| lerp(t0, tn, (j as f64 - (k as f64 - 1.0)) / n as f64)).collect()
+        }
+        KnotMode::Clamped => {
+            let inner = n + 2 - k;
+            let mut knots = vec![t0; k];
+            knots.extend((1..inner).map(|j| lerp(t0, tn, j as f64 / inner as f64)));
+            knots.extend(std::iter::repeat(tn).take(k));
+            knots
+        }
+        KnotMode::Explicit => explicit_knots(id, explicit, k, n)?,
+    })
 }
 
 /// Validates a user knot vector: length n + k + 1, finite, non-decreasing, multiplicity at most

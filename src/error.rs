@@ -78,6 +78,12 @@ pub enum Error {
     /// An extra turn was asked on a segment whose middle coefficient has no axis.
     #[error("{track}: segment {segment} (keys {segment}..{}) asks for {turns} extra turns but its middle rotation w2 is zero, so the turn axis is undefined", segment + 1)]
     ExtraTurnOnZeroArc { track: TrackId, segment: usize, turns: i64 },
+    /// A translation or scale value is NaN or infinite.
+    #[error("{track}: value of key {key} is not finite ({value:?})")]
+    NonFiniteValue { track: TrackId, key: usize, value: [f64; 3] },
+    /// `tangents = given` on a vector channel, which has no per-key velocities.
+    #[error("{track}: tangents = given needs per-key velocities, which translation and scale channels do not carry; use catmull-rom or zero")]
+    VectorTangents { track: TrackId },
     /// A sample time is NaN or infinite.
     #[error("{track}: sample time {sample} is not finite ({value})")]
     NonFiniteSampleTime { track: TrackId, sample: usize, value: f64 },

@@ -19,6 +19,7 @@ pub mod curve;
 pub mod device;
 pub mod gpu;
 pub mod error;
+pub mod euclidean;
 pub mod io;
 pub mod job;
 pub mod quat;

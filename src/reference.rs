@@ -86,13 +86,13 @@ fn coef_quat(c: [f64; 4]) -> DQuat {
 }
 
 /// Locates `t` among a piecewise track's key times: `(segment, clamped t, segment length)`.
-fn key_segment(knots: &[f64], t: f64) -> (usize, f64, f64) {
+pub(crate) fn key_segment(knots: &[f64], t: f64) -> (usize, f64, f64) {
     let (i, t) = locate(knots, 0, knots.len() - 2, t);
     (i, t, knots[i + 1] - knots[i])
 }
 
 /// Scales a basis jet in the segment parameter `u` to time units for a segment of length `len`.
-fn per_time(b: BasisJet, len: f64) -> BasisJet {
+pub(crate) fn per_time(b: BasisJet, len: f64) -> BasisJet {
     [b[0], b[1] / len, b[2] / (len * len)]
 }
 

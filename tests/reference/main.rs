@@ -3,6 +3,7 @@
 mod common;
 
 mod bspline;
+mod euclidean;
 mod families;
 mod hermite;
 mod nam_kim;

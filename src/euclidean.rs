@@ -1,0 +1,180 @@
+//! The Euclidean analogue of every curve, for translation and scale channels (KKS section 1):
+//! the same basis functions and knots as the rotation curve, with the group `(R^3, +)` in
+//! place of unit quaternions, so `exp` and `log` are the identity and the cumulative product
+//! `q_0 prod exp(w_i B~_i)` becomes the sum `p_0 + sum (p_i - p_{i-1}) B~_i`.
+//!
+//! A baked clip therefore moves its translations with exactly the smoothness, locality and
+//! key interpolation of its rotations. The test that ties the two together: keys on one axis
+//! (where rotations commute) give the rotation curve's angle equal to this curve's value.
+//! Evaluated in f64 on the CPU: translation channels are few next to rotation channels.
+
+use crate::basis::{bernstein_cumulative, bspline_cumulative};
+use crate::batch::{bspline_knots, key_times};
+use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+use crate::error::{Error, Result, TrackId};
+use crate::quat::DVec3;
+use crate::reference::{blend, key_segment};
+use crate::segment::locate;
+
+/// A vector curve ready to evaluate: points, per-family coefficients and knots, laid out as
+/// the rotation batch lays them out (see [`crate::batch`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VectorCurve {
+    curve: Curve,
+    order: usize,
+    blend: Blend,
+    points: Vec<DVec3>,
+    coefs: Vec<DVec3>,
+    knots: Vec<f64>,
+    domain: [f64; 2],
+}
+
+impl VectorCurve {
+    /// Builds the analogue of `spec` through `values` at `times` (`None`: `0, 1, ..., n`).
+    ///
+    /// # Errors
+    /// The rotation builder's rules for times, key counts, orders and knots, naming `id`;
+    /// [`Error::NonFiniteValue`] for a NaN or infinite value; [`Error::VectorTangents`] for
+    /// `tangents = given` (vector channels carry no per-key velocities).
+    pub fn new(id: &TrackId, times: Option<&[f64]>, values: &[[f64; 3]], explicit_knots: Option<&[f64]>, spec: &CurveSpec) -> Result<Self> {
+        let min = spec.min_keys();
+        if values.len() < min {
+            return Err(Error::TooFewKeys { track: id.clone(), curve: spec.curve.to_string(), min, found: values.len() });
+        }
+        if let Some(key) = values.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+            return Err(Error::NonFiniteValue { track: id.clone(), key, value: values[key] });
+        }
+        let times = key_times(id, times, values.len())?;
+        let keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
+        let n = keys.len() - 1;
+        let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
+        let (t0, tn) = (times[0], times[n]);
+        let mut curve = VectorCurve {
+            curve: spec.curve,
+            order: 0,
+            blend: spec.blend,
+            coefs: steps(&keys),
+            points: keys,
+            knots: times.clone(),
+            domain: [t0, tn],
+        };
+        match spec.curve {
+            Curve::Slerp => {}
+            Curve::Bezier => {
+                curve.order = n;
+                curve.knots = vec![t0, tn];
+            }
+            Curve::Squad => curve.coefs = squad_points(&curve.points),
+            Curve::Hermite => {
+                let v = velocities(id, spec.tangents, &curve.points, &times)?;
+                curve.coefs = (0..n)
+                    .flat_map(|i| {
+                        let third = (times[i + 1] - times[i]) / 3.0;
+                        let (w1, w3) = (v[i].scale(third), v[i + 1].scale(third));
+                        [w1, curve.points[i + 1] - curve.points[i] - w1 - w3, w3]
+                    })
+                    .collect();
+            }
+            Curve::NamKim => {
+                let v = velocities(id, spec.tangents, &curve.points, &times)?;
+                curve.coefs = (0..n).flat_map(|i| [v[i], v[i + 1]].map(|v| v.scale(times[i + 1] - times[i]))).collect();
+            }
+            Curve::BSpline => {
+                let k = spec.order;
+                curve.order = k;
+                curve.knots = bspline_knots(id, explicit_knots, spec, &times)?;
+                if spec.knots == KnotMode::Phantom {
+                    let p = &curve.points;
+                    let (first, last) = (p[0].scale(2.0) - p[1], p[n].scale(2.0) - p[n - 1]);
+                    curve.points.insert(0, first);
+                    curve.points.push(last);
+                }
+                curve.coefs = steps(&curve.points);
+                let m = curve.points.len() - 1;
+                curve.domain = [curve.knots[k - 1], curve.knots[m + 1]];
+            }
+        }
+        Ok(curve)
+    }
+
+    /// The curve's domain; evaluation clamps to it.
+    #[must_use]
+    pub fn domain(&self) -> [f64; 2] {
+        self.domain
+    }
+
+    /// The value at time `t` (clamped to the domain).
+    #[must_use]
+    pub fn evaluate(&self, t: f64) -> DVec3 {
+        let Self { points, coefs, knots, .. } = self;
+        let sum = |start: DVec3, terms: &mut dyn Iterator<Item = (DVec3, f64)>| terms.fold(start, |p, (c, b)| p + c.scale(b));
+        match self.curve {
+            Curve::Slerp => {
+                let (i, t, len) = key_segment(knots, t);
+                points[i] + coefs[i].scale((t - knots[i]) / len)
+            }
+            Curve::Bezier => {
+                let (_, t, len) = key_segment(knots, t);
+                let basis = bernstein_cumulative(self.order, (t - knots[0]) / len);
+                sum(points[0], &mut coefs.iter().zip(basis).map(|(&c, b)| (c, b[0])))
+            }
+            Curve::Hermite => {
+                let (i, t, len) = key_segment(knots, t);
+                let basis = bernstein_cumulative(3, (t - knots[i]) / len);
+                sum(points[i], &mut coefs[3 * i..3 * i + 3].iter().zip(basis).map(|(&c, b)| (c, b[0])))
+            }
+            Curve::BSpline => {
+                let k = self.order;
+                let m = points.len() - 1;
+                let (l, t) = locate(knots, k - 1, m, t);
+                let first = l + 2 - k;
+                let basis = bspline_cumulative(knots, k, l, t);
+                sum(points[l + 1 - k], &mut basis.into_iter().enumerate().map(|(j, b)| (coefs[first + j - 1], b[0])))
+            }
+            Curve::Squad => {
+                let (i, t, len) = key_segment(knots, t);
+                let h = (t - knots[i]) / len;
+                let lerp = |a: DVec3, b: DVec3, s: f64| a + (b - a).scale(s);
+                lerp(lerp(points[i], points[i + 1], h), lerp(coefs[i], coefs[i + 1], h), 2.0 * h * (1.0 - h))
+            }
+            Curve::NamKim => {
+                let (i, t, len) = key_segment(knots, t);
+                let s = (t - knots[i]) / len;
+                let c1 = points[i] + coefs[2 * i].scale(s);
+                let c2 = points[i + 1] + coefs[2 * i + 1].scale(s - 1.0);
+                c1 + (c2 - c1).scale(blend(self.blend, s))
+            }
+        }
+    }
+}
+
+/// Squad's auxiliary points, Euclidean: `s_i = p_i - ((p_{i+1} - p_i) + (p_{i-1} - p_i)) / 4`.
+fn squad_points(keys: &[DVec3]) -> Vec<DVec3> {
+    let n = keys.len() - 1;
+    (0..=n)
+        .map(|i| if i == 0 || i == n { keys[i] } else { keys[i] - ((keys[i + 1] - keys[i]) + (keys[i - 1] - keys[i])).scale(0.25) })
+        .collect()
+}
+
+/// Per-key velocities: Catmull-Rom (the time-weighted mean of the neighbouring difference
+/// quotients, one-sided at the ends) or zero, as for rotations.
+fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64]) -> Result<Vec<DVec3>> {
+    let n = keys.len() - 1;
+    match tangents {
+        Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
+        Tangents::Given => Err(Error::VectorTangents { track: id.clone() }),
+        Tangents::CatmullRom => Ok((0..=n)
+            .map(|i| {
+                let quotient = |a: usize| (keys[a + 1] - keys[a]).scale(1.0 / (times[a + 1] - times[a]));
+                if i == 0 {
+                    quotient(0)
+                } else if i == n {
+                    quotient(n - 1)
+                } else {
+                    let (d0, d1) = (times[i] - times[i - 1], times[i + 1] - times[i]);
+                    (quotient(i - 1).scale(d1) + quotient(i).scale(d0)).scale(1.0 / (d0 + d1))
+                }
+            })
+            .collect()),
+    }
+}
