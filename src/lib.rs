@@ -13,6 +13,7 @@
 //! `run()`. Conventions (quaternion order `x, y, z, w`, half-angle exp/log, body-frame
 //! derivatives) are those of the project's DESIGN document and are summarized in the README.
 
+pub mod bake;
 pub mod basis;
 pub mod batch;
 pub mod curve;

@@ -1,6 +1,269 @@
-//! `quatcurve bake` (placeholder while being written).
-use super::Failure;
+//! `quatcurve bake`: resample glTF/GLB and BVH files (or the built-in crowd) at a new rate.
+//!
+//! Per input file: read, bake every clip, then write all of that file's outputs atomically;
+//! a failure in one file is reported and the others still finish (exit non-zero at the end).
+
+use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, TEXTURE_CHANNELS};
+use quatcurve::io::{write_atomic, write_npy};
+use quatcurve::{Curve, CurveSpec, Device, KnotMode};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
 #[derive(Args, Debug)]
-pub struct BakeArgs {}
-pub fn run(_: &BakeArgs) -> Result<(), Failure> { Ok(()) }
+pub struct BakeArgs {
+    /// Input files (.gltf, .glb, .bvh) or directories of them; without it, the built-in
+    /// synthetic crowd.
+    #[arg(long, num_args = 1..)]
+    input: Vec<PathBuf>,
+    /// Output rate in Hz.
+    #[arg(long, default_value_t = 30.0)]
+    rate: f64,
+    /// Curve family; the default interpolates the keys (KKS cubic Hermite, C1).
+    #[arg(long, default_value = "hermite", value_parser = parse::<Curve>)]
+    curve: Curve,
+    #[command(flatten)]
+    options: CurveArgs,
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "baked")]
+    output: PathBuf,
+    /// Characters in the built-in crowd.
+    #[arg(long, default_value_t = crowd::CHARACTERS)]
+    characters: usize,
+}
+
+/// What one input became.
+struct Row {
+    source: String,
+    clips: usize,
+    channels: usize,
+    keys: usize,
+    samples: usize,
+    seconds: f64,
+    max_key_error: Option<f64>,
+    outcome: Result<Vec<PathBuf>, Failure>,
+}
+
+/// A source read into the common model, with what it needs to write itself back.
+enum Source {
+    Gltf(Box<gltf::GltfFile>),
+    Bvh(bvh::BvhFile, Animation),
+    Crowd(Animation),
+}
+
+impl Source {
+    fn animation(&self) -> &Animation {
+        match self {
+            Source::Gltf(f) => &f.animation,
+            Source::Bvh(_, a) | Source::Crowd(a) => a,
+        }
+    }
+}
+
+/// The sidecar JSON next to the animation textures.
+#[derive(Serialize)]
+struct Sidecar<'a> {
+    source: &'a str,
+    curve: &'a str,
+    rate: f64,
+    device: &'a str,
+    layout: &'static str,
+    max_key_error_rad: Option<f64>,
+    baked_file: Option<String>,
+    joints: Vec<&'a str>,
+    clips: Vec<SidecarClip>,
+}
+
+#[derive(Serialize)]
+struct SidecarClip {
+    name: String,
+    file: String,
+    frames: usize,
+    start: f64,
+    end: f64,
+}
+
+pub fn run(args: &BakeArgs) -> Result<(), Failure> {
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        return Err(Failure::Input(format!("--rate must be a positive number of Hz, not {}", args.rate)));
+    }
+    let spec = args.options.spec(args.curve, KnotMode::Phantom);
+    let inputs = expand(&args.input)?;
+    std::fs::create_dir_all(&args.output).map_err(|e| Failure::Internal(format!("{}: cannot create: {e}", args.output.display())))?;
+    let device = Device::open(args.options.device)?;
+    let device_name = device.name();
+    let bar = ProgressBar::new(inputs.len().max(1) as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} {elapsed} {msg}").expect("valid template"));
+    let mut rows = Vec::new();
+    if inputs.is_empty() {
+        let name = format!("built-in crowd: {} x {} joints, {} s", args.characters, crowd::JOINTS, crowd::SECONDS);
+        bar.set_message(name.clone());
+        rows.push(bake_one(&name, "crowd", || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device));
+        bar.inc(1);
+    }
+    for path in &inputs {
+        bar.set_message(path.display().to_string());
+        let stem = path.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
+        rows.push(bake_one(&path.display().to_string(), &stem, || read(path), args, &spec, &device));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    print_stdout(|w| summary(w, &rows, &device_name, args))?;
+    let failed: Vec<&Row> = rows.iter().filter(|r| r.outcome.is_err()).collect();
+    if failed.is_empty() {
+        return Ok(());
+    }
+    for row in &failed {
+        if let Err(Failure::Input(msg) | Failure::Internal(msg)) = &row.outcome {
+            eprintln!("error: {}: {msg}", row.source);
+        }
+    }
+    let summary = format!("{} of {} inputs failed (the others were baked)", failed.len(), rows.len());
+    Err(if failed.iter().any(|r| matches!(r.outcome, Err(Failure::Internal(_)))) { Failure::Internal(summary) } else { Failure::Input(summary) })
+}
+
+/// Files given, with directories replaced by their .gltf/.glb/.bvh files (sorted).
+fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
+    let known = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("gltf" | "glb" | "bvh"));
+    let mut files = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input).map_err(|e| Failure::Input(format!("{}: cannot list: {e}", input.display())))?;
+            let mut found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
+            found.sort();
+            files.extend(found);
+        } else {
+            files.push(input.clone());
+        }
+    }
+    Ok(files)
+}
+
+fn read(path: &Path) -> Result<Source, Failure> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path)?))),
+        Some("bvh") => {
+            let file = bvh::read(path)?;
+            let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
+            let animation = file.animation(&name);
+            Ok(Source::Bvh(file, animation))
+        }
+        _ => Err(Failure::Input("unknown format: expected .gltf, .glb or .bvh".into())),
+    }
+}
+
+fn bake_one(
+    source: &str,
+    stem: &str,
+    read: impl FnOnce() -> Result<Source, Failure>,
+    args: &BakeArgs,
+    spec: &CurveSpec,
+    device: &Device,
+) -> Row {
+    let start = Instant::now();
+    let mut row = Row { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()) };
+    let result = read().and_then(|src| {
+        let animation = src.animation();
+        row.clips = animation.clips.len();
+        row.channels = animation.clips.iter().map(|c| c.channels.len()).sum();
+        row.keys = animation.key_count();
+        if animation.clips.is_empty() {
+            return Err(Failure::Input("no rotation, translation or scale animation to bake".into()));
+        }
+        let baked = bake::bake(animation, spec, args.rate, device)?;
+        row.samples = baked.sample_count();
+        row.max_key_error = baked.max_key_error;
+        write_outputs(&src, &baked, source, stem, args, &device.name())
+    });
+    row.seconds = start.elapsed().as_secs_f64();
+    row.outcome = result;
+    row
+}
+
+/// Writes the baked file (GLB or BVH), one `.npy` texture per clip and the sidecar; if any
+/// write fails, removes the ones already written so the job leaves nothing partial.
+fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &BakeArgs, device: &str) -> Result<Vec<PathBuf>, Failure> {
+    let animation = src.animation();
+    let dir = &args.output;
+    let mut written: Vec<PathBuf> = Vec::new();
+    let result = (|| {
+        let baked_file = match src {
+            Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
+            Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked, args.rate).into_bytes())),
+            Source::Crowd(_) => None,
+        };
+        if let Some((name, bytes)) = &baked_file {
+            let path = dir.join(name);
+            refuse_overwriting_input(&path, source)?;
+            write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Internal(e.to_string()))?;
+            written.push(path);
+        }
+        let mut clips = Vec::new();
+        for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
+            let name = format!("{stem}.{index}.npy");
+            let path = dir.join(&name);
+            let shape = [result.times.len() as u64, animation.joints.len() as u64, TEXTURE_CHANNELS as u64];
+            write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Internal(e.to_string()))?;
+            written.push(path);
+            let (start, end) = (result.times[0], result.times[result.times.len() - 1]);
+            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end });
+        }
+        let sidecar = Sidecar {
+            source,
+            curve: args.curve.name(),
+            rate: args.rate,
+            device,
+            layout: "per clip: [frames, joints, 7] float32, rotation x,y,z,w then translation x,y,z",
+            max_key_error_rad: baked.max_key_error,
+            baked_file: baked_file.map(|(name, _)| name),
+            joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
+            clips,
+        };
+        let path = dir.join(format!("{stem}.json"));
+        write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
+            .map_err(|e| Failure::Internal(e.to_string()))?;
+        written.push(path);
+        Ok(())
+    })();
+    match result {
+        Ok(()) => Ok(written),
+        Err(e) => {
+            for path in &written {
+                let _ = std::fs::remove_file(path);
+            }
+            Err(e)
+        }
+    }
+}
+
+/// Baking into the input's own directory must not replace the input.
+fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), Failure> {
+    let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(Failure::Input(format!("{} would overwrite the input; choose another --output directory", output.display())));
+    }
+    Ok(())
+}
+
+fn summary(w: &mut dyn std::io::Write, rows: &[Row], device: &str, args: &BakeArgs) -> std::io::Result<()> {
+    writeln!(w, "baked at {} Hz with {} on {device} -> {}", args.rate, args.curve, args.output.display())?;
+    writeln!(w, "{:<44} {:>5} {:>8} {:>9} {:>11} {:>8} {:>14}  status", "input", "clips", "channels", "keys in", "samples out", "seconds", "key error rad")?;
+    for r in rows {
+        let error = r.max_key_error.map_or_else(|| "-".to_string(), |e| format!("{e:.2e}"));
+        let status = match &r.outcome {
+            Ok(files) => format!("ok ({} files)", files.len()),
+            Err(Failure::Input(_)) => "FAILED (input)".to_string(),
+            Err(Failure::Internal(_)) => "FAILED (device)".to_string(),
+        };
+        let name = if r.source.len() > 44 { format!("...{}", &r.source[r.source.len() - 41..]) } else { r.source.clone() };
+        writeln!(w, "{name:<44} {:>5} {:>8} {:>9} {:>11} {:>8.2} {:>14}  {status}", r.clips, r.channels, r.keys, r.samples, r.seconds, error)?;
+    }
+    Ok(())
+}

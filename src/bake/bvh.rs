@@ -1,0 +1,292 @@
+//! BVH motion capture in and out.
+//!
+//! A joint's rotation channels, read left to right, compose as `R = R_1(a_1) R_2(a_2) ...`
+//! about the parent's axes after the joint's own (the BVH convention: `v' = R v` with the
+//! first listed channel outermost); angles are in degrees. Position channels (usually only on
+//! the root) give the joint's translation as `OFFSET + (X, Y, Z)position`. Writing back keeps
+//! the hierarchy text byte for byte and converts each resampled rotation to the joint's own
+//! channel order, unwrapping angles to the previous frame so curves stay continuous.
+
+use super::{Animation, Baked, Channel, Clip, Joint, Property};
+use crate::device::DeviceError;
+use crate::quat::{DQuat, DVec3};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// A BVH channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BvhChannel {
+    /// Translation along an axis (0 = X, 1 = Y, 2 = Z).
+    Position(usize),
+    /// Rotation about an axis, degrees.
+    Rotation(usize),
+}
+
+/// A joint of the hierarchy with its channels (End Sites are not joints).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BvhJoint {
+    /// Name.
+    pub name: String,
+    /// OFFSET from the parent.
+    pub offset: [f64; 3],
+    /// CHANNELS in file order.
+    pub channels: Vec<BvhChannel>,
+}
+
+/// A BVH file read for baking.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BvhFile {
+    /// Joints in file order (the order of the motion columns).
+    pub joints: Vec<BvhJoint>,
+    /// Seconds per frame.
+    pub frame_time: f64,
+    /// Per frame, every channel value in column order.
+    pub frames: Vec<Vec<f64>>,
+    /// The file's text before `MOTION`, written back unchanged.
+    hierarchy: String,
+}
+
+fn bad(line: usize, msg: impl std::fmt::Display) -> DeviceError {
+    DeviceError::Input(format!("line {line}: {msg}"))
+}
+
+/// Reads a BVH file.
+///
+/// # Errors
+/// [`DeviceError::Input`] naming the line for a malformed hierarchy or motion section.
+pub fn read(path: &Path) -> Result<BvhFile, DeviceError> {
+    let text = std::fs::read_to_string(path).map_err(|e| DeviceError::Input(format!("cannot read: {e}")))?;
+    parse(&text)
+}
+
+/// Parses BVH text (see [`read`]).
+///
+/// # Errors
+/// As [`read`].
+pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
+    let motion_at = text.find("MOTION").ok_or_else(|| bad(text.lines().count(), "no MOTION section"))?;
+    let hierarchy = &text[..motion_at];
+    let mut tokens = hierarchy.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))).peekable();
+    let mut next = |what: &str| tokens.next().ok_or_else(|| bad(hierarchy.lines().count(), format!("the hierarchy ends where {what} was expected")));
+    let (line, word) = next("HIERARCHY")?;
+    if word != "HIERARCHY" {
+        return Err(bad(line, format!("expected HIERARCHY, found {word}")));
+    }
+    let mut joints = Vec::new();
+    let mut depth = 0usize;
+    let number = |(line, word): (usize, &str)| word.parse::<f64>().map_err(|_| bad(line, format!("expected a number, found {word}")));
+    loop {
+        let Ok((line, word)) = next("a joint") else { break };
+        match word {
+            "ROOT" | "JOINT" => {
+                let (_, name) = next("a joint name")?;
+                let (line, open) = next("{")?;
+                if open != "{" {
+                    return Err(bad(line, format!("expected {{ after {word} {name}, found {open}")));
+                }
+                depth += 1;
+                let (line, kw) = next("OFFSET")?;
+                if kw != "OFFSET" {
+                    return Err(bad(line, format!("expected OFFSET in joint {name}, found {kw}")));
+                }
+                let offset = [number(next("OFFSET x")?)?, number(next("OFFSET y")?)?, number(next("OFFSET z")?)?];
+                let (line, kw) = next("CHANNELS")?;
+                if kw != "CHANNELS" {
+                    return Err(bad(line, format!("expected CHANNELS in joint {name}, found {kw}")));
+                }
+                let (line, count) = next("a channel count")?;
+                let count: usize = count.parse().map_err(|_| bad(line, format!("bad channel count {count}")))?;
+                let mut channels = Vec::with_capacity(count);
+                for _ in 0..count {
+                    let (line, c) = next("a channel name")?;
+                    let axis = match c.as_bytes().first() {
+                        Some(b'X' | b'x') => 0,
+                        Some(b'Y' | b'y') => 1,
+                        Some(b'Z' | b'z') => 2,
+                        _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
+                    };
+                    channels.push(match &c[1..] {
+                        "position" => BvhChannel::Position(axis),
+                        "rotation" => BvhChannel::Rotation(axis),
+                        _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
+                    });
+                }
+                if channels.iter().filter(|c| matches!(c, BvhChannel::Rotation(_))).count() == 2 {
+                    return Err(bad(line, format!("joint {name} has two rotation channels; 0, 1 or 3 are supported")));
+                }
+                joints.push(BvhJoint { name: name.to_string(), offset, channels });
+            }
+            "End" => {
+                // End Site { OFFSET x y z }: geometry only, no channels.
+                for _ in 0..6 {
+                    next("End Site")?;
+                }
+                let (line, close) = next("}")?;
+                if close != "}" {
+                    return Err(bad(line, format!("expected }} closing End Site, found {close}")));
+                }
+            }
+            "}" => depth = depth.checked_sub(1).ok_or_else(|| bad(line, "unbalanced }"))?,
+            other => return Err(bad(line, format!("unexpected {other} in the hierarchy"))),
+        }
+    }
+    if depth != 0 || joints.is_empty() {
+        return Err(bad(hierarchy.lines().count(), "the hierarchy is empty or its braces are unbalanced"));
+    }
+    let first_line = hierarchy.lines().count() + 1;
+    let mut lines = text[motion_at..].lines().enumerate().map(|(i, l)| (first_line + i, l)).skip(1);
+    let mut header = |key: &str| -> Result<f64, DeviceError> {
+        let (line, l) = lines.next().ok_or_else(|| bad(first_line, format!("missing {key}")))?;
+        let value = l.trim().strip_prefix(key).ok_or_else(|| bad(line, format!("expected {key}")))?;
+        value.trim().parse().map_err(|_| bad(line, format!("bad {key} {}", value.trim())))
+    };
+    let count = header("Frames:")?;
+    let frame_time = header("Frame Time:")?;
+    if !(frame_time.is_finite() && frame_time > 0.0) || count.fract() != 0.0 || count < 1.0 {
+        return Err(bad(first_line, format!("need at least one frame and a positive frame time (Frames: {count}, Frame Time: {frame_time})")));
+    }
+    let columns: usize = joints.iter().map(|j| j.channels.len()).sum();
+    let mut frames = Vec::with_capacity(count as usize);
+    for (line, l) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+        let row: Vec<f64> = l
+            .split_whitespace()
+            .map(|w| w.parse::<f64>().map_err(|_| bad(line, format!("frame {}: {w} is not a number", frames.len()))))
+            .collect::<Result<_, _>>()?;
+        if row.len() != columns {
+            return Err(bad(line, format!("frame {} has {} values but the hierarchy has {columns} channels", frames.len(), row.len())));
+        }
+        frames.push(row);
+    }
+    if frames.len() != count as usize {
+        return Err(bad(first_line, format!("Frames: {count} but {} frame lines follow", frames.len())));
+    }
+    Ok(BvhFile { joints, frame_time, frames, hierarchy: hierarchy.to_string() })
+}
+
+/// The rotation `R_1(a_1) R_2(a_2) ...` of a joint's rotation channels (degrees).
+#[must_use]
+pub fn euler_to_quat(channels: &[BvhChannel], values: &[f64]) -> DQuat {
+    channels.iter().zip(values).fold(DQuat::identity(), |q, (&c, &degrees)| match c {
+        BvhChannel::Rotation(axis) => q * axis_rotation(axis, degrees.to_radians()),
+        BvhChannel::Position(_) => q,
+    })
+}
+
+fn axis_rotation(axis: usize, radians: f64) -> DQuat {
+    let mut v = [0.0; 3];
+    v[axis] = 0.5 * radians;
+    DQuat::exp(DVec3::from_array(v))
+}
+
+/// Angles (degrees) of rotation `q` about `axes` (one axis, or three distinct ones) such that
+/// `R_{axes[0]}(a_0) R_{axes[1]}(a_1) R_{axes[2]}(a_2) = q`, each within 180 degrees of
+/// `near` (the previous frame's angles) so angle curves do not jump by whole turns.
+#[must_use]
+pub fn quat_to_euler(axes: &[usize], q: DQuat, near: &[f64]) -> Vec<f64> {
+    let raw = match *axes {
+        [a] => {
+            let v = [q.x, q.y, q.z];
+            vec![2.0 * v[a].atan2(q.w)]
+        }
+        [i, j, k] => {
+            // For R = R_i(a) R_j(b) R_k(c) with (i, j, k) a permutation of parity s:
+            // R[i][k] = s sin b, R[j][k] = -s sin a cos b, R[k][k] = cos a cos b,
+            // R[i][j] = -s cos b sin c, R[i][i] = cos b cos c.
+            let m = q.to_mat3();
+            let s = if (j + 3 - i) % 3 == 1 { 1.0 } else { -1.0 };
+            let b = (s * m[i][k]).clamp(-1.0, 1.0).asin();
+            let a = (-s * m[j][k]).atan2(m[k][k]);
+            let c = (-s * m[i][j]).atan2(m[i][i]);
+            vec![a, b, c]
+        }
+        _ => Vec::new(),
+    };
+    raw.iter()
+        .zip(near.iter().copied().chain(std::iter::repeat(0.0)))
+        .map(|(&r, near)| {
+            let d = r.to_degrees();
+            d + 360.0 * ((near - d) / 360.0).round()
+        })
+        .collect()
+}
+
+impl BvhFile {
+    /// The common model: one clip (`clip_name`) with a rotation channel per joint that has
+    /// rotation channels and a translation channel per joint that has position channels.
+    #[must_use]
+    pub fn animation(&self, clip_name: &str) -> Animation {
+        let times: Vec<f64> = (0..self.frames.len()).map(|i| i as f64 * self.frame_time).collect();
+        let mut channels = Vec::new();
+        let mut column = 0;
+        for (index, joint) in self.joints.iter().enumerate() {
+            let range = column..column + joint.channels.len();
+            column = range.end;
+            let values = |f: &dyn Fn(&[f64]) -> [f64; 4]| self.frames.iter().map(|row| f(&row[range.clone()])).collect();
+            if joint.channels.iter().any(|c| matches!(c, BvhChannel::Rotation(_))) {
+                let values = values(&|row| euler_to_quat(&joint.channels, row).to_array());
+                channels.push(Channel { joint: index, property: Property::Rotation, times: times.clone(), values });
+            }
+            if joint.channels.iter().any(|c| matches!(c, BvhChannel::Position(_))) {
+                let values = values(&|row| {
+                    let mut p = [joint.offset[0], joint.offset[1], joint.offset[2], 0.0];
+                    for (&c, &v) in joint.channels.iter().zip(row) {
+                        if let BvhChannel::Position(axis) = c {
+                            p[axis] += v;
+                        }
+                    }
+                    p
+                });
+                channels.push(Channel { joint: index, property: Property::Translation, times: times.clone(), values });
+            }
+        }
+        let joints = self
+            .joints
+            .iter()
+            .map(|j| Joint { name: j.name.clone(), rotation: [0.0, 0.0, 0.0, 1.0], translation: j.offset })
+            .collect();
+        Animation { joints, clips: vec![Clip { name: clip_name.to_string(), channels }] }
+    }
+
+    /// BVH text of the baked clip at `rate` Hz: the original hierarchy, new frames.
+    #[must_use]
+    pub fn to_text(&self, clip: &Clip, baked: &Baked, rate: f64) -> String {
+        let result = &baked.clips[0];
+        let frames = result.times.len();
+        let mut out = self.hierarchy.clone();
+        let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {:.9}\n", 1.0 / rate);
+        // Per joint: its baked rotation and translation series, if any.
+        let series = |joint: usize, property: Property| {
+            clip.channels.iter().position(|c| c.joint == joint && c.property == property).map(|i| &result.values[i])
+        };
+        let mut previous: Vec<Vec<f64>> = vec![Vec::new(); self.joints.len()];
+        let mut row = String::new();
+        for frame in 0..frames {
+            row.clear();
+            for (index, joint) in self.joints.iter().enumerate() {
+                let axes: Vec<usize> = joint.channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
+                let angles = series(index, Property::Rotation).map(|s| {
+                    let q = DQuat::from_array(s[frame].map(f64::from));
+                    quat_to_euler(&axes, q, &previous[index])
+                });
+                if let Some(angles) = &angles {
+                    previous[index].clone_from(angles);
+                }
+                let position = series(index, Property::Translation).map(|s| s[frame]);
+                let mut rotation = 0;
+                for &c in &joint.channels {
+                    let value = match c {
+                        BvhChannel::Position(axis) => position.map_or(0.0, |p| f64::from(p[axis]) - joint.offset[axis]),
+                        BvhChannel::Rotation(_) => {
+                            rotation += 1;
+                            angles.as_ref().map_or(0.0, |a| a[rotation - 1])
+                        }
+                    };
+                    let _ = write!(row, "{value:.6} ");
+                }
+            }
+            out.push_str(row.trim_end());
+            out.push('\n');
+        }
+        out
+    }
+}

@@ -1,0 +1,90 @@
+//! The built-in synthetic crowd that `quatcurve bake` uses without `--input`: characters on a
+//! grid walking forward, each joint swinging in a looping gait with per-character variety.
+//! Deterministic (a hash of the indices, no random numbers), so runs are comparable.
+
+use super::{Animation, Channel, Clip, Joint, Property};
+use crate::quat::{DQuat, DVec3};
+use std::f64::consts::TAU;
+
+/// Characters in the default crowd.
+pub const CHARACTERS: usize = 1000;
+/// Clip length in seconds.
+pub const SECONDS: f64 = 10.0;
+/// Keys per second of the source animation (resampled by `bake --rate`).
+pub const KEY_RATE: f64 = 10.0;
+
+/// The skeleton: joint name, swing amplitude (rad), phase offset within the gait cycle.
+const SKELETON: [(&str, f64, f64); 24] = [
+    ("hips", 0.10, 0.0),
+    ("spine", 0.06, 0.5),
+    ("chest", 0.05, 0.5),
+    ("neck", 0.04, 1.0),
+    ("head", 0.05, 1.2),
+    ("l_clavicle", 0.05, 3.1),
+    ("l_shoulder", 0.45, 3.1),
+    ("l_elbow", 0.35, 3.6),
+    ("l_wrist", 0.15, 4.0),
+    ("r_clavicle", 0.05, 0.0),
+    ("r_shoulder", 0.45, 0.0),
+    ("r_elbow", 0.35, 0.5),
+    ("r_wrist", 0.15, 0.9),
+    ("l_hip", 0.50, 0.0),
+    ("l_knee", 0.65, 0.8),
+    ("l_ankle", 0.25, 1.6),
+    ("l_toe", 0.20, 2.2),
+    ("r_hip", 0.50, 3.1),
+    ("r_knee", 0.65, 3.9),
+    ("r_ankle", 0.25, 4.7),
+    ("r_toe", 0.20, 5.3),
+    ("tail", 0.30, 2.0),
+    ("l_ear", 0.20, 1.5),
+    ("r_ear", 0.20, 4.6),
+];
+
+/// Joints per character.
+pub const JOINTS: usize = SKELETON.len();
+
+/// `characters` walkers: one clip "walk" of [`SECONDS`] keyed at [`KEY_RATE`], a rotation
+/// channel per joint and a translation channel on each hips. Every gait has a whole number
+/// of cycles in the clip, so the rotations loop.
+#[must_use]
+pub fn crowd(characters: usize) -> Animation {
+    let keys = (SECONDS * KEY_RATE).round() as usize + 1;
+    let times: Vec<f64> = (0..keys).map(|i| i as f64 / KEY_RATE).collect();
+    let mut joints = Vec::with_capacity(characters * JOINTS);
+    let mut channels = Vec::with_capacity(characters * (JOINTS + 1));
+    let side = (characters as f64).sqrt().ceil() as usize;
+    for c in 0..characters {
+        let h = |k: u64| ((c as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
+        let cycles = 9.0 + (4.0 * h(1)).floor(); // 0.9 to 1.2 steps per second
+        let (vigour, lean) = (0.8 + 0.4 * h(2), 0.1 * h(3) - 0.05);
+        let phase = TAU * h(4);
+        let origin = [1.5 * (c % side) as f64, 0.0, 1.5 * (c / side) as f64];
+        for (j, &(name, amplitude, offset)) in SKELETON.iter().enumerate() {
+            let joint = joints.len();
+            let rest = if j == 0 { [origin[0], 0.95, origin[2]] } else { [0.0, 0.1, 0.0] };
+            joints.push(Joint { name: format!("c{c}/{name}"), rotation: [0.0, 0.0, 0.0, 1.0], translation: rest });
+            let values = times
+                .iter()
+                .map(|&t| {
+                    let a = (TAU * cycles * t / SECONDS + phase + offset).sin();
+                    let swing = 0.5 * vigour * amplitude * a;
+                    DQuat::exp(DVec3::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
+                })
+                .collect();
+            channels.push(Channel { joint, property: Property::Rotation, times: times.clone(), values });
+            if j == 0 {
+                let speed = 1.2 * vigour;
+                let values = times
+                    .iter()
+                    .map(|&t| {
+                        let bob = 0.03 * (2.0 * (TAU * cycles * t / SECONDS + phase)).cos();
+                        [origin[0], 0.95 + bob, origin[2] + speed * t, 0.0]
+                    })
+                    .collect();
+                channels.push(Channel { joint, property: Property::Translation, times: times.clone(), values });
+            }
+        }
+    }
+    Animation { joints, clips: vec![Clip { name: "walk".into(), channels }] }
+}

@@ -1,0 +1,263 @@
+//! Baking: resample keyed animation (glTF, BVH, a synthetic crowd) at a fixed rate with any
+//! curve, rotations through an evaluation [`Device`] and translations/scales through their
+//! Euclidean analogue ([`crate::euclidean`]).
+//!
+//! Every source is read into one model, [`Animation`]: joints with rest poses, and clips of
+//! keyed [`Channel`]s. [`bake`] resamples the clips; the format modules write the results
+//! back ([`gltf`], [`bvh`]) and [`texture`] lays them out as an animation texture.
+
+pub mod bvh;
+pub mod crowd;
+pub mod gltf;
+
+use crate::curve::{Curve, CurveSpec};
+use crate::device::{Device, DeviceError};
+use crate::error::TrackId;
+use crate::euclidean::VectorCurve;
+use crate::job::{EvalJob, Layout};
+use crate::quat::DQuat;
+use crate::sampling::{SampleTimes, Sampling};
+use crate::track::Track;
+use crate::Batch;
+
+/// What a channel animates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Property {
+    /// Unit quaternion `x, y, z, w`.
+    Rotation,
+    /// Vector `x, y, z` (the fourth value is unused).
+    Translation,
+    /// Vector `x, y, z` (the fourth value is unused).
+    Scale,
+}
+
+/// One keyed property of one joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// Index into [`Animation::joints`].
+    pub joint: usize,
+    /// What it animates.
+    pub property: Property,
+    /// Key times in seconds, strictly increasing.
+    pub times: Vec<f64>,
+    /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
+    pub values: Vec<[f64; 4]>,
+}
+
+/// One clip: channels sharing a time line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    /// Name for messages and sidecars.
+    pub name: String,
+    /// The keyed channels.
+    pub channels: Vec<Channel>,
+}
+
+impl Clip {
+    /// `[first key, last key]` over every channel.
+    #[must_use]
+    pub fn span(&self) -> [f64; 2] {
+        let first = self.channels.iter().filter_map(|c| c.times.first()).copied().fold(f64::INFINITY, f64::min);
+        let last = self.channels.iter().filter_map(|c| c.times.last()).copied().fold(f64::NEG_INFINITY, f64::max);
+        if first <= last { [first, last] } else { [0.0, 0.0] }
+    }
+}
+
+/// A joint (glTF node, BVH joint) and its rest pose, used where a clip does not animate it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// Name (glTF node name or `node<i>`; BVH joint name).
+    pub name: String,
+    /// Rest rotation `x, y, z, w`.
+    pub rotation: [f64; 4],
+    /// Rest translation.
+    pub translation: [f64; 3],
+}
+
+/// A source file read into the common model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animation {
+    /// The joints the clips refer to.
+    pub joints: Vec<Joint>,
+    /// The clips.
+    pub clips: Vec<Clip>,
+}
+
+impl Animation {
+    /// Total keys over every channel of every clip.
+    #[must_use]
+    pub fn key_count(&self) -> usize {
+        self.clips.iter().flat_map(|c| &c.channels).map(|c| c.times.len()).sum()
+    }
+
+    /// `"<clip> / <joint> <property>"`, naming a channel in messages.
+    #[must_use]
+    pub fn label(&self, clip: &Clip, channel: &Channel) -> String {
+        let property = match channel.property {
+            Property::Rotation => "rotation",
+            Property::Translation => "translation",
+            Property::Scale => "scale",
+        };
+        format!("clip \"{}\" / {} {property}", clip.name, self.joints[channel.joint].name)
+    }
+}
+
+/// A resampled clip: frame times and, per channel (in the clip's order), one value per frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedClip {
+    /// `start + i / rate` while not past the clip's last key (DESIGN section 5's `--rate`).
+    pub times: Vec<f64>,
+    /// Per channel, per frame: rotations `x, y, z, w`; vectors `x, y, z, 0`.
+    pub values: Vec<Vec<[f32; 4]>>,
+}
+
+/// The result of [`bake`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Baked {
+    /// One per clip, in order.
+    pub clips: Vec<BakedClip>,
+    /// For curves that interpolate their keys: the largest angle (rad) between a rotation
+    /// key and the curve evaluated at that key's time on the same device.
+    pub max_key_error: Option<f64>,
+}
+
+impl Baked {
+    /// Samples written, over every channel.
+    #[must_use]
+    pub fn sample_count(&self) -> usize {
+        self.clips.iter().flat_map(|c| &c.values).map(Vec::len).sum()
+    }
+}
+
+/// Whether the curve passes through its keys (the others approximate them).
+#[must_use]
+pub fn interpolates(spec: &CurveSpec) -> bool {
+    matches!(spec.curve, Curve::Slerp | Curve::Squad | Curve::Hermite | Curve::NamKim)
+}
+
+/// Frame times of a clip spanning `[start, end]` at `rate` Hz.
+///
+/// # Errors
+/// [`DeviceError::Input`] for a rate that is not finite and positive.
+pub fn frame_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>, DeviceError> {
+    let uniform = Sampling::Rate(rate).over(start, end).map_err(|e| DeviceError::Input(e.to_string()))?;
+    let crate::sampling::TrackTimes::Uniform { start, step, count, .. } = uniform else { unreachable!("uniform sampling") };
+    Ok((0..count).map(|i| start + i as f64 * step).collect())
+}
+
+/// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
+/// for the whole animation), vector channels with the Euclidean analogue in f64. Channels
+/// with a single key are held constant. Samples outside a channel's keys hold its end value
+/// (glTF's clamping).
+///
+/// # Errors
+/// [`DeviceError::Input`] naming the clip, joint, property and key for bad keys;
+/// [`DeviceError::Device`] for device failures.
+pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, device: &Device) -> Result<Baked, DeviceError> {
+    let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
+    // Rotation channels with two keys or more go to the device: (clip, channel) per track.
+    let (mut tracks, mut owners, mut grids) = (Vec::new(), Vec::new(), Vec::new());
+    for (c, clip) in animation.clips.iter().enumerate() {
+        let [start, end] = clip.span();
+        let times = frame_times(start, end, rate)?;
+        let mut values = Vec::with_capacity(clip.channels.len());
+        for (k, channel) in clip.channels.iter().enumerate() {
+            let name = animation.label(clip, channel);
+            let id = TrackId { index: k, name: Some(name.clone()) };
+            values.push(match (channel.property, channel.values.len()) {
+                (_, 1) => constant(&id, channel, times.len())?,
+                (Property::Rotation, _) => {
+                    tracks.push(Track {
+                        name: Some(name),
+                        times: Some(channel.times.clone()),
+                        ..Track::from_rotations(channel.values.clone())
+                    });
+                    owners.push((c, k));
+                    grids.push(c);
+                    Vec::new()
+                }
+                _ => {
+                    let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, spec).map_err(|e| DeviceError::Input(e.to_string()))?;
+                    times.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect()
+                }
+            });
+        }
+        clips.push(BakedClip { times, values });
+    }
+    let mut max_key_error = None;
+    if !tracks.is_empty() {
+        let input = |e: crate::Error| DeviceError::Input(e.to_string());
+        let batch = Batch::from_tracks(&tracks, spec).map_err(input)?;
+        let overrides: Vec<Option<&[f64]>> = grids.iter().map(|&c| Some(&clips[c].times[..])).collect();
+        let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
+        let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+        for (i, &(c, k)) in owners.iter().enumerate() {
+            let range = times.offsets[i]..times.offsets[i + 1];
+            clips[c].values[k] = out.rotations[range].iter().map(|q| q.map(|v| v as f32)).collect();
+        }
+        if interpolates(spec) {
+            let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
+            let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
+            let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+            let worst = tracks
+                .iter()
+                .enumerate()
+                .flat_map(|(i, track)| {
+                    let got = &out.rotations[times.offsets[i]..times.offsets[i + 1]];
+                    track.rotations.iter().zip(got).map(|(&key, &q)| DQuat::from_array(key).normalize().angle_to(DQuat::from_array(q)))
+                })
+                .fold(0.0, f64::max);
+            max_key_error = Some(worst);
+        }
+    }
+    Ok(Baked { clips, max_key_error })
+}
+
+/// A one-key channel held for every frame (checked like any key).
+fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 4]>, DeviceError> {
+    let value = channel.values[0];
+    let value = if channel.property == Property::Rotation {
+        let q = DQuat::from_array(value);
+        let norm = q.length();
+        if !q.is_finite() || norm < crate::batch::MIN_KEY_NORM {
+            return Err(DeviceError::Input(format!("{id}: key 0 ({value:?}) is not a finite non-zero quaternion")));
+        }
+        q.mul_scalar(1.0 / norm).to_array()
+    } else if value.iter().all(|v| v.is_finite()) {
+        value
+    } else {
+        return Err(DeviceError::Input(crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.to_string()));
+    };
+    Ok(vec![value.map(|v| v as f32); frames])
+}
+
+/// Number of floats per joint per frame in [`texture`]: rotation `x, y, z, w`, translation
+/// `x, y, z`.
+pub const TEXTURE_CHANNELS: usize = 7;
+
+/// A clip as an animation texture: frame-major `[frames, joints, 7]` float32 (rotation
+/// `x, y, z, w` then translation), joints in [`Animation::joints`] order; a joint the clip
+/// does not animate keeps its rest pose.
+#[must_use]
+pub fn texture(animation: &Animation, clip: &Clip, baked: &BakedClip) -> Vec<f32> {
+    let joints = animation.joints.len();
+    let mut row: Vec<f32> = animation
+        .joints
+        .iter()
+        .flat_map(|j| j.rotation.iter().chain(&j.translation).map(|&v| v as f32).collect::<Vec<_>>())
+        .collect();
+    let mut data = Vec::with_capacity(baked.times.len() * joints * TEXTURE_CHANNELS);
+    for frame in 0..baked.times.len() {
+        for (channel, values) in clip.channels.iter().zip(&baked.values) {
+            let at = channel.joint * TEXTURE_CHANNELS;
+            match channel.property {
+                Property::Rotation => row[at..at + 4].copy_from_slice(&values[frame]),
+                Property::Translation => row[at + 4..at + 7].copy_from_slice(&values[frame][..3]),
+                Property::Scale => {}
+            }
+        }
+        data.extend_from_slice(&row);
+    }
+    data
+}
