@@ -75,8 +75,7 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
     let mut joints = Vec::new();
     let mut depth = 0usize;
     let number = |(line, word): (usize, &str)| word.parse::<f64>().map_err(|_| bad(line, format!("expected a number, found {word}")));
-    loop {
-        let Ok((line, word)) = next("a joint") else { break };
+    while let Ok((line, word)) = next("a joint") {
         match word {
             "ROOT" | "JOINT" => {
                 let (_, name) = next("a joint name")?;

@@ -90,7 +90,7 @@ impl Animation {
         self.clips.iter().flat_map(|c| &c.channels).map(|c| c.times.len()).sum()
     }
 
-    /// `"<clip> / <joint> <property>"`, naming a channel in messages.
+    /// `clip '<clip>', <joint> <property>`, naming a channel in messages.
     #[must_use]
     pub fn label(&self, clip: &Clip, channel: &Channel) -> String {
         let property = match channel.property {
@@ -98,7 +98,7 @@ impl Animation {
             Property::Translation => "translation",
             Property::Scale => "scale",
         };
-        format!("clip \"{}\" / {} {property}", clip.name, self.joints[channel.joint].name)
+        format!("clip '{}', {} {property}", clip.name, self.joints[channel.joint].name)
     }
 }
 
@@ -135,12 +135,19 @@ pub fn interpolates(spec: &CurveSpec) -> bool {
     matches!(spec.curve, Curve::Slerp | Curve::Squad | Curve::Hermite | Curve::NamKim)
 }
 
-/// Frame times of a clip spanning `[start, end]` at `rate` Hz.
+/// How far past the clip's end (in frames) a last frame is still kept.
+pub const END_TOLERANCE_FRAMES: f64 = 0.01;
+
+/// Frame times of a clip spanning `[start, end]` at `rate` Hz: `start + i / rate` while not
+/// past `end` (DESIGN section 5), except that a frame at most [`END_TOLERANCE_FRAMES`] past
+/// the end is kept (and evaluates to the end pose). Source frame times are often rounded
+/// (BVH's `0.0083333` for 120 Hz), and baking such a clip at its own rate must not drop its
+/// last frame.
 ///
 /// # Errors
 /// [`DeviceError::Input`] for a rate that is not finite and positive.
 pub fn frame_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>, DeviceError> {
-    let uniform = Sampling::Rate(rate).over(start, end).map_err(|e| DeviceError::Input(e.to_string()))?;
+    let uniform = Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| DeviceError::Input(e.to_string()))?;
     let crate::sampling::TrackTimes::Uniform { start, step, count, .. } = uniform else { unreachable!("uniform sampling") };
     Ok((0..count).map(|i| start + i as f64 * step).collect())
 }

@@ -1,0 +1,322 @@
+//! `quatcurve bake` end to end on the real files in `../shared/data` (skipped with a message
+//! when absent), on crafted bad inputs, and the BVH Euler conventions against hand-computed
+//! rotations.
+
+use assert_cmd::Command;
+use base64::Engine;
+use quatcurve::bake::bvh::{self, BvhChannel};
+use quatcurve::DQuat;
+use std::path::{Path, PathBuf};
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if dir.join("Fox.glb").exists() {
+        Some(dir)
+    } else {
+        eprintln!("skipped: ../shared/data is absent");
+        None
+    }
+}
+
+fn bake(args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("quatcurve").unwrap().arg("bake").args(args).output().unwrap()
+}
+
+fn stderr(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Frames of `[start, end]` at `rate` (DESIGN section 5: start + i / rate while not past end,
+/// keeping a last frame up to 1% of a frame past the end).
+fn frames(start: f64, end: f64, rate: f64) -> usize {
+    ((end - start) * rate + 0.01).floor() as usize + 1
+}
+
+#[test]
+fn real_files_bake_to_files_that_read_back() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let result = bake(&["--input", data.to_str().unwrap(), "--rate", "30", "--output", out.path().to_str().unwrap()]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let summary = String::from_utf8_lossy(&result.stdout);
+    for name in ["Fox", "CesiumMan", "BrainStem", "SimpleSkin", "cmu_131_01", "cmu_131_03"] {
+        assert!(summary.contains(name), "{summary}");
+        let sidecar = json(&out.path().join(format!("{name}.json")));
+        let error = sidecar["max_key_error_rad"].as_f64().unwrap();
+        assert!(error <= 1e-5, "{name}: keys reproduced to {error} rad");
+        let joints = sidecar["joints"].as_array().unwrap().len() as u64;
+        for clip in sidecar["clips"].as_array().unwrap() {
+            let (shape, data) = read_npy(&out.path().join(clip["file"].as_str().unwrap()));
+            let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());
+            assert_eq!(shape, [clip["frames"].as_u64().unwrap(), joints, 7], "{name}");
+            assert_eq!(shape[0] as usize, frames(start, end, 30.0), "{name}: {start}..{end}");
+            for row in data.chunks_exact(7) {
+                let norm = row[..4].iter().map(|v| v * v).sum::<f32>().sqrt();
+                assert!((norm - 1.0).abs() < 1e-5, "{name}: rotation norm {norm}");
+            }
+        }
+    }
+    // The GLBs parse again, with LINEAR samplers at 30 Hz and unit rotations.
+    for name in ["Fox", "CesiumMan", "BrainStem", "SimpleSkin"] {
+        let bytes = std::fs::read(out.path().join(format!("{name}.glb"))).unwrap();
+        let gltf = match gltf::Gltf::from_slice(&bytes) {
+            Ok(g) => g,
+            Err(_) => gltf::Gltf::from_slice_without_validation(&bytes).unwrap(), // BrainStem: Draco
+        };
+        let blob = gltf.blob.clone().unwrap();
+        let original = gltf::Gltf::from_slice_without_validation(&std::fs::read(data.join(if name == "SimpleSkin" { "SimpleSkin.gltf".into() } else { format!("{name}.glb") })).unwrap()).unwrap();
+        assert_eq!(gltf.meshes().count(), original.meshes().count(), "{name}: meshes kept");
+        assert_eq!(gltf.skins().count(), original.skins().count(), "{name}: skins kept");
+        for anim in gltf.animations() {
+            for channel in anim.channels() {
+                assert_eq!(channel.sampler().interpolation(), gltf::animation::Interpolation::Linear);
+                let reader = channel.reader(|_| Some(&blob[..]));
+                let times: Vec<f32> = reader.read_inputs().unwrap().collect();
+                for (i, t) in times.iter().enumerate() {
+                    assert!((f64::from(*t) - (f64::from(times[0]) + i as f64 / 30.0)).abs() < 1e-4, "{name}: frame {i} at {t}");
+                }
+                if let gltf::animation::util::ReadOutputs::Rotations(r) = reader.read_outputs().unwrap() {
+                    let values: Vec<[f32; 4]> = r.into_f32().collect();
+                    assert_eq!(values.len(), times.len());
+                    assert!(values.iter().all(|q| (q.iter().map(|v| v * v).sum::<f32>() - 1.0).abs() < 1e-5));
+                }
+            }
+        }
+    }
+    // The BVHs parse again with the hierarchy unchanged and frames at the new rate.
+    for name in ["cmu_131_01", "cmu_131_03"] {
+        let original = bvh::read(&data.join(format!("{name}.bvh"))).unwrap();
+        let baked = bvh::read(&out.path().join(format!("{name}.bvh"))).unwrap();
+        assert_eq!(baked.joints, original.joints);
+        assert!((baked.frame_time - 1.0 / 30.0).abs() < 1e-9);
+        let duration = (original.frames.len() - 1) as f64 * original.frame_time;
+        assert_eq!(baked.frames.len(), frames(0.0, duration, 30.0));
+    }
+}
+
+/// Angle between two rotations, sign-blind.
+fn angle(a: DQuat, b: DQuat) -> f64 {
+    a.angle_to(b)
+}
+
+#[test]
+fn baking_at_the_source_rate_reproduces_the_keys_in_the_written_files() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().to_str().unwrap();
+    // CesiumMan is keyed at 24 Hz, the CMU takes at 120 Hz.
+    let glb = data.join("CesiumMan.glb");
+    let result = bake(&["--input", glb.to_str().unwrap(), "--rate", "24", "--output", dir]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let read = |path: &Path| {
+        let g = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).unwrap();
+        let blob = g.blob.clone().unwrap();
+        let mut rotations = Vec::new();
+        for channel in g.animations().flat_map(|a| a.channels().collect::<Vec<_>>()) {
+            let reader = channel.reader(|_| Some(&blob[..]));
+            if let Some(gltf::animation::util::ReadOutputs::Rotations(r)) = reader.read_outputs() {
+                let times: Vec<f32> = reader.read_inputs().unwrap().collect();
+                rotations.push((channel.target().node().index(), times, r.into_f32().collect::<Vec<_>>()));
+            }
+        }
+        rotations
+    };
+    let (before, after) = (read(&glb), read(&out.path().join("CesiumMan.glb")));
+    assert_eq!(before.len(), after.len());
+    let mut worst = 0.0f64;
+    for ((node, t0, keys), (node1, t1, baked)) in before.iter().zip(&after) {
+        assert_eq!(node, node1);
+        assert_eq!(t0.len(), t1.len(), "24 Hz keys baked at 24 Hz");
+        for (k, b) in keys.iter().zip(baked) {
+            worst = worst.max(angle(DQuat::from_array(k.map(f64::from)), DQuat::from_array(b.map(f64::from))));
+        }
+    }
+    assert!(worst <= 1e-5, "CesiumMan keys reproduced to {worst} rad");
+    let bvh_in = data.join("cmu_131_01.bvh");
+    // Its frame time is written rounded (0.0083333 s): bake at exactly that rate.
+    let rate = format!("{}", 1.0 / 0.0083333);
+    let result = bake(&["--input", bvh_in.to_str().unwrap(), "--rate", &rate, "--output", dir]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let (before, after) = (bvh::read(&bvh_in).unwrap(), bvh::read(&out.path().join("cmu_131_01.bvh")).unwrap());
+    assert_eq!(before.frames.len(), after.frames.len());
+    let mut worst = 0.0f64;
+    let mut worst_position = 0.0f64;
+    for (a, b) in before.frames.iter().zip(&after.frames) {
+        let mut column = 0;
+        for joint in &before.joints {
+            let range = column..column + joint.channels.len();
+            column = range.end;
+            worst = worst.max(angle(bvh::euler_to_quat(&joint.channels, &a[range.clone()]), bvh::euler_to_quat(&joint.channels, &b[range.clone()])));
+            for (i, c) in joint.channels.iter().enumerate() {
+                if matches!(c, BvhChannel::Position(_)) {
+                    worst_position = worst_position.max((a[range.start + i] - b[range.start + i]).abs());
+                }
+            }
+        }
+    }
+    // Angles are written with 6 decimals of a degree (1.7e-8 rad).
+    assert!(worst <= 1e-5, "BVH keys reproduced to {worst} rad");
+    assert!(worst_position <= 1e-5, "BVH positions reproduced to {worst_position}");
+}
+
+fn axis_matrix(axis: usize, degrees: f64) -> [[f64; 3]; 3] {
+    let (s, c) = degrees.to_radians().sin_cos();
+    match axis {
+        0 => [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
+        1 => [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
+        _ => [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
+    }
+}
+
+fn mat_mul(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+#[test]
+fn bvh_euler_channels_compose_in_file_order_for_every_axis_order() {
+    // Hand-computed: "Zrotation Xrotation Yrotation" = 90, 90, 0 maps x -> y and y -> z
+    // (Rx(90) takes y to z, then Rz(90) leaves z alone; x is kept by Rx, then Rz takes it to y).
+    let zxy = [BvhChannel::Rotation(2), BvhChannel::Rotation(0), BvhChannel::Rotation(1)];
+    let q = bvh::euler_to_quat(&zxy, &[90.0, 90.0, 0.0]);
+    let x = q.rotate(quatcurve::DVec3::new(1.0, 0.0, 0.0)).to_array();
+    let y = q.rotate(quatcurve::DVec3::new(0.0, 1.0, 0.0)).to_array();
+    for (got, want) in [(x, [0.0, 1.0, 0.0]), (y, [0.0, 0.0, 1.0])] {
+        assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-12), "{got:?} vs {want:?}");
+    }
+    // Position channels between rotations are skipped; every order matches the matrix product.
+    let orders = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let angles = [[30.0, -50.0, 120.0], [-170.0, 80.0, 10.0], [5.0, 0.0, -95.0], [0.0, 89.0, 0.0]];
+    for order in orders {
+        let channels: Vec<BvhChannel> = order.iter().map(|&a| BvhChannel::Rotation(a)).collect();
+        for a in angles {
+            let expected = mat_mul(mat_mul(axis_matrix(order[0], a[0]), axis_matrix(order[1], a[1])), axis_matrix(order[2], a[2]));
+            let q = bvh::euler_to_quat(&channels, &a);
+            let m = q.to_mat3();
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((m[i][j] - expected[i][j]).abs() < 1e-12, "order {order:?} angles {a:?}: {m:?} vs {expected:?}");
+                }
+            }
+            // Back to angles in the same order: the same rotation, near the previous frame.
+            let back = bvh::quat_to_euler(&order, q, &a);
+            assert!(bvh::euler_to_quat(&channels, &back).angle_to(q) < 1e-9, "order {order:?} angles {a:?} -> {back:?}");
+            if a[1].abs() < 85.0 {
+                assert!(back.iter().zip(a).all(|(b, a)| (b - a).abs() < 1e-9), "order {order:?}: {a:?} -> {back:?}");
+            }
+        }
+    }
+    // Unwrapping: 179 then -179 degrees about one axis is written as 181.
+    let back = bvh::quat_to_euler(&[2], bvh::euler_to_quat(&[BvhChannel::Rotation(2)], &[-179.0]), &[179.0]);
+    assert!((back[0] - 181.0).abs() < 1e-9, "{back:?}");
+}
+
+/// A minimal .gltf (one node, one rotation channel) with its buffer as a data URI.
+fn tiny_gltf(times: &[f32], rotations: &[[f32; 4]]) -> String {
+    let mut bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
+    let offset = bytes.len();
+    bytes.extend(rotations.iter().flatten().flat_map(|v| v.to_le_bytes()));
+    let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    serde_json::json!({
+        "asset": {"version": "2.0"},
+        "nodes": [{"name": "bone"}],
+        "scenes": [{"nodes": [0]}],
+        "buffers": [{"byteLength": bytes.len(), "uri": uri}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": offset},
+            {"buffer": 0, "byteOffset": offset, "byteLength": bytes.len() - offset}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": times.len(), "type": "SCALAR",
+             "min": [times[0]], "max": [times[times.len() - 1]]},
+            {"bufferView": 1, "componentType": 5126, "count": rotations.len(), "type": "VEC4"}
+        ],
+        "animations": [{"name": "wave", "samplers": [{"input": 0, "output": 1, "interpolation": "LINEAR"}],
+                        "channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}]}]
+    })
+    .to_string()
+}
+
+/// Runs bake on one bad file; checks exit 2, the message, and that nothing was written.
+fn assert_rejected(name: &str, contents: &[u8], expected: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join(name);
+    std::fs::write(&input, contents).unwrap();
+    let out_dir = dir.path().join("out");
+    let result = bake(&["--input", input.to_str().unwrap(), "--output", out_dir.to_str().unwrap(), "--device", "reference"]);
+    assert_eq!(result.status.code(), Some(2), "{name}: {}", stderr(&result));
+    let msg = stderr(&result);
+    for part in expected {
+        assert!(msg.contains(part), "{name}: message lacks {part:?}: {msg}");
+    }
+    assert_eq!(std::fs::read_dir(&out_dir).map(Iterator::count).unwrap_or(0), 0, "{name}: output left behind");
+}
+
+#[test]
+fn bad_inputs_exit_2_naming_file_clip_channel_and_key_and_leave_nothing() {
+    let q = [0.0, 0.0, 0.0, 1.0];
+    let turn = [0.0, 0.38268343, 0.0, 0.9238795];
+    assert_rejected("stuck.gltf", tiny_gltf(&[0.0, 1.0, 1.0], &[q, turn, q]).as_bytes(), &["stuck.gltf", "clip 'wave', bone rotation", "key 2"]);
+    assert_rejected("zero.gltf", tiny_gltf(&[0.0, 1.0, 2.0], &[q, [0.0; 4], q]).as_bytes(), &["zero.gltf", "bone rotation", "key 1", "norm"]);
+    assert_rejected("nan.gltf", tiny_gltf(&[0.0, 1.0, 2.0], &[q, q, [f32::NAN, 0.0, 0.0, 1.0]]).as_bytes(), &["nan.gltf", "key 2", "not finite"]);
+    assert_rejected("broken.glb", b"glTF\x02\x00\x00\x00garbage", &["broken.glb", "not a valid glTF"]);
+    assert_rejected("broken.gltf", b"{\"asset\": ", &["broken.gltf", "not a valid glTF"]);
+    let bvh_text = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n";
+    let good = "0 0 0 0 0 0\n0 0 0 10 0 0\n";
+    assert_rejected("nan.bvh", format!("{bvh_text}{good}0 0 0 nan 0 0\n").as_bytes(), &["nan.bvh", "Hips rotation", "key 2"]);
+    assert_rejected("short.bvh", format!("{bvh_text}{good}0 0 0\n").as_bytes(), &["short.bvh", "line 16", "frame 2 has 3 values"]);
+    assert_rejected("word.bvh", format!("{bvh_text}{good}0 0 0 x 0 0\n").as_bytes(), &["word.bvh", "line 16", "x is not a number"]);
+    assert_rejected("notes.txt", b"hello", &["notes.txt", "unknown format"]);
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("absent.glb");
+    let result = bake(&["--input", missing.to_str().unwrap(), "--output", dir.path().join("out").to_str().unwrap()]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("absent.glb") && stderr(&result).contains("cannot read"), "{}", stderr(&result));
+}
+
+#[test]
+fn a_job_over_many_files_finishes_the_good_ones_and_reports_the_bad() {
+    let dir = tempfile::tempdir().unwrap();
+    let q = [0.0, 0.0, 0.0, 1.0];
+    let turn = [0.0, 0.38268343, 0.0, 0.9238795];
+    std::fs::write(dir.path().join("good.gltf"), tiny_gltf(&[0.0, 0.5, 1.0], &[q, turn, q])).unwrap();
+    std::fs::write(dir.path().join("bad.gltf"), tiny_gltf(&[0.0, 0.5, 0.25], &[q, turn, q])).unwrap();
+    let out = dir.path().join("out");
+    let result = bake(&["--input", dir.path().to_str().unwrap(), "--output", out.to_str().unwrap(), "--rate", "10"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    let summary = String::from_utf8_lossy(&result.stdout);
+    assert!(summary.contains("bad.gltf") && summary.contains("FAILED (input)"), "{summary}");
+    assert!(stderr(&result).contains("1 of 2 inputs failed"), "{}", stderr(&result));
+    let mut written: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    written.sort();
+    assert_eq!(written, ["good.0.npy", "good.glb", "good.json"]);
+    let (shape, _) = read_npy(&out.join("good.0.npy"));
+    assert_eq!(shape, [11, 1, 7]);
+}
+
+#[test]
+fn the_built_in_crowd_bakes_with_every_curve() {
+    let dir = tempfile::tempdir().unwrap();
+    for curve in ["hermite", "bspline", "squad", "nam-kim", "slerp", "bezier"] {
+        let out = dir.path().join(curve);
+        // Bezier's degree is the key count less one (100 here), above the GPU's 32.
+        let device = if curve == "bezier" { "reference" } else { "auto" };
+        let result = bake(&["--characters", "3", "--curve", curve, "--output", out.to_str().unwrap(), "--rate", "24", "--device", device]);
+        assert!(result.status.success(), "{curve}: {}", stderr(&result));
+        let (shape, data) = read_npy(&out.join("crowd.0.npy"));
+        assert_eq!(shape, [241, 72, 7], "{curve}");
+        assert!(data.iter().all(|v| v.is_finite()));
+        let sidecar = json(&out.join("crowd.json"));
+        assert_eq!(sidecar["max_key_error_rad"].is_f64(), curve != "bspline" && curve != "bezier", "{curve}");
+    }
+}
