@@ -2,10 +2,11 @@
 
 use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Tangents, Track, TrackFile};
 use std::path::Path;
-use std::process::{Command, Output};
+use assert_cmd::Command;
+use std::process::Output;
 
 fn quatcurve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_quatcurve")).args(args).output().expect("binary runs")
+    Command::cargo_bin("quatcurve").expect("binary built").args(args).output().expect("binary runs")
 }
 
 fn write_tracks(dir: &Path, tracks: &[Track]) -> String {
@@ -147,7 +148,7 @@ fn usage_errors_exit_2() {
 fn unavailable_device_exits_1_without_fallback() {
     // A backend that does not exist on Linux: no adapter, so --device gpu must fail.
     let no_gpu = |device: &str| {
-        Command::new(env!("CARGO_BIN_EXE_quatcurve"))
+        Command::cargo_bin("quatcurve").unwrap()
             .args(["eval", "--device", device, "--samples", "2"])
             .env("WGPU_BACKEND", "metal")
             .output()
