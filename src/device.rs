@@ -1,6 +1,7 @@
 //! Which evaluator runs a job: the one place that maps `--device` to a path, so `eval`,
 //! `bake` and `bench` choose and name devices the same way.
 
+use crate::cpu::{CpuEvaluator, CpuOptions};
 use crate::curve::names;
 use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
 use crate::job::{EvalJob, Output};
@@ -10,12 +11,12 @@ use std::str::FromStr;
 /// What the user asked for (`--device`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DeviceChoice {
-    /// The GPU when an adapter exists, else the best CPU path in this build (the reference).
+    /// The GPU when an adapter exists, else the fast CPU path.
     #[default]
     Auto,
     /// The GPU; no adapter is an error, never a silent fallback.
     Gpu,
-    /// The fast f32 CPU path (not in this build yet: an error).
+    /// The fast f32 SIMD CPU path.
     Cpu,
     /// The f64 reference.
     Reference,
@@ -40,6 +41,8 @@ pub enum Device {
     Reference,
     /// The WGSL kernel.
     Gpu(Box<GpuEvaluator>),
+    /// The fast f32 CPU path.
+    Cpu(CpuEvaluator),
 }
 
 impl fmt::Debug for Device {
@@ -52,35 +55,26 @@ impl Device {
     /// Opens what `choice` asks for.
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for `gpu` without an adapter and for `cpu` (not in this build).
+    /// [`DeviceError::Device`] for `gpu` without an adapter.
     pub fn open(choice: DeviceChoice) -> Result<Self, DeviceError> {
         match choice {
             DeviceChoice::Reference => Ok(Device::Reference),
             DeviceChoice::Gpu => GpuEvaluator::new()
                 .map(|g| Device::Gpu(Box::new(g)))
                 .map_err(|e| DeviceError::Device(format!("--device gpu: {e}"))),
-            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or(Device::Reference, |g| Device::Gpu(Box::new(g)))),
-            DeviceChoice::Cpu => Err(DeviceError::Device(
-                "--device cpu (the fast f32 CPU path) is not in this build yet; use gpu, reference or auto".into(),
-            )),
+            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or_else(|_| Device::Cpu(CpuEvaluator::new()), |g| Device::Gpu(Box::new(g)))),
+            DeviceChoice::Cpu => Ok(Device::Cpu(CpuEvaluator::new())),
         }
     }
 
-    /// The name outputs report: `reference` or `gpu: <adapter>` (DESIGN section 5).
+    /// The name outputs report: `reference`, `cpu: <name>` or `gpu: <adapter>` (DESIGN
+    /// section 5).
     #[must_use]
     pub fn name(&self) -> String {
         match self {
             Device::Reference => "reference".into(),
             Device::Gpu(g) => format!("gpu: {}", g.adapter_name()),
-        }
-    }
-
-    /// Short kind: `reference` or `gpu`.
-    #[must_use]
-    pub fn kind(&self) -> &'static str {
-        match self {
-            Device::Reference => "reference",
-            Device::Gpu(_) => "gpu",
+            Device::Cpu(c) => format!("cpu: {}", c.name()),
         }
     }
 
@@ -99,6 +93,11 @@ impl Device {
                     GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Input(e.to_string()),
                     _ => DeviceError::Device(e.to_string()),
                 })?;
+                Ok(out.to_output(job.derivatives))
+            }
+            Device::Cpu(c) => {
+                let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, matrix: false };
+                let out = c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))?;
                 Ok(out.to_output(job.derivatives))
             }
         }

@@ -38,6 +38,33 @@ pub struct Output {
     pub angular_acceleration: Vec<[f64; 3]>,
 }
 
+/// Float32 samples of the fast paths (GPU, CPU): `samples x channels` in the requested layout. Per sample: rotation
+/// `x, y, z, w`, then with derivatives `omega`, `alpha`, then with a matrix its 9 entries.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FloatOutput {
+    /// Floats per sample.
+    pub channels: usize,
+    /// The samples.
+    pub data: Vec<f32>,
+}
+
+impl FloatOutput {
+    /// Converts to the reference's [`Output`] (f64, rotations and derivatives).
+    #[must_use]
+    pub fn to_output(&self, derivatives: bool) -> Output {
+        let mut out = Output::default();
+        for row in self.data.chunks_exact(self.channels) {
+            let r = |i: usize| f64::from(row[i]);
+            out.rotations.push([r(0), r(1), r(2), r(3)]);
+            if derivatives {
+                out.angular_velocity.push([r(4), r(5), r(6)]);
+                out.angular_acceleration.push([r(7), r(8), r(9)]);
+            }
+        }
+        out
+    }
+}
+
 /// Evaluates every track of a batch at its sample times with the f64 reference.
 #[derive(Clone, Copy, Debug)]
 pub struct EvalJob<'a> {

@@ -15,6 +15,7 @@
 
 pub mod bake;
 pub mod basis;
+pub mod cpu;
 pub mod batch;
 pub mod curve;
 pub mod device;

@@ -3,6 +3,7 @@
 
 use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::Args;
+use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
 use quatcurve::{synthetic, Batch, Curve, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes};
 use serde::Serialize;
@@ -92,6 +93,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
         results.push(match &device {
             Device::Reference => time_reference(args)?,
             Device::Gpu(gpu) => time_gpu(args, gpu, &batch, &times)?,
+            Device::Cpu(cpu) => time_cpu(args, cpu, &batch, &times)?,
         });
     }
     let report = Report {
@@ -150,6 +152,13 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
         samples,
         dispatch_samples_per_s: Some(samples as f64 / dispatch),
     })
+}
+
+fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
+    let options = CpuOptions { derivatives: args.derivatives, ..CpuOptions::default() };
+    let seconds = median_seconds(args.runs, || cpu.evaluate(batch, times, &options).map(drop).map_err(|e| Failure::Input(e.to_string())))?;
+    let samples = times.total();
+    Ok(Row { device: "cpu", adapter: cpu.name(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None })
 }
 
 fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {

@@ -4,7 +4,7 @@ use super::layout::{self, Chunk, GpuTrack, Params, ANY_CURVE};
 use super::shader;
 use super::GpuError;
 use crate::batch::Batch;
-use crate::job::{Layout, Output};
+use crate::job::{FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -24,32 +24,8 @@ pub struct GpuOptions {
     pub generic_kernel: bool,
 }
 
-/// Host result: `samples x channels` floats in the requested layout. Per sample: rotation
-/// `x, y, z, w`, then with derivatives `omega`, `alpha`, then with a matrix its 9 entries.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct GpuOutput {
-    /// Floats per sample.
-    pub channels: usize,
-    /// The samples.
-    pub data: Vec<f32>,
-}
-
-impl GpuOutput {
-    /// Converts to the reference's [`Output`] (f64, rotations and derivatives).
-    #[must_use]
-    pub fn to_output(&self, derivatives: bool) -> Output {
-        let mut out = Output::default();
-        for row in self.data.chunks_exact(self.channels) {
-            let r = |i: usize| f64::from(row[i]);
-            out.rotations.push([r(0), r(1), r(2), r(3)]);
-            if derivatives {
-                out.angular_velocity.push([r(4), r(5), r(6)]);
-                out.angular_acceleration.push([r(7), r(8), r(9)]);
-            }
-        }
-        out
-    }
-}
+/// Host result of the GPU path (the float arrays every fast path returns).
+pub type GpuOutput = FloatOutput;
 
 /// A batch uploaded to the device by [`GpuEvaluator::prepare`].
 pub struct PreparedBatch {

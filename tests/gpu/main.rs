@@ -6,5 +6,9 @@
 #[allow(dead_code)]
 mod common;
 
+#[path = "../shared/fast.rs"]
+#[allow(dead_code)]
+mod fast;
+
 mod accuracy;
 mod api;

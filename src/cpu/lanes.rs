@@ -1,0 +1,114 @@
+//! Eight samples at a time: structure-of-arrays quaternions and vectors on `wide::f32x8`
+//! (AVX/AVX2 registers when the build targets them), and the KKS cumulative product with its
+//! body derivatives, the twin of [`crate::reference::cumulative_product`].
+
+use wide::f32x8;
+
+/// Samples per SIMD group.
+pub const LANES: usize = 8;
+
+/// Eight 3-vectors.
+#[derive(Clone, Copy, Debug)]
+pub struct V8 {
+    pub x: f32x8,
+    pub y: f32x8,
+    pub z: f32x8,
+}
+
+/// Eight quaternions `x, y, z, w`.
+#[derive(Clone, Copy, Debug)]
+pub struct Q8 {
+    pub x: f32x8,
+    pub y: f32x8,
+    pub z: f32x8,
+    pub w: f32x8,
+}
+
+impl V8 {
+    /// All zero.
+    pub const ZERO: Self = Self { x: f32x8::ZERO, y: f32x8::ZERO, z: f32x8::ZERO };
+
+    /// Lane-wise gather from `[x, y, z, _]` rows.
+    #[inline(always)]
+    pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
+        Self { x: f32x8::new(rows.map(|r| r[0])), y: f32x8::new(rows.map(|r| r[1])), z: f32x8::new(rows.map(|r| r[2])) }
+    }
+
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+
+    #[inline(always)]
+    fn scale(self, k: f32x8) -> Self {
+        Self { x: self.x * k, y: self.y * k, z: self.z * k }
+    }
+
+    #[inline(always)]
+    fn cross(self, o: Self) -> Self {
+        Self { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }
+    }
+}
+
+impl Q8 {
+    /// Lane-wise gather from `[x, y, z, w]` rows.
+    #[inline(always)]
+    pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
+        Self {
+            x: f32x8::new(rows.map(|r| r[0])),
+            y: f32x8::new(rows.map(|r| r[1])),
+            z: f32x8::new(rows.map(|r| r[2])),
+            w: f32x8::new(rows.map(|r| r[3])),
+        }
+    }
+
+    /// Hamilton product `self * o`.
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Self {
+            x: self.w * o.x + self.x * o.w + self.y * o.z - self.z * o.y,
+            y: self.w * o.y - self.x * o.z + self.y * o.w + self.z * o.x,
+            z: self.w * o.z + self.x * o.y - self.y * o.x + self.z * o.w,
+            w: self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
+        }
+    }
+
+    /// `self^-1 v self` for unit `self`: `v + 2 w (v x u) + 2 u x (u x v)` with `u = -vec`.
+    #[inline(always)]
+    fn rotate_inverse(self, v: V8) -> V8 {
+        let u = V8 { x: -self.x, y: -self.y, z: -self.z };
+        let t = u.cross(v).scale(f32x8::splat(2.0));
+        v.add(t.scale(self.w)).add(u.cross(t))
+    }
+}
+
+/// One factor `exp(v b(t))` of eight samples: `v = theta * axis` (half-angle vector, axis
+/// unit or zero) and the basis jet `[b, b', b'']` in time units.
+#[derive(Clone, Copy, Debug)]
+pub struct Factor8 {
+    pub axis: V8,
+    pub theta: f32x8,
+    pub b: [f32x8; 3],
+}
+
+/// `start * prod exp(v_j b_j)` and, with `derivatives`, the body angular velocity and
+/// acceleration by DESIGN section 2's recursion (see the reference for the formulas).
+#[inline(always)]
+pub fn cumulative_product(start: Q8, factors: &[Factor8], derivatives: bool) -> (Q8, V8, V8) {
+    let mut q = start;
+    let (mut w, mut w_dot) = (V8::ZERO, V8::ZERO);
+    for f in factors {
+        let (sin, cos) = (f.theta * f.b[0]).sin_cos();
+        let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
+        if derivatives {
+            let carried = a.rotate_inverse(w);
+            let spin = f.axis.scale(f.theta * f.b[1]);
+            let two = f32x8::splat(2.0);
+            w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(two)).add(f.axis.scale(f.theta * f.b[2]));
+            w = carried.add(spin);
+        }
+        q = q.mul(a);
+    }
+    let two = f32x8::splat(2.0);
+    (q, w.scale(two), w_dot.scale(two))
+}

@@ -1,0 +1,255 @@
+//! One piece of one track on the CPU: per-lane segment lookup, basis, then the SIMD product.
+
+use super::lanes::{cumulative_product, Factor8, Q8, V8, LANES};
+use super::CpuOptions;
+use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
+use crate::batch::{Batch, TrackView};
+use crate::curve::Curve;
+use crate::gpu::layout::knots_are_uniform;
+use crate::quat::DQuat;
+use crate::reference;
+use crate::sampling::SampleTimes;
+use crate::segment::locate;
+use std::ops::Range;
+use wide::f32x8;
+
+/// Most factors in one product: order-8 B-spline.
+const MAX_FACTORS: usize = 7;
+
+/// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
+/// `count` functions of degree < 8, coefficients lowest first.
+#[derive(Clone, Debug)]
+pub struct PolyBasis {
+    count: usize,
+    coefs: Vec<[f64; 8]>,
+}
+
+impl PolyBasis {
+    /// Interpolates `basis` (values at `u`) at `degree + 1` equispaced nodes: exact for
+    /// polynomials of that degree, up to f64 rounding.
+    fn fit(degree: usize, basis: impl Fn(f64) -> Vec<BasisJet>) -> Self {
+        let n = degree + 1;
+        let nodes: Vec<f64> = (0..n).map(|i| i as f64 / degree as f64).collect();
+        let values: Vec<Vec<BasisJet>> = nodes.iter().map(|&u| basis(u)).collect();
+        let count = values[0].len();
+        let coefs = (0..count)
+            .map(|f| {
+                let mut a: Vec<Vec<f64>> = nodes.iter().map(|&u| (0..n).map(|p| u.powi(p as i32)).collect()).collect();
+                let mut b: Vec<f64> = values.iter().map(|v| v[f][0]).collect();
+                solve(&mut a, &mut b);
+                let mut c = [0.0; 8];
+                c[..n].copy_from_slice(&b);
+                c
+            })
+            .collect();
+        Self { count, coefs }
+    }
+
+    /// `[p, p', p'']` of every function at `u` (derivatives in `u`).
+    #[inline(always)]
+    fn eval(&self, u: f32x8, out: &mut [[f32x8; 3]; MAX_FACTORS]) {
+        for (f, c) in self.coefs.iter().enumerate() {
+            let (mut p, mut d1, mut d2) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
+            for &ck in c.iter().rev() {
+                d2 = d2 * u + d1;
+                d1 = d1 * u + p;
+                p = p * u + f32x8::splat(ck as f32);
+            }
+            out[f] = [p, d1, d2 * f32x8::splat(2.0)];
+        }
+    }
+}
+
+/// Gaussian elimination with partial pivoting (tiny systems, f64).
+fn solve(a: &mut [Vec<f64>], b: &mut [f64]) {
+    let n = b.len();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs())).unwrap_or(col);
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in col + 1..n {
+            let f = a[row][col] / a[col][col];
+            for c in col..n {
+                a[row][c] -= f * a[col][c];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    for row in (0..n).rev() {
+        let s: f64 = (row + 1..n).map(|c| a[row][c] * b[c]).sum();
+        b[row] = (b[row] - s) / a[row][row];
+    }
+}
+
+/// Batch-wide f32 tables and the polynomial bases, built once per evaluation.
+pub struct Tables {
+    /// Points `[x, y, z, w]`.
+    points: Vec<[f32; 4]>,
+    /// Coefficients as `[axis x, axis y, axis z, theta]` (axis unit, or zero with theta 0).
+    axes: Vec<[f32; 4]>,
+    slerp: PolyBasis,
+    hermite: PolyBasis,
+    /// Uniform-knot B-spline bases, index `k - 2` for orders 2..=8.
+    bspline: Vec<PolyBasis>,
+}
+
+impl Tables {
+    /// Converts the batch's points and coefficients to f32.
+    pub fn new(batch: &Batch) -> Self {
+        let points = batch.points.iter().map(|q| q.to_array().map(|v| v as f32)).collect();
+        let axes = batch
+            .coefs
+            .iter()
+            .map(|c| {
+                let theta = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+                if theta > 0.0 {
+                    [(c[0] / theta) as f32, (c[1] / theta) as f32, (c[2] / theta) as f32, theta as f32]
+                } else {
+                    [0.0; 4]
+                }
+            })
+            .collect();
+        let bspline = (2..=8)
+            .map(|k| {
+                // Unit-spaced knots 0..2k-1: span k-1 is [k-1, k], where t = k-1+u.
+                let knots: Vec<f64> = (0..2 * k).map(|j| j as f64).collect();
+                PolyBasis::fit(k - 1, |u| bspline_cumulative(&knots, k, k - 1, k as f64 - 1.0 + u))
+            })
+            .collect();
+        Self {
+            points,
+            axes,
+            slerp: PolyBasis::fit(1, |u| vec![[u, 1.0, 0.0]]),
+            hermite: PolyBasis::fit(3, |u| bernstein_cumulative(3, u)),
+            bspline,
+        }
+    }
+}
+
+/// How a track's basis is computed.
+enum Basis<'a> {
+    /// SIMD polynomial in the segment parameter.
+    Poly(&'a PolyBasis),
+    /// Per lane, Cox-de Boor in f64 (B-splines on unequal knots).
+    CoxDeBoor,
+}
+
+/// `locate`, first trying the previous span (sample times usually increase).
+#[inline(always)]
+fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) {
+    let h = *hint;
+    if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
+        return (h, t);
+    }
+    let (span, t) = locate(knots, first, last, t);
+    *hint = span;
+    (span, t)
+}
+
+/// Evaluates samples `range` of track `index` into `out` (`range.len() x channels`).
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+    let track = view.track;
+    let knots = view.knots;
+    let (basis, factors, first, last) = match track.curve {
+        Curve::Slerp => (Basis::Poly(&tables.slerp), 1, 0, knots.len() - 2),
+        Curve::Hermite => (Basis::Poly(&tables.hermite), 3, 0, knots.len() - 2),
+        Curve::BSpline => {
+            let k = track.order;
+            let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bspline[k - 2]) } else { Basis::CoxDeBoor };
+            (basis, k - 1, k - 1, view.points.len() - 1)
+        }
+        Curve::Squad | Curve::NamKim | Curve::Bezier => {
+            for (row, j) in out.chunks_exact_mut(channels).zip(range) {
+                let s = reference::evaluate(view, times.time(index, j));
+                write(row, s.rotation.to_array().map(|v| v as f32), s.angular_velocity.to_array().map(|v| v as f32), s.angular_acceleration.to_array().map(|v| v as f32), options);
+            }
+            return;
+        }
+    };
+    let (p0, c0) = (track.point_offset, track.coef_offset);
+    let mut hint = first;
+    let n = range.len();
+    let mut jets = [[f32x8::ZERO; 3]; MAX_FACTORS];
+    let mut f8 = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; MAX_FACTORS];
+    for g in (0..n).step_by(LANES) {
+        let valid = LANES.min(n - g);
+        let mut start = [[0.0f32; 4]; LANES];
+        let mut coef = [0usize; LANES];
+        let (mut u, mut inv) = ([0.0f32; LANES], [0.0f32; LANES]);
+        let mut cox = [[[0.0f32; 3]; MAX_FACTORS]; LANES];
+        for lane in 0..LANES {
+            // Lanes past the end repeat the last sample and are not written.
+            let t = times.time(index, range.start + g + lane.min(valid - 1));
+            let (span, t) = locate_from(&mut hint, knots, first, last, t);
+            let len = knots[span + 1] - knots[span];
+            u[lane] = ((t - knots[span]) / len) as f32;
+            inv[lane] = (1.0 / len) as f32;
+            match track.curve {
+                Curve::Slerp => {
+                    start[lane] = tables.points[p0 + span];
+                    coef[lane] = c0 + span;
+                }
+                Curve::Hermite => {
+                    let sign = view.coefs[3 * span + 1][3] as f32;
+                    start[lane] = tables.points[p0 + span].map(|v| v * sign);
+                    coef[lane] = c0 + 3 * span;
+                }
+                _ => {
+                    let k = track.order;
+                    start[lane] = tables.points[p0 + span + 1 - k];
+                    coef[lane] = c0 + span + 1 - k;
+                    if matches!(basis, Basis::CoxDeBoor) {
+                        for (f, jet) in bspline_cumulative(knots, k, span, t).into_iter().enumerate() {
+                            cox[lane][f] = jet.map(|v| v as f32);
+                        }
+                    }
+                }
+            }
+        }
+        match basis {
+            Basis::Poly(poly) => {
+                poly.eval(f32x8::new(u), &mut jets);
+                let inv = f32x8::new(inv);
+                for jet in jets.iter_mut().take(poly.count) {
+                    jet[1] = jet[1] * inv;
+                    jet[2] = jet[2] * inv * inv;
+                }
+            }
+            Basis::CoxDeBoor => {
+                for (f, jet) in jets.iter_mut().enumerate().take(factors) {
+                    *jet = [0, 1, 2].map(|d| f32x8::new(std::array::from_fn(|lane| cox[lane][f][d])));
+                }
+            }
+        }
+        for (f, factor) in f8.iter_mut().enumerate().take(factors) {
+            let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| tables.axes[coef[lane] + f]);
+            *factor = Factor8 { axis: V8::gather(&rows), theta: f32x8::new(rows.map(|r| r[3])), b: jets[f] };
+        }
+        let (q, w, a) = cumulative_product(Q8::gather(&start), &f8[..factors], options.derivatives);
+        let (qx, qy, qz, qw) = (q.x.to_array(), q.y.to_array(), q.z.to_array(), q.w.to_array());
+        let (w, a) = ([w.x, w.y, w.z].map(f32x8::to_array), [a.x, a.y, a.z].map(f32x8::to_array));
+        for lane in 0..valid {
+            let row = &mut out[(g + lane) * channels..(g + lane + 1) * channels];
+            write(row, [qx[lane], qy[lane], qz[lane], qw[lane]], w.map(|c| c[lane]), a.map(|c| c[lane]), options);
+        }
+    }
+}
+
+/// One output row: rotation, then optional derivatives and matrix.
+#[inline(always)]
+fn write(row: &mut [f32], q: [f32; 4], w: [f32; 3], a: [f32; 3], options: &CpuOptions) {
+    row[..4].copy_from_slice(&q);
+    let mut at = 4;
+    if options.derivatives {
+        row[4..7].copy_from_slice(&w);
+        row[7..10].copy_from_slice(&a);
+        at = 10;
+    }
+    if options.matrix {
+        let m = DQuat::from_array(q.map(f64::from)).to_mat3();
+        for (i, v) in m.iter().flatten().enumerate() {
+            row[at + i] = *v as f32;
+        }
+    }
+}

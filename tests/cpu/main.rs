@@ -1,0 +1,72 @@
+//! The fast CPU path against the f64 reference (DESIGN section 6 bars): the same suites as the
+//! GPU, plus layouts and matrices checked against the GPU-independent reference directly.
+
+#[path = "../reference/common.rs"]
+#[allow(dead_code)]
+mod common;
+
+#[path = "../shared/fast.rs"]
+#[allow(dead_code)]
+mod fast;
+
+use common::*;
+use fast::*;
+use quatcurve::cpu::{CpuEvaluator, CpuOptions};
+use quatcurve::job::FloatOutput;
+use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
+
+fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
+    CpuEvaluator::new().evaluate(batch, times, &CpuOptions { layout, derivatives, matrix: false }).unwrap()
+}
+
+#[test]
+fn every_family_order_and_knot_mode_matches_the_reference() {
+    every_family_order_and_knot_mode(&on_cpu).assert_within_bars("cpu: all families, 4 kinds, both layouts");
+}
+
+#[test]
+fn samples_exactly_on_knots_and_at_domain_ends() {
+    samples_on_knots_and_domain_ends(&on_cpu).assert_within_bars("cpu: samples on knots and domain ends");
+}
+
+#[test]
+fn repeated_knots_and_mixed_families_in_one_batch() {
+    let (batch, times) = mixed_batch_with_repeated_knots();
+    compare_output(&on_cpu(&batch, &times, Layout::Track, true), &batch, &times, Layout::Track, true, "mixed")
+        .assert_within_bars("cpu: mixed batch with repeated knots");
+}
+
+#[test]
+fn sizes_that_are_not_multiples_of_the_simd_width() {
+    odd_sizes(&on_cpu);
+}
+
+#[test]
+fn long_clips_keep_full_time_precision() {
+    long_clip(&on_cpu).assert_within_bars("cpu: long clip at t = 1000..1037 s");
+}
+
+#[test]
+fn tracks_longer_than_one_work_piece_and_matrices() {
+    // 10,000 samples per track cross several parallel pieces; the matrix columns must be the
+    // rotation's own matrix, frame-major must be the transpose of track-major.
+    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
+    let batch = batch_for(3, &spec, Kind::Random, 3);
+    let times = SampleTimes::uniform(&batch, Sampling::Count(10_000)).unwrap();
+    let cpu = CpuEvaluator::new();
+    let by_track = cpu.evaluate(&batch, &times, &CpuOptions { layout: Layout::Track, derivatives: true, matrix: true }).unwrap();
+    let by_frame = cpu.evaluate(&batch, &times, &CpuOptions { layout: Layout::Frame, derivatives: true, matrix: true }).unwrap();
+    assert_eq!(by_track.channels, 19);
+    compare_output(&by_track, &batch, &times, Layout::Track, true, "long tracks").assert_within_bars("cpu: 3 x 10,000");
+    for track in 0..3 {
+        for j in (0..10_000).step_by(37) {
+            let a = &by_track.data[(track * 10_000 + j) * 19..][..19];
+            let b = &by_frame.data[(j * 3 + track) * 19..][..19];
+            assert_eq!(a, b, "track {track} sample {j}");
+            let m = DQuat::from_array([a[0], a[1], a[2], a[3]].map(f64::from)).to_mat3();
+            for (got, want) in a[10..].iter().zip(m.iter().flatten()) {
+                assert!((f64::from(*got) - want).abs() < 1e-6, "matrix entry {got} vs {want}");
+            }
+        }
+    }
+}
