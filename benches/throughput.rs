@@ -1,56 +1,66 @@
-//! Throughput of the evaluation paths in samples per second (criterion).
+//! Throughput of every evaluation path in samples per second (criterion), on the same
+//! deterministic workloads (`synthetic::workload`: 32 keys per track at 30 Hz).
 //!
-//! Workload of the GPU issue: uniform cubic B-spline, 10,000 tracks x 1,000 samples (32 keys
-//! per track), value only and with derivatives; GPU end to end (upload, dispatch, readback)
-//! and dispatch only; specialized vs generic (switching) kernel. The f64 reference runs a
-//! 1,000-track slice of the same workload (it is the oracle, not a fast path).
+//! Workloads: uniform cubic B-spline 10,000 tracks x 1,000 samples (the GPU issue's), a
+//! non-uniform (clamped) order-5 B-spline, Hermite and squad, each value only and with
+//! derivatives. Paths: the f64 reference on a 1,000-track slice (it is the oracle, not a fast
+//! path), the fast CPU path end to end and into a reused buffer, the GPU end to end (upload,
+//! dispatch, readback) and dispatch only, and for the cubic B-spline the GPU's generic
+//! (switching) kernel.
 //!
-//! Run: `cargo bench --bench throughput`. Inputs are deterministic (`synthetic::walk_tracks`).
+//! Run: `cargo bench --bench throughput` (filter with e.g. `-- cpu`).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Batch, CurveSpec, EvalJob, KnotMode, Layout, SampleTimes};
+use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, KnotMode, Layout};
 
 const TRACKS: usize = 10_000;
 const SAMPLES: usize = 1_000;
 
-fn workload(tracks: usize) -> (Batch, SampleTimes) {
-    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
-    synthetic::workload(tracks, SAMPLES, &spec).expect("valid synthetic workload")
+fn workloads() -> Vec<(&'static str, CurveSpec)> {
+    vec![
+        ("bspline4_uniform", CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() }),
+        ("bspline5_clamped", CurveSpec { knots: KnotMode::Clamped, order: 5, ..CurveSpec::default() }),
+        ("hermite", CurveSpec::new(Curve::Hermite)),
+        ("squad", CurveSpec::new(Curve::Squad)),
+    ]
 }
 
-fn reference(c: &mut Criterion) {
-    let (batch, times) = workload(TRACKS / 10);
-    let mut group = c.benchmark_group("reference_bspline4_uniform");
-    group.sample_size(10).throughput(Throughput::Elements(times.total() as u64));
-    for derivatives in [false, true] {
-        group.bench_function(if derivatives { "derivatives" } else { "value" }, |b| {
-            b.iter(|| EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives }.run().unwrap())
-        });
+fn paths(c: &mut Criterion) {
+    let gpu = GpuEvaluator::new().map_err(|e| eprintln!("GPU rows skipped: no GPU adapter ({e})")).ok();
+    let cpu = CpuEvaluator::new();
+    eprintln!("CPU: {}; GPU: {}", cpu.name(), gpu.as_ref().map_or("none", |g| g.adapter_name()));
+    for (name, spec) in workloads() {
+        let (batch, times) = synthetic::workload(TRACKS, SAMPLES, &spec).expect("valid workload");
+        let (slice, slice_times) = synthetic::workload(TRACKS / 10, SAMPLES, &spec).expect("valid workload");
+        for derivatives in [false, true] {
+            let what = if derivatives { "derivatives" } else { "value" };
+            let mut group = c.benchmark_group(format!("{name}/{what}"));
+            group.sample_size(10);
+            group.throughput(Throughput::Elements(slice_times.total() as u64));
+            group.bench_function("reference_1k_tracks", |b| {
+                b.iter(|| EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives }.run().unwrap())
+            });
+            group.throughput(Throughput::Elements(times.total() as u64));
+            let options = CpuOptions { derivatives, ..CpuOptions::default() };
+            group.bench_function("cpu", |b| b.iter(|| cpu.evaluate(&batch, &times, &options).unwrap()));
+            let mut buffer = vec![0.0f32; times.total() * quatcurve::gpu::layout::channels(derivatives, false)];
+            group.bench_function("cpu_reused_buffer", |b| b.iter(|| cpu.evaluate_into(&batch, &times, &options, &mut buffer).unwrap()));
+            if let Some(gpu) = &gpu {
+                let options = GpuOptions { derivatives, ..GpuOptions::default() };
+                group.bench_function("gpu_end_to_end", |b| b.iter(|| gpu.evaluate(&batch, &times, &options).unwrap()));
+                let prepared = gpu.prepare(&batch, &times, &options).unwrap();
+                group.bench_function("gpu_dispatch_only", |b| b.iter(|| gpu.dispatch(&prepared).unwrap()));
+                if name == "bspline4_uniform" {
+                    let generic = gpu.prepare(&batch, &times, &GpuOptions { generic_kernel: true, ..options }).unwrap();
+                    group.bench_function("gpu_dispatch_only_generic_kernel", |b| b.iter(|| gpu.dispatch(&generic).unwrap()));
+                }
+            }
+            group.finish();
+        }
     }
-    group.finish();
 }
 
-fn gpu(c: &mut Criterion) {
-    let Ok(gpu) = GpuEvaluator::new() else {
-        eprintln!("skipped: no GPU adapter");
-        return;
-    };
-    eprintln!("GPU: {}", gpu.adapter_name());
-    let (batch, times) = workload(TRACKS);
-    let mut group = c.benchmark_group("gpu_bspline4_uniform_10k_x_1k");
-    group.sample_size(10).throughput(Throughput::Elements(times.total() as u64));
-    for derivatives in [false, true] {
-        let name = if derivatives { "derivatives" } else { "value" };
-        let options = GpuOptions { derivatives, ..GpuOptions::default() };
-        group.bench_function(format!("{name}/end_to_end"), |b| b.iter(|| gpu.evaluate(&batch, &times, &options).unwrap()));
-        let prepared = gpu.prepare(&batch, &times, &options).unwrap();
-        group.bench_function(format!("{name}/dispatch_only"), |b| b.iter(|| gpu.dispatch(&prepared).unwrap()));
-        let generic = gpu.prepare(&batch, &times, &GpuOptions { generic_kernel: true, ..options }).unwrap();
-        group.bench_function(format!("{name}/dispatch_only_generic_kernel"), |b| b.iter(|| gpu.dispatch(&generic).unwrap()));
-    }
-    group.finish();
-}
-
-criterion_group!(benches, reference, gpu);
+criterion_group!(benches, paths);
 criterion_main!(benches);

@@ -34,6 +34,12 @@ impl V8 {
         Self { x: f32x8::new(rows.map(|r| r[0])), y: f32x8::new(rows.map(|r| r[1])), z: f32x8::new(rows.map(|r| r[2])) }
     }
 
+    /// The same `[x, y, z, _]` in every lane.
+    #[inline(always)]
+    pub fn splat(r: [f32; 4]) -> Self {
+        Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]) }
+    }
+
     #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
@@ -60,6 +66,12 @@ impl Q8 {
             z: f32x8::new(rows.map(|r| r[2])),
             w: f32x8::new(rows.map(|r| r[3])),
         }
+    }
+
+    /// The same `[x, y, z, w]` in every lane.
+    #[inline(always)]
+    pub fn splat(r: [f32; 4]) -> Self {
+        Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]), w: f32x8::splat(r[3]) }
     }
 
     /// Hamilton product `self * o`.
@@ -97,15 +109,20 @@ pub struct Factor8 {
 pub fn cumulative_product(start: Q8, factors: &[Factor8], derivatives: bool) -> (Q8, V8, V8) {
     let mut q = start;
     let (mut w, mut w_dot) = (V8::ZERO, V8::ZERO);
-    for f in factors {
+    for (i, f) in factors.iter().enumerate() {
         let (sin, cos) = (f.theta * f.b[0]).sin_cos();
         let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
         if derivatives {
-            let carried = a.rotate_inverse(w);
             let spin = f.axis.scale(f.theta * f.b[1]);
-            let two = f32x8::splat(2.0);
-            w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(two)).add(f.axis.scale(f.theta * f.b[2]));
-            w = carried.add(spin);
+            let accel = f.axis.scale(f.theta * f.b[2]);
+            if i == 0 {
+                // W and W' start at zero: nothing to carry through the first factor.
+                (w, w_dot) = (spin, accel);
+            } else {
+                let carried = a.rotate_inverse(w);
+                w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(f32x8::splat(2.0))).add(accel);
+                w = carried.add(spin);
+            }
         }
         q = q.mul(a);
     }

@@ -67,10 +67,29 @@ impl CpuEvaluator {
     /// # Errors
     /// As [`EvalJob::validate`].
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions) -> Result<FloatOutput> {
+        let channels = crate::gpu::layout::channels(options.derivatives, options.matrix);
+        let mut data = vec![0.0f32; times.total() * channels];
+        self.evaluate_into(batch, times, options, &mut data)?;
+        Ok(FloatOutput { channels, data })
+    }
+
+    /// As [`CpuEvaluator::evaluate`], into a caller's buffer of exactly `samples x channels`
+    /// floats: reusing it saves the allocation and first-touch page faults of a new output,
+    /// which cost as much as the arithmetic for large batches.
+    ///
+    /// # Errors
+    /// As [`EvalJob::validate`], and [`crate::Error::BadJob`] for a buffer of the wrong size.
+    pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions, data: &mut [f32]) -> Result<()> {
         EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives }.validate()?;
         let channels = crate::gpu::layout::channels(options.derivatives, options.matrix);
+        if data.len() != times.total() * channels {
+            return Err(crate::Error::BadJob(format!(
+                "output buffer holds {} floats but {} samples x {channels} channels are needed",
+                data.len(),
+                times.total()
+            )));
+        }
         let tables = Tables::new(batch);
-        let mut data = vec![0.0f32; times.total() * channels];
         // Work items: pieces of at most PIECE samples of one track.
         let pieces: Vec<(usize, usize, usize)> = (0..batch.len())
             .flat_map(|i| {
@@ -84,7 +103,7 @@ impl CpuEvaluator {
         match options.layout {
             Layout::Track => {
                 let mut slices = Vec::with_capacity(pieces.len());
-                let mut rest = &mut data[..];
+                let mut rest = data;
                 for &(_, from, to) in &pieces {
                     let (head, tail) = rest.split_at_mut((to - from) * channels);
                     slices.push(head);
@@ -109,6 +128,6 @@ impl CpuEvaluator {
                 }
             }
         }
-        Ok(FloatOutput { channels, data })
+        Ok(())
     }
 }

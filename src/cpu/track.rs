@@ -182,9 +182,9 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
             // Lanes past the end repeat the last sample and are not written.
             let t = times.time(index, range.start + g + lane.min(valid - 1));
             let (span, t) = locate_from(&mut hint, knots, first, last, t);
-            let len = knots[span + 1] - knots[span];
-            u[lane] = ((t - knots[span]) / len) as f32;
-            inv[lane] = (1.0 / len) as f32;
+            let inv_len = 1.0 / (knots[span + 1] - knots[span]);
+            u[lane] = ((t - knots[span]) * inv_len) as f32;
+            inv[lane] = inv_len as f32;
             match track.curve {
                 Curve::Slerp => {
                     start[lane] = tables.points[p0 + span];
@@ -222,17 +222,53 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
                 }
             }
         }
+        // Usually all eight samples share a segment: broadcast instead of gathering.
+        let shared = coef.iter().all(|&c| c == coef[0]) && start.iter().all(|&p| p == start[0]);
         for (f, factor) in f8.iter_mut().enumerate().take(factors) {
-            let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| tables.axes[coef[lane] + f]);
-            *factor = Factor8 { axis: V8::gather(&rows), theta: f32x8::new(rows.map(|r| r[3])), b: jets[f] };
+            let (axis, theta) = if shared {
+                let r = tables.axes[coef[0] + f];
+                (V8::splat(r), f32x8::splat(r[3]))
+            } else {
+                let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| tables.axes[coef[lane] + f]);
+                (V8::gather(&rows), f32x8::new(rows.map(|r| r[3])))
+            };
+            *factor = Factor8 { axis, theta, b: jets[f] };
         }
-        let (q, w, a) = cumulative_product(Q8::gather(&start), &f8[..factors], options.derivatives);
-        let (qx, qy, qz, qw) = (q.x.to_array(), q.y.to_array(), q.z.to_array(), q.w.to_array());
-        let (w, a) = ([w.x, w.y, w.z].map(f32x8::to_array), [a.x, a.y, a.z].map(f32x8::to_array));
-        for lane in 0..valid {
-            let row = &mut out[(g + lane) * channels..(g + lane + 1) * channels];
-            write(row, [qx[lane], qy[lane], qz[lane], qw[lane]], w.map(|c| c[lane]), a.map(|c| c[lane]), options);
+        let start = if shared { Q8::splat(start[0]) } else { Q8::gather(&start) };
+        let (q, w, a) = cumulative_product(start, &f8[..factors], options.derivatives);
+        // Straight from lane arrays into the rows: building per-lane temporaries here cost
+        // store-forwarding stalls worth a third of the run time.
+        let q = [q.x, q.y, q.z, q.w].map(f32x8::to_array);
+        let rows = &mut out[g * channels..(g + valid) * channels];
+        for (lane, row) in rows.chunks_exact_mut(channels).enumerate() {
+            for c in 0..4 {
+                row[c] = q[c][lane];
+            }
         }
+        if options.derivatives {
+            let d = [w.x, w.y, w.z, a.x, a.y, a.z].map(f32x8::to_array);
+            for (lane, row) in rows.chunks_exact_mut(channels).enumerate() {
+                for c in 0..6 {
+                    row[4 + c] = d[c][lane];
+                }
+            }
+        }
+        if options.matrix {
+            let at = if options.derivatives { 10 } else { 4 };
+            for row in rows.chunks_exact_mut(channels) {
+                let q = [row[0], row[1], row[2], row[3]];
+                write_matrix(&mut row[at..at + 9], q);
+            }
+        }
+    }
+}
+
+/// The row-major matrix of rotation `q`.
+#[inline(always)]
+fn write_matrix(out: &mut [f32], q: [f32; 4]) {
+    let m = DQuat::from_array(q.map(f64::from)).to_mat3();
+    for (o, v) in out.iter_mut().zip(m.iter().flatten()) {
+        *o = *v as f32;
     }
 }
 
@@ -247,9 +283,6 @@ fn write(row: &mut [f32], q: [f32; 4], w: [f32; 3], a: [f32; 3], options: &CpuOp
         at = 10;
     }
     if options.matrix {
-        let m = DQuat::from_array(q.map(f64::from)).to_mat3();
-        for (i, v) in m.iter().flatten().enumerate() {
-            row[at + i] = *v as f32;
-        }
+        write_matrix(&mut row[at..at + 9], q);
     }
 }
