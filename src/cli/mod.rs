@@ -57,7 +57,7 @@ pub struct CurveArgs {
     /// Nam-Kim blend function.
     #[arg(long, default_value = "cubic", value_parser = parse::<Blend>)]
     pub blend: Blend,
-    /// Evaluation device: auto (GPU if any, else the f64 reference), gpu, cpu, reference.
+    /// Evaluation device: auto (GPU if any, else the fast CPU path), gpu, cpu, reference.
     #[arg(long, default_value = "auto", value_parser = parse::<DeviceChoice>)]
     pub device: DeviceChoice,
 }

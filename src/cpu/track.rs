@@ -69,8 +69,9 @@ fn solve(a: &mut [Vec<f64>], b: &mut [f64]) {
         b.swap(col, pivot);
         for row in col + 1..n {
             let f = a[row][col] / a[col][col];
-            for c in col..n {
-                a[row][c] -= f * a[col][c];
+            let (top, bottom) = a.split_at_mut(row);
+            for (x, p) in bottom[0][col..n].iter_mut().zip(&top[col][col..n]) {
+                *x -= f * p;
             }
             b[row] -= f * b[col];
         }
@@ -212,8 +213,8 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
                 poly.eval(f32x8::new(u), &mut jets);
                 let inv = f32x8::new(inv);
                 for jet in jets.iter_mut().take(poly.count) {
-                    jet[1] = jet[1] * inv;
-                    jet[2] = jet[2] * inv * inv;
+                    jet[1] *= inv;
+                    jet[2] *= inv * inv;
                 }
             }
             Basis::CoxDeBoor => {
