@@ -96,7 +96,7 @@ impl Device {
                 Ok(out.to_output(job.derivatives))
             }
             Device::Cpu(c) => {
-                let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, matrix: false };
+                let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
                 let out = c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))?;
                 Ok(out.to_output(job.derivatives))
             }

@@ -36,6 +36,10 @@ pub struct BenchArgs {
     /// (whole tracks), since it is the oracle, not a fast path.
     #[arg(long, default_value_t = 1_000_000)]
     reference_samples: usize,
+    /// CPU: generate uniformly sampled slerp and nam-kim tracks by Nam & Kim's forward
+    /// differences, seeding again every N steps (values only).
+    #[arg(long, value_name = "N")]
+    forward_difference: Option<usize>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -155,7 +159,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
 }
 
 fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
-    let options = CpuOptions { derivatives: args.derivatives, ..CpuOptions::default() };
+    let options = CpuOptions { derivatives: args.derivatives, forward_difference: args.forward_difference, ..CpuOptions::default() };
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
     let seconds = median_seconds(args.runs, || cpu.evaluate(batch, times, &options).map(drop).map_err(input))?;
     // The CPU's analogue of dispatch-only: into a reused buffer (no allocation, no page faults).
@@ -164,7 +168,10 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
     let samples = times.total();
     Ok(Row {
         device: "cpu",
-        adapter: cpu.name(),
+        adapter: match args.forward_difference {
+            Some(n) => format!("{}, forward differences every {n}", cpu.name()),
+            None => cpu.name(),
+        },
         samples_per_s: samples as f64 / seconds,
         seconds,
         samples,

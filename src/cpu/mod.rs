@@ -10,6 +10,7 @@
 //! and Bezier (whose Bernstein basis of any degree has no fixed polynomial table) run the f64
 //! reference per sample, in parallel: correct and multi-threaded, not vectorized.
 
+pub mod forward;
 pub mod lanes;
 mod track;
 
@@ -32,6 +33,9 @@ pub struct CpuOptions {
     pub derivatives: bool,
     /// Also write the 3x3 rotation matrix (row-major).
     pub matrix: bool,
+    /// Generate uniformly sampled slerp and Nam-Kim tracks by forward differences
+    /// ([`forward`]), seeding again every this many steps; `None`: direct evaluation.
+    pub forward_difference: Option<usize>,
 }
 
 /// The fast CPU evaluator. Cheap to create; uses rayon's global thread pool.

@@ -150,6 +150,10 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
 /// Evaluates samples `range` of track `index` into `out` (`range.len() x channels`).
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+    if super::forward::applies(view, times, index, options) {
+        super::forward::evaluate(view, times, index, range, options, channels, out);
+        return;
+    }
     let track = view.track;
     let knots = view.knots;
     let (basis, factors, first, last) = match track.curve {
@@ -275,7 +279,7 @@ fn write_matrix(out: &mut [f32], q: [f32; 4]) {
 
 /// One output row: rotation, then optional derivatives and matrix.
 #[inline(always)]
-fn write(row: &mut [f32], q: [f32; 4], w: [f32; 3], a: [f32; 3], options: &CpuOptions) {
+pub(super) fn write(row: &mut [f32], q: [f32; 4], w: [f32; 3], a: [f32; 3], options: &CpuOptions) {
     row[..4].copy_from_slice(&q);
     let mut at = 4;
     if options.derivatives {
