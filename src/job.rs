@@ -49,6 +49,14 @@ pub struct FloatOutput {
 }
 
 impl FloatOutput {
+    /// `samples x channels` zeros, backed by huge pages where the OS offers them.
+    #[must_use]
+    pub fn zeroed(samples: usize, channels: usize) -> Self {
+        let mut data = vec![0.0f32; samples * channels];
+        prefer_huge_pages(&mut data);
+        Self { channels, data }
+    }
+
     /// Converts to the reference's [`Output`] (f64, rotations and derivatives).
     #[must_use]
     pub fn to_output(&self, derivatives: bool) -> Output {
@@ -63,6 +71,30 @@ impl FloatOutput {
         }
         out
     }
+}
+
+/// Asks Linux to back a large, fresh output with transparent huge pages before it is first
+/// written. The allocation is lazily zeroed memory, and touching it 4 KiB page by page costs
+/// a page fault each: for a 160 MB output that was as much time as the evaluation itself.
+#[allow(unsafe_code)]
+fn prefer_huge_pages(data: &mut [f32]) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let (start, len) = (data.as_mut_ptr() as usize, std::mem::size_of_val(data));
+        if len < 4 * HUGE {
+            return;
+        }
+        let aligned = start.next_multiple_of(HUGE);
+        let end = (start + len) / HUGE * HUGE;
+        // SAFETY: the range lies inside `data`, which we own mutably; MADV_HUGEPAGE only
+        // changes how the kernel backs the pages, never their contents. Failure is harmless.
+        unsafe {
+            libc::madvise(aligned as *mut libc::c_void, end - aligned, libc::MADV_HUGEPAGE);
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = data;
 }
 
 /// Evaluates every track of a batch at its sample times with the f64 reference.

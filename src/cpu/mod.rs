@@ -71,10 +71,9 @@ impl CpuEvaluator {
     /// # Errors
     /// As [`EvalJob::validate`].
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions) -> Result<FloatOutput> {
-        let channels = crate::gpu::layout::channels(options.derivatives, options.matrix);
-        let mut data = vec![0.0f32; times.total() * channels];
-        self.evaluate_into(batch, times, options, &mut data)?;
-        Ok(FloatOutput { channels, data })
+        let mut out = FloatOutput::zeroed(times.total(), crate::gpu::layout::channels(options.derivatives, options.matrix));
+        self.evaluate_into(batch, times, options, &mut out.data)?;
+        Ok(out)
     }
 
     /// As [`CpuEvaluator::evaluate`], into a caller's buffer of exactly `samples x channels`

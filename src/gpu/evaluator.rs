@@ -229,7 +229,7 @@ impl GpuEvaluator {
     /// mismatched inputs, device errors as [`GpuError::Device`] or [`GpuError::DeviceLost`].
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
         let channels = layout::channels(options.derivatives, options.matrix);
-        let mut data = vec![0.0f32; times.total() * channels];
+        let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
         for chunk in &self.plan(batch, times, options, channels)? {
             let prepared = self.upload(chunk, batch, options, channels, None)?;
             self.submit(&prepared)?;
@@ -268,7 +268,7 @@ impl GpuEvaluator {
     /// Device errors.
     pub fn read(&self, prepared: &PreparedBatch) -> Result<GpuOutput, GpuError> {
         let channels = prepared.channels;
-        let mut data = vec![0.0f32; prepared.times.total() * channels];
+        let FloatOutput { mut data, .. } = FloatOutput::zeroed(prepared.times.total(), channels);
         for (plan, chunk) in prepared.plans.iter().zip(&prepared.chunks) {
             self.read_back(&chunk.output, chunk.output_bytes, |local| scatter(local, plan, &prepared.times, prepared.layout, channels, &mut data))?;
         }
