@@ -58,11 +58,21 @@ pub fn bernstein_cumulative(n: usize, u: f64) -> Vec<BasisJet> {
 /// rule. Quotients with a zero-length denominator (repeated knots) are 0 by convention.
 #[must_use]
 pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<BasisJet> {
+    let mut out = vec![[0.0; 3]; k - 1];
+    bspline_cumulative_into(knots, k, l, t, &mut out);
+    out
+}
+
+/// [`bspline_cumulative`] into `out[..k - 1]`, without allocating (the fast CPU path calls
+/// it per sample).
+pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &mut [BasisJet]) {
     // tri[m][r] = B_{l-m+1+r, m}(t) for orders m = 1..=k, r = 0..m.
     let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
-    let mut tri: Vec<Vec<f64>> = vec![vec![], vec![1.0]];
+    let mut tri = [[0.0f64; 8]; 9];
+    tri[1][0] = 1.0;
     for m in 1..k {
-        let prev = &tri[m];
+        let (done, rest) = tri.split_at_mut(m + 1);
+        let prev = &done[m];
         let b = |j: isize| -> f64 {
             let r = j - (l as isize - m as isize + 1);
             if r < 0 || r >= m as isize {
@@ -71,16 +81,13 @@ pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<Basi
                 prev[r as usize]
             }
         };
-        let row: Vec<f64> = (0..=m)
-            .map(|r| {
-                let j = l as isize - m as isize + r as isize;
-                let ju = j.max(0) as usize;
-                let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
-                let right = div(knots[(j + m as isize + 1) as usize] - t, knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize]) * b(j + 1);
-                left + right
-            })
-            .collect();
-        tri.push(row);
+        for (r, slot) in rest[0].iter_mut().enumerate().take(m + 1) {
+            let j = l as isize - m as isize + r as isize;
+            let ju = j.max(0) as usize;
+            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
+            let right = div(knots[(j + m as isize + 1) as usize] - t, knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize]) * b(j + 1);
+            *slot = left + right;
+        }
     }
     // B_{j,m}(t), zero outside the triangle.
     let basis = |m: usize, j: isize| -> f64 {
@@ -97,7 +104,6 @@ pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<Basi
     let kn = |j: isize| knots[j as usize];
     let kf = k as f64;
     let first = l as isize - k as isize + 2;
-    let mut out = vec![[0.0; 3]; k - 1];
     let mut tail = 0.0;
     for i in (first..=l as isize).rev() {
         tail += basis(k, i);
@@ -111,7 +117,6 @@ pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<Basi
         };
         out[(i - first) as usize] = [tail, d1, d2];
     }
-    out
 }
 
 #[cfg(test)]

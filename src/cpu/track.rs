@@ -2,7 +2,7 @@
 
 use super::lanes::{cumulative_product, Factor8, Q8, V8, LANES};
 use super::CpuOptions;
-use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
+use crate::basis::{bernstein_cumulative, bspline_cumulative, bspline_cumulative_into, BasisJet};
 use crate::batch::{Batch, TrackView};
 use crate::curve::Curve;
 use crate::gpu::layout::knots_are_uniform;
@@ -205,7 +205,9 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
                     start[lane] = tables.points[p0 + span + 1 - k];
                     coef[lane] = c0 + span + 1 - k;
                     if matches!(basis, Basis::CoxDeBoor) {
-                        for (f, jet) in bspline_cumulative(knots, k, span, t).into_iter().enumerate() {
+                        let mut jets = [[0.0f64; 3]; MAX_FACTORS];
+                        bspline_cumulative_into(knots, k, span, t, &mut jets);
+                        for (f, jet) in jets.iter().enumerate().take(k - 1) {
                             cox[lane][f] = jet.map(|v| v as f32);
                         }
                     }
