@@ -166,8 +166,14 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
         }
         Curve::Squad | Curve::NamKim | Curve::Bezier => {
             for (row, j) in out.chunks_exact_mut(channels).zip(range) {
-                let s = reference::evaluate(view, times.time(index, j));
-                write(row, s.rotation.to_array().map(|v| v as f32), s.angular_velocity.to_array().map(|v| v as f32), s.angular_acceleration.to_array().map(|v| v as f32), options);
+                let t = times.time(index, j);
+                if options.derivatives {
+                    let s = reference::evaluate(view, t);
+                    let f = |v: crate::quat::DVec3| v.to_array().map(|c| c as f32);
+                    write(row, s.rotation.to_array().map(|v| v as f32), f(s.angular_velocity), f(s.angular_acceleration), options);
+                } else {
+                    write(row, reference::evaluate_rotation(view, t).to_array().map(|v| v as f32), [0.0; 3], [0.0; 3], options);
+                }
             }
             return;
         }

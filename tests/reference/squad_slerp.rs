@@ -111,3 +111,22 @@ fn slerp_goes_the_short_way_between_near_antipodal_keys() {
         assert!(rel_err(s.angular_velocity, DVec3::new(0.0, 0.0, degrees.to_radians())) < 1e-12);
     }
 }
+
+#[test]
+fn the_rotation_alone_equals_the_full_evaluation() {
+    // evaluate_rotation skips the jets for squad and Nam-Kim; it must be the same curve.
+    let mut g = crate::common::Gen::new(12);
+    for spec in crate::common::all_specs() {
+        for kind in crate::common::KINDS {
+            let track = crate::common::track(&mut g, &spec, spec.min_keys().max(2) + 3, kind);
+            let batch = quatcurve::Batch::from_tracks(&[track], &spec).unwrap();
+            let [lo, hi] = batch.tracks[0].domain;
+            for i in 0..=50 {
+                let t = lo + (hi - lo) * i as f64 / 50.0;
+                let full = quatcurve::evaluate(batch.view(0), t).rotation;
+                let alone = quatcurve::reference::evaluate_rotation(batch.view(0), t);
+                assert!(full.angle_to(alone) < 1e-14, "{}: t={t}", crate::common::describe(&spec));
+            }
+        }
+    }
+}
