@@ -87,7 +87,6 @@ impl Device {
         match self {
             Device::Reference => job.run().map_err(|e| DeviceError::Input(e.to_string())),
             Device::Gpu(g) => {
-                job.validate().map_err(|e| DeviceError::Input(e.to_string()))?;
                 let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
                 let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
                     GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Input(e.to_string()),

@@ -5,7 +5,7 @@ use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Batch, Curve, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes};
+use quatcurve::{synthetic, Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -95,7 +95,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
             }
         };
         results.push(match &device {
-            Device::Reference => time_reference(args)?,
+            Device::Reference => time_reference(args, &spec)?,
             Device::Gpu(gpu) => time_gpu(args, gpu, &batch, &times)?,
             Device::Cpu(cpu) => time_cpu(args, cpu, &batch, &times)?,
         });
@@ -107,7 +107,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
             keys_per_track: synthetic::WORKLOAD_KEYS,
             curve: args.curve.name(),
             order: args.options.order,
-            knots: args.options.spec(args.curve, KnotMode::Uniform).knots.name(),
+            knots: spec.knots.name(),
             derivatives: args.derivatives,
             runs: args.runs,
         },
@@ -131,10 +131,9 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Re
 
 /// The reference times the batch's first tracks (the synthetic batch is a pure function of
 /// the track index, so the slice is exactly those tracks).
-fn time_reference(args: &BenchArgs) -> Result<Row, Failure> {
+fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
-    let spec = args.options.spec(args.curve, KnotMode::Uniform);
-    let (slice, slice_times) = synthetic::workload(tracks, args.samples, &spec).map_err(|e| Failure::Input(e.to_string()))?;
+    let (slice, slice_times) = synthetic::workload(tracks, args.samples, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives: args.derivatives };
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();

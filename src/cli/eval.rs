@@ -94,18 +94,15 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let device = Device::open(args.options.device)?;
     let out = device.evaluate(&job).map_err(|e| Failure::from(e).context(&source))?;
     let device = device.name();
+    let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
     let Some(path) = &args.output else {
-        let doc = ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
         return print_stdout(|w| {
-            serde_json::to_writer(&mut *w, &doc).map_err(std::io::Error::from)?;
+            serde_json::to_writer(&mut *w, &json()).map_err(std::io::Error::from)?;
             writeln!(w)
         });
     };
     let written = match format {
-        Format::Json => {
-            let doc = ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
-            write_atomic(path, |w| serde_json::to_writer(&mut *w, &doc).map_err(std::io::Error::from))
-        }
+        Format::Json => write_atomic(path, |w| serde_json::to_writer(&mut *w, &json()).map_err(std::io::Error::from)),
         Format::Npy => {
             let (tracks, samples) = (batch.len() as u64, times.count(0) as u64);
             let (data, channels) = npy_rows(&out);

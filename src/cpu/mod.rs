@@ -19,7 +19,7 @@ use crate::error::Result;
 use crate::job::{EvalJob, FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use rayon::prelude::*;
-use track::Tables;
+use track::{Bases, Tables};
 
 /// Samples per parallel work item (a piece of one track).
 const PIECE: usize = 4096;
@@ -38,15 +38,24 @@ pub struct CpuOptions {
     pub forward_difference: Option<usize>,
 }
 
-/// The fast CPU evaluator. Cheap to create; uses rayon's global thread pool.
-#[derive(Clone, Debug, Default)]
-pub struct CpuEvaluator;
+/// The fast CPU evaluator: holds the fitted polynomial bases; uses rayon's global thread
+/// pool. Create once and reuse.
+#[derive(Clone, Debug)]
+pub struct CpuEvaluator {
+    bases: Bases,
+}
+
+impl Default for CpuEvaluator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
 
 impl CpuEvaluator {
-    /// A new evaluator.
+    /// A new evaluator (fits the bases: microseconds).
     #[must_use]
     pub fn new() -> Self {
-        Self
+        Self { bases: Bases::new() }
     }
 
     /// `f32x8 (<instruction set>), <threads> threads`, for outputs and benchmarks.
@@ -92,7 +101,7 @@ impl CpuEvaluator {
                 times.total()
             )));
         }
-        let tables = Tables::new(batch);
+        let tables = Tables::new(batch, &self.bases);
         // Work items: pieces of at most PIECE samples of one track.
         let pieces: Vec<(usize, usize, usize)> = (0..batch.len())
             .flat_map(|i| {

@@ -82,21 +82,42 @@ fn solve(a: &mut [Vec<f64>], b: &mut [f64]) {
     }
 }
 
-/// Batch-wide f32 tables and the polynomial bases, built once per evaluation.
-pub struct Tables {
-    /// Points `[x, y, z, w]`.
-    points: Vec<[f32; 4]>,
-    /// Coefficients as `[axis x, axis y, axis z, theta]` (axis unit, or zero with theta 0).
-    axes: Vec<[f32; 4]>,
+/// The polynomial bases: they depend on nothing but the order, so the evaluator fits them
+/// once.
+#[derive(Clone, Debug)]
+pub struct Bases {
     slerp: PolyBasis,
     hermite: PolyBasis,
     /// Uniform-knot B-spline bases, index `k - 2` for orders 2..=8.
     bspline: Vec<PolyBasis>,
 }
 
-impl Tables {
+impl Bases {
+    /// Fits every basis from the reference's.
+    pub fn new() -> Self {
+        let bspline = (2..=8)
+            .map(|k| {
+                // Unit-spaced knots 0..2k-1: span k-1 is [k-1, k], where t = k-1+u.
+                let knots: Vec<f64> = (0..2 * k).map(|j| j as f64).collect();
+                PolyBasis::fit(k - 1, |u| bspline_cumulative(&knots, k, k - 1, k as f64 - 1.0 + u))
+            })
+            .collect();
+        Self { slerp: PolyBasis::fit(1, |u| vec![[u, 1.0, 0.0]]), hermite: PolyBasis::fit(3, |u| bernstein_cumulative(3, u)), bspline }
+    }
+}
+
+/// Batch-wide f32 tables, built once per evaluation, with the evaluator's bases.
+pub struct Tables<'a> {
+    /// Points `[x, y, z, w]`.
+    points: Vec<[f32; 4]>,
+    /// Coefficients as `[axis x, axis y, axis z, theta]` (axis unit, or zero with theta 0).
+    axes: Vec<[f32; 4]>,
+    bases: &'a Bases,
+}
+
+impl<'a> Tables<'a> {
     /// Converts the batch's points and coefficients to f32.
-    pub fn new(batch: &Batch) -> Self {
+    pub fn new(batch: &Batch, bases: &'a Bases) -> Self {
         let points = batch.points.iter().map(|q| q.to_array().map(|v| v as f32)).collect();
         let axes = batch
             .coefs
@@ -110,20 +131,7 @@ impl Tables {
                 }
             })
             .collect();
-        let bspline = (2..=8)
-            .map(|k| {
-                // Unit-spaced knots 0..2k-1: span k-1 is [k-1, k], where t = k-1+u.
-                let knots: Vec<f64> = (0..2 * k).map(|j| j as f64).collect();
-                PolyBasis::fit(k - 1, |u| bspline_cumulative(&knots, k, k - 1, k as f64 - 1.0 + u))
-            })
-            .collect();
-        Self {
-            points,
-            axes,
-            slerp: PolyBasis::fit(1, |u| vec![[u, 1.0, 0.0]]),
-            hermite: PolyBasis::fit(3, |u| bernstein_cumulative(3, u)),
-            bspline,
-        }
+        Self { points, axes, bases }
     }
 }
 
@@ -149,7 +157,7 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
 
 /// Evaluates samples `range` of track `index` into `out` (`range.len() x channels`).
 #[allow(clippy::too_many_arguments)]
-pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
     if super::forward::applies(view, times, index, options) {
         super::forward::evaluate(view, times, index, range, options, channels, out);
         return;
@@ -157,11 +165,11 @@ pub fn evaluate(tables: &Tables, view: TrackView<'_>, times: &SampleTimes, index
     let track = view.track;
     let knots = view.knots;
     let (basis, factors, first, last) = match track.curve {
-        Curve::Slerp => (Basis::Poly(&tables.slerp), 1, 0, knots.len() - 2),
-        Curve::Hermite => (Basis::Poly(&tables.hermite), 3, 0, knots.len() - 2),
+        Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1, 0, knots.len() - 2),
+        Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3, 0, knots.len() - 2),
         Curve::BSpline => {
             let k = track.order;
-            let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bspline[k - 2]) } else { Basis::CoxDeBoor };
+            let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)
         }
         Curve::Squad | Curve::NamKim | Curve::Bezier => {
