@@ -1,6 +1,6 @@
 //! One piece of one track on the CPU: per-lane segment lookup, basis, then the SIMD product.
 
-use super::lanes::{cumulative_product, Factor8, Q8, V8, LANES};
+use super::lanes::{cumulative_product, Factor8, LANES, Q8, SMALL_ANGLE, V8};
 use super::CpuOptions;
 use crate::basis::{bernstein_cumulative, bspline_cumulative, bspline_cumulative_into, BasisJet};
 use crate::batch::{Batch, TrackView};
@@ -17,11 +17,12 @@ use wide::f32x8;
 const MAX_FACTORS: usize = 7;
 
 /// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
-/// `count` functions of degree < 8, coefficients lowest first.
+/// `count` functions of degree `len - 1 < 8`, f32 coefficients lowest first.
 #[derive(Clone, Debug)]
 pub struct PolyBasis {
     count: usize,
-    coefs: Vec<[f64; 8]>,
+    len: usize,
+    coefs: Vec<[f32; 8]>,
 }
 
 impl PolyBasis {
@@ -38,24 +39,34 @@ impl PolyBasis {
                 let mut b: Vec<f64> = values.iter().map(|v| v[f][0]).collect();
                 solve(&mut a, &mut b);
                 let mut c = [0.0; 8];
-                c[..n].copy_from_slice(&b);
+                for (c, b) in c.iter_mut().zip(&b) {
+                    *c = *b as f32;
+                }
                 c
             })
             .collect();
-        Self { count, coefs }
+        Self { count, len: n, coefs }
     }
 
-    /// `[p, p', p'']` of every function at `u` (derivatives in `u`).
+    /// `[p, p', p'']` of every function at `u` (derivatives in `u`); without `derivatives`
+    /// only `p`, by Horner's rule over the polynomial's own degree.
     #[inline(always)]
-    fn eval(&self, u: f32x8, out: &mut [[f32x8; 3]; MAX_FACTORS]) {
-        for (f, c) in self.coefs.iter().enumerate() {
+    fn eval(&self, u: f32x8, derivatives: bool, out: &mut [[f32x8; 3]; MAX_FACTORS]) {
+        for (c, out) in self.coefs.iter().zip(out.iter_mut()) {
+            let c = &c[..self.len];
             let (mut p, mut d1, mut d2) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
-            for &ck in c.iter().rev() {
-                d2 = d2 * u + d1;
-                d1 = d1 * u + p;
-                p = p * u + f32x8::splat(ck as f32);
+            if derivatives {
+                for &ck in c.iter().rev() {
+                    d2 = d2.mul_add(u, d1);
+                    d1 = d1.mul_add(u, p);
+                    p = p.mul_add(u, f32x8::splat(ck));
+                }
+            } else {
+                for &ck in c.iter().rev() {
+                    p = p.mul_add(u, f32x8::splat(ck));
+                }
             }
-            out[f] = [p, d1, d2 * f32x8::splat(2.0)];
+            *out = [p, d1, d2 * f32x8::splat(2.0)];
         }
     }
 }
@@ -187,64 +198,78 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
         }
     };
     let (p0, c0) = (track.point_offset, track.coef_offset);
+    // Every basis here stays within [0, 1] on the domain, so every angle is at most its
+    // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
+    let small = tables.axes[c0..c0 + track.coef_count].iter().all(|a| a[3] <= SMALL_ANGLE * 0.99);
     let mut hint = first;
     let n = range.len();
     let mut jets = [[f32x8::ZERO; 3]; MAX_FACTORS];
     let mut f8 = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; MAX_FACTORS];
+    // Where a segment starts: its first point (sign-aligned for Hermite) and coefficient.
+    let segment = |span: usize| -> ([f32; 4], usize) {
+        match track.curve {
+            Curve::Slerp => (tables.points[p0 + span], c0 + span),
+            Curve::Hermite => {
+                let sign = view.coefs[3 * span + 1][3] as f32;
+                (tables.points[p0 + span].map(|v| v * sign), c0 + 3 * span)
+            }
+            _ => (tables.points[p0 + span + 1 - track.order], c0 + span + 1 - track.order),
+        }
+    };
     for g in (0..n).step_by(LANES) {
         let valid = LANES.min(n - g);
-        let mut start = [[0.0f32; 4]; LANES];
-        let mut coef = [0usize; LANES];
-        let (mut u, mut inv) = ([0.0f32; LANES], [0.0f32; LANES]);
-        let mut cox = [[[0.0f32; 3]; MAX_FACTORS]; LANES];
-        for lane in 0..LANES {
-            // Lanes past the end repeat the last sample and are not written.
-            let t = times.time(index, range.start + g + lane.min(valid - 1));
-            let (span, t) = locate_from(&mut hint, knots, first, last, t);
-            let inv_len = 1.0 / (knots[span + 1] - knots[span]);
-            u[lane] = ((t - knots[span]) * inv_len) as f32;
-            inv[lane] = inv_len as f32;
-            match track.curve {
-                Curve::Slerp => {
-                    start[lane] = tables.points[p0 + span];
-                    coef[lane] = c0 + span;
-                }
-                Curve::Hermite => {
-                    let sign = view.coefs[3 * span + 1][3] as f32;
-                    start[lane] = tables.points[p0 + span].map(|v| v * sign);
-                    coef[lane] = c0 + 3 * span;
-                }
-                _ => {
-                    let k = track.order;
-                    start[lane] = tables.points[p0 + span + 1 - k];
-                    coef[lane] = c0 + span + 1 - k;
-                    if matches!(basis, Basis::CoxDeBoor) {
-                        let mut jets = [[0.0f64; 3]; MAX_FACTORS];
-                        bspline_cumulative_into(knots, k, span, t, &mut jets);
-                        for (f, jet) in jets.iter().enumerate().take(k - 1) {
-                            cox[lane][f] = jet.map(|v| v as f32);
-                        }
+        // Lanes past the end repeat the last sample and are not written.
+        let mut t: [f64; LANES] = std::array::from_fn(|lane| times.time(index, range.start + g + lane.min(valid - 1)));
+        let mut spans = [hint; LANES];
+        let mut u = [0.0f32; LANES];
+        // Usually all eight samples lie in the span of the previous group: one lookup, one
+        // division, and the segment's data broadcast instead of gathered.
+        let h = hint;
+        let shared = h >= first && h <= last && t.iter().all(|&t| knots[h] <= t && t < knots[h + 1]);
+        let (mut start, mut coef) = ([[0.0f32; 4]; LANES], [0usize; LANES]);
+        let inv = if shared {
+            let inv_len = 1.0 / (knots[h + 1] - knots[h]);
+            for (u, t) in u.iter_mut().zip(&t) {
+                *u = ((t - knots[h]) * inv_len) as f32;
+            }
+            (start[0], coef[0]) = segment(h);
+            f32x8::splat(inv_len as f32)
+        } else {
+            let mut inv = [0.0f32; LANES];
+            for lane in 0..LANES {
+                let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
+                let inv_len = 1.0 / (knots[span + 1] - knots[span]);
+                (spans[lane], t[lane]) = (span, tl);
+                u[lane] = ((tl - knots[span]) * inv_len) as f32;
+                inv[lane] = inv_len as f32;
+                (start[lane], coef[lane]) = segment(span);
+            }
+            f32x8::new(inv)
+        };
+        match basis {
+            Basis::Poly(poly) => {
+                poly.eval(f32x8::new(u), options.derivatives, &mut jets);
+                if options.derivatives {
+                    for jet in jets.iter_mut().take(poly.count) {
+                        jet[1] *= inv;
+                        jet[2] *= inv * inv;
                     }
                 }
             }
-        }
-        match basis {
-            Basis::Poly(poly) => {
-                poly.eval(f32x8::new(u), &mut jets);
-                let inv = f32x8::new(inv);
-                for jet in jets.iter_mut().take(poly.count) {
-                    jet[1] *= inv;
-                    jet[2] *= inv * inv;
-                }
-            }
             Basis::CoxDeBoor => {
+                let mut cox = [[[0.0f32; 3]; MAX_FACTORS]; LANES];
+                for lane in 0..LANES {
+                    let mut jets = [[0.0f64; 3]; MAX_FACTORS];
+                    bspline_cumulative_into(knots, track.order, spans[lane], t[lane], &mut jets);
+                    for (f, jet) in jets.iter().enumerate().take(factors) {
+                        cox[lane][f] = jet.map(|v| v as f32);
+                    }
+                }
                 for (f, jet) in jets.iter_mut().enumerate().take(factors) {
                     *jet = [0, 1, 2].map(|d| f32x8::new(std::array::from_fn(|lane| cox[lane][f][d])));
                 }
             }
         }
-        // Usually all eight samples share a segment: broadcast instead of gathering.
-        let shared = coef.iter().all(|&c| c == coef[0]) && start.iter().all(|&p| p == start[0]);
         for (f, factor) in f8.iter_mut().enumerate().take(factors) {
             let (axis, theta) = if shared {
                 let r = tables.axes[coef[0] + f];
@@ -256,7 +281,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
             *factor = Factor8 { axis, theta, b: jets[f] };
         }
         let start = if shared { Q8::splat(start[0]) } else { Q8::gather(&start) };
-        let (q, w, a) = cumulative_product(start, &f8[..factors], options.derivatives);
+        let (q, w, a) = cumulative_product(start, &f8[..factors], options.derivatives, small);
         // Straight from lane arrays into the rows: building per-lane temporaries here cost
         // store-forwarding stalls worth a third of the run time.
         let q = [q.x, q.y, q.z, q.w].map(f32x8::to_array);
