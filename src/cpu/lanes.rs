@@ -94,6 +94,46 @@ impl Q8 {
     }
 }
 
+/// Writes columns `col..col + width` (`width <= 4`) of the first `valid` rows of `rows` (rows of
+/// `stride` floats): row `lane` gets `v[0][lane], v[1][lane], ...`. A 4x8 transpose in
+/// registers where AVX is available: scattering lanes one float at a time cost a fifth of
+/// the evaluation.
+#[inline(always)]
+pub fn write_columns(v: [f32x8; 4], rows: &mut [f32], stride: usize, col: usize, width: usize, valid: usize) {
+    let quads = transpose(v);
+    for (lane, quad) in quads.iter().enumerate().take(valid) {
+        let at = lane * stride + col;
+        rows[at..at + width].copy_from_slice(&quad[..width]);
+    }
+}
+
+/// The eight lanes' `[v0, v1, v2, v3]`.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+#[inline(always)]
+fn transpose(v: [f32x8; 4]) -> [[f32; 4]; LANES] {
+    use std::arch::x86_64::{__m128, __m256, _mm256_castps256_ps128, _mm256_extractf128_ps, _mm256_shuffle_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps};
+    // SAFETY: `f32x8` is `#[repr(C, align(32))]` around one `__m256` when AVX is enabled, and
+    // `__m128` and `[f32; 4]` have the same size with every bit pattern valid.
+    unsafe {
+        let [x, y, z, w] = v.map(|v| std::mem::transmute::<f32x8, __m256>(v));
+        let (t0, t1) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
+        let (t2, t3) = (_mm256_unpacklo_ps(z, w), _mm256_unpackhi_ps(z, w));
+        // u0 = lanes 0 | 4, u1 = 1 | 5, u2 = 2 | 6, u3 = 3 | 7.
+        let u = [_mm256_shuffle_ps::<0x44>(t0, t2), _mm256_shuffle_ps::<0xEE>(t0, t2), _mm256_shuffle_ps::<0x44>(t1, t3), _mm256_shuffle_ps::<0xEE>(t1, t3)];
+        let lo = u.map(|u| _mm256_castps256_ps128(u));
+        let hi = u.map(|u| _mm256_extractf128_ps::<1>(u));
+        [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]].map(|q| std::mem::transmute::<__m128, [f32; 4]>(q))
+    }
+}
+
+/// The eight lanes' `[v0, v1, v2, v3]`.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+#[inline(always)]
+fn transpose(v: [f32x8; 4]) -> [[f32; 4]; LANES] {
+    let a = v.map(f32x8::to_array);
+    std::array::from_fn(|lane| [a[0][lane], a[1][lane], a[2][lane], a[3][lane]])
+}
+
 /// Largest `|x|` that [`sin_cos_small`] takes: a little over `pi / 2`, the half-angle of every
 /// shortest-path key step, so that keyed tracks never need range reduction.
 pub const SMALL_ANGLE: f32 = 1.6;
@@ -127,25 +167,42 @@ pub struct Factor8 {
 /// `start * prod exp(v_j b_j)` and, with `derivatives`, the body angular velocity and
 /// acceleration by DESIGN section 2's recursion (see the reference for the formulas).
 /// `small`: every `|theta b|` is at most [`SMALL_ANGLE`], so [`sin_cos_small`] applies.
+/// `lead`: `start * (axis_0, 0)` when the caller has it (all lanes on one segment), which
+/// turns the first product into `cos * start + sin * lead`.
 #[inline(always)]
-pub fn cumulative_product(start: Q8, factors: &[Factor8], derivatives: bool, small: bool) -> (Q8, V8, V8) {
-    let mut q = start;
-    let (mut w, mut w_dot) = (V8::ZERO, V8::ZERO);
-    for (i, f) in factors.iter().enumerate() {
+pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: &[Factor8; F], derivatives: bool, small: bool) -> (Q8, V8, V8) {
+    let sin_cos = |f: &Factor8| {
         let angle = f.theta * f.b[0];
-        let (sin, cos) = if small { sin_cos_small(angle) } else { angle.sin_cos() };
+        if small {
+            sin_cos_small(angle)
+        } else {
+            angle.sin_cos()
+        }
+    };
+    let Some((head, rest)) = factors.split_first() else {
+        return (start, V8::ZERO, V8::ZERO);
+    };
+    let (sin, cos) = sin_cos(head);
+    let mut q = match lead {
+        Some(lead) => Q8 {
+            x: start.x.mul_add(cos, lead.x * sin),
+            y: start.y.mul_add(cos, lead.y * sin),
+            z: start.z.mul_add(cos, lead.z * sin),
+            w: start.w.mul_add(cos, lead.w * sin),
+        },
+        None => start.mul(Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos }),
+    };
+    // W and W' start at zero: nothing to carry through the first factor.
+    let (mut w, mut w_dot) = if derivatives { (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2])) } else { (V8::ZERO, V8::ZERO) };
+    for f in rest {
+        let (sin, cos) = sin_cos(f);
         let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
         if derivatives {
             let spin = f.axis.scale(f.theta * f.b[1]);
             let accel = f.axis.scale(f.theta * f.b[2]);
-            if i == 0 {
-                // W and W' start at zero: nothing to carry through the first factor.
-                (w, w_dot) = (spin, accel);
-            } else {
-                let carried = a.rotate_inverse(w);
-                w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(f32x8::splat(2.0))).add(accel);
-                w = carried.add(spin);
-            }
+            let carried = a.rotate_inverse(w);
+            w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(f32x8::splat(2.0))).add(accel);
+            w = carried.add(spin);
         }
         q = q.mul(a);
     }
@@ -154,7 +211,7 @@ pub fn cumulative_product(start: Q8, factors: &[Factor8], derivatives: bool, sma
 }
 
 #[cfg(test)]
-mod tests {
+mod sin_cos_tests {
     use super::{sin_cos_small, SMALL_ANGLE};
     use wide::f32x8;
 
@@ -168,5 +225,24 @@ mod tests {
             worst = worst.max((f64::from(s.to_array()[0]) - x.sin()).abs()).max((f64::from(c.to_array()[0]) - x.cos()).abs());
         }
         assert!(worst < 2.5e-7, "worst error {worst:e}");
+    }
+}
+
+#[cfg(test)]
+mod transpose_tests {
+    use super::write_columns;
+    use wide::f32x8;
+
+    #[test]
+    fn columns_land_in_their_rows() {
+        let v = [0.0, 1.0, 2.0, 3.0].map(|c: f32| f32x8::new(std::array::from_fn(|lane| 10.0 * lane as f32 + c)));
+        let mut rows = vec![-1.0; 8 * 10];
+        write_columns(v, &mut rows, 10, 4, 3, 7);
+        for lane in 0..8 {
+            for c in 0..10 {
+                let want = if lane < 7 && (4..7).contains(&c) { 10.0 * lane as f32 + (c - 4) as f32 } else { -1.0 };
+                assert_eq!(rows[lane * 10 + c], want, "row {lane} column {c}");
+            }
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! One piece of one track on the CPU: per-lane segment lookup, basis, then the SIMD product.
 
-use super::lanes::{cumulative_product, Factor8, LANES, Q8, SMALL_ANGLE, V8};
+use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, SMALL_ANGLE, V8};
 use super::CpuOptions;
 use crate::basis::{bernstein_cumulative, bspline_cumulative, bspline_cumulative_into, BasisJet};
 use crate::batch::{Batch, TrackView};
@@ -48,23 +48,20 @@ impl PolyBasis {
         Self { count, len: n, coefs }
     }
 
-    /// `[p, p', p'']` of every function at `u` (derivatives in `u`); without `derivatives`
-    /// only `p`, by Horner's rule over the polynomial's own degree.
+    /// `[p, p', p'']` of each of the `F` functions (of degree `F`) at `u`, derivatives in
+    /// `u`; without `derivatives` only `p`, by Horner's rule.
     #[inline(always)]
-    fn eval(&self, u: f32x8, derivatives: bool, out: &mut [[f32x8; 3]; MAX_FACTORS]) {
+    fn eval<const F: usize>(&self, u: f32x8, derivatives: bool, out: &mut [[f32x8; 3]; F]) {
+        debug_assert!(self.count == F && self.len == F + 1);
         for (c, out) in self.coefs.iter().zip(out.iter_mut()) {
-            let c = &c[..self.len];
             let (mut p, mut d1, mut d2) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
-            if derivatives {
-                for &ck in c.iter().rev() {
+            for k in (0..=F).rev() {
+                let ck = f32x8::splat(c[k]);
+                if derivatives {
                     d2 = d2.mul_add(u, d1);
                     d1 = d1.mul_add(u, p);
-                    p = p.mul_add(u, f32x8::splat(ck));
                 }
-            } else {
-                for &ck in c.iter().rev() {
-                    p = p.mul_add(u, f32x8::splat(ck));
-                }
+                p = p.mul_add(u, ck);
             }
             *out = [p, d1, d2 * f32x8::splat(2.0)];
         }
@@ -154,11 +151,17 @@ enum Basis<'a> {
     CoxDeBoor,
 }
 
-/// `locate`, first trying the previous span (sample times usually increase).
+/// `locate`, first trying the previous span and the next (sample times usually increase).
 #[inline(always)]
 fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) {
     let h = *hint;
     if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
+        return (h, t);
+    }
+    // Or the next one.
+    let h = h + 1;
+    if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
+        *hint = h;
         return (h, t);
     }
     let (span, t) = locate(knots, first, last, t);
@@ -197,116 +200,173 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
             return;
         }
     };
-    let (p0, c0) = (track.point_offset, track.coef_offset);
     // Every basis here stays within [0, 1] on the domain, so every angle is at most its
     // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
+    let c0 = track.coef_offset;
     let small = tables.axes[c0..c0 + track.coef_count].iter().all(|a| a[3] <= SMALL_ANGLE * 0.99);
-    let mut hint = first;
-    let n = range.len();
-    let mut jets = [[f32x8::ZERO; 3]; MAX_FACTORS];
-    let mut f8 = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; MAX_FACTORS];
-    // Where a segment starts: its first point (sign-aligned for Hermite) and coefficient.
-    let segment = |span: usize| -> ([f32; 4], usize) {
+    let piece = Piece { tables, view, times, index, from: range.start, options, channels, basis, first, last, small };
+    // A constant factor count lets the compiler unroll the basis and the product and keep
+    // them in registers.
+    match factors {
+        1 => piece.groups::<1>(range.len(), out),
+        2 => piece.groups::<2>(range.len(), out),
+        3 => piece.groups::<3>(range.len(), out),
+        4 => piece.groups::<4>(range.len(), out),
+        5 => piece.groups::<5>(range.len(), out),
+        6 => piece.groups::<6>(range.len(), out),
+        _ => piece.groups::<7>(range.len(), out),
+    }
+}
+
+/// One piece of a vectorized track, and what it needs.
+struct Piece<'a> {
+    tables: &'a Tables<'a>,
+    view: TrackView<'a>,
+    times: &'a SampleTimes,
+    index: usize,
+    /// First sample of the piece.
+    from: usize,
+    options: &'a CpuOptions,
+    channels: usize,
+    basis: Basis<'a>,
+    /// Spans the domain covers.
+    first: usize,
+    last: usize,
+    /// Every angle within [`SMALL_ANGLE`].
+    small: bool,
+}
+
+impl Piece<'_> {
+    /// Where the segment of `span` starts: its first point (sign-aligned for Hermite) and
+    /// first coefficient.
+    #[inline(always)]
+    fn segment(&self, span: usize) -> ([f32; 4], usize) {
+        let (track, p0, c0) = (self.view.track, self.view.track.point_offset, self.view.track.coef_offset);
         match track.curve {
-            Curve::Slerp => (tables.points[p0 + span], c0 + span),
+            Curve::Slerp => (self.tables.points[p0 + span], c0 + span),
             Curve::Hermite => {
-                let sign = view.coefs[3 * span + 1][3] as f32;
-                (tables.points[p0 + span].map(|v| v * sign), c0 + 3 * span)
+                let sign = self.view.coefs[3 * span + 1][3] as f32;
+                (self.tables.points[p0 + span].map(|v| v * sign), c0 + 3 * span)
             }
-            _ => (tables.points[p0 + span + 1 - track.order], c0 + span + 1 - track.order),
+            _ => (self.tables.points[p0 + span + 1 - track.order], c0 + span + 1 - track.order),
         }
-    };
-    for g in (0..n).step_by(LANES) {
-        let valid = LANES.min(n - g);
-        // Lanes past the end repeat the last sample and are not written.
-        let mut t: [f64; LANES] = std::array::from_fn(|lane| times.time(index, range.start + g + lane.min(valid - 1)));
-        let mut spans = [hint; LANES];
-        let mut u = [0.0f32; LANES];
-        // Usually all eight samples lie in the span of the previous group: one lookup, one
-        // division, and the segment's data broadcast instead of gathered.
-        let h = hint;
-        let shared = h >= first && h <= last && t.iter().all(|&t| knots[h] <= t && t < knots[h + 1]);
-        let (mut start, mut coef) = ([[0.0f32; 4]; LANES], [0usize; LANES]);
-        let inv = if shared {
-            let inv_len = 1.0 / (knots[h + 1] - knots[h]);
-            for (u, t) in u.iter_mut().zip(&t) {
-                *u = ((t - knots[h]) * inv_len) as f32;
+    }
+
+    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time.
+    fn groups<const F: usize>(&self, n: usize, out: &mut [f32]) {
+        let (knots, tables, options, channels) = (self.view.knots, self.tables, self.options, self.channels);
+        let (first, last) = (self.first, self.last);
+        let mut hint = first;
+        let mut jets = [[f32x8::ZERO; 3]; F];
+        // `start * (axis_0, 0)` of the segment the last shared group was on.
+        let (mut lead_span, mut lead) = (usize::MAX, [0.0f32; 4]);
+        for g in (0..n).step_by(LANES) {
+            let valid = LANES.min(n - g);
+            // Lanes past the end repeat the last sample and are not written.
+            let mut t = [0.0f64; LANES];
+            for (lane, t) in t.iter_mut().enumerate() {
+                *t = self.times.time(self.index, self.from + g + lane.min(valid - 1));
             }
-            (start[0], coef[0]) = segment(h);
-            f32x8::splat(inv_len as f32)
-        } else {
-            let mut inv = [0.0f32; LANES];
-            for lane in 0..LANES {
-                let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
-                let inv_len = 1.0 / (knots[span + 1] - knots[span]);
-                (spans[lane], t[lane]) = (span, tl);
-                u[lane] = ((tl - knots[span]) * inv_len) as f32;
-                inv[lane] = inv_len as f32;
-                (start[lane], coef[lane]) = segment(span);
-            }
-            f32x8::new(inv)
-        };
-        match basis {
-            Basis::Poly(poly) => {
-                poly.eval(f32x8::new(u), options.derivatives, &mut jets);
-                if options.derivatives {
-                    for jet in jets.iter_mut().take(poly.count) {
-                        jet[1] *= inv;
-                        jet[2] *= inv * inv;
-                    }
+            let mut spans = [hint; LANES];
+            let mut u = [0.0f32; LANES];
+            // Usually all eight samples lie in the span of the previous group: one lookup, one
+            // division, and the segment's data broadcast instead of gathered.
+            let h = hint;
+            let shared = h >= first && h <= last && t.iter().all(|&t| knots[h] <= t && t < knots[h + 1]);
+            let (mut start, mut coef) = ([[0.0f32; 4]; LANES], [0usize; LANES]);
+            let inv = if shared {
+                let inv_len = 1.0 / (knots[h + 1] - knots[h]);
+                for (u, t) in u.iter_mut().zip(&t) {
+                    *u = ((t - knots[h]) * inv_len) as f32;
                 }
-            }
-            Basis::CoxDeBoor => {
-                let mut cox = [[[0.0f32; 3]; MAX_FACTORS]; LANES];
-                for lane in 0..LANES {
-                    let mut jets = [[0.0f64; 3]; MAX_FACTORS];
-                    bspline_cumulative_into(knots, track.order, spans[lane], t[lane], &mut jets);
-                    for (f, jet) in jets.iter().enumerate().take(factors) {
-                        cox[lane][f] = jet.map(|v| v as f32);
-                    }
-                }
-                for (f, jet) in jets.iter_mut().enumerate().take(factors) {
-                    *jet = [0, 1, 2].map(|d| f32x8::new(std::array::from_fn(|lane| cox[lane][f][d])));
-                }
-            }
-        }
-        for (f, factor) in f8.iter_mut().enumerate().take(factors) {
-            let (axis, theta) = if shared {
-                let r = tables.axes[coef[0] + f];
-                (V8::splat(r), f32x8::splat(r[3]))
+                (start[0], coef[0]) = self.segment(h);
+                f32x8::splat(inv_len as f32)
             } else {
-                let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| tables.axes[coef[lane] + f]);
-                (V8::gather(&rows), f32x8::new(rows.map(|r| r[3])))
+                let mut inv = [0.0f32; LANES];
+                let mut known = usize::MAX;
+                let mut inv_len = 0.0;
+                for lane in 0..LANES {
+                    let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
+                    if span != known {
+                        known = span;
+                        inv_len = 1.0 / (knots[span + 1] - knots[span]);
+                    }
+                    (spans[lane], t[lane]) = (span, tl);
+                    u[lane] = ((tl - knots[span]) * inv_len) as f32;
+                    inv[lane] = inv_len as f32;
+                    (start[lane], coef[lane]) = self.segment(span);
+                }
+                f32x8::new(inv)
             };
-            *factor = Factor8 { axis, theta, b: jets[f] };
-        }
-        let start = if shared { Q8::splat(start[0]) } else { Q8::gather(&start) };
-        let (q, w, a) = cumulative_product(start, &f8[..factors], options.derivatives, small);
-        // Straight from lane arrays into the rows: building per-lane temporaries here cost
-        // store-forwarding stalls worth a third of the run time.
-        let q = [q.x, q.y, q.z, q.w].map(f32x8::to_array);
-        let rows = &mut out[g * channels..(g + valid) * channels];
-        for (lane, row) in rows.chunks_exact_mut(channels).enumerate() {
-            for c in 0..4 {
-                row[c] = q[c][lane];
-            }
-        }
-        if options.derivatives {
-            let d = [w.x, w.y, w.z, a.x, a.y, a.z].map(f32x8::to_array);
-            for (lane, row) in rows.chunks_exact_mut(channels).enumerate() {
-                for c in 0..6 {
-                    row[4 + c] = d[c][lane];
+            match self.basis {
+                Basis::Poly(poly) => {
+                    poly.eval::<F>(f32x8::new(u), options.derivatives, &mut jets);
+                    if options.derivatives {
+                        for jet in &mut jets {
+                            jet[1] *= inv;
+                            jet[2] *= inv * inv;
+                        }
+                    }
+                }
+                Basis::CoxDeBoor => {
+                    let mut cox = [[[0.0f32; 3]; F]; LANES];
+                    for lane in 0..LANES {
+                        let mut jets = [[0.0f64; 3]; MAX_FACTORS];
+                        bspline_cumulative_into(knots, self.view.track.order, spans[lane], t[lane], &mut jets);
+                        for (f, jet) in jets.iter().enumerate().take(F) {
+                            cox[lane][f] = jet.map(|v| v as f32);
+                        }
+                    }
+                    for (f, jet) in jets.iter_mut().enumerate() {
+                        *jet = [0, 1, 2].map(|d| f32x8::new(std::array::from_fn(|lane| cox[lane][f][d])));
+                    }
                 }
             }
-        }
-        if options.matrix {
-            let at = if options.derivatives { 10 } else { 4 };
-            for row in rows.chunks_exact_mut(channels) {
-                let q = [row[0], row[1], row[2], row[3]];
-                write_matrix(&mut row[at..at + 9], q);
+            let mut factors = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; F];
+            for (f, factor) in factors.iter_mut().enumerate() {
+                let (axis, theta) = if shared {
+                    let r = tables.axes[coef[0] + f];
+                    (V8::splat(r), f32x8::splat(r[3]))
+                } else {
+                    let mut rows = [[0.0f32; 4]; LANES];
+                    for (row, &c) in rows.iter_mut().zip(&coef) {
+                        *row = tables.axes[c + f];
+                    }
+                    (V8::gather(&rows), f32x8::new(rows.map(|r| r[3])))
+                };
+                *factor = Factor8 { axis, theta, b: jets[f] };
+            }
+            let (start, lead) = if shared {
+                if lead_span != h {
+                    lead_span = h;
+                    lead = times_axis(start[0], tables.axes[coef[0]]);
+                }
+                (Q8::splat(start[0]), Some(Q8::splat(lead)))
+            } else {
+                (Q8::gather(&start), None)
+            };
+            let (q, w, a) = cumulative_product(start, lead, &factors, options.derivatives, self.small);
+            let rows = &mut out[g * channels..(g + valid) * channels];
+            write_columns([q.x, q.y, q.z, q.w], rows, channels, 0, 4, valid);
+            if options.derivatives {
+                write_columns([w.x, w.y, w.z, a.x], rows, channels, 4, 4, valid);
+                write_columns([a.y, a.z, f32x8::ZERO, f32x8::ZERO], rows, channels, 8, 2, valid);
+            }
+            if options.matrix {
+                let at = if options.derivatives { 10 } else { 4 };
+                for row in rows.chunks_exact_mut(channels) {
+                    let q = [row[0], row[1], row[2], row[3]];
+                    write_matrix(&mut row[at..at + 9], q);
+                }
             }
         }
     }
+}
+
+/// `p * (a, 0)`: a quaternion times a pure one, `(p.w a + p.v x a, -p.v . a)`.
+fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
+    let [x, y, z, w] = p;
+    [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
 }
 
 /// The row-major matrix of rotation `q`.
