@@ -204,17 +204,27 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
     // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
     let c0 = track.coef_offset;
     let small = tables.axes[c0..c0 + track.coef_count].iter().all(|a| a[3] <= SMALL_ANGLE * 0.99);
-    let piece = Piece { tables, view, times, index, from: range.start, options, channels, basis, first, last, small };
-    // A constant factor count lets the compiler unroll the basis and the product and keep
-    // them in registers.
-    match factors {
-        1 => piece.groups::<1>(range.len(), out),
-        2 => piece.groups::<2>(range.len(), out),
-        3 => piece.groups::<3>(range.len(), out),
-        4 => piece.groups::<4>(range.len(), out),
-        5 => piece.groups::<5>(range.len(), out),
-        6 => piece.groups::<6>(range.len(), out),
-        _ => piece.groups::<7>(range.len(), out),
+    let piece = Piece { tables, view, times, index, from: range.start, options, channels, basis, first, last };
+    // Constant factor counts and flags let the compiler unroll the basis and the product,
+    // keep them in registers and drop the branches.
+    macro_rules! by_factors {
+        ($d:literal, $s:literal) => {
+            match factors {
+                1 => piece.groups::<1, $d, $s>(range.len(), out),
+                2 => piece.groups::<2, $d, $s>(range.len(), out),
+                3 => piece.groups::<3, $d, $s>(range.len(), out),
+                4 => piece.groups::<4, $d, $s>(range.len(), out),
+                5 => piece.groups::<5, $d, $s>(range.len(), out),
+                6 => piece.groups::<6, $d, $s>(range.len(), out),
+                _ => piece.groups::<7, $d, $s>(range.len(), out),
+            }
+        };
+    }
+    match (options.derivatives, small) {
+        (false, true) => by_factors!(false, true),
+        (false, false) => by_factors!(false, false),
+        (true, true) => by_factors!(true, true),
+        (true, false) => by_factors!(true, false),
     }
 }
 
@@ -232,8 +242,6 @@ struct Piece<'a> {
     /// Spans the domain covers.
     first: usize,
     last: usize,
-    /// Every angle within [`SMALL_ANGLE`].
-    small: bool,
 }
 
 impl Piece<'_> {
@@ -252,8 +260,9 @@ impl Piece<'_> {
         }
     }
 
-    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time.
-    fn groups<const F: usize>(&self, n: usize, out: &mut [f32]) {
+    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time; `SMALL`: every
+    /// angle is within [`SMALL_ANGLE`].
+    fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(&self, n: usize, out: &mut [f32]) {
         let (knots, tables, options, channels) = (self.view.knots, self.tables, self.options, self.channels);
         let (first, last) = (self.first, self.last);
         let mut hint = first;
@@ -300,8 +309,8 @@ impl Piece<'_> {
             };
             match self.basis {
                 Basis::Poly(poly) => {
-                    poly.eval::<F>(f32x8::new(u), options.derivatives, &mut jets);
-                    if options.derivatives {
+                    poly.eval::<F>(f32x8::new(u), DERIVATIVES, &mut jets);
+                    if DERIVATIVES {
                         for jet in &mut jets {
                             jet[1] *= inv;
                             jet[2] *= inv * inv;
@@ -345,15 +354,15 @@ impl Piece<'_> {
             } else {
                 (Q8::gather(&start), None)
             };
-            let (q, w, a) = cumulative_product(start, lead, &factors, options.derivatives, self.small);
+            let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, SMALL);
             let rows = &mut out[g * channels..(g + valid) * channels];
             write_columns([q.x, q.y, q.z, q.w], rows, channels, 0, 4, valid);
-            if options.derivatives {
+            if DERIVATIVES {
                 write_columns([w.x, w.y, w.z, a.x], rows, channels, 4, 4, valid);
                 write_columns([a.y, a.z, f32x8::ZERO, f32x8::ZERO], rows, channels, 8, 2, valid);
             }
             if options.matrix {
-                let at = if options.derivatives { 10 } else { 4 };
+                let at = if DERIVATIVES { 10 } else { 4 };
                 for row in rows.chunks_exact_mut(channels) {
                     let q = [row[0], row[1], row[2], row[3]];
                     write_matrix(&mut row[at..at + 9], q);
