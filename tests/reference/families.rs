@@ -43,8 +43,8 @@ fn derivative_errors(batch: &Batch, index: usize) -> ([f64; 3], String) {
         if e[0].max(e[1]) > worst.0[0].max(worst.0[1]) {
             worst.1 = format!("t={t} omega={:?} fd={omega:?} alpha={:?} fd={alpha_from_omega:?}", s.angular_velocity, s.angular_acceleration);
         }
-        for i in 0..3 {
-            worst.0[i] = worst.0[i].max(e[i]);
+        for (w, e) in worst.0.iter_mut().zip(e) {
+            *w = w.max(e);
         }
     }
     worst
