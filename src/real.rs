@@ -292,7 +292,8 @@ mod tests {
     #[test]
     fn smooth_functions_of_x_match_their_definitions_and_derivatives() {
         type Jet = fn(f64) -> [f64; 3];
-        let defs: [(Jet, fn(f64) -> f64); 3] = [
+        type Definition = fn(f64) -> f64;
+        let defs: [(Jet, Definition); 3] = [
             (cos_sqrt, |x: f64| x.sqrt().cos()),
             (sinc_sqrt, |x: f64| x.sqrt().sin() / x.sqrt()),
             (atanc_sqrt, |x: f64| x.sqrt().atan() / x.sqrt()),
