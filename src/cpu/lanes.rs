@@ -74,6 +74,24 @@ impl Q8 {
         Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]), w: f32x8::splat(r[3]) }
     }
 
+    /// `(-x, -y, -z, w)`.
+    #[inline(always)]
+    pub fn conjugate(self) -> Self {
+        Self { x: -self.x, y: -self.y, z: -self.z, w: self.w }
+    }
+
+    /// `self^-1 v self` for unit `self`: `v + 2 w (v x u) + 2 u x (u x v)` with `u = -vec`.
+    #[inline(always)]
+    fn rotate_inverse(self, v: V8) -> V8 {
+        let u = V8 { x: -self.x, y: -self.y, z: -self.z };
+        let t = u.cross(v).scale(f32x8::splat(2.0));
+        v.add(t.scale(self.w)).add(u.cross(t))
+    }
+}
+
+impl std::ops::Mul for Q8 {
+    type Output = Self;
+
     /// Hamilton product `self * o`.
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
@@ -83,14 +101,6 @@ impl Q8 {
             z: self.w * o.z + self.x * o.y - self.y * o.x + self.z * o.w,
             w: self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
         }
-    }
-
-    /// `self^-1 v self` for unit `self`: `v + 2 w (v x u) + 2 u x (u x v)` with `u = -vec`.
-    #[inline(always)]
-    fn rotate_inverse(self, v: V8) -> V8 {
-        let u = V8 { x: -self.x, y: -self.y, z: -self.z };
-        let t = u.cross(v).scale(f32x8::splat(2.0));
-        v.add(t.scale(self.w)).add(u.cross(t))
     }
 }
 
@@ -190,7 +200,7 @@ pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: 
             z: start.z.mul_add(cos, lead.z * sin),
             w: start.w.mul_add(cos, lead.w * sin),
         },
-        None => start.mul(Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos }),
+        None => start * Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos },
     };
     // W and W' start at zero: nothing to carry through the first factor.
     let (mut w, mut w_dot) = if derivatives { (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2])) } else { (V8::ZERO, V8::ZERO) };
@@ -204,7 +214,7 @@ pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: 
             w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(f32x8::splat(2.0))).add(accel);
             w = carried.add(spin);
         }
-        q = q.mul(a);
+        q = q * a;
     }
     let two = f32x8::splat(2.0);
     (q, w.scale(two), w_dot.scale(two))

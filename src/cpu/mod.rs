@@ -6,10 +6,12 @@
 //! segment parameter — slerp, cubic Hermite, and B-splines of any order on equally spaced
 //! knots (phantom, uniform) — entirely in SIMD lanes: basis polynomials, `sin_cos`, the
 //! cumulative product and its derivative recursion. B-splines on other knots compute their
-//! basis per lane in f64 (Cox-de Boor) and then take the same SIMD product. Squad, Nam-Kim
-//! and Bezier (whose Bernstein basis of any degree has no fixed polynomial table) run the f64
-//! reference per sample, in parallel: correct and multi-threaded, not vectorized.
+//! basis per lane in f64 (Cox-de Boor) and then take the same SIMD product. Squad and
+//! Nam-Kim rotations are two great arcs and a geodesic in SIMD lanes (module `arcs`); their
+//! derivatives, and Bezier curves (whose Bernstein basis of any degree has no fixed
+//! polynomial table), run the f64 reference per sample, in parallel.
 
+mod arcs;
 pub mod forward;
 pub mod lanes;
 mod track;

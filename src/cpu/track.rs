@@ -186,6 +186,16 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
             let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)
         }
+        Curve::Squad | Curve::NamKim if !options.derivatives => {
+            super::arcs::evaluate(view, times, index, range.start, range.len(), channels, out);
+            if options.matrix {
+                for row in out.chunks_exact_mut(channels) {
+                    let q = [row[0], row[1], row[2], row[3]];
+                    write_matrix(&mut row[4..13], q);
+                }
+            }
+            return;
+        }
         Curve::Squad | Curve::NamKim | Curve::Bezier => {
             for (row, j) in out.chunks_exact_mut(channels).zip(range) {
                 let t = times.time(index, j);

@@ -1,0 +1,169 @@
+//! Squad and Nam-Kim rotations, eight samples at a time. Both are two great arcs followed at
+//! the same parameter and a geodesic between the two points (Peisa's squad: `slerp(slerp(q_i,
+//! q_i+1, h), slerp(s_i, s_i+1, h), 2h(1 - h))`; NK eq. 4-5: `C_1(s)` from `q_i`, `C_2(s)` from
+//! `q_i+1`, blended by `f(s)`). Each segment's arcs are fixed, so they are set up once per
+//! piece in f64; per sample this leaves two `sin_cos`, one log (an `atan2`) and one exp.
+//!
+//! Values only: derivatives keep the reference's jets, per sample (see [`super::track`]).
+
+use super::lanes::{write_columns, Q8, LANES};
+use crate::batch::TrackView;
+use crate::curve::{Blend, Curve};
+use crate::quat::{DQuat, DVec3};
+use crate::sampling::SampleTimes;
+use crate::segment::locate;
+use wide::{f32x8, CmpGt, CmpLe, CmpLt};
+
+/// The great arc `start * exp(x v)`, written `cos(x theta) start + sin(x theta) lead` with
+/// `lead = start * (axis, 0)`: no quaternion product per sample.
+#[derive(Clone, Copy, Debug, Default)]
+struct Arc {
+    start: [f32; 4],
+    lead: [f32; 4],
+    theta: f32,
+}
+
+impl Arc {
+    /// The arc from `start` along the half-angle vector `v`.
+    fn new(start: DQuat, v: DVec3) -> Self {
+        let theta = v.length();
+        let axis = if theta > 0.0 { v.scale(1.0 / theta) } else { DVec3::new(0.0, 0.0, 0.0) };
+        let lead = start * DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.0);
+        let f = |q: DQuat| q.to_array().map(|c| c as f32);
+        Self { start: f(start), lead: f(lead), theta: theta as f32 }
+    }
+
+    /// The unfolded geodesic from `a` to `b` (parameter 0 to 1), as the reference's.
+    fn between(a: DQuat, b: DQuat) -> Self {
+        Self::new(a, (a.conjugate() * b).log())
+    }
+}
+
+/// Eight lanes of one [`Arc`] (the same arc broadcast, or gathered per lane).
+struct Arc8 {
+    start: Q8,
+    lead: Q8,
+    theta: f32x8,
+}
+
+impl Arc8 {
+    fn gather(arcs: &[Arc; LANES]) -> Self {
+        Self {
+            start: Q8::gather(&arcs.map(|a| a.start)),
+            lead: Q8::gather(&arcs.map(|a| a.lead)),
+            theta: f32x8::new(arcs.map(|a| a.theta)),
+        }
+    }
+
+    fn splat(a: &Arc) -> Self {
+        Self { start: Q8::splat(a.start), lead: Q8::splat(a.lead), theta: f32x8::splat(a.theta) }
+    }
+
+    /// The point at parameter `x`.
+    #[inline(always)]
+    fn at(&self, x: f32x8) -> Q8 {
+        let (sin, cos) = (x * self.theta).sin_cos();
+        let (s, l) = (self.start, self.lead);
+        Q8 { x: s.x.mul_add(cos, l.x * sin), y: s.y.mul_add(cos, l.y * sin), z: s.z.mul_add(cos, l.z * sin), w: s.w.mul_add(cos, l.w * sin) }
+    }
+}
+
+/// `p * exp(g log(p^-1 q))`, as the reference's `geodesic`: past the middle from the other
+/// end, `q * exp((1 - g) log(q^-1 p))`, and about the `x` axis where the log has no axis
+/// (`p^-1 q = (-1, 0, 0, 0)` exactly).
+#[inline(always)]
+fn geodesic(p: Q8, q: Q8, g: f32x8) -> Q8 {
+    let flip = g.cmp_gt(f32x8::splat(0.5));
+    let pick = |a: Q8, b: Q8| Q8 { x: flip.blend(b.x, a.x), y: flip.blend(b.y, a.y), z: flip.blend(b.z, a.z), w: flip.blend(b.w, a.w) };
+    let (p, q, g) = (pick(p, q), pick(q, p), flip.blend(f32x8::ONE - g, g));
+    let r = p.conjugate() * q;
+    let n = (r.x * r.x + r.y * r.y + r.z * r.z).sqrt();
+    let angle = n.atan2(r.w);
+    let (sin, cos) = (g * angle).sin_cos();
+    let some = n.cmp_gt(f32x8::ZERO);
+    let k = some.blend(sin / n, f32x8::ZERO);
+    let x_axis = r.w.cmp_lt(f32x8::ZERO) & !some & f32x8::ONE;
+    p * Q8 { x: r.x.mul_add(k, x_axis * sin), y: r.y * k, z: r.z * k, w: cos }
+}
+
+/// Each segment's two arcs, for one track.
+fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
+    let (points, coefs) = (view.points, view.coefs);
+    let vec = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
+    (0..points.len() - 1)
+        .map(|i| match view.track.curve {
+            Curve::Squad => [Arc::between(points[i], points[i + 1]), Arc::between(DQuat::from_array(coefs[i]), DQuat::from_array(coefs[i + 1]))],
+            // C_2(s) = q_i+1 exp(b (s - 1)): the second arc is followed at s - 1.
+            _ => [Arc::new(points[i], vec(coefs[2 * i])), Arc::new(points[i + 1], vec(coefs[2 * i + 1]))],
+        })
+        .collect()
+}
+
+/// Writes the rotations of samples `from..from + n` of squad or Nam-Kim track `index` into
+/// `out` (rows of `channels` floats, rotation first).
+pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+    let knots = view.knots;
+    let last = knots.len() - 2;
+    let arcs = segment_arcs(view);
+    let (squad, blend) = (view.track.curve == Curve::Squad, view.track.blend);
+    let second_offset = f32x8::splat(if squad { 0.0 } else { 1.0 });
+    let mut hint = 0;
+    for g in (0..n).step_by(LANES) {
+        let valid = LANES.min(n - g);
+        let (mut spans, mut h) = ([0usize; LANES], [0.0f32; LANES]);
+        for lane in 0..LANES {
+            // Lanes past the end repeat the last sample and are not written.
+            let t = times.time(index, from + g + lane.min(valid - 1));
+            let (span, t) = if knots[hint] <= t && t < knots[hint + 1] { (hint, t) } else { locate(knots, 0, last, t) };
+            hint = span;
+            spans[lane] = span;
+            h[lane] = ((t - knots[span]) / (knots[span + 1] - knots[span])) as f32;
+        }
+        let h = f32x8::new(h);
+        let (first, second) = if spans.iter().all(|&s| s == spans[0]) {
+            let [a, b] = &arcs[spans[0]];
+            (Arc8::splat(a), Arc8::splat(b))
+        } else {
+            (Arc8::gather(&spans.map(|s| arcs[s][0])), Arc8::gather(&spans.map(|s| arcs[s][1])))
+        };
+        let weight = if squad { (h - h * h) * f32x8::splat(2.0) } else { blend_weight(blend, h) };
+        let q = geodesic(first.at(h), second.at(h - second_offset), weight);
+        write_columns([q.x, q.y, q.z, q.w], &mut out[g * channels..(g + valid) * channels], channels, 0, 4, valid);
+    }
+}
+
+/// Nam-Kim's blend ratio `f(s)`, as [`crate::reference::blend`].
+#[inline(always)]
+fn blend_weight(kind: Blend, s: f32x8) -> f32x8 {
+    match kind {
+        Blend::Cubic => s * s * (f32x8::splat(3.0) - s * f32x8::splat(2.0)),
+        Blend::Quadratic => {
+            let r = s - f32x8::ONE;
+            s.cmp_le(f32x8::splat(0.5)).blend(s * s * f32x8::splat(2.0), f32x8::ONE - r * r * f32x8::splat(2.0))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{geodesic, Q8};
+    use crate::quat::DQuat;
+    use wide::f32x8;
+
+    /// Where the log has no axis, the SIMD geodesic does what the reference's does: stays
+    /// put between equal points, turns about x between exact opposites.
+    #[test]
+    fn geodesic_between_equal_and_opposite_points_follows_the_reference() {
+        let p = DQuat::from_xyzw(0.5, -0.5, 0.5, 0.5);
+        for q in [p, p.mul_scalar(-1.0), DQuat::from_xyzw(0.5, 0.5, -0.5, 0.5)] {
+            for g in [0.0, 0.3, 0.5, 0.9] {
+                let want = p.geodesic(q, g).to_array();
+                let got = geodesic(Q8::splat(p.to_array().map(|c| c as f32)), Q8::splat(q.to_array().map(|c| c as f32)), f32x8::splat(g as f32));
+                let got = [got.x, got.y, got.z, got.w].map(|c| f64::from(c.to_array()[0]));
+                for (w, g) in want.iter().zip(got) {
+                    assert!((w - g).abs() < 1e-6, "p={p:?} q={q:?}: want {want:?}, got {got:?}");
+                }
+            }
+        }
+    }
+}
