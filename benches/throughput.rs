@@ -32,8 +32,8 @@ fn paths(c: &mut Criterion) {
     let cpu = CpuEvaluator::new();
     eprintln!("CPU: {}; GPU: {}", cpu.name(), gpu.as_ref().map_or("none", |g| g.adapter_name()));
     for (name, spec) in workloads() {
-        let (batch, times) = synthetic::workload(TRACKS, SAMPLES, &spec).expect("valid workload");
-        let (slice, slice_times) = synthetic::workload(TRACKS / 10, SAMPLES, &spec).expect("valid workload");
+        let (batch, times) = synthetic::workload(TRACKS, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
+        let (slice, slice_times) = synthetic::workload(TRACKS / 10, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
         for derivatives in [false, true] {
             let what = if derivatives { "derivatives" } else { "value" };
             let mut group = c.benchmark_group(format!("{name}/{what}"));

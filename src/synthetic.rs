@@ -35,13 +35,13 @@ pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
 pub const WORKLOAD_KEYS: usize = 32;
 
 /// The benchmark workload shared by `quatcurve bench` and the criterion benches:
-/// `tracks` [`walk_tracks`] of [`WORKLOAD_KEYS`] keys at 30 Hz, `samples` samples per track
-/// from domain start to end.
+/// `tracks` [`walk_tracks`] of `keys` keys ([`WORKLOAD_KEYS`] by default) at 30 Hz, `samples`
+/// samples per track from domain start to end.
 ///
 /// # Errors
 /// The spec's errors (an order outside 2..=8, phantom knots with order other than 4).
-pub fn workload(tracks: usize, samples: usize, spec: &CurveSpec) -> Result<(Batch, SampleTimes)> {
-    let batch = Batch::from_tracks(&walk_tracks(tracks, WORKLOAD_KEYS, 30.0), spec)?;
+pub fn workload(tracks: usize, samples: usize, keys: usize, spec: &CurveSpec) -> Result<(Batch, SampleTimes)> {
+    let batch = Batch::from_tracks(&walk_tracks(tracks, keys, 30.0), spec)?;
     let times = SampleTimes::uniform(&batch, Sampling::Count(samples))?;
     Ok((batch, times))
 }

@@ -17,6 +17,9 @@ pub struct BenchArgs {
     /// Samples per track.
     #[arg(long, default_value_t = 1_000)]
     samples: usize,
+    /// Keys per track (a Bezier track's degree is one less).
+    #[arg(long, default_value_t = synthetic::WORKLOAD_KEYS)]
+    keys: usize,
     /// Curve family.
     #[arg(long, default_value = "bspline", value_parser = parse::<Curve>)]
     curve: Curve,
@@ -80,7 +83,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     }
     let spec = args.options.spec(args.curve, KnotMode::Uniform);
     let (batch, times) =
-        synthetic::workload(args.tracks, args.samples, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+        synthetic::workload(args.tracks, args.samples, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
     let explicit = args.devices.is_some();
     let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();
@@ -104,7 +107,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
         workload: Workload {
             tracks: args.tracks,
             samples_per_track: args.samples,
-            keys_per_track: synthetic::WORKLOAD_KEYS,
+            keys_per_track: args.keys,
             curve: args.curve.name(),
             order: args.options.order,
             knots: spec.knots.name(),
@@ -133,7 +136,7 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Re
 /// the track index, so the slice is exactly those tracks).
 fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
-    let (slice, slice_times) = synthetic::workload(tracks, args.samples, spec).map_err(|e| Failure::Input(e.to_string()))?;
+    let (slice, slice_times) = synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives: args.derivatives };
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();

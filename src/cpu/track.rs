@@ -149,6 +149,8 @@ enum Basis<'a> {
     Poly(&'a PolyBasis),
     /// Per lane, Cox-de Boor in f64 (B-splines on unequal knots).
     CoxDeBoor,
+    /// SIMD de Casteljau triangle (Bezier curves, whose degree varies per track).
+    Bernstein,
 }
 
 /// `locate`, first trying the previous span and the next (sample times usually increase).
@@ -186,6 +188,8 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
             let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)
         }
+        // One segment; degrees beyond the product's capacity take the reference below.
+        Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order, 0, 0),
         Curve::Squad | Curve::NamKim if !options.derivatives => {
             super::arcs::evaluate(view, times, index, range.start, range.len(), channels, out);
             if options.matrix {
@@ -262,6 +266,7 @@ impl Piece<'_> {
         let (track, p0, c0) = (self.view.track, self.view.track.point_offset, self.view.track.coef_offset);
         match track.curve {
             Curve::Slerp => (self.tables.points[p0 + span], c0 + span),
+            Curve::Bezier => (self.tables.points[p0], c0),
             Curve::Hermite => {
                 let sign = self.view.coefs[3 * span + 1][3] as f32;
                 (self.tables.points[p0 + span].map(|v| v * sign), c0 + 3 * span)
@@ -327,6 +332,15 @@ impl Piece<'_> {
                         }
                     }
                 }
+                Basis::Bernstein => {
+                    bernstein_cumulative_lanes::<F>(f32x8::new(u), &mut jets);
+                    if DERIVATIVES {
+                        for jet in &mut jets {
+                            jet[1] *= inv;
+                            jet[2] *= inv * inv;
+                        }
+                    }
+                }
                 Basis::CoxDeBoor => {
                     let mut cox = [[[0.0f32; 3]; F]; LANES];
                     for lane in 0..LANES {
@@ -379,6 +393,33 @@ impl Piece<'_> {
                 }
             }
         }
+    }
+}
+
+/// The cumulative Bernstein basis of degree `F` and its `u` derivatives, eight parameters at
+/// a time: the SIMD twin of [`crate::basis::bernstein_cumulative`] (de Casteljau rows `F - 2`,
+/// `F - 1`, `F`; sums from the top).
+#[inline(always)]
+fn bernstein_cumulative_lanes<const F: usize>(u: f32x8, out: &mut [[f32x8; 3]; F]) {
+    let v = f32x8::ONE - u;
+    let zero = [f32x8::ZERO; MAX_FACTORS + 1];
+    let (mut row, mut prev, mut prev2) = (zero, zero, zero);
+    row[0] = f32x8::ONE;
+    for m in 1..=F {
+        let mut next = zero;
+        next[0] = v * row[0];
+        for j in 1..m {
+            next[j] = v.mul_add(row[j], u * row[j - 1]);
+        }
+        next[m] = u * row[m - 1];
+        (prev2, prev, row) = (prev, row, next);
+    }
+    let n = F as f32;
+    let mut tail = f32x8::ZERO;
+    for i in (1..=F).rev() {
+        tail += row[i];
+        let below = if i >= 2 { prev2[i - 2] } else { f32x8::ZERO };
+        out[i - 1] = [tail, prev[i - 1] * f32x8::splat(n), (below - prev2[i - 1]) * f32x8::splat(n * (n - 1.0))];
     }
 }
 

@@ -42,6 +42,28 @@ fn sizes_that_are_not_multiples_of_the_simd_width() {
 }
 
 #[test]
+fn bezier_curves_of_every_degree() {
+    // Degrees 1..=7 take the SIMD de Casteljau basis, 8 and 9 the reference per sample.
+    use quatcurve::Curve;
+    let spec = CurveSpec { curve: Curve::Bezier, ..CurveSpec::default() };
+    let mut all = Worst::default();
+    for (degree, kind) in (1..=9).zip([Kind::Random, Kind::NearIdentical, Kind::NearAntipodal, Kind::SignFlipped].into_iter().cycle()) {
+        let mut g = Gen::new(degree as u64);
+        let mut builder = quatcurve::BatchBuilder::new();
+        for _ in 0..3 {
+            builder.add(&accurate_track(&mut g, &spec, degree + 1, kind), &spec).unwrap();
+        }
+        let batch = builder.build().unwrap();
+        let times = SampleTimes::uniform(&batch, Sampling::Count(101)).unwrap();
+        for derivatives in [false, true] {
+            let out = on_cpu(&batch, &times, Layout::Track, derivatives);
+            all.merge(compare_output(&out, &batch, &times, Layout::Track, derivatives, &format!("bezier degree {degree} {kind:?}")));
+        }
+    }
+    all.assert_within_bars("cpu: bezier degrees 1..=9");
+}
+
+#[test]
 fn long_clips_keep_full_time_precision() {
     long_clip(&on_cpu).assert_within_bars("cpu: long clip at t = 1000..1037 s");
 }
