@@ -2,16 +2,17 @@
 //! cores with rayon. It evaluates the same packed [`Batch`] as the reference and the GPU and
 //! returns the same [`FloatOutput`] as the GPU.
 //!
-//! What is vectorized: the KKS families whose cumulative basis is a fixed polynomial of the
-//! segment parameter — slerp, cubic Hermite, and B-splines of any order on equally spaced
-//! knots (phantom, uniform) — entirely in SIMD lanes: basis polynomials, `sin_cos`, the
-//! cumulative product and its derivative recursion. B-splines on other knots compute their
-//! basis per lane in f64 (Cox-de Boor) and then take the same SIMD product. Squad and
-//! Nam-Kim rotations are two great arcs and a geodesic in SIMD lanes (module `arcs`); their
-//! derivatives, and Bezier curves (whose Bernstein basis of any degree has no fixed
-//! polynomial table), run the f64 reference per sample, in parallel.
+//! What is vectorized: every family's rotation, eight samples per group. Slerp, cubic
+//! Hermite and B-splines on equally spaced knots (phantom, uniform) evaluate a polynomial
+//! basis fitted once per order; B-splines on other knots run the Cox-de Boor triangle over
+//! the lanes (module `cox_de_boor`); Bezier curves up to degree 7 a de Casteljau triangle.
+//! All of them then take the SIMD cumulative product and its derivative recursion. Squad and
+//! Nam-Kim rotations are two great arcs and a geodesic (module `arcs`). Not vectorized:
+//! squad and Nam-Kim derivatives and Bezier curves of degree 8 and up, which run the f64
+//! reference per sample, in parallel.
 
 mod arcs;
+mod cox_de_boor;
 pub mod forward;
 pub mod lanes;
 mod track;

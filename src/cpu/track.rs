@@ -2,7 +2,8 @@
 
 use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, SMALL_ANGLE, V8};
 use super::CpuOptions;
-use crate::basis::{bernstein_cumulative, bspline_cumulative, bspline_cumulative_into, BasisJet};
+use super::cox_de_boor::SpanKnots;
+use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
 use crate::batch::{Batch, TrackView};
 use crate::curve::Curve;
 use crate::gpu::layout::knots_are_uniform;
@@ -14,7 +15,7 @@ use std::ops::Range;
 use wide::f32x8;
 
 /// Most factors in one product: order-8 B-spline.
-const MAX_FACTORS: usize = 7;
+pub(super) const MAX_FACTORS: usize = 7;
 
 /// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
 /// `count` functions of degree `len - 1 < 8`, f32 coefficients lowest first.
@@ -147,7 +148,7 @@ impl<'a> Tables<'a> {
 enum Basis<'a> {
     /// SIMD polynomial in the segment parameter.
     Poly(&'a PolyBasis),
-    /// Per lane, Cox-de Boor in f64 (B-splines on unequal knots).
+    /// SIMD Cox-de Boor triangle (B-splines on unequal knots).
     CoxDeBoor,
     /// SIMD de Casteljau triangle (Bezier curves, whose degree varies per track).
     Bernstein,
@@ -282,6 +283,8 @@ impl Piece<'_> {
         let (first, last) = (self.first, self.last);
         let mut hint = first;
         let mut jets = [[f32x8::ZERO; 3]; F];
+        // The knot constants of the last span Cox-de Boor needed.
+        let mut span_knots: Option<SpanKnots> = None;
         // `start * (axis_0, 0)` of the segment the last shared group was on.
         let (mut lead_span, mut lead) = (usize::MAX, [0.0f32; 4]);
         for g in (0..n).step_by(LANES) {
@@ -342,16 +345,37 @@ impl Piece<'_> {
                     }
                 }
                 Basis::CoxDeBoor => {
-                    let mut cox = [[[0.0f32; 3]; F]; LANES];
+                    // Once per distinct span among the lanes: one, or two where the group
+                    // straddles a knot; lanes of other spans are blended out.
+                    let mut done = [false; LANES];
                     for lane in 0..LANES {
-                        let mut jets = [[0.0f64; 3]; MAX_FACTORS];
-                        bspline_cumulative_into(knots, self.view.track.order, spans[lane], t[lane], &mut jets);
-                        for (f, jet) in jets.iter().enumerate().take(F) {
-                            cox[lane][f] = jet.map(|v| v as f32);
+                        if done[lane] {
+                            continue;
                         }
-                    }
-                    for (f, jet) in jets.iter_mut().enumerate() {
-                        *jet = [0, 1, 2].map(|d| f32x8::new(std::array::from_fn(|lane| cox[lane][f][d])));
+                        let span = spans[lane];
+                        if !matches!(&span_knots, Some(c) if c.span == span) {
+                            span_knots = Some(SpanKnots::new(knots, F + 1, span));
+                        }
+                        let Some(constants) = &span_knots else { unreachable!() };
+                        if shared {
+                            constants.jets::<F, DERIVATIVES>(&t, &mut jets);
+                            break;
+                        }
+                        let mut these = [[f32x8::ZERO; 3]; F];
+                        constants.jets::<F, DERIVATIVES>(&t, &mut these);
+                        let mut mask = [0.0f32; LANES];
+                        for (l, m) in mask.iter_mut().enumerate() {
+                            if spans[l] == span {
+                                *m = f32::from_bits(u32::MAX);
+                                done[l] = true;
+                            }
+                        }
+                        let mask = f32x8::new(mask);
+                        for (jet, this) in jets.iter_mut().zip(&these) {
+                            for d in 0..3 {
+                                jet[d] = mask.blend(this[d], jet[d]);
+                            }
+                        }
                     }
                 }
             }
