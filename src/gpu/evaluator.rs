@@ -73,6 +73,8 @@ pub struct GpuEvaluator {
     workgroup_size: u32,
     binding_limit: u64,
     max_groups_per_dim: u32,
+    /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
+    map_outputs: bool,
     lost: Arc<Mutex<Option<String>>>,
 }
 
@@ -100,9 +102,16 @@ impl GpuEvaluator {
                 .await
                 .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
             let info = adapter.get_info();
+            // Where the GPU shares the host's memory (a CPU adapter such as lavapipe, or an
+            // integrated GPU), outputs are mapped directly instead of copied to a staging
+            // buffer first; on a discrete GPU that would make the kernel write over the bus.
+            let unified = matches!(info.device_type, wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu);
+            let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+            let required_features = if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
             let (device, queue) = adapter
                 .request_device(&wgpu::DeviceDescriptor {
                     label: Some("quatcurve"),
+                    required_features,
                     required_limits: adapter.limits(),
                     ..wgpu::DeviceDescriptor::default()
                 })
@@ -116,7 +125,9 @@ impl GpuEvaluator {
     }
 
     /// Embeds in an existing wgpu application: uses its device and queue (and leaves its
-    /// uncaptured-error handler alone; this evaluator reports through error scopes).
+    /// uncaptured-error handler alone; this evaluator reports through error scopes). If the
+    /// device has `MAPPABLE_PRIMARY_BUFFERS` (meant for unified memory only), outputs are
+    /// mapped directly for reading back.
     ///
     /// # Errors
     /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
@@ -128,6 +139,7 @@ impl GpuEvaluator {
         let (naga_module, _) = shader::module().map_err(GpuError::Shader)?;
         let workgroup_size = shader::workgroup_size(&naga_module).map_err(GpuError::Shader)?;
         let limits = device.limits();
+        let map_outputs = device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
         let scope = ErrorScope::push(&device);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("quatcurve eval"),
@@ -186,6 +198,7 @@ impl GpuEvaluator {
             workgroup_size,
             binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
             max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
+            map_outputs,
             lost,
         })
     }
@@ -374,7 +387,7 @@ impl GpuEvaluator {
             None => self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("quatcurve output"),
                 size: output_bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
                 mapped_at_creation: false,
             }),
         };
@@ -404,24 +417,29 @@ impl GpuEvaluator {
         scope.pop()
     }
 
-    /// Copies `bytes` of `output` to a mapped staging buffer and hands its floats to `consume`
-    /// (which copies them into place: one host copy, not two).
+    /// Maps the first `bytes` of `output` (directly where it is mappable, else through a
+    /// staging copy) and hands its floats to `consume`, which copies them into place.
     fn read_back(&self, output: &wgpu::Buffer, bytes: u64, consume: impl FnOnce(&[f32])) -> Result<(), GpuError> {
         if bytes == 0 {
             return Ok(());
         }
         let scope = ErrorScope::push(&self.device);
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("quatcurve readback"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
-        encoder.copy_buffer_to_buffer(output, 0, &staging, 0, bytes);
-        self.queue.submit([encoder.finish()]);
+        let staging = if output.usage().contains(wgpu::BufferUsages::MAP_READ) {
+            output.clone()
+        } else {
+            let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("quatcurve readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
+            encoder.copy_buffer_to_buffer(output, 0, &staging, 0, bytes);
+            self.queue.submit([encoder.finish()]);
+            staging
+        };
         let (sender, receiver) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        staging.map_async(wgpu::MapMode::Read, ..bytes, move |r| {
             let _ = sender.send(r);
         });
         self.wait()?;
@@ -431,7 +449,7 @@ impl GpuEvaluator {
             Ok(Err(e)) => return Err(GpuError::Device(format!("reading results back: {e}"))),
             Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
         }
-        let view = staging.get_mapped_range(..).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
+        let view = staging.get_mapped_range(..bytes).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
         consume(bytemuck::cast_slice::<u8, f32>(&view));
         drop(view);
         staging.unmap();

@@ -4,7 +4,7 @@
 use crate::accuracy::gpu;
 use crate::common::*;
 use quatcurve::gpu::{GpuError, GpuEvaluator, GpuOptions};
-use quatcurve::{Batch, Curve, CurveSpec, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, CurveSpec, Layout, SampleTimes, Sampling};
 
 fn small_batch(spec: &CurveSpec) -> Batch {
     let mut g = Gen::new(2);
@@ -54,7 +54,7 @@ fn evaluate_into_a_caller_buffer_without_readback() {
 
 #[test]
 fn with_device_embeds_in_an_existing_application() {
-    let Some(_) = gpu() else { return };
+    let Some(gpu) = gpu() else { return };
     let (device, queue) = pollster::block_on(async {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = instance.request_adapter(&wgpu::RequestAdapterOptions::default()).await.unwrap();
@@ -66,6 +66,14 @@ fn with_device_embeds_in_an_existing_application() {
     let times = SampleTimes::uniform(&batch, Sampling::Count(9)).unwrap();
     let out = evaluator.evaluate(&batch, &times, &GpuOptions::default()).unwrap();
     assert_eq!(out.data.len(), times.total() * 4);
+    // A device without MAPPABLE_PRIMARY_BUFFERS reads back through a staging copy; where
+    // `GpuEvaluator::new` mapped its outputs directly (unified memory, as lavapipe), the
+    // two paths must agree bit for bit, also over several chunks.
+    assert_eq!(out.data, gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap().data);
+    let evaluator = evaluator.with_binding_limit(1024);
+    let frame = GpuOptions { layout: Layout::Frame, derivatives: true, ..GpuOptions::default() };
+    assert!(evaluator.prepare(&batch, &times, &frame).unwrap().chunk_count() > 1);
+    assert_eq!(evaluator.evaluate(&batch, &times, &frame).unwrap().data, gpu.evaluate(&batch, &times, &frame).unwrap().data);
 }
 
 #[test]
