@@ -119,3 +119,20 @@ fn unsupported_batches_are_errors_naming_the_track() {
     let err = gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("degree 39"), "{err}");
 }
+
+#[test]
+fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
+    let Some(_) = gpu() else { return };
+    // An evaluator of its own: the shared one is used by other tests in parallel.
+    let evaluator = GpuEvaluator::new().unwrap();
+    let batch = small_batch(&CurveSpec::new(Curve::Hermite));
+    let (big, small) = (SampleTimes::uniform(&batch, Sampling::Count(500)).unwrap(), SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap());
+    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
+    let fresh = evaluator.evaluate(&batch, &small, &options).unwrap();
+    evaluator.evaluate(&batch, &big, &options).unwrap();
+    // Now the kept buffer is larger than this output and holds the big batch's samples.
+    let reused = evaluator.evaluate(&batch, &small, &options).unwrap();
+    assert_eq!(reused.data, fresh.data);
+    evaluator.release_buffers();
+    assert_eq!(evaluator.evaluate(&batch, &small, &options).unwrap().data, fresh.data);
+}
