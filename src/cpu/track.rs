@@ -9,7 +9,7 @@ use crate::curve::Curve;
 use crate::gpu::layout::knots_are_uniform;
 use crate::quat::DQuat;
 use crate::reference;
-use crate::sampling::SampleTimes;
+use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
 use std::ops::Range;
 use wide::f32x8;
@@ -283,6 +283,12 @@ impl Piece<'_> {
         let (first, last) = (self.first, self.last);
         let mut hint = first;
         let mut jets = [[f32x8::ZERO; 3]; F];
+        // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
+        // of a `--samples` grid is the exact domain end instead.
+        let uniform = match self.times.tracks[self.index] {
+            TrackTimes::Uniform { start, step, count, last } => Some((start, step, if last.is_some() { count - 1 } else { count })),
+            TrackTimes::Explicit { .. } => None,
+        };
         // The knot constants of the last span Cox-de Boor needed.
         let mut span_knots: Option<SpanKnots> = None;
         // `start * (axis_0, 0)` of the segment the last shared group was on.
@@ -291,15 +297,29 @@ impl Piece<'_> {
             let valid = LANES.min(n - g);
             // Lanes past the end repeat the last sample and are not written.
             let mut t = [0.0f64; LANES];
-            for (lane, t) in t.iter_mut().enumerate() {
-                *t = self.times.time(self.index, self.from + g + lane.min(valid - 1));
+            let j = self.from + g;
+            match uniform {
+                // The loops below are branch-free so that the compiler vectorizes them.
+                Some((start, step, plain)) if j + LANES <= plain => {
+                    for (lane, t) in t.iter_mut().enumerate() {
+                        *t = start + (j + lane) as f64 * step;
+                    }
+                }
+                _ => {
+                    for (lane, t) in t.iter_mut().enumerate() {
+                        *t = self.times.time(self.index, j + lane.min(valid - 1));
+                    }
+                }
             }
             let mut spans = [hint; LANES];
             let mut u = [0.0f32; LANES];
             // Usually all eight samples lie in the span of the previous group: one lookup, one
             // division, and the segment's data broadcast instead of gathered.
             let h = hint;
-            let shared = h >= first && h <= last && t.iter().all(|&t| knots[h] <= t && t < knots[h + 1]);
+            let shared = h >= first && h <= last && {
+                let (k0, k1) = (knots[h], knots[h + 1]);
+                t.iter().fold(true, |inside, &t| inside & (k0 <= t) & (t < k1))
+            };
             let (mut start, mut coef) = ([[0.0f32; 4]; LANES], [0usize; LANES]);
             let inv = if shared {
                 let inv_len = 1.0 / (knots[h + 1] - knots[h]);
