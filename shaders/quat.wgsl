@@ -16,10 +16,14 @@ fn quat_conjugate(q: vec4f) -> vec4f {
     return vec4f(-q.xyz, q.w);
 }
 
-/// Half-angle exponential.
+/// Half-angle exponential `(sin|v| v / |v|, cos|v|)`, value only (jets take jet_quat_exp).
+/// One sin_cos of |v|: the twin's cos_sqrt and sinc_sqrt, which carry derivatives and branch
+/// on |v|^2, cost a quarter of the kernel's time on lavapipe. sin_cos is relative-accurate for
+/// small arguments, so sin|v| / |v| keeps full precision down to |v| = 0.
 fn quat_exp(v: vec3f) -> vec4f {
-    let th2 = dot(v, v);
-    return vec4f(v * sinc_sqrt(th2).x, cos_sqrt(th2).x);
+    let th = length(v);
+    let sc = sin_cos(th);
+    return vec4f(v * select(sc.x / th, 1.0, th == 0.0), sc.y);
 }
 
 /// Half-angle logarithm; (pi, 0, 0) at q = (0, 0, 0, -1).
