@@ -119,6 +119,65 @@ pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &
     }
 }
 
+/// The cumulative basis functions of one span as polynomials in the span parameter
+/// `u in [0, 1]`, coefficients lowest first (8 slots, unused ones zero): interpolated at
+/// `degree + 1` equispaced nodes of `basis`, so exact for polynomials of that degree up to f64
+/// rounding. The fast paths evaluate these instead of the triangles above wherever the basis
+/// is the same on every span (slerp, Hermite, B-splines on equally spaced knots).
+#[must_use]
+pub fn fit_polynomials(degree: usize, basis: impl Fn(f64) -> Vec<BasisJet>) -> Vec<[f64; 8]> {
+    let n = degree + 1;
+    let nodes: Vec<f64> = (0..n).map(|i| i as f64 / degree.max(1) as f64).collect();
+    let values: Vec<Vec<BasisJet>> = nodes.iter().map(|&u| basis(u)).collect();
+    (0..values[0].len())
+        .map(|f| {
+            let mut a: Vec<Vec<f64>> = nodes.iter().map(|&u| (0..n).map(|p| u.powi(p as i32)).collect()).collect();
+            let mut b: Vec<f64> = values.iter().map(|v| v[f][0]).collect();
+            solve(&mut a, &mut b);
+            let mut c = [0.0; 8];
+            c[..n].copy_from_slice(&b);
+            c
+        })
+        .collect()
+}
+
+/// [`fit_polynomials`] of the B-spline of order `k` (2..=8) on equally spaced knots: the same
+/// `k - 1` polynomials on every span, in the span parameter.
+#[must_use]
+pub fn uniform_bspline_polynomials(k: usize) -> Vec<[f64; 8]> {
+    // Unit-spaced knots 0..2k-1: span k-1 is [k-1, k], where t = k-1+u.
+    let knots: Vec<f64> = (0..2 * k).map(|j| j as f64).collect();
+    fit_polynomials(k - 1, |u| bspline_cumulative(&knots, k, k - 1, k as f64 - 1.0 + u))
+}
+
+/// [`fit_polynomials`] of the cumulative Bernstein basis of degree `n` (`n <= 7`).
+#[must_use]
+pub fn bernstein_polynomials(n: usize) -> Vec<[f64; 8]> {
+    fit_polynomials(n, |u| bernstein_cumulative(n, u))
+}
+
+/// Gaussian elimination with partial pivoting (tiny systems, f64).
+fn solve(a: &mut [Vec<f64>], b: &mut [f64]) {
+    let n = b.len();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs())).unwrap_or(col);
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in col + 1..n {
+            let f = a[row][col] / a[col][col];
+            let (top, bottom) = a.split_at_mut(row);
+            for (x, p) in bottom[0][col..n].iter_mut().zip(&top[col][col..n]) {
+                *x -= f * p;
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    for row in (0..n).rev() {
+        let s: f64 = (row + 1..n).map(|c| a[row][c] * b[c]).sum();
+        b[row] = (b[row] - s) / a[row][row];
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

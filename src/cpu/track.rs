@@ -3,7 +3,7 @@
 use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, SMALL_ANGLE, V8};
 use super::CpuOptions;
 use super::cox_de_boor::SpanKnots;
-use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
+use crate::basis::{bernstein_polynomials, fit_polynomials, uniform_bspline_polynomials};
 use crate::batch::{Batch, TrackView};
 use crate::curve::Curve;
 use crate::gpu::layout::knots_are_uniform;
@@ -27,26 +27,9 @@ pub struct PolyBasis {
 }
 
 impl PolyBasis {
-    /// Interpolates `basis` (values at `u`) at `degree + 1` equispaced nodes: exact for
-    /// polynomials of that degree, up to f64 rounding.
-    fn fit(degree: usize, basis: impl Fn(f64) -> Vec<BasisJet>) -> Self {
-        let n = degree + 1;
-        let nodes: Vec<f64> = (0..n).map(|i| i as f64 / degree as f64).collect();
-        let values: Vec<Vec<BasisJet>> = nodes.iter().map(|&u| basis(u)).collect();
-        let count = values[0].len();
-        let coefs = (0..count)
-            .map(|f| {
-                let mut a: Vec<Vec<f64>> = nodes.iter().map(|&u| (0..n).map(|p| u.powi(p as i32)).collect()).collect();
-                let mut b: Vec<f64> = values.iter().map(|v| v[f][0]).collect();
-                solve(&mut a, &mut b);
-                let mut c = [0.0; 8];
-                for (c, b) in c.iter_mut().zip(&b) {
-                    *c = *b as f32;
-                }
-                c
-            })
-            .collect();
-        Self { count, len: n, coefs }
+    /// The f32 twin of `coefs`, polynomials of degree `degree`.
+    fn new(degree: usize, coefs: Vec<[f64; 8]>) -> Self {
+        Self { count: coefs.len(), len: degree + 1, coefs: coefs.into_iter().map(|c| c.map(|v| v as f32)).collect() }
     }
 
     /// `[p, p', p'']` of each of the `F` functions (of degree `F`) at `u`, derivatives in
@@ -69,28 +52,6 @@ impl PolyBasis {
     }
 }
 
-/// Gaussian elimination with partial pivoting (tiny systems, f64).
-fn solve(a: &mut [Vec<f64>], b: &mut [f64]) {
-    let n = b.len();
-    for col in 0..n {
-        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs())).unwrap_or(col);
-        a.swap(col, pivot);
-        b.swap(col, pivot);
-        for row in col + 1..n {
-            let f = a[row][col] / a[col][col];
-            let (top, bottom) = a.split_at_mut(row);
-            for (x, p) in bottom[0][col..n].iter_mut().zip(&top[col][col..n]) {
-                *x -= f * p;
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    for row in (0..n).rev() {
-        let s: f64 = (row + 1..n).map(|c| a[row][c] * b[c]).sum();
-        b[row] = (b[row] - s) / a[row][row];
-    }
-}
-
 /// The polynomial bases: they depend on nothing but the order, so the evaluator fits them
 /// once.
 #[derive(Clone, Debug)]
@@ -104,14 +65,11 @@ pub struct Bases {
 impl Bases {
     /// Fits every basis from the reference's.
     pub fn new() -> Self {
-        let bspline = (2..=8)
-            .map(|k| {
-                // Unit-spaced knots 0..2k-1: span k-1 is [k-1, k], where t = k-1+u.
-                let knots: Vec<f64> = (0..2 * k).map(|j| j as f64).collect();
-                PolyBasis::fit(k - 1, |u| bspline_cumulative(&knots, k, k - 1, k as f64 - 1.0 + u))
-            })
-            .collect();
-        Self { slerp: PolyBasis::fit(1, |u| vec![[u, 1.0, 0.0]]), hermite: PolyBasis::fit(3, |u| bernstein_cumulative(3, u)), bspline }
+        Self {
+            slerp: PolyBasis::new(1, fit_polynomials(1, |u| vec![[u, 1.0, 0.0]])),
+            hermite: PolyBasis::new(3, bernstein_polynomials(3)),
+            bspline: (2..=8).map(|k| PolyBasis::new(k - 1, uniform_bspline_polynomials(k))).collect(),
+        }
     }
 }
 
