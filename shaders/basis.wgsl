@@ -63,30 +63,20 @@ fn bspline_at(row: ptr<function, array<f32, 8>>, l: u32, m: u32, j: u32) -> f32 
     return (*row)[r];
 }
 
-/// Where the basis takes knot differences from: the fixed-point knot vector, or (for uniform
-/// knots) exact small integers times the spacing `dt`, with `u` the position in span `l`.
+/// Where the basis takes knot differences from: the fixed-point knot vector at `base`, and
+/// the (clamped) time `t`.
 struct KnotSource {
     base: u32,
-    uniform: bool,
-    dt: f32,
-    u: f32,
-    l: u32,
     t: vec2u,
 }
 
 /// t - knot j, in seconds.
 fn t_minus_knot(src: KnotSource, j: u32) -> f32 {
-    if src.uniform {
-        return (src.u - f32(i32(j) - i32(src.l))) * src.dt;
-    }
     return time_sub(src.t, knot(src.base, j));
 }
 
 /// knot a - knot b, in seconds.
 fn knot_minus_knot(src: KnotSource, a: u32, b: u32) -> f32 {
-    if src.uniform {
-        return f32(i32(a) - i32(b)) * src.dt;
-    }
     return time_sub(knot(src.base, a), knot(src.base, b));
 }
 

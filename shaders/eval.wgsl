@@ -68,6 +68,28 @@ struct GpuTrack {
 @group(0) @binding(4) var<storage, read> knots: array<vec2u>;
 @group(0) @binding(5) var<storage, read> times: array<vec2u>;
 @group(0) @binding(6) var<storage, read_write> out: array<f32>;
+// Span bases as polynomials in u, two vec4f (8 coefficients, lowest first) per function:
+// uniform B-splines of orders 2..8 (order k from function (k - 2)(k - 1) / 2), then the cubic
+// Hermite basis from POLY_HERMITE. Fitted from the reference's bases on the host.
+@group(0) @binding(7) var<storage, read> poly: array<vec4f>;
+
+const POLY_HERMITE: u32 = 28u;
+
+/// (p, p', p'') in u of polynomial basis function f.
+fn poly_jet(f: u32, u: f32) -> vec3f {
+    let lo = poly[2u * f];
+    let hi = poly[2u * f + 1u];
+    var acc = vec3f(0.0);
+    acc = horner_step(acc, u, hi.w);
+    acc = horner_step(acc, u, hi.z);
+    acc = horner_step(acc, u, hi.y);
+    acc = horner_step(acc, u, hi.x);
+    acc = horner_step(acc, u, lo.w);
+    acc = horner_step(acc, u, lo.z);
+    acc = horner_step(acc, u, lo.y);
+    acc = horner_step(acc, u, lo.x);
+    return vec3f(acc.x, acc.y, 2.0 * acc.z);
+}
 
 struct Sample {
     q: vec4f,
@@ -155,14 +177,12 @@ fn eval_bezier(tr: GpuTrack, t: vec2u) -> Sample {
 
 fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
     let s = key_segment(tr, t);
-    var basis: array<vec3f, 32>;
-    bernstein_cumulative(3u, s.u, &basis);
     let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
     let c = tr.coef_offset + 3u * s.i;
     let start_sign = coefs[c + 1u].w;
     var p = product_start(points[tr.point_offset + s.i] * start_sign);
     for (var j = 0u; j < 3u; j++) {
-        p = product_step(p, coefs[c + j].xyz, basis[j] * scale);
+        p = product_step(p, coefs[c + j].xyz, poly_jet(POLY_HERMITE + j, s.u) * scale);
     }
     return product_sample(p);
 }
@@ -170,11 +190,9 @@ fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
 fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = tr.order;
     let m = tr.point_count - 1u;
-    var src = KnotSource(tr.knot_offset, false, 0.0, 0.0, 0u, t);
-    var l: u32;
     if (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
         // Span by arithmetic, then checked against the exact knots (so long clips keep
-        // full precision); the basis then uses integer knot differences times dt.
+        // full precision); the basis is the same polynomials of u on every span.
         let lo = knot(tr.knot_offset, k - 1u);
         let hi = knot(tr.knot_offset, m + 1u);
         var tc = t;
@@ -185,7 +203,7 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
             tc = hi;
         }
         let dt = time_sub(knot(tr.knot_offset, k), lo);
-        l = k - 1u + u32(clamp(floor(time_sub(tc, lo) / dt), 0.0, f32(m + 1u - k)));
+        var l = k - 1u + u32(clamp(floor(time_sub(tc, lo) / dt), 0.0, f32(m + 1u - k)));
         if l > k - 1u && !time_le(knot(tr.knot_offset, l), tc) {
             l -= 1u;
         }
@@ -194,18 +212,22 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
         }
         let start = knot(tr.knot_offset, l);
         let len = time_sub(knot(tr.knot_offset, l + 1u), start);
-        src = KnotSource(tr.knot_offset, true, len, time_sub(tc, start) / len, l, tc);
-    } else {
-        let loc = locate(tr.knot_offset, k - 1u, m, t);
-        l = loc.span;
-        src.t = loc.t;
+        let u = time_sub(tc, start) / len;
+        let scale = vec3f(1.0, 1.0 / len, 1.0 / (len * len));
+        let base = (k - 2u) * (k - 1u) / 2u;
+        var p = product_start(points[tr.point_offset + l + 1u - k]);
+        for (var r = 0u; r + 1u < k; r++) {
+            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, u) * scale);
+        }
+        return product_sample(p);
     }
+    let loc = locate(tr.knot_offset, k - 1u, m, t);
+    let l = loc.span;
     var basis: array<vec3f, 7>;
-    bspline_cumulative(src, k, l, &basis);
-    let first = l + 2u - k;
+    bspline_cumulative(KnotSource(tr.knot_offset, loc.t), k, l, &basis);
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {
-        p = product_step(p, coefs[tr.coef_offset + first + r - 1u].xyz, basis[r]);
+        p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, basis[r]);
     }
     return product_sample(p);
 }

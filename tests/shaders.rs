@@ -89,6 +89,11 @@ fn codes_and_limits_match_the_shader_constants() {
     assert_eq!(layout::FLAG_UNIFORM_KNOTS, c("FLAG_UNIFORM_KNOTS"));
     assert_eq!(layout::MAX_BEZIER_DEGREE as u32, c("MAX_BEZIER_DEGREE"));
     assert_eq!(8, c("MAX_ORDER"), "B-spline orders 2..=8");
+    assert_eq!(layout::POLY_HERMITE, c("POLY_HERMITE"));
+    // The table: the uniform B-spline bases of orders 2..=8, then Hermite's three functions.
+    let bspline_functions: usize = (2..=8).map(|k| k - 1).sum();
+    assert_eq!(layout::POLY_HERMITE as usize, bspline_functions);
+    assert_eq!(layout::polynomial_table().len(), 2 * (bspline_functions + 3));
 }
 
 #[test]

@@ -75,6 +75,8 @@ pub struct GpuEvaluator {
     max_groups_per_dim: u32,
     /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
     map_outputs: bool,
+    /// [`layout::polynomial_table`], the same for every batch.
+    polynomials: wgpu::Buffer,
     /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
     /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
     /// of the kernel's time).
@@ -178,12 +180,19 @@ impl GpuEvaluator {
                 storage(4, true),
                 storage(5, true),
                 storage(6, false),
+                storage(7, true),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("quatcurve eval"),
             bind_group_layouts: &[Some(&bind_group_layout)],
             immediate_size: 0,
+        });
+        let table = layout::polynomial_table();
+        let polynomials = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("quatcurve polynomials"),
+            contents: bytemuck::cast_slice(&table),
+            usage: wgpu::BufferUsages::STORAGE,
         });
         scope.pop()?;
         let lost = Arc::new(Mutex::new(None));
@@ -203,6 +212,7 @@ impl GpuEvaluator {
             binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
             max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
             map_outputs,
+            polynomials,
             spare_output: Mutex::new(None),
             lost,
         })
@@ -409,6 +419,7 @@ impl GpuEvaluator {
         let mut entries: Vec<wgpu::BindGroupEntry<'_>> =
             inputs.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         entries.push(wgpu::BindGroupEntry { binding: 6, resource: output.as_entire_binding() });
+        entries.push(wgpu::BindGroupEntry { binding: 7, resource: self.polynomials.as_entire_binding() });
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("quatcurve eval"),
             layout: &self.bind_group_layout,

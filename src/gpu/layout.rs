@@ -180,6 +180,22 @@ pub enum PackError {
 
 /// Largest Bezier degree the shader evaluates (`MAX_BEZIER_DEGREE`, checked by a test).
 pub const MAX_BEZIER_DEGREE: usize = 32;
+/// First function of the cubic Hermite (Bernstein) basis in [`polynomial_table`]
+/// (`POLY_HERMITE`, checked by a test); before it, the uniform B-spline bases of orders 2..=8,
+/// order `k` from function `(k - 2)(k - 1) / 2`.
+pub const POLY_HERMITE: u32 = 28;
+
+/// The span bases that are the same on every span, as polynomials in the span parameter
+/// ([`crate::basis::fit_polynomials`], the CPU path's too): two `vec4f` per function, lowest
+/// coefficient first. The kernel evaluates these with Horner's rule instead of running the
+/// Cox-de Boor or de Casteljau triangle per sample, whose small arrays lavapipe keeps in
+/// memory (half the kernel's time).
+#[must_use]
+pub fn polynomial_table() -> Vec<[f32; 4]> {
+    let functions = (2..=8).flat_map(crate::basis::uniform_bspline_polynomials).chain(crate::basis::bernstein_polynomials(3));
+    functions.flat_map(|c| [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]]].map(|v| v.map(|x| x as f32))).collect()
+}
+
 /// Samples per track the kernel indexes with one `u32`.
 pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
 
