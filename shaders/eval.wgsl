@@ -75,15 +75,17 @@ struct GpuTrack {
 
 const POLY_HERMITE: u32 = 28u;
 
-/// (p, p', p'') in u of polynomial basis function f.
-fn poly_jet(f: u32, u: f32) -> vec3f {
+/// (p, p', p'') in u of polynomial basis function f, of degree `degree`.
+fn poly_jet(f: u32, degree: u32, u: f32) -> vec3f {
     let lo = poly[2u * f];
-    let hi = poly[2u * f + 1u];
     var acc = vec3f(0.0);
-    acc = horner_step(acc, u, hi.w);
-    acc = horner_step(acc, u, hi.z);
-    acc = horner_step(acc, u, hi.y);
-    acc = horner_step(acc, u, hi.x);
+    if degree > 3u {
+        let hi = poly[2u * f + 1u];
+        acc = horner_step(acc, u, hi.w);
+        acc = horner_step(acc, u, hi.z);
+        acc = horner_step(acc, u, hi.y);
+        acc = horner_step(acc, u, hi.x);
+    }
     acc = horner_step(acc, u, lo.w);
     acc = horner_step(acc, u, lo.z);
     acc = horner_step(acc, u, lo.y);
@@ -182,7 +184,7 @@ fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
     let start_sign = coefs[c + 1u].w;
     var p = product_start(points[tr.point_offset + s.i] * start_sign);
     for (var j = 0u; j < 3u; j++) {
-        p = product_step(p, coefs[c + j].xyz, poly_jet(POLY_HERMITE + j, s.u) * scale);
+        p = product_step(p, coefs[c + j].xyz, poly_jet(POLY_HERMITE + j, 3u, s.u) * scale);
     }
     return product_sample(p);
 }
@@ -217,7 +219,7 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
         let base = (k - 2u) * (k - 1u) / 2u;
         var p = product_start(points[tr.point_offset + l + 1u - k]);
         for (var r = 0u; r + 1u < k; r++) {
-            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, u) * scale);
+            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, k - 1u, u) * scale);
         }
         return product_sample(p);
     }
