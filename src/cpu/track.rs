@@ -331,10 +331,10 @@ impl Piece<'_> {
                             continue;
                         }
                         let span = spans[lane];
-                        if !matches!(&span_knots, Some(c) if c.span == span) {
-                            span_knots = Some(SpanKnots::new(knots, F + 1, span));
+                        if span_knots.as_ref().map(|c| c.span) != Some(span) {
+                            span_knots = None;
                         }
-                        let Some(constants) = &span_knots else { unreachable!() };
+                        let constants = span_knots.get_or_insert_with(|| SpanKnots::new(knots, F + 1, span));
                         if shared {
                             constants.jets::<F, DERIVATIVES>(&t, &mut jets);
                             break;
