@@ -63,8 +63,7 @@ impl Arc8 {
     #[inline(always)]
     fn at(&self, x: f32x8) -> Q8 {
         let (sin, cos) = (x * self.theta).sin_cos();
-        let (s, l) = (self.start, self.lead);
-        Q8 { x: s.x.mul_add(cos, l.x * sin), y: s.y.mul_add(cos, l.y * sin), z: s.z.mul_add(cos, l.z * sin), w: s.w.mul_add(cos, l.w * sin) }
+        self.start.along(self.lead, sin, cos)
     }
 }
 

@@ -74,6 +74,18 @@ impl Q8 {
         Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]), w: f32x8::splat(r[3]) }
     }
 
+    /// `cos * self + sin * lead`: with `lead = self * (axis, 0)`, the point
+    /// `self * exp(angle * axis)` of the great arc, without a quaternion product.
+    #[inline(always)]
+    pub fn along(self, lead: Self, sin: f32x8, cos: f32x8) -> Self {
+        Self {
+            x: self.x.mul_add(cos, lead.x * sin),
+            y: self.y.mul_add(cos, lead.y * sin),
+            z: self.z.mul_add(cos, lead.z * sin),
+            w: self.w.mul_add(cos, lead.w * sin),
+        }
+    }
+
     /// `(-x, -y, -z, w)`.
     #[inline(always)]
     pub fn conjugate(self) -> Self {
@@ -194,12 +206,7 @@ pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: 
     };
     let (sin, cos) = sin_cos(head);
     let mut q = match lead {
-        Some(lead) => Q8 {
-            x: start.x.mul_add(cos, lead.x * sin),
-            y: start.y.mul_add(cos, lead.y * sin),
-            z: start.z.mul_add(cos, lead.z * sin),
-            w: start.w.mul_add(cos, lead.w * sin),
-        },
+        Some(lead) => start.along(lead, sin, cos),
         None => start * Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos },
     };
     // W and W' start at zero: nothing to carry through the first factor.

@@ -152,10 +152,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
         Curve::Squad | Curve::NamKim if !options.derivatives => {
             super::arcs::evaluate(view, times, index, range.start, range.len(), channels, out);
             if options.matrix {
-                for row in out.chunks_exact_mut(channels) {
-                    let q = [row[0], row[1], row[2], row[3]];
-                    write_matrix(&mut row[4..13], q);
-                }
+                write_matrices(out, channels, 4);
             }
             return;
         }
@@ -304,24 +301,8 @@ impl Piece<'_> {
                 f32x8::new(inv)
             };
             match self.basis {
-                Basis::Poly(poly) => {
-                    poly.eval::<F>(f32x8::new(u), DERIVATIVES, &mut jets);
-                    if DERIVATIVES {
-                        for jet in &mut jets {
-                            jet[1] *= inv;
-                            jet[2] *= inv * inv;
-                        }
-                    }
-                }
-                Basis::Bernstein => {
-                    bernstein_cumulative_lanes::<F>(f32x8::new(u), &mut jets);
-                    if DERIVATIVES {
-                        for jet in &mut jets {
-                            jet[1] *= inv;
-                            jet[2] *= inv * inv;
-                        }
-                    }
-                }
+                Basis::Poly(poly) => poly.eval::<F>(f32x8::new(u), DERIVATIVES, &mut jets),
+                Basis::Bernstein => bernstein_cumulative_lanes::<F>(f32x8::new(u), &mut jets),
                 Basis::CoxDeBoor => {
                     // Once per distinct span among the lanes: one, or two where the group
                     // straddles a knot; lanes of other spans are blended out.
@@ -357,6 +338,13 @@ impl Piece<'_> {
                     }
                 }
             }
+            // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
+            if DERIVATIVES && !matches!(self.basis, Basis::CoxDeBoor) {
+                for jet in &mut jets {
+                    jet[1] *= inv;
+                    jet[2] *= inv * inv;
+                }
+            }
             let mut factors = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; F];
             for (f, factor) in factors.iter_mut().enumerate() {
                 let (axis, theta) = if shared {
@@ -388,11 +376,7 @@ impl Piece<'_> {
                 write_columns([a.y, a.z, f32x8::ZERO, f32x8::ZERO], rows, channels, 8, 2, valid);
             }
             if options.matrix {
-                let at = if DERIVATIVES { 10 } else { 4 };
-                for row in rows.chunks_exact_mut(channels) {
-                    let q = [row[0], row[1], row[2], row[3]];
-                    write_matrix(&mut row[at..at + 9], q);
-                }
+                write_matrices(rows, channels, if DERIVATIVES { 10 } else { 4 });
             }
         }
     }
@@ -429,6 +413,15 @@ fn bernstein_cumulative_lanes<const F: usize>(u: f32x8, out: &mut [[f32x8; 3]; F
 fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
     let [x, y, z, w] = p;
     [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
+}
+
+/// Fills columns `at..at + 9` of every row with the matrix of the row's rotation (its first
+/// four columns).
+fn write_matrices(rows: &mut [f32], channels: usize, at: usize) {
+    for row in rows.chunks_exact_mut(channels) {
+        let q = [row[0], row[1], row[2], row[3]];
+        write_matrix(&mut row[at..at + 9], q);
+    }
 }
 
 /// The row-major matrix of rotation `q`.
