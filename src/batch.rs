@@ -17,6 +17,11 @@
 //! | hermite | keys              | key times               | `w1, w2, w3` per segment; `w2.extra` = start sign (+-1) |
 //! | nam-kim | keys              | key times               | `a, b` per segment (half angle per unit segment parameter) |
 //! | bspline | control points    | full knot vector (n+k+1) | `w_i`, i = 1..=m over control points  |
+//!
+//! `bspline-interp` is packed as a cubic `bspline` on explicit knots once [`crate::interp`] has
+//! solved its control points. Looping tracks (`CurveSpec::looping`) are packed like open ones
+//! with their seam neighbours built in (tangents, auxiliary and phantom points, periodic control
+//! points) and [`PackedTrack::looping`] set, so that evaluators wrap sample times.
 
 use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
@@ -52,8 +57,11 @@ pub struct PackedTrack {
     pub knot_offset: usize,
     /// Number of entries in [`Batch::knots`].
     pub knot_count: usize,
-    /// The domain `[start, end]`; sample times are clamped to it.
+    /// The domain `[start, end]`; sample times are clamped to it, or wrapped when looping.
     pub domain: [f64; 2],
+    /// A periodic track: times outside the domain wrap by its length
+    /// ([`crate::segment::wrap`]).
+    pub looping: bool,
 }
 
 /// Many tracks packed flat (CSR style). Build one with [`BatchBuilder`] or [`Batch::from_tracks`].
@@ -145,7 +153,7 @@ impl BatchBuilder {
         let packed = prepare(&id, track, spec)?;
         let b = &mut self.batch;
         b.tracks.push(PackedTrack {
-            curve: spec.curve,
+            curve: packed.curve,
             order: packed.order,
             blend: spec.blend,
             point_offset: b.points.len(),
@@ -155,6 +163,7 @@ impl BatchBuilder {
             knot_offset: b.knots.len(),
             knot_count: packed.knots.len(),
             domain: packed.domain,
+            looping: spec.looping,
         });
         b.points.extend(packed.points);
         b.coefs.extend(packed.coefs);
@@ -177,6 +186,8 @@ impl BatchBuilder {
 
 /// One track's packed data before it is appended.
 struct Prepared {
+    /// The family evaluators run (`bspline` for `bspline-interp`).
+    curve: Curve,
     order: usize,
     points: Vec<DQuat>,
     coefs: Vec<[f64; 4]>,
@@ -188,33 +199,63 @@ fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
     let keys = aligned_keys(id, &track.rotations, spec)?;
     let times = key_times(id, track.times.as_deref(), keys.len())?;
     let n = keys.len() - 1;
+    if spec.looping {
+        check_loop(id, spec, &keys)?;
+    }
     let (t0, tn) = (times[0], times[n]);
     let vec_coef = |v: DVec3| [v.x, v.y, v.z, 0.0];
     let steps = || (1..=n).map(|i| vec_coef(relative_log(keys[i - 1], keys[i])));
+    let piecewise = |coefs: Vec<[f64; 4]>, points: Vec<DQuat>| Prepared { curve: spec.curve, order: 0, coefs, points, knots: times.clone(), domain: [t0, tn] };
     Ok(match spec.curve {
-        Curve::Slerp => Prepared { order: 0, coefs: steps().collect(), points: keys, knots: times, domain: [t0, tn] },
-        Curve::Bezier => Prepared { order: n, coefs: steps().collect(), points: keys, knots: vec![t0, tn], domain: [t0, tn] },
-        Curve::Squad => {
-            let coefs = squad_points(&keys).into_iter().map(DQuat::to_array).collect();
-            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
-        }
+        Curve::Slerp => piecewise(steps().collect(), keys),
+        Curve::Bezier => Prepared { curve: spec.curve, order: n, coefs: steps().collect(), points: keys, knots: vec![t0, tn], domain: [t0, tn] },
+        Curve::Squad => piecewise(squad_points(&keys, spec.looping).into_iter().map(DQuat::to_array).collect(), keys),
         Curve::Hermite => {
-            let omega = key_velocities(id, track, spec.tangents, &keys, &times)?;
+            let omega = key_velocities(id, track, spec, &keys, &times)?;
             let coefs = hermite_coefs(id, track, &keys, &times, &omega)?;
-            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
+            piecewise(coefs, keys)
         }
         Curve::NamKim => {
-            let omega = key_velocities(id, track, spec.tangents, &keys, &times)?;
+            let omega = key_velocities(id, track, spec, &keys, &times)?;
             let coefs = (0..n)
                 .flat_map(|i| {
                     let half_t = 0.5 * (times[i + 1] - times[i]);
                     [vec_coef(omega[i].scale(half_t)), vec_coef(omega[i + 1].scale(half_t))]
                 })
                 .collect();
-            Prepared { order: 0, coefs, points: keys, knots: times, domain: [t0, tn] }
+            piecewise(coefs, keys)
         }
         Curve::BSpline => bspline(id, track, spec, keys, &times)?,
+        Curve::BSplineInterp => {
+            let solved = crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| Error::NoConvergence {
+                track: id.clone(),
+                key: e.worst_key,
+                error: e.error,
+                iterations: e.iterations,
+            })?;
+            let coefs = solved.coefs.into_iter().map(vec_coef).collect();
+            Prepared { curve: Curve::BSpline, order: 4, points: solved.points, coefs, knots: solved.knots, domain: [t0, tn] }
+        }
     })
+}
+
+/// Largest angle (rad) between a looping track's last key and its first (DESIGN section 3).
+pub const LOOP_TOLERANCE: f64 = 1e-3;
+
+/// A looping spec must be a family that loops, and the keys must close.
+fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
+    if !spec.can_loop() {
+        let curve = match spec.curve {
+            Curve::BSpline => format!("bspline with {} knots", spec.knots),
+            other => other.to_string(),
+        };
+        return Err(Error::LoopUnsupported { track: id.clone(), curve });
+    }
+    let angle = keys[0].angle_to(keys[keys.len() - 1]);
+    if !(angle <= LOOP_TOLERANCE) {
+        return Err(Error::LoopNotClosed { track: id.clone(), last: keys.len() - 1, angle });
+    }
+    Ok(())
 }
 
 /// `log(a^-1 b)` with `b` folded into `a`'s hemisphere: the shortest relative rotation.
@@ -272,24 +313,34 @@ pub(crate) fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Re
 }
 
 /// Squad's auxiliary points `s_i = q_i exp(-(log(q_i^-1 q_{i+1}) + log(q_i^-1 q_{i-1})) / 4)`
-/// (P eq. 19), with `s_0 = q_0` and `s_n = q_n`.
-fn squad_points(keys: &[DQuat]) -> Vec<DQuat> {
+/// (P eq. 19), with `s_0 = q_0` and `s_n = q_n`; looping, `s_0` uses `q_{n-1}` before it and
+/// `s_n` is `q_n` times the same body offset, so both sides of the seam agree.
+fn squad_points(keys: &[DQuat], looping: bool) -> Vec<DQuat> {
     let n = keys.len() - 1;
+    let offset = |i: usize, prev: DQuat, next: DQuat| (relative_log(keys[i], next) + relative_log(keys[i], prev)).scale(-0.25);
+    let seam = looping.then(|| offset(0, keys[n - 1], keys[1]));
     (0..=n)
         .map(|i| {
             if i == 0 || i == n {
-                return keys[i];
+                return seam.map_or(keys[i], |v| keys[i] * DQuat::exp(v));
             }
-            let sum = relative_log(keys[i], keys[i + 1]) + relative_log(keys[i], keys[i - 1]);
-            keys[i] * DQuat::exp(sum.scale(-0.25))
+            keys[i] * DQuat::exp(offset(i, keys[i - 1], keys[i + 1]))
         })
         .collect()
 }
 
+/// The non-uniform Catmull-Rom body angular velocity at `key` from its neighbours `prev`
+/// (`d0` before) and `next` (`d1` after), DESIGN section 3.
+fn catmull_rom(key: DQuat, prev: DQuat, next: DQuat, d0: f64, d1: f64) -> DVec3 {
+    let back = -relative_log(key, prev).scale(1.0 / d0);
+    let ahead = relative_log(key, next).scale(1.0 / d1);
+    (back.scale(d1 / (d0 + d1)) + ahead.scale(d0 / (d0 + d1))).scale(2.0)
+}
+
 /// Body angular velocity (rad/s) at each key, from the chosen source (DESIGN section 3).
-fn key_velocities(id: &TrackId, track: &Track, tangents: Tangents, keys: &[DQuat], times: &[f64]) -> Result<Vec<DVec3>> {
+fn key_velocities(id: &TrackId, track: &Track, spec: &CurveSpec, keys: &[DQuat], times: &[f64]) -> Result<Vec<DVec3>> {
     let n = keys.len() - 1;
-    match tangents {
+    match spec.tangents {
         Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
         Tangents::Given => {
             let given = track.angular_velocities.as_deref().unwrap_or(&[]);
@@ -308,20 +359,19 @@ fn key_velocities(id: &TrackId, track: &Track, tangents: Tangents, keys: &[DQuat
                 })
                 .collect()
         }
-        Tangents::CatmullRom => Ok((0..=n)
-            .map(|i| {
-                if i == 0 {
-                    relative_log(keys[0], keys[1]).scale(2.0 / (times[1] - times[0]))
-                } else if i == n {
-                    relative_log(keys[n - 1], keys[n]).scale(2.0 / (times[n] - times[n - 1]))
-                } else {
-                    let (d0, d1) = (times[i] - times[i - 1], times[i + 1] - times[i]);
-                    let back = -relative_log(keys[i], keys[i - 1]).scale(1.0 / d0);
-                    let ahead = relative_log(keys[i], keys[i + 1]).scale(1.0 / d1);
-                    (back.scale(d1 / (d0 + d1)) + ahead.scale(d0 / (d0 + d1))).scale(2.0)
-                }
-            })
-            .collect()),
+        Tangents::CatmullRom => {
+            // Across a loop's seam key 0 sees key n-1 before it (d_{-1} = d_{n-1}); key n
+            // takes the same body velocity, so both sides of the seam agree.
+            let seam = spec.looping.then(|| catmull_rom(keys[0], keys[n - 1], keys[1], times[n] - times[n - 1], times[1] - times[0]));
+            Ok((0..=n)
+                .map(|i| match seam {
+                    Some(v) if i == 0 || i == n => v,
+                    _ if i == 0 => relative_log(keys[0], keys[1]).scale(2.0 / (times[1] - times[0])),
+                    _ if i == n => relative_log(keys[n - 1], keys[n]).scale(2.0 / (times[n] - times[n - 1])),
+                    _ => catmull_rom(keys[i], keys[i - 1], keys[i + 1], times[i] - times[i - 1], times[i + 1] - times[i]),
+                })
+                .collect())
+        }
     }
 }
 
@@ -389,10 +439,15 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
     let k = spec.order;
     let knots = bspline_knots(id, track.knots.as_deref(), spec, times)?;
     let points = if spec.knots == KnotMode::Phantom {
-        // q_-1 = q_0 q_1^-1 q_0 and q_{n+1} = q_n q_{n-1}^-1 q_n: the key steps mirrored.
+        // q_-1 = q_0 q_1^-1 q_0 and q_{n+1} = q_n q_{n-1}^-1 q_n: the key steps mirrored; or,
+        // looping, the neighbours across the seam carried over it: q_-1 = q_0 q_n^-1 q_{n-1}
+        // and q_{n+1} = q_n q_0^-1 q_1 (key n-1 and key 1 when the keys close exactly).
         let n = keys.len() - 1;
-        let first = keys[0] * keys[1].conjugate() * keys[0];
-        let last = keys[n] * keys[n - 1].conjugate() * keys[n];
+        let (first, last) = if spec.looping {
+            (keys[0] * keys[n].conjugate() * keys[n - 1], keys[n] * keys[0].conjugate() * keys[1])
+        } else {
+            (keys[0] * keys[1].conjugate() * keys[0], keys[n] * keys[n - 1].conjugate() * keys[n])
+        };
         let mut points = Vec::with_capacity(n + 3);
         points.push(first);
         points.extend_from_slice(&keys);
@@ -408,14 +463,14 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
             [w.x, w.y, w.z, 0.0]
         })
         .collect();
-    if spec.knots == KnotMode::Phantom {
+    if spec.knots == KnotMode::Phantom && !spec.looping {
         // q_-1^-1 q_0 = q_0^-1 q_1 exactly (and likewise at the end): reuse the key's
         // coefficient so the curve passes through q_0 and q_n to rounding.
         coefs[0] = coefs[1];
         coefs[m - 1] = coefs[m - 2];
     }
     let domain = [knots[k - 1], knots[m + 1]];
-    Ok(Prepared { order: k, points, coefs, knots, domain })
+    Ok(Prepared { curve: Curve::BSpline, order: k, points, coefs, knots, domain })
 }
 
 /// The full knot vector of a B-spline through `times.len()` keys (DESIGN section 3): phantom

@@ -1,7 +1,5 @@
 //! The curve families and their options (DESIGN section 3), as the user chooses them.
 
-use std::fmt;
-use std::str::FromStr;
 
 /// A curve family.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -18,6 +16,10 @@ pub enum Curve {
     NamKim,
     /// KKS order-k B-spline with the keys as control points. C^(k-2), approximating.
     BSpline,
+    /// KKS cubic B-spline through every key at its time (KKS section 6.2): C2, interpolating,
+    /// natural ends (or periodic when looping). The builder solves its control points, after
+    /// which every evaluator sees a cubic B-spline on explicit knots.
+    BSplineInterp,
 }
 
 /// How a B-spline's knot vector is made (DESIGN section 3).
@@ -66,12 +68,18 @@ pub struct CurveSpec {
     pub tangents: Tangents,
     /// Blend function for Nam-Kim.
     pub blend: Blend,
+    /// A periodic curve (`--loop`): the last key closes onto the first, the curve keeps its
+    /// continuity class across that seam and sample times wrap by the period (DESIGN
+    /// section 3, "Loops"). Only slerp, squad, hermite, nam-kim, phantom B-splines and
+    /// bspline-interp loop.
+    pub looping: bool,
 }
 
 impl Default for CurveSpec {
-    /// The CLI defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend.
+    /// The library defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend, open.
+    /// (The CLI's default curve is `bspline-interp`, DESIGN section 5.)
     fn default() -> Self {
-        Self { curve: Curve::BSpline, order: 4, knots: KnotMode::Phantom, tangents: Tangents::CatmullRom, blend: Blend::Cubic }
+        Self { curve: Curve::BSpline, order: 4, knots: KnotMode::Phantom, tangents: Tangents::CatmullRom, blend: Blend::Cubic, looping: false }
     }
 }
 
@@ -80,6 +88,17 @@ impl CurveSpec {
     #[must_use]
     pub fn new(curve: Curve) -> Self {
         Self { curve, ..Self::default() }
+    }
+
+    /// Whether this spec can loop (DESIGN section 3, "Loops"): Bezier and B-splines on
+    /// uniform, clamped or explicit knots cannot.
+    #[must_use]
+    pub fn can_loop(&self) -> bool {
+        match self.curve {
+            Curve::Bezier => false,
+            Curve::BSpline => self.knots == KnotMode::Phantom,
+            _ => true,
+        }
     }
 
     /// Minimum key count for this spec (DESIGN section 3).
@@ -106,12 +125,12 @@ macro_rules! names {
                 match self { $(Self::$variant => $name),+ }
             }
         }
-        impl fmt::Display for $ty {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        impl std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
                 f.write_str(self.name())
             }
         }
-        impl FromStr for $ty {
+        impl std::str::FromStr for $ty {
             type Err = String;
             fn from_str(s: &str) -> Result<Self, String> {
                 match s {
@@ -124,7 +143,7 @@ macro_rules! names {
 }
 pub(crate) use names;
 
-names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim", BSpline => "bspline");
+names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim", BSpline => "bspline", BSplineInterp => "bspline-interp");
 names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");
 names!(Tangents, "tangent source", CatmullRom => "catmull-rom", Zero => "zero", Given => "given");
 names!(Blend, "blend", Cubic => "cubic", Quadratic => "quadratic");

@@ -6,7 +6,6 @@ use crate::curve::names;
 use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
 use crate::job::{EvalJob, Output};
 use std::fmt;
-use std::str::FromStr;
 
 /// What the user asked for (`--device`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -84,6 +84,15 @@ pub enum Error {
     /// `tangents = given` on a vector channel, which has no per-key velocities.
     #[error("{track}: tangents = given needs per-key velocities, which translation and scale channels do not carry; use catmull-rom or zero")]
     VectorTangents { track: TrackId },
+    /// `--loop` with a family that cannot loop.
+    #[error("{track}: {curve} cannot loop; looping curves are slerp, squad, hermite, nam-kim, bspline-interp and bspline with phantom knots")]
+    LoopUnsupported { track: TrackId, curve: String },
+    /// A looping track whose last key is not its first rotation.
+    #[error("{track}: a looping track must end on its first rotation, but key {last} is {angle:.3e} rad from key 0 (at most 1e-3 allowed)")]
+    LoopNotClosed { track: TrackId, last: usize, angle: f64 },
+    /// The `bspline-interp` solve did not reach its key tolerance.
+    #[error("{track}: bspline-interp did not converge after {iterations} Newton iterations: the curve misses key {key} by {error:.3e} (at most 1e-12 rad allowed); keys this far apart have no stable C2 interpolant, try hermite")]
+    NoConvergence { track: TrackId, key: usize, error: f64, iterations: usize },
     /// A sample time is NaN or infinite.
     #[error("{track}: sample time {sample} is not finite ({value})")]
     NonFiniteSampleTime { track: TrackId, sample: usize, value: f64 },

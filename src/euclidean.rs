@@ -7,6 +7,11 @@
 //! key interpolation of its rotations. The test that ties the two together: keys on one axis
 //! (where rotations commute) give the rotation curve's angle equal to this curve's value.
 //! Evaluated in f64 on the CPU: translation channels are few next to rotation channels.
+//!
+//! Looping (DESIGN section 3, "Loops"): the per-cycle offset `D = p_n - p_0` is kept (root
+//! motion that advances every cycle): the curve is `p~(t) + D (t - tau_0) / T` with `p~` the
+//! periodic curve through `p_i - D (tau_i - tau_0) / T`, so velocity is periodic and
+//! `p(t + T) = p(t) + D`.
 
 use crate::basis::{bernstein_cumulative, bspline_cumulative};
 use crate::batch::{bspline_knots, key_times};
@@ -14,7 +19,7 @@ use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::DVec3;
 use crate::reference::{blend, key_segment};
-use crate::segment::locate;
+use crate::segment::{locate, wrap};
 
 /// A vector curve ready to evaluate: points, per-family coefficients and knots, laid out as
 /// the rotation batch lays them out (see [`crate::batch`]).
@@ -27,6 +32,8 @@ pub struct VectorCurve {
     coefs: Vec<DVec3>,
     knots: Vec<f64>,
     domain: [f64; 2],
+    /// Looping: the per-cycle offset per unit time, `D / T`.
+    drift: Option<DVec3>,
 }
 
 impl VectorCurve {
@@ -45,10 +52,24 @@ impl VectorCurve {
             return Err(Error::NonFiniteValue { track: id.clone(), key, value: values[key] });
         }
         let times = key_times(id, times, values.len())?;
-        let keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
+        let mut keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
         let n = keys.len() - 1;
         let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
         let (t0, tn) = (times[0], times[n]);
+        let mut drift = None;
+        if spec.looping {
+            if !spec.can_loop() {
+                return Err(Error::LoopUnsupported { track: id.clone(), curve: spec.curve.to_string() });
+            }
+            // Remove the per-cycle offset; p~_n = p~_0 exactly.
+            let rate = (keys[n] - keys[0]).scale(1.0 / (tn - t0));
+            for (i, key) in keys.iter_mut().enumerate().skip(1) {
+                *key = *key - rate.scale(times[i] - t0);
+            }
+            keys[n] = keys[0];
+            drift = Some(rate);
+        }
+        let looping = spec.looping;
         let mut curve = VectorCurve {
             curve: spec.curve,
             order: 0,
@@ -57,6 +78,7 @@ impl VectorCurve {
             points: keys,
             knots: times.clone(),
             domain: [t0, tn],
+            drift,
         };
         match spec.curve {
             Curve::Slerp => {}
@@ -64,9 +86,9 @@ impl VectorCurve {
                 curve.order = n;
                 curve.knots = vec![t0, tn];
             }
-            Curve::Squad => curve.coefs = squad_points(&curve.points),
+            Curve::Squad => curve.coefs = squad_points(&curve.points, looping),
             Curve::Hermite => {
-                let v = velocities(id, spec.tangents, &curve.points, &times)?;
+                let v = velocities(id, spec.tangents, &curve.points, &times, looping)?;
                 curve.coefs = (0..n)
                     .flat_map(|i| {
                         let third = (times[i + 1] - times[i]) / 3.0;
@@ -76,7 +98,7 @@ impl VectorCurve {
                     .collect();
             }
             Curve::NamKim => {
-                let v = velocities(id, spec.tangents, &curve.points, &times)?;
+                let v = velocities(id, spec.tangents, &curve.points, &times, looping)?;
                 curve.coefs = (0..n).flat_map(|i| [v[i], v[i + 1]].map(|v| v.scale(times[i + 1] - times[i]))).collect();
             }
             Curve::BSpline => {
@@ -85,13 +107,25 @@ impl VectorCurve {
                 curve.knots = bspline_knots(id, explicit_knots, spec, &times)?;
                 if spec.knots == KnotMode::Phantom {
                     let p = &curve.points;
-                    let (first, last) = (p[0].scale(2.0) - p[1], p[n].scale(2.0) - p[n - 1]);
+                    // Mirrored key steps, or looping the neighbours across the seam.
+                    let (first, last) = if looping { (p[n - 1], p[1]) } else { (p[0].scale(2.0) - p[1], p[n].scale(2.0) - p[n - 1]) };
                     curve.points.insert(0, first);
                     curve.points.push(last);
                 }
                 curve.coefs = steps(&curve.points);
                 let m = curve.points.len() - 1;
                 curve.domain = [curve.knots[k - 1], curve.knots[m + 1]];
+            }
+            Curve::BSplineInterp => {
+                // The natural (or periodic) cubic spline, as a cubic B-spline on the same
+                // knots as the rotation curve.
+                let (points, knots) = crate::interp::solve_vectors(&curve.points, &times, looping)
+                    .ok_or_else(|| Error::NoConvergence { track: id.clone(), key: 0, error: f64::NAN, iterations: 1 })?;
+                curve.curve = Curve::BSpline;
+                curve.order = 4;
+                curve.coefs = steps(&points);
+                curve.points = points;
+                curve.knots = knots;
             }
         }
         Ok(curve)
@@ -103,9 +137,18 @@ impl VectorCurve {
         self.domain
     }
 
-    /// The value at time `t` (clamped to the domain).
+    /// The value at time `t` (clamped to the domain; looping, wrapped and advanced by the
+    /// per-cycle offset).
     #[must_use]
     pub fn evaluate(&self, t: f64) -> DVec3 {
+        match self.drift {
+            Some(rate) => self.periodic(wrap(t, self.domain)) + rate.scale(t - self.domain[0]),
+            None => self.periodic(t),
+        }
+    }
+
+    /// The curve without the looping offset.
+    fn periodic(&self, t: f64) -> DVec3 {
         let Self { points, coefs, knots, .. } = self;
         let sum = |start: DVec3, terms: &mut dyn Iterator<Item = (DVec3, f64)>| terms.fold(start, |p, (c, b)| p + c.scale(b));
         match self.curve {
@@ -123,7 +166,7 @@ impl VectorCurve {
                 let basis = bernstein_cumulative(3, (t - knots[i]) / len);
                 sum(points[i], &mut coefs[3 * i..3 * i + 3].iter().zip(basis).map(|(&c, b)| (c, b[0])))
             }
-            Curve::BSpline => {
+            Curve::BSpline | Curve::BSplineInterp => {
                 let k = self.order;
                 let m = points.len() - 1;
                 let (l, t) = locate(knots, k - 1, m, t);
@@ -148,32 +191,38 @@ impl VectorCurve {
     }
 }
 
-/// Squad's auxiliary points, Euclidean: `s_i = p_i - ((p_{i+1} - p_i) + (p_{i-1} - p_i)) / 4`.
-fn squad_points(keys: &[DVec3]) -> Vec<DVec3> {
+/// Squad's auxiliary points, Euclidean: `s_i = p_i - ((p_{i+1} - p_i) + (p_{i-1} - p_i)) / 4`;
+/// at the ends `p_i`, or looping (`p_n = p_0`) the same rule with `p_{n-1}` and `p_1` across the
+/// seam.
+fn squad_points(keys: &[DVec3], looping: bool) -> Vec<DVec3> {
     let n = keys.len() - 1;
+    let aux = |i: usize, prev: DVec3, next: DVec3| keys[i] - ((next - keys[i]) + (prev - keys[i])).scale(0.25);
     (0..=n)
-        .map(|i| if i == 0 || i == n { keys[i] } else { keys[i] - ((keys[i + 1] - keys[i]) + (keys[i - 1] - keys[i])).scale(0.25) })
+        .map(|i| match (i == 0 || i == n, looping) {
+            (true, true) => aux(i, keys[n - 1], keys[1]),
+            (true, false) => keys[i],
+            (false, _) => aux(i, keys[i - 1], keys[i + 1]),
+        })
         .collect()
 }
 
 /// Per-key velocities: Catmull-Rom (the time-weighted mean of the neighbouring difference
 /// quotients, one-sided at the ends) or zero, as for rotations.
-fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64]) -> Result<Vec<DVec3>> {
+/// Looping (`p_n = p_0`), keys 0 and n use the neighbours across the seam.
+fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64], looping: bool) -> Result<Vec<DVec3>> {
     let n = keys.len() - 1;
+    let quotient = |a: usize| (keys[a + 1] - keys[a]).scale(1.0 / (times[a + 1] - times[a]));
+    let mean = |back: DVec3, ahead: DVec3, d0: f64, d1: f64| (back.scale(d1) + ahead.scale(d0)).scale(1.0 / (d0 + d1));
     match tangents {
         Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
         Tangents::Given => Err(Error::VectorTangents { track: id.clone() }),
         Tangents::CatmullRom => Ok((0..=n)
-            .map(|i| {
-                let quotient = |a: usize| (keys[a + 1] - keys[a]).scale(1.0 / (times[a + 1] - times[a]));
-                if i == 0 {
-                    quotient(0)
-                } else if i == n {
-                    quotient(n - 1)
-                } else {
-                    let (d0, d1) = (times[i] - times[i - 1], times[i + 1] - times[i]);
-                    (quotient(i - 1).scale(d1) + quotient(i).scale(d0)).scale(1.0 / (d0 + d1))
-                }
+            .map(|i| match (i, looping) {
+                (0, true) => mean(quotient(n - 1), quotient(0), times[n] - times[n - 1], times[1] - times[0]),
+                (i, true) if i == n => mean(quotient(n - 1), quotient(0), times[n] - times[n - 1], times[1] - times[0]),
+                (0, false) => quotient(0),
+                (i, false) if i == n => quotient(n - 1),
+                (i, _) => mean(quotient(i - 1), quotient(i), times[i] - times[i - 1], times[i + 1] - times[i]),
             })
             .collect()),
     }

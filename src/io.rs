@@ -114,7 +114,8 @@ impl<'a> ResultFile<'a> {
                 let range = times.offsets[i]..times.offsets[i + 1];
                 TrackResult {
                     name: track.name.as_deref(),
-                    times: times.track_times(i),
+                    // As requested: a looping track's own times were wrapped for evaluation.
+                    times: track.sample_times.clone().unwrap_or_else(|| times.track_times(i)),
                     rotations: &out.rotations[range.clone()],
                     angular_velocity: derivs.then(|| &out.angular_velocity[range.clone()]),
                     angular_acceleration: derivs.then(|| &out.angular_acceleration[range]),

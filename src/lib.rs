@@ -22,6 +22,7 @@ pub mod device;
 pub mod gpu;
 pub mod error;
 pub mod euclidean;
+pub mod interp;
 pub mod io;
 pub mod job;
 pub mod quat;

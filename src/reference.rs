@@ -21,7 +21,7 @@ use crate::batch::TrackView;
 use crate::curve::{Blend, Curve};
 use crate::quat::{DQuat, DVec3, Quat, Vec3};
 use crate::real::{Jet, Real};
-use crate::segment::locate;
+use crate::segment::{locate, wrap};
 
 /// One evaluated sample: rotation and physical body-frame derivatives.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -96,10 +96,11 @@ pub(crate) fn per_time(b: BasisJet, len: f64) -> BasisJet {
     [b[0], b[1] / len, b[2] / (len * len)]
 }
 
-/// Evaluates one packed track at time `t` (clamped to its domain).
+/// Evaluates one packed track at time `t` (clamped to its domain, or wrapped when looping).
 #[must_use]
 pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
     let TrackView { track, points, coefs, knots } = view;
+    let t = if track.looping { wrap(t, track.domain) } else { t };
     match track.curve {
         Curve::Slerp => {
             let (i, t, len) = key_segment(knots, t);
@@ -122,7 +123,8 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
             let factors = seg.iter().zip(basis).map(|(&c, b)| Factor { v: coef_vec(c), b: per_time(b, len) });
             cumulative_product(points[i].mul_scalar(start_sign), factors)
         }
-        Curve::BSpline => {
+        // bspline-interp is packed as a cubic B-spline on explicit knots.
+        Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
             let m = points.len() - 1;
             let (l, t) = locate(knots, k - 1, m, t);
@@ -148,6 +150,7 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
 pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> DQuat {
     match view.track.curve {
         Curve::Squad | Curve::NamKim => {
+            let t = if view.track.looping { wrap(t, view.track.domain) } else { t };
             let (i, t, len) = key_segment(view.knots, t);
             let h = (t - view.knots[i]) * (1.0 / len);
             if view.track.curve == Curve::Squad { squad(view, i, h) } else { nam_kim(view, i, h) }

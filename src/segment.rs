@@ -25,9 +25,34 @@ pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) 
     (span, t)
 }
 
+/// A looping track's sample time inside its period: times within `[start, end]` are kept as
+/// they are (so a sample at the end evaluates the end, not the start), others become
+/// `start + ((t - start) mod (end - start))`. NaN stays NaN (and is clamped later).
+#[must_use]
+pub fn wrap(t: f64, [start, end]: [f64; 2]) -> f64 {
+    if t >= start && t <= end || t.is_nan() {
+        return t;
+    }
+    let wrapped = start + (t - start).rem_euclid(end - start);
+    // rem_euclid can round up to the period itself.
+    if wrapped > end { start } else { wrapped }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::locate;
+    use super::{locate, wrap};
+
+    #[test]
+    fn wrap_keeps_the_period_and_moves_the_rest() {
+        let d = [1.0, 3.0];
+        assert_eq!(wrap(1.0, d), 1.0);
+        assert_eq!(wrap(3.0, d), 3.0);
+        assert_eq!(wrap(3.5, d), 1.5);
+        assert_eq!(wrap(0.5, d), 2.5);
+        assert_eq!(wrap(-5.0, d), 1.0);
+        assert_eq!(wrap(1.0 + 6.0 * 2.0 + 0.25, d), 1.25);
+        assert!(wrap(f64::NAN, d).is_nan());
+    }
 
     #[test]
     fn spans_are_right_open_except_the_last() {

@@ -18,7 +18,6 @@ use crate::job::{EvalJob, Layout};
 use crate::quat::DQuat;
 use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
-use crate::Batch;
 
 /// What a channel animates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -102,11 +101,28 @@ impl Animation {
     }
 }
 
+/// Which clips bake as loops (DESIGN section 5b, `--loop`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LoopMode {
+    /// A clip loops when every rotation channel's last key is the same rotation as its first
+    /// (within [`crate::batch::LOOP_TOLERANCE`]) and the curve can loop.
+    #[default]
+    Auto,
+    /// Every clip loops; a channel that does not close is an error naming it.
+    On,
+    /// No clip loops.
+    Off,
+}
+
+crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
+
 /// A resampled clip: frame times and, per channel (in the clip's order), one value per frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedClip {
     /// `start + i / rate` while not past the clip's last key (DESIGN section 5's `--rate`).
     pub times: Vec<f64>,
+    /// Whether the clip was baked as a loop (periodic curves, seam continuity).
+    pub looping: bool,
     /// Per channel, per frame: rotations `x, y, z, w`; vectors `x, y, z, 0`.
     pub values: Vec<Vec<[f32; 4]>>,
 }
@@ -132,7 +148,38 @@ impl Baked {
 /// Whether the curve passes through its keys (the others approximate them).
 #[must_use]
 pub fn interpolates(spec: &CurveSpec) -> bool {
-    matches!(spec.curve, Curve::Slerp | Curve::Squad | Curve::Hermite | Curve::NamKim)
+    matches!(spec.curve, Curve::Slerp | Curve::Squad | Curve::Hermite | Curve::NamKim | Curve::BSplineInterp)
+}
+
+/// Whether `clip` bakes as a loop under `mode` with `spec` (DESIGN section 5b).
+///
+/// # Errors
+/// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
+/// key is not its first rotation, named.
+pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, DeviceError> {
+    let open = |c: &Channel| {
+        let (first, last) = (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
+        let angle = first.angle_to(last);
+        (!(angle <= crate::batch::LOOP_TOLERANCE)).then_some(angle)
+    };
+    let rotations = || clip.channels.iter().filter(|c| c.property == Property::Rotation && c.values.len() > 1);
+    match mode {
+        LoopMode::Off => Ok(false),
+        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
+        LoopMode::On => {
+            let looping = CurveSpec { looping: true, ..*spec };
+            if !looping.can_loop() {
+                return Err(DeviceError::Input(format!("clip '{}': --loop on needs a curve that loops; {} does not", clip.name, spec.curve)));
+            }
+            if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
+                return Err(DeviceError::Input(format!(
+                    "{}: --loop on needs every rotation channel to end on its first rotation, but its last key is {angle:.3e} rad from its first (at most 1e-3)",
+                    animation.label(clip, c)
+                )));
+            }
+            Ok(true)
+        }
+    }
 }
 
 /// How far past the clip's end (in frames) a last frame is still kept.
@@ -155,18 +202,23 @@ pub fn frame_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>, DeviceEr
 /// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
 /// for the whole animation), vector channels with the Euclidean analogue in f64. Channels
 /// with a single key are held constant. Samples outside a channel's keys hold its end value
-/// (glTF's clamping).
+/// (glTF's clamping). Clips that loop (`loops`, [`clip_loops`]) use the periodic curves of
+/// DESIGN section 3, translations keeping their per-cycle offset.
 ///
 /// # Errors
 /// [`DeviceError::Input`] naming the clip, joint, property and key for bad keys;
 /// [`DeviceError::Device`] for device failures.
-pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, device: &Device) -> Result<Baked, DeviceError> {
+pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, DeviceError> {
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     // Rotation channels with two keys or more go to the device: (clip, channel) per track.
     let (mut tracks, mut owners, mut grids) = (Vec::new(), Vec::new(), Vec::new());
+    let mut builder = crate::BatchBuilder::new();
+    let input = |e: crate::Error| DeviceError::Input(e.to_string());
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
         let times = frame_times(start, end, rate)?;
+        let looping = clip_loops(animation, clip, spec, loops)?;
+        let spec = &CurveSpec { looping, ..*spec };
         let mut values = Vec::with_capacity(clip.channels.len());
         for (k, channel) in clip.channels.iter().enumerate() {
             let name = animation.label(clip, channel);
@@ -174,11 +226,9 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, device: &Device)
             values.push(match (channel.property, channel.values.len()) {
                 (_, 1) => constant(&id, channel, times.len())?,
                 (Property::Rotation, _) => {
-                    tracks.push(Track {
-                        name: Some(name),
-                        times: Some(channel.times.clone()),
-                        ..Track::from_rotations(channel.values.clone())
-                    });
+                    let track = Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) };
+                    builder.add(&track, spec).map_err(input)?;
+                    tracks.push(track);
                     owners.push((c, k));
                     grids.push(c);
                     Vec::new()
@@ -190,12 +240,11 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, device: &Device)
                 }
             });
         }
-        clips.push(BakedClip { times, values });
+        clips.push(BakedClip { times, looping, values });
     }
     let mut max_key_error = None;
     if !tracks.is_empty() {
-        let input = |e: crate::Error| DeviceError::Input(e.to_string());
-        let batch = Batch::from_tracks(&tracks, spec).map_err(input)?;
+        let batch = builder.build().map_err(input)?;
         let overrides: Vec<Option<&[f64]>> = grids.iter().map(|&c| Some(&clips[c].times[..])).collect();
         let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
         let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;

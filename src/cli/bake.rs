@@ -6,7 +6,7 @@
 use super::{parse, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, TEXTURE_CHANNELS};
+use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode, TEXTURE_CHANNELS};
 use quatcurve::io::{write_atomic, write_npy};
 use quatcurve::{Curve, CurveSpec, Device, KnotMode};
 use serde::Serialize;
@@ -22,9 +22,13 @@ pub struct BakeArgs {
     /// Output rate in Hz.
     #[arg(long, default_value_t = 30.0)]
     rate: f64,
-    /// Curve family; the default interpolates the keys (KKS cubic Hermite, C1).
-    #[arg(long, default_value = "hermite", value_parser = parse::<Curve>)]
+    /// Curve family; the default, bspline-interp, is C2 and passes through every key.
+    #[arg(long, default_value = "bspline-interp", value_parser = parse::<Curve>)]
     curve: Curve,
+    /// Which clips loop: auto (those whose rotation channels end on their first rotation),
+    /// on (every clip; one that does not close is an error), off.
+    #[arg(long = "loop", default_value = "auto", value_parser = parse::<LoopMode>)]
+    looping: LoopMode,
     #[command(flatten)]
     options: CurveArgs,
     /// Output directory (created if missing).
@@ -84,13 +88,16 @@ struct SidecarClip {
     frames: usize,
     start: f64,
     end: f64,
+    /// Baked as a loop: periodic curves, continuous across the seam.
+    #[serde(rename = "loop")]
+    looping: bool,
 }
 
 pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     if !(args.rate.is_finite() && args.rate > 0.0) {
         return Err(Failure::Input(format!("--rate must be a positive number of Hz, not {}", args.rate)));
     }
-    let spec = args.options.spec(args.curve, KnotMode::Phantom);
+    let spec = args.options.spec(args.curve, KnotMode::Phantom, false);
     let inputs = expand(&args.input)?;
     std::fs::create_dir_all(&args.output).map_err(|e| Failure::Internal(format!("{}: cannot create: {e}", args.output.display())))?;
     let device = Device::open(args.options.device)?;
@@ -174,7 +181,7 @@ fn bake_one(
         if animation.clips.is_empty() {
             return Err(Failure::Input("no rotation, translation or scale animation to bake".into()));
         }
-        let baked = bake::bake(animation, spec, args.rate, device)?;
+        let baked = bake::bake(animation, spec, args.rate, args.looping, device)?;
         row.samples = baked.sample_count();
         row.max_key_error = baked.max_key_error;
         write_outputs(&src, &baked, source, stem, args, &device.name())
@@ -210,7 +217,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Internal(e.to_string()))?;
             written.push(path);
             let (start, end) = (result.times[0], result.times[result.times.len() - 1]);
-            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end });
+            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end, looping: result.looping });
         }
         let sidecar = Sidecar {
             source,

@@ -81,7 +81,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     if args.tracks == 0 || args.samples == 0 || args.runs == 0 {
         return Err(Failure::Input("bench: --tracks, --samples and --runs must be at least 1".into()));
     }
-    let spec = args.options.spec(args.curve, KnotMode::Uniform);
+    let spec = args.options.spec(args.curve, KnotMode::Uniform, false);
     let (batch, times) =
         synthetic::workload(args.tracks, args.samples, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
     let explicit = args.devices.is_some();

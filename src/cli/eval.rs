@@ -14,9 +14,15 @@ pub struct EvalArgs {
     /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
     #[arg(long)]
     output: Option<PathBuf>,
-    /// Curve family.
-    #[arg(long, default_value = "bspline", value_parser = parse::<Curve>)]
+    /// Curve family: slerp, squad, bezier, hermite, nam-kim, bspline, bspline-interp (C2
+    /// through every key).
+    #[arg(long, default_value = "bspline-interp", value_parser = parse::<Curve>)]
     curve: Curve,
+    /// Periodic curves: each track's last key closes onto its first, the curve keeps its
+    /// continuity across that seam and sample times wrap by the period (slerp, squad,
+    /// hermite, nam-kim, bspline-interp, bspline with phantom knots).
+    #[arg(long = "loop")]
+    looping: bool,
     #[command(flatten)]
     options: CurveArgs,
     /// N samples per track from domain start to end, both included.
@@ -64,7 +70,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         }
         None => ("built-in demo".to_string(), demo_tracks()),
     };
-    let spec = args.options.spec(args.curve, KnotMode::Phantom);
+    let spec = args.options.spec(args.curve, KnotMode::Phantom, args.looping);
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
     let sampling = match (args.samples, args.rate) {

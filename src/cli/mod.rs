@@ -64,9 +64,9 @@ pub struct CurveArgs {
 
 impl CurveArgs {
     /// The spec for `curve` with these options; `knots` when none was given.
-    pub fn spec(&self, curve: Curve, knots: KnotMode) -> CurveSpec {
+    pub fn spec(&self, curve: Curve, knots: KnotMode, looping: bool) -> CurveSpec {
         let knots = self.knots.unwrap_or(knots);
-        CurveSpec { curve, order: self.order, knots, tangents: self.tangents, blend: self.blend }
+        CurveSpec { curve, order: self.order, knots, tangents: self.tangents, blend: self.blend, looping }
     }
 }
 

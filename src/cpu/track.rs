@@ -142,7 +142,8 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
     let (basis, factors, first, last) = match track.curve {
         Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1, 0, knots.len() - 2),
         Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3, 0, knots.len() - 2),
-        Curve::BSpline => {
+        // bspline-interp is packed as a cubic B-spline on explicit knots.
+        Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
             let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)

@@ -110,7 +110,8 @@ pub fn curve_code(curve: Curve) -> u32 {
         Curve::Bezier => 2,
         Curve::Hermite => 3,
         Curve::NamKim => 4,
-        Curve::BSpline => 5,
+        // bspline-interp is packed as a cubic B-spline on explicit knots.
+        Curve::BSpline | Curve::BSplineInterp => 5,
     }
 }
 

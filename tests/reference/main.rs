@@ -6,6 +6,7 @@ mod bspline;
 mod euclidean;
 mod families;
 mod hermite;
+mod interp;
 mod nam_kim;
 mod single_axis;
 mod squad_slerp;

@@ -86,6 +86,7 @@ fn scalar_curve(spec: &CurveSpec, phi: &[f64], times: &[f64], rates: &[f64], kno
             }
         }
         Curve::Squad | Curve::NamKim => unreachable!("not KKS families"),
+        Curve::BSplineInterp => unreachable!("checked against its own scalar twin in interp.rs"),
     }
 }
 

@@ -1,0 +1,581 @@
+//! `bspline-interp`: the C2 cubic KKS B-spline through every key (KKS section 6.2, Fig. 10;
+//! DESIGN section 3). The builder solves its control points here, once, in f64; afterwards
+//! the curve is an ordinary cubic B-spline on explicit knots, which every evaluator already
+//! runs.
+//!
+//! **Open curves.** Knots `tau_0 x4, tau_1, ..., tau_{n-1}, tau_n x4`, control points
+//! `P_0..P_{n+2}` with `P_0 = q_0`, `P_{n+2} = q_n`. Unknowns `P_1..P_{n+1}`; conditions
+//! `q(tau_0)'' = 0` (natural start), `q(tau_i) = q_i` for `0 < i < n`, natural end. At a knot
+//! `tau_i` only three control points act, `q(tau_i) = P_i exp(a w_{i+1}) exp(b w_{i+2})`, and at
+//! each end the body acceleration is `w_1 b_1'' + w_2 b_2'' + 2 b_1' b_2' (w_1 x w_2)` (the
+//! derivative recursion of DESIGN section 2 with every factor at the identity, or, at the right
+//! end, conjugated by one): so row `r` of the system involves unknowns `r - 1, r, r + 1` and the
+//! Jacobian is block tridiagonal with 3x3 blocks.
+//!
+//! **Loops.** Knots extended by the period, control points `P_0..P_{n-1}` repeating with
+//! period `n`, conditions `q(tau_i) = q_i` for `0 <= i < n`: a cyclic block tridiagonal system.
+//!
+//! **Newton.** Control points move by body rotations `P_j <- P_j exp(d_j)`; the blocks are the
+//! exact derivatives of each row (right and left Jacobians of the half-angle exp and log, below),
+//! so convergence is quadratic (one step when all keys share an axis, where the problem is
+//! linear). Each step is damped by halving until the residual decreases. The vector analogue
+//! (natural or periodic cubic spline of translations and scales) is the same system with scalar
+//! blocks, solved once.
+
+use crate::basis::bspline_cumulative;
+use crate::batch::relative_log;
+use crate::quat::{DQuat, DVec3};
+use glam::{DMat3, DVec3 as V3};
+use std::f64::consts::PI;
+
+/// Largest angle (rad) a solved curve may miss a key by (DESIGN section 3).
+pub const KEY_TOLERANCE: f64 = 1e-12;
+/// Newton iterations before giving up.
+pub const MAX_ITERATIONS: usize = 100;
+/// Newton stops once every key is within this (rad): well inside [`KEY_TOLERANCE`], at the
+/// level of f64 rounding in the row evaluation.
+const KEY_TARGET: f64 = 1e-14;
+/// Natural-end residual (body acceleration times the end segment's squared length, so in
+/// half-angle units per squared segment parameter) at which Newton stops.
+const END_TARGET: f64 = 1e-12;
+/// Largest body move of a control point in one Newton step (half-angle rad).
+const MAX_MOVE: f64 = 0.25;
+/// Natural-end residual accepted when the iteration cap is reached.
+const END_TOLERANCE: f64 = 1e-9;
+
+/// A solve that did not reach [`KEY_TOLERANCE`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NoConvergence {
+    /// Index of the key with the largest error (for an end condition: 0 or n).
+    pub worst_key: usize,
+    /// That key's error in rad (or, for an end condition, the residual acceleration).
+    pub error: f64,
+    /// Newton iterations run.
+    pub iterations: usize,
+}
+
+/// Solved control points and how the solve went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solved {
+    /// Sign-continuous control points: `P_0..P_{n+2}` (open) or `P_{n-1}, P_0, ..., P_{n-1},
+    /// P_0, P_1` (loop: one period of the repeating sequence, ready for [`Self::knots`]).
+    pub points: Vec<DQuat>,
+    /// The step into each point after the first, `w_j` with `P_j = P_{j-1} exp(w_j)`: the
+    /// curve's coefficients, not folded (they may exceed a half turn).
+    pub coefs: Vec<DVec3>,
+    /// The knot vector the points belong to (`n + 7` entries either way).
+    pub knots: Vec<f64>,
+    /// Newton iterations used.
+    pub iterations: usize,
+    /// Largest angle between a key and the curve at its time, rad.
+    pub key_error: f64,
+}
+
+/// The open knot vector `tau_0 x4, tau_1..tau_{n-1}, tau_n x4`.
+#[must_use]
+pub fn open_knots(times: &[f64]) -> Vec<f64> {
+    let n = times.len() - 1;
+    let mut knots = vec![times[0]; 4];
+    knots.extend_from_slice(&times[1..n]);
+    knots.extend(std::iter::repeat(times[n]).take(4));
+    knots
+}
+
+/// The periodic knot vector over one period: `t_j = tau_{j-3}` for `j = 0..n+7`, key times
+/// extended by `tau_{j+n} = tau_j + T`.
+#[must_use]
+pub fn periodic_knots(times: &[f64]) -> Vec<f64> {
+    let n = times.len() - 1;
+    let period = times[n] - times[0];
+    (0..n + 7)
+        .map(|j| {
+            let i = j as isize - 3;
+            let (cycle, r) = (i.div_euclid(n as isize), i.rem_euclid(n as isize) as usize);
+            // The key times themselves inside the period (so the domain ends are exact);
+            // extended ones carry the period.
+            if (0..=n as isize).contains(&i) { times[i as usize] } else { times[r] + cycle as f64 * period }
+        })
+        .collect()
+}
+
+/// Basis constants of one row, from the knot vector (computed once per track).
+#[derive(Clone, Copy, Debug)]
+enum Row {
+    /// `q(tau) = P_a exp(a w) exp(b w')`, to equal key `key`.
+    Key { a: f64, b: f64, key: usize },
+    /// Natural end: `c1 w + c2 w' + k (w x w') = 0` (times the squared end segment length).
+    End { c1: f64, c2: f64, k: f64 },
+}
+
+/// The rows of a system: open (`n + 1` rows over unknowns `P_1..P_{n+1}`) or periodic (`n`
+/// rows over `P_0..P_{n-1}`). Row `r` reads three consecutive control points; see
+/// [`System::triple`].
+struct System {
+    periodic: bool,
+    rows: Vec<Row>,
+    knots: Vec<f64>,
+}
+
+impl System {
+    fn new(times: &[f64], periodic: bool) -> Self {
+        let n = times.len() - 1;
+        let key_row = |knots: &[f64], i: usize| {
+            let b = bspline_cumulative(knots, 4, 3 + i, knots[3 + i]);
+            Row::Key { a: b[0][0], b: b[1][0], key: i }
+        };
+        if periodic {
+            let knots = periodic_knots(times);
+            let rows = (0..n).map(|i| key_row(&knots, i)).collect();
+            return Self { periodic, rows, knots };
+        }
+        let knots = open_knots(times);
+        let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Row::End { c1: b1[2] * d * d, c2: b2[2] * d * d, k: 2.0 * b1[1] * b2[1] * d * d };
+        let start = bspline_cumulative(&knots, 4, 3, times[0]);
+        let finish = bspline_cumulative(&knots, 4, n + 2, times[n]);
+        let mut rows = vec![end(start[0], start[1], times[1] - times[0])];
+        rows.extend((1..n).map(|i| key_row(&knots, i)));
+        rows.push(end(finish[1], finish[2], times[n] - times[n - 1]));
+        Self { periodic, rows, knots }
+    }
+
+    /// Number of unknown control points.
+    fn unknowns(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Indices into the control points of row `r`'s three points. Open: `P_r, P_{r+1},
+    /// P_{r+2}` of `P_0..P_{n+2}` (unknown `j` is point `j + 1`). Periodic: `P_{r-1}, P_r,
+    /// P_{r+1}` modulo `n` (unknown `j` is point `j`).
+    fn triple(&self, r: usize) -> [usize; 3] {
+        if self.periodic {
+            let n = self.rows.len();
+            [(r + n - 1) % n, r, (r + 1) % n]
+        } else {
+            [r, r + 1, r + 2]
+        }
+    }
+
+    /// The unknown each of row `r`'s points is, if any (open ends are fixed).
+    fn unknown(&self, point: usize) -> Option<usize> {
+        if self.periodic {
+            Some(point)
+        } else if point == 0 || point == self.rows.len() + 1 {
+            None
+        } else {
+            Some(point - 1)
+        }
+    }
+}
+
+/// `[v]x`: `skew(v) u = v x u`.
+fn skew(v: V3) -> DMat3 {
+    DMat3::from_cols(V3::new(0.0, v.z, -v.y), V3::new(-v.z, 0.0, v.x), V3::new(v.y, -v.x, 0.0))
+}
+
+/// Right Jacobian of the half-angle exp: `exp(v + d) = exp(v) exp(jr(v) d)` to first order.
+/// It is SO(3)'s `J_r(2 v)`: `I - (sin^2 h / h^2) [v]x + ((2h - sin 2h) / 2h^3) [v]x^2`, `h = |v|`.
+fn jr(v: V3) -> DMat3 {
+    let h = v.length();
+    let (c1, c2) = if h < 1e-4 {
+        (1.0 - h * h / 3.0, 2.0 / 3.0 - 2.0 * h * h / 15.0)
+    } else {
+        let s = h.sin();
+        (s * s / (h * h), (2.0 * h - (2.0 * h).sin()) / (2.0 * h * h * h))
+    };
+    let k = skew(v);
+    DMat3::IDENTITY - k * c1 + k * k * c2
+}
+
+/// Inverse right and left Jacobians of the half-angle log: `log(exp(v) exp(d)) = v + jr_inv d`
+/// and `log(exp(d) exp(v)) = v + jl_inv d` to first order:
+/// `I +- [v]x + ((1 - h cot h) / h^2) [v]x^2`, `h = |v| < pi`.
+fn j_inv(v: V3) -> (DMat3, DMat3) {
+    let h = v.length();
+    let c = if h < 1e-4 { 1.0 / 3.0 + h * h / 45.0 } else { (1.0 - h * h.cos() / h.sin()) / (h * h) };
+    let k = skew(v);
+    let k2 = k * k * c;
+    (DMat3::IDENTITY + k + k2, DMat3::IDENTITY - k + k2)
+}
+
+fn g(v: DVec3) -> V3 {
+    V3::new(v.x, v.y, v.z)
+}
+
+/// The rotation matrix of `q^-1`: `rot_inv(q) v = q^-1 v q`.
+fn rot_inv(q: DQuat) -> DMat3 {
+    DMat3::from_quat(glam::DQuat::from(q.conjugate()))
+}
+
+/// One row's residual and its derivatives with respect to body moves of its three points
+/// `p`, whose steps are `w` (`p[1] = p[0] exp(w[0])`, `p[2] = p[1] exp(w[1])`, not folded).
+fn linearize(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, [DMat3; 3]) {
+    let [w1, w2] = w;
+    let (v1, v2) = (g(w1), g(w2));
+    let ((r1, l1), (r2, l2)) = (j_inv(v1), j_inv(v2));
+    match row {
+        Row::Key { a, b, key } => {
+            let (e1, e2) = (DQuat::exp(w1.scale(a)), DQuat::exp(w2.scale(b)));
+            let c = e1 * e2;
+            let r = g(relative_log(keys[key], p[0] * c));
+            // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
+            let k1 = rot_inv(e2) * jr(v1 * a) * a;
+            let k2 = jr(v2 * b) * b;
+            let outer = j_inv(r).0;
+            (r, [outer * (rot_inv(c) - k1 * l1), outer * (k1 * r1 - k2 * l2), outer * (k2 * r2)])
+        }
+        Row::End { c1, c2, k } => {
+            let f = v1 * c1 + v2 * c2 + v1.cross(v2) * k;
+            let f1 = DMat3::from_diagonal(V3::splat(c1)) - skew(v2) * k;
+            let f2 = DMat3::from_diagonal(V3::splat(c2)) + skew(v1) * k;
+            (f, [-(f1 * l1), f1 * r1 - f2 * l2, f2 * r2])
+        }
+    }
+}
+
+/// What a linear solve carries per block: a vector, or a vector and a 3x3 block column (the
+/// border of a cyclic system).
+trait Block: Copy {
+    fn lmul(m: &DMat3, x: Self) -> Self;
+    fn minus(self, o: Self) -> Self;
+}
+
+impl Block for V3 {
+    fn lmul(m: &DMat3, x: Self) -> Self {
+        *m * x
+    }
+    fn minus(self, o: Self) -> Self {
+        self - o
+    }
+}
+
+impl Block for (V3, DMat3) {
+    fn lmul(m: &DMat3, x: Self) -> Self {
+        (*m * x.0, *m * x.1)
+    }
+    fn minus(self, o: Self) -> Self {
+        (self.0 - o.0, self.1 - o.1)
+    }
+}
+
+/// Block tridiagonal solve (block Thomas) of `lower_r x_{r-1} + diag_r x_r + upper_r x_{r+1}
+/// = rhs_r` in place; `None` when a pivot block is singular.
+fn solve_tridiagonal<T: Block>(lower: &[DMat3], diag: &[DMat3], upper: &[DMat3], rhs: &mut [T]) -> Option<()> {
+    let n = rhs.len();
+    let mut carry: Vec<DMat3> = Vec::with_capacity(n);
+    for r in 0..n {
+        let mut d = diag[r];
+        if r > 0 {
+            d -= lower[r] * carry[r - 1];
+            rhs[r] = rhs[r].minus(T::lmul(&lower[r], rhs[r - 1]));
+        }
+        let det = d.determinant();
+        if !det.is_finite() || det.abs() < 1e-300 {
+            return None;
+        }
+        let inv = d.inverse();
+        carry.push(inv * upper[r]);
+        rhs[r] = T::lmul(&inv, rhs[r]);
+    }
+    for r in (0..n.saturating_sub(1)).rev() {
+        rhs[r] = rhs[r].minus(T::lmul(&carry[r], rhs[r + 1]));
+    }
+    Some(())
+}
+
+/// Solves the (possibly cyclic) block tridiagonal system whose row `r` has blocks `blocks[r]`
+/// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add).
+fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], periodic: bool) -> Option<Vec<V3>> {
+    let n = rhs.len();
+    let zero = DMat3::ZERO;
+    // Sort each row's blocks into lower / diagonal / upper / corner (cyclic wrap).
+    let mut lower = vec![zero; n];
+    let mut diag = vec![zero; n];
+    let mut upper = vec![zero; n];
+    let mut corner = vec![zero; n]; // row 0: column n-1; row n-1: column 0 (n >= 3)
+    for r in 0..n {
+        for (col, block) in columns[r].iter().zip(&blocks[r]) {
+            let Some(c) = *col else { continue };
+            let slot = if c == r {
+                &mut diag[r]
+            } else if c + 1 == r {
+                &mut lower[r]
+            } else if c == r + 1 {
+                &mut upper[r]
+            } else {
+                &mut corner[r]
+            };
+            *slot += *block;
+        }
+    }
+    if !periodic || n < 3 {
+        let mut x = rhs.to_vec();
+        solve_tridiagonal(&lower, &diag, &upper, &mut x)?;
+        return Some(x);
+    }
+    // Border the last unknown: rows 0..n-2 solve T [y | Z] = [rhs | border], then the last
+    // row gives x_{n-1}, and x' = y - Z x_{n-1}.
+    let m = n - 1;
+    let mut aug: Vec<(V3, DMat3)> = (0..m).map(|r| (rhs[r], zero)).collect();
+    aug[0].1 = corner[0];
+    aug[m - 1].1 += upper[m - 1];
+    let mut upper_t = upper[..m].to_vec();
+    upper_t[m - 1] = zero;
+    solve_tridiagonal(&lower[..m], &diag[..m], &upper_t, &mut aug)?;
+    let (first, last) = (corner[m], lower[m]);
+    let s = diag[m] - last * aug[m - 1].1 - first * aug[0].1;
+    let det = s.determinant();
+    if !det.is_finite() || det.abs() < 1e-300 {
+        return None;
+    }
+    let xm = s.inverse() * (rhs[m] - last * aug[m - 1].0 - first * aug[0].0);
+    let mut x: Vec<V3> = aug.iter().map(|(y, z)| *y - *z * xm).collect();
+    x.push(xm);
+    Some(x)
+}
+
+/// How far a set of control points is from solving the system.
+#[derive(Clone, Copy, Debug)]
+struct Health {
+    /// Largest key error (physical angle, rad) and its key.
+    key: (f64, usize),
+    /// Largest end residual and its key (0 or n).
+    end: (f64, usize),
+    /// Sum of squared residuals, for the line search.
+    norm: f64,
+}
+
+impl Health {
+    fn converged(&self) -> bool {
+        self.key.0 <= KEY_TARGET && self.end.0 <= END_TARGET
+    }
+
+    fn acceptable(&self) -> bool {
+        self.key.0 <= KEY_TOLERANCE && self.end.0 <= END_TOLERANCE
+    }
+}
+
+/// The residuals and Jacobian blocks of every row at `points` with steps `steps`.
+fn assess(system: &System, points: &[DQuat], steps: &[DVec3], keys: &[DQuat], blocks: &mut [[DMat3; 3]], rhs: &mut [V3]) -> Health {
+    let mut health = Health { key: (0.0, 0), end: (0.0, 0), norm: 0.0 };
+    let last = keys.len() - 1;
+    for (r, &row) in system.rows.iter().enumerate() {
+        let [i, j, k] = system.triple(r);
+        let (residual, b) = linearize(row, [points[i], points[j], points[k]], [steps[j], steps[k]], keys);
+        let size = residual.length();
+        match row {
+            Row::Key { key, .. } if 2.0 * size > health.key.0 => health.key = (2.0 * size, key),
+            Row::End { .. } if size > health.end.0 => health.end = (size, if r == 0 { 0 } else { last }),
+            _ => {}
+        }
+        // A NaN anywhere must not pass for convergence.
+        if !size.is_finite() {
+            health.key = (f64::INFINITY, r);
+        }
+        health.norm += size * size;
+        blocks[r] = b;
+        rhs[r] = -residual;
+    }
+    health
+}
+
+/// Solves the control points of the curve through `keys` (sign-continuous, normalized) at
+/// `times`, open with natural ends or periodic. A periodic `keys` must close (`keys[n]` the
+/// same rotation as `keys[0]`; the builder checks it).
+///
+/// # Errors
+/// [`NoConvergence`] when Newton does not bring every key within [`KEY_TOLERANCE`] in
+/// [`MAX_ITERATIONS`] (or meets a singular system), naming the worst key.
+pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
+    let n = keys.len() - 1;
+    let system = System::new(times, periodic);
+    // Start from the keys themselves as control points.
+    let mut points: Vec<DQuat> = if periodic {
+        keys[..n].to_vec()
+    } else {
+        let mut p = Vec::with_capacity(n + 3);
+        p.push(keys[0]);
+        p.extend_from_slice(keys);
+        p.push(keys[n]);
+        p
+    };
+    let unknowns = system.unknowns();
+    let count = points.len();
+    // The step into each point (`steps[j]`: P_{j-1} to P_j, cyclic when periodic; unused
+    // `steps[0]` when open). Steps are never folded: an interpolating spline's control polygon
+    // overshoots its keys (about 3x on alternating keys), so its steps can pass a half turn.
+    let prev = |j: usize| (j + count - 1) % count;
+    let mut steps: Vec<DVec3> = (0..count).map(|j| relative_log(points[prev(j)], points[j])).collect();
+    let columns: Vec<[Option<usize>; 3]> = (0..unknowns).map(|r| system.triple(r).map(|p| system.unknown(p))).collect();
+    let mut blocks = vec![[DMat3::ZERO; 3]; unknowns];
+    let mut rhs = vec![V3::ZERO; unknowns];
+    let mut health = assess(&system, &points, &steps, keys, &mut blocks, &mut rhs);
+    let mut iterations = 0;
+    while !health.converged() && iterations < MAX_ITERATIONS {
+        iterations += 1;
+        let fail = |h: &Health| NoConvergence { worst_key: h.key.1, error: h.key.0, iterations };
+        let delta = solve(&columns, &blocks, &rhs, periodic).ok_or_else(|| fail(&health))?;
+        let moved = |p: usize, scale: f64| system.unknown(p).map_or(V3::ZERO, |u| delta[u] * scale);
+        // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
+        // lands in another basin), then halve the step until the residual decreases.
+        let largest = delta.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let mut scale = if largest > MAX_MOVE { MAX_MOVE / largest } else { 1.0 };
+        let mut accepted = None;
+        for _ in 0..30 {
+            let trial: Vec<DQuat> = points.iter().enumerate().map(|(p, &q)| q * DQuat::exp(d(moved(p, scale)))).collect();
+            // Each new step is the log of the new relative rotation on the branch nearest
+            // its first-order prediction.
+            let trial_steps: Vec<DVec3> = (0..count)
+                .map(|j| {
+                    let (r, l) = j_inv(g(steps[j]));
+                    let predicted = steps[j] + d(r * moved(j, scale) - l * moved(prev(j), scale));
+                    nearest_log(trial[prev(j)].conjugate() * trial[j], predicted)
+                })
+                .collect();
+            let (mut b, mut r) = (blocks.clone(), rhs.clone());
+            let h = assess(&system, &trial, &trial_steps, keys, &mut b, &mut r);
+            if h.norm < health.norm || h.converged() {
+                accepted = Some((trial, trial_steps, h, b, r));
+                break;
+            }
+            scale *= 0.5;
+        }
+        let Some((trial, trial_steps, h, b, r)) = accepted else { break };
+        (points, steps, health, blocks, rhs) = (trial, trial_steps, h, b, r);
+    }
+    if !health.acceptable() {
+        let (worst_key, error) = if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
+        return Err(NoConvergence { worst_key, error, iterations });
+    }
+    // Open: P_0..P_{n+2}. Periodic: one period of the repeating sequence, P_{n-1}, P_0, ...,
+    // P_{n-1}, P_0, P_1, with the step into each.
+    let order: Vec<usize> = if periodic { (0..n + 3).map(|j| (j + n - 1) % n).collect() } else { (0..count).collect() };
+    let mut out_points: Vec<DQuat> = order.iter().map(|&j| points[j]).collect();
+    let coefs: Vec<DVec3> = order[1..].iter().map(|&j| steps[j]).collect();
+    // Signs follow the product chain, so that P_j = P_{j-1} exp(w_j) exactly as evaluated.
+    for j in 1..out_points.len() {
+        let chained = out_points[j - 1] * DQuat::exp(coefs[j - 1]);
+        out_points[j] = out_points[j].aligned_with(chained);
+    }
+    Ok(Solved { points: out_points, coefs, knots: system.knots, iterations, key_error: health.key.0 })
+}
+
+fn d(v: V3) -> DVec3 {
+    DVec3::new(v.x, v.y, v.z)
+}
+
+/// The log of `r` (up to sign) nearest to `predicted`: among `(th + pi m) u` (every `v` with
+/// `exp v = +-r`, `th u` the short log), the one whose length along `u` is nearest
+/// `predicted`'s.
+fn nearest_log(r: DQuat, predicted: DVec3) -> DVec3 {
+    let short = r.aligned_with(DQuat::identity()).log();
+    let th = short.length();
+    let axis = if th > 0.0 {
+        short.scale(1.0 / th)
+    } else if predicted.length() > 0.0 {
+        // The identity: whole turns about any axis; take the prediction's.
+        predicted.scale(1.0 / predicted.length())
+    } else {
+        return short;
+    };
+    let m = ((predicted.dot(axis) - th) / PI).round();
+    axis.scale(th + PI * m)
+}
+
+/// The vector analogue: control points of the natural (open) or periodic cubic spline through
+/// `values` at `times`, in the same B-spline form and on the same knots as
+/// [`solve_rotations`]. A periodic `values` must close exactly (the caller removes any
+/// per-cycle offset first).
+///
+/// Returns `(points, knots)`, or `None` for a singular system (not reached for strictly
+/// increasing times).
+#[must_use]
+pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<(Vec<DVec3>, Vec<f64>)> {
+    let n = values.len() - 1;
+    let system = System::new(times, periodic);
+    let unknowns = system.unknowns();
+    let last_point = if periodic { n - 1 } else { n + 2 };
+    let fixed = |p: usize| -> V3 {
+        match (periodic, p) {
+            (false, 0) => g(values[0]),
+            (false, p) if p == last_point => g(values[n]),
+            _ => V3::ZERO,
+        }
+    };
+    let mut columns = Vec::with_capacity(unknowns);
+    let mut blocks = Vec::with_capacity(unknowns);
+    let mut rhs = Vec::with_capacity(unknowns);
+    for (r, &row) in system.rows.iter().enumerate() {
+        // Linear rows: key `(1 - a) p0 + (a - b) p1 + b p2 = value`; end
+        // `c1 (p1 - p0) + c2 (p2 - p1) = 0`.
+        let (weights, target) = match row {
+            Row::Key { a, b, key } => ([1.0 - a, a - b, b], g(values[key])),
+            Row::End { c1, c2, .. } => ([-c1, c1 - c2, c2], V3::ZERO),
+        };
+        let triple = system.triple(r);
+        let mut target = target;
+        for (&p, &w) in triple.iter().zip(&weights) {
+            if system.unknown(p).is_none() {
+                target -= fixed(p) * w;
+            }
+        }
+        columns.push(triple.map(|p| system.unknown(p)));
+        blocks.push(weights.map(|w| DMat3::from_diagonal(V3::splat(w))));
+        rhs.push(target);
+    }
+    let x = solve(&columns, &blocks, &rhs, periodic)?;
+    let d = |v: V3| DVec3::new(v.x, v.y, v.z);
+    let points = if periodic {
+        (0..n + 3).map(|j| d(x[(j + n - 1) % n])).collect()
+    } else {
+        let mut p = Vec::with_capacity(n + 3);
+        p.push(values[0]);
+        p.extend(x.into_iter().map(d));
+        p.push(values[n]);
+        p
+    };
+    Some((points, system.knots))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn q(v: [f64; 3]) -> DQuat {
+        DQuat::exp(DVec3::from_array(v))
+    }
+
+    /// Every row's Jacobian blocks against central differences of its residual.
+    #[test]
+    fn row_jacobians_match_finite_differences() {
+        let keys = [q([0.3, -0.2, 0.5]), q([0.9, 0.4, -0.3]), q([-0.2, 1.1, 0.2])];
+        let p = [q([0.1, 0.2, 0.3]), q([0.7, -0.5, 0.2]), q([-0.4, 0.9, 1.0])];
+        let rows = [Row::Key { a: 0.8, b: 0.15, key: 1 }, Row::End { c1: 1.7, c2: -0.6, k: 0.9 }];
+        for row in rows {
+            let w = |p: [DQuat; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
+            let (_, blocks) = linearize(row, p, w(p), &keys);
+            for (which, block) in blocks.iter().enumerate() {
+                for axis in 0..3 {
+                    let h = 1e-6;
+                    let mut e = V3::ZERO;
+                    e[axis] = h;
+                    let moved = |s: f64| {
+                        let mut p = p;
+                        let d = e * s;
+                        p[which] = p[which] * DQuat::exp(DVec3::new(d.x, d.y, d.z));
+                        linearize(row, p, w(p), &keys).0
+                    };
+                    let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
+                    let exact = block.col(axis);
+                    assert!((fd - exact).length() < 1e-7, "{row:?} block {which} axis {axis}: fd {fd} exact {exact}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn periodic_knots_extend_by_the_period() {
+        assert_eq!(periodic_knots(&[0.0, 1.0, 3.0, 4.0]), vec![-4.0, -3.0, -1.0, 0.0, 1.0, 3.0, 4.0, 5.0, 7.0, 8.0]);
+        assert_eq!(periodic_knots(&[0.5, 2.0]), vec![-4.0, -2.5, -1.0, 0.5, 2.0, 3.5, 5.0, 6.5]);
+    }
+}
+
