@@ -62,5 +62,40 @@ fn paths(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, paths);
+/// `bspline-interp`: the builder's Newton solve in keys per second (2,000 walk tracks of 32
+/// keys, open and looping), and build plus CPU evaluation of 1,000 samples per track (the
+/// end-to-end figure compared with scipy's RotationSpline in the README).
+fn interp(c: &mut Criterion) {
+    let open = synthetic::walk_tracks(2_000, synthetic::WORKLOAD_KEYS, 30.0);
+    let closed: Vec<_> = open
+        .iter()
+        .map(|t| {
+            let mut t = t.clone();
+            let first = t.rotations[0];
+            *t.rotations.last_mut().unwrap() = first;
+            t
+        })
+        .collect();
+    let keys = (open.len() * synthetic::WORKLOAD_KEYS) as u64;
+    let cpu = CpuEvaluator::new();
+    let mut group = c.benchmark_group("bspline_interp");
+    group.sample_size(10);
+    for (name, tracks, looping) in [("solve_open", &open, false), ("solve_loop", &closed, true)] {
+        let spec = CurveSpec { looping, ..CurveSpec::new(Curve::BSplineInterp) };
+        group.throughput(Throughput::Elements(keys));
+        group.bench_function(name, |b| b.iter(|| quatcurve::Batch::from_tracks(tracks, &spec).unwrap()));
+    }
+    let spec = CurveSpec::new(Curve::BSplineInterp);
+    group.throughput(Throughput::Elements(open.len() as u64 * 1_000));
+    group.bench_function("build_and_evaluate_cpu_1000_samples", |b| {
+        b.iter(|| {
+            let batch = quatcurve::Batch::from_tracks(&open, &spec).unwrap();
+            let times = quatcurve::SampleTimes::uniform(&batch, quatcurve::Sampling::Count(1_000)).unwrap();
+            cpu.evaluate(&batch, &times, &CpuOptions::default()).unwrap()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, interp, paths);
 criterion_main!(benches);

@@ -85,9 +85,18 @@ impl Batch {
     /// # Errors
     /// The first rule broken, naming the track and key ([`Error`]).
     pub fn from_tracks(tracks: &[Track], spec: &CurveSpec) -> Result<Self> {
+        use rayon::prelude::*;
+        // Tracks are prepared on every core (bspline-interp solves a Newton system per track),
+        // then appended in order, so the first error reported is the first track's.
+        let prepared: Vec<Result<Prepared>> = tracks
+            .par_iter()
+            .enumerate()
+            .with_min_len(64)
+            .map(|(index, track)| prepare(&TrackId { index, name: track.name.clone() }, track, spec))
+            .collect();
         let mut builder = BatchBuilder::new();
-        for track in tracks {
-            builder.add(track, spec)?;
+        for (track, packed) in tracks.iter().zip(prepared) {
+            builder.append(track, spec, packed?);
         }
         builder.build()
     }
@@ -151,6 +160,13 @@ impl BatchBuilder {
         let index = self.batch.tracks.len();
         let id = TrackId { index, name: track.name.clone() };
         let packed = prepare(&id, track, spec)?;
+        Ok(self.append(track, spec, packed))
+    }
+
+    /// Appends a prepared track; returns its index.
+    fn append(&mut self, track: &Track, spec: &CurveSpec, packed: Prepared) -> usize {
+        let index = self.batch.tracks.len();
+        let id = TrackId { index, name: track.name.clone() };
         let b = &mut self.batch;
         b.tracks.push(PackedTrack {
             curve: packed.curve,
@@ -169,7 +185,7 @@ impl BatchBuilder {
         b.coefs.extend(packed.coefs);
         b.knots.extend(packed.knots);
         b.ids.push(id);
-        Ok(index)
+        index
     }
 
     /// Finishes the batch.

@@ -143,6 +143,18 @@ impl EvalJob<'_> {
             )));
         }
         for (index, times) in self.times.tracks.iter().enumerate() {
+            let track = &self.batch.tracks[index];
+            if let TrackTimes::Uniform { start, step, count, last } = *times {
+                // The fast paths generate uniform times themselves and do not wrap them.
+                let end = last.unwrap_or(start + step * count.saturating_sub(1) as f64);
+                let [lo, hi] = track.domain;
+                if track.looping && count > 0 && (start < lo || end > hi + 1e-9 * (hi - lo)) {
+                    return Err(Error::BadJob(format!(
+                        "{}: a looping track's uniform sample times must stay within its period [{lo}, {hi}]; give other times as an explicit list (SampleTimes::new wraps them)",
+                        self.batch.ids[index]
+                    )));
+                }
+            }
             if let TrackTimes::Explicit { offset, count } = *times {
                 let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| {
                     Error::BadJob(format!("{}: explicit sample times out of range", self.batch.ids[index]))

@@ -97,8 +97,9 @@ impl Sampling {
 }
 
 impl SampleTimes {
-    /// Times for every track of `batch`: the track's own list where `overrides[i]` is `Some`,
-    /// else `sampling` over the track's domain. `overrides` may be shorter than the batch.
+    /// Times for every track of `batch`: the track's own list where `overrides[i]` is `Some`
+    /// (wrapped into the period for looping tracks), else `sampling` over the track's domain.
+    /// `overrides` may be shorter than the batch.
     ///
     /// # Errors
     /// As [`Sampling::over`], and [`Error::NonFiniteSampleTime`] for a NaN or infinite
@@ -113,7 +114,13 @@ impl SampleTimes {
                         return Err(Error::NonFiniteSampleTime { track, sample, value });
                     }
                     let offset = out.explicit.len();
-                    out.explicit.extend_from_slice(own);
+                    if track.looping {
+                        // Evaluators see times inside the period (DESIGN section 3, "Loops");
+                        // outputs echo the track's own list.
+                        out.explicit.extend(own.iter().map(|&t| crate::segment::wrap(t, track.domain)));
+                    } else {
+                        out.explicit.extend_from_slice(own);
+                    }
                     TrackTimes::Explicit { offset, count: own.len() }
                 }
                 None => sampling.over(track.domain[0], track.domain[1])?,

@@ -95,8 +95,35 @@ fn eval_defaults_run_on_the_built_in_demo() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(stderr(&out).contains("built-in demo"));
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
-    assert_eq!(doc["curve"], "bspline");
+    assert_eq!(doc["curve"], "bspline-interp");
     assert_eq!(doc["tracks"].as_array().unwrap().len(), 3);
+}
+
+/// `--loop`: the demo's gaits close, so they loop; times outside the period wrap (and are
+/// echoed as given); a track that does not close, or a curve that cannot loop, is exit 2
+/// naming the track.
+#[test]
+fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
+    let dir = tempfile::tempdir().unwrap();
+    let closed: Vec<[f64; 4]> = (0..5).map(|i| DQuat::exp(DVec3::new(0.4 * (i as f64 * std::f64::consts::FRAC_PI_2).sin(), 0.1, 0.0)).to_array()).collect();
+    let track = Track { name: Some("tail".into()), sample_times: Some(vec![0.5, 4.5, -3.5]), ..Track::from_rotations(closed) };
+    let input = write_tracks(dir.path(), &[track]);
+    let output = dir.path().join("out.json");
+    let out = quatcurve(&["eval", "--input", &input, "--output", output.to_str().unwrap(), "--loop", "--device", "reference"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
+    let t = &doc["tracks"][0];
+    assert_eq!(t["times"], serde_json::json!([0.5, 4.5, -3.5]));
+    let q = |i: usize| DQuat::from_array(serde_json::from_value(t["rotations"][i].clone()).unwrap());
+    assert!(q(0).angle_to(q(1)) < 1e-12 && q(0).angle_to(q(2)) < 1e-12, "4.5 and -3.5 wrap to 0.5 over a period of 4");
+
+    let open = write_tracks(dir.path(), &sample_tracks());
+    let out = quatcurve(&["eval", "--input", &open, "--loop"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("track 0 \"hips\"") && stderr(&out).contains("first rotation"), "{}", stderr(&out));
+    let out = quatcurve(&["eval", "--input", &input, "--loop", "--curve", "bezier"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("bezier cannot loop"), "{}", stderr(&out));
 }
 
 #[test]

@@ -25,6 +25,11 @@ fn every_family_order_and_knot_mode_matches_the_reference() {
 }
 
 #[test]
+fn bspline_interp_and_loops_match_the_reference() {
+    interp_and_loops(&on_cpu).assert_within_bars("cpu: bspline-interp and loops");
+}
+
+#[test]
 fn samples_exactly_on_knots_and_at_domain_ends() {
     samples_on_knots_and_domain_ends(&on_cpu).assert_within_bars("cpu: samples on knots and domain ends");
 }

@@ -46,6 +46,12 @@ fn every_family_order_and_knot_mode_matches_the_reference() {
 }
 
 #[test]
+fn bspline_interp_and_loops_match_the_reference() {
+    let Some(gpu) = gpu() else { return };
+    interp_and_loops(&on_gpu(gpu, false)).assert_within_bars("bspline-interp and loops");
+}
+
+#[test]
 fn samples_exactly_on_knots_and_at_domain_ends() {
     let Some(gpu) = gpu() else { return };
     samples_on_knots_and_domain_ends(&on_gpu(gpu, false)).assert_within_bars("samples on knots and domain ends");

@@ -232,3 +232,70 @@ pub fn long_clip(eval: Eval<'_>) -> Worst {
     }
     all
 }
+
+/// bspline-interp (open and looping) and every family that loops, on random, near-identical
+/// and sign-flipped keys (near-antipodal too for the piecewise loops), looping keys closed
+/// with either sign; uniform grids in both layouts and explicit times on every key, at the
+/// domain ends and one and two periods outside (wrapped), with derivatives.
+pub fn interp_and_loops(eval: Eval<'_>) -> Worst {
+    use quatcurve::{Blend, Tangents};
+    let interp = CurveSpec::new(Curve::BSplineInterp);
+    let specs = [
+        interp,
+        CurveSpec { looping: true, ..interp },
+        CurveSpec { looping: true, ..CurveSpec::new(Curve::Slerp) },
+        CurveSpec { looping: true, ..CurveSpec::new(Curve::Squad) },
+        CurveSpec { looping: true, ..CurveSpec::new(Curve::Hermite) },
+        CurveSpec { looping: true, tangents: Tangents::Zero, ..CurveSpec::new(Curve::Hermite) },
+        CurveSpec { looping: true, ..CurveSpec::new(Curve::NamKim) },
+        CurveSpec { looping: true, blend: Blend::Quadratic, ..CurveSpec::new(Curve::NamKim) },
+        CurveSpec { looping: true, ..CurveSpec::default() },
+    ];
+    let mut all = Worst::default();
+    for (k, kind) in KINDS.into_iter().enumerate() {
+        for spec in specs {
+            if kind == Kind::NearAntipodal && spec.curve == Curve::BSplineInterp {
+                continue; // Near half-turn steps: the C2 interpolant's control steps are ill-conditioned.
+            }
+            let mut g = Gen::new(300 + k as u64);
+            let mut builder = BatchBuilder::new();
+            for i in 0..5 {
+                let count = 3 + i % 6;
+                let t = loop {
+                    let mut t = accurate_track(&mut g, &spec, count, kind);
+                    if spec.looping {
+                        let sign = if g.coin() { 1.0 } else { -1.0 };
+                        t.rotations[count - 1] = DQuat::from_array(t.rotations[0]).mul_scalar(sign).to_array();
+                    }
+                    let keys: Vec<DQuat> = t.rotations.iter().map(|&k| DQuat::from_array(k).normalize()).collect();
+                    if keys.windows(2).all(|w| w[0].dot(w[1]).abs() >= 1e-3) {
+                        break t;
+                    }
+                };
+                builder.add(&t, &spec).unwrap_or_else(|e| panic!("{} {kind:?}: {e}", describe(&spec)));
+            }
+            let batch = builder.build().unwrap();
+            let per_rate = SampleTimes::uniform(&batch, Sampling::Rate(29.97)).unwrap();
+            let per_count = SampleTimes::uniform(&batch, Sampling::Count(38)).unwrap();
+            let overrides: Vec<Vec<f64>> = (0..batch.len())
+                .map(|i| {
+                    let view = batch.view(i);
+                    let [lo, hi] = view.track.domain;
+                    let mut t: Vec<f64> = view.knots.iter().copied().filter(|&t| t >= lo && t <= hi).collect();
+                    let period = hi - lo;
+                    t.extend([lo, hi, lo - 0.3 * period, hi + 1.7 * period, lo + 0.41 * period]);
+                    t
+                })
+                .collect();
+            let refs: Vec<Option<&[f64]>> = overrides.iter().map(|t| Some(t.as_slice())).collect();
+            let explicit = SampleTimes::new(&batch, &refs, Sampling::Count(2)).unwrap();
+            for (times, layout) in [(&per_rate, Layout::Track), (&per_count, Layout::Frame), (&explicit, Layout::Track)] {
+                for derivatives in [false, true] {
+                    let label = format!("{} loop={} {kind:?} {layout:?} derivatives={derivatives}", describe(&spec), spec.looping);
+                    all.merge(compare_output(&eval(&batch, times, layout, derivatives), &batch, times, layout, derivatives, &label));
+                }
+            }
+        }
+    }
+    all
+}
