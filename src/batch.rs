@@ -268,7 +268,7 @@ fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
         return Err(Error::LoopUnsupported { track: id.clone(), curve });
     }
     let angle = keys[0].angle_to(keys[keys.len() - 1]);
-    if !(angle <= LOOP_TOLERANCE) {
+    if angle.is_nan() || angle > LOOP_TOLERANCE {
         return Err(Error::LoopNotClosed { track: id.clone(), last: keys.len() - 1, angle });
     }
     Ok(())

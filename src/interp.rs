@@ -34,10 +34,10 @@ pub const KEY_TOLERANCE: f64 = 1e-12;
 pub const MAX_ITERATIONS: usize = 100;
 /// Newton stops once every key is within this (rad): well inside [`KEY_TOLERANCE`], at the
 /// level of f64 rounding in the row evaluation.
-const KEY_TARGET: f64 = 1e-14;
+const KEY_TARGET: f64 = 1e-13;
 /// Natural-end residual (body acceleration times the end segment's squared length, so in
 /// half-angle units per squared segment parameter) at which Newton stops.
-const END_TARGET: f64 = 1e-12;
+const END_TARGET: f64 = 1e-10;
 /// Largest body move of a control point in one Newton step (half-angle rad).
 const MAX_MOVE: f64 = 0.25;
 /// Natural-end residual accepted when the iteration cap is reached.
@@ -409,6 +409,9 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
     let mut blocks = vec![[DMat3::ZERO; 3]; unknowns];
     let mut rhs = vec![V3::ZERO; unknowns];
     let mut health = assess(&system, &points, &steps, keys, &mut blocks, &mut rhs);
+    // Trial buffers, swapped in when a step is accepted.
+    let (mut trial, mut trial_steps) = (points.clone(), steps.clone());
+    let (mut trial_blocks, mut trial_rhs) = (blocks.clone(), rhs.clone());
     let mut iterations = 0;
     while !health.converged() && iterations < MAX_ITERATIONS {
         iterations += 1;
@@ -421,26 +424,29 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
         let mut scale = if largest > MAX_MOVE { MAX_MOVE / largest } else { 1.0 };
         let mut accepted = None;
         for _ in 0..30 {
-            let trial: Vec<DQuat> = points.iter().enumerate().map(|(p, &q)| q * DQuat::exp(d(moved(p, scale)))).collect();
+            for (p, q) in trial.iter_mut().enumerate() {
+                *q = points[p] * DQuat::exp(d(moved(p, scale)));
+            }
             // Each new step is the log of the new relative rotation on the branch nearest
             // its first-order prediction.
-            let trial_steps: Vec<DVec3> = (0..count)
-                .map(|j| {
-                    let (r, l) = j_inv(g(steps[j]));
-                    let predicted = steps[j] + d(r * moved(j, scale) - l * moved(prev(j), scale));
-                    nearest_log(trial[prev(j)].conjugate() * trial[j], predicted)
-                })
-                .collect();
-            let (mut b, mut r) = (blocks.clone(), rhs.clone());
-            let h = assess(&system, &trial, &trial_steps, keys, &mut b, &mut r);
+            for (j, w) in trial_steps.iter_mut().enumerate() {
+                let (r, l) = j_inv(g(steps[j]));
+                let predicted = steps[j] + d(r * moved(j, scale) - l * moved(prev(j), scale));
+                *w = nearest_log(trial[prev(j)].conjugate() * trial[j], predicted);
+            }
+            let h = assess(&system, &trial, &trial_steps, keys, &mut trial_blocks, &mut trial_rhs);
             if h.norm < health.norm || h.converged() {
-                accepted = Some((trial, trial_steps, h, b, r));
+                accepted = Some(h);
                 break;
             }
             scale *= 0.5;
         }
-        let Some((trial, trial_steps, h, b, r)) = accepted else { break };
-        (points, steps, health, blocks, rhs) = (trial, trial_steps, h, b, r);
+        let Some(h) = accepted else { break };
+        std::mem::swap(&mut points, &mut trial);
+        std::mem::swap(&mut steps, &mut trial_steps);
+        std::mem::swap(&mut blocks, &mut trial_blocks);
+        std::mem::swap(&mut rhs, &mut trial_rhs);
+        health = h;
     }
     if !health.acceptable() {
         let (worst_key, error) = if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };

@@ -6,7 +6,8 @@
 //! `q(t) = q_0 prod_i exp(w_i B~_i(t))` with `w_i = log(q_{i-1}^-1 q_i)`, which turns any
 //! Euclidean spline basis into a unit-quaternion curve with the same continuity, local control
 //! and closed-form derivatives. quatcurve evaluates slerp, squad, KKS Bezier, KKS Hermite,
-//! Nam-Kim great-arc blends and order-k KKS B-splines.
+//! Nam-Kim great-arc blends, order-k KKS B-splines and the C2 cubic B-spline through every
+//! key ([`interp`]), open or looping (`CurveSpec::looping`).
 //!
 //! Flow: user [`Track`]s -> [`BatchBuilder`] (validation, hemisphere alignment, coefficients,
 //! knots: done once, in f64) -> packed [`Batch`] -> an [`EvalJob`] with `validate()` then

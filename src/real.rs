@@ -108,10 +108,20 @@ pub fn sinc_sqrt(x: f64) -> [f64; 3] {
 /// `x = tan^2 th`. Closed form: `A' = (B - A) / 2x`, `A'' = (-B^2 - 3 A') / 2x`, `B = 1 / (1 + x)`.
 #[must_use]
 pub fn atanc_sqrt(x: f64) -> [f64; 3] {
+    // sum (-1)^k x^k / (2k+1); 30 terms reach 1e-20 at x = 1/4. A constant table: this runs
+    // in every f64 log (the builder's, the reference's), where building it per call cost an
+    // allocation and 30 divisions.
+    const SERIES: [f64; 30] = {
+        let mut c = [0.0; 30];
+        let mut k = 0;
+        while k < 30 {
+            c[k] = if k % 2 == 0 { 1.0 } else { -1.0 } / (2 * k + 1) as f64;
+            k += 1;
+        }
+        c
+    };
     if x < SERIES_LIMIT {
-        // sum (-1)^k x^k / (2k+1); 30 terms reach 1e-20 at x = 1/4.
-        let c = (0..30).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 } / (2 * k + 1) as f64);
-        return polynomial(c.collect::<Vec<_>>().into_iter(), x);
+        return polynomial(SERIES.into_iter(), x);
     }
     let r = x.sqrt();
     let a = r.atan() / r;

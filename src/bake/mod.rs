@@ -160,7 +160,7 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
     let open = |c: &Channel| {
         let (first, last) = (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
         let angle = first.angle_to(last);
-        (!(angle <= crate::batch::LOOP_TOLERANCE)).then_some(angle)
+        (angle.is_nan() || angle > crate::batch::LOOP_TOLERANCE).then_some(angle)
     };
     let rotations = || clip.channels.iter().filter(|c| c.property == Property::Rotation && c.values.len() > 1);
     match mode {

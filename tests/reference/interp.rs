@@ -11,6 +11,7 @@ fn interp(looping: bool) -> CurveSpec {
 }
 
 /// Dense Gaussian elimination with partial pivoting (test-sized systems).
+#[allow(clippy::needless_range_loop)]
 fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
     let n = b.len();
     for c in 0..n {
