@@ -85,6 +85,15 @@ impl Batch {
     /// # Errors
     /// The first rule broken, naming the track and key ([`Error`]).
     pub fn from_tracks(tracks: &[Track], spec: &CurveSpec) -> Result<Self> {
+        Self::from_tracks_each(tracks, |_| *spec)
+    }
+
+    /// Builds a batch of `tracks`, track `i` with curve `spec(i)` (a bake mixes looping and
+    /// open clips).
+    ///
+    /// # Errors
+    /// The first rule broken, naming the track and key ([`Error`]).
+    pub fn from_tracks_each(tracks: &[Track], spec: impl Fn(usize) -> CurveSpec + Sync) -> Result<Self> {
         use rayon::prelude::*;
         // Tracks are prepared on every core (bspline-interp solves a Newton system per track),
         // then appended in order, so the first error reported is the first track's.
@@ -92,11 +101,11 @@ impl Batch {
             .par_iter()
             .enumerate()
             .with_min_len(64)
-            .map(|(index, track)| prepare(&TrackId { index, name: track.name.clone() }, track, spec))
+            .map(|(index, track)| prepare(&TrackId { index, name: track.name.clone() }, track, &spec(index)))
             .collect();
         let mut builder = BatchBuilder::new();
-        for (track, packed) in tracks.iter().zip(prepared) {
-            builder.append(track, spec, packed?);
+        for (index, (track, packed)) in tracks.iter().zip(prepared).enumerate() {
+            builder.append(track, &spec(index), packed?);
         }
         builder.build()
     }

@@ -212,7 +212,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     // Rotation channels with two keys or more go to the device: (clip, channel) per track.
     let (mut tracks, mut owners, mut grids) = (Vec::new(), Vec::new(), Vec::new());
-    let mut builder = crate::BatchBuilder::new();
+    let mut specs = Vec::new();
     let input = |e: crate::Error| DeviceError::Input(e.to_string());
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
@@ -227,7 +227,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
                 (_, 1) => constant(&id, channel, times.len())?,
                 (Property::Rotation, _) => {
                     let track = Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) };
-                    builder.add(&track, spec).map_err(input)?;
+                    specs.push(*spec);
                     tracks.push(track);
                     owners.push((c, k));
                     grids.push(c);
@@ -244,7 +244,8 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     }
     let mut max_key_error = None;
     if !tracks.is_empty() {
-        let batch = builder.build().map_err(input)?;
+        // Prepared on every core (bspline-interp solves a system per track).
+        let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
         let overrides: Vec<Option<&[f64]>> = grids.iter().map(|&c| Some(&clips[c].times[..])).collect();
         let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
         let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
