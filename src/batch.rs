@@ -270,11 +270,7 @@ pub const LOOP_TOLERANCE: f64 = 1e-3;
 /// A looping spec must be a family that loops, and the keys must close.
 fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
     if !spec.can_loop() {
-        let curve = match spec.curve {
-            Curve::BSpline => format!("bspline with {} knots", spec.knots),
-            other => other.to_string(),
-        };
-        return Err(Error::LoopUnsupported { track: id.clone(), curve });
+        return Err(Error::LoopUnsupported { track: id.clone(), curve: curve_label(spec) });
     }
     let angle = keys[0].angle_to(keys[keys.len() - 1]);
     if angle.is_nan() || angle > LOOP_TOLERANCE {
@@ -289,15 +285,19 @@ pub fn relative_log(a: DQuat, b: DQuat) -> DVec3 {
     (a.conjugate() * b.aligned_with(a)).log()
 }
 
+/// The curve as messages name it: B-splines with their order and knot mode.
+fn curve_label(spec: &CurveSpec) -> String {
+    match spec.curve {
+        Curve::BSpline => format!("bspline order {} with {} knots", spec.order, spec.knots),
+        other => other.to_string(),
+    }
+}
+
 /// Normalizes keys and makes them sign-continuous (DESIGN section 1).
 fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<DQuat>> {
     let min = spec.min_keys();
     if rotations.len() < min {
-        let curve = match spec.curve {
-            Curve::BSpline => format!("bspline order {} with {} knots", spec.order, spec.knots),
-            other => other.to_string(),
-        };
-        return Err(Error::TooFewKeys { track: id.clone(), curve, min, found: rotations.len() });
+        return Err(Error::TooFewKeys { track: id.clone(), curve: curve_label(spec), min, found: rotations.len() });
     }
     let mut keys: Vec<DQuat> = Vec::with_capacity(rotations.len());
     for (key, &value) in rotations.iter().enumerate() {

@@ -421,6 +421,13 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
         // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
         // lands in another basin), then halve the step until the residual decreases.
         let largest = delta.iter().map(|v| v.length()).fold(0.0, f64::max);
+        // First-order change of each step for the full move (the line search scales it).
+        let step_change: Vec<V3> = (0..count)
+            .map(|j| {
+                let (r, l) = j_inv(g(steps[j]));
+                r * moved(j, 1.0) - l * moved(prev(j), 1.0)
+            })
+            .collect();
         let mut scale = if largest > MAX_MOVE { MAX_MOVE / largest } else { 1.0 };
         let mut accepted = None;
         for _ in 0..30 {
@@ -430,8 +437,7 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
             // Each new step is the log of the new relative rotation on the branch nearest
             // its first-order prediction.
             for (j, w) in trial_steps.iter_mut().enumerate() {
-                let (r, l) = j_inv(g(steps[j]));
-                let predicted = steps[j] + d(r * moved(j, scale) - l * moved(prev(j), scale));
+                let predicted = steps[j] + d(step_change[j] * scale);
                 *w = nearest_log(trial[prev(j)].conjugate() * trial[j], predicted);
             }
             let h = assess(&system, &trial, &trial_steps, keys, &mut trial_blocks, &mut trial_rhs);

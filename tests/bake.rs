@@ -13,6 +13,8 @@ fn data_dir() -> Option<PathBuf> {
     if dir.join("Fox.glb").exists() {
         Some(dir)
     } else {
+        // CI sets QUATCURVE_REQUIRE_DATA=1, so a green run proves the real files were baked.
+        assert!(std::env::var_os("QUATCURVE_REQUIRE_DATA").is_none(), "../shared/data is absent and QUATCURVE_REQUIRE_DATA is set");
         eprintln!("skipped: ../shared/data is absent");
         None
     }

@@ -167,8 +167,7 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         LoopMode::Off => Ok(false),
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
         LoopMode::On => {
-            let looping = CurveSpec { looping: true, ..*spec };
-            if !looping.can_loop() {
+            if !spec.can_loop() {
                 return Err(DeviceError::Input(format!("clip '{}': --loop on needs a curve that loops; {} does not", clip.name, spec.curve)));
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
