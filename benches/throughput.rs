@@ -63,19 +63,11 @@ fn paths(c: &mut Criterion) {
 }
 
 /// `bspline-interp`: the builder's Newton solve in keys per second (2,000 walk tracks of 32
-/// keys, open and looping), and build plus CPU evaluation of 1,000 samples per track (the
+/// keys, open, and whole gait cycles looping), and build plus CPU evaluation of 1,000 samples per track (the
 /// end-to-end figure compared with scipy's RotationSpline in the README).
 fn interp(c: &mut Criterion) {
     let open = synthetic::walk_tracks(2_000, synthetic::WORKLOAD_KEYS, 30.0);
-    let closed: Vec<_> = open
-        .iter()
-        .map(|t| {
-            let mut t = t.clone();
-            let first = t.rotations[0];
-            *t.rotations.last_mut().unwrap() = first;
-            t
-        })
-        .collect();
+    let closed = synthetic::walk_cycles(2_000, synthetic::WORKLOAD_KEYS, 30.0);
     let keys = (open.len() * synthetic::WORKLOAD_KEYS) as u64;
     let cpu = CpuEvaluator::new();
     let mut group = c.benchmark_group("bspline_interp");

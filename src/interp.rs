@@ -206,28 +206,44 @@ fn rot_inv(q: DQuat) -> DMat3 {
     DMat3::from_quat(glam::DQuat::from(q.conjugate()))
 }
 
-/// One row's residual and its derivatives with respect to body moves of its three points
-/// `p`, whose steps are `w` (`p[1] = p[0] exp(w[0])`, `p[2] = p[1] exp(w[1])`, not folded).
-fn linearize(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, [DMat3; 3]) {
-    let [w1, w2] = w;
-    let (v1, v2) = (g(w1), g(w2));
-    let ((r1, l1), (r2, l2)) = (j_inv(v1), j_inv(v2));
+/// The curve's rotation at a key row's knot, `P_0 exp(a w) exp(b w')`, with the two factors.
+fn key_point(p0: DQuat, w: [DVec3; 2], a: f64, b: f64) -> (DQuat, DQuat, DQuat) {
+    let (e1, e2) = (DQuat::exp(w[0].scale(a)), DQuat::exp(w[1].scale(b)));
+    let c = e1 * e2;
+    (p0 * c, e2, c)
+}
+
+/// One row's residual at control points `p` whose steps are `w` (`p[1] = p[0] exp(w[0])`,
+/// `p[2] = p[1] exp(w[1])`, not folded): the key error as a body rotation vector, or the
+/// natural-end condition.
+fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> V3 {
     match row {
-        Row::Key { a, b, key } => {
-            let (e1, e2) = (DQuat::exp(w1.scale(a)), DQuat::exp(w2.scale(b)));
-            let c = e1 * e2;
-            let r = g(relative_log(keys[key], p[0] * c));
+        Row::Key { a, b, key } => g(relative_log(keys[key], key_point(p[0], w, a, b).0)),
+        Row::End { c1, c2, k } => {
+            let (v1, v2) = (g(w[0]), g(w[1]));
+            v1 * c1 + v2 * c2 + v1.cross(v2) * k
+        }
+    }
+}
+
+/// The derivatives of row `residual` `r` with respect to body moves of its three points, given
+/// the steps' inverse Jacobians `jw` ([`j_inv`], shared by the two rows each step enters).
+fn row_jacobian(row: Row, p0: DQuat, w: [DVec3; 2], jw: [(DMat3, DMat3); 2], r: V3) -> [DMat3; 3] {
+    let (v1, v2) = (g(w[0]), g(w[1]));
+    let [(r1, l1), (r2, l2)] = jw;
+    match row {
+        Row::Key { a, b, .. } => {
+            let (_, e2, c) = key_point(p0, w, a, b);
             // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
             let k1 = rot_inv(e2) * jr(v1 * a) * a;
             let k2 = jr(v2 * b) * b;
             let outer = j_inv(r).0;
-            (r, [outer * (rot_inv(c) - k1 * l1), outer * (k1 * r1 - k2 * l2), outer * (k2 * r2)])
+            [outer * (rot_inv(c) - k1 * l1), outer * (k1 * r1 - k2 * l2), outer * (k2 * r2)]
         }
         Row::End { c1, c2, k } => {
-            let f = v1 * c1 + v2 * c2 + v1.cross(v2) * k;
             let f1 = DMat3::from_diagonal(V3::splat(c1)) - skew(v2) * k;
             let f2 = DMat3::from_diagonal(V3::splat(c2)) + skew(v1) * k;
-            (f, [-(f1 * l1), f1 * r1 - f2 * l2, f2 * r2])
+            [-(f1 * l1), f1 * r1 - f2 * l2, f2 * r2]
         }
     }
 }
@@ -354,14 +370,25 @@ impl Health {
     }
 }
 
-/// The residuals and Jacobian blocks of every row at `points` with steps `steps`.
-fn assess(system: &System, points: &[DQuat], steps: &[DVec3], keys: &[DQuat], blocks: &mut [[DMat3; 3]], rhs: &mut [V3]) -> Health {
+/// A candidate solution and its linearization: control points, the step into each, the
+/// steps' inverse Jacobians, and every row's Jacobian blocks and negated residual.
+#[derive(Clone)]
+struct State {
+    points: Vec<DQuat>,
+    steps: Vec<DVec3>,
+    step_jacobians: Vec<(DMat3, DMat3)>,
+    blocks: Vec<[DMat3; 3]>,
+    rhs: Vec<V3>,
+}
+
+/// Fills `state`'s right-hand sides (negated residuals) from its points and steps.
+fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
     let mut health = Health { key: (0.0, 0), end: (0.0, 0), norm: 0.0 };
     let last = keys.len() - 1;
     for (r, &row) in system.rows.iter().enumerate() {
         let [i, j, k] = system.triple(r);
-        let (residual, b) = linearize(row, [points[i], points[j], points[k]], [steps[j], steps[k]], keys);
-        let size = residual.length();
+        let res = residual(row, [state.points[i], state.points[j], state.points[k]], [state.steps[j], state.steps[k]], keys);
+        let size = res.length();
         match row {
             Row::Key { key, .. } if 2.0 * size > health.key.0 => health.key = (2.0 * size, key),
             Row::End { .. } if size > health.end.0 => health.end = (size, if r == 0 { 0 } else { last }),
@@ -372,10 +399,65 @@ fn assess(system: &System, points: &[DQuat], steps: &[DVec3], keys: &[DQuat], bl
             health.key = (f64::INFINITY, r);
         }
         health.norm += size * size;
-        blocks[r] = b;
-        rhs[r] = -residual;
+        state.rhs[r] = -res;
     }
     health
+}
+
+/// Fills `state`'s step Jacobians and Jacobian blocks (after [`assess`], whose residuals the
+/// key rows' blocks read). Only states that Newton steps from need them.
+fn linearize(system: &System, state: &mut State) {
+    let State { points, steps, step_jacobians, blocks, rhs } = state;
+    for (jac, w) in step_jacobians.iter_mut().zip(steps.iter()) {
+        *jac = j_inv(g(*w));
+    }
+    for (r, &row) in system.rows.iter().enumerate() {
+        let [i, j, k] = system.triple(r);
+        blocks[r] = row_jacobian(row, points[i], [steps[j], steps[k]], [step_jacobians[j], step_jacobians[k]], -rhs[r]);
+    }
+}
+
+/// Newton's starting control points and the step into each. Each key row's point is its key
+/// moved against the row's residual at the keys (one Richardson step on `A P = q`: exact for
+/// the row's linear part on keys along one axis at constant speed, and it leaves only the
+/// high-frequency part of the error); an open curve's two points next to the ends go on the
+/// chord that solves the natural-end rows' linear part (`c1 w + c2 w' = 0`). Starting from the
+/// keys themselves cost most tracks one more iteration. The steps follow the moves to first
+/// order and take the nearest branch, as in a Newton update.
+fn first_guess(system: &System, keys: &[DQuat]) -> (Vec<DQuat>, Vec<DVec3>) {
+    let n = keys.len() - 1;
+    let points: Vec<DQuat> = if system.periodic { keys[..n].to_vec() } else { [&keys[..1], keys, &keys[n..]].concat() };
+    let count = points.len();
+    let prev = |j: usize| (j + count - 1) % count;
+    // Steps between keys are short (the keys are sign-continuous), so folding is right here.
+    let steps: Vec<V3> = (0..count).map(|j| g(relative_log(points[prev(j)], points[j]))).collect();
+    let mut moves = vec![V3::ZERO; count];
+    for (r, &row) in system.rows.iter().enumerate() {
+        if let Row::Key { a, b, .. } = row {
+            // Residual at the keys: (1 - a) back along the step in, b along the step out.
+            let j = system.triple(r)[1];
+            moves[j] = steps[j] * (1.0 - a) - steps[(j + 1) % count] * b;
+        }
+    }
+    if !system.periodic {
+        for (row, j) in [(0, 1), (n, n + 1)] {
+            if let Row::End { c1, c2, .. } = system.rows[row] {
+                let s = -c2 / (c1 - c2);
+                let s = if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 };
+                let chord = steps[j] + steps[j + 1] + moves[j + 1] - moves[j - 1];
+                moves[j] = chord * s - steps[j] + moves[j - 1];
+            }
+        }
+    }
+    let moved: Vec<DQuat> = points.iter().zip(&moves).map(|(p, m)| *p * DQuat::exp(d(*m))).collect();
+    let moved_steps = (0..count)
+        .map(|j| {
+            let (r, l) = j_inv(steps[j]);
+            let predicted = d(steps[j] + r * moves[j] - l * moves[prev(j)]);
+            nearest_log(moved[prev(j)].conjugate() * moved[j], predicted)
+        })
+        .collect();
+    (moved, moved_steps)
 }
 
 /// Solves the control points of the curve through `keys` (sign-continuous, normalized) at
@@ -388,35 +470,30 @@ fn assess(system: &System, points: &[DQuat], steps: &[DVec3], keys: &[DQuat], bl
 pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
     let n = keys.len() - 1;
     let system = System::new(times, periodic);
-    // Start from the keys themselves as control points.
-    let mut points: Vec<DQuat> = if periodic {
-        keys[..n].to_vec()
-    } else {
-        let mut p = Vec::with_capacity(n + 3);
-        p.push(keys[0]);
-        p.extend_from_slice(keys);
-        p.push(keys[n]);
-        p
-    };
+    let (points, steps) = first_guess(&system, keys);
     let unknowns = system.unknowns();
     let count = points.len();
     // The step into each point (`steps[j]`: P_{j-1} to P_j, cyclic when periodic; unused
     // `steps[0]` when open). Steps are never folded: an interpolating spline's control polygon
     // overshoots its keys (about 3x on alternating keys), so its steps can pass a half turn.
     let prev = |j: usize| (j + count - 1) % count;
-    let mut steps: Vec<DVec3> = (0..count).map(|j| relative_log(points[prev(j)], points[j])).collect();
     let columns: Vec<[Option<usize>; 3]> = (0..unknowns).map(|r| system.triple(r).map(|p| system.unknown(p))).collect();
-    let mut blocks = vec![[DMat3::ZERO; 3]; unknowns];
-    let mut rhs = vec![V3::ZERO; unknowns];
-    let mut health = assess(&system, &points, &steps, keys, &mut blocks, &mut rhs);
-    // Trial buffers, swapped in when a step is accepted.
-    let (mut trial, mut trial_steps) = (points.clone(), steps.clone());
-    let (mut trial_blocks, mut trial_rhs) = (blocks.clone(), rhs.clone());
+    let mut state = State {
+        points,
+        steps,
+        step_jacobians: vec![(DMat3::ZERO, DMat3::ZERO); count],
+        blocks: vec![[DMat3::ZERO; 3]; unknowns],
+        rhs: vec![V3::ZERO; unknowns],
+    };
+    let mut health = assess(&system, &mut state, keys);
+    // The trial state, swapped in when a step is accepted.
+    let mut trial = state.clone();
     let mut iterations = 0;
     while !health.converged() && iterations < MAX_ITERATIONS {
         iterations += 1;
         let fail = |h: &Health| NoConvergence { worst_key: h.key.1, error: h.key.0, iterations };
-        let delta = solve(&columns, &blocks, &rhs, periodic).ok_or_else(|| fail(&health))?;
+        linearize(&system, &mut state);
+        let delta = solve(&columns, &state.blocks, &state.rhs, periodic).ok_or_else(|| fail(&health))?;
         let moved = |p: usize, scale: f64| system.unknown(p).map_or(V3::ZERO, |u| delta[u] * scale);
         // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
         // lands in another basin), then halve the step until the residual decreases.
@@ -424,23 +501,23 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
         // First-order change of each step for the full move (the line search scales it).
         let step_change: Vec<V3> = (0..count)
             .map(|j| {
-                let (r, l) = j_inv(g(steps[j]));
+                let (r, l) = state.step_jacobians[j];
                 r * moved(j, 1.0) - l * moved(prev(j), 1.0)
             })
             .collect();
         let mut scale = if largest > MAX_MOVE { MAX_MOVE / largest } else { 1.0 };
         let mut accepted = None;
         for _ in 0..30 {
-            for (p, q) in trial.iter_mut().enumerate() {
-                *q = points[p] * DQuat::exp(d(moved(p, scale)));
+            for (p, q) in trial.points.iter_mut().enumerate() {
+                *q = state.points[p] * DQuat::exp(d(moved(p, scale)));
             }
             // Each new step is the log of the new relative rotation on the branch nearest
             // its first-order prediction.
-            for (j, w) in trial_steps.iter_mut().enumerate() {
-                let predicted = steps[j] + d(step_change[j] * scale);
-                *w = nearest_log(trial[prev(j)].conjugate() * trial[j], predicted);
+            for (j, change) in step_change.iter().enumerate() {
+                let predicted = state.steps[j] + d(*change * scale);
+                trial.steps[j] = nearest_log(trial.points[prev(j)].conjugate() * trial.points[j], predicted);
             }
-            let h = assess(&system, &trial, &trial_steps, keys, &mut trial_blocks, &mut trial_rhs);
+            let h = assess(&system, &mut trial, keys);
             if h.norm < health.norm || h.converged() {
                 accepted = Some(h);
                 break;
@@ -448,12 +525,10 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
             scale *= 0.5;
         }
         let Some(h) = accepted else { break };
-        std::mem::swap(&mut points, &mut trial);
-        std::mem::swap(&mut steps, &mut trial_steps);
-        std::mem::swap(&mut blocks, &mut trial_blocks);
-        std::mem::swap(&mut rhs, &mut trial_rhs);
+        std::mem::swap(&mut state, &mut trial);
         health = h;
     }
+    let State { points, steps, .. } = state;
     if !health.acceptable() {
         let (worst_key, error) = if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
         return Err(NoConvergence { worst_key, error, iterations });
@@ -564,7 +639,8 @@ mod tests {
         let rows = [Row::Key { a: 0.8, b: 0.15, key: 1 }, Row::End { c1: 1.7, c2: -0.6, k: 0.9 }];
         for row in rows {
             let w = |p: [DQuat; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
-            let (_, blocks) = linearize(row, p, w(p), &keys);
+            let jw = w(p).map(|v| j_inv(g(v)));
+            let blocks = row_jacobian(row, p[0], w(p), jw, residual(row, p, w(p), &keys));
             for (which, block) in blocks.iter().enumerate() {
                 for axis in 0..3 {
                     let h = 1e-6;
@@ -574,7 +650,7 @@ mod tests {
                         let mut p = p;
                         let d = e * s;
                         p[which] = p[which] * DQuat::exp(DVec3::new(d.x, d.y, d.z));
-                        linearize(row, p, w(p), &keys).0
+                        residual(row, p, w(p), &keys)
                     };
                     let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
                     let exact = block.col(axis);

@@ -6,11 +6,12 @@
 //! formulas run on `f64` and on derivative-carrying [`Jet`](crate::real::Jet)s.
 //!
 //! Small angles: exp and log are written through smooth functions of squared norms
-//! ([`cos_sqrt`], [`sinc_sqrt`], [`atanc_sqrt`]) with exact series branches, so they are exact
+//! ([`cos_sqrt`](crate::real::cos_sqrt), [`sinc_sqrt`](crate::real::sinc_sqrt),
+//! [`atanc_sqrt`](crate::real::atanc_sqrt)) with exact series branches, so they are exact
 //! to rounding and differentiable through zero (no `sqrt(0)`), and their derivatives do not
 //! cancel digits (which matters in f32 on the GPU twin).
 
-use crate::real::{atanc_sqrt, cos_sqrt, sinc_sqrt, Real};
+use crate::real::Real;
 use std::ops::{Add, Mul, Neg, Sub};
 
 /// A 3-vector: angular velocities, log-coefficients `w_i`, pure quaternion parts.
@@ -219,8 +220,7 @@ impl<R: Real> Quat<R> {
     #[must_use]
     pub fn exp(v: Vec3<R>) -> Self {
         let th2 = v.length_squared();
-        let c = th2.apply(cos_sqrt(th2.value()));
-        let sinc = th2.apply(sinc_sqrt(th2.value()));
+        let (c, sinc) = th2.cos_sinc_sqrt();
         Self::from_xyzw(v.x * sinc, v.y * sinc, v.z * sinc, c)
     }
 
@@ -238,7 +238,7 @@ impl<R: Real> Quat<R> {
         let (s2v, wv) = (s2.value(), w.value());
         let factor = if wv > 0.0 && s2v < wv * wv {
             let x = s2 / (w * w);
-            x.apply(atanc_sqrt(x.value())) / w
+            x.atanc_sqrt() / w
         } else if s2v == 0.0 {
             return Vec3::new(R::cst(std::f64::consts::PI), R::cst(0.0), R::cst(0.0));
         } else {

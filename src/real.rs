@@ -46,6 +46,16 @@ pub trait Real:
     /// Applies a scalar function given `[f, f', f'']` at `self.value()` (the chain rule).
     #[must_use]
     fn apply(self, f: [f64; 3]) -> Self;
+    /// `(cos sqrt x, sin sqrt x / sqrt x)` at `x = self`: the two factors of `exp`.
+    #[must_use]
+    fn cos_sinc_sqrt(self) -> (Self, Self) {
+        (self.apply(cos_sqrt(self.value())), self.apply(sinc_sqrt(self.value())))
+    }
+    /// `atan sqrt x / sqrt x` at `x = self`: the factor of `log` below a quarter turn.
+    #[must_use]
+    fn atanc_sqrt(self) -> Self {
+        self.apply(atanc_sqrt(self.value()))
+    }
 }
 
 /// Below this argument the functions of `x` below use their Taylor series. Their closed forms
@@ -64,18 +74,54 @@ fn polynomial(c: impl DoubleEndedIterator<Item = f64>, x: f64) -> [f64; 3] {
     [p, d1, 2.0 * d2]
 }
 
+/// Taylor coefficients (lowest first) of `cos sqrt x = sum (-1)^k x^k / (2k)!`; 10 terms reach
+/// rounding below [`SERIES_LIMIT`]. Constant tables: these run in every f64 exp and log (the
+/// builder's Newton solve, the reference), where building them per call was a measured cost.
+const COS_SERIES: [f64; 10] = {
+    let mut c = [0.0; 10];
+    let (mut k, mut term) = (0, 1.0);
+    while k < 10 {
+        c[k] = term;
+        term *= -1.0 / ((2 * k + 1) * (2 * k + 2)) as f64;
+        k += 1;
+    }
+    c
+};
+
+/// Taylor coefficients of `sin sqrt x / sqrt x = sum (-1)^k x^k / (2k+1)!`.
+const SINC_SERIES: [f64; 10] = {
+    let mut c = [0.0; 10];
+    let (mut k, mut term) = (0, 1.0);
+    while k < 10 {
+        c[k] = term;
+        term *= -1.0 / ((2 * k + 2) * (2 * k + 3)) as f64;
+        k += 1;
+    }
+    c
+};
+
+/// Taylor coefficients of `atan sqrt x / sqrt x = sum (-1)^k x^k / (2k+1)`; 30 terms reach
+/// 1e-20 at x = 1/4.
+const ATANC_SERIES: [f64; 30] = {
+    let mut c = [0.0; 30];
+    let mut k = 0;
+    while k < 30 {
+        c[k] = if k % 2 == 0 { 1.0 } else { -1.0 } / (2 * k + 1) as f64;
+        k += 1;
+    }
+    c
+};
+
+/// `p(x)` alone, by Horner.
+fn polynomial_value(c: &[f64], x: f64) -> f64 {
+    c.iter().rev().fold(0.0, |p, &ck| p * x + ck)
+}
+
 /// `cos(sqrt x)` with its first two derivatives in `x` (`x >= 0`): the scalar part of `exp`.
 #[must_use]
 pub fn cos_sqrt(x: f64) -> [f64; 3] {
     if x < SERIES_LIMIT {
-        // sum (-1)^k x^k / (2k)!
-        let mut c = [0.0; 10];
-        let mut term = 1.0;
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck = term;
-            term *= -1.0 / (((2 * k + 1) * (2 * k + 2)) as f64);
-        }
-        return polynomial(c.into_iter(), x);
+        return polynomial(COS_SERIES.into_iter(), x);
     }
     let s = sinc_sqrt(x);
     let r = x.sqrt();
@@ -87,14 +133,7 @@ pub fn cos_sqrt(x: f64) -> [f64; 3] {
 #[must_use]
 pub fn sinc_sqrt(x: f64) -> [f64; 3] {
     if x < SERIES_LIMIT {
-        // sum (-1)^k x^k / (2k+1)!
-        let mut c = [0.0; 10];
-        let mut term = 1.0;
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck = term;
-            term *= -1.0 / (((2 * k + 2) * (2 * k + 3)) as f64);
-        }
-        return polynomial(c.into_iter(), x);
+        return polynomial(SINC_SERIES.into_iter(), x);
     }
     let r = x.sqrt();
     let (sin, cos) = r.sin_cos();
@@ -108,20 +147,8 @@ pub fn sinc_sqrt(x: f64) -> [f64; 3] {
 /// `x = tan^2 th`. Closed form: `A' = (B - A) / 2x`, `A'' = (-B^2 - 3 A') / 2x`, `B = 1 / (1 + x)`.
 #[must_use]
 pub fn atanc_sqrt(x: f64) -> [f64; 3] {
-    // sum (-1)^k x^k / (2k+1); 30 terms reach 1e-20 at x = 1/4. A constant table: this runs
-    // in every f64 log (the builder's, the reference's), where building it per call cost an
-    // allocation and 30 divisions.
-    const SERIES: [f64; 30] = {
-        let mut c = [0.0; 30];
-        let mut k = 0;
-        while k < 30 {
-            c[k] = if k % 2 == 0 { 1.0 } else { -1.0 } / (2 * k + 1) as f64;
-            k += 1;
-        }
-        c
-    };
     if x < SERIES_LIMIT {
-        return polynomial(SERIES.into_iter(), x);
+        return polynomial(ATANC_SERIES.into_iter(), x);
     }
     let r = x.sqrt();
     let a = r.atan() / r;
@@ -164,7 +191,30 @@ impl Real for f64 {
     fn apply(self, f: [f64; 3]) -> Self {
         f[0]
     }
+    /// Values only, from the libm functions down to `x = 1e-4` and a short series below: no
+    /// derivatives nobody reads and no 30-term series (the builder's solve runs millions of
+    /// these). Without derivatives nothing cancels, so the closed forms are exact to a few ulp.
+    #[inline]
+    fn cos_sinc_sqrt(self) -> (Self, Self) {
+        if self < VALUE_SERIES_LIMIT {
+            return (polynomial_value(&COS_SERIES[..5], self), polynomial_value(&SINC_SERIES[..5], self));
+        }
+        let r = self.sqrt();
+        let (sin, cos) = r.sin_cos();
+        (cos, sin / r)
+    }
+    #[inline]
+    fn atanc_sqrt(self) -> Self {
+        if self < VALUE_SERIES_LIMIT {
+            return polynomial_value(&ATANC_SERIES[..5], self);
+        }
+        let r = self.sqrt();
+        r.atan() / r
+    }
 }
+
+/// Below this `x` the value-only f64 forms use five series terms (the next is below 1e-20).
+const VALUE_SERIES_LIMIT: f64 = 1e-4;
 
 /// A value with its first and second derivatives with respect to one parameter (time).
 ///

@@ -12,12 +12,24 @@ use crate::track::Track;
 /// tilted axis with a per-track phase, amplitude and twist (up to about 80 degrees).
 #[must_use]
 pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
+    swings(tracks, keys, rate, |h| 0.8 + 0.6 * h)
+}
+
+/// Like [`walk_tracks`], but each track is one whole gait cycle: its last key is its first
+/// pose again, as in a looping clip (the `--loop` workload).
+#[must_use]
+pub fn walk_cycles(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
+    swings(tracks, keys, rate, |_| rate / (keys - 1).max(1) as f64)
+}
+
+/// The swings of [`walk_tracks`] at the frequency `frequency(h)` picks from a hash in [0, 1).
+fn swings(tracks: usize, keys: usize, rate: f64, frequency: impl Fn(f64) -> f64) -> Vec<Track> {
     (0..tracks)
         .map(|i| {
             // A cheap hash of the track index for variety.
             let h = |k: u64| ((i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
             let (phase, amplitude, twist) = (6.3 * h(1), 0.2 + 0.5 * h(2), 0.3 * h(3) - 0.15);
-            let frequency = 0.8 + 0.6 * h(4);
+            let frequency = frequency(h(4));
             let times: Vec<f64> = (0..keys).map(|j| j as f64 / rate).collect();
             let rotations = times
                 .iter()
@@ -34,14 +46,24 @@ pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
 /// Keys per track of [`workload`]: a few seconds of animation keyed at 30 Hz.
 pub const WORKLOAD_KEYS: usize = 32;
 
+/// The tracks of [`workload`]: [`walk_tracks`], or [`walk_cycles`] when `spec` loops.
+#[must_use]
+pub fn workload_tracks(tracks: usize, keys: usize, spec: &CurveSpec) -> Vec<Track> {
+    if spec.looping {
+        walk_cycles(tracks, keys, 30.0)
+    } else {
+        walk_tracks(tracks, keys, 30.0)
+    }
+}
+
 /// The benchmark workload shared by `quatcurve bench` and the criterion benches:
-/// `tracks` [`walk_tracks`] of `keys` keys ([`WORKLOAD_KEYS`] by default) at 30 Hz, `samples`
-/// samples per track from domain start to end.
+/// `tracks` [`workload_tracks`] of `keys` keys ([`WORKLOAD_KEYS`] by default) at 30 Hz,
+/// `samples` samples per track from domain start to end.
 ///
 /// # Errors
 /// The spec's errors (an order outside 2..=8, phantom knots with order other than 4).
 pub fn workload(tracks: usize, samples: usize, keys: usize, spec: &CurveSpec) -> Result<(Batch, SampleTimes)> {
-    let batch = Batch::from_tracks(&walk_tracks(tracks, keys, 30.0), spec)?;
+    let batch = Batch::from_tracks(&workload_tracks(tracks, keys, spec), spec)?;
     let times = SampleTimes::uniform(&batch, Sampling::Count(samples))?;
     Ok((batch, times))
 }

@@ -28,6 +28,9 @@ pub struct BenchArgs {
     /// Also compute angular velocity and acceleration.
     #[arg(long)]
     derivatives: bool,
+    /// Loop the tracks (each one whole gait cycle, periodic curves).
+    #[arg(long = "loop")]
+    looping: bool,
     /// Devices to time, comma-separated (reference, cpu, gpu). Default: every one available
     /// in this build; a device named here that is missing is an error (exit 1).
     #[arg(long, value_delimiter = ',', value_parser = parse::<DeviceChoice>)]
@@ -63,7 +66,13 @@ struct Workload {
     order: usize,
     knots: &'static str,
     derivatives: bool,
+    #[serde(rename = "loop")]
+    looping: bool,
     runs: usize,
+    /// Median seconds to build the batch from the tracks (for `bspline-interp`, the solve).
+    build_seconds: f64,
+    /// Keys per second of that build.
+    build_keys_per_s: f64,
 }
 
 #[derive(Serialize)]
@@ -81,9 +90,13 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     if args.tracks == 0 || args.samples == 0 || args.runs == 0 {
         return Err(Failure::Input("bench: --tracks, --samples and --runs must be at least 1".into()));
     }
-    let spec = args.options.spec(args.curve, KnotMode::Uniform, false);
+    let spec = args.options.spec(args.curve, KnotMode::Uniform, args.looping);
     let (batch, times) =
         synthetic::workload(args.tracks, args.samples, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+    // The build, timed on its own: the cost a caller pays once per set of keys.
+    let tracks = synthetic::workload_tracks(args.tracks, args.keys, &spec);
+    let build_seconds = median_seconds(args.runs, || Batch::from_tracks(&tracks, &spec).map(drop).map_err(|e| Failure::Input(format!("bench: {e}"))))?;
+    drop(tracks);
     let explicit = args.devices.is_some();
     let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();
@@ -112,7 +125,10 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
             order: args.options.order,
             knots: spec.knots.name(),
             derivatives: args.derivatives,
+            looping: args.looping,
             runs: args.runs,
+            build_seconds,
+            build_keys_per_s: (args.tracks * args.keys) as f64 / build_seconds,
         },
         results,
     };
@@ -185,16 +201,17 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
     let l = &report.workload;
     writeln!(
         w,
-        "workload: {} tracks x {} samples ({} keys each), {} order {} {} knots, {}; median of {} runs",
+        "workload: {} tracks x {} samples ({} keys each), {}{}{}, {}; median of {} runs",
         l.tracks,
         l.samples_per_track,
         l.keys_per_track,
         l.curve,
-        l.order,
-        l.knots,
+        if l.curve == Curve::BSpline.name() { format!(" order {} {} knots", l.order, l.knots) } else { String::new() },
+        if l.looping { ", looping" } else { "" },
         if l.derivatives { "with angular velocity and acceleration" } else { "rotation only" },
         l.runs
     )?;
+    writeln!(w, "build: {:.4} s ({:.2} M keys/s)", l.build_seconds, l.build_keys_per_s / 1e6)?;
     writeln!(w, "{:<10} {:>12} {:>10} {:>14} {:>20}  adapter", "device", "samples", "seconds", "M samples/s", "kernel-only M/s")?;
     for r in &report.results {
         let dispatch = r.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
