@@ -119,8 +119,12 @@ crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "
 /// A resampled clip: frame times and, per channel (in the clip's order), one value per frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedClip {
-    /// `start + i / rate` while not past the clip's last key (DESIGN section 5's `--rate`).
+    /// Open clips: `start + i / rate` while not past the clip's last key ([`frame_times`]).
+    /// Loops: a whole number of frames per period ([`loop_frame_times`]).
     pub times: Vec<f64>,
+    /// Frames per second of `times`: the requested rate, or for a loop the nearest rate that
+    /// puts a whole number of frames in its period.
+    pub rate: f64,
     /// Whether the clip was baked as a loop (periodic curves, seam continuity).
     pub looping: bool,
     /// Per channel, per frame: rotations `x, y, z, w`; vectors `x, y, z, 0`.
@@ -198,6 +202,23 @@ pub fn frame_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>, DeviceEr
     Ok((0..count).map(|i| start + i as f64 * step).collect())
 }
 
+/// Frame times of a looping clip spanning `[start, end]`: `N = round((end - start) rate)`
+/// intervals (at least one), so the last frame is the seam and equals the first (DESIGN
+/// section 5b), at the rate `N / (end - start)` it returns with them; the last time is `end`
+/// exactly.
+///
+/// # Errors
+/// [`DeviceError::Input`] for a rate that is not finite and positive.
+pub fn loop_frame_times(start: f64, end: f64, rate: f64) -> Result<(Vec<f64>, f64), DeviceError> {
+    let period = end - start;
+    let intervals = (period * rate).round().max(1.0);
+    // Counted as Sampling::Rate counts, so a hostile period meets the same limits.
+    frame_times(start, start + intervals / rate, rate)?;
+    let n = intervals as usize;
+    let times = (0..=n).map(|i| if i == n { end } else { start + period * i as f64 / intervals }).collect();
+    Ok((times, intervals / period))
+}
+
 /// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
 /// for the whole animation), vector channels with the Euclidean analogue in f64. Channels
 /// with a single key are held constant. Samples outside a channel's keys hold its end value
@@ -215,8 +236,8 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     let input = |e: crate::Error| DeviceError::Input(e.to_string());
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
-        let times = frame_times(start, end, rate)?;
         let looping = clip_loops(animation, clip, spec, loops)?;
+        let (times, clip_rate) = if looping { loop_frame_times(start, end, rate)? } else { (frame_times(start, end, rate)?, rate) };
         let spec = &CurveSpec { looping, ..*spec };
         let mut values = Vec::with_capacity(clip.channels.len());
         for (k, channel) in clip.channels.iter().enumerate() {
@@ -239,7 +260,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
                 }
             });
         }
-        clips.push(BakedClip { times, looping, values });
+        clips.push(BakedClip { times, rate: clip_rate, looping, values });
     }
     let mut max_key_error = None;
     if !tracks.is_empty() {

@@ -88,6 +88,9 @@ struct SidecarClip {
     frames: usize,
     start: f64,
     end: f64,
+    /// Frames per second: `--rate`, or for a loop the nearest rate that fits a whole number
+    /// of frames in its period.
+    rate: f64,
     /// Baked as a loop: periodic curves, continuous across the seam.
     #[serde(rename = "loop")]
     looping: bool,
@@ -200,7 +203,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
     let result = (|| {
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
-            Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked, args.rate).into_bytes())),
+            Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
             Source::Crowd(_) => None,
         };
         if let Some((name, bytes)) = &baked_file {
@@ -217,7 +220,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Internal(e.to_string()))?;
             written.push(path);
             let (start, end) = (result.times[0], result.times[result.times.len() - 1]);
-            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end, looping: result.looping });
+            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end, rate: result.rate, looping: result.looping });
         }
         let sidecar = Sidecar {
             source,
