@@ -20,6 +20,28 @@ impl fmt::Display for TrackId {
     }
 }
 
+/// A number as messages print it: plain decimals for everyday magnitudes (`0`, `0.25`,
+/// `12.35`), scientific notation with four digits for the rest (`3.172e-7`), never `0e0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Number(pub f64);
+
+impl fmt::Display for Number {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        if x == 0.0 || !x.is_finite() {
+            write!(f, "{x}")
+        } else if (1e-3..1e6).contains(&x.abs()) {
+            // Four significant digits, trailing zeros dropped.
+            let decimals = (3 - x.abs().log10().floor() as i32).max(0) as usize;
+            let text = format!("{x:.decimals$}");
+            let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
+            f.write_str(text)
+        } else {
+            write!(f, "{x:.3e}")
+        }
+    }
+}
+
 /// Why a batch could not be built or an evaluation job could not run.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 #[non_exhaustive]
@@ -31,7 +53,7 @@ pub enum Error {
     #[error("{track}: key {key} is not finite ({value:?}); rotations must be finite numbers")]
     NonFiniteKey { track: TrackId, key: usize, value: [f64; 4] },
     /// A key quaternion is (nearly) zero and has no direction.
-    #[error("{track}: key {key} has norm {norm:e}, below 1e-6; a rotation key must be a non-zero quaternion")]
+    #[error("{track}: key {key} has norm {}, below 1e-6; a rotation key must be a non-zero quaternion", Number(*.norm))]
     ZeroKey { track: TrackId, key: usize, norm: f64 },
     /// Fewer keys than the curve needs.
     #[error("{track}: {curve} needs at least {min} keys, got {found}")]
@@ -88,10 +110,10 @@ pub enum Error {
     #[error("{track}: {curve} cannot loop; looping curves are slerp, squad, hermite, nam-kim, bspline-interp and bspline with phantom knots")]
     LoopUnsupported { track: TrackId, curve: String },
     /// A looping track whose last key is not its first rotation.
-    #[error("{track}: a looping track must end on its first rotation, but key {last} is {angle:.3e} rad from key 0 (at most 1e-3 allowed)")]
+    #[error("{track}: a looping track must end on its first rotation, but key {last} is {} rad from key 0 (at most 1e-3 allowed)", Number(*.angle))]
     LoopNotClosed { track: TrackId, last: usize, angle: f64 },
     /// The `bspline-interp` solve did not reach its key tolerance.
-    #[error("{track}: bspline-interp did not converge after {iterations} Newton iterations: the curve misses key {key} by {error:.3e} (at most 1e-12 rad allowed); keys this far apart have no stable C2 interpolant, try hermite")]
+    #[error("{track}: bspline-interp did not converge after {iterations} Newton iterations: the curve misses key {key} by {} (at most 1e-12 rad allowed); keys this far apart have no stable C2 interpolant, try hermite", Number(*.error))]
     NoConvergence { track: TrackId, key: usize, error: f64, iterations: usize },
     /// A sample time is NaN or infinite.
     #[error("{track}: sample time {sample} is not finite ({value})")]
@@ -106,3 +128,16 @@ pub enum Error {
 
 /// Short-hand result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::Number;
+
+    #[test]
+    fn numbers_read_naturally() {
+        let cases = [(0.0, "0"), (0.25, "0.25"), (1.0, "1"), (1234.0, "1234"), (12.345678, "12.35"), (-0.0123456, "-0.01235"), (3.1717e-7, "3.172e-7"), (2.5e9, "2.500e9"), (f64::NAN, "NaN")];
+        for (x, text) in cases {
+            assert_eq!(Number(x).to_string(), text, "{x}");
+        }
+    }
+}

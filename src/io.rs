@@ -36,6 +36,8 @@ pub fn read_track_file(path: &Path) -> Result<TrackFile, IoError> {
 
 /// Writes `bytes` to `path` atomically: a temporary file in the same directory, flushed and
 /// renamed over `path`. On any failure the temporary file is removed and `path` is untouched.
+/// The file gets the permissions `File::create` would give it (0666 minus the umask), not a
+/// temporary file's private 0600, so a shared results directory stays readable by the team.
 ///
 /// # Errors
 /// [`IoError::Write`] naming `path`.
@@ -45,7 +47,11 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new().prefix(".quatcurve-").suffix(".tmp").tempfile_in(dir).map_err(err)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".quatcurve-").suffix(".tmp");
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder.tempfile_in(dir).map_err(err)?;
     {
         let mut buffered = std::io::BufWriter::new(tmp.as_file_mut());
         write(&mut buffered).map_err(err)?;

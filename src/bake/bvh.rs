@@ -95,6 +95,11 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
                 }
                 let (line, count) = next("a channel count")?;
                 let count: usize = count.parse().map_err(|_| bad(line, format!("bad channel count {count}")))?;
+                // Three positions and three rotations at most; a larger count is corruption
+                // (and must not size an allocation).
+                if count > 6 {
+                    return Err(bad(line, format!("joint {name} declares {count} channels; a BVH joint has at most 6")));
+                }
                 let mut channels = Vec::with_capacity(count);
                 for _ in 0..count {
                     let (line, c) = next("a channel name")?;
@@ -145,7 +150,9 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
         return Err(bad(first_line, format!("need at least one frame and a positive frame time (Frames: {count}, Frame Time: {frame_time})")));
     }
     let columns: usize = joints.iter().map(|j| j.channels.len()).sum();
-    let mut frames = Vec::with_capacity(count as usize);
+    // `Frames:` is checked against the lines present afterwards; it never sizes an allocation
+    // by itself (a crafted header could ask for billions).
+    let mut frames = Vec::with_capacity((count as usize).min(text.len() / (2 * columns.max(1)) + 1));
     for (line, l) in lines.filter(|(_, l)| !l.trim().is_empty()) {
         let row: Vec<f64> = l
             .split_whitespace()

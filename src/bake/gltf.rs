@@ -10,6 +10,7 @@
 use super::{Animation, Baked, Channel, Clip, Joint, Property};
 use crate::device::DeviceError;
 use base64::Engine;
+use gltf::json::validation::Checked;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -30,46 +31,58 @@ fn input(msg: String) -> DeviceError {
     DeviceError::Input(msg)
 }
 
+/// Which buffer URIs a glTF file may name (DESIGN: files made by others are untrusted).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UriPolicy {
+    /// Also allow absolute paths, `..` leaving the file's directory, symlinks pointing out of
+    /// it and `file:` URIs (the CLI's `--allow-external-uris`). Off by default: a crafted
+    /// file could otherwise copy any readable file (`/etc/passwd`) into the baked GLB.
+    pub allow_external: bool,
+}
+
 /// Reads a `.gltf` (buffers embedded as data URIs or in files beside it) or `.glb` file.
 ///
 /// # Errors
-/// [`DeviceError::Input`] for an unreadable or corrupt file, a missing buffer, or a channel
-/// whose key and value counts differ, naming the clip and channel.
-pub fn read(path: &Path) -> Result<GltfFile, DeviceError> {
+/// [`DeviceError::Input`] for an unreadable or corrupt file, a buffer URI the policy refuses
+/// or that cannot be read, a missing buffer, an accessor whose declared count or stride needs
+/// more bytes than its buffer holds, or a channel whose key and value counts differ, naming
+/// the clip and channel.
+pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, DeviceError> {
     let bytes = std::fs::read(path).map_err(|e| input(format!("cannot read: {e}")))?;
-    let gltf = match gltf::Gltf::from_slice(&bytes) {
-        Ok(gltf) => gltf,
-        // Accessors without buffer views (Draco-compressed meshes) and extensions the crate
-        // does not know are flagged by its validation but do not concern animation, which we
-        // read defensively; indices out of range and invalid values are real corruption.
-        Err(gltf::Error::Validation(errors))
-            if errors.iter().all(|(_, e)| matches!(e, gltf::json::validation::Error::Missing | gltf::json::validation::Error::Unsupported)) =>
-        {
-            gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?
-        }
-        Err(gltf::Error::Validation(errors)) => {
-            let shown: Vec<String> = errors.iter().take(3).map(|(path, e)| format!("{path}: {e}")).collect();
-            return Err(input(format!("not a valid glTF file: {} ({} problems)", shown.join("; "), errors.len())));
-        }
-        Err(e) => return Err(input(format!("not a valid glTF file: {e}"))),
-    };
+    from_bytes(&bytes, path.parent().unwrap_or(Path::new(".")), uris)
+}
+
+/// Reads glTF or GLB `bytes` whose relative buffer URIs resolve against `dir` (see [`read`]).
+///
+/// # Errors
+/// As [`read`].
+pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, DeviceError> {
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
+    validate(gltf.document.as_json())?;
     let json: Value = if bytes.starts_with(b"glTF") {
-        let glb = gltf::binary::Glb::from_slice(&bytes).map_err(|e| input(format!("not a valid GLB file: {e}")))?;
+        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| input(format!("not a valid GLB file: {e}")))?;
         serde_json::from_slice(&glb.json)
     } else {
-        serde_json::from_slice(&bytes)
+        serde_json::from_slice(bytes)
     }
     .map_err(|e| input(format!("not valid glTF JSON: {e}")))?;
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| input(format!("buffer {} refers to a missing BIN chunk", buffer.index())))?,
-            gltf::buffer::Source::Uri(uri) => load_uri(path, uri).map_err(|e| input(format!("buffer {} ({uri:.40}): {e}", buffer.index())))?,
+            gltf::buffer::Source::Uri(uri) => load_uri(dir, uri, uris).map_err(|e| input(format!("buffer {} (uri {uri:.60}): {e}", buffer.index())))?,
         };
         if data.len() < buffer.length() {
             return Err(input(format!("buffer {} holds {} bytes but declares {}", buffer.index(), data.len(), buffer.length())));
         }
         buffers.push(data);
+    }
+    // Every view inside its buffer (the GLB writer re-bases them all, used by animation or not).
+    for view in gltf.views() {
+        let end = view.offset().checked_add(view.length());
+        if !end.is_some_and(|end| end <= buffers[view.buffer().index()].len()) {
+            return Err(input(format!("bufferViews[{}]: bytes {}+{} lie outside buffer {}", view.index(), view.offset(), view.length(), view.buffer().index())));
+        }
     }
     let joints = gltf
         .nodes()
@@ -84,20 +97,39 @@ pub fn read(path: &Path) -> Result<GltfFile, DeviceError> {
         .collect();
     let mut animation = Animation { joints, clips: Vec::new() };
     let mut samplers = Vec::new();
+    // The document as parsed, for enum fields the crate's accessors would unwrap.
+    let root = gltf.document.as_json();
     for anim in gltf.animations() {
         let name = anim.name().map_or_else(|| format!("animation{}", anim.index()), str::to_string);
         let mut clip = Clip { name, channels: Vec::new() };
         let mut sources = Vec::new();
         for channel in anim.channels() {
-            let property = match channel.target().property() {
-                gltf::animation::Property::Rotation => Property::Rotation,
-                gltf::animation::Property::Translation => Property::Translation,
-                gltf::animation::Property::Scale => Property::Scale,
-                gltf::animation::Property::MorphTargetWeights => continue,
+            // The crate's accessors unwrap enum fields it could not parse (a panic on a
+            // crafted file): read them checked.
+            let unknown = |what: &str| input(format!("clip '{}', channel {}: unknown {what}", clip.name, channel.index()));
+            let raw = &root.animations[anim.index()];
+            let property = match &raw.channels[channel.index()].target.path {
+                Checked::Valid(gltf::json::animation::Property::Rotation) => Property::Rotation,
+                Checked::Valid(gltf::json::animation::Property::Translation) => Property::Translation,
+                Checked::Valid(gltf::json::animation::Property::Scale) => Property::Scale,
+                Checked::Valid(gltf::json::animation::Property::MorphTargetWeights) => continue,
+                Checked::Invalid => return Err(unknown("target path")),
+            };
+            let cubic = match &raw.samplers[channel.sampler().index()].interpolation {
+                Checked::Valid(interpolation) => *interpolation == gltf::json::animation::Interpolation::CubicSpline,
+                Checked::Invalid => return Err(unknown("interpolation")),
             };
             let joint = channel.target().node().index();
             let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new() };
             let label = animation.label(&clip, &keyed);
+            // The crate's readers trust accessor counts (and allocate from them): check every
+            // accessor against the bytes present first.
+            let sampler = channel.sampler();
+            let values_kind = if property == Property::Rotation { Element::Rotations } else { Element::Vectors };
+            for (what, accessor, kind) in [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)] {
+                check_accessor(&accessor, &root.accessors[accessor.index()], kind)
+                    .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
+            }
             let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
             keyed.times = reader.read_inputs().ok_or_else(|| input(format!("{label}: key times cannot be read")))?.map(f64::from).collect();
             let values: Vec<[f64; 4]> = match reader.read_outputs().ok_or_else(|| input(format!("{label}: key values cannot be read")))? {
@@ -108,7 +140,7 @@ pub fn read(path: &Path) -> Result<GltfFile, DeviceError> {
                 gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
             };
             // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
-            keyed.values = if channel.sampler().interpolation() == gltf::animation::Interpolation::CubicSpline {
+            keyed.values = if cubic {
                 values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect()
             } else {
                 values
@@ -127,14 +159,173 @@ pub fn read(path: &Path) -> Result<GltfFile, DeviceError> {
     Ok(GltfFile { animation, json, buffers, samplers })
 }
 
-/// A buffer URI: base64 `data:` or a file relative to the glTF file.
-fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>, String> {
+/// The crate's validation, run here so that a known panic in it is avoided first: its
+/// POSITION hook indexes the accessors without a range check (found by the mutation run).
+/// Accessors without buffer views (Draco-compressed meshes) and extensions the crate does not
+/// know are flagged but do not concern animation, which is read defensively; indices out of
+/// range and invalid values are real corruption.
+fn validate(root: &gltf::json::Root) -> Result<(), DeviceError> {
+    use gltf::json::validation::{Error, Validate};
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &primitive.attributes {
+                if index.value() >= root.accessors.len() {
+                    let name = match semantic {
+                        Checked::Valid(semantic) => semantic.to_string(),
+                        Checked::Invalid => "?".into(),
+                    };
+                    return Err(input(format!("not a valid glTF file: meshes[{m}].primitives[{p}].attributes.{name}: accessor {} does not exist", index.value())));
+                }
+            }
+        }
+    }
+    // The indices this reader follows, checked here: the crate's accessors unwrap them.
+    let bad_index = |what: String, index: usize| Err(input(format!("not a valid glTF file: {what}: index {index} does not exist")));
+    for (a, anim) in root.animations.iter().enumerate() {
+        for (c, channel) in anim.channels.iter().enumerate() {
+            if channel.sampler.value() >= anim.samplers.len() {
+                return bad_index(format!("animations[{a}].channels[{c}].sampler"), channel.sampler.value());
+            }
+            if channel.target.node.value() >= root.nodes.len() {
+                return bad_index(format!("animations[{a}].channels[{c}].target.node"), channel.target.node.value());
+            }
+        }
+        for (k, sampler) in anim.samplers.iter().enumerate() {
+            for (field, index) in [("input", sampler.input.value()), ("output", sampler.output.value())] {
+                if index >= root.accessors.len() {
+                    return bad_index(format!("animations[{a}].samplers[{k}].{field}"), index);
+                }
+            }
+        }
+    }
+    for (i, accessor) in root.accessors.iter().enumerate() {
+        if let Some(view) = accessor.buffer_view.filter(|v| v.value() >= root.buffer_views.len()) {
+            return bad_index(format!("accessors[{i}].bufferView"), view.value());
+        }
+    }
+    for (i, view) in root.buffer_views.iter().enumerate() {
+        if view.buffer.value() >= root.buffers.len() {
+            return bad_index(format!("bufferViews[{i}].buffer"), view.buffer.value());
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| errors.push((path(), error)));
+    if errors.iter().any(|(_, e)| !matches!(e, Error::Missing | Error::Unsupported)) {
+        let shown: Vec<String> = errors.iter().take(3).map(|(path, e)| format!("{path}: {e}")).collect();
+        return Err(input(format!("not a valid glTF file: {} ({} problems)", shown.join("; "), errors.len())));
+    }
+    Ok(())
+}
+
+/// What an animation accessor holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Element {
+    /// Key times: SCALAR float.
+    Times,
+    /// Rotation keys: VEC4 float or normalized integers.
+    Rotations,
+    /// Translation and scale keys: VEC3 float.
+    Vectors,
+}
+
+/// Whether `accessor` holds `kind`'s element type and its elements lie inside its buffer
+/// view. Accessors without a buffer view (all zeros, or sparse) are refused for animation.
+fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: Element) -> Result<(), String> {
+    use gltf::json::accessor::{ComponentType as C, GenericComponentType, Type};
+    let count = accessor.count();
+    if count == 0 {
+        return Err("count is 0".into());
+    }
+    if accessor.sparse().is_some() {
+        return Err("sparse accessors are not supported for animation".into());
+    }
+    // The element types glTF allows for animation samplers (the readers assume them).
+    let (Checked::Valid(GenericComponentType(component)), Checked::Valid(element_type)) = (&json.component_type, &json.type_) else {
+        return Err("unknown component type or element type".into());
+    };
+    let allowed = match kind {
+        Element::Times => *element_type == Type::Scalar && *component == C::F32,
+        Element::Vectors => *element_type == Type::Vec3 && *component == C::F32,
+        Element::Rotations => *element_type == Type::Vec4 && matches!(component, C::F32 | C::I8 | C::U8 | C::I16 | C::U16),
+    };
+    if !allowed {
+        return Err(format!("{element_type:?} of {component:?} is not an element type glTF allows here"));
+    }
+    let view = accessor.view().ok_or("no buffer view (an all-zero accessor cannot hold keys)")?;
+    let element = accessor.size();
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(format!("byte stride {stride} is smaller than its {element}-byte element"));
+    }
+    let needed = (count - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(element))
+        .and_then(|n| n.checked_add(accessor.offset()))
+        .ok_or_else(|| format!("count {count} with stride {stride} overflows"))?;
+    // (Every view lies inside its buffer: `from_bytes` checked them all.)
+    if needed > view.length() {
+        return Err(format!("count {count} with stride {stride} needs {needed} bytes, its buffer view holds {}", view.length()));
+    }
+    Ok(())
+}
+
+/// A buffer URI: base64 `data:`, or a relative path (percent-decoded) that stays inside `dir`
+/// after resolving `..` and symlinks. Anything else (absolute paths, `file:` and other
+/// schemes, escapes from `dir`) only with [`UriPolicy::allow_external`].
+fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are supported")?;
         return base64::engine::general_purpose::STANDARD.decode(data).map_err(|e| format!("bad base64: {e}"));
     }
-    let file = path.parent().unwrap_or(Path::new(".")).join(uri);
+    let refuse = |why: &str| format!("{why}; only data URIs and relative paths inside the file's directory are read (--allow-external-uris reads it anyway)");
+    let (path, external) = match uri.strip_prefix("file://") {
+        Some(rest) => (percent_decode(rest)?, true),
+        None if has_scheme(uri) => return Err(format!("{} URIs are not read", uri.split(':').next().unwrap_or_default())),
+        None => (percent_decode(uri)?, false),
+    };
+    let file = dir.join(&path);
+    if !policy.allow_external {
+        if external || Path::new(&path).is_absolute() {
+            return Err(refuse("an absolute path"));
+        }
+        let inside = match (std::fs::canonicalize(&file), std::fs::canonicalize(dir)) {
+            (Ok(file), Ok(dir)) => file.starts_with(dir),
+            (Err(e), _) | (_, Err(e)) => return Err(format!("{}: {e}", file.display())),
+        };
+        if !inside {
+            return Err(refuse("it leaves the file's directory"));
+        }
+    }
     std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))
+}
+
+/// `scheme:` per RFC 3986 (a letter, then letters, digits, `+ - .`), as opposed to a path.
+fn has_scheme(uri: &str) -> bool {
+    let Some((scheme, _)) = uri.split_once(':') else { return false };
+    let mut chars = scheme.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic()) && chars.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+}
+
+/// Decodes `%XX` escapes (glTF URIs are percent-encoded: `my%20file.bin`).
+fn percent_decode(uri: &str) -> Result<String, String> {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok());
+            out.push(hex.ok_or("a % not followed by two hex digits")?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    let path = String::from_utf8(out).map_err(|_| "the decoded path is not UTF-8".to_string())?;
+    if path.contains('\0') {
+        return Err("a NUL in the path".into());
+    }
+    Ok(path)
 }
 
 impl GltfFile {
@@ -156,7 +347,8 @@ impl GltfFile {
         let mut views: Vec<Value> = json["bufferViews"].as_array().cloned().unwrap_or_default();
         for view in &mut views {
             let buffer = view["buffer"].as_u64().unwrap_or(0) as usize;
-            let offset = view["byteOffset"].as_u64().unwrap_or(0) + base.get(buffer).copied().unwrap_or(0);
+            // In range: the reader checked every view against its buffer.
+            let offset = view["byteOffset"].as_u64().unwrap_or(0).saturating_add(base.get(buffer).copied().unwrap_or(0));
             view["buffer"] = json!(0);
             view["byteOffset"] = json!(offset);
         }

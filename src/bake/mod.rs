@@ -176,14 +176,20 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
                 return Err(DeviceError::Input(format!(
-                    "{}: --loop on needs every rotation channel to end on its first rotation, but its last key is {angle:.3e} rad from its first (at most 1e-3)",
-                    animation.label(clip, c)
+                    "{}: --loop on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most 1e-3)",
+                    animation.label(clip, c),
+                    crate::error::Number(angle)
                 )));
             }
             Ok(true)
         }
     }
 }
+
+/// Most samples (frames times channels plus frames times joints for the texture, over all
+/// clips) one input may bake: 2 GiB as f32 rotations. Key times come from the file, so a crafted clip could otherwise ask for any
+/// amount of memory (two keys a year apart at 30 Hz are a billion frames per channel).
+pub const MAX_BAKE_SAMPLES: usize = 1 << 27;
 
 /// How far past the clip's end (in frames) a last frame is still kept.
 pub const END_TOLERANCE_FRAMES: f64 = 0.01;
@@ -230,6 +236,7 @@ pub fn loop_frame_times(start: f64, end: f64, rate: f64) -> Result<(Vec<f64>, f6
 /// [`DeviceError::Device`] for device failures.
 pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, DeviceError> {
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
+    let mut total_samples = 0usize;
     // Rotation channels with two keys or more go to the device: (clip, channel) per track.
     let (mut tracks, mut owners, mut grids) = (Vec::new(), Vec::new(), Vec::new());
     let mut specs = Vec::new();
@@ -237,6 +244,22 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
         let looping = clip_loops(animation, clip, spec, loops)?;
+        // Counted before anything is allocated for the clip (frames rounded up): the channel
+        // samples and the texture's joint rows.
+        let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
+        let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
+        if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
+            return Err(DeviceError::Input(format!(
+                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower --rate",
+                clip.name,
+                crate::error::Number(end - start),
+                crate::error::Number(frames - 1.0),
+                crate::error::Number(rate),
+                clip.channels.len(),
+                animation.joints.len()
+            )));
+        }
+        total_samples += samples as usize;
         let (times, clip_rate) = if looping { loop_frame_times(start, end, rate)? } else { (frame_times(start, end, rate)?, rate) };
         let spec = &CurveSpec { looping, ..*spec };
         let mut values = Vec::with_capacity(clip.channels.len());

@@ -3,7 +3,7 @@
 //! Per input file: read, bake every clip, then write all of that file's outputs atomically;
 //! a failure in one file is reported and the others still finish (exit non-zero at the end).
 
-use super::{parse, print_stdout, CurveArgs, Failure};
+use super::{parse, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode, TEXTURE_CHANNELS};
@@ -20,7 +20,7 @@ pub struct BakeArgs {
     #[arg(long, num_args = 1..)]
     input: Vec<PathBuf>,
     /// Output rate in Hz.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     rate: f64,
     /// Curve family; the default, bspline-interp, is C2 and passes through every key.
     #[arg(long, default_value = "bspline-interp", value_parser = parse::<Curve>)]
@@ -31,6 +31,12 @@ pub struct BakeArgs {
     looping: LoopMode,
     #[command(flatten)]
     options: CurveArgs,
+    #[command(flatten)]
+    device: DeviceArgs,
+    /// Read glTF buffers from anywhere the URI points (absolute paths, `..` out of the file's
+    /// directory, `file:` URIs). Off by default: only data URIs and files beside the input.
+    #[arg(long)]
+    allow_external_uris: bool,
     /// Output directory (created if missing).
     #[arg(long, default_value = "baked")]
     output: PathBuf,
@@ -102,25 +108,26 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     }
     let spec = args.options.spec(args.curve, KnotMode::Phantom, false);
     let inputs = expand(&args.input)?;
-    std::fs::create_dir_all(&args.output).map_err(|e| Failure::Internal(format!("{}: cannot create: {e}", args.output.display())))?;
-    let device = Device::open(args.options.device)?;
+    let stems = output_stems(&inputs, &args.output)?;
+    let output = OutputDir::create(&args.output)?;
+    let device = Device::open(args.device.device)?;
     let device_name = device.name();
     let bar = ProgressBar::new(inputs.len().max(1) as u64);
     bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} {elapsed} {msg}").expect("valid template"));
     let mut rows = Vec::new();
-    if inputs.is_empty() {
+    if args.input.is_empty() {
         let name = format!("built-in crowd: {} x {} joints, {} s", args.characters, crowd::JOINTS, crowd::SECONDS);
         bar.set_message(name.clone());
         rows.push(bake_one(&name, "crowd", || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device));
         bar.inc(1);
     }
-    for path in &inputs {
+    for (path, stem) in inputs.iter().zip(&stems) {
         bar.set_message(path.display().to_string());
-        let stem = path.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
-        rows.push(bake_one(&path.display().to_string(), &stem, || read(path), args, &spec, &device));
+        rows.push(bake_one(&path.display().to_string(), stem, || read(path, args), args, &spec, &device));
         bar.inc(1);
     }
     bar.finish_and_clear();
+    output.remove_if_unused();
     print_stdout(|w| summary(w, &rows, &device_name, args))?;
     let failed: Vec<&Row> = rows.iter().filter(|r| r.outcome.is_err()).collect();
     if failed.is_empty() {
@@ -135,7 +142,33 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     Err(if failed.iter().any(|r| matches!(r.outcome, Err(Failure::Internal(_)))) { Failure::Internal(summary) } else { Failure::Input(summary) })
 }
 
-/// Files given, with directories replaced by their .gltf/.glb/.bvh files (sorted).
+/// The output directory, created for the job; if this job created it (and any missing
+/// parents) and wrote nothing into it, [`Self::remove_if_unused`] takes them away again, so a
+/// failed job leaves nothing behind.
+struct OutputDir {
+    /// Directories this job created, deepest first.
+    created: Vec<PathBuf>,
+}
+
+impl OutputDir {
+    fn create(dir: &Path) -> Result<Self, Failure> {
+        let created: Vec<PathBuf> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
+        std::fs::create_dir_all(dir).map_err(|e| Failure::Input(format!("--output {}: cannot create the directory: {e}", dir.display())))?;
+        Ok(Self { created })
+    }
+
+    fn remove_if_unused(&self) {
+        // remove_dir only removes empty directories.
+        for dir in &self.created {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
+}
+
+/// Files given, with directories replaced by their .gltf/.glb/.bvh files (sorted). A
+/// directory without one is an error: baking the built-in crowd instead would be a surprise.
 fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     let known = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("gltf" | "glb" | "bvh"));
     let mut files = Vec::new();
@@ -143,6 +176,9 @@ fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
         if input.is_dir() {
             let entries = std::fs::read_dir(input).map_err(|e| Failure::Input(format!("{}: cannot list: {e}", input.display())))?;
             let mut found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
+            if found.is_empty() {
+                return Err(Failure::Input(format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display())));
+            }
             found.sort();
             files.extend(found);
         } else {
@@ -152,10 +188,29 @@ fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     Ok(files)
 }
 
-fn read(path: &Path) -> Result<Source, Failure> {
+/// Each input's output stem (its file name without extension). Two inputs with one stem
+/// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
+/// replacing the first: refused before anything is baked.
+fn output_stems(inputs: &[PathBuf], output: &Path) -> Result<Vec<String>, Failure> {
+    let stems: Vec<String> = inputs.iter().map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned())).collect();
+    let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::new();
+    for (stem, path) in stems.iter().zip(inputs) {
+        if let Some(first) = seen.insert(stem, path) {
+            return Err(Failure::Input(format!(
+                "{} and {} would both write {}; bake them into separate --output directories",
+                first.display(),
+                path.display(),
+                output.join(format!("{stem}.*")).display()
+            )));
+        }
+    }
+    Ok(stems)
+}
+
+fn read(path: &Path, args: &BakeArgs) -> Result<Source, Failure> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path)?))),
+        Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, gltf::UriPolicy { allow_external: args.allow_external_uris })?))),
         Some("bvh") => {
             let file = bvh::read(path)?;
             let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
@@ -209,7 +264,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         if let Some((name, bytes)) = &baked_file {
             let path = dir.join(name);
             refuse_overwriting_input(&path, source)?;
-            write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Internal(e.to_string()))?;
+            write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Input(e.to_string()))?;
             written.push(path);
         }
         let mut clips = Vec::new();
@@ -217,7 +272,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             let name = format!("{stem}.{index}.npy");
             let path = dir.join(&name);
             let shape = [result.times.len() as u64, animation.joints.len() as u64, TEXTURE_CHANNELS as u64];
-            write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Internal(e.to_string()))?;
+            write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Input(e.to_string()))?;
             written.push(path);
             let (start, end) = (result.times[0], result.times[result.times.len() - 1]);
             clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end, rate: result.rate, looping: result.looping });
@@ -235,7 +290,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         };
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
-            .map_err(|e| Failure::Internal(e.to_string()))?;
+            .map_err(|e| Failure::Input(e.to_string()))?;
         written.push(path);
         Ok(())
     })();
@@ -272,7 +327,8 @@ fn summary(w: &mut dyn std::io::Write, rows: &[Row], device: &str, args: &BakeAr
             Err(Failure::Input(_)) => "FAILED (input)".to_string(),
             Err(Failure::Internal(_)) => "FAILED (device)".to_string(),
         };
-        let name = if r.source.len() > 44 { format!("...{}", &r.source[r.source.len() - 41..]) } else { r.source.clone() };
+        let chars = r.source.chars().count();
+        let name = if chars > 44 { format!("...{}", r.source.chars().skip(chars - 41).collect::<String>()) } else { r.source.clone() };
         writeln!(w, "{name:<44} {:>5} {:>8} {:>9} {:>11} {:>8.2} {:>14}  {status}", r.clips, r.channels, r.keys, r.samples, r.seconds, error)?;
     }
     Ok(())

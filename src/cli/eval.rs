@@ -1,6 +1,6 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{parse, print_stdout, CurveArgs, Failure};
+use super::{parse, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{demo_tracks, read_track_file, write_atomic, write_npy, ResultFile};
 use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
@@ -25,11 +25,13 @@ pub struct EvalArgs {
     looping: bool,
     #[command(flatten)]
     options: CurveArgs,
+    #[command(flatten)]
+    device: DeviceArgs,
     /// N samples per track from domain start to end, both included.
     #[arg(long, conflicts_with = "rate")]
     samples: Option<usize>,
     /// Samples per second from the domain start (default 30).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     rate: Option<f64>,
     /// Also output body angular velocity and acceleration.
     #[arg(long)]
@@ -97,7 +99,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     }
     let job = EvalJob { batch: &batch, times: &times, layout, derivatives: args.derivatives };
     job.validate().map_err(input_err)?;
-    let device = Device::open(args.options.device)?;
+    let device = Device::open(args.device.device)?;
     let out = device.evaluate(&job).map_err(|e| Failure::from(e).context(&source))?;
     let device = device.name();
     let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);

@@ -57,6 +57,11 @@ pub struct CurveArgs {
     /// Nam-Kim blend function.
     #[arg(long, default_value = "cubic", value_parser = parse::<Blend>)]
     pub blend: Blend,
+}
+
+/// The device option of `eval` and `bake` (`bench` names several with `--devices`).
+#[derive(Args, Debug, Clone)]
+pub struct DeviceArgs {
     /// Evaluation device: auto (GPU if any, else the fast CPU path), gpu, cpu, reference.
     #[arg(long, default_value = "auto", value_parser = parse::<DeviceChoice>)]
     pub device: DeviceChoice,

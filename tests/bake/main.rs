@@ -1,6 +1,9 @@
 //! `quatcurve bake` end to end on the real files in `../shared/data` (skipped with a message
 //! when absent), on crafted bad inputs, and the BVH Euler conventions against hand-computed
-//! rotations.
+//! rotations; hostile files one by one ([`hostile`]) and mutated at random ([`mutations`]).
+
+mod hostile;
+mod mutations;
 
 use assert_cmd::Command;
 use base64::Engine;
@@ -235,11 +238,16 @@ fn bvh_euler_channels_compose_in_file_order_for_every_axis_order() {
 
 /// A minimal .gltf (one node, one rotation channel) with its buffer as a data URI.
 fn tiny_gltf(times: &[f32], rotations: &[[f32; 4]]) -> String {
+    tiny_gltf_value(times, rotations).0.to_string()
+}
+
+/// [`tiny_gltf`]'s document, and its buffer's bytes (for tests that move them to a file).
+fn tiny_gltf_value(times: &[f32], rotations: &[[f32; 4]]) -> (serde_json::Value, Vec<u8>) {
     let mut bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
     let offset = bytes.len();
     bytes.extend(rotations.iter().flatten().flat_map(|v| v.to_le_bytes()));
     let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
-    serde_json::json!({
+    let document = serde_json::json!({
         "asset": {"version": "2.0"},
         "nodes": [{"name": "bone"}],
         "scenes": [{"nodes": [0]}],
@@ -255,8 +263,8 @@ fn tiny_gltf(times: &[f32], rotations: &[[f32; 4]]) -> String {
         ],
         "animations": [{"name": "wave", "samplers": [{"input": 0, "output": 1, "interpolation": "LINEAR"}],
                         "channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}]}]
-    })
-    .to_string()
+    });
+    (document, bytes)
 }
 
 /// Runs bake on one bad file; checks exit 2, the message, and that nothing was written.
@@ -271,7 +279,7 @@ fn assert_rejected(name: &str, contents: &[u8], expected: &[&str]) {
     for part in expected {
         assert!(msg.contains(part), "{name}: message lacks {part:?}: {msg}");
     }
-    assert_eq!(std::fs::read_dir(&out_dir).map(Iterator::count).unwrap_or(0), 0, "{name}: output left behind");
+    assert!(!out_dir.exists(), "{name}: output directory left behind");
 }
 
 #[test]

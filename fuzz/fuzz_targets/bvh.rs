@@ -1,0 +1,20 @@
+//! BVH text -> parser -> bake (fast CPU path) -> BVH and texture encoders, in memory.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use quatcurve::bake::{self, bvh, LoopMode};
+use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
+
+fuzz_target!(|bytes: &[u8]| {
+    let Ok(text) = std::str::from_utf8(bytes) else { return };
+    let Ok(file) = bvh::parse(text) else { return };
+    let animation = file.animation("clip");
+    if animation.clips.is_empty() {
+        return;
+    }
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    if let Ok(baked) = bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), 10.0, LoopMode::Auto, &device) {
+        let _ = file.to_text(&animation.clips[0], &baked);
+        let _ = bake::texture(&animation, &animation.clips[0], &baked.clips[0]);
+    }
+});

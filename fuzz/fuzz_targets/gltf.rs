@@ -1,0 +1,19 @@
+//! glTF/GLB bytes -> reader -> bake (fast CPU path) -> GLB and texture encoders, in memory.
+//! Errors are fine; a panic or an abort is a finding.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use quatcurve::bake::{self, gltf, LoopMode};
+use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
+use std::path::Path;
+
+fuzz_target!(|bytes: &[u8]| {
+    let Ok(file) = gltf::from_bytes(bytes, Path::new("/nonexistent-quatcurve-dir"), gltf::UriPolicy::default()) else { return };
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    if let Ok(baked) = bake::bake(&file.animation, &CurveSpec::new(Curve::BSplineInterp), 10.0, LoopMode::Auto, &device) {
+        let _ = file.to_glb(&baked);
+        for (clip, result) in file.animation.clips.iter().zip(&baked.clips) {
+            let _ = bake::texture(&file.animation, clip, result);
+        }
+    }
+});
