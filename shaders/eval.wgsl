@@ -58,7 +58,8 @@ struct GpuTrack {
     step_whole: u32,
     step_frac_hi: u32,
     step_frac_lo: u32,
-    pad: u32,
+    // Where this entry's samples start in the whole track (a piece of a long track).
+    sample_base: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -107,7 +108,7 @@ fn sample_time(tr: GpuTrack, j: u32) -> vec2u {
     if (tr.flags & FLAG_HAS_LAST) != 0u && j + 1u == tr.sample_count {
         return vec2u(tr.last_lo, tr.last_hi);
     }
-    return time_step(vec2u(tr.start_lo, tr.start_hi), j, tr.step_whole, tr.step_frac_hi, tr.step_frac_lo);
+    return time_step(vec2u(tr.start_lo, tr.start_hi), tr.sample_base + j, tr.step_whole, tr.step_frac_hi, tr.step_frac_lo);
 }
 
 /// Running state of a cumulative product q_s prod exp(v_j b_j) with W = q^-1 q' and W'.

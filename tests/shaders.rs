@@ -60,7 +60,7 @@ fn rust_structs_match_naga_layout_of_their_wgsl_twins() {
     let (module, _) = shader::module().unwrap();
     let track = rust_layout!(
         GpuTrack, curve, order, blend, flags, point_offset, point_count, coef_offset, knot_offset, knot_count,
-        sample_offset, sample_count, time_offset, start_lo, start_hi, last_lo, last_hi, step_whole, step_frac_hi, step_frac_lo, pad,
+        sample_offset, sample_count, time_offset, start_lo, start_hi, last_lo, last_hi, step_whole, step_frac_hi, step_frac_lo, sample_base,
     );
     assert_eq!(naga_struct(&module, "GpuTrack"), track);
     let params = rust_layout!(Params, sample_count, track_count, channels, frame_major, groups_x, pad0, pad1, pad2);

@@ -3,6 +3,8 @@
 //! Per input file: read, bake every clip, then write all of that file's outputs atomically;
 //! a failure in one file is reported and the others still finish (exit non-zero at the end).
 
+use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
+use super::shard::Shard;
 use super::{parse, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -43,6 +45,15 @@ pub struct BakeArgs {
     /// Characters in the built-in crowd.
     #[arg(long, default_value_t = crowd::CHARACTERS)]
     characters: usize,
+    /// Bake only this share of the inputs, I/N (0-based): inputs sorted by path, file k
+    /// belongs to shard k mod N. Without it, the array index Slurm, Kubernetes, AWS Batch or
+    /// Google Batch sets (README "Large jobs"); else the whole job.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Skip inputs that this shard's manifest records as baked with the same options from
+    /// the same bytes, whose outputs are still intact (size and SHA-256).
+    #[arg(long)]
+    resume: bool,
 }
 
 /// What one input became.
@@ -55,6 +66,8 @@ struct Row {
     seconds: f64,
     max_key_error: Option<f64>,
     outcome: Result<Vec<PathBuf>, Failure>,
+    /// Skipped by `--resume`: the earlier run's outputs were verified and kept.
+    resumed: bool,
 }
 
 /// A source read into the common model, with what it needs to write itself back.
@@ -107,28 +120,66 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
         return Err(Failure::Input(format!("--rate must be a positive number of Hz, not {}", args.rate)));
     }
     let spec = args.options.spec(args.curve, KnotMode::Phantom, false);
+    let shard = Shard::resolve(args.shard.as_deref(), &|name| std::env::var(name).ok())?;
     let inputs = expand(&args.input)?;
+    // Over the whole job, so every shard refuses the same clashes.
     let stems = output_stems(&inputs, &args.output)?;
     let output = OutputDir::create(&args.output)?;
     let device = Device::open(args.device.device)?;
     let device_name = device.name();
-    let bar = ProgressBar::new(inputs.len().max(1) as u64);
-    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} {elapsed} {msg}").expect("valid template"));
-    let mut rows = Vec::new();
-    if args.input.is_empty() {
-        let name = format!("built-in crowd: {} x {} joints, {} s", args.characters, crowd::JOINTS, crowd::SECONDS);
-        bar.set_message(name.clone());
-        rows.push(bake_one(&name, "crowd", || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device));
+    let options = options_record(args);
+    let manifest_path = shard.manifest_path(&args.output);
+    let previous = if args.resume { Manifest::load(&manifest_path) } else { None };
+    let mut manifest = Manifest {
+        tool: format!("quatcurve {}", env!("CARGO_PKG_VERSION")),
+        shard: ShardRecord { index: shard.index, count: shard.count, source: shard.source.clone() },
+        options: options.clone(),
+        host: super::manifest::host(),
+        started: super::manifest::now(),
+        updated: 0,
+        inputs: Vec::new(),
+    };
+    // This shard's inputs: (name, stem, path); the built-in crowd is input 0 of its job.
+    let crowd_name = format!("built-in crowd: {} x {} joints, {} s", args.characters, crowd::JOINTS, crowd::SECONDS);
+    let jobs: Vec<(String, &str, Option<&Path>)> = if args.input.is_empty() {
+        vec![(crowd_name, "crowd", None)]
+    } else {
+        inputs.iter().zip(&stems).map(|(p, s)| (p.display().to_string(), s.as_str(), Some(p.as_path()))).collect()
+    };
+    let mine: Vec<_> = jobs.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, job)| job).collect();
+    let bar = ProgressBar::new(mine.len() as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} files, {per_sec} {elapsed} (eta {eta}) {msg}").expect("valid template"));
+    let (mut rows, mut samples, started) = (Vec::new(), 0usize, Instant::now());
+    let mut last_write = Instant::now();
+    for (name, stem, path) in mine {
+        bar.set_message(format!("{:.1} M samples/s {name}", samples as f64 / started.elapsed().as_secs_f64().max(1e-9) / 1e6));
+        let fingerprint = match path {
+            Some(path) => hash_file(path).unwrap_or((0, String::new())),
+            None => (0, hash_bytes(options.to_string().as_bytes())),
+        };
+        let kept = previous.as_ref().and_then(|m| m.resumable(&options, &name, fingerprint.0, &fingerprint.1, &args.output));
+        let row = match (kept, path) {
+            (Some(record), _) => resumed_row(&name, record, &args.output),
+            (None, Some(path)) => bake_one(&name, stem, || read(path, args), args, &spec, &device),
+            (None, None) => bake_one(&name, stem, || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device),
+        };
+        samples += row.samples;
+        manifest.inputs.push(input_record(&row, fingerprint, kept));
+        rows.push(row);
         bar.inc(1);
-    }
-    for (path, stem) in inputs.iter().zip(&stems) {
-        bar.set_message(path.display().to_string());
-        rows.push(bake_one(&path.display().to_string(), stem, || read(path, args), args, &spec, &device));
-        bar.inc(1);
+        // Kept current while the job runs, so a killed task resumes from where it was.
+        if last_write.elapsed().as_secs_f64() > 2.0 {
+            write_manifest(&mut manifest, &manifest_path)?;
+            last_write = Instant::now();
+        }
     }
     bar.finish_and_clear();
+    // A record of what was done, unless nothing was (a failed job leaves nothing behind).
+    if rows.iter().any(|r| r.outcome.is_ok()) {
+        write_manifest(&mut manifest, &manifest_path)?;
+    }
     output.remove_if_unused();
-    print_stdout(|w| summary(w, &rows, &device_name, args))?;
+    print_stdout(|w| summary(w, &rows, &device_name, args, &shard, inputs.len().max(1)))?;
     let failed: Vec<&Row> = rows.iter().filter(|r| r.outcome.is_err()).collect();
     if failed.is_empty() {
         return Ok(());
@@ -140,6 +191,44 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     }
     let summary = format!("{} of {} inputs failed (the others were baked)", failed.len(), rows.len());
     Err(if failed.iter().any(|r| matches!(r.outcome, Err(Failure::Internal(_)))) { Failure::Internal(summary) } else { Failure::Input(summary) })
+}
+
+/// The options that decide a bake's outputs (the manifest's `options`; `--resume` redoes
+/// everything when they differ).
+fn options_record(args: &BakeArgs) -> serde_json::Value {
+    let o = &args.options;
+    serde_json::json!({
+        "curve": args.curve.name(), "order": o.order, "knots": o.knots.map(|k| k.name()), "tangents": o.tangents.name(),
+        "blend": o.blend.name(), "loop": args.looping.name(), "rate": args.rate, "device": args.device.device.name(),
+        "allow_external_uris": args.allow_external_uris, "characters": args.characters,
+    })
+}
+
+fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), Failure> {
+    manifest.updated = super::manifest::now();
+    write_atomic(path, |w| serde_json::to_writer_pretty(&mut *w, manifest).map_err(std::io::Error::from)).map_err(|e| Failure::Input(e.to_string()))
+}
+
+/// An input `--resume` skips: the earlier run's record, its outputs verified intact.
+fn resumed_row(name: &str, record: &InputRecord, dir: &Path) -> Row {
+    let files = record.outputs.iter().map(|o| dir.join(&o.file)).collect();
+    Row { source: name.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(files), resumed: true }
+}
+
+/// The manifest entry of a finished row.
+fn input_record(row: &Row, (size, sha256): (u64, String), kept: Option<&InputRecord>) -> InputRecord {
+    let (status, error, outputs) = match (&row.outcome, kept) {
+        (Ok(_), Some(kept)) => ("resumed", None, kept.outputs.clone()),
+        (Ok(files), None) => {
+            let record = |p: &PathBuf| FileRecord::of(p, p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()));
+            match files.iter().map(record).collect::<std::io::Result<Vec<_>>>() {
+                Ok(outputs) => ("ok", None, outputs),
+                Err(e) => ("failed", Some(format!("cannot hash an output: {e}")), Vec::new()),
+            }
+        }
+        (Err(Failure::Input(msg) | Failure::Internal(msg)), _) => ("failed", Some(msg.clone()), Vec::new()),
+    };
+    InputRecord { path: row.source.clone(), size, sha256, status: status.into(), error, seconds: row.seconds, outputs }
 }
 
 /// The output directory, created for the job; if this job created it (and any missing
@@ -167,7 +256,7 @@ impl OutputDir {
     }
 }
 
-/// Files given, with directories replaced by their .gltf/.glb/.bvh files (sorted). A
+/// Files given, with directories replaced by their .gltf/.glb/.bvh files, sorted by path. A
 /// directory without one is an error: baking the built-in crowd instead would be a surprise.
 fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     let known = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("gltf" | "glb" | "bvh"));
@@ -175,16 +264,17 @@ fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     for input in inputs {
         if input.is_dir() {
             let entries = std::fs::read_dir(input).map_err(|e| Failure::Input(format!("{}: cannot list: {e}", input.display())))?;
-            let mut found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
+            let found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
             if found.is_empty() {
                 return Err(Failure::Input(format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display())));
             }
-            found.sort();
             files.extend(found);
         } else {
             files.push(input.clone());
         }
     }
+    // One order for every shard (DESIGN section 7): by path, bytewise.
+    files.sort_by(|a, b| a.as_os_str().as_encoded_bytes().cmp(b.as_os_str().as_encoded_bytes()));
     Ok(files)
 }
 
@@ -230,7 +320,7 @@ fn bake_one(
     device: &Device,
 ) -> Row {
     let start = Instant::now();
-    let mut row = Row { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()) };
+    let mut row = Row { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false };
     let result = read().and_then(|src| {
         let animation = src.animation();
         row.clips = animation.clips.len();
@@ -317,12 +407,16 @@ fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), Failure> 
     Ok(())
 }
 
-fn summary(w: &mut dyn std::io::Write, rows: &[Row], device: &str, args: &BakeArgs) -> std::io::Result<()> {
+fn summary(w: &mut dyn std::io::Write, rows: &[Row], device: &str, args: &BakeArgs, shard: &Shard, inputs: usize) -> std::io::Result<()> {
     writeln!(w, "baked at {} Hz with {} on {device} -> {}", args.rate, args.curve, args.output.display())?;
+    if shard.count > 1 {
+        writeln!(w, "shard {} of {} ({}): {} of {inputs} inputs", shard.index, shard.count, shard.source, rows.len())?;
+    }
     writeln!(w, "{:<44} {:>5} {:>8} {:>9} {:>11} {:>8} {:>14}  status", "input", "clips", "channels", "keys in", "samples out", "seconds", "key error rad")?;
     for r in rows {
         let error = r.max_key_error.map_or_else(|| "-".to_string(), |e| format!("{e:.2e}"));
         let status = match &r.outcome {
+            Ok(files) if r.resumed => format!("ok (resumed: {} files intact)", files.len()),
             Ok(files) => format!("ok ({} files)", files.len()),
             Err(Failure::Input(_)) => "FAILED (input)".to_string(),
             Err(Failure::Internal(_)) => "FAILED (device)".to_string(),

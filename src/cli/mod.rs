@@ -4,6 +4,8 @@
 pub mod bake;
 pub mod bench;
 pub mod eval;
+mod manifest;
+mod shard;
 
 use clap::Args;
 use quatcurve::{Blend, Curve, CurveSpec, DeviceChoice, DeviceError, KnotMode, Tangents};

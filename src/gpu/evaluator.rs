@@ -503,7 +503,7 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
             // time for a large output on lavapipe.
             use rayon::prelude::*;
             const PIECE: usize = 1 << 20;
-            let start = times.offsets[chunk.first_track] * channels;
+            let start = (times.offsets[chunk.first_track] + chunk.sample_base) * channels;
             let (to, from) = (&mut data[start..start + chunk.samples * channels], &local[..chunk.samples * channels]);
             to.par_chunks_mut(PIECE).zip(from.par_chunks(PIECE)).for_each(|(to, from)| to.copy_from_slice(from));
         }
@@ -513,7 +513,7 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
             let frames = chunk.samples.checked_div(n).unwrap_or(0);
             for j in 0..frames {
                 let src = j * n * channels;
-                let dst = layout.slot(times, chunk.first_track, j) * channels;
+                let dst = layout.slot(times, chunk.first_track, chunk.sample_base + j) * channels;
                 data[dst..dst + n * channels].copy_from_slice(&local[src..src + n * channels]);
             }
         }

@@ -51,8 +51,9 @@ pub struct GpuTrack {
     pub step_frac_hi: u32,
     /// Fraction, low word.
     pub step_frac_lo: u32,
-    /// Padding.
-    pub pad: u32,
+    /// Index in the whole track of this entry's first sample: 0, or for a piece of a track
+    /// too long for one binding, where the piece starts (uniform times count from it).
+    pub sample_base: u32,
 }
 
 /// Per-dispatch parameters (WGSL `Params`, a uniform).
@@ -146,11 +147,14 @@ pub fn channels(derivatives: bool, matrix: bool) -> usize {
     4 + if derivatives { 6 } else { 0 } + if matrix { 9 } else { 0 }
 }
 
-/// A contiguous range of tracks that fits every binding limit, packed for the kernel.
+/// A contiguous range of tracks that fits every binding limit, packed for the kernel; or one
+/// piece of a track too long for one binding (its samples from `sample_base` on).
 #[derive(Clone, Debug, Default)]
 pub struct Chunk {
     /// First track of the batch in this chunk.
     pub first_track: usize,
+    /// First sample of the first track in this chunk (non-zero only for a piece).
+    pub sample_base: usize,
     /// Tracks, rebased to the chunk's arrays.
     pub tracks: Vec<GpuTrack>,
     /// Points `[x, y, z, w]`.
@@ -168,8 +172,8 @@ pub struct Chunk {
 /// Why a batch cannot go to the GPU.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PackError {
-    /// One track alone exceeds a binding limit.
-    #[error("{track}: needs {bytes} bytes in one GPU binding, more than the device's {limit}; split the track")]
+    /// One track's keys alone exceed a binding limit (its samples are cut into pieces).
+    #[error("{track}: its keys need {bytes} bytes in one GPU binding, more than the device's {limit}; use the cpu device")]
     TrackTooLarge { track: String, bytes: u64, limit: u64 },
     /// A Bezier degree beyond the shader's fixed arrays.
     #[error("{track}: Bezier degree {degree} is above the GPU limit of {max}; use the cpu or reference device")]
@@ -200,19 +204,19 @@ pub fn polynomial_table() -> Vec<[f32; 4]> {
 /// Samples per track the kernel indexes with one `u32`.
 pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
 
-/// Splits `batch` into chunks whose every buffer stays within `binding_limit` bytes.
+/// Splits `batch` into chunks whose every buffer stays within `binding_limit` bytes. A track
+/// whose samples alone overflow a binding is cut into pieces of consecutive samples, one
+/// chunk each (so no track is refused for its length; its keys travel with every piece).
 ///
 /// # Errors
-/// [`PackError`] naming the track.
+/// [`PackError`] naming the track: a Bezier degree the kernel cannot take, more than
+/// [`MAX_SAMPLES_PER_TRACK`] samples, or keys that alone overflow a binding.
 pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<Chunk>, PackError> {
     let mut chunks = vec![Chunk::default()];
     for index in 0..batch.len() {
         let view = batch.view(index);
         let count = times.count(index);
-        let explicit = match times.tracks[index] {
-            TrackTimes::Explicit { count, .. } => count,
-            TrackTimes::Uniform { .. } => 0,
-        };
+        let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
         let name = batch.ids[index].to_string();
         if view.track.curve == Curve::Bezier && view.track.order > MAX_BEZIER_DEGREE {
             return Err(PackError::BezierTooLong { track: name, degree: view.track.order, max: MAX_BEZIER_DEGREE });
@@ -220,62 +224,84 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         if count >= MAX_SAMPLES_PER_TRACK {
             return Err(PackError::TooManySamples { track: name, count, max: MAX_SAMPLES_PER_TRACK - 1 });
         }
-        // Bytes this track adds to each binding.
-        let needs = |c: &Chunk| -> [u64; 6] {
+        // Bytes each binding of chunk `c` holds with `samples` more samples of this track.
+        let needs = |c: &Chunk, samples: usize| -> [u64; 6] {
             [
                 ((c.tracks.len() + 1) * std::mem::size_of::<GpuTrack>()) as u64,
                 ((c.points.len() + view.points.len()) * 16) as u64,
                 ((c.coefs.len() + view.coefs.len()) * 16) as u64,
                 ((c.knots.len() + view.knots.len()) * 8) as u64,
-                ((c.times.len() + explicit) * 8) as u64,
-                ((c.samples + count) * channels * 4) as u64,
+                ((c.times.len() + if explicit { samples } else { 0 }) * 8) as u64,
+                ((c.samples + samples) * channels * 4) as u64,
             ]
         };
-        let fits = |c: &Chunk| needs(c).iter().all(|&b| b <= binding_limit) && c.samples + count < u32::MAX as usize;
-        if !fits(chunks.last().unwrap()) {
-            if chunks.last().unwrap().tracks.is_empty() || !fits(&Chunk::default()) {
-                let bytes = *needs(&Chunk::default()).iter().max().unwrap();
-                return Err(PackError::TrackTooLarge { track: name, bytes, limit: binding_limit });
-            }
+        let fits = |c: &Chunk, samples: usize| needs(c, samples).iter().all(|&b| b <= binding_limit) && c.samples + samples < u32::MAX as usize;
+        if fits(chunks.last().unwrap(), count) {
+            push_piece(chunks.last_mut().unwrap(), index, &view, times, 0..count);
+            continue;
+        }
+        if fits(&Chunk::default(), count) {
             chunks.push(Chunk { first_track: index, ..Chunk::default() });
+            push_piece(chunks.last_mut().unwrap(), index, &view, times, 0..count);
+            continue;
         }
-        let chunk = chunks.last_mut().unwrap();
-        let mut gpu = GpuTrack {
-            curve: curve_code(view.track.curve),
-            order: view.track.order as u32,
-            blend: blend_code(view.track.blend),
-            point_offset: chunk.points.len() as u32,
-            point_count: view.points.len() as u32,
-            coef_offset: chunk.coefs.len() as u32,
-            knot_offset: chunk.knots.len() as u32,
-            knot_count: view.knots.len() as u32,
-            sample_offset: chunk.samples as u32,
-            sample_count: count as u32,
-            time_offset: chunk.times.len() as u32,
-            ..GpuTrack::default()
-        };
-        if view.track.curve == Curve::BSpline && knots_are_uniform(view.knots) {
-            gpu.flags |= FLAG_UNIFORM_KNOTS;
+        // Too long for one binding: pieces as large as a fresh chunk takes.
+        let per_sample = (channels * 4 + if explicit { 8 } else { 0 }) as u64;
+        let piece = (binding_limit / per_sample).min(u32::MAX as u64 / 2) as usize;
+        if piece == 0 || !fits(&Chunk::default(), piece.min(count)) {
+            let bytes = *needs(&Chunk::default(), 1).iter().max().unwrap();
+            return Err(PackError::TrackTooLarge { track: name, bytes, limit: binding_limit });
         }
-        match times.tracks[index] {
-            TrackTimes::Explicit { offset, count } => {
-                gpu.flags |= FLAG_EXPLICIT_TIMES;
-                chunk.times.extend(times.explicit[offset..offset + count].iter().map(|&t| fixed_time(t)));
-            }
-            TrackTimes::Uniform { start, step, last, .. } => {
-                [gpu.start_lo, gpu.start_hi] = fixed_time(start);
-                [gpu.step_whole, gpu.step_frac_hi, gpu.step_frac_lo] = fixed_step(step);
-                if let Some(last) = last {
-                    gpu.flags |= FLAG_HAS_LAST;
-                    [gpu.last_lo, gpu.last_hi] = fixed_time(last);
-                }
-            }
+        for start in (0..count).step_by(piece) {
+            chunks.push(Chunk { first_track: index, sample_base: start, ..Chunk::default() });
+            push_piece(chunks.last_mut().unwrap(), index, &view, times, start..(start + piece).min(count));
         }
-        chunk.tracks.push(gpu);
-        chunk.points.extend(view.points.iter().map(|q| q.to_array().map(|c| c as f32)));
-        chunk.coefs.extend(view.coefs.iter().map(|c| c.map(|x| x as f32)));
-        chunk.knots.extend(view.knots.iter().map(|&k| fixed_time(k)));
-        chunk.samples += count;
+        // Later tracks start a chunk of their own (a piece's chunk holds that piece only).
+        chunks.push(Chunk { first_track: index + 1, ..Chunk::default() });
     }
+    chunks.retain(|c| !c.tracks.is_empty());
     Ok(chunks)
+}
+
+/// Appends samples `range` of track `index` to `chunk` (the whole track, or one piece).
+fn push_piece(chunk: &mut Chunk, index: usize, view: &crate::batch::TrackView<'_>, times: &SampleTimes, range: std::ops::Range<usize>) {
+    let count = range.len();
+    let mut gpu = GpuTrack {
+        curve: curve_code(view.track.curve),
+        order: view.track.order as u32,
+        blend: blend_code(view.track.blend),
+        point_offset: chunk.points.len() as u32,
+        point_count: view.points.len() as u32,
+        coef_offset: chunk.coefs.len() as u32,
+        knot_offset: chunk.knots.len() as u32,
+        knot_count: view.knots.len() as u32,
+        sample_offset: chunk.samples as u32,
+        sample_count: count as u32,
+        time_offset: chunk.times.len() as u32,
+        sample_base: range.start as u32,
+        ..GpuTrack::default()
+    };
+    if view.track.curve == Curve::BSpline && knots_are_uniform(view.knots) {
+        gpu.flags |= FLAG_UNIFORM_KNOTS;
+    }
+    match times.tracks[index] {
+        TrackTimes::Explicit { offset, .. } => {
+            gpu.flags |= FLAG_EXPLICIT_TIMES;
+            chunk.times.extend(times.explicit[offset + range.start..offset + range.end].iter().map(|&t| fixed_time(t)));
+        }
+        TrackTimes::Uniform { start, step, last, count: total } => {
+            [gpu.start_lo, gpu.start_hi] = fixed_time(start);
+            [gpu.step_whole, gpu.step_frac_hi, gpu.step_frac_lo] = fixed_step(step);
+            // The exact last sample belongs to the piece that ends the track.
+            if let (Some(last), true) = (last, range.end == total) {
+                gpu.flags |= FLAG_HAS_LAST;
+                [gpu.last_lo, gpu.last_hi] = fixed_time(last);
+            }
+        }
+    }
+    chunk.tracks.push(gpu);
+    chunk.points.extend(view.points.iter().map(|q| q.to_array().map(|c| c as f32)));
+    chunk.coefs.extend(view.coefs.iter().map(|c| c.map(|x| x as f32)));
+    chunk.knots.extend(view.knots.iter().map(|&k| fixed_time(k)));
+    chunk.samples += count;
 }

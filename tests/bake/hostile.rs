@@ -201,3 +201,29 @@ fn messages_print_numbers_naturally_and_long_names_fit() {
     assert!(stderr(&result).contains("has norm 0, below 1e-6"), "{}", stderr(&result));
     assert!(String::from_utf8_lossy(&result.stdout).contains("FAILED (input)"));
 }
+
+/// Inputs the mutation run (`mutations.rs`) found crashing the reader, kept as regressions:
+/// each was a panic (in the `gltf` crate or in our GLB writer) before its guard existed.
+#[test]
+fn crashers_found_by_the_mutation_run_are_input_errors() {
+    let crafted = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let (mut doc, _) = tiny_gltf_value(&[0.0, 0.5, 1.0], &[Q, TURN, Q]);
+        edit(&mut doc);
+        doc.to_string()
+    };
+    // An unknown channel target path (the crate unwraps it).
+    let doc = crafted(&|d| d["animations"][0]["channels"][0]["target"]["path"] = "rot-1ation".into());
+    assert_rejected("path.gltf", doc.as_bytes(), &["path.gltf", "target", "path"]);
+    // A mesh whose POSITION accessor does not exist (the crate's validation indexes it).
+    let doc = crafted(&|d| d["meshes"] = serde_json::json!([{"primitives": [{"attributes": {"POSITION": 9}}]}]));
+    assert_rejected("position.gltf", doc.as_bytes(), &["position.gltf", "attributes.POSITION: accessor 9 does not exist"]);
+    // Key times stored as VEC2 (the crate's reader asserts the element size).
+    let doc = crafted(&|d| d["accessors"][0]["type"] = "VEC2".into());
+    assert_rejected("vec2.gltf", doc.as_bytes(), &["vec2.gltf", "key times (accessor 0)", "Vec2 of F32 is not an element type glTF allows here"]);
+    // A channel targeting a node that does not exist (the crate unwraps the lookup).
+    let doc = crafted(&|d| d["animations"][0]["channels"][0]["target"]["node"] = 99.into());
+    assert_rejected("node.gltf", doc.as_bytes(), &["node.gltf", "animations[0].channels[0].target.node: index 99 does not exist"]);
+    // An unused buffer view at byte offset 2^64 - 1 (our GLB writer re-based it with an add).
+    let doc = crafted(&|d| d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": u64::MAX, "byteLength": 4})));
+    assert_rejected("offset.gltf", doc.as_bytes(), &["offset.gltf", "bufferViews[2]", "lie outside buffer 0"]);
+}

@@ -1,9 +1,11 @@
 //! `quatcurve bake` end to end on the real files in `../shared/data` (skipped with a message
 //! when absent), on crafted bad inputs, and the BVH Euler conventions against hand-computed
-//! rotations; hostile files one by one ([`hostile`]) and mutated at random ([`mutations`]).
+//! rotations; hostile files one by one ([`hostile`]) and mutated at random ([`mutations`]);
+//! sharded jobs and resume ([`shards`]).
 
 mod hostile;
 mod mutations;
+mod shards;
 
 use assert_cmd::Command;
 use base64::Engine;

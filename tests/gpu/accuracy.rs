@@ -92,7 +92,24 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
             compare(&small, &batch, &times, options, "chunked").assert_within_bars("chunked");
         }
     }
-    // A track too large for one binding is an error naming it, not a crash.
+    // Tracks whose samples overflow a binding are cut into pieces, bit for bit the same:
+    // uniform times (rate), uniform with the exact last sample (count), explicit times, in
+    // both layouts.
+    let pieces = GpuEvaluator::new().unwrap().with_binding_limit(4096);
+    let batch = batch_for(3, &CurveSpec::default(), Kind::Random, 6);
+    let explicit: Vec<f64> = (0..700).map(|i| 0.05 + f64::from(i) * 0.0007).collect();
+    let overrides = vec![Some(&explicit[..]); 3];
+    for (times, layout) in [
+        (SampleTimes::uniform(&batch, Sampling::Rate(400.0)).unwrap(), Layout::Track),
+        (SampleTimes::uniform(&batch, Sampling::Count(777)).unwrap(), Layout::Track),
+        (SampleTimes::uniform(&batch, Sampling::Count(777)).unwrap(), Layout::Frame),
+        (SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap(), Layout::Track),
+    ] {
+        let options = GpuOptions { layout, derivatives: true, ..GpuOptions::default() };
+        assert!(pieces.prepare(&batch, &times, &options).unwrap().chunk_count() > 3 * 5, "{layout:?}: tracks were not cut");
+        assert_eq!(pieces.evaluate(&batch, &times, &options).unwrap(), full.evaluate(&batch, &times, &options).unwrap(), "{layout:?}: pieces differ");
+    }
+    // A track whose keys alone overflow a binding is an error naming it, not a crash.
     let tiny = GpuEvaluator::new().unwrap().with_binding_limit(64);
     let batch = batch_for(1, &CurveSpec::default(), Kind::Random, 1);
     let times = SampleTimes::uniform(&batch, Sampling::Count(100)).unwrap();
@@ -124,4 +141,31 @@ fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
 fn long_clips_keep_full_time_precision() {
     let Some(gpu) = gpu() else { return };
     long_clip(&on_gpu(gpu, false)).assert_within_bars("long clip at t = 1000..1037 s");
+}
+
+/// One 20 M-sample track with derivatives (800 MB of output), through bindings of 100 MiB:
+/// the GPU cuts it into pieces and agrees with the CPU path (checked on every 997th sample and
+/// the last, within the bars against the reference too).
+#[test]
+fn a_track_longer_than_a_binding_is_evaluated_in_pieces() {
+    if gpu().is_none() {
+        return;
+    }
+    let gpu = GpuEvaluator::new().unwrap().with_binding_limit(100 << 20);
+    // A 6.3 s walk keyed at 10 Hz, sampled at 3.2 MHz.
+    let batch = Batch::from_tracks(&quatcurve::synthetic::walk_tracks(1, 64, 10.0), &CurveSpec::new(Curve::BSplineInterp)).unwrap();
+    let times = SampleTimes::uniform(&batch, Sampling::Count(20_000_000)).unwrap();
+    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
+    let out = gpu.evaluate(&batch, &times, &options).unwrap();
+    assert!(out.data.len() * 4 > 7 * (100 << 20), "the output must overflow seven bindings");
+    drop(gpu);
+    let cpu = quatcurve::cpu::CpuEvaluator::new().evaluate(&batch, &times, &quatcurve::cpu::CpuOptions { derivatives: true, ..Default::default() }).unwrap();
+    let (mut rotation, mut omega) = (0.0f32, 0.0f32);
+    for slot in (0..20_000_000).step_by(997).chain([19_999_999]) {
+        let (g, c) = (&out.data[slot * 10..slot * 10 + 10], &cpu.data[slot * 10..slot * 10 + 10]);
+        let sign = if g[..4].iter().zip(&c[..4]).map(|(a, b)| a * b).sum::<f32>() < 0.0 { -1.0 } else { 1.0 };
+        rotation = rotation.max(g[..4].iter().zip(&c[..4]).map(|(a, b)| (a - sign * b).abs()).fold(0.0, f32::max));
+        omega = omega.max(g[4..].iter().zip(&c[4..]).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0, f32::max));
+    }
+    assert!(rotation < 1e-5 && omega < 1e-3, "GPU pieces vs CPU: rotation {rotation}, derivatives {omega}");
 }
