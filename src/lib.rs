@@ -17,6 +17,7 @@
 pub mod bake;
 pub mod basis;
 pub mod cpu;
+pub mod arrays;
 pub mod batch;
 pub mod curve;
 pub mod device;

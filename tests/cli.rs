@@ -301,3 +301,102 @@ fn bench_reports_every_requested_device_as_json() {
     let out = quatcurve(&["bench", "--tracks", "0"]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
 }
+
+/// A `.npy` file's bytes: version 1.0 header for `descr` and `shape`, then `data` as is.
+fn npy_bytes(descr: &str, shape: &[u64], data: &[u8]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
+    let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((header.len() as u16).to_le_bytes());
+    out.extend(header.as_bytes());
+    out.extend(data);
+    out
+}
+
+fn f64_bytes(values: &[f64]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// A `.npz` (zip of `.npy` members, deflated as numpy's savez_compressed does).
+fn write_npz(path: &Path, members: &[(&str, Vec<u8>)]) {
+    use std::io::Write;
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(path).unwrap());
+    for (name, bytes) in members {
+        zip.start_file(format!("{name}.npy"), zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated)).unwrap();
+        zip.write_all(bytes).unwrap();
+    }
+    zip.finish().unwrap();
+}
+
+/// `eval --input .npz|.npy`: the same tracks as JSON give the same output; times shared,
+/// per track, or from `--key-rate`; names carried; bad shapes, dtypes and crafted headers are
+/// exit 2 naming the array.
+#[test]
+fn eval_reads_numpy_arrays_like_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tracks, keys) = (3usize, 6usize);
+    let rotation = |t: usize, k: usize| DQuat::exp(DVec3::new(0.1 * k as f64, 0.05 * t as f64, 0.2 * (k * t) as f64 % 0.7)).to_array();
+    let rotations: Vec<f64> = (0..tracks).flat_map(|t| (0..keys).flat_map(move |k| rotation(t, k))).collect();
+    let times: Vec<f64> = (0..keys).map(|k| 0.25 * k as f64 + 0.01 * (k * k) as f64).collect();
+    let names = ["hip", "knee", "toe"];
+    let name_bytes: Vec<u8> = names.iter().flat_map(|n| format!("{n:\0<4}").chars().flat_map(|c| (c as u32).to_le_bytes()).collect::<Vec<_>>()).collect();
+    let npz = dir.path().join("tracks.npz");
+    write_npz(&npz, &[
+        ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
+        ("times", npy_bytes("<f8", &[keys as u64], &f64_bytes(&times))),
+        ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
+    ]);
+    let json_tracks: Vec<Track> = (0..tracks)
+        .map(|t| Track { name: Some(names[t].into()), times: Some(times.clone()), ..Track::from_rotations((0..keys).map(|k| rotation(t, k)).collect()) })
+        .collect();
+    let json_in = dir.path().join("tracks.json");
+    std::fs::write(&json_in, serde_json::to_string(&TrackFile { tracks: json_tracks }).unwrap()).unwrap();
+    let eval = |input: &Path, extra: &[&str]| {
+        let out = dir.path().join("out.json");
+        let result = quatcurve(&[&["eval", "--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--samples", "7", "--device", "reference"][..], extra].concat());
+        assert!(result.status.success(), "{}", stderr(&result));
+        std::fs::read_to_string(out).unwrap()
+    };
+    assert_eq!(eval(&npz, &[]), eval(&json_in, &[]), "npz and JSON inputs differ");
+    // Per-track times [tracks, keys] equal to the shared ones: same result.
+    let per_track: Vec<f64> = (0..tracks).flat_map(|_| times.clone()).collect();
+    let npz2 = dir.path().join("per_track.npz");
+    write_npz(&npz2, &[
+        ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
+        ("times", npy_bytes("<f8", &[tracks as u64, keys as u64], &f64_bytes(&per_track))),
+        ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
+    ]);
+    assert_eq!(eval(&npz2, &[]), eval(&json_in, &[]));
+    // A bare .npy (float32) with --key-rate: keys at k / rate.
+    let npy = dir.path().join("rotations.npy");
+    let f32_bytes: Vec<u8> = rotations.iter().flat_map(|&v| (v as f32).to_le_bytes()).collect();
+    std::fs::write(&npy, npy_bytes("<f4", &[tracks as u64, keys as u64, 4], &f32_bytes)).unwrap();
+    let out: serde_json::Value = serde_json::from_str(&eval(&npy, &["--key-rate", "4"])).unwrap();
+    assert_eq!(out["tracks"][0]["times"][6], 1.25, "{}", out["tracks"][0]["times"]);
+
+    let rejected = |name: &str, bytes: Vec<u8>, expected: &[&str]| {
+        let path = dir.path().join(name);
+        if name.ends_with(".npy") {
+            std::fs::write(&path, bytes).unwrap();
+        } else {
+            write_npz(&path, &[("rotations", bytes)]);
+        }
+        let result = quatcurve(&["eval", "--input", path.to_str().unwrap(), "--device", "reference"]);
+        assert_eq!(result.status.code(), Some(2), "{name}: {}", stderr(&result));
+        for part in expected {
+            assert!(stderr(&result).contains(part), "{name}: lacks {part:?}: {}", stderr(&result));
+        }
+    };
+    rejected("three.npz", npy_bytes("<f8", &[2, 2, 3], &f64_bytes(&[0.0; 12])), &["rotations: shape [2, 2, 3]; expected [tracks, keys, 4]"]);
+    rejected("ints.npz", npy_bytes("<i4", &[1, 2, 4], &[0; 32]), &["rotations: dtype <i4; expected float32 or float64"]);
+    // A header announcing 10^18 values over 64 bytes of data: refused before any allocation.
+    rejected("huge.npy", npy_bytes("<f8", &[1_000_000_000, 1_000_000_000, 4], &f64_bytes(&[0.0; 8])), &["rotations", "needs", "the file holds"]);
+    rejected("short.npy", npy_bytes("<f8", &[1, 3, 4], &f64_bytes(&[0.0; 8])), &["rotations: the data ends after 8 of the 12 values its shape says"]);
+    let result = quatcurve(&["eval", "--input", npz.to_str().unwrap(), "--key-rate", "-3"]);
+    assert_eq!(result.status.code(), Some(2));
+}

@@ -115,8 +115,14 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
                         _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
                     });
                 }
-                if channels.iter().filter(|c| matches!(c, BvhChannel::Rotation(_))).count() == 2 {
-                    return Err(bad(line, format!("joint {name} has two rotation channels; 0, 1 or 3 are supported")));
+                // Writing back solves for the angles, which needs 0, 1 or 3 distinct axes (found by
+                // fuzzing: 4 rotation channels, or one axis twice, crashed the writer).
+                let mut axes: Vec<usize> = channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
+                let listed = axes.len();
+                axes.sort_unstable();
+                axes.dedup();
+                if !matches!(listed, 0 | 1 | 3) || axes.len() != listed {
+                    return Err(bad(line, format!("joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 distinct axes are supported", axes.len())));
                 }
                 joints.push(BvhJoint { name: name.to_string(), offset, channels });
             }

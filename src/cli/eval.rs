@@ -8,9 +8,16 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Input track file ({"tracks": [...]}); without it, a built-in three-joint demo.
+    /// Input tracks: JSON ({"tracks": [...]}), or numpy arrays for large batches: .npz with
+    /// rotations [tracks, keys, 4] (x, y, z, w) and optional times [keys] or [tracks, keys],
+    /// names [tracks], angular_velocities [tracks, keys, 3]; .npy with rotations alone.
+    /// Without it, a built-in three-joint demo.
     #[arg(long)]
     input: Option<PathBuf>,
+    /// Key times of .npz/.npy input without a times array: this many keys per second from 0
+    /// (default: keys at 0, 1, 2, ...).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    key_rate: Option<f64>,
     /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
     #[arg(long)]
     output: Option<PathBuf>,
@@ -66,7 +73,14 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
     let (source, tracks) = match &args.input {
+        Some(path) if matches!(path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("npz" | "npy")) => {
+            let tracks = quatcurve::arrays::read_tracks(path, args.key_rate).map_err(|e| Failure::Input(e.to_string()))?;
+            (path.display().to_string(), tracks)
+        }
         Some(path) => {
+            if args.key_rate.is_some() {
+                return Err(Failure::Input("--key-rate applies to .npz and .npy input; JSON tracks carry their own times".into()));
+            }
             let file = read_track_file(path).map_err(|e| Failure::Input(e.to_string()))?;
             (path.display().to_string(), file.tracks)
         }

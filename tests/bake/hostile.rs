@@ -226,4 +226,11 @@ fn crashers_found_by_the_mutation_run_are_input_errors() {
     // An unused buffer view at byte offset 2^64 - 1 (our GLB writer re-based it with an add).
     let doc = crafted(&|d| d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": u64::MAX, "byteLength": 4})));
     assert_rejected("offset.gltf", doc.as_bytes(), &["offset.gltf", "bufferViews[2]", "lie outside buffer 0"]);
+    // Found by `cargo fuzz run bvh`: four rotation channels, or one axis twice, crashed the
+    // BVH writer (it solves for the angles of 1 or 3 distinct axes).
+    for (channels, found) in [("CHANNELS 4 Zrotation Zrotation Yrotation Xrotation", "4 rotation channels about 3 distinct axes"), ("CHANNELS 3 Zrotation Zrotation Xrotation", "3 rotation channels about 2 distinct axes")] {
+        let text = format!("{}Frames: 2\nFrame Time: 0.1\n0 0 0 0\n0 0 10 0\n", BVH_HEAD.replace("CHANNELS 3 Zrotation Xrotation Yrotation", channels));
+        let text = if channels.starts_with("CHANNELS 3") { text.replace("0 0 0 0\n0 0 10 0", "0 0 0\n0 0 10") } else { text };
+        assert_rejected("axes.bvh", text.as_bytes(), &["axes.bvh", found, "0, 1 or 3 distinct axes"]);
+    }
 }

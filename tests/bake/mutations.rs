@@ -1,6 +1,7 @@
-//! A bounded, stable-Rust fuzz run of every parser and what follows it: proptest mutates seed
-//! files (the real files in `../shared/data` when present, and crafted ones) and each mutant
-//! goes through read, bake (fast CPU path) and the writers' encoders in memory. Accepted:
+//! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, BVH, track JSON, .npy) and what
+//! follows it: proptest mutates seed files (the real files in `../shared/data` when present,
+//! and crafted ones) and each mutant goes through read, bake or evaluation (fast CPU path) and
+//! the writers' encoders in memory. Accepted:
 //! success or an input error (exit 2 in the CLI). Not accepted: a panic, an abort, a device
 //! error. proptest shrinks a failure to a minimal mutation list; keep it as a hostile test.
 //! The open-ended run is `cargo +nightly fuzz` (see `fuzz/`).
@@ -22,6 +23,8 @@ enum Kind {
     GlbJson,
     Bvh,
     Tracks,
+    /// A `.npy` of rotations `[tracks, keys, 4]` (`eval --input`).
+    Npy,
 }
 
 struct Seed {
@@ -47,6 +50,15 @@ fn seeds() -> &'static [Seed] {
                     .to_vec(),
             ),
             seed("demo.json", Kind::Tracks, serde_json::to_vec(&TrackFile { tracks: quatcurve::io::demo_tracks() }).unwrap()),
+            seed("walk.npy", Kind::Npy, {
+                let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3, 4), }";
+                let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+                bytes.extend(((header.len() + 1) as u16).to_le_bytes());
+                bytes.extend(header.as_bytes());
+                bytes.push(b'\n');
+                bytes.extend([0.0f32, 0.0, 0.0, 1.0, 0.1, 0.0, 0.0, 0.995, 0.2, 0.0, 0.0, 0.98].repeat(2).iter().flat_map(|v| v.to_le_bytes()));
+                bytes
+            }),
         ];
         if let Some(data) = data_dir() {
             let fox = std::fs::read(data.join("Fox.glb")).unwrap();
@@ -179,6 +191,16 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 let _ = file.to_text(&animation.clips[0], &baked);
                 let _ = bake::texture(&animation, &animation.clips[0], &baked.clips[0]);
             }
+            Kind::Npy => {
+                let dir = tempfile::tempdir().unwrap();
+                let path = dir.path().join("tracks.npy");
+                std::fs::write(&path, bytes).unwrap();
+                let Ok(tracks) = quatcurve::arrays::read_tracks(&path, Some(30.0)) else { return Ok(()) };
+                if let Ok(batch) = Batch::from_tracks(&tracks, &spec) {
+                    let times = SampleTimes::uniform(&batch, Sampling::Count(5)).map_err(|e| DeviceError::Input(e.to_string()))?;
+                    device().evaluate(&quatcurve::EvalJob { batch: &batch, times: &times, layout: quatcurve::Layout::Track, derivatives: true })?;
+                }
+            }
             Kind::Tracks => {
                 let Ok(file) = serde_json::from_slice::<TrackFile>(bytes) else { return Ok(()) };
                 for curve in [Curve::BSplineInterp, Curve::Squad, Curve::Hermite] {
@@ -221,6 +243,7 @@ fn every_seed_bakes() {
         assert_eq!(run(seed, &seed.bytes), Ok(()), "{}", seed.name);
         let baked_something = match seed.kind {
             Kind::Tracks => true,
+            Kind::Npy => true,
             Kind::Bvh => bvh::parse(std::str::from_utf8(&seed.bytes).unwrap()).is_ok(),
             Kind::Gltf => gltf::from_bytes(&seed.bytes, Path::new("."), gltf::UriPolicy::default()).is_ok(),
             Kind::GlbJson => true,
