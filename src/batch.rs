@@ -122,7 +122,16 @@ impl Batch {
         self.tracks.is_empty()
     }
 
+    /// The slices of the packed arrays that belong to track `index`, or `None` past the end.
+    #[must_use]
+    pub fn get(&self, index: usize) -> Option<TrackView<'_>> {
+        (index < self.tracks.len()).then(|| self.view(index))
+    }
+
     /// The slices of the packed arrays that belong to track `index`.
+    ///
+    /// # Panics
+    /// When `index >= self.len()`, like slice indexing; [`Batch::get`] returns an `Option`.
     #[must_use]
     pub fn view(&self, index: usize) -> TrackView<'_> {
         let t = &self.tracks[index];

@@ -79,6 +79,42 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError
     })
 }
 
+/// Rows of results as JSON. Results a device computed in f32 print each value as the
+/// shortest decimal that reads back to the same f32 (`0.70710677`), not as the f64 it was
+/// widened to (`0.7071067094802856`, digits the device never computed).
+#[derive(Debug)]
+pub struct Rows<'a, const N: usize> {
+    /// The rows.
+    pub rows: &'a [[f64; N]],
+    /// Computed in f32.
+    pub f32: bool,
+}
+
+impl<const N: usize> Serialize for Rows<'_, N> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        struct Row<'a>(&'a [f64], bool);
+        impl Serialize for Row<'_> {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+                let mut seq = serializer.serialize_seq(Some(self.0.len()))?;
+                for &v in self.0 {
+                    if self.1 {
+                        seq.serialize_element(&(v as f32))?;
+                    } else {
+                        seq.serialize_element(&v)?;
+                    }
+                }
+                seq.end()
+            }
+        }
+        let mut seq = serializer.serialize_seq(Some(self.rows.len()))?;
+        for row in self.rows {
+            seq.serialize_element(&Row(row, self.f32))?;
+        }
+        seq.end()
+    }
+}
+
 /// One track of the output JSON.
 #[derive(Debug, Serialize)]
 pub struct TrackResult<'a> {
@@ -88,13 +124,13 @@ pub struct TrackResult<'a> {
     /// The requested times, before clamping.
     pub times: Vec<f64>,
     /// Rotations `[x, y, z, w]`.
-    pub rotations: &'a [[f64; 4]],
+    pub rotations: Rows<'a, 4>,
     /// Body angular velocities, with `--derivatives`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub angular_velocity: Option<&'a [[f64; 3]]>,
+    pub angular_velocity: Option<Rows<'a, 3>>,
     /// Body angular accelerations, with `--derivatives`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub angular_acceleration: Option<&'a [[f64; 3]]>,
+    pub angular_acceleration: Option<Rows<'a, 3>>,
 }
 
 /// The output JSON document (always track-major).
@@ -109,9 +145,10 @@ pub struct ResultFile<'a> {
 }
 
 impl<'a> ResultFile<'a> {
-    /// Assembles the document from a track-major [`Output`].
+    /// Assembles the document from a track-major [`Output`]; `f32` when the device computed
+    /// in f32 (the CPU and GPU paths), so values print as the f32s they are.
     #[must_use]
-    pub fn new(curve: &'a str, device: &'a str, tracks: &'a [Track], times: &'a SampleTimes, out: &'a Output) -> Self {
+    pub fn new(curve: &'a str, device: &'a str, tracks: &'a [Track], times: &'a SampleTimes, out: &'a Output, f32: bool) -> Self {
         let derivs = !out.angular_velocity.is_empty();
         let tracks = tracks
             .iter()
@@ -122,9 +159,9 @@ impl<'a> ResultFile<'a> {
                     name: track.name.as_deref(),
                     // As requested: a looping track's own times were wrapped for evaluation.
                     times: track.sample_times.clone().unwrap_or_else(|| times.track_times(i)),
-                    rotations: &out.rotations[range.clone()],
-                    angular_velocity: derivs.then(|| &out.angular_velocity[range.clone()]),
-                    angular_acceleration: derivs.then(|| &out.angular_acceleration[range]),
+                    rotations: Rows { rows: &out.rotations[range.clone()], f32 },
+                    angular_velocity: derivs.then(|| Rows { rows: &out.angular_velocity[range.clone()], f32 }),
+                    angular_acceleration: derivs.then(|| Rows { rows: &out.angular_acceleration[range], f32 }),
                 }
             })
             .collect();

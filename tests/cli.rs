@@ -400,3 +400,21 @@ fn eval_reads_numpy_arrays_like_json() {
     let result = quatcurve(&["eval", "--input", npz.to_str().unwrap(), "--key-rate", "-3"]);
     assert_eq!(result.status.code(), Some(2));
 }
+
+/// Results computed in f32 (cpu, gpu) print as the shortest decimal of their f32, not as
+/// f64 noise; the reference's f64 results keep every digit.
+#[test]
+fn f32_results_print_as_f32() {
+    let text = String::from_utf8(quatcurve(&["eval", "--samples", "5", "--derivatives", "--device", "cpu"]).stdout).unwrap();
+    let out: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let rotations = out["tracks"][1]["rotations"].as_array().unwrap();
+    for v in rotations.iter().flat_map(|r| r.as_array().unwrap()).chain(out["tracks"][1]["angular_velocity"][2].as_array().unwrap()) {
+        // The token is the f32's shortest decimal: printing the f32 gives the same number.
+        let v = v.as_f64().unwrap();
+        assert_eq!(format!("{}", v as f32).parse::<f64>().unwrap(), v, "{v} is not an f32's shortest decimal");
+    }
+    let text = String::from_utf8(quatcurve(&["eval", "--samples", "5", "--device", "reference"]).stdout).unwrap();
+    let out: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let digits = out["tracks"][1]["rotations"][1][0].to_string();
+    assert!(digits.len() > 12, "reference results keep f64 digits: {digits}");
+}

@@ -5,7 +5,7 @@
 
 use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
 use super::shard::Shard;
-use super::{parse, print_stdout, CurveArgs, DeviceArgs, Failure};
+use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode, TEXTURE_CHANNELS};
@@ -25,11 +25,11 @@ pub struct BakeArgs {
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     rate: f64,
     /// Curve family; the default, bspline-interp, is C2 and passes through every key.
-    #[arg(long, default_value = "bspline-interp", value_parser = parse::<Curve>)]
+    #[arg(long, default_value = "bspline-interp", value_parser = names::<Curve>())]
     curve: Curve,
     /// Which clips loop: auto (those whose rotation channels end on their first rotation),
     /// on (every clip; one that does not close is an error), off.
-    #[arg(long = "loop", default_value = "auto", value_parser = parse::<LoopMode>)]
+    #[arg(long = "loop", default_value = "auto", value_parser = names::<LoopMode>())]
     looping: LoopMode,
     #[command(flatten)]
     options: CurveArgs,

@@ -1,7 +1,7 @@
 //! `quatcurve bench`: one synthetic batch through every requested device in one process,
 //! median samples per second side by side (DESIGN section 5).
 
-use super::{parse, print_stdout, CurveArgs, Failure};
+use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
@@ -21,7 +21,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = synthetic::WORKLOAD_KEYS)]
     keys: usize,
     /// Curve family.
-    #[arg(long, default_value = "bspline", value_parser = parse::<Curve>)]
+    #[arg(long, default_value = "bspline", value_parser = names::<Curve>())]
     curve: Curve,
     #[command(flatten)]
     options: CurveArgs,
@@ -33,7 +33,7 @@ pub struct BenchArgs {
     looping: bool,
     /// Devices to time, comma-separated (reference, cpu, gpu). Default: every one available
     /// in this build; a device named here that is missing is an error (exit 1).
-    #[arg(long, value_delimiter = ',', value_parser = parse::<DeviceChoice>)]
+    #[arg(long, value_delimiter = ',', value_parser = names::<DeviceChoice>())]
     devices: Option<Vec<DeviceChoice>>,
     /// Timed runs per device (after one warm-up); the median is reported.
     #[arg(long, default_value_t = 5)]

@@ -1,6 +1,6 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{parse, print_stdout, CurveArgs, DeviceArgs, Failure};
+use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{demo_tracks, read_track_file, write_atomic, write_npy, ResultFile};
 use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
@@ -21,9 +21,8 @@ pub struct EvalArgs {
     /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
     #[arg(long)]
     output: Option<PathBuf>,
-    /// Curve family: slerp, squad, bezier, hermite, nam-kim, bspline, bspline-interp (C2
-    /// through every key).
-    #[arg(long, default_value = "bspline-interp", value_parser = parse::<Curve>)]
+    /// Curve family (bspline-interp: C2 and through every key).
+    #[arg(long, default_value = "bspline-interp", value_parser = names::<Curve>())]
     curve: Curve,
     /// Periodic curves: each track's last key closes onto its first, the curve keeps its
     /// continuity across that seam and sample times wrap by the period (slerp, squad,
@@ -115,8 +114,9 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     job.validate().map_err(input_err)?;
     let device = Device::open(args.device.device)?;
     let out = device.evaluate(&job).map_err(|e| Failure::from(e).context(&source))?;
+    let f32 = !matches!(device, Device::Reference);
     let device = device.name();
-    let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out);
+    let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out, f32);
     let Some(path) = &args.output else {
         return print_stdout(|w| {
             serde_json::to_writer(&mut *w, &json()).map_err(std::io::Error::from)?;
@@ -135,7 +135,8 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
             write_npy(path, &shape, &data)
         }
     };
-    written.map_err(|e| Failure::Internal(e.to_string()))?;
+    // An output that cannot be written is the caller's to fix: exit 2.
+    written.map_err(|e| Failure::Input(e.to_string()))?;
     eprintln!(
         "evaluated {} tracks, {} samples ({} on {device}) from {source} -> {}",
         batch.len(),

@@ -38,9 +38,26 @@ impl Failure {
     }
 }
 
-/// Parses a name with the library's `FromStr` (the error lists the accepted names).
-pub fn parse<T: std::str::FromStr<Err = String>>(s: &str) -> Result<T, String> {
-    s.parse()
+/// A type the command line names by one of a fixed list of words.
+pub trait Named: std::str::FromStr<Err = String> + Clone + Send + Sync + 'static {
+    /// Every accepted name.
+    const NAMES: &'static [&'static str];
+}
+
+macro_rules! named {
+    ($($ty:ty),+) => {
+        $(impl Named for $ty {
+            const NAMES: &'static [&'static str] = <$ty>::NAMES;
+        })+
+    };
+}
+named!(Curve, KnotMode, Tangents, Blend, DeviceChoice, quatcurve::bake::LoopMode);
+
+/// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").
+pub fn names<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    // Only listed names reach the map, and each of them parses.
+    clap::builder::PossibleValuesParser::new(T::NAMES).map(|name| name.parse::<T>().unwrap_or_else(|_| unreachable!("{name} is listed")))
 }
 
 /// The curve options every subcommand shares.
@@ -49,23 +66,22 @@ pub struct CurveArgs {
     /// B-spline order k (degree k - 1), 2..=8.
     #[arg(long, default_value_t = 4)]
     pub order: usize,
-    /// B-spline knot mode: phantom, uniform, clamped or explicit (default: phantom; bench:
-    /// uniform).
-    #[arg(long, value_parser = parse::<KnotMode>)]
+    /// B-spline knot mode (default: phantom; bench: uniform).
+    #[arg(long, value_parser = names::<KnotMode>())]
     pub knots: Option<KnotMode>,
     /// Tangent source for hermite and nam-kim.
-    #[arg(long, default_value = "catmull-rom", value_parser = parse::<Tangents>)]
+    #[arg(long, default_value = "catmull-rom", value_parser = names::<Tangents>())]
     pub tangents: Tangents,
     /// Nam-Kim blend function.
-    #[arg(long, default_value = "cubic", value_parser = parse::<Blend>)]
+    #[arg(long, default_value = "cubic", value_parser = names::<Blend>())]
     pub blend: Blend,
 }
 
 /// The device option of `eval` and `bake` (`bench` names several with `--devices`).
 #[derive(Args, Debug, Clone)]
 pub struct DeviceArgs {
-    /// Evaluation device: auto (GPU if any, else the fast CPU path), gpu, cpu, reference.
-    #[arg(long, default_value = "auto", value_parser = parse::<DeviceChoice>)]
+    /// Evaluation device: auto is the GPU if any, else the fast CPU path.
+    #[arg(long, default_value = "auto", value_parser = names::<DeviceChoice>())]
     pub device: DeviceChoice,
 }
 

@@ -321,9 +321,14 @@ fn a_job_over_many_files_finishes_the_good_ones_and_reports_the_bad() {
     assert!(stderr(&result).contains("1 of 2 inputs failed"), "{}", stderr(&result));
     let mut written: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     written.sort();
-    assert_eq!(written, ["good.0.npy", "good.glb", "good.json"]);
+    assert_eq!(written, ["good.0.npy", "good.glb", "good.json", "manifest.0-of-1.json"]);
     let (shape, _) = read_npy(&out.join("good.0.npy"));
     assert_eq!(shape, [11, 1, 7]);
+    // The manifest records both: the bad one failed, with its message.
+    let manifest = json(&out.join("manifest.0-of-1.json"));
+    let inputs = manifest["inputs"].as_array().unwrap();
+    assert_eq!(inputs.iter().map(|i| i["status"].as_str().unwrap()).collect::<Vec<_>>(), ["failed", "ok"]);
+    assert!(inputs[0]["error"].as_str().unwrap().contains("key 2"), "{}", inputs[0]);
 }
 
 #[test]
