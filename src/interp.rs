@@ -179,8 +179,9 @@ fn jr(v: V3) -> DMat3 {
     let (c1, c2) = if h < 1e-4 {
         (1.0 - h * h / 3.0, 2.0 / 3.0 - 2.0 * h * h / 15.0)
     } else {
-        let s = h.sin();
-        (s * s / (h * h), (2.0 * h - (2.0 * h).sin()) / (2.0 * h * h * h))
+        // One sin_cos: sin 2h = 2 sin h cos h.
+        let (s, c) = h.sin_cos();
+        (s * s / (h * h), (2.0 * h - 2.0 * s * c) / (2.0 * h * h * h))
     };
     let k = skew(v);
     DMat3::IDENTITY - k * c1 + k * k * c2
@@ -191,7 +192,12 @@ fn jr(v: V3) -> DMat3 {
 /// `I +- [v]x + ((1 - h cot h) / h^2) [v]x^2`, `h = |v| < pi`.
 fn j_inv(v: V3) -> (DMat3, DMat3) {
     let h = v.length();
-    let c = if h < 1e-4 { 1.0 / 3.0 + h * h / 45.0 } else { (1.0 - h * h.cos() / h.sin()) / (h * h) };
+    let c = if h < 1e-4 {
+        1.0 / 3.0 + h * h / 45.0
+    } else {
+        let (s, c) = h.sin_cos();
+        (1.0 - h * c / s) / (h * h)
+    };
     let k = skew(v);
     let k2 = k * k * c;
     (DMat3::IDENTITY + k + k2, DMat3::IDENTITY - k + k2)

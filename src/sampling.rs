@@ -96,6 +96,15 @@ impl Sampling {
     }
 }
 
+/// How [`SampleTimes::per_track`] samples one track.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PerTrack<'a> {
+    /// A uniform grid ([`TrackTimes::Uniform`]).
+    Grid(TrackTimes),
+    /// These times (wrapped into the period for looping tracks).
+    List(&'a [f64]),
+}
+
 impl SampleTimes {
     /// Times for every track of `batch`: the track's own list where `overrides[i]` is `Some`
     /// (wrapped into the period for looping tracks), else `sampling` over the track's domain.
@@ -105,10 +114,24 @@ impl SampleTimes {
     /// As [`Sampling::over`], and [`Error::NonFiniteSampleTime`] for a NaN or infinite
     /// override, naming the track and sample.
     pub fn new(batch: &Batch, overrides: &[Option<&[f64]>], sampling: Sampling) -> Result<Self> {
+        Self::per_track(batch, |index, domain| match overrides.get(index).copied().flatten() {
+            Some(own) => Ok(PerTrack::List(own)),
+            None => sampling.over(domain[0], domain[1]).map(PerTrack::Grid),
+        })
+    }
+
+    /// Times for every track of `batch` as `each(index, domain)` says: a uniform grid over any
+    /// range (stored as three numbers, not as a list: a bake samples thousands of channels on
+    /// one frame grid), or a list.
+    ///
+    /// # Errors
+    /// `each`'s errors; [`Error::NonFiniteSampleTime`] for a NaN or infinite listed time;
+    /// [`Error::BadJob`] for a grid given as `TrackTimes::Explicit`.
+    pub fn per_track<'a>(batch: &Batch, mut each: impl FnMut(usize, [f64; 2]) -> Result<PerTrack<'a>>) -> Result<Self> {
         let mut out = SampleTimes { offsets: vec![0], ..Self::default() };
         for (index, track) in batch.tracks.iter().enumerate() {
-            let times = match overrides.get(index).copied().flatten() {
-                Some(own) => {
+            let times = match each(index, track.domain)? {
+                PerTrack::List(own) => {
                     if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
                         let (track, value) = (batch.ids[index].clone(), own[sample]);
                         return Err(Error::NonFiniteSampleTime { track, sample, value });
@@ -123,7 +146,10 @@ impl SampleTimes {
                     }
                     TrackTimes::Explicit { offset, count: own.len() }
                 }
-                None => sampling.over(track.domain[0], track.domain[1])?,
+                PerTrack::Grid(grid @ TrackTimes::Uniform { .. }) => grid,
+                PerTrack::Grid(TrackTimes::Explicit { .. }) => {
+                    return Err(Error::BadJob(format!("{}: a sample grid must be uniform", batch.ids[index])));
+                }
             };
             out.offsets.push(out.offsets[index] + times.count());
             out.tracks.push(times);

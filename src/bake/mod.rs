@@ -16,7 +16,7 @@ use crate::error::TrackId;
 use crate::euclidean::VectorCurve;
 use crate::job::{EvalJob, Layout};
 use crate::quat::DQuat;
-use crate::sampling::{SampleTimes, Sampling};
+use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use crate::track::Track;
 
 /// What a channel animates.
@@ -194,35 +194,42 @@ pub const MAX_BAKE_SAMPLES: usize = 1 << 27;
 /// How far past the clip's end (in frames) a last frame is still kept.
 pub const END_TOLERANCE_FRAMES: f64 = 0.01;
 
-/// Frame times of a clip spanning `[start, end]` at `rate` Hz: `start + i / rate` while not
-/// past `end` (DESIGN section 5), except that a frame at most [`END_TOLERANCE_FRAMES`] past
+/// The frame grid of a clip spanning `[start, end]` at `rate` Hz: `start + i / rate` while
+/// not past `end` (DESIGN section 5), except that a frame at most [`END_TOLERANCE_FRAMES`] past
 /// the end is kept (and evaluates to the end pose). Source frame times are often rounded
 /// (BVH's `0.0083333` for 120 Hz), and baking such a clip at its own rate must not drop its
 /// last frame.
 ///
 /// # Errors
 /// [`DeviceError::Input`] for a rate that is not finite and positive.
-pub fn frame_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>, DeviceError> {
-    let uniform = Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| DeviceError::Input(e.to_string()))?;
-    let crate::sampling::TrackTimes::Uniform { start, step, count, .. } = uniform else { unreachable!("uniform sampling") };
-    Ok((0..count).map(|i| start + i as f64 * step).collect())
+pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, DeviceError> {
+    Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| DeviceError::Input(e.to_string()))
 }
 
-/// Frame times of a looping clip spanning `[start, end]`: `N = round((end - start) rate)`
+/// The frame grid of a looping clip spanning `[start, end]`: `N = round((end - start) rate)`
 /// intervals (at least one), so the last frame is the seam and equals the first (DESIGN
-/// section 5b), at the rate `N / (end - start)` it returns with them; the last time is `end`
+/// section 5b), at the rate `N / (end - start)` it returns with it; the last time is `end`
 /// exactly.
 ///
 /// # Errors
 /// [`DeviceError::Input`] for a rate that is not finite and positive.
-pub fn loop_frame_times(start: f64, end: f64, rate: f64) -> Result<(Vec<f64>, f64), DeviceError> {
+pub fn loop_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f64), DeviceError> {
     let period = end - start;
     let intervals = (period * rate).round().max(1.0);
     // Counted as Sampling::Rate counts, so a hostile period meets the same limits.
-    frame_times(start, start + intervals / rate, rate)?;
-    let n = intervals as usize;
-    let times = (0..=n).map(|i| if i == n { end } else { start + period * i as f64 / intervals }).collect();
-    Ok((times, intervals / period))
+    frame_grid(start, start + intervals / rate, rate)?;
+    let grid = TrackTimes::Uniform { start, step: period / intervals, count: intervals as usize + 1, last: Some(end) };
+    Ok((grid, intervals / period))
+}
+
+/// The times of a uniform grid, as [`SampleTimes::time`] computes them.
+fn grid_times(grid: TrackTimes) -> Vec<f64> {
+    match grid {
+        TrackTimes::Uniform { start, step, count, last } => {
+            (0..count).map(|j| if let (Some(end), true) = (last, j + 1 == count) { end } else { start + j as f64 * step }).collect()
+        }
+        TrackTimes::Explicit { .. } => unreachable!("frame grids are uniform"),
+    }
 }
 
 /// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
@@ -238,7 +245,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     let mut total_samples = 0usize;
     // Rotation channels with two keys or more go to the device: (clip, channel) per track.
-    let (mut tracks, mut owners, mut grids) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut tracks, mut owners, mut track_clips, mut clip_grids) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut specs = Vec::new();
     let input = |e: crate::Error| DeviceError::Input(e.to_string());
     for (c, clip) in animation.clips.iter().enumerate() {
@@ -260,7 +267,9 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
             )));
         }
         total_samples += samples as usize;
-        let (times, clip_rate) = if looping { loop_frame_times(start, end, rate)? } else { (frame_times(start, end, rate)?, rate) };
+        let (grid, clip_rate) = if looping { loop_frame_grid(start, end, rate)? } else { (frame_grid(start, end, rate)?, rate) };
+        let times = grid_times(grid);
+        clip_grids.push(grid);
         let spec = &CurveSpec { looping, ..*spec };
         let mut values = Vec::with_capacity(clip.channels.len());
         for (k, channel) in clip.channels.iter().enumerate() {
@@ -273,7 +282,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
                     specs.push(*spec);
                     tracks.push(track);
                     owners.push((c, k));
-                    grids.push(c);
+                    track_clips.push(c);
                     Vec::new()
                 }
                 _ => {
@@ -289,8 +298,15 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     if !tracks.is_empty() {
         // Prepared on every core (bspline-interp solves a system per track).
         let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
-        let overrides: Vec<Option<&[f64]>> = grids.iter().map(|&c| Some(&clips[c].times[..])).collect();
-        let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
+        // Each channel on its clip's frame grid (three numbers, not a list per channel); a
+        // looping channel whose keys span less than its clip gets the list, which wraps.
+        let times = SampleTimes::per_track(&batch, |i, [first, last]| {
+            let c = track_clips[i];
+            let (frames, grid) = (&clips[c].times, clip_grids[c]);
+            let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
+            Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grid) })
+        })
+        .map_err(input)?;
         let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
         for (i, &(c, k)) in owners.iter().enumerate() {
             let range = times.offsets[i]..times.offsets[i + 1];
