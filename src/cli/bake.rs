@@ -13,6 +13,8 @@ use quatcurve::io::{write_atomic, write_npy};
 use quatcurve::{Curve, CurveSpec, Device, KnotMode};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -54,6 +56,9 @@ pub struct BakeArgs {
     /// the same bytes, whose outputs are still intact (size and SHA-256).
     #[arg(long)]
     resume: bool,
+    /// Inputs read, baked and written at once (each bake also uses every core).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    jobs: usize,
 }
 
 /// What one input became.
@@ -149,31 +154,62 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     let mine: Vec<_> = jobs.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, job)| job).collect();
     let bar = ProgressBar::new(mine.len() as u64);
     bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} files, {per_sec} {elapsed} (eta {eta}) {msg}").expect("valid template"));
-    let (mut rows, mut samples, started) = (Vec::new(), 0usize, Instant::now());
-    let mut last_write = Instant::now();
-    for (name, stem, path) in mine {
-        bar.set_message(format!("{:.1} M samples/s {name}", samples as f64 / started.elapsed().as_secs_f64().max(1e-9) / 1e6));
+    let started = Instant::now();
+    let samples = AtomicUsize::new(0);
+    // One input: verify and keep (--resume), or read, bake and write.
+    let process = |(name, stem, path): &(String, &str, Option<&Path>)| -> (Row, InputRecord) {
+        bar.set_message(format!("{:.1} M samples/s {name}", samples.load(Ordering::Relaxed) as f64 / started.elapsed().as_secs_f64().max(1e-9) / 1e6));
         let fingerprint = match path {
             Some(path) => hash_file(path).unwrap_or((0, String::new())),
             None => (0, hash_bytes(options.to_string().as_bytes())),
         };
-        let kept = previous.as_ref().and_then(|m| m.resumable(&options, &name, fingerprint.0, &fingerprint.1, &args.output));
+        let kept = previous.as_ref().and_then(|m| m.resumable(&options, name, fingerprint.0, &fingerprint.1, &args.output));
         let row = match (kept, path) {
-            (Some(record), _) => resumed_row(&name, record, &args.output),
-            (None, Some(path)) => bake_one(&name, stem, || read(path, args), args, &spec, &device),
-            (None, None) => bake_one(&name, stem, || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device),
+            (Some(record), _) => resumed_row(name, record, &args.output),
+            (None, Some(path)) => bake_one(name, stem, || read(path, args), args, &spec, &device),
+            (None, None) => bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(args.characters))), args, &spec, &device),
         };
-        samples += row.samples;
-        manifest.inputs.push(input_record(&row, fingerprint, kept));
-        rows.push(row);
+        samples.fetch_add(row.samples, Ordering::Relaxed);
+        let record = input_record(&row, fingerprint, kept);
         bar.inc(1);
-        // Kept current while the job runs, so a killed task resumes from where it was.
-        if last_write.elapsed().as_secs_f64() > 2.0 {
-            write_manifest(&mut manifest, &manifest_path)?;
-            last_write = Instant::now();
+        (row, record)
+    };
+    // `--jobs` workers take inputs in order; results keep the job's order whatever finishes
+    // first, so the summary and manifest do not depend on timing (nor do the outputs: each
+    // input is baked on its own).
+    let done: Vec<Mutex<Option<(Row, InputRecord)>>> = mine.iter().map(|_| Mutex::new(None)).collect();
+    let (next, last_write, write_error) = (AtomicUsize::new(0), Mutex::new(Instant::now()), Mutex::new(None));
+    let finished_records = |done: &[Mutex<Option<(Row, InputRecord)>>]| -> Vec<InputRecord> {
+        done.iter().filter_map(|d| d.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|(_, r)| r.clone())).collect()
+    };
+    std::thread::scope(|scope| {
+        for _ in 0..args.jobs.clamp(1, mine.len().max(1)) {
+            scope.spawn(|| {
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(job) = mine.get(k) else { break };
+                    let result = process(job);
+                    *done[k].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+                    // Kept current while the job runs, so a killed task resumes from where it was.
+                    let mut last = last_write.lock().unwrap_or_else(|e| e.into_inner());
+                    if last.elapsed().as_secs_f64() > 2.0 {
+                        let mut partial = manifest.clone();
+                        partial.inputs = finished_records(&done);
+                        if let Err(e) = write_manifest(&mut partial, &manifest_path) {
+                            *write_error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+                        }
+                        *last = Instant::now();
+                    }
+                }
+            });
         }
-    }
+    });
     bar.finish_and_clear();
+    if let Some(e) = write_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
+    manifest.inputs = finished_records(&done);
+    let rows: Vec<Row> = done.into_iter().filter_map(|d| d.into_inner().unwrap_or_else(|e| e.into_inner()).map(|(row, _)| row)).collect();
     // A record of what was done, unless nothing was (a failed job leaves nothing behind).
     if rows.iter().any(|r| r.outcome.is_ok()) {
         write_manifest(&mut manifest, &manifest_path)?;
