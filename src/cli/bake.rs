@@ -174,42 +174,24 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
         bar.inc(1);
         (row, record)
     };
-    // `--jobs` workers take inputs in order; results keep the job's order whatever finishes
-    // first, so the summary and manifest do not depend on timing (nor do the outputs: each
-    // input is baked on its own).
-    let done: Vec<Mutex<Option<(Row, InputRecord)>>> = mine.iter().map(|_| Mutex::new(None)).collect();
-    let (next, last_write, write_error) = (AtomicUsize::new(0), Mutex::new(Instant::now()), Mutex::new(None));
-    let finished_records = |done: &[Mutex<Option<(Row, InputRecord)>>]| -> Vec<InputRecord> {
-        done.iter().filter_map(|d| d.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|(_, r)| r.clone())).collect()
-    };
-    std::thread::scope(|scope| {
-        for _ in 0..args.jobs.clamp(1, mine.len().max(1)) {
-            scope.spawn(|| {
-                loop {
-                    let k = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(job) = mine.get(k) else { break };
-                    let result = process(job);
-                    *done[k].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
-                    // Kept current while the job runs, so a killed task resumes from where it was.
-                    let mut last = last_write.lock().unwrap_or_else(|e| e.into_inner());
-                    if last.elapsed().as_secs_f64() > 2.0 {
-                        let mut partial = manifest.clone();
-                        partial.inputs = finished_records(&done);
-                        if let Err(e) = write_manifest(&mut partial, &manifest_path) {
-                            *write_error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
-                        }
-                        *last = Instant::now();
-                    }
-                }
-            });
+    // Kept current while the job runs, so a killed task resumes from where it was.
+    let (last_write, write_error) = (Mutex::new(Instant::now()), Mutex::new(None));
+    let results = in_order(&mine, args.jobs, process, |done| {
+        let mut last = last_write.lock().unwrap_or_else(|e| e.into_inner());
+        if last.elapsed().as_secs_f64() > 2.0 {
+            let mut partial = Manifest { inputs: done.iter().flatten().map(|(_, r)| r.clone()).collect(), ..manifest.clone() };
+            if let Err(e) = write_manifest(&mut partial, &manifest_path) {
+                *write_error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+            }
+            *last = Instant::now();
         }
     });
     bar.finish_and_clear();
     if let Some(e) = write_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
         return Err(e);
     }
-    manifest.inputs = finished_records(&done);
-    let rows: Vec<Row> = done.into_iter().filter_map(|d| d.into_inner().unwrap_or_else(|e| e.into_inner()).map(|(row, _)| row)).collect();
+    let (rows, records): (Vec<Row>, Vec<InputRecord>) = results.into_iter().unzip();
+    manifest.inputs = records;
     // A record of what was done, unless nothing was (a failed job leaves nothing behind).
     if rows.iter().any(|r| r.outcome.is_ok()) {
         write_manifest(&mut manifest, &manifest_path)?;
@@ -227,6 +209,28 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     }
     let summary = format!("{} of {} inputs failed (the others were baked)", failed.len(), rows.len());
     Err(if failed.iter().any(|r| matches!(r.outcome, Err(Failure::Internal(_)))) { Failure::Internal(summary) } else { Failure::Input(summary) })
+}
+
+/// `work` over `items` on `jobs` threads (`--jobs`), taking items in order; the results come
+/// back in item order whatever finishes first, so nothing written depends on timing.
+/// `progress` sees every slot (finished or not) after each item; it should be cheap unless
+/// it acts (the manifest writer checks the time first).
+fn in_order<I: Sync, R: Send>(items: &[I], jobs: usize, work: impl Fn(&I) -> R + Sync, progress: impl Fn(&[Option<R>]) + Sync) -> Vec<R> {
+    let done: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.clamp(1, items.len().max(1)) {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(item) = items.get(k) else { break };
+                let result = work(item);
+                let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
+                done[k] = Some(result);
+                progress(&done);
+            });
+        }
+    });
+    done.into_inner().unwrap_or_else(|e| e.into_inner()).into_iter().flatten().collect()
 }
 
 /// The options that decide a bake's outputs (the manifest's `options`; `--resume` redoes
