@@ -341,3 +341,19 @@ fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index
         }
     }
 }
+
+/// The write-only roofline (`quatcurve bench`, `roofline_samples_per_s`): the same dispatch,
+/// bindings and bytes per sample as `evaluate`, with nothing computed, so the kernel's figures
+/// read as a fraction of what the device can write.
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn roofline(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index) local: u32) {
+    let g = (group.y * params.groups_x + group.x) * WORKGROUP_SIZE + local;
+    if g >= params.sample_count {
+        return;
+    }
+    let o = g * params.channels;
+    let v = f32(g);
+    for (var c = 0u; c < params.channels; c++) {
+        out[o + c] = v;
+    }
+}

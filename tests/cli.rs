@@ -289,7 +289,9 @@ fn bench_reports_every_requested_device_as_json() {
         assert!(r["samples_per_s"].as_f64().unwrap() > 0.0 && r["seconds"].as_f64().unwrap() > 0.0, "{r}");
         assert_eq!(r["samples"], 1000, "the reference slice covers the whole small batch");
         assert_eq!(r["dispatch_samples_per_s"].is_f64(), r["device"] != "reference", "{r}");
+        assert_eq!(r["roofline_samples_per_s"].is_f64(), r["device"] == "gpu", "{r}");
     }
+    assert!(doc["workload"]["build_keys_per_s"].as_f64().unwrap() > 0.0);
     // A device named explicitly that is not there is a failure, not a skip.
     let out = Command::cargo_bin("quatcurve")
         .unwrap()

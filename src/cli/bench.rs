@@ -84,6 +84,9 @@ struct Row {
     samples: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     dispatch_samples_per_s: Option<f64>,
+    /// GPU: the write-only roofline kernel's rate over the same dispatches and output bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    roofline_samples_per_s: Option<f64>,
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), Failure> {
@@ -156,7 +159,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     let job = EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives: args.derivatives };
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();
-    Ok(Row { device: "reference", adapter: "f64, one thread".into(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None })
+    Ok(Row { device: "reference", adapter: "f64, one thread".into(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None, roofline_samples_per_s: None })
 }
 
 fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
@@ -165,6 +168,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
     let seconds = median_seconds(args.runs, || gpu.evaluate(batch, times, &options).map(drop).map_err(device_err))?;
     let prepared = gpu.prepare(batch, times, &options).map_err(device_err)?;
     let dispatch = median_seconds(args.runs, || gpu.dispatch(&prepared).map_err(device_err))?;
+    let roofline = median_seconds(args.runs, || gpu.roofline(&prepared).map_err(device_err))?;
     let samples = times.total();
     Ok(Row {
         device: "gpu",
@@ -173,6 +177,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
         seconds,
         samples,
         dispatch_samples_per_s: Some(samples as f64 / dispatch),
+        roofline_samples_per_s: Some(samples as f64 / roofline),
     })
 }
 
@@ -194,6 +199,7 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
         seconds,
         samples,
         dispatch_samples_per_s: Some(samples as f64 / compute),
+        roofline_samples_per_s: None,
     })
 }
 
@@ -212,10 +218,11 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
         l.runs
     )?;
     writeln!(w, "build: {:.4} s ({:.2} M keys/s)", l.build_seconds, l.build_keys_per_s / 1e6)?;
-    writeln!(w, "{:<10} {:>12} {:>10} {:>14} {:>20}  adapter", "device", "samples", "seconds", "M samples/s", "kernel-only M/s")?;
+    writeln!(w, "{:<10} {:>12} {:>10} {:>14} {:>16} {:>14}  adapter", "device", "samples", "seconds", "M samples/s", "kernel-only M/s", "roofline M/s")?;
+    let rate = |s: Option<f64>| s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
     for r in &report.results {
-        let dispatch = r.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
-        writeln!(w, "{:<10} {:>12} {:>10.4} {:>14.2} {:>20}  {}", r.device, r.samples, r.seconds, r.samples_per_s / 1e6, dispatch, r.adapter)?;
+        let (dispatch, roofline) = (rate(r.dispatch_samples_per_s), rate(r.roofline_samples_per_s));
+        writeln!(w, "{:<10} {:>12} {:>10.4} {:>14.2} {:>16} {:>14}  {}", r.device, r.samples, r.seconds, r.samples_per_s / 1e6, dispatch, roofline, r.adapter)?;
     }
     Ok(())
 }

@@ -44,7 +44,8 @@ impl PreparedBatch {
     }
 }
 
-/// One chunk on the device, ready to dispatch.
+/// One chunk on the device, ready to dispatch (wgpu handles: clones share the objects).
+#[derive(Clone)]
 struct PreparedChunk {
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
@@ -341,6 +342,29 @@ impl GpuEvaluator {
         let job = crate::EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives };
         job.validate().map_err(|e| GpuError::Job(e.to_string()))?;
         layout::plan_chunks(batch, times, channels, self.binding_limit).map_err(GpuError::Pack)
+    }
+
+    /// Runs the write-only roofline kernel over a prepared batch's chunks and waits: the same
+    /// dispatches and output bytes as [`GpuEvaluator::dispatch`], no math. Its rate is the
+    /// device's own ceiling for this output (`bench`'s `roofline_samples_per_s`).
+    ///
+    /// # Errors
+    /// Device errors.
+    pub fn roofline(&self, prepared: &PreparedBatch) -> Result<(), GpuError> {
+        let scope = ErrorScope::push(&self.device);
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("quatcurve roofline"),
+            layout: Some(&self.pipeline_layout),
+            module: &self.module,
+            entry_point: Some(shader::ROOFLINE_ENTRY_POINT),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            cache: None,
+        });
+        scope.pop()?;
+        for chunk in &prepared.chunks {
+            self.submit(&PreparedChunk { pipeline: pipeline.clone(), ..chunk.clone() })?;
+        }
+        self.wait()
     }
 
     fn pipeline(&self, key: PipelineKey) -> Result<wgpu::ComputePipeline, GpuError> {

@@ -14,6 +14,9 @@ pub const FILES: [(&str, &str); 5] = [
 /// Name of the compute entry point.
 pub const ENTRY_POINT: &str = "evaluate";
 
+/// Name of the write-only roofline entry point (same bindings and output bytes, no math).
+pub const ROOFLINE_ENTRY_POINT: &str = "roofline";
+
 /// The whole program as one WGSL source.
 #[must_use]
 pub fn source() -> String {

@@ -136,3 +136,31 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
     evaluator.release_buffers();
     assert_eq!(evaluator.evaluate(&batch, &small, &options).unwrap().data, fresh.data);
 }
+
+/// The roofline kernel writes what `bench` says it does: the same bytes as the evaluation
+/// (every channel of every sample of every chunk), here the sample index in each.
+#[test]
+fn the_roofline_kernel_writes_every_output_float() {
+    let Some(gpu) = gpu() else { return };
+    let evaluator = GpuEvaluator::new().unwrap().with_binding_limit(4096);
+    let batch = small_batch(&CurveSpec::default());
+    let times = SampleTimes::uniform(&batch, Sampling::Count(70)).unwrap();
+    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
+    let prepared = evaluator.prepare(&batch, &times, &options).unwrap();
+    assert!(prepared.chunk_count() > 1);
+    evaluator.roofline(&prepared).unwrap();
+    let out = evaluator.read(&prepared).unwrap();
+    // Chunk-local sample indices 0, 1, 2, ... restarting at each chunk; every float written.
+    let (mut next, mut chunks) = (0.0f32, 0);
+    for row in out.data.chunks_exact(10) {
+        assert!(row.iter().all(|&v| v == row[0]), "{row:?}");
+        if row[0] == 0.0 {
+            chunks += 1;
+        } else {
+            assert_eq!(row[0], next);
+        }
+        next = row[0] + 1.0;
+    }
+    assert_eq!(chunks, prepared.chunk_count());
+    let _ = gpu;
+}
