@@ -42,6 +42,10 @@ pub enum Device {
     Gpu(Box<GpuEvaluator>),
     /// The fast f32 CPU path.
     Cpu(CpuEvaluator),
+    /// `auto` with an adapter: the GPU, and the CPU path for a batch the kernel cannot take
+    /// (a Bezier above degree 32, one track's keys larger than a binding), so `auto` never
+    /// fails where `cpu` works. [`Device::evaluate_named`] says which one ran.
+    Auto(Box<GpuEvaluator>, CpuEvaluator),
 }
 
 impl fmt::Debug for Device {
@@ -61,7 +65,7 @@ impl Device {
             DeviceChoice::Gpu => GpuEvaluator::new()
                 .map(|g| Device::Gpu(Box::new(g)))
                 .map_err(|e| DeviceError::Device(format!("--device gpu: {e}"))),
-            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or_else(|_| Device::Cpu(CpuEvaluator::new()), |g| Device::Gpu(Box::new(g)))),
+            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or_else(|_| Device::Cpu(CpuEvaluator::new()), |g| Device::Auto(Box::new(g), CpuEvaluator::new()))),
             DeviceChoice::Cpu => Ok(Device::Cpu(CpuEvaluator::new())),
         }
     }
@@ -72,7 +76,7 @@ impl Device {
     pub fn name(&self) -> String {
         match self {
             Device::Reference => "reference".into(),
-            Device::Gpu(g) => format!("gpu: {}", g.adapter_name()),
+            Device::Gpu(g) | Device::Auto(g, _) => format!("gpu: {}", g.adapter_name()),
             Device::Cpu(c) => format!("cpu: {}", c.name()),
         }
     }
@@ -83,21 +87,54 @@ impl Device {
     /// [`DeviceError::Input`] for inputs the job or device rejects, [`DeviceError::Device`]
     /// for device failures.
     pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
+        self.evaluate_named(job).map(|(out, _)| out)
+    }
+
+    /// [`Device::evaluate`], with the name of the device that ran it ([`Device::name`], or
+    /// for `auto` the CPU path's when the GPU kernel could not take the batch).
+    ///
+    /// # Errors
+    /// As [`Device::evaluate`].
+    pub fn evaluate_named(&self, job: &EvalJob<'_>) -> Result<(Output, String), DeviceError> {
         match self {
-            Device::Reference => job.run().map_err(|e| DeviceError::Input(e.to_string())),
-            Device::Gpu(g) => {
-                let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
-                let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
-                    GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Input(e.to_string()),
-                    _ => DeviceError::Device(e.to_string()),
-                })?;
-                Ok(out.to_output(job.derivatives))
-            }
-            Device::Cpu(c) => {
-                let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
-                let out = c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))?;
-                Ok(out.to_output(job.derivatives))
-            }
+            Device::Reference => job.run().map(|out| (out, self.name())).map_err(|e| DeviceError::Input(e.to_string())),
+            Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
+            Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
+            Device::Auto(g, c) => match on_gpu(g, job) {
+                Err(Refused::Pack(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
+                other => Ok((other?, self.name())),
+            },
         }
     }
+}
+
+/// A GPU evaluation that failed: a batch the kernel cannot take, or anything else.
+enum Refused {
+    Pack(String),
+    Other(DeviceError),
+}
+
+impl From<Refused> for DeviceError {
+    fn from(r: Refused) -> Self {
+        match r {
+            Refused::Pack(msg) => DeviceError::Input(msg),
+            Refused::Other(e) => e,
+        }
+    }
+}
+
+fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<Output, Refused> {
+    let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
+    let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
+        GpuError::Pack(_) => Refused::Pack(e.to_string()),
+        GpuError::Job(_) => Refused::Other(DeviceError::Input(e.to_string())),
+        _ => Refused::Other(DeviceError::Device(e.to_string())),
+    })?;
+    Ok(out.to_output(job.derivatives))
+}
+
+fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
+    let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
+    let out = c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))?;
+    Ok(out.to_output(job.derivatives))
 }

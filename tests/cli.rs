@@ -420,3 +420,22 @@ fn f32_results_print_as_f32() {
     let digits = out["tracks"][1]["rotations"][1][0].to_string();
     assert!(digits.len() > 12, "reference results keep f64 digits: {digits}");
 }
+
+/// `auto` never fails where `cpu` works: a batch the GPU kernel cannot take (Bezier degree 39,
+/// above its 32) runs on the CPU path and the output names it; `--device gpu` refuses it.
+#[test]
+fn auto_falls_back_to_the_cpu_for_batches_the_gpu_cannot_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let keys: Vec<[f64; 4]> = (0..40).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
+    let input = dir.path().join("long.json");
+    std::fs::write(&input, serde_json::to_string(&TrackFile { tracks: vec![Track::from_rotations(keys)] }).unwrap()).unwrap();
+    let out = quatcurve(&["eval", "--input", input.to_str().unwrap(), "--curve", "bezier", "--samples", "5"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(doc["device"].as_str().unwrap().starts_with("cpu:"), "{}", doc["device"]);
+    if std::env::var_os("QUATCURVE_REQUIRE_GPU").is_some() {
+        let out = quatcurve(&["eval", "--input", input.to_str().unwrap(), "--curve", "bezier", "--samples", "5", "--device", "gpu"]);
+        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+        assert!(stderr(&out).contains("Bezier degree 39 is above the GPU limit of 32"), "{}", stderr(&out));
+    }
+}

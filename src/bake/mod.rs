@@ -139,6 +139,9 @@ pub struct Baked {
     /// For curves that interpolate their keys: the largest angle (rad) between a rotation
     /// key and the curve evaluated at that key's time on the same device.
     pub max_key_error: Option<f64>,
+    /// The device that evaluated the rotations ([`Device::evaluate_named`]); `None` when
+    /// there was no rotation channel to evaluate.
+    pub device: Option<String>,
 }
 
 impl Baked {
@@ -294,7 +297,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         }
         clips.push(BakedClip { times, rate: clip_rate, looping, values });
     }
-    let mut max_key_error = None;
+    let (mut max_key_error, mut used) = (None, None);
     if !tracks.is_empty() {
         // Prepared on every core (bspline-interp solves a system per track).
         let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
@@ -307,7 +310,8 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
             Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grid) })
         })
         .map_err(input)?;
-        let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+        let (out, name) = device.evaluate_named(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+        used = Some(name);
         for (i, &(c, k)) in owners.iter().enumerate() {
             let range = times.offsets[i]..times.offsets[i + 1];
             clips[c].values[k] = out.rotations[range].iter().map(|q| q.map(|v| v as f32)).collect();
@@ -327,7 +331,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
             max_key_error = Some(worst);
         }
     }
-    Ok(Baked { clips, max_key_error })
+    Ok(Baked { clips, max_key_error, device: used })
 }
 
 /// A one-key channel held for every frame (checked like any key).

@@ -372,7 +372,9 @@ fn bake_one(
         let baked = bake::bake(animation, spec, args.rate, args.looping, device)?;
         row.samples = baked.sample_count();
         row.max_key_error = baked.max_key_error;
-        write_outputs(&src, &baked, source, stem, args, &device.name())
+        // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
+        let used = baked.device.clone().unwrap_or_else(|| device.name());
+        write_outputs(&src, &baked, source, stem, args, &used)
     });
     row.seconds = start.elapsed().as_secs_f64();
     row.outcome = result;

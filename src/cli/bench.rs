@@ -115,7 +115,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
         };
         results.push(match &device {
             Device::Reference => time_reference(args, &spec)?,
-            Device::Gpu(gpu) => time_gpu(args, gpu, &batch, &times)?,
+            Device::Gpu(gpu) | Device::Auto(gpu, _) => time_gpu(args, gpu, &batch, &times)?,
             Device::Cpu(cpu) => time_cpu(args, cpu, &batch, &times)?,
         });
     }

@@ -113,9 +113,9 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let job = EvalJob { batch: &batch, times: &times, layout, derivatives: args.derivatives };
     job.validate().map_err(input_err)?;
     let device = Device::open(args.device.device)?;
-    let out = device.evaluate(&job).map_err(|e| Failure::from(e).context(&source))?;
+    let (out, device_name) = device.evaluate_named(&job).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
-    let device = device.name();
+    let device = device_name;
     let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out, f32);
     let Some(path) = &args.output else {
         return print_stdout(|w| {
