@@ -74,31 +74,26 @@ fn polynomial(c: impl DoubleEndedIterator<Item = f64>, x: f64) -> [f64; 3] {
     [p, d1, 2.0 * d2]
 }
 
-/// Taylor coefficients (lowest first) of `cos sqrt x = sum (-1)^k x^k / (2k)!`; 10 terms reach
-/// rounding below [`SERIES_LIMIT`]. Constant tables: these run in every f64 exp and log (the
-/// builder's Newton solve, the reference), where building them per call was a measured cost.
-const COS_SERIES: [f64; 10] = {
+/// Taylor coefficients (lowest first) `(-1)^k / (2k + o)!`: `o = 0` is `cos sqrt x`, `o = 1`
+/// is `sin sqrt x / sqrt x`; 10 terms reach rounding below [`SERIES_LIMIT`]. Constant tables:
+/// these run in every f64 exp and log (the builder's Newton solve, the reference), where
+/// building them per call was a measured cost.
+const fn factorial_series(o: usize) -> [f64; 10] {
     let mut c = [0.0; 10];
     let (mut k, mut term) = (0, 1.0);
     while k < 10 {
         c[k] = term;
-        term *= -1.0 / ((2 * k + 1) * (2 * k + 2)) as f64;
+        term *= -1.0 / ((2 * k + 1 + o) * (2 * k + 2 + o)) as f64;
         k += 1;
     }
     c
-};
+}
 
-/// Taylor coefficients of `sin sqrt x / sqrt x = sum (-1)^k x^k / (2k+1)!`.
-const SINC_SERIES: [f64; 10] = {
-    let mut c = [0.0; 10];
-    let (mut k, mut term) = (0, 1.0);
-    while k < 10 {
-        c[k] = term;
-        term *= -1.0 / ((2 * k + 2) * (2 * k + 3)) as f64;
-        k += 1;
-    }
-    c
-};
+/// `cos sqrt x = sum (-1)^k x^k / (2k)!`.
+const COS_SERIES: [f64; 10] = factorial_series(0);
+
+/// `sin sqrt x / sqrt x = sum (-1)^k x^k / (2k+1)!`.
+const SINC_SERIES: [f64; 10] = factorial_series(1);
 
 /// Taylor coefficients of `atan sqrt x / sqrt x = sum (-1)^k x^k / (2k+1)`; 30 terms reach
 /// 1e-20 at x = 1/4.
