@@ -45,7 +45,7 @@ fn paths(c: &mut Criterion) {
             group.throughput(Throughput::Elements(times.total() as u64));
             let options = CpuOptions { derivatives, ..CpuOptions::default() };
             group.bench_function("cpu", |b| b.iter(|| cpu.evaluate(&batch, &times, &options).unwrap()));
-            let mut buffer = vec![0.0f32; times.total() * quatcurve::gpu::layout::channels(derivatives, false)];
+            let mut buffer = vec![0.0f32; times.total() * quatcurve::job::channels(derivatives, false)];
             group.bench_function("cpu_reused_buffer", |b| b.iter(|| cpu.evaluate_into(&batch, &times, &options, &mut buffer).unwrap()));
             if let Some(gpu) = &gpu {
                 let options = GpuOptions { derivatives, ..GpuOptions::default() };

@@ -62,6 +62,23 @@ pub struct PackedTrack {
     /// A periodic track: times outside the domain wrap by its length
     /// ([`crate::segment::wrap`]).
     pub looping: bool,
+    /// Equally spaced knots ([`knots_are_uniform`]), decided once here: the CPU and GPU
+    /// paths then find spans by arithmetic and use the fixed polynomial span bases.
+    pub uniform_knots: bool,
+}
+
+/// Relative spacing tolerance of [`knots_are_uniform`].
+pub const UNIFORM_KNOT_TOLERANCE: f64 = 1e-9;
+
+/// Whether a knot vector is equally spaced (to [`UNIFORM_KNOT_TOLERANCE`]).
+#[must_use]
+pub fn knots_are_uniform(knots: &[f64]) -> bool {
+    let n = knots.len();
+    if n < 2 || knots[n - 1] <= knots[0] {
+        return false;
+    }
+    let dt = (knots[n - 1] - knots[0]) / (n - 1) as f64;
+    knots.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_KNOT_TOLERANCE * dt)
 }
 
 /// Many tracks packed flat (CSR style). Build one with [`BatchBuilder`] or [`Batch::from_tracks`].
@@ -198,6 +215,7 @@ impl BatchBuilder {
             knot_count: packed.knots.len(),
             domain: packed.domain,
             looping: spec.looping,
+            uniform_knots: knots_are_uniform(&packed.knots),
         });
         b.points.extend(packed.points);
         b.coefs.extend(packed.coefs);

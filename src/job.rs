@@ -38,6 +38,13 @@ pub struct Output {
     pub angular_acceleration: Vec<[f64; 3]>,
 }
 
+/// Floats per output sample of the fast paths: rotation `x, y, z, w` (4), then with
+/// derivatives omega and alpha (6), then with a matrix its 9 entries, row-major.
+#[must_use]
+pub fn channels(derivatives: bool, matrix: bool) -> usize {
+    4 + if derivatives { 6 } else { 0 } + if matrix { 9 } else { 0 }
+}
+
 /// Float32 samples of the fast paths (GPU, CPU): `samples x channels` in the requested layout. Per sample: rotation
 /// `x, y, z, w`, then with derivatives `omega`, `alpha`, then with a matrix its 9 entries.
 #[derive(Clone, Debug, Default, PartialEq)]

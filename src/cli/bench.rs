@@ -186,7 +186,7 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
     let seconds = median_seconds(args.runs, || cpu.evaluate(batch, times, &options).map(drop).map_err(input))?;
     // The CPU's analogue of dispatch-only: into a reused buffer (no allocation, no page faults).
-    let mut buffer = vec![0.0f32; times.total() * quatcurve::gpu::layout::channels(args.derivatives, false)];
+    let mut buffer = vec![0.0f32; times.total() * quatcurve::job::channels(args.derivatives, false)];
     let compute = median_seconds(args.runs, || cpu.evaluate_into(batch, times, &options, &mut buffer).map_err(input))?;
     let samples = times.total();
     Ok(Row {

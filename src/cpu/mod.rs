@@ -83,7 +83,7 @@ impl CpuEvaluator {
     /// # Errors
     /// As [`EvalJob::validate`].
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions) -> Result<FloatOutput> {
-        let mut out = FloatOutput::zeroed(times.total(), crate::gpu::layout::channels(options.derivatives, options.matrix));
+        let mut out = FloatOutput::zeroed(times.total(), crate::job::channels(options.derivatives, options.matrix));
         self.evaluate_into(batch, times, options, &mut out.data)?;
         Ok(out)
     }
@@ -96,7 +96,7 @@ impl CpuEvaluator {
     /// As [`EvalJob::validate`], and [`crate::Error::BadJob`] for a buffer of the wrong size.
     pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions, data: &mut [f32]) -> Result<()> {
         EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives }.validate()?;
-        let channels = crate::gpu::layout::channels(options.derivatives, options.matrix);
+        let channels = crate::job::channels(options.derivatives, options.matrix);
         if data.len() != times.total() * channels {
             return Err(crate::Error::BadJob(format!(
                 "output buffer holds {} floats but {} samples x {channels} channels are needed",

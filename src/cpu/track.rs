@@ -6,7 +6,6 @@ use super::cox_de_boor::SpanKnots;
 use crate::basis::{bernstein_polynomials, fit_polynomials, uniform_bspline_polynomials};
 use crate::batch::{Batch, TrackView};
 use crate::curve::Curve;
-use crate::gpu::layout::knots_are_uniform;
 use crate::quat::DQuat;
 use crate::reference;
 use crate::sampling::{SampleTimes, TrackTimes};
@@ -145,7 +144,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
-            let basis = if knots_are_uniform(knots) { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
+            let basis = if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)
         }
         // One segment; degrees beyond the product's capacity take the reference below.

@@ -259,7 +259,7 @@ impl GpuEvaluator {
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
     /// mismatched inputs, device errors as [`GpuError::Device`] or [`GpuError::DeviceLost`].
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
-        let channels = layout::channels(options.derivatives, options.matrix);
+        let channels = crate::job::channels(options.derivatives, options.matrix);
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
         for chunk in &self.plan(batch, times, options, channels)? {
             let prepared = self.upload(chunk, batch, options, channels, None)?;
@@ -282,7 +282,7 @@ impl GpuEvaluator {
     /// # Errors
     /// As [`GpuEvaluator::evaluate`].
     pub fn prepare(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<PreparedBatch, GpuError> {
-        let channels = layout::channels(options.derivatives, options.matrix);
+        let channels = crate::job::channels(options.derivatives, options.matrix);
         let plans = self.plan(batch, times, options, channels)?;
         let chunks = plans.iter().map(|c| self.upload(c, batch, options, channels, None)).collect::<Result<_, _>>()?;
         Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
@@ -320,7 +320,7 @@ impl GpuEvaluator {
     /// As [`GpuEvaluator::evaluate`], and [`GpuError::Job`] when the buffer is too small or
     /// the batch needs more than one binding (evaluate it in parts, or use `evaluate`).
     pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, target: &wgpu::Buffer) -> Result<(), GpuError> {
-        let channels = layout::channels(options.derivatives, options.matrix);
+        let channels = crate::job::channels(options.derivatives, options.matrix);
         let needed = (times.total() * channels * 4) as u64;
         if target.size() < needed {
             return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));

@@ -82,22 +82,10 @@ pub struct Params {
 pub const FLAG_EXPLICIT_TIMES: u32 = 1;
 /// `FLAG_HAS_LAST` in the shader.
 pub const FLAG_HAS_LAST: u32 = 2;
-/// `FLAG_UNIFORM_KNOTS` in the shader: B-spline knots equally spaced (to 1e-9 relative),
+/// `FLAG_UNIFORM_KNOTS` in the shader: B-spline knots equally spaced
+/// ([`crate::batch::PackedTrack::uniform_knots`]),
 /// so the kernel finds spans by arithmetic and uses integer knot differences.
 pub const FLAG_UNIFORM_KNOTS: u32 = 4;
-/// Relative spacing tolerance for [`FLAG_UNIFORM_KNOTS`].
-pub const UNIFORM_KNOT_TOLERANCE: f64 = 1e-9;
-
-/// Whether a knot vector is equally spaced (to [`UNIFORM_KNOT_TOLERANCE`]).
-#[must_use]
-pub fn knots_are_uniform(knots: &[f64]) -> bool {
-    let n = knots.len();
-    if n < 2 || knots[n - 1] <= knots[0] {
-        return false;
-    }
-    let dt = (knots[n - 1] - knots[0]) / (n - 1) as f64;
-    knots.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_KNOT_TOLERANCE * dt)
-}
 
 /// `ANY_CURVE` in the shader: no specialization.
 pub const ANY_CURVE: u32 = 255;
@@ -141,11 +129,6 @@ pub fn fixed_step(step: f64) -> [u32; 3] {
     [(ticks >> 64) as u32, (ticks >> 32) as u32, ticks as u32]
 }
 
-/// Floats per output sample: rotation (4), then omega and alpha (6), then a 3x3 matrix (9).
-#[must_use]
-pub fn channels(derivatives: bool, matrix: bool) -> usize {
-    4 + if derivatives { 6 } else { 0 } + if matrix { 9 } else { 0 }
-}
 
 /// A contiguous range of tracks that fits every binding limit, packed for the kernel; or one
 /// piece of a track too long for one binding (its samples from `sample_base` on).
@@ -281,7 +264,7 @@ fn push_piece(chunk: &mut Chunk, index: usize, view: &crate::batch::TrackView<'_
         sample_base: range.start as u32,
         ..GpuTrack::default()
     };
-    if view.track.curve == Curve::BSpline && knots_are_uniform(view.knots) {
+    if view.track.curve == Curve::BSpline && view.track.uniform_knots {
         gpu.flags |= FLAG_UNIFORM_KNOTS;
     }
     match times.tracks[index] {
