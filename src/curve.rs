@@ -147,3 +147,22 @@ names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", H
 names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");
 names!(Tangents, "tangent source", CatmullRom => "catmull-rom", Zero => "zero", Given => "given");
 names!(Blend, "blend", Cubic => "cubic", Quadratic => "quadratic");
+
+impl Blend {
+    /// Nam-Kim's blend ratio `f(s)` on `[0, 1]` (NK eq. 5 and section 2.2): the share of the
+    /// second great arc at segment parameter `s`.
+    #[must_use]
+    pub fn ratio<R: crate::real::Real>(self, s: R) -> R {
+        match self {
+            Blend::Cubic => s * s * (R::cst(3.0) - s.scale(2.0)),
+            Blend::Quadratic => {
+                if s.value() <= 0.5 {
+                    (s * s).scale(2.0)
+                } else {
+                    let r = s - R::cst(1.0);
+                    R::cst(1.0) - (r * r).scale(2.0)
+                }
+            }
+        }
+    }
+}

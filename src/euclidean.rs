@@ -18,7 +18,7 @@ use crate::batch::{bspline_knots, key_times};
 use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::DVec3;
-use crate::reference::{blend, key_segment};
+use crate::segment::key_segment;
 use crate::segment::{locate, wrap};
 
 /// A vector curve ready to evaluate: points, per-family coefficients and knots, laid out as
@@ -185,7 +185,7 @@ impl VectorCurve {
                 let s = (t - knots[i]) / len;
                 let c1 = points[i] + coefs[2 * i].scale(s);
                 let c2 = points[i + 1] + coefs[2 * i + 1].scale(s - 1.0);
-                c1 + (c2 - c1).scale(blend(self.blend, s))
+                c1 + (c2 - c1).scale(self.blend.ratio(s))
             }
         }
     }

@@ -18,10 +18,10 @@
 
 use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
 use crate::batch::TrackView;
-use crate::curve::{Blend, Curve};
+use crate::curve::Curve;
 use crate::quat::{DQuat, DVec3, Quat, Vec3};
 use crate::real::{Jet, Real};
-use crate::segment::{locate, wrap};
+use crate::segment::{key_segment, locate, wrap};
 
 /// One evaluated sample: rotation and physical body-frame derivatives.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,12 +83,6 @@ fn coef_vec(c: [f64; 4]) -> DVec3 {
 
 fn coef_quat(c: [f64; 4]) -> DQuat {
     DQuat::from_array(c)
-}
-
-/// Locates `t` among a piecewise track's key times: `(segment, clamped t, segment length)`.
-pub(crate) fn key_segment(knots: &[f64], t: f64) -> (usize, f64, f64) {
-    let (i, t) = locate(knots, 0, knots.len() - 2, t);
-    (i, t, knots[i + 1] - knots[i])
 }
 
 /// Scales a basis jet in the segment parameter `u` to time units for a segment of length `len`.
@@ -173,23 +167,7 @@ fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quat<R> {
     let (a, b) = (coef_vec(view.coefs[2 * i]), coef_vec(view.coefs[2 * i + 1]));
     let c1 = Quat::from_f64(view.points[i]) * Quat::exp(Vec3::from_f64(a).mul_scalar(s));
     let c2 = Quat::from_f64(view.points[i + 1]) * Quat::exp(Vec3::from_f64(b).mul_scalar(s - R::cst(1.0)));
-    c1.geodesic(c2, blend(view.track.blend, s))
-}
-
-/// Nam-Kim's blend ratio `f(s)` (NK eq. 5 and section 2.2).
-#[must_use]
-pub fn blend<R: Real>(kind: Blend, s: R) -> R {
-    match kind {
-        Blend::Cubic => s * s * (R::cst(3.0) - s.scale(2.0)),
-        Blend::Quadratic => {
-            if s.value() <= 0.5 {
-                (s * s).scale(2.0)
-            } else {
-                let r = s - R::cst(1.0);
-                R::cst(1.0) - (r * r).scale(2.0)
-            }
-        }
-    }
+    c1.geodesic(c2, view.track.blend.ratio(s))
 }
 
 /// NK's forward-difference generator (NK section 3, appendix B) for a Nam-Kim segment sampled
@@ -214,7 +192,7 @@ pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: us
     backward.reverse();
     (0..=steps)
         .map(|j| {
-            let f = blend(view.track.blend, j as f64 / steps as f64);
+            let f = view.track.blend.ratio(j as f64 / steps as f64);
             forward[j].geodesic(backward[j], f)
         })
         .collect()

@@ -25,6 +25,13 @@ pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) 
     (span, t)
 }
 
+/// Locates `t` among a piecewise track's key times: `(segment, clamped t, segment length)`.
+#[must_use]
+pub fn key_segment(knots: &[f64], t: f64) -> (usize, f64, f64) {
+    let (i, t) = locate(knots, 0, knots.len() - 2, t);
+    (i, t, knots[i + 1] - knots[i])
+}
+
 /// A looping track's sample time inside its period: times within `[start, end]` are kept as
 /// they are (so a sample at the end evaluates the end, not the start), others become
 /// `start + ((t - start) mod (end - start))`. NaN stays NaN (and is clamped later).

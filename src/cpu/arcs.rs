@@ -131,7 +131,7 @@ pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, from: us
     }
 }
 
-/// Nam-Kim's blend ratio `f(s)`, as [`crate::reference::blend`].
+/// Nam-Kim's blend ratio `f(s)`, as [`crate::curve::Blend::ratio`].
 #[inline(always)]
 fn blend_weight(kind: Blend, s: f32x8) -> f32x8 {
     match kind {

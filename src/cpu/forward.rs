@@ -12,7 +12,6 @@ use super::CpuOptions;
 use crate::batch::TrackView;
 use crate::curve::Curve;
 use crate::quat::{DQuat, DVec3};
-use crate::reference::blend;
 use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
 use glam::{Quat, Vec4};
@@ -106,7 +105,7 @@ pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, range: R
         }
         let q = match view.track.curve {
             Curve::Slerp => arcs[0].value(),
-            _ => geodesic(arcs[0].value(), arcs[1].value(), blend(view.track.blend, s) as f32),
+            _ => geodesic(arcs[0].value(), arcs[1].value(), view.track.blend.ratio(s) as f32),
         };
         super::track::write(row, q.to_array(), [0.0; 3], [0.0; 3], options);
     }
