@@ -12,7 +12,8 @@
 //! Flow: user [`Track`]s -> [`BatchBuilder`] (validation, hemisphere alignment, coefficients,
 //! knots: done once, in f64) -> packed [`Batch`] -> an [`EvalJob`] with `validate()` then
 //! `run()`. Conventions (quaternion order `x, y, z, w`, half-angle exp/log, body-frame
-//! derivatives) are those of the project's DESIGN document and are summarized in the README.
+//! derivatives) are those of the project's design document, `docs/DESIGN.md` (cited as
+//! "DESIGN section N" throughout), summarized in the README.
 //!
 //! ```
 //! use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, Track};
