@@ -119,8 +119,8 @@ crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "
 /// A resampled clip: frame times and, per channel (in the clip's order), one value per frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedClip {
-    /// Open clips: `start + i / rate` while not past the clip's last key ([`frame_times`]).
-    /// Loops: a whole number of frames per period ([`loop_frame_times`]).
+    /// Open clips: `start + i / rate` while not past the clip's last key ([`frame_grid`]).
+    /// Loops: a whole number of frames per period ([`loop_frame_grid`]).
     pub times: Vec<f64>,
     /// Frames per second of `times`: the requested rate, or for a loop the nearest rate that
     /// puts a whole number of frames in its period.
