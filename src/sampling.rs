@@ -51,6 +51,17 @@ impl TrackTimes {
             TrackTimes::Uniform { count, .. } | TrackTimes::Explicit { count, .. } => count,
         }
     }
+
+    /// Sample `j` of a uniform grid (`None` for a list, whose times live in
+    /// [`SampleTimes::explicit`]). The one formula every path's uniform times follow.
+    #[must_use]
+    pub fn grid_time(&self, j: usize) -> Option<f64> {
+        match *self {
+            TrackTimes::Uniform { last: Some(end), count, .. } if j + 1 == count => Some(end),
+            TrackTimes::Uniform { start, step, .. } => Some(start + j as f64 * step),
+            TrackTimes::Explicit { .. } => None,
+        }
+    }
 }
 
 /// Sample times of every track of a batch.
@@ -169,11 +180,8 @@ impl SampleTimes {
     #[must_use]
     pub fn time(&self, index: usize, j: usize) -> f64 {
         match self.tracks[index] {
-            TrackTimes::Uniform { start, step, count, last } => match last {
-                Some(end) if j + 1 == count => end,
-                _ => start + j as f64 * step,
-            },
             TrackTimes::Explicit { offset, .. } => self.explicit[offset + j],
+            grid => grid.grid_time(j).unwrap_or_default(),
         }
     }
 

@@ -227,12 +227,7 @@ pub fn loop_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f
 
 /// The times of a uniform grid, as [`SampleTimes::time`] computes them.
 fn grid_times(grid: TrackTimes) -> Vec<f64> {
-    match grid {
-        TrackTimes::Uniform { start, step, count, last } => {
-            (0..count).map(|j| if let (Some(end), true) = (last, j + 1 == count) { end } else { start + j as f64 * step }).collect()
-        }
-        TrackTimes::Explicit { .. } => unreachable!("frame grids are uniform"),
-    }
+    (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect()
 }
 
 /// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
