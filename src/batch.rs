@@ -139,6 +139,30 @@ impl Batch {
         self.tracks.is_empty()
     }
 
+    /// A batch of the tracks in `range` alone (their packed data copied, offsets rebased), so
+    /// that a large job can run in pieces of bounded memory. Track ids keep their index in
+    /// `self`, so messages still name the track the user gave.
+    ///
+    /// # Panics
+    /// When `range` reaches past the end, like slice indexing.
+    #[must_use]
+    pub fn subset(&self, range: std::ops::Range<usize>) -> Batch {
+        let mut out = Batch { ids: self.ids[range.clone()].to_vec(), ..Batch::default() };
+        for index in range {
+            let view = self.view(index);
+            out.tracks.push(PackedTrack {
+                point_offset: out.points.len(),
+                coef_offset: out.coefs.len(),
+                knot_offset: out.knots.len(),
+                ..view.track.clone()
+            });
+            out.points.extend_from_slice(view.points);
+            out.coefs.extend_from_slice(view.coefs);
+            out.knots.extend_from_slice(view.knots);
+        }
+        out
+    }
+
     /// The slices of the packed arrays that belong to track `index`, or `None` past the end.
     #[must_use]
     pub fn get(&self, index: usize) -> Option<TrackView<'_>> {

@@ -186,11 +186,13 @@ impl EvalJob<'_> {
         Ok(())
     }
 
-    /// Validates, then evaluates.
+    /// Validates, then evaluates. Tracks run on every core when the layout is track-major
+    /// (each track owns one contiguous slice of the output).
     ///
     /// # Errors
     /// As [`EvalJob::validate`].
     pub fn run(&self) -> Result<Output> {
+        use rayon::prelude::*;
         self.validate()?;
         let total = self.times.total();
         let tracks = self.batch.len();
@@ -199,12 +201,27 @@ impl EvalJob<'_> {
             out.angular_velocity = vec![[0.0; 3]; total];
             out.angular_acceleration = vec![[0.0; 3]; total];
         }
+        let evaluate = |index: usize, j: usize| reference::evaluate(self.batch.view(index), self.times.time(index, j));
+        if self.layout == Layout::Track {
+            let rotations = split_at_offsets(&mut out.rotations, &self.times.offsets);
+            let omega = split_at_offsets(&mut out.angular_velocity, &self.times.offsets);
+            let alpha = split_at_offsets(&mut out.angular_acceleration, &self.times.offsets);
+            rotations.into_par_iter().zip(omega).zip(alpha).enumerate().for_each(|(index, ((rotations, omega), alpha))| {
+                for (j, q) in rotations.iter_mut().enumerate() {
+                    let sample = evaluate(index, j);
+                    *q = sample.rotation.to_array();
+                    if self.derivatives {
+                        omega[j] = sample.angular_velocity.to_array();
+                        alpha[j] = sample.angular_acceleration.to_array();
+                    }
+                }
+            });
+            return Ok(out);
+        }
         for index in 0..tracks {
-            let view = self.batch.view(index);
             for j in 0..self.times.count(index) {
-                let t = self.times.time(index, j);
                 let slot = self.layout.slot(self.times, index, j);
-                let sample = reference::evaluate(view, t);
+                let sample = evaluate(index, j);
                 out.rotations[slot] = sample.rotation.to_array();
                 if self.derivatives {
                     out.angular_velocity[slot] = sample.angular_velocity.to_array();
@@ -214,4 +231,18 @@ impl EvalJob<'_> {
         }
         Ok(out)
     }
+}
+
+/// `data` cut at `offsets` (`offsets[i]..offsets[i + 1]` per track); an empty `data` (an
+/// output not requested) gives an empty slice per track.
+fn split_at_offsets<'a, T>(mut data: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut [T]> {
+    offsets
+        .windows(2)
+        .map(|w| {
+            let len = if data.is_empty() { 0 } else { w[1] - w[0] };
+            let (head, tail) = std::mem::take(&mut data).split_at_mut(len);
+            data = tail;
+            head
+        })
+        .collect()
 }

@@ -37,6 +37,7 @@
 pub mod bake;
 pub mod basis;
 pub mod cpu;
+pub mod analysis;
 pub mod arrays;
 pub mod batch;
 pub mod curve;

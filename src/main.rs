@@ -24,6 +24,8 @@ enum Command {
     Bake(cli::bake::BakeArgs),
     /// Time the same synthetic batch on every available device, side by side.
     Bench(cli::bench::BenchArgs),
+    /// Energy, torque and smoothness of curves through the same keys; --paper reruns KKS 6.1.
+    Analyze(cli::analyze::AnalyzeArgs),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +35,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => cli::eval::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
+        Command::Analyze(args) => cli::analyze::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

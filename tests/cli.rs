@@ -439,3 +439,114 @@ fn auto_falls_back_to_the_cpu_for_batches_the_gpu_cannot_take() {
         assert!(stderr(&out).contains("Bezier degree 39 is above the GPU limit of 32"), "{}", stderr(&out));
     }
 }
+
+/// `quatcurve analyze ... --json` as a document, the command having succeeded.
+fn analyze_json(args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["analyze", "--json"];
+    all.extend_from_slice(args);
+    let out = quatcurve(&all);
+    assert!(out.status.success(), "{}", stderr(&out));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn analyze_reports_every_curve_and_track_with_ratios_to_squad() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_tracks(dir.path(), &sample_tracks());
+    let doc = analyze_json(&["--input", &input, "--curves", "bspline-interp,squad,hermite", "--inertia", "1,2,3"]);
+    let curves = doc["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 3);
+    for c in curves {
+        let tracks = c["tracks"].as_array().unwrap();
+        assert_eq!(tracks.len(), 2);
+        assert_eq!(tracks[0]["name"], "hips");
+        for field in ["energy", "torque_energy", "max_omega", "max_alpha", "arc_length", "alpha_jump"] {
+            assert!(tracks[1][field].as_f64().unwrap() >= 0.0, "{field}");
+            let sum: f64 = tracks.iter().map(|t| t[field].as_f64().unwrap()).sum();
+            let total = c["total"][field].as_f64().unwrap();
+            assert!(if field.starts_with("max") || field.ends_with("jump") { total <= sum } else { (total - sum).abs() <= 1e-12 * sum }, "{field}");
+        }
+    }
+    let squad = &curves[1];
+    assert_eq!(squad["curve"], "squad");
+    assert_eq!(squad["ratio_to_squad"]["torque_energy"], 1.0);
+    let interp = &curves[0]["ratio_to_squad"]["energy"].as_f64().unwrap();
+    let by_hand = curves[0]["total"]["energy"].as_f64().unwrap() / squad["total"]["energy"].as_f64().unwrap();
+    assert!((interp - by_hand).abs() < 1e-12);
+    // Without squad there is no ratio.
+    let alone = analyze_json(&["--input", &input, "--curves", "hermite"]);
+    assert!(alone["curves"][0]["ratio_to_squad"].is_null());
+}
+
+#[test]
+fn analyze_paper_is_deterministic_for_a_seed() {
+    let run = |seed: &str| analyze_json(&["--paper", "--seed", seed, "--sequences", "6", "--keys", "5", "--step", "0.01"]);
+    let (a, b, c) = (run("7"), run("7"), run("8"));
+    assert_eq!(a, b);
+    assert_ne!(a["regimes"], c["regimes"]);
+    let regimes = a["regimes"].as_array().unwrap();
+    assert_eq!(regimes.len(), 2);
+    for r in regimes {
+        let rows = r["curves"].as_array().unwrap();
+        assert_eq!(rows[0]["curve"], "squad");
+        assert_eq!(rows[0]["torque_ratio_total"], 1.0);
+        assert_eq!(r["sequences"].as_u64().unwrap() + r["left_out"].as_u64().unwrap(), 6);
+    }
+    // The text report states each claim with its verdict.
+    let out = quatcurve(&["analyze", "--paper", "--seed", "7", "--sequences", "4", "--keys", "4", "--step", "0.02"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("small variations") && text.contains("large variations") && text.contains("C2"), "{text}");
+}
+
+#[test]
+fn analyze_plots_decode_and_are_not_blank() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("rates.png");
+    let svg = dir.path().join("rates.svg");
+    for path in [&png, &svg] {
+        let out = quatcurve(&["analyze", "--curves", "squad,bspline-interp", "--plot", path.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    let image = image::load_from_memory(&std::fs::read(&png).unwrap()).unwrap().to_rgb8();
+    let colored = image.pixels().filter(|p| p.0.iter().max().unwrap() - p.0.iter().min().unwrap() > 60).count();
+    assert!(colored > 2000, "only {colored} coloured pixels: the curves are missing");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg") && text.contains("bspline-interp") && text.matches("<polyline").count() >= 4, "{}", &text[..200.min(text.len())]);
+    // Unknown formats and bad options are usage errors naming the option; nothing is written.
+    let gif = dir.path().join("rates.gif");
+    let out = quatcurve(&["analyze", "--plot", gif.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains(".png or .svg") && !gif.exists(), "{}", stderr(&out));
+    for (args, needle) in [(&["analyze", "--inertia", "1,2"][..], "--inertia"), (&["analyze", "--step", "0"], "step"), (&["analyze", "--inertia", "1,-2,3"], "inertia")] {
+        let out = quatcurve(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+    }
+}
+
+#[test]
+fn analyze_on_the_gpu_agrees_with_the_reference() {
+    if quatcurve::gpu::GpuEvaluator::new().is_err() {
+        assert_ne!(std::env::var("QUATCURVE_REQUIRE_GPU").as_deref(), Ok("1"), "QUATCURVE_REQUIRE_GPU=1 but no adapter");
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    let args = ["--curves", "bspline-interp,hermite,nam-kim", "--inertia", "1,2,3", "--step", "0.002"];
+    let run = |device: &str| {
+        let mut all = args.to_vec();
+        all.extend(["--device", device]);
+        analyze_json(&all)
+    };
+    let (gpu, reference) = (run("gpu"), run("reference"));
+    assert!(gpu["device"].as_str().unwrap().starts_with("gpu: "));
+    for (c, r) in gpu["curves"].as_array().unwrap().iter().zip(reference["curves"].as_array().unwrap()) {
+        for (t, u) in c["tracks"].as_array().unwrap().iter().zip(r["tracks"].as_array().unwrap()) {
+            for field in ["energy", "torque_energy", "arc_length", "max_alpha"] {
+                let (a, b) = (t[field].as_f64().unwrap(), u[field].as_f64().unwrap());
+                assert!((a - b).abs() <= 1e-3 * b.abs().max(1.0), "{} {} {field}: gpu {a} vs reference {b}", c["curve"], t["name"]);
+            }
+            let (ja, jb, scale) = (t["alpha_jump"].as_f64().unwrap(), u["alpha_jump"].as_f64().unwrap(), u["max_alpha"].as_f64().unwrap());
+            assert!((ja - jb).abs() <= 1e-3 * scale.max(1.0), "{} jump: gpu {ja} vs reference {jb}", c["curve"]);
+        }
+    }
+}

@@ -1,8 +1,8 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
+use super::{names, print_stdout, read_tracks, CurveArgs, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
-use quatcurve::io::{demo_tracks, read_track_file, write_atomic, write_npy, ResultFile};
+use quatcurve::io::{write_atomic, write_npy, ResultFile};
 use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
 use std::path::{Path, PathBuf};
 
@@ -71,20 +71,7 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
-    let (source, tracks) = match &args.input {
-        Some(path) if matches!(path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("npz" | "npy")) => {
-            let tracks = quatcurve::arrays::read_tracks(path, args.key_rate).map_err(|e| Failure::Input(e.to_string()))?;
-            (path.display().to_string(), tracks)
-        }
-        Some(path) => {
-            if args.key_rate.is_some() {
-                return Err(Failure::Input("--key-rate applies to .npz and .npy input; JSON tracks carry their own times".into()));
-            }
-            let file = read_track_file(path).map_err(|e| Failure::Input(e.to_string()))?;
-            (path.display().to_string(), file.tracks)
-        }
-        None => ("built-in demo".to_string(), demo_tracks()),
-    };
+    let (source, tracks) = read_tracks(args.input.as_deref(), args.key_rate)?;
     let spec = args.options.spec(args.curve, KnotMode::Phantom, args.looping);
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;

@@ -1,15 +1,18 @@
 //! The subcommands. Each parses its arguments, builds library jobs and reports; the maths and
 //! file formats live in the library.
 
+pub mod analyze;
 pub mod bake;
 pub mod bench;
 pub mod eval;
 mod manifest;
+mod plot;
 mod shard;
 
 use clap::Args;
 use quatcurve::{Blend, Curve, CurveSpec, DeviceChoice, DeviceError, KnotMode, Tangents};
 use std::io::Write;
+use std::path::Path;
 
 /// A failure with the exit code it maps to.
 pub enum Failure {
@@ -102,4 +105,22 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
         Err(e) => Err(Failure::Internal(format!("standard output: {e}"))),
         Ok(()) => Ok(()),
     }
+}
+
+/// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in
+/// demo without one; with the name messages give the source.
+pub fn read_tracks(input: Option<&Path>, key_rate: Option<f64>) -> Result<(String, Vec<quatcurve::Track>), Failure> {
+    let Some(path) = input else {
+        return Ok(("built-in demo".to_string(), quatcurve::io::demo_tracks()));
+    };
+    let arrays = matches!(path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("npz" | "npy"));
+    let tracks = if arrays {
+        quatcurve::arrays::read_tracks(path, key_rate).map_err(|e| Failure::Input(e.to_string()))?
+    } else {
+        if key_rate.is_some() {
+            return Err(Failure::Input("--key-rate applies to .npz and .npy input; JSON tracks carry their own times".into()));
+        }
+        quatcurve::io::read_track_file(path).map_err(|e| Failure::Input(e.to_string()))?.tracks
+    };
+    Ok((path.display().to_string(), tracks))
 }

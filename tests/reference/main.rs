@@ -2,6 +2,7 @@
 
 mod common;
 
+mod analysis;
 mod bspline;
 mod euclidean;
 mod families;
