@@ -67,16 +67,35 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
 /// # Errors
 /// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
 pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    let expected: u64 = shape.iter().product();
-    if expected != data.len() as u64 {
-        let source = std::io::Error::other(format!("{} values do not fill shape {shape:?}", data.len()));
-        return Err(IoError::Write { path: path.display().to_string(), source });
-    }
+    check_fill(path, shape, data.len())?;
     write_atomic(path, |w| {
         let mut npy = npyz::WriteOptions::<f32>::new().default_dtype().shape(shape).writer(w).begin_nd()?;
         npy.extend(data.iter().copied())?;
         npy.finish()
     })
+}
+
+/// Writes `data` as a float16 `.npy` array (`<f2`) of the given shape, atomically: each value
+/// rounded to the nearest half (about 3 significant digits, range +-65504).
+///
+/// # Errors
+/// As [`write_npy`].
+pub fn write_npy_f16(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
+    check_fill(path, shape, data.len())?;
+    write_atomic(path, |w| {
+        let mut npy = npyz::WriteOptions::<half::f16>::new().default_dtype().shape(shape).writer(w).begin_nd()?;
+        npy.extend(data.iter().map(|&v| half::f16::from_f32(v)))?;
+        npy.finish()
+    })
+}
+
+/// `len` values must fill `shape` exactly.
+fn check_fill(path: &Path, shape: &[u64], len: usize) -> Result<(), IoError> {
+    if shape.iter().product::<u64>() == len as u64 {
+        return Ok(());
+    }
+    let source = std::io::Error::other(format!("{len} values do not fill shape {shape:?}"));
+    Err(IoError::Write { path: path.display().to_string(), source })
 }
 
 /// Rows of results as JSON. Results a device computed in f32 print each value as the

@@ -15,6 +15,8 @@ fuzz_target!(|bytes: &[u8]| {
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     if let Ok(baked) = bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), 10.0, LoopMode::Auto, &device) {
         let _ = file.to_text(&animation.clips[0], &baked);
-        let _ = bake::texture(&animation, &animation.clips[0], &baked.clips[0]);
+        if let Ok(order) = animation.parents_first() {
+            let _ = bake::texture::sheets(&animation, &order, &animation.clips[0], &baked.clips[0], bake::texture::TextureKind::Model);
+        }
     }
 });

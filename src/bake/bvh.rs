@@ -27,6 +27,8 @@ pub enum BvhChannel {
 pub struct BvhJoint {
     /// Name.
     pub name: String,
+    /// The enclosing joint, `None` for a ROOT.
+    pub parent: Option<usize>,
     /// OFFSET from the parent.
     pub offset: [f64; 3],
     /// CHANNELS in file order.
@@ -72,8 +74,9 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
     if word != "HIERARCHY" {
         return Err(bad(line, format!("expected HIERARCHY, found {word}")));
     }
-    let mut joints = Vec::new();
-    let mut depth = 0usize;
+    let mut joints: Vec<BvhJoint> = Vec::new();
+    // The joints whose braces are open, innermost last.
+    let mut enclosing: Vec<usize> = Vec::new();
     let number = |(line, word): (usize, &str)| word.parse::<f64>().map_err(|_| bad(line, format!("expected a number, found {word}")));
     while let Ok((line, word)) = next("a joint") {
         match word {
@@ -83,7 +86,6 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
                 if open != "{" {
                     return Err(bad(line, format!("expected {{ after {word} {name}, found {open}")));
                 }
-                depth += 1;
                 let (line, kw) = next("OFFSET")?;
                 if kw != "OFFSET" {
                     return Err(bad(line, format!("expected OFFSET in joint {name}, found {kw}")));
@@ -124,7 +126,8 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
                 if !matches!(listed, 0 | 1 | 3) || axes.len() != listed {
                     return Err(bad(line, format!("joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 distinct axes are supported", axes.len())));
                 }
-                joints.push(BvhJoint { name: name.to_string(), offset, channels });
+                joints.push(BvhJoint { name: name.to_string(), parent: enclosing.last().copied(), offset, channels });
+                enclosing.push(joints.len() - 1);
             }
             "End" => {
                 // End Site { OFFSET x y z }: geometry only, no channels.
@@ -136,11 +139,13 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
                     return Err(bad(line, format!("expected }} closing End Site, found {close}")));
                 }
             }
-            "}" => depth = depth.checked_sub(1).ok_or_else(|| bad(line, "unbalanced }"))?,
+            "}" => {
+                enclosing.pop().ok_or_else(|| bad(line, "unbalanced }"))?;
+            }
             other => return Err(bad(line, format!("unexpected {other} in the hierarchy"))),
         }
     }
-    if depth != 0 || joints.is_empty() {
+    if !enclosing.is_empty() || joints.is_empty() {
         return Err(bad(hierarchy.lines().count(), "the hierarchy is empty or its braces are unbalanced"));
     }
     let first_line = hierarchy.lines().count() + 1;
@@ -254,9 +259,9 @@ impl BvhFile {
         let joints = self
             .joints
             .iter()
-            .map(|j| Joint { name: j.name.clone(), rotation: [0.0, 0.0, 0.0, 1.0], translation: j.offset })
+            .map(|j| Joint::at(j.name.clone(), j.parent, j.offset))
             .collect();
-        Animation { joints, clips: vec![Clip { name: clip_name.to_string(), channels }] }
+        Animation { joints, clips: vec![Clip { name: clip_name.to_string(), channels }], skins: Vec::new() }
     }
 
     /// BVH text of the baked clip at its baked rate: the original hierarchy, new frames.

@@ -13,40 +13,42 @@ pub const SECONDS: f64 = 10.0;
 /// Keys per second of the source animation (resampled by `bake --rate`).
 pub const KEY_RATE: f64 = 10.0;
 
-/// The skeleton: joint name, swing amplitude (rad), phase offset within the gait cycle.
-const SKELETON: [(&str, f64, f64); 24] = [
-    ("hips", 0.10, 0.0),
-    ("spine", 0.06, 0.5),
-    ("chest", 0.05, 0.5),
-    ("neck", 0.04, 1.0),
-    ("head", 0.05, 1.2),
-    ("l_clavicle", 0.05, 3.1),
-    ("l_shoulder", 0.45, 3.1),
-    ("l_elbow", 0.35, 3.6),
-    ("l_wrist", 0.15, 4.0),
-    ("r_clavicle", 0.05, 0.0),
-    ("r_shoulder", 0.45, 0.0),
-    ("r_elbow", 0.35, 0.5),
-    ("r_wrist", 0.15, 0.9),
-    ("l_hip", 0.50, 0.0),
-    ("l_knee", 0.65, 0.8),
-    ("l_ankle", 0.25, 1.6),
-    ("l_toe", 0.20, 2.2),
-    ("r_hip", 0.50, 3.1),
-    ("r_knee", 0.65, 3.9),
-    ("r_ankle", 0.25, 4.7),
-    ("r_toe", 0.20, 5.3),
-    ("tail", 0.30, 2.0),
-    ("l_ear", 0.20, 1.5),
-    ("r_ear", 0.20, 4.6),
+/// The skeleton, parents first: joint name, parent (index in this table; the hips are the
+/// root), rest offset from the parent (m, y up, z forward), swing amplitude (rad), phase
+/// offset within the gait cycle.
+const SKELETON: [(&str, usize, [f64; 3], f64, f64); 24] = [
+    ("hips", usize::MAX, [0.0, 0.0, 0.0], 0.10, 0.0),
+    ("spine", 0, [0.0, 0.12, 0.0], 0.06, 0.5),
+    ("chest", 1, [0.0, 0.18, 0.0], 0.05, 0.5),
+    ("neck", 2, [0.0, 0.22, 0.0], 0.04, 1.0),
+    ("head", 3, [0.0, 0.10, 0.0], 0.05, 1.2),
+    ("l_clavicle", 2, [0.05, 0.18, 0.0], 0.05, 3.1),
+    ("l_shoulder", 5, [0.14, 0.0, 0.0], 0.45, 3.1),
+    ("l_elbow", 6, [0.0, -0.28, 0.0], 0.35, 3.6),
+    ("l_wrist", 7, [0.0, -0.25, 0.0], 0.15, 4.0),
+    ("r_clavicle", 2, [-0.05, 0.18, 0.0], 0.05, 0.0),
+    ("r_shoulder", 9, [-0.14, 0.0, 0.0], 0.45, 0.0),
+    ("r_elbow", 10, [0.0, -0.28, 0.0], 0.35, 0.5),
+    ("r_wrist", 11, [0.0, -0.25, 0.0], 0.15, 0.9),
+    ("l_hip", 0, [0.1, -0.05, 0.0], 0.50, 0.0),
+    ("l_knee", 13, [0.0, -0.42, 0.0], 0.65, 0.8),
+    ("l_ankle", 14, [0.0, -0.40, 0.0], 0.25, 1.6),
+    ("l_toe", 15, [0.0, -0.06, 0.12], 0.20, 2.2),
+    ("r_hip", 0, [-0.1, -0.05, 0.0], 0.50, 3.1),
+    ("r_knee", 17, [0.0, -0.42, 0.0], 0.65, 3.9),
+    ("r_ankle", 18, [0.0, -0.40, 0.0], 0.25, 4.7),
+    ("r_toe", 19, [0.0, -0.06, 0.12], 0.20, 5.3),
+    ("tail", 0, [0.0, 0.0, -0.12], 0.30, 2.0),
+    ("l_ear", 4, [0.06, 0.12, 0.0], 0.20, 1.5),
+    ("r_ear", 4, [-0.06, 0.12, 0.0], 0.20, 4.6),
 ];
 
 /// Joints per character.
 pub const JOINTS: usize = SKELETON.len();
 
 /// `characters` walkers: one clip "walk" of [`SECONDS`] keyed at [`KEY_RATE`], a rotation
-/// channel per joint and a translation channel on each hips. Every gait has a whole number
-/// of cycles in the clip, so the rotations loop.
+/// channel per joint and a translation channel on each hips (the root of its character's
+/// hierarchy). Every gait has a whole number of cycles in the clip, so the rotations loop.
 #[must_use]
 pub fn crowd(characters: usize) -> Animation {
     let keys = (SECONDS * KEY_RATE).round() as usize + 1;
@@ -60,10 +62,11 @@ pub fn crowd(characters: usize) -> Animation {
         let (vigour, lean) = (0.8 + 0.4 * h(2), 0.1 * h(3) - 0.05);
         let phase = TAU * h(4);
         let origin = [1.5 * (c % side) as f64, 0.0, 1.5 * (c / side) as f64];
-        for (j, &(name, amplitude, offset)) in SKELETON.iter().enumerate() {
+        let first = joints.len();
+        for (j, &(name, parent, rest, amplitude, offset)) in SKELETON.iter().enumerate() {
             let joint = joints.len();
-            let rest = if j == 0 { [origin[0], 0.95, origin[2]] } else { [0.0, 0.1, 0.0] };
-            joints.push(Joint { name: format!("c{c}/{name}"), rotation: [0.0, 0.0, 0.0, 1.0], translation: rest });
+            let (parent, rest) = if j == 0 { (None, [origin[0], 0.95, origin[2]]) } else { (Some(first + parent), rest) };
+            joints.push(Joint::at(format!("c{c}/{name}"), parent, rest));
             let values = times
                 .iter()
                 .map(|&t| {
@@ -86,5 +89,5 @@ pub fn crowd(characters: usize) -> Animation {
             }
         }
     }
-    Animation { joints, clips: vec![Clip { name: "walk".into(), channels }] }
+    Animation { joints, clips: vec![Clip { name: "walk".into(), channels }], skins: Vec::new() }
 }

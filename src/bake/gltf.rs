@@ -7,7 +7,7 @@
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 
-use super::{Animation, Baked, Channel, Clip, Joint, Property};
+use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
 use crate::device::DeviceError;
 use base64::Engine;
 use gltf::json::validation::Checked;
@@ -84,21 +84,51 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
             return Err(input(format!("bufferViews[{}]: bytes {}+{} lie outside buffer {}", view.index(), view.offset(), view.length(), view.buffer().index())));
         }
     }
+    let mut parents: Vec<Option<usize>> = vec![None; gltf.nodes().len()];
+    for node in gltf.nodes() {
+        for child in node.children() {
+            if let Some(first) = parents[child.index()].replace(node.index()) {
+                return Err(input(format!("node {} is a child of both node {first} and node {}; a glTF node has at most one parent", child.index(), node.index())));
+            }
+        }
+    }
     let joints = gltf
         .nodes()
         .map(|node| {
-            let (translation, rotation, _) = node.transform().decomposed();
+            // A `matrix` node becomes its TRS decomposition (glTF requires matrices that have one).
+            let (translation, rotation, scale) = node.transform().decomposed();
             Joint {
                 name: node.name().map_or_else(|| format!("node{}", node.index()), str::to_string),
+                parent: parents[node.index()],
                 rotation: rotation.map(f64::from),
                 translation: translation.map(f64::from),
+                scale: scale.map(f64::from),
             }
         })
         .collect();
-    let mut animation = Animation { joints, clips: Vec::new() };
-    let mut samplers = Vec::new();
-    // The document as parsed, for enum fields the crate's accessors would unwrap.
     let root = gltf.document.as_json();
+    let mut skins = Vec::new();
+    for skin in gltf.skins() {
+        let name = skin.name().map_or_else(|| format!("skin{}", skin.index()), str::to_string);
+        let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+        let inverse_bind = match skin.inverse_bind_matrices() {
+            None => vec![IDENTITY_3X4; joints.len()],
+            Some(accessor) => {
+                check_accessor(&accessor, &root.accessors[accessor.index()], Element::Matrices)
+                    .map_err(|e| input(format!("skin '{name}': inverse bind matrices (accessor {}): {e}", accessor.index())))?;
+                let reader = skin.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+                let matrices: Vec<[f64; 12]> = reader.read_inverse_bind_matrices().into_iter().flatten().map(affine_rows).collect();
+                if matrices.len() != joints.len() {
+                    return Err(input(format!("skin '{name}': {} joints but {} inverse bind matrices", joints.len(), matrices.len())));
+                }
+                matrices
+            }
+        };
+        skins.push(Skin { name, joints, inverse_bind });
+    }
+    let mut animation = Animation { joints, clips: Vec::new(), skins };
+    animation.parents_first()?;
+    let mut samplers = Vec::new();
     for anim in gltf.animations() {
         let name = anim.name().map_or_else(|| format!("animation{}", anim.index()), str::to_string);
         let mut clip = Clip { name, channels: Vec::new() };
@@ -217,6 +247,14 @@ fn validate(root: &gltf::json::Root) -> Result<(), DeviceError> {
     Ok(())
 }
 
+/// The 3x4 identity, row-major.
+pub const IDENTITY_3X4: [f64; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+/// A glTF column-major 4x4 matrix as the first three rows, row-major (the affine part).
+fn affine_rows(m: [[f32; 4]; 4]) -> [f64; 12] {
+    std::array::from_fn(|i| f64::from(m[i % 4][i / 4]))
+}
+
 /// What an animation accessor holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Element {
@@ -226,6 +264,8 @@ enum Element {
     Rotations,
     /// Translation and scale keys: VEC3 float.
     Vectors,
+    /// Inverse bind matrices: MAT4 float.
+    Matrices,
 }
 
 /// Whether `accessor` holds `kind`'s element type and its elements lie inside its buffer
@@ -246,6 +286,7 @@ fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: 
     let allowed = match kind {
         Element::Times => *element_type == Type::Scalar && *component == C::F32,
         Element::Vectors => *element_type == Type::Vec3 && *component == C::F32,
+        Element::Matrices => *element_type == Type::Mat4 && *component == C::F32,
         Element::Rotations => *element_type == Type::Vec4 && matches!(component, C::F32 | C::I8 | C::U8 | C::I16 | C::U16),
     };
     if !allowed {

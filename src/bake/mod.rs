@@ -4,11 +4,13 @@
 //!
 //! Every source is read into one model, [`Animation`]: joints with rest poses, and clips of
 //! keyed [`Channel`]s. [`bake`] resamples the clips; the format modules write the results
-//! back ([`gltf`], [`bvh`]) and [`texture`] lays them out as an animation texture.
+//! back ([`gltf`], [`bvh`]) and [`texture`] lays them out as animation textures (local,
+//! model-space by forward kinematics, skin matrices).
 
 pub mod bvh;
 pub mod crowd;
 pub mod gltf;
+pub mod texture;
 
 use crate::curve::{Curve, CurveSpec};
 use crate::device::{Device, DeviceError};
@@ -67,22 +69,83 @@ impl Clip {
 pub struct Joint {
     /// Name (glTF node name or `node<i>`; BVH joint name).
     pub name: String,
+    /// The parent joint, `None` for a root of the scene.
+    pub parent: Option<usize>,
     /// Rest rotation `x, y, z, w`.
     pub rotation: [f64; 4],
     /// Rest translation.
     pub translation: [f64; 3],
+    /// Rest scale.
+    pub scale: [f64; 3],
+}
+
+impl Joint {
+    /// A joint at rest with the identity rotation and unit scale.
+    #[must_use]
+    pub fn at(name: String, parent: Option<usize>, translation: [f64; 3]) -> Self {
+        Self { name, parent, rotation: [0.0, 0.0, 0.0, 1.0], translation, scale: [1.0; 3] }
+    }
+}
+
+/// A glTF skin: the joints a mesh is bound to and their inverse bind matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skin {
+    /// Name (the skin's, or `skin<k>`).
+    pub name: String,
+    /// Joint indices into [`Animation::joints`], in the skin's order.
+    pub joints: Vec<usize>,
+    /// One per joint: the inverse bind matrix as 3x4 row-major (its last row is `0 0 0 1`).
+    pub inverse_bind: Vec<[f64; 12]>,
 }
 
 /// A source file read into the common model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Animation {
-    /// The joints the clips refer to.
+    /// The joints the clips refer to, each with its parent.
     pub joints: Vec<Joint>,
     /// The clips.
     pub clips: Vec<Clip>,
+    /// glTF skins (none for BVH and the crowd).
+    pub skins: Vec<Skin>,
 }
 
 impl Animation {
+    /// Joint indices with every parent before its children (the order forward kinematics
+    /// walks).
+    ///
+    /// # Errors
+    /// [`DeviceError::Input`] for a parent index out of range or a cycle, naming a joint on it.
+    pub fn parents_first(&self) -> Result<Vec<usize>, DeviceError> {
+        let n = self.joints.len();
+        // Depth by walking up; a chain longer than the joint count is a cycle.
+        let mut depth = vec![usize::MAX; n];
+        for start in 0..n {
+            let mut chain = Vec::new();
+            let mut at = start;
+            while depth[at] == usize::MAX {
+                chain.push(at);
+                match self.joints[at].parent {
+                    None => break,
+                    Some(p) if p >= n => return Err(DeviceError::Input(format!("joint {at} ({}): parent {p} does not exist", self.joints[at].name))),
+                    Some(_) if chain.len() > n => {
+                        return Err(DeviceError::Input(format!("joint {at} ({}) is its own ancestor: the hierarchy has a cycle", self.joints[at].name)))
+                    }
+                    Some(p) => at = p,
+                }
+            }
+            let mut d = if depth[at] == usize::MAX { 0 } else { depth[at] + 1 };
+            for &j in chain.iter().rev() {
+                if depth[j] == usize::MAX {
+                    depth[j] = d;
+                    d += 1;
+                }
+            }
+        }
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&j| depth[j]);
+        Ok(order)
+    }
+
     /// Total keys over every channel of every clip.
     #[must_use]
     pub fn key_count(&self) -> usize {
@@ -345,34 +408,4 @@ fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 
         return Err(DeviceError::Input(crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.to_string()));
     };
     Ok(vec![value.map(|v| v as f32); frames])
-}
-
-/// Number of floats per joint per frame in [`texture`]: rotation `x, y, z, w`, translation
-/// `x, y, z`.
-pub const TEXTURE_CHANNELS: usize = 7;
-
-/// A clip as an animation texture: frame-major `[frames, joints, 7]` float32 (rotation
-/// `x, y, z, w` then translation), joints in [`Animation::joints`] order; a joint the clip
-/// does not animate keeps its rest pose.
-#[must_use]
-pub fn texture(animation: &Animation, clip: &Clip, baked: &BakedClip) -> Vec<f32> {
-    let joints = animation.joints.len();
-    let mut row: Vec<f32> = animation
-        .joints
-        .iter()
-        .flat_map(|j| j.rotation.iter().chain(&j.translation).map(|&v| v as f32).collect::<Vec<_>>())
-        .collect();
-    let mut data = Vec::with_capacity(baked.times.len() * joints * TEXTURE_CHANNELS);
-    for frame in 0..baked.times.len() {
-        for (channel, values) in clip.channels.iter().zip(&baked.values) {
-            let at = channel.joint * TEXTURE_CHANNELS;
-            match channel.property {
-                Property::Rotation => row[at..at + 4].copy_from_slice(&values[frame]),
-                Property::Translation => row[at + 4..at + 7].copy_from_slice(&values[frame][..3]),
-                Property::Scale => {}
-            }
-        }
-        data.extend_from_slice(&row);
-    }
-    data
 }

@@ -8,8 +8,9 @@ use super::shard::Shard;
 use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode, TEXTURE_CHANNELS};
-use quatcurve::io::{write_atomic, write_npy};
+use quatcurve::bake::texture::{self, Precision, TextureKind};
+use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode};
+use quatcurve::io::{write_atomic, write_npy, write_npy_f16};
 use quatcurve::{Curve, CurveSpec, Device, KnotMode};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -41,6 +42,22 @@ pub struct BakeArgs {
     /// directory, `file:` URIs). Off by default: only data URIs and files beside the input.
     #[arg(long)]
     allow_external_uris: bool,
+    /// Texture per clip: local (rotation, translation, scale of each joint relative to its
+    /// parent), model (3x4 matrices relative to the scene root, by forward kinematics) or skin
+    /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model).
+    #[arg(long, default_value = "local", value_parser = names::<TextureKind>())]
+    texture: TextureKind,
+    /// Texture element type: f32, or f16 (half the bytes, about 3 significant digits).
+    #[arg(long, default_value = "f32", value_parser = names::<Precision>())]
+    precision: Precision,
+    /// One texture per input with every clip stacked along frames (`<stem>.npy`; each clip's
+    /// rows from `first_row` in the sidecar), instead of one per clip.
+    #[arg(long)]
+    atlas: bool,
+    /// Also draw each clip's skeleton at evenly spaced frames, front and side views, to
+    /// `<stem>.<clip>.png`.
+    #[arg(long)]
+    preview: bool,
     /// Output directory (created if missing).
     #[arg(long, default_value = "baked")]
     output: PathBuf,
@@ -91,24 +108,51 @@ impl Source {
     }
 }
 
-/// The sidecar JSON next to the animation textures.
+/// The sidecar JSON next to the animation textures (DESIGN section 5b).
 #[derive(Serialize)]
 struct Sidecar<'a> {
     source: &'a str,
     curve: &'a str,
     rate: f64,
     device: &'a str,
-    layout: &'static str,
+    texture: &'a str,
+    channels: &'static [&'static str],
+    precision: &'a str,
+    layout: String,
     max_key_error_rad: Option<f64>,
     baked_file: Option<String>,
     joints: Vec<&'a str>,
+    /// Parent joint index, -1 for a root.
+    parents: Vec<i64>,
+    rest: Vec<Rest>,
+    skins: Vec<SidecarSkin<'a>>,
     clips: Vec<SidecarClip>,
+}
+
+/// A joint's rest pose, parent-relative.
+#[derive(Serialize)]
+struct Rest {
+    translation: [f64; 3],
+    rotation: [f64; 4],
+    scale: [f64; 3],
+}
+
+#[derive(Serialize)]
+struct SidecarSkin<'a> {
+    name: &'a str,
+    /// Joint indices in the skin's order (the rows of its skin texture).
+    joints: &'a [usize],
 }
 
 #[derive(Serialize)]
 struct SidecarClip {
     name: String,
+    /// The texture (for `skin`, skin 0's).
     file: String,
+    /// Every texture of the clip: one, or for `skin` one per glTF skin.
+    files: Vec<String>,
+    /// First row (frame) of the clip in `file`: 0, or its place in the `--atlas` texture.
+    first_row: usize,
     frames: usize,
     start: f64,
     end: f64,
@@ -118,6 +162,8 @@ struct SidecarClip {
     /// Baked as a loop: periodic curves, continuous across the seam.
     #[serde(rename = "loop")]
     looping: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    preview: Option<String>,
 }
 
 pub fn run(args: &BakeArgs) -> Result<(), Failure> {
@@ -241,6 +287,7 @@ fn options_record(args: &BakeArgs) -> serde_json::Value {
         "curve": args.curve.name(), "order": o.order, "knots": o.knots.map(|k| k.name()), "tangents": o.tangents.name(),
         "blend": o.blend.name(), "loop": args.looping.name(), "rate": args.rate, "device": args.device.device.name(),
         "allow_external_uris": args.allow_external_uris, "characters": args.characters,
+        "texture": args.texture.name(), "precision": args.precision.name(), "atlas": args.atlas, "preview": args.preview,
     })
 }
 
@@ -399,25 +446,91 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Input(e.to_string()))?;
             written.push(path);
         }
-        let mut clips = Vec::new();
-        for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
-            let name = format!("{stem}.{index}.npy");
-            let path = dir.join(&name);
-            let shape = [result.times.len() as u64, animation.joints.len() as u64, TEXTURE_CHANNELS as u64];
-            write_npy(&path, &shape, &bake::texture(animation, clip, result)).map_err(|e| Failure::Input(e.to_string()))?;
-            written.push(path);
-            let (start, end) = (result.times[0], result.times[result.times.len() - 1]);
-            clips.push(SidecarClip { name: clip.name.clone(), file: name, frames: result.times.len(), start, end, rate: result.rate, looping: result.looping });
+        let order = animation.parents_first()?;
+        if args.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+            return Err(Failure::Input("--texture skin: the file has no skin; use --texture model".into()));
         }
+        let channels = args.texture.channels();
+        let write_sheet = |name: &str, frames: usize, width: usize, data: &[f32]| -> Result<PathBuf, Failure> {
+            let path = dir.join(name);
+            let shape = [frames as u64, width as u64, channels as u64];
+            match args.precision {
+                Precision::F32 => write_npy(&path, &shape, data),
+                Precision::F16 => write_npy_f16(&path, &shape, data),
+            }
+            .map_err(|e| Failure::Input(e.to_string()))?;
+            Ok(path)
+        };
+        let mut clips = Vec::new();
+        // --atlas: per sheet, every clip's rows.
+        let mut atlas: Vec<texture::Sheet> = Vec::new();
+        let mut first_row = 0;
+        for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
+            let frames = result.times.len();
+            let mut clip_sheets = texture::sheets(animation, &order, clip, result, args.texture);
+            let mut files = Vec::new();
+            for (k, sheet) in clip_sheets.iter().enumerate() {
+                let suffix = &sheet.suffix;
+                if args.atlas {
+                    files.push(format!("{stem}{suffix}.npy"));
+                    match atlas.get_mut(k) {
+                        Some(rows) => rows.data.extend_from_slice(&sheet.data),
+                        None => atlas.push(sheet.clone()),
+                    }
+                } else {
+                    let name = format!("{stem}.{index}{suffix}.npy");
+                    written.push(write_sheet(&name, frames, sheet.width, &sheet.data)?);
+                    files.push(name);
+                }
+            }
+            let preview = if args.preview {
+                let name = format!("{stem}.{index}.png");
+                let model = if args.texture == TextureKind::Model { clip_sheets.swap_remove(0).data } else { texture::model(animation, &order, &texture::local(animation, clip, result)) };
+                super::plot::skeleton(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), &model, animation, frames).map_err(Failure::Input)?;
+                written.push(dir.join(&name));
+                Some(name)
+            } else {
+                None
+            };
+            let (start, end) = (result.times[0], result.times[frames - 1]);
+            clips.push(SidecarClip {
+                name: clip.name.clone(),
+                file: files[0].clone(),
+                files,
+                first_row: if args.atlas { first_row } else { 0 },
+                frames,
+                start,
+                end,
+                rate: result.rate,
+                looping: result.looping,
+                preview,
+            });
+            first_row += frames;
+        }
+        for sheet in &atlas {
+            written.push(write_sheet(&format!("{stem}{}.npy", sheet.suffix), first_row, sheet.width, &sheet.data)?);
+        }
+        let names = args.texture.channel_names().join(",");
+        let layout = match (args.atlas, args.texture) {
+            (false, TextureKind::Skin) if !animation.skins.is_empty() => format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", args.precision),
+            (false, _) => format!("per clip: [frames, joints, {channels}] {}: {names}", args.precision),
+            (true, _) => format!("one atlas: [frames of every clip, joints, {channels}] {}: {names}; clip rows from first_row", args.precision),
+        };
         let sidecar = Sidecar {
             source,
             curve: args.curve.name(),
             rate: args.rate,
             device,
-            layout: "per clip: [frames, joints, 7] float32, rotation x,y,z,w then translation x,y,z",
+            texture: args.texture.name(),
+            channels: args.texture.channel_names(),
+            precision: args.precision.name(),
+            layout,
             max_key_error_rad: baked.max_key_error,
             baked_file: baked_file.map(|(name, _)| name),
             joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
+            parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),
+            rest: animation.joints.iter().map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale }).collect(),
+            skins: animation.skins.iter().map(|s| SidecarSkin { name: &s.name, joints: &s.joints }).collect(),
             clips,
         };
         let path = dir.join(format!("{stem}.json"));

@@ -54,7 +54,7 @@ macro_rules! named {
         })+
     };
 }
-named!(Curve, KnotMode, Tangents, Blend, DeviceChoice, quatcurve::bake::LoopMode);
+named!(Curve, KnotMode, Tangents, Blend, DeviceChoice, quatcurve::bake::LoopMode, quatcurve::bake::texture::TextureKind, quatcurve::bake::texture::Precision);
 
 /// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").
 pub fn names<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {

@@ -1,4 +1,5 @@
-//! Charts of `analyze --plot`: PNG or SVG by the file's extension, written atomically.
+//! Charts of `analyze --plot` and `bake --preview`: PNG or SVG by the file's extension,
+//! written atomically.
 //!
 //! Labels use DejaVu Sans embedded in the binary (the `dejavu` crate), so a chart renders the
 //! same on a server without fonts (SVG names the family and leaves drawing text to the viewer).
@@ -20,15 +21,75 @@ pub struct Series {
     pub alpha: Vec<f64>,
 }
 
-const SIZE: (u32, u32) = (1000, 640);
 const FONT: &str = "sans-serif";
 
-/// Draws `|omega|` (top) and `|alpha|` (bottom) against time, one line per series, the key
-/// times marked by vertical rules, to `path` (`.png` or `.svg`).
+/// Frames a preview overlays.
+const PREVIEW_FRAMES: usize = 5;
+
+/// Draws a model texture's skeleton (a line from each joint to its parent) at
+/// [`PREVIEW_FRAMES`] evenly spaced frames, front view (x, y) beside side view (z, y), one
+/// colour per frame, to `path` (`.png` or `.svg`).
 ///
 /// # Errors
-/// A message naming the file: an unknown extension, a drawing or writing failure.
-pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Result<(), String> {
+/// As [`rates`].
+pub fn skeleton(path: &Path, title: &str, model: &[f32], animation: &quatcurve::bake::Animation, frames: usize) -> Result<(), String> {
+    let joints = animation.joints.len();
+    let picks: Vec<usize> = (0..PREVIEW_FRAMES.min(frames)).map(|i| if PREVIEW_FRAMES.min(frames) > 1 { i * (frames - 1) / (PREVIEW_FRAMES.min(frames) - 1) } else { 0 }).collect();
+    let at = |frame: usize, j: usize| quatcurve::bake::texture::position(model, joints, frame, j).map(f64::from);
+    // Bones of every picked frame: (frame's place in picks, from, to).
+    let bones: Vec<(usize, [f64; 3], [f64; 3])> = picks
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &frame)| animation.joints.iter().enumerate().filter_map(move |(j, joint)| joint.parent.map(|p| (k, at(frame, p), at(frame, j)))))
+        .collect();
+    let points = || bones.iter().flat_map(|(_, a, b)| [*a, *b]).chain((0..joints).flat_map(|j| picks.iter().map(move |&f| at(f, j))));
+    let range = |axis: usize| points().map(|p| p[axis]).filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let ranges = [range(0), range(1), range(2)];
+    // One scale for every axis, so the skeleton keeps its proportions.
+    let half = ranges.iter().map(|(a, b)| b - a).fold(1e-6, f64::max) * 0.55;
+    let centre = |axis: usize| if ranges[axis].0 <= ranges[axis].1 { 0.5 * (ranges[axis].0 + ranges[axis].1) } else { 0.0 };
+    let window = |axis: usize| (centre(axis) - half)..(centre(axis) + half);
+    render(path, (1200, 640), &Skeleton { title, bones, picks, windows: [window(0), window(1), window(2)] })
+}
+
+struct Skeleton<'a> {
+    title: &'a str,
+    /// (frame's place in `picks`, parent position, joint position).
+    bones: Vec<(usize, [f64; 3], [f64; 3])>,
+    picks: Vec<usize>,
+    windows: [std::ops::Range<f64>; 3],
+}
+
+impl Figure for Skeleton<'_> {
+    fn draw<B: DrawingBackend>(&self, root: DrawingArea<B, Shift>) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+    let Skeleton { title, bones, picks, windows: [x, y, z] } = self;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (FONT, 18))?;
+    let panels = root.split_evenly((1, 2));
+    for (panel, (name, horizontal, h_range)) in panels.iter().zip([("front (x, y)", 0, x.clone()), ("side (z, y)", 2, z.clone())]) {
+        let mut chart = ChartBuilder::on(panel).caption(name, (FONT, 15)).margin(10).x_label_area_size(30).y_label_area_size(45).build_cartesian_2d(h_range, y.clone())?;
+        chart.configure_mesh().label_style((FONT, 12)).light_line_style(WHITE.mix(0.0)).bold_line_style(BLACK.mix(0.08)).draw()?;
+        for (k, &frame) in picks.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(bones.iter().filter(|b| b.0 == k).map(|(_, a, b)| PathElement::new(vec![(a[horizontal], a[1]), (b[horizontal], b[1])], color.stroke_width(2))))?
+                .label(format!("frame {frame}"))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        }
+        chart.configure_series_labels().label_font((FONT, 12)).position(SeriesLabelPosition::UpperRight).background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
+    }
+    root.present()
+    }
+}
+
+/// A chart that can draw itself on any plotters backend.
+trait Figure {
+    fn draw<B: DrawingBackend>(&self, root: DrawingArea<B, Shift>) -> Result<(), DrawingAreaErrorKind<B::ErrorType>>;
+}
+
+/// Draws `figure` on the backend `path`'s extension names (`.png` or `.svg`) and writes the
+/// file atomically.
+fn render(path: &Path, size: (u32, u32), figure: &impl Figure) -> Result<(), String> {
     let fail = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     // Both backends measure text with it. Registering twice is harmless; a font that does not
     // parse is a build defect.
@@ -36,17 +97,15 @@ pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Resul
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("svg") => {
             let mut text = String::new();
-            draw(SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), title, series, keys).map_err(|e| fail(&e))?;
+            figure.draw(SVGBackend::with_string(&mut text, size).into_drawing_area()).map_err(|e| fail(&e))?;
             write_atomic(path, |w| w.write_all(text.as_bytes())).map_err(|e| e.to_string())
         }
         Some("png") => {
-            let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-            draw(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area(), title, series, keys).map_err(|e| fail(&e))?;
+            let mut pixels = vec![0u8; (size.0 * size.1 * 3) as usize];
+            figure.draw(BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area()).map_err(|e| fail(&e))?;
             write_atomic(path, |w| {
                 use image::ImageEncoder;
-                image::codecs::png::PngEncoder::new(w)
-                    .write_image(&pixels, SIZE.0, SIZE.1, image::ColorType::Rgb8)
-                    .map_err(std::io::Error::other)
+                image::codecs::png::PngEncoder::new(w).write_image(&pixels, size.0, size.1, image::ColorType::Rgb8).map_err(std::io::Error::other)
             })
             .map_err(|e| e.to_string())
         }
@@ -54,7 +113,24 @@ pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Resul
     }
 }
 
-fn draw<B: DrawingBackend>(root: DrawingArea<B, Shift>, title: &str, series: &[Series], keys: &[f64]) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+/// Draws `|omega|` (top) and `|alpha|` (bottom) against time, one line per series, the key
+/// times marked by vertical rules, to `path` (`.png` or `.svg`).
+///
+/// # Errors
+/// A message naming the file: an unknown extension, a drawing or writing failure.
+pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Result<(), String> {
+    render(path, (1000, 640), &Rates { title, series, keys })
+}
+
+struct Rates<'a> {
+    title: &'a str,
+    series: &'a [Series],
+    keys: &'a [f64],
+}
+
+impl Figure for Rates<'_> {
+fn draw<B: DrawingBackend>(&self, root: DrawingArea<B, Shift>) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+    let Rates { title, series, keys } = *self;
     root.fill(&WHITE)?;
     let root = root.titled(title, (FONT, 20))?;
     let panels = root.split_evenly((2, 1));
@@ -83,4 +159,5 @@ fn draw<B: DrawingBackend>(root: DrawingArea<B, Shift>, title: &str, series: &[S
         chart.configure_series_labels().label_font((FONT, 14)).position(SeriesLabelPosition::UpperRight).background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
     }
     root.present()
+}
 }

@@ -6,6 +6,7 @@
 mod hostile;
 mod mutations;
 mod shards;
+mod textures;
 
 use assert_cmd::Command;
 use base64::Engine;
@@ -72,10 +73,10 @@ fn real_files_bake_to_files_that_read_back() {
         for clip in sidecar["clips"].as_array().unwrap() {
             let (shape, data) = read_npy(&out.path().join(clip["file"].as_str().unwrap()));
             let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());
-            assert_eq!(shape, [clip["frames"].as_u64().unwrap(), joints, 7], "{name}");
+            assert_eq!(shape, [clip["frames"].as_u64().unwrap(), joints, 10], "{name}");
             let expected = if clip["loop"].as_bool().unwrap() { loop_frames(start, end, 30.0) } else { frames(start, end, 30.0) };
             assert_eq!(shape[0] as usize, expected, "{name}: {start}..{end}");
-            for row in data.chunks_exact(7) {
+            for row in data.chunks_exact(10) {
                 let norm = row[..4].iter().map(|v| v * v).sum::<f32>().sqrt();
                 assert!((norm - 1.0).abs() < 1e-5, "{name}: rotation norm {norm}");
             }
@@ -323,7 +324,7 @@ fn a_job_over_many_files_finishes_the_good_ones_and_reports_the_bad() {
     written.sort();
     assert_eq!(written, ["good.0.npy", "good.glb", "good.json", "manifest.0-of-1.json"]);
     let (shape, _) = read_npy(&out.join("good.0.npy"));
-    assert_eq!(shape, [11, 1, 7]);
+    assert_eq!(shape, [11, 1, 10]);
     // The manifest records both: the bad one failed, with its message.
     let manifest = json(&out.join("manifest.0-of-1.json"));
     let inputs = manifest["inputs"].as_array().unwrap();
@@ -344,7 +345,7 @@ fn the_built_in_crowd_bakes_with_every_curve() {
             assert!(json(&out.join("crowd.json"))["device"].as_str().unwrap().starts_with("cpu:"));
         }
         let (shape, data) = read_npy(&out.join("crowd.0.npy"));
-        assert_eq!(shape, [241, 72, 7], "{curve}");
+        assert_eq!(shape, [241, 72, 10], "{curve}");
         assert!(data.iter().all(|v| v.is_finite()));
         let sidecar = json(&out.join("crowd.json"));
         assert_eq!(sidecar["max_key_error_rad"].is_f64(), curve != "bspline" && curve != "bezier", "{curve}");
@@ -394,7 +395,7 @@ fn looping_clips_close_on_their_first_frame_without_a_velocity_jump() {
             for joint in 0..joints {
                 let q: Vec<DQuat> = (0..frames)
                     .map(|f| {
-                        let v = &texture[(f * joints + joint) * 7..][..4];
+                        let v = &texture[(f * joints + joint) * 10..][..4];
                         DQuat::from_xyzw(v[0].into(), v[1].into(), v[2].into(), v[3].into())
                     })
                     .collect();

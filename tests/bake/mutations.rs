@@ -176,8 +176,9 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 }
                 let baked = bake::bake(&file.animation, &spec, 10.0, LoopMode::Auto, device())?;
                 file.to_glb(&baked)?;
+                let order = file.animation.parents_first()?;
                 for (clip, result) in file.animation.clips.iter().zip(&baked.clips) {
-                    let _ = bake::texture(&file.animation, clip, result);
+                    let _ = bake::texture::sheets(&file.animation, &order, clip, result, bake::texture::TextureKind::Skin);
                 }
             }
             Kind::Bvh => {
@@ -189,7 +190,8 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 }
                 let baked = bake::bake(&animation, &spec, 10.0, LoopMode::Auto, device())?;
                 let _ = file.to_text(&animation.clips[0], &baked);
-                let _ = bake::texture(&animation, &animation.clips[0], &baked.clips[0]);
+                let order = animation.parents_first()?;
+                let _ = bake::texture::sheets(&animation, &order, &animation.clips[0], &baked.clips[0], bake::texture::TextureKind::Model);
             }
             Kind::Npy => {
                 let dir = tempfile::tempdir().unwrap();
