@@ -4,13 +4,14 @@
 use crate::cpu::{CpuEvaluator, CpuOptions};
 use crate::curve::names;
 use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
-use crate::job::{EvalJob, Output};
+use crate::job::{EvalJob, FloatOutput, Output};
 use std::fmt;
 
 /// What the user asked for (`--device`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DeviceChoice {
-    /// The GPU when an adapter exists, else the fast CPU path.
+    /// A hardware GPU when there is one, else the fast CPU path (also over a software
+    /// adapter such as lavapipe, which runs the kernel on the same CPU cores many times slower).
     #[default]
     Auto,
     /// The GPU; no adapter is an error, never a silent fallback.
@@ -42,7 +43,7 @@ pub enum Device {
     Gpu(Box<GpuEvaluator>),
     /// The fast f32 CPU path.
     Cpu(CpuEvaluator),
-    /// `auto` with an adapter: the GPU, and the CPU path for a batch the kernel cannot take
+    /// `auto` with a hardware adapter: the GPU, and the CPU path for a batch the kernel cannot take
     /// (a Bezier above degree 32, one track's keys larger than a binding), so `auto` never
     /// fails where `cpu` works. [`Device::evaluate_named`] says which one ran.
     Auto(Box<GpuEvaluator>, CpuEvaluator),
@@ -65,7 +66,10 @@ impl Device {
             DeviceChoice::Gpu => GpuEvaluator::new()
                 .map(|g| Device::Gpu(Box::new(g)))
                 .map_err(|e| DeviceError::Device(format!("--device gpu: {e}"))),
-            DeviceChoice::Auto => Ok(GpuEvaluator::new().map_or_else(|_| Device::Cpu(CpuEvaluator::new()), |g| Device::Auto(Box::new(g), CpuEvaluator::new()))),
+            DeviceChoice::Auto => Ok(match GpuEvaluator::new() {
+                Ok(g) if !g.is_software() => Device::Auto(Box::new(g), CpuEvaluator::new()),
+                _ => Device::Cpu(CpuEvaluator::new()),
+            }),
             DeviceChoice::Cpu => Ok(Device::Cpu(CpuEvaluator::new())),
         }
     }
@@ -108,6 +112,33 @@ impl Device {
     }
 }
 
+impl Device {
+    /// [`Device::evaluate_named`] in the fast paths' own float32 rows (the reference's f64
+    /// results rounded to f32): for consumers that store f32 anyway (bake), which then skip
+    /// widening every sample to f64 and narrowing it back.
+    ///
+    /// # Errors
+    /// As [`Device::evaluate`].
+    pub fn evaluate_f32(&self, job: &EvalJob<'_>) -> Result<(FloatOutput, String), DeviceError> {
+        let cpu = |c: &CpuEvaluator| {
+            let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
+            c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))
+        };
+        match self {
+            Device::Reference => {
+                let out = job.run().map_err(|e| DeviceError::Input(e.to_string()))?;
+                Ok((FloatOutput::from_output(&out), self.name()))
+            }
+            Device::Cpu(c) => Ok((cpu(c)?, self.name())),
+            Device::Gpu(g) => Ok((gpu_rows(g, job)?, self.name())),
+            Device::Auto(g, c) => match gpu_rows(g, job) {
+                Err(Refused::Pack(_)) => Ok((cpu(c)?, format!("cpu: {}", c.name()))),
+                other => Ok((other?, self.name())),
+            },
+        }
+    }
+}
+
 /// A GPU evaluation that failed: a batch the kernel cannot take, or anything else.
 enum Refused {
     Pack(String),
@@ -124,13 +155,16 @@ impl From<Refused> for DeviceError {
 }
 
 fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<Output, Refused> {
+    Ok(gpu_rows(g, job)?.to_output(job.derivatives))
+}
+
+fn gpu_rows(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
     let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
-    let out = g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
+    g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
         GpuError::Pack(_) => Refused::Pack(e.to_string()),
         GpuError::Job(_) => Refused::Other(DeviceError::Input(e.to_string())),
         _ => Refused::Other(DeviceError::Device(e.to_string())),
-    })?;
-    Ok(out.to_output(job.derivatives))
+    })
 }
 
 fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<Output, DeviceError> {

@@ -64,6 +64,22 @@ impl FloatOutput {
         Self { channels, data }
     }
 
+    /// The rows of an f64 [`Output`], rounded to f32 (rotation, then omega and alpha when the
+    /// output has them).
+    #[must_use]
+    pub fn from_output(out: &Output) -> Self {
+        let derivatives = !out.angular_velocity.is_empty();
+        let channels = channels(derivatives, false);
+        let mut data = Vec::with_capacity(out.rotations.len() * channels);
+        for (i, q) in out.rotations.iter().enumerate() {
+            data.extend(q.iter().map(|&v| v as f32));
+            if derivatives {
+                data.extend(out.angular_velocity[i].iter().chain(&out.angular_acceleration[i]).map(|&v| v as f32));
+            }
+        }
+        Self { channels, data }
+    }
+
     /// Converts to the reference's [`Output`] (f64, rotations and derivatives).
     #[must_use]
     pub fn to_output(&self, derivatives: bool) -> Output {

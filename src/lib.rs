@@ -27,7 +27,7 @@
 //! // C2 through every key; built once (validated, solved, packed).
 //! let batch = Batch::from_tracks(&tracks, &CurveSpec::new(Curve::BSplineInterp))?;
 //! let times = SampleTimes::uniform(&batch, Sampling::Rate(60.0))?;
-//! // Any device: the GPU when there is one, else the fast CPU path.
+//! // Any device: a hardware GPU when there is one, else the fast CPU path.
 //! let device = Device::open(DeviceChoice::Auto)?;
 //! let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: true })?;
 //! assert_eq!(out.rotations.len(), 2 * 61);

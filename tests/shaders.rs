@@ -107,3 +107,17 @@ fn fixed_point_times_round_trip() {
     let back = f64::from(whole) + f64::from(hi) * 2f64.powi(-32) + f64::from(lo) * 2f64.powi(-64);
     assert!((back - 1.0 / 30.0).abs() < 1e-18);
 }
+
+#[test]
+fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
+    for (name, text) in shader::FK_FILES {
+        assert!(!text.trim().is_empty(), "{name} is empty");
+    }
+    let (module, _) = shader::fk_module().unwrap_or_else(|e| panic!("naga rejected the FK program:\n{e}"));
+    assert!(shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).unwrap() >= 32);
+    let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("FkLevel")).expect("FkLevel in fk.wgsl");
+    assert_eq!(ty.inner.size(module.to_ctx()) as usize, std::mem::size_of::<quatcurve::gpu::fk::FkLevel>());
+    // The channel counts the kernel strides by are the texture's.
+    assert_eq!(shader::constant_u32(&module, "FK_LOCAL_CHANNELS"), Some(quatcurve::bake::texture::LOCAL_CHANNELS as u32));
+    assert_eq!(shader::constant_u32(&module, "FK_MATRIX_CHANNELS"), Some(quatcurve::bake::texture::MATRIX_CHANNELS as u32));
+}

@@ -14,7 +14,7 @@ fuzz_target!(|bytes: &[u8]| {
         let _ = file.to_glb(&baked);
         let Ok(order) = file.animation.parents_first() else { return };
         for (clip, result) in file.animation.clips.iter().zip(&baked.clips) {
-            let _ = bake::texture::sheets(&file.animation, &order, clip, result, bake::texture::TextureKind::Skin);
+            let _ = bake::texture::sheets(&file.animation, &order, clip, result, bake::texture::TextureKind::Skin, &device);
         }
     }
 });

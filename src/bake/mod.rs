@@ -368,22 +368,22 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
             Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grid) })
         })
         .map_err(input)?;
-        let (out, name) = device.evaluate_named(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+        let (out, name) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
         used = Some(name);
         for (i, &(c, k)) in owners.iter().enumerate() {
-            let range = times.offsets[i]..times.offsets[i + 1];
-            clips[c].values[k] = out.rotations[range].iter().map(|q| q.map(|v| v as f32)).collect();
+            let rows = &out.data[4 * times.offsets[i]..4 * times.offsets[i + 1]];
+            clips[c].values[k] = rows.chunks_exact(4).map(|r| [r[0], r[1], r[2], r[3]]).collect();
         }
         if interpolates(spec) {
             let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
             let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
-            let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+            let (out, _) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
             let worst = tracks
                 .iter()
                 .enumerate()
                 .flat_map(|(i, track)| {
-                    let got = &out.rotations[times.offsets[i]..times.offsets[i + 1]];
-                    track.rotations.iter().zip(got).map(|(&key, &q)| DQuat::from_array(key).normalize().angle_to(DQuat::from_array(q)))
+                    let got = out.data[4 * times.offsets[i]..4 * times.offsets[i + 1]].chunks_exact(4);
+                    track.rotations.iter().zip(got).map(|(&key, q)| DQuat::from_array(key).normalize().angle_to(DQuat::from_xyzw(q[0].into(), q[1].into(), q[2].into(), q[3].into())))
                 })
                 .fold(0.0, f64::max);
             max_key_error = Some(worst);

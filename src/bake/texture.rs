@@ -7,10 +7,12 @@
 //! - [`skin`]: `model(joint) * inverseBindMatrix(joint)` in a glTF skin's joint order, the
 //!   matrices a vertex shader multiplies skinned vertices by.
 //!
-//! Forward kinematics composes in f64 from the f32 local rows (one rounding per stored value),
-//! frames on every core.
+//! Forward kinematics runs where the curves ran ([`model_on`]): on the GPU in f32
+//! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
+//! value), frames on every core.
 
 use super::{Animation, BakedClip, Clip, Property, Skin};
+use crate::device::{Device, DeviceError};
 use rayon::prelude::*;
 
 /// Which texture `bake --texture` writes.
@@ -185,24 +187,41 @@ pub struct Sheet {
 
 /// The textures of one clip for `kind`: one sheet, or for [`TextureKind::Skin`] one per skin
 /// (the model texture when the animation has no skin, as for BVH). `order` is
-/// [`Animation::parents_first`].
-#[must_use]
-pub fn sheets(animation: &Animation, order: &[usize], clip: &Clip, baked: &BakedClip, kind: TextureKind) -> Vec<Sheet> {
+/// [`Animation::parents_first`]; forward kinematics runs on `device` ([`model_on`]).
+///
+/// # Errors
+/// The GPU's, when forward kinematics runs there.
+pub fn sheets(animation: &Animation, order: &[usize], clip: &Clip, baked: &BakedClip, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, DeviceError> {
     let joints = animation.joints.len();
     let local = local(animation, clip, baked);
     if kind == TextureKind::Local {
-        return vec![Sheet { suffix: String::new(), width: joints, data: local }];
+        return Ok(vec![Sheet { suffix: String::new(), width: joints, data: local }]);
     }
-    let model = model(animation, order, &local);
+    let model = model_on(device, animation, order, &local)?;
     if kind == TextureKind::Model || animation.skins.is_empty() {
-        return vec![Sheet { suffix: String::new(), width: joints, data: model }];
+        return Ok(vec![Sheet { suffix: String::new(), width: joints, data: model }]);
     }
-    animation
+    Ok(animation
         .skins
         .iter()
         .enumerate()
         .map(|(k, s)| Sheet { suffix: format!(".skin{k}"), width: s.joints.len(), data: skin(s, joints, &model) })
-        .collect()
+        .collect())
+}
+
+/// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,
+/// else the CPU (f64, every core).
+///
+/// # Errors
+/// The GPU's (a device failure, a frame larger than a storage binding).
+pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: &[f32]) -> Result<Vec<f32>, DeviceError> {
+    match device {
+        Device::Gpu(g) | Device::Auto(g, _) => {
+            let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+            g.forward_kinematics(&parents, order, local).map_err(|e| DeviceError::Device(format!("forward kinematics: {e}")))
+        }
+        Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
+    }
 }
 
 /// The translation column of joint `j` in frame `frame` of a model texture: where the joint is.

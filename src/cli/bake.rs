@@ -421,7 +421,7 @@ fn bake_one(
         row.max_key_error = baked.max_key_error;
         // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
         let used = baked.device.clone().unwrap_or_else(|| device.name());
-        write_outputs(&src, &baked, source, stem, args, &used)
+        write_outputs(&src, &baked, source, stem, args, &used, device)
     });
     row.seconds = start.elapsed().as_secs_f64();
     row.outcome = result;
@@ -430,7 +430,8 @@ fn bake_one(
 
 /// Writes the baked file (GLB or BVH), one `.npy` texture per clip and the sidecar; if any
 /// write fails, removes the ones already written so the job leaves nothing partial.
-fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &BakeArgs, device: &str) -> Result<Vec<PathBuf>, Failure> {
+/// Forward kinematics (model and skin textures, previews) runs on `fk_device`, the bake's.
+fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &BakeArgs, device: &str, fk_device: &Device) -> Result<Vec<PathBuf>, Failure> {
     let animation = src.animation();
     let dir = &args.output;
     let mut written: Vec<PathBuf> = Vec::new();
@@ -467,7 +468,7 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         let mut first_row = 0;
         for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
             let frames = result.times.len();
-            let mut clip_sheets = texture::sheets(animation, &order, clip, result, args.texture);
+            let mut clip_sheets = texture::sheets(animation, &order, clip, result, args.texture, fk_device)?;
             let mut files = Vec::new();
             for (k, sheet) in clip_sheets.iter().enumerate() {
                 let suffix = &sheet.suffix;
@@ -485,7 +486,10 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             }
             let preview = if args.preview {
                 let name = format!("{stem}.{index}.png");
-                let model = if args.texture == TextureKind::Model { clip_sheets.swap_remove(0).data } else { texture::model(animation, &order, &texture::local(animation, clip, result)) };
+                let model = match args.texture {
+                    TextureKind::Model => clip_sheets.swap_remove(0).data,
+                    _ => texture::model_on(fk_device, animation, &order, &texture::local(animation, clip, result))?,
+                };
                 super::plot::skeleton(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), &model, animation, frames).map_err(Failure::Input)?;
                 written.push(dir.join(&name));
                 Some(name)

@@ -83,7 +83,8 @@ pub struct CurveArgs {
 /// The device option of `eval` and `bake` (`bench` names several with `--devices`).
 #[derive(Args, Debug, Clone)]
 pub struct DeviceArgs {
-    /// Evaluation device: auto is the GPU if any, else the fast CPU path.
+    /// Evaluation device: auto is a hardware GPU if any, else the fast CPU path (also over a
+    /// software adapter such as lavapipe; gpu still takes one).
     #[arg(long, default_value = "auto", value_parser = names::<DeviceChoice>())]
     pub device: DeviceChoice,
 }

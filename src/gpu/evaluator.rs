@@ -64,18 +64,22 @@ struct PipelineKey {
 
 /// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch.
 pub struct GpuEvaluator {
-    device: wgpu::Device,
-    queue: wgpu::Queue,
+    pub(super) device: wgpu::Device,
+    pub(super) queue: wgpu::Queue,
     adapter_name: String,
+    /// The adapter rasterizes on the host's CPU (lavapipe, SwiftShader, WARP).
+    software: bool,
     module: wgpu::ShaderModule,
     bind_group_layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
     workgroup_size: u32,
-    binding_limit: u64,
-    max_groups_per_dim: u32,
+    pub(super) binding_limit: u64,
+    pub(super) max_groups_per_dim: u32,
     /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
-    map_outputs: bool,
+    pub(super) map_outputs: bool,
+    /// The forward-kinematics pipeline, built on first use ([`super::fk`]).
+    pub(super) fk: std::sync::OnceLock<super::fk::FkPipeline>,
     /// [`layout::polynomial_table`], the same for every batch.
     polynomials: wgpu::Buffer,
     /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
@@ -127,7 +131,9 @@ impl GpuEvaluator {
             // Errors outside our error scopes must not abort the process (wgpu's default).
             device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
             let name = format!("{} ({:?})", info.name, info.backend);
-            Self::build(device, queue, name)
+            let mut evaluator = Self::build(device, queue, name)?;
+            evaluator.software = info.device_type == wgpu::DeviceType::Cpu;
+            Ok(evaluator)
         })
     }
 
@@ -205,6 +211,7 @@ impl GpuEvaluator {
             device,
             queue,
             adapter_name,
+            software: false,
             module,
             bind_group_layout,
             pipeline_layout,
@@ -213,6 +220,7 @@ impl GpuEvaluator {
             binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
             max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
             map_outputs,
+            fk: std::sync::OnceLock::new(),
             polynomials,
             spare_output: Mutex::new(None),
             lost,
@@ -223,6 +231,14 @@ impl GpuEvaluator {
     #[must_use]
     pub fn adapter_name(&self) -> &str {
         &self.adapter_name
+    }
+
+    /// Whether the adapter is a software rasterizer running on the host's CPU (lavapipe):
+    /// `--device auto` then prefers the fast CPU path, which is many times faster on the same
+    /// cores. Unknown (false) for a device given to [`GpuEvaluator::with_device`].
+    #[must_use]
+    pub fn is_software(&self) -> bool {
+        self.software
     }
 
     /// The device, for creating buffers that [`GpuEvaluator::evaluate_into`] fills.
@@ -469,7 +485,7 @@ impl GpuEvaluator {
 
     /// Maps the first `bytes` of `output` (directly where it is mappable, else through a
     /// staging copy) and hands its floats to `consume`, which copies them into place.
-    fn read_back(&self, output: &wgpu::Buffer, bytes: u64, consume: impl FnOnce(&[f32])) -> Result<(), GpuError> {
+    pub(super) fn read_back(&self, output: &wgpu::Buffer, bytes: u64, consume: impl FnOnce(&[f32])) -> Result<(), GpuError> {
         if bytes == 0 {
             return Ok(());
         }
@@ -545,19 +561,19 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
 }
 
 /// Validation and out-of-memory scopes around a group of device calls.
-struct ErrorScope {
+pub(super) struct ErrorScope {
     validation: wgpu::ErrorScopeGuard,
     memory: wgpu::ErrorScopeGuard,
 }
 
 impl ErrorScope {
-    fn push(device: &wgpu::Device) -> Self {
+    pub(super) fn push(device: &wgpu::Device) -> Self {
         let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         Self { validation, memory }
     }
 
-    fn pop(self) -> Result<(), GpuError> {
+    pub(super) fn pop(self) -> Result<(), GpuError> {
         // Scopes pop in reverse order of pushing.
         let memory = pollster::block_on(self.memory.pop());
         let validation = pollster::block_on(self.validation.pop());

@@ -6,6 +6,7 @@
 //! - [`evaluator`]: [`GpuEvaluator`], created once and reused.
 
 pub mod evaluator;
+pub mod fk;
 pub mod layout;
 pub mod shader;
 

@@ -11,6 +11,17 @@ pub const FILES: [(&str, &str); 5] = [
     ("eval.wgsl", include_str!("../../shaders/eval.wgsl")),
 ];
 
+/// The forward-kinematics program of bake's model textures: the quaternion helpers it shares
+/// with the evaluator, then its kernel.
+pub const FK_FILES: [(&str, &str); 3] = [
+    ("real.wgsl", include_str!("../../shaders/real.wgsl")),
+    ("quat.wgsl", include_str!("../../shaders/quat.wgsl")),
+    ("fk.wgsl", include_str!("../../shaders/fk.wgsl")),
+];
+
+/// Name of the forward-kinematics entry point.
+pub const FK_ENTRY_POINT: &str = "forward_kinematics";
+
 /// Name of the compute entry point.
 pub const ENTRY_POINT: &str = "evaluate";
 
@@ -20,7 +31,17 @@ pub const ROOFLINE_ENTRY_POINT: &str = "roofline";
 /// The whole program as one WGSL source.
 #[must_use]
 pub fn source() -> String {
-    FILES.iter().map(|(_, text)| *text).collect::<Vec<_>>().join("\n")
+    join(&FILES)
+}
+
+/// The forward-kinematics program as one WGSL source.
+#[must_use]
+pub fn fk_source() -> String {
+    join(&FK_FILES)
+}
+
+fn join(files: &[(&str, &str)]) -> String {
+    files.iter().map(|(_, text)| *text).collect::<Vec<_>>().join("\n")
 }
 
 /// Parses and validates the program with naga.
@@ -28,11 +49,22 @@ pub fn source() -> String {
 /// # Errors
 /// The parse or validation error, rendered with file context.
 pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
-    let src = source();
-    let module = naga::front::wgsl::parse_str(&src).map_err(|e| e.emit_to_string(&src))?;
+    validate(&source())
+}
+
+/// Parses and validates the forward-kinematics program with naga.
+///
+/// # Errors
+/// As [`module`].
+pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    validate(&fk_source())
+}
+
+fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
         .validate(&module)
-        .map_err(|e| e.emit_to_string(&src))?;
+        .map_err(|e| e.emit_to_string(src))?;
     Ok((module, info))
 }
 
@@ -41,7 +73,15 @@ pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
 /// # Errors
 /// When the entry point is missing or not one-dimensional.
 pub fn workgroup_size(module: &naga::Module) -> Result<u32, String> {
-    let ep = module.entry_points.iter().find(|e| e.name == ENTRY_POINT).ok_or("no `evaluate` entry point")?;
+    entry_workgroup_size(module, ENTRY_POINT)
+}
+
+/// The workgroup size (x) of entry point `name`.
+///
+/// # Errors
+/// When the entry point is missing or not one-dimensional.
+pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, String> {
+    let ep = module.entry_points.iter().find(|e| e.name == name).ok_or_else(|| format!("no `{name}` entry point"))?;
     match ep.workgroup_size {
         [x, 1, 1] if x > 0 => Ok(x),
         other => Err(format!("workgroup size {other:?} is not one-dimensional")),

@@ -128,8 +128,12 @@ fn gltf_fk(gltf: &gltf::Gltf, clip: &str) -> Vec<Vec<M4>> {
         .collect()
 }
 
+/// Bakes `input` into `dir` (on the CPU path unless `extra` names a device); the sidecar.
 fn bake_into(dir: &Path, input: &Path, extra: &[&str]) -> serde_json::Value {
-    let mut args = vec!["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap(), "--device", "cpu"];
+    let mut args = vec!["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap()];
+    if !extra.contains(&"--device") {
+        args.extend(["--device", "cpu"]);
+    }
     args.extend_from_slice(extra);
     let result = bake(&args);
     assert!(result.status.success(), "{}: {}", input.display(), stderr(&result));
@@ -155,6 +159,22 @@ fn model_textures_match_forward_kinematics_of_the_baked_files() {
             let err = expected.iter().enumerate().map(|(f, m)| worst(&texture[f * frame..(f + 1) * frame], m)).fold(0.0, f64::max);
             assert!(err <= 1e-5, "{name} clip {}: model texture off by {err} (relative)", clip["name"]);
         }
+    }
+    // On the GPU (lavapipe in CI): curves and forward kinematics in f32 there.
+    if quatcurve::gpu::GpuEvaluator::new().is_ok() {
+        let out = dir.path().join("gpu");
+        let sidecar = bake_into(&out, &data.join("Fox.glb"), &["--texture", "model", "--device", "gpu"]);
+        assert!(sidecar["device"].as_str().unwrap().starts_with("gpu:"));
+        let gltf = read_glb(&out.join("Fox.glb"));
+        let joints = gltf.nodes().count() * 12;
+        for clip in sidecar["clips"].as_array().unwrap() {
+            let (_, texture) = read_npy(&out.join(clip["file"].as_str().unwrap()));
+            let expected = gltf_fk(&gltf, clip["name"].as_str().unwrap());
+            let err = expected.iter().enumerate().map(|(f, m)| worst(&texture[f * joints..(f + 1) * joints], m)).fold(0.0, f64::max);
+            assert!(err <= 1e-5, "Fox on the GPU, clip {}: model texture off by {err} (relative)", clip["name"]);
+        }
+    } else {
+        assert!(std::env::var_os("QUATCURVE_REQUIRE_GPU").is_none(), "QUATCURVE_REQUIRE_GPU is set but there is no adapter");
     }
     // BVH: the baked text's OFFSETs, positions and Euler angles, composed here.
     let out = dir.path().join("bvh");

@@ -164,3 +164,59 @@ fn the_roofline_kernel_writes_every_output_float() {
     assert_eq!(chunks, prepared.chunk_count());
     let _ = gpu;
 }
+
+/// `Device::Auto` (what `--device auto` opens over a hardware adapter; over lavapipe it opens
+/// the CPU path) hands a batch the kernel cannot take to the CPU path and names it.
+#[test]
+fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
+    let Some(_) = gpu() else { return };
+    let evaluator = GpuEvaluator::new().unwrap();
+    let software = evaluator.is_software();
+    let device = quatcurve::Device::Auto(Box::new(evaluator), quatcurve::cpu::CpuEvaluator::new());
+    let keys: Vec<[f64; 4]> = (0..40).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
+    let batch = Batch::from_tracks(&[quatcurve::Track::from_rotations(keys)], &CurveSpec::new(Curve::Bezier)).unwrap();
+    let times = SampleTimes::uniform(&batch, Sampling::Count(5)).unwrap();
+    let job = quatcurve::EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false };
+    let (_, name) = device.evaluate_named(&job).unwrap();
+    assert!(name.starts_with("cpu:"), "{name}");
+    let small = small_batch(&CurveSpec::default());
+    let times = SampleTimes::uniform(&small, Sampling::Count(5)).unwrap();
+    let (_, name) = device.evaluate_named(&quatcurve::EvalJob { batch: &small, times: &times, layout: Layout::Track, derivatives: false }).unwrap();
+    assert!(name.starts_with("gpu:"), "{name}");
+    // lavapipe is a software adapter: plain `auto` opens the CPU path there.
+    if software {
+        assert!(quatcurve::Device::open(quatcurve::DeviceChoice::Auto).unwrap().name().starts_with("cpu:"));
+    }
+}
+
+/// The forward-kinematics kernel against its CPU twin (f64) on the crowd's hierarchy and a
+/// deep chain with scales.
+#[test]
+fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
+    let Some(gpu) = gpu() else { return };
+    use quatcurve::bake::{crowd, texture, Joint};
+    let mut animation = crowd::crowd(3);
+    // A 40-joint chain under the crowd's first root, scaled unevenly, not animated.
+    for k in 0..40 {
+        let parent = if k == 0 { 0 } else { animation.joints.len() - 1 };
+        let mut joint = Joint::at(format!("chain{k}"), Some(parent), [0.05, 0.1, -0.02]);
+        joint.rotation = quatcurve::DQuat::exp(quatcurve::DVec3::new(0.05, -0.1, 0.2)).to_array();
+        joint.scale = [1.01, 0.99, 1.02];
+        animation.joints.push(joint);
+    }
+    let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
+    let baked = quatcurve::bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), 30.0, quatcurve::bake::LoopMode::Auto, &device).unwrap();
+    let order = animation.parents_first().unwrap();
+    let local = texture::local(&animation, &animation.clips[0], &baked.clips[0]);
+    let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+    let cpu = texture::model(&animation, &order, &local);
+    let on_gpu = gpu.forward_kinematics(&parents, &order, &local).unwrap();
+    assert_eq!(on_gpu.len(), cpu.len());
+    let scale = cpu.iter().fold(1.0f32, |a, v| a.max(v.abs()));
+    let worst = on_gpu.iter().zip(&cpu).map(|(g, c)| (g - c).abs()).fold(0.0f32, f32::max) / scale;
+    assert!(worst <= 1e-5, "GPU forward kinematics off by {worst} (relative to {scale})");
+    // A parent listed after its child is refused, not computed wrong.
+    let mut bad = order.clone();
+    bad.reverse();
+    assert!(gpu.forward_kinematics(&parents, &bad, &local).is_err());
+}

@@ -1,0 +1,196 @@
+//! Forward kinematics on the GPU for bake's model textures (`shaders/fk.wgsl`), the twin of
+//! [`crate::bake::texture::model`]: local rows `[frames, joints, 10]` in, 3x4 model rows
+//! `[frames, joints, 12]` out. One dispatch per level of the hierarchy, all levels of a chunk
+//! of frames in one pass; frames are split into chunks that fit a storage binding.
+
+use super::evaluator::{ErrorScope, GpuEvaluator};
+use super::{shader, GpuError};
+use crate::bake::texture::{LOCAL_CHANNELS, MATRIX_CHANNELS};
+use wgpu::util::DeviceExt;
+
+/// Host twin of WGSL's `FkLevel` (32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct FkLevel {
+    /// First entry of this level in the joints-by-level list.
+    pub first: u32,
+    /// Joints at this level.
+    pub count: u32,
+    /// Frames in the chunk.
+    pub frames: u32,
+    /// Joints per frame.
+    pub joints: u32,
+    /// Invocations per row of the dispatch grid.
+    pub row: u32,
+    /// Padding to 32 bytes.
+    pub pad: [u32; 3],
+}
+
+/// The compiled kernel and its bind group layout, built on first use.
+pub(crate) struct FkPipeline {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    workgroup_size: u32,
+}
+
+impl FkPipeline {
+    fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
+        let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
+        let scope = ErrorScope::push(device);
+        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let uniform = wgpu::BindGroupLayoutEntry {
+            binding: 4,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("quatcurve fk"),
+            entries: &[storage(0, true), storage(1, true), storage(2, true), storage(3, false), uniform],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("quatcurve fk"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("quatcurve fk"), source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()) });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("quatcurve fk"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(shader::FK_ENTRY_POINT),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            cache: None,
+        });
+        scope.pop()?;
+        Ok(Self { pipeline, layout, workgroup_size })
+    }
+}
+
+/// Joint indices grouped by depth (roots first) and where each depth starts, from `parents`
+/// and an order with every parent before its children.
+///
+/// # Errors
+/// [`GpuError::Job`] when `order` puts a joint before its parent or misses one.
+pub fn levels(parents: &[Option<usize>], order: &[usize]) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
+    let n = parents.len();
+    let mut depth = vec![usize::MAX; n];
+    for &j in order {
+        depth[j] = match parents.get(j).copied().flatten() {
+            None => 0,
+            Some(p) if p < n && depth[p] != usize::MAX => depth[p] + 1,
+            Some(p) => return Err(GpuError::Job(format!("joint {j} comes before its parent {p} in the order"))),
+        };
+    }
+    if depth.contains(&usize::MAX) {
+        return Err(GpuError::Job("the order misses some joints".into()));
+    }
+    let deepest = depth.iter().copied().max().unwrap_or(0);
+    let mut joints = Vec::with_capacity(n);
+    let mut starts = Vec::with_capacity(deepest + 2);
+    for level in 0..=deepest {
+        starts.push(joints.len() as u32);
+        joints.extend((0..n).filter(|&j| depth[j] == level).map(|j| j as u32));
+    }
+    starts.push(joints.len() as u32);
+    Ok((joints, starts))
+}
+
+impl GpuEvaluator {
+    /// Model matrices of every joint and frame from local rows (see the module docs):
+    /// `parents[j]` is joint `j`'s parent, `order` lists parents before children
+    /// ([`crate::bake::Animation::parents_first`]). Computed in f32 (the CPU twin composes
+    /// in f64).
+    ///
+    /// # Errors
+    /// [`GpuError::Job`] for mismatched inputs or a frame larger than a binding; device errors.
+    pub fn forward_kinematics(&self, parents: &[Option<usize>], order: &[usize], local: &[f32]) -> Result<Vec<f32>, GpuError> {
+        let joints = parents.len();
+        if joints == 0 || local.len() % (joints * LOCAL_CHANNELS) != 0 {
+            return Err(GpuError::Job(format!("{} local floats are not whole frames of {joints} joints", local.len())));
+        }
+        let frames = local.len() / (joints * LOCAL_CHANNELS);
+        let frame_bytes = (joints * MATRIX_CHANNELS * 4) as u64;
+        if frame_bytes > self.binding_limit {
+            return Err(GpuError::Job(format!("one frame of {joints} joints needs {frame_bytes} bytes, more than a storage binding ({})", self.binding_limit)));
+        }
+        let (by_level, starts) = levels(parents, order)?;
+        let fk = match self.fk.get() {
+            Some(fk) => fk,
+            None => {
+                let built = FkPipeline::new(&self.device)?;
+                self.fk.get_or_init(|| built)
+            }
+        };
+        let parents: Vec<i32> = parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();
+        let scope = ErrorScope::push(&self.device);
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let parents_buffer = init("quatcurve fk parents", bytemuck::cast_slice(&parents), wgpu::BufferUsages::STORAGE);
+        let levels_buffer = init("quatcurve fk levels", bytemuck::cast_slice(&by_level), wgpu::BufferUsages::STORAGE);
+        scope.pop()?;
+        let mut model = vec![0.0f32; frames * joints * MATRIX_CHANNELS];
+        let per_chunk = ((self.binding_limit / frame_bytes) as usize).clamp(1, frames);
+        for first in (0..frames).step_by(per_chunk) {
+            let count = per_chunk.min(frames - first);
+            let rows = &local[first * joints * LOCAL_CHANNELS..(first + count) * joints * LOCAL_CHANNELS];
+            let out = &mut model[first * joints * MATRIX_CHANNELS..(first + count) * joints * MATRIX_CHANNELS];
+            self.fk_chunk(fk, &parents_buffer, &levels_buffer, &starts, joints, rows, out)?;
+        }
+        Ok(model)
+    }
+
+    /// One chunk of whole frames: upload, one dispatch per level, read back into `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn fk_chunk(&self, fk: &FkPipeline, parents: &wgpu::Buffer, levels: &wgpu::Buffer, starts: &[u32], joints: usize, rows: &[f32], out: &mut [f32]) -> Result<(), GpuError> {
+        let frames = rows.len() / (joints * LOCAL_CHANNELS);
+        let scope = ErrorScope::push(&self.device);
+        let local = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("quatcurve fk local"),
+            contents: bytemuck::cast_slice(rows),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let bytes = (out.len() * 4) as u64;
+        let model = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("quatcurve fk model"),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve fk") });
+        // Per level: its uniform, bind group and grid (made before the pass borrows them).
+        let dispatches: Vec<(wgpu::BindGroup, [u32; 2])> = starts
+            .windows(2)
+            .map(|w| {
+                let invocations = u64::from(w[1] - w[0]) * frames as u64;
+                let groups = invocations.div_ceil(u64::from(fk.workgroup_size)).max(1);
+                let x = groups.min(u64::from(self.max_groups_per_dim)) as u32;
+                let y = groups.div_ceil(u64::from(x)) as u32;
+                let level = FkLevel { first: w[0], count: w[1] - w[0], frames: frames as u32, joints: joints as u32, row: x * fk.workgroup_size, pad: [0; 3] };
+                let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("quatcurve fk level"),
+                    contents: bytemuck::bytes_of(&level),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                let entries = [local.as_entire_binding(), parents.as_entire_binding(), levels.as_entire_binding(), model.as_entire_binding(), uniform.as_entire_binding()];
+                let entries: Vec<wgpu::BindGroupEntry<'_>> = entries.into_iter().enumerate().map(|(i, resource)| wgpu::BindGroupEntry { binding: i as u32, resource }).collect();
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("quatcurve fk"), layout: &fk.layout, entries: &entries });
+                (group, [x, y])
+            })
+            .collect();
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve fk"), timestamp_writes: None });
+            pass.set_pipeline(&fk.pipeline);
+            for (group, [x, y]) in &dispatches {
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(*x, *y, 1);
+            }
+        }
+        self.queue.submit([encoder.finish()]);
+        scope.pop()?;
+        self.read_back(&model, bytes, |floats| out.copy_from_slice(&floats[..out.len()]))
+    }
+}
