@@ -84,21 +84,21 @@ impl Sampling {
     pub fn over(self, start: f64, end: f64) -> Result<TrackTimes> {
         let span = end - start;
         match self {
-            Sampling::Count(0) => Err(Error::BadSampling("--samples must be at least 1".into())),
+            Sampling::Count(0) => Err(Error::BadSampling("a sample count must be at least 1".into())),
             Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => {
-                Err(Error::BadSampling(format!("--samples {n} is more than {MAX_SAMPLES_PER_TRACK} per track")))
+                Err(Error::BadSampling(format!("{n} samples is more than {MAX_SAMPLES_PER_TRACK} per track")))
             }
             Sampling::Count(1) => Ok(TrackTimes::Uniform { start, step: 0.0, count: 1, last: None }),
             Sampling::Count(n) => Ok(TrackTimes::Uniform { start, step: span / (n - 1) as f64, count: n, last: Some(end) }),
             Sampling::Rate(hz) if !(hz.is_finite() && hz > 0.0) => {
-                Err(Error::BadSampling(format!("--rate must be a positive number of samples per second, got {hz}")))
+                Err(Error::BadSampling(format!("a sample rate must be a positive number of samples per second, got {hz}")))
             }
             Sampling::Rate(hz) => {
                 // A relative slack of 1e-9 keeps the end when j / hz lands a rounding error past it.
                 let count = (span * hz * (1.0 + 1e-9)).floor() + 1.0;
                 if count > MAX_SAMPLES_PER_TRACK as f64 {
                     return Err(Error::BadSampling(format!(
-                        "--rate {hz} gives {count} samples over a domain of {span}, more than {MAX_SAMPLES_PER_TRACK} per track"
+                        "a rate of {hz} Hz gives {count} samples over a domain of {span}, more than {MAX_SAMPLES_PER_TRACK} per track"
                     )));
                 }
                 Ok(TrackTimes::Uniform { start, step: 1.0 / hz, count: count as usize, last: None })

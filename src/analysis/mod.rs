@@ -157,11 +157,13 @@ pub fn nodes(view: TrackView<'_>, name: &str, step: Option<f64>) -> Result<Nodes
             (shortest / DEFAULT_STEPS_PER_SPAN).max((hi - lo) / MAX_DEFAULT_STEPS)
         }
     };
-    let steps_of = |length: f64| (((length / step).ceil() as usize).max(2) + 1) & !1;
-    let total: f64 = joints.windows(2).map(|w| steps_of(w[1] - w[0]) as f64 + 1.0).sum();
+    // Even, at least 2; counted in f64 so that an absurd step cannot overflow.
+    let steps_f = |length: f64| 2.0 * (0.5 * (length / step)).ceil().max(1.0);
+    let total: f64 = joints.windows(2).map(|w| steps_f(w[1] - w[0]) + 1.0).sum();
     if total > MAX_NODES_PER_TRACK as f64 {
-        return Err(AnalysisError::TooManyNodes { track: name.to_string(), step, nodes: total as usize });
+        return Err(AnalysisError::TooManyNodes { track: name.to_string(), step, nodes: total.min(usize::MAX as f64) as usize });
     }
+    let steps_of = |length: f64| steps_f(length) as usize;
     let mut out = Nodes { times: Vec::with_capacity(total as usize), spans: Vec::with_capacity(joints.len()), looping: view.track.looping };
     for w in joints.windows(2) {
         let (a, b) = (w[0], w[1]);

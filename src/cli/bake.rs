@@ -436,6 +436,11 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
     let dir = &args.output;
     let mut written: Vec<PathBuf> = Vec::new();
     let result = (|| {
+        // Checked before anything is written.
+        let order = animation.parents_first()?;
+        if args.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+            return Err(Failure::Input("--texture skin: the file has no skin; use --texture model".into()));
+        }
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
             Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
@@ -446,10 +451,6 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             refuse_overwriting_input(&path, source)?;
             write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Input(e.to_string()))?;
             written.push(path);
-        }
-        let order = animation.parents_first()?;
-        if args.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
-            return Err(Failure::Input("--texture skin: the file has no skin; use --texture model".into()));
         }
         let channels = args.texture.channels();
         let write_sheet = |name: &str, frames: usize, width: usize, data: &[f32]| -> Result<PathBuf, Failure> {

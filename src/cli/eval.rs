@@ -80,7 +80,12 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         (None, rate) => Sampling::Rate(rate.unwrap_or(30.0)),
     };
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.sample_times.as_deref()).collect();
-    let times = SampleTimes::new(&batch, &overrides, sampling).map_err(input_err)?;
+    // The library's sampling errors name no flag; say which one.
+    let flag = if args.samples.is_some() { "--samples" } else { "--rate" };
+    let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| match e {
+        quatcurve::Error::BadSampling(msg) => Failure::Input(format!("{flag}: {msg}")),
+        other => input_err(other),
+    })?;
     // JSON is always track-major (DESIGN section 5); --layout shapes .npy output.
     let layout = match (format, args.layout) {
         (Format::Npy, LayoutArg::Frame) => Layout::Frame,

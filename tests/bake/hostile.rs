@@ -135,7 +135,7 @@ fn negative_numbers_reach_our_checks() {
     assert!(stderr(&result).contains("--rate must be a positive number of Hz, not -1"), "{}", stderr(&result));
     let result = quatcurve(&["eval", "--rate", "-1"]);
     assert_eq!(result.status.code(), Some(2));
-    assert!(stderr(&result).contains("--rate must be a positive number of samples per second, got -1"), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--rate: a sample rate must be a positive number of samples per second, got -1"), "{}", stderr(&result));
 }
 
 #[test]

@@ -233,6 +233,8 @@ fn bad_options_are_errors() {
     assert!(matches!(run(AnalysisOptions { inertia: [1.0; 3], step: Some(f64::NAN) }), AnalysisError::BadStep(_)));
     let e = run(AnalysisOptions { inertia: [1.0; 3], step: Some(1e-12) });
     assert!(matches!(e, AnalysisError::TooManyNodes { .. }) && e.to_string().contains("seed1"), "{e}");
+    // A step so small that the node count overflows any integer is the same error.
+    assert!(matches!(run(AnalysisOptions { inertia: [1.0; 3], step: Some(1e-300) }), AnalysisError::TooManyNodes { .. }));
     // Every span gets an even number of steps, at least 2, and nodes stay inside the domain.
     let n = nodes(batch.view(0), "t", Some(10.0)).unwrap();
     assert!(n.spans.iter().all(|s| s.steps == 2), "{:?}", n.spans);
