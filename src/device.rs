@@ -100,19 +100,13 @@ impl Device {
     /// # Errors
     /// As [`Device::evaluate`].
     pub fn evaluate_named(&self, job: &EvalJob<'_>) -> Result<(Output, String), DeviceError> {
-        match self {
-            Device::Reference => job.run().map(|out| (out, self.name())).map_err(|e| DeviceError::Input(e.to_string())),
-            Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
-            Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
-            Device::Auto(g, c) => match on_gpu(g, job) {
-                Err(Refused::Pack(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
-                other => Ok((other?, self.name())),
-            },
+        if let Device::Reference = self {
+            return job.run().map(|out| (out, self.name())).map_err(|e| DeviceError::Input(e.to_string()));
         }
+        let (rows, name) = self.evaluate_f32(job)?;
+        Ok((rows.to_output(job.derivatives), name))
     }
-}
 
-impl Device {
     /// [`Device::evaluate_named`] in the fast paths' own float32 rows (the reference's f64
     /// results rounded to f32): for consumers that store f32 anyway (bake), which then skip
     /// widening every sample to f64 and narrowing it back.
@@ -120,19 +114,15 @@ impl Device {
     /// # Errors
     /// As [`Device::evaluate`].
     pub fn evaluate_f32(&self, job: &EvalJob<'_>) -> Result<(FloatOutput, String), DeviceError> {
-        let cpu = |c: &CpuEvaluator| {
-            let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
-            c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))
-        };
         match self {
             Device::Reference => {
                 let out = job.run().map_err(|e| DeviceError::Input(e.to_string()))?;
                 Ok((FloatOutput::from_output(&out), self.name()))
             }
-            Device::Cpu(c) => Ok((cpu(c)?, self.name())),
-            Device::Gpu(g) => Ok((gpu_rows(g, job)?, self.name())),
-            Device::Auto(g, c) => match gpu_rows(g, job) {
-                Err(Refused::Pack(_)) => Ok((cpu(c)?, format!("cpu: {}", c.name()))),
+            Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
+            Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
+            Device::Auto(g, c) => match on_gpu(g, job) {
+                Err(Refused::Pack(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
                 other => Ok((other?, self.name())),
             },
         }
@@ -154,11 +144,7 @@ impl From<Refused> for DeviceError {
     }
 }
 
-fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<Output, Refused> {
-    Ok(gpu_rows(g, job)?.to_output(job.derivatives))
-}
-
-fn gpu_rows(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
+fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
     let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
     g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
         GpuError::Pack(_) => Refused::Pack(e.to_string()),
@@ -167,8 +153,7 @@ fn gpu_rows(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused>
     })
 }
 
-fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
+fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
-    let out = c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))?;
-    Ok(out.to_output(job.derivatives))
+    c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))
 }

@@ -192,21 +192,29 @@ pub struct Sheet {
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
 pub fn sheets(animation: &Animation, order: &[usize], clip: &Clip, baked: &BakedClip, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, DeviceError> {
-    let joints = animation.joints.len();
     let local = local(animation, clip, baked);
+    let model = if kind == TextureKind::Local { None } else { Some(model_on(device, animation, order, &local)?) };
+    Ok(arrange(animation, order, kind, local, model))
+}
+
+/// The sheets of `kind` from a clip's local rows and, for model and skin textures, its model
+/// rows when the caller already has them (else forward kinematics runs here, on the CPU).
+#[must_use]
+pub fn arrange(animation: &Animation, order: &[usize], kind: TextureKind, local: Vec<f32>, model_rows: Option<Vec<f32>>) -> Vec<Sheet> {
+    let joints = animation.joints.len();
     if kind == TextureKind::Local {
-        return Ok(vec![Sheet { suffix: String::new(), width: joints, data: local }]);
+        return vec![Sheet { suffix: String::new(), width: joints, data: local }];
     }
-    let model = model_on(device, animation, order, &local)?;
+    let model = model_rows.unwrap_or_else(|| model(animation, order, &local));
     if kind == TextureKind::Model || animation.skins.is_empty() {
-        return Ok(vec![Sheet { suffix: String::new(), width: joints, data: model }]);
+        return vec![Sheet { suffix: String::new(), width: joints, data: model }];
     }
-    Ok(animation
+    animation
         .skins
         .iter()
         .enumerate()
         .map(|(k, s)| Sheet { suffix: format!(".skin{k}"), width: s.joints.len(), data: skin(s, joints, &model) })
-        .collect())
+        .collect()
 }
 
 /// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,

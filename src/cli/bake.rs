@@ -469,7 +469,19 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         let mut first_row = 0;
         for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
             let frames = result.times.len();
-            let mut clip_sheets = texture::sheets(animation, &order, clip, result, args.texture, fk_device)?;
+            // Forward kinematics once per clip, for the textures and the preview alike.
+            let local = texture::local(animation, clip, result);
+            let model = if args.texture != TextureKind::Local || args.preview { Some(texture::model_on(fk_device, animation, &order, &local)?) } else { None };
+            let preview = match &model {
+                Some(model) if args.preview => {
+                    let name = format!("{stem}.{index}.png");
+                    super::plot::skeleton(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), model, animation, frames).map_err(Failure::Input)?;
+                    written.push(dir.join(&name));
+                    Some(name)
+                }
+                _ => None,
+            };
+            let clip_sheets = texture::arrange(animation, &order, args.texture, local, model);
             let mut files = Vec::new();
             for (k, sheet) in clip_sheets.iter().enumerate() {
                 let suffix = &sheet.suffix;
@@ -485,18 +497,6 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
                     files.push(name);
                 }
             }
-            let preview = if args.preview {
-                let name = format!("{stem}.{index}.png");
-                let model = match args.texture {
-                    TextureKind::Model => clip_sheets.swap_remove(0).data,
-                    _ => texture::model_on(fk_device, animation, &order, &texture::local(animation, clip, result))?,
-                };
-                super::plot::skeleton(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), &model, animation, frames).map_err(Failure::Input)?;
-                written.push(dir.join(&name));
-                Some(name)
-            } else {
-                None
-            };
             let (start, end) = (result.times[0], result.times[frames - 1]);
             clips.push(SidecarClip {
                 name: clip.name.clone(),
