@@ -11,6 +11,10 @@ The two curves are not the same curve (scipy's RotationSpline is C2 in rotation-
 coordinates, quatcurve's is KKS's cumulative B-spline; both pass through every key), so this
 compares the cost of the same job, not outputs.
 
+With the Python package installed (`pip install ./python`), the same batch also goes through
+`quatcurve.evaluate` (build and evaluate in one call, median of 5 runs), so the Python
+overhead over the Rust bench reads directly.
+
 Run (after `cargo build --release`):
     python3 benches/scipy_rotation_spline.py [--tracks 2000] [--samples 1000]
 Needs numpy and scipy.
@@ -73,6 +77,23 @@ def main():
           f"(build {build:.3f} s = {report['workload']['build_keys_per_s'] / 1e6:.2f} M keys/s, "
           f"evaluate {evaluate:.3f} s; {report['results'][0]['adapter']})")
     print(f"ratio: {ours / theirs:.1f}x")
+    try:
+        import quatcurve
+    except ImportError:
+        print("python package: not installed (pip install ./python)")
+        return
+    times = np.stack([t for t, _ in tracks])
+    keys = np.stack([q for _, q in tracks])
+    runs = []
+    for _ in range(5):
+        start = time.perf_counter()
+        out = quatcurve.evaluate(keys, times, samples=args.samples, curve="bspline-interp", device="cpu")
+        runs.append(time.perf_counter() - start)
+    assert out.shape == (args.tracks, args.samples, 4)
+    python_seconds = float(np.median(runs))
+    print(f"quatcurve.evaluate:   {python_seconds:.3f} s  {samples / python_seconds / 1e6:.3f} M samples/s  "
+          f"(build + evaluate from numpy; {scipy_seconds / python_seconds:.1f}x scipy, "
+          f"{python_seconds / (build + evaluate):.2f}x the Rust bench's time)")
 
 
 if __name__ == "__main__":

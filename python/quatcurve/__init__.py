@@ -1,0 +1,189 @@
+"""Smooth rotation curves for batches of animation tracks, numpy in and out.
+
+quatcurve evaluates the quaternion curves of Kim, Kim & Shin (the cumulative form: Bezier,
+Hermite, order-k B-splines, the C2 cubic B-spline through every key), Nam & Kim's great-arc
+blends, slerp and squad, for one track or thousands at once, on the GPU (wgpu) or a
+multi-threaded SIMD CPU path, with an f64 reference. Conventions (docs/DESIGN.md in the
+repository): quaternions are ``x, y, z, w``; angular velocity and acceleration are in the
+body frame (``omega = 2 vec(q^-1 q')``), rad/s and rad/s^2.
+
+>>> import numpy as np, quatcurve
+>>> keys = np.array([[0, 0, 0, 1], [0, 0, 0.7071068, 0.7071068], [0, 0, 1, 0]], float)
+>>> q = quatcurve.evaluate(keys, [0.0, 0.5, 1.0], rate=60, curve="bspline-interp")
+>>> q.shape
+(61, 4)
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+
+
+def _quiet_runtime_dir():
+    """Mesa's Vulkan drivers print "XDG_RUNTIME_DIR is invalid or not set" when a GPU device
+    opens without it (servers, containers): point it at a private directory first, as the
+    CLI does, removed at exit."""
+    if sys.platform.startswith("linux") and not os.path.isdir(os.environ.get("XDG_RUNTIME_DIR", "")):
+        path = tempfile.mkdtemp(prefix="quatcurve-runtime-")
+        os.environ["XDG_RUNTIME_DIR"] = path
+        atexit.register(shutil.rmtree, path, ignore_errors=True)
+
+
+_quiet_runtime_dir()
+
+from ._quatcurve import __version__, evaluate_batch  # noqa: E402
+
+__all__ = ["evaluate", "Curve", "__version__"]
+
+
+def _float64(name, value, ndims):
+    """`value` as a C-contiguous float64 array of one of the ranks in `ndims`."""
+    try:
+        array = np.asarray(value)
+    except Exception as e:  # ragged lists
+        raise ValueError(f"{name} must be a rectangular array of numbers: {e}") from None
+    if array.dtype == object or not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+        raise ValueError(f"{name} must hold real numbers (float or int), got dtype {array.dtype}")
+    if array.ndim not in ndims:
+        shapes = " or ".join(f"{n} dimensions" for n in ndims)
+        raise ValueError(f"{name} must have {shapes}, got shape {array.shape}")
+    return np.ascontiguousarray(array, dtype=np.float64)
+
+
+def evaluate(
+    rotations,
+    times=None,
+    sample_times=None,
+    *,
+    rate=None,
+    samples=None,
+    curve="bspline",
+    order=4,
+    knots="phantom",
+    tangents="catmull-rom",
+    blend="cubic",
+    loop=False,
+    angular_velocities=None,
+    derivatives=False,
+    device="auto",
+):
+    """Evaluates rotation curves through keys (DESIGN section 9).
+
+    Parameters
+    ----------
+    rotations : array_like, ``(keys, 4)`` for one track or ``(tracks, keys, 4)``
+        Key quaternions ``x, y, z, w`` (normalized and made sign-continuous here), or a
+        ``scipy.spatial.transform.Rotation`` (its ``as_quat()``).
+    times : array_like, ``(keys,)`` shared or ``(tracks, keys)``, optional
+        Strictly increasing key times in seconds; default ``0, 1, 2, ...``.
+    sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, optional
+        Where to evaluate. Otherwise ``samples`` (N per track from domain start to end) or
+        ``rate`` (Hz from the domain start); one of the three is required.
+    curve : str
+        ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim``, ``bspline`` (KKS order-k
+        B-spline, ``knots`` phantom/uniform/clamped) or ``bspline-interp`` (C2 through every
+        key, any key times).
+    order, knots, tangents, blend
+        B-spline order, knot mode, tangent source of hermite/nam-kim (``catmull-rom``,
+        ``zero``, ``given`` with ``angular_velocities`` ``(…, keys, 3)`` body rad/s), Nam-Kim
+        blend (``cubic``, ``quadratic``).
+    loop : bool
+        Periodic curves; the last key must be the first rotation.
+    derivatives : bool
+        Also return body angular velocity and acceleration.
+    device : str
+        ``auto`` (a hardware GPU if any, else the CPU path), ``gpu``, ``cpu`` or
+        ``reference`` (f64).
+
+    Returns
+    -------
+    numpy.ndarray ``(..., m, 4)``, or with ``derivatives`` a tuple ``(q, omega, alpha)`` of
+    ``(..., m, 4)``, ``(..., m, 3)``, ``(..., m, 3)`` (views of one array). float64 from
+    ``device="reference"``, float32 otherwise. One track in, no track axis out.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes or dtypes, and every rule the library checks, with its message naming
+        the track and key (``track 3: key 7 has norm 0, ...``).
+    """
+    if hasattr(rotations, "as_quat"):
+        rotations = rotations.as_quat()
+    q = _float64("rotations", rotations, (2, 3))
+    single = q.ndim == 2
+    if single:
+        q = q[np.newaxis]
+    if q.shape[2] != 4:
+        raise ValueError(f"rotations must end in 4 components (x, y, z, w), got shape {np.shape(rotations)}")
+    tracks, keys = q.shape[0], q.shape[1]
+
+    def per_track(name, value, width, last=None):
+        a = _float64(name, value, (1, 2) if last is None else (2, 3))
+        if a.ndim == (1 if last is None else 2):
+            a = np.broadcast_to(a, (tracks,) + a.shape)
+        if a.shape[0] != tracks or (width is not None and a.shape[1] != width) or (last is not None and a.shape[2] != last):
+            want = f"({width}{', ' + str(last) if last else ''}) or ({tracks}, {width}{', ' + str(last) if last else ''})"
+            raise ValueError(f"{name} must have shape {want} for {tracks} track(s) of {keys} keys, got {np.shape(value)}")
+        return np.ascontiguousarray(a)
+
+    t = None if times is None else per_track("times", times, keys)
+    w = None if angular_velocities is None else per_track("angular_velocities", angular_velocities, keys, 3)
+    s = None
+    if sample_times is not None:
+        s = _float64("sample_times", sample_times, (1, 2))
+        s = per_track("sample_times", s, s.shape[-1])
+    elif rate is None and samples is None:
+        raise ValueError("give sample_times, samples=N or rate=HZ")
+    if samples is not None and (int(samples) != samples or samples < 1):
+        raise ValueError(f"samples must be a positive integer, got {samples}")
+    out = evaluate_batch(
+        q, t, s, None if rate is None else float(rate), None if samples is None else int(samples),
+        str(curve), int(order), str(knots), str(tangents), str(blend), bool(loop), w, bool(derivatives), str(device),
+    )
+    if single:
+        out = out[0]
+    if not derivatives:
+        return out
+    return out[..., :4], out[..., 4:7], out[..., 7:10]
+
+
+class Curve:
+    """One rotation curve through keys, called like ``scipy``'s ``RotationSpline``.
+
+    ``Curve(times, rotations)`` builds the C2 cubic B-spline through every key
+    (``curve="bspline-interp"``, KKS section 6.2; natural ends, or periodic with
+    ``loop=True``) — the same conditions as ``RotationSpline`` but in the KKS cumulative
+    form. Any other curve and option of :func:`evaluate` can be given by keyword.
+    ``rotations`` may be a ``scipy.spatial.transform.Rotation``.
+
+    ``curve(t, order=0)`` returns quaternions ``x, y, z, w`` (``(4,)`` for a scalar ``t``,
+    ``(m, 4)`` otherwise; wrap with ``Rotation.from_quat`` for a Rotation); ``order=1`` the
+    angular velocity and ``order=2`` the angular acceleration, rad/s and rad/s^2. Unlike
+    ``RotationSpline`` (world frame), quatcurve's derivatives are in the body frame: rotate
+    them by the orientation (``Rotation.from_quat(q).apply(omega)``) for the world frame.
+    """
+
+    def __init__(self, times, rotations, curve="bspline-interp", **options):
+        if hasattr(rotations, "as_quat"):
+            rotations = rotations.as_quat()
+        self.rotations = _float64("rotations", rotations, (2,))
+        self.times = _float64("times", times, (1,))
+        self.curve = curve
+        self.options = options
+        # Build once: errors in the keys surface here, as in scipy.
+        evaluate(self.rotations, self.times, self.times[:1], curve=curve, **options)
+
+    def __call__(self, t, order=0):
+        if order not in (0, 1, 2):
+            raise ValueError(f"order must be 0, 1 or 2, got {order}")
+        scalar = np.ndim(t) == 0
+        samples = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        result = evaluate(self.rotations, self.times, samples, curve=self.curve, derivatives=order > 0, **self.options)
+        value = result if order == 0 else result[order]
+        return value[0] if scalar else value

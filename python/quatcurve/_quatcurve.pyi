@@ -1,0 +1,23 @@
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+def evaluate_batch(
+    rotations: npt.NDArray[np.float64],
+    times: npt.NDArray[np.float64] | None,
+    sample_times: npt.NDArray[np.float64] | None,
+    rate: float | None,
+    samples: int | None,
+    curve: str,
+    order: int,
+    knots: str,
+    tangents: str,
+    blend: str,
+    looping: bool,
+    angular_velocities: npt.NDArray[np.float64] | None,
+    derivatives: bool,
+    device: str,
+) -> npt.NDArray[np.floating[Any]]: ...

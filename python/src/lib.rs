@@ -1,0 +1,153 @@
+//! The compiled half of the Python package (DESIGN section 9). `quatcurve/__init__.py` checks
+//! and shapes the user's arrays (one track or a batch, shared or per-track times) and calls
+//! [`evaluate_batch`] with C-contiguous float64 arrays of fixed rank; this file builds the
+//! library's batch from them, evaluates with the GIL released, and hands the samples back as
+//! one numpy array `[tracks, samples, channels]` that owns the evaluator's buffer (no copy).
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, Track};
+use std::str::FromStr;
+use std::sync::OnceLock;
+
+fn value_error(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+fn parse<T: FromStr<Err = String>>(what: &str, text: &str) -> PyResult<T> {
+    text.parse().map_err(|e| value_error(format!("{what}: {e}")))
+}
+
+/// The device for `choice`, opened once per process: creating a GPU device takes a good
+/// fraction of a second, and a caller evaluating track by track should not pay it each time.
+fn device(choice: DeviceChoice) -> PyResult<&'static Device> {
+    static DEVICES: [OnceLock<Device>; 4] = [OnceLock::new(), OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    let slot = &DEVICES[match choice {
+        DeviceChoice::Auto => 0,
+        DeviceChoice::Gpu => 1,
+        DeviceChoice::Cpu => 2,
+        DeviceChoice::Reference => 3,
+    }];
+    if let Some(device) = slot.get() {
+        return Ok(device);
+    }
+    let opened = Device::open(choice).map_err(value_error)?;
+    Ok(slot.get_or_init(|| opened))
+}
+
+/// Rows of a C-contiguous array.
+fn rows<'a, const N: usize>(data: &'a [f64], per_track: usize, track: usize) -> impl Iterator<Item = [f64; N]> + 'a {
+    data[track * per_track * N..(track + 1) * per_track * N].chunks_exact(N).map(|c| std::array::from_fn(|i| c[i]))
+}
+
+/// Evaluates `rotations` `[tracks, keys, 4]` (x, y, z, w) at `sample_times` `[tracks, m]`, or
+/// on a uniform grid (`rate` Hz or `samples` per track) when it is `None`. Returns
+/// `[tracks, m, 4]`, or `[tracks, m, 10]` with derivatives (rotation, body omega, alpha):
+/// float64 from the reference, float32 from the fast paths. See `quatcurve.evaluate`.
+#[pyfunction]
+#[pyo3(signature = (rotations, times, sample_times, rate, samples, curve, order, knots, tangents, blend, looping, angular_velocities, derivatives, device))]
+#[allow(clippy::too_many_arguments)]
+fn evaluate_batch<'py>(
+    py: Python<'py>,
+    rotations: PyReadonlyArray3<'py, f64>,
+    times: Option<PyReadonlyArray2<'py, f64>>,
+    sample_times: Option<PyReadonlyArray2<'py, f64>>,
+    rate: Option<f64>,
+    samples: Option<usize>,
+    curve: &str,
+    order: usize,
+    knots: &str,
+    tangents: &str,
+    blend: &str,
+    looping: bool,
+    angular_velocities: Option<PyReadonlyArray3<'py, f64>>,
+    derivatives: bool,
+    device: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let spec = CurveSpec {
+        curve: parse("curve", curve)?,
+        order,
+        knots: parse("knots", knots)?,
+        tangents: parse("tangents", tangents)?,
+        blend: parse("blend", blend)?,
+        looping,
+    };
+    let choice: DeviceChoice = parse("device", device)?;
+    let device = self::device(choice)?;
+    let [count, keys, _] = [rotations.shape()[0], rotations.shape()[1], rotations.shape()[2]];
+    let quats = rotations.as_slice().map_err(value_error)?;
+    let key_times = times.as_ref().map(|t| t.as_slice()).transpose().map_err(value_error)?;
+    let velocities = angular_velocities.as_ref().map(|v| v.as_slice()).transpose().map_err(value_error)?;
+    let tracks: Vec<Track> = (0..count)
+        .map(|i| Track {
+            times: key_times.map(|t| t[i * keys..(i + 1) * keys].to_vec()),
+            angular_velocities: velocities.map(|v| rows::<3>(v, keys, i).collect()),
+            ..Track::from_rotations(rows::<4>(quats, keys, i).collect())
+        })
+        .collect();
+    let sampled = sample_times.as_ref().map(|s| (s.shape()[1], s.as_slice())).map(|(m, s)| s.map(|s| (m, s))).transpose().map_err(value_error)?;
+    let sampling = match (rate, samples) {
+        (_, Some(n)) => Sampling::Count(n),
+        (Some(hz), None) => Sampling::Rate(hz),
+        (None, None) => Sampling::Count(0),
+    };
+    let channels = if derivatives { 10 } else { 4 };
+    let out = py.detach(|| -> Result<Samples, String> {
+        let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
+        let overrides: Vec<Option<&[f64]>> = match sampled {
+            Some((m, s)) => (0..count).map(|i| Some(&s[i * m..(i + 1) * m])).collect(),
+            None => Vec::new(),
+        };
+        let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| e.to_string())?;
+        if let Some(i) = (1..count).find(|&i| times.count(i) != times.count(0)) {
+            return Err(format!(
+                "track 0 gets {} samples but track {i} gets {} (their domains differ): pass samples=N or sample_times for one count",
+                times.count(0),
+                times.count(i)
+            ));
+        }
+        let job = EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives };
+        if choice == DeviceChoice::Reference {
+            let out = job.run().map_err(|e| e.to_string())?;
+            let mut data: Vec<f64> = Vec::with_capacity(out.rotations.len() * channels);
+            for (i, q) in out.rotations.iter().enumerate() {
+                data.extend_from_slice(q);
+                if derivatives {
+                    data.extend_from_slice(&out.angular_velocity[i]);
+                    data.extend_from_slice(&out.angular_acceleration[i]);
+                }
+            }
+            return Ok(Samples::F64(data));
+        }
+        let (rows, _) = device.evaluate_f32(&job).map_err(|e| e.to_string())?;
+        Ok(Samples::F32(rows.data))
+    })
+    .map_err(value_error)?;
+    let per_track = |len: usize| len / channels / count.max(1);
+    // The arrays take over the evaluator's buffers.
+    match out {
+        Samples::F64(data) => {
+            let shape = [count, per_track(data.len()), channels];
+            Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+        }
+        Samples::F32(data) => {
+            let shape = [count, per_track(data.len()), channels];
+            Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+        }
+    }
+}
+
+/// Samples in the precision the device computed them in.
+enum Samples {
+    F64(Vec<f64>),
+    F32(Vec<f32>),
+}
+
+/// The compiled module, `quatcurve._quatcurve`.
+#[pymodule]
+fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(evaluate_batch, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

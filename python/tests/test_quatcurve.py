@@ -1,0 +1,175 @@
+"""quatcurve's Python package against scipy, the CLI, and its own contract (DESIGN section 9)."""
+
+import json
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation, Slerp
+
+import quatcurve
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def random_keys(rng, tracks, keys, max_step=1.2):
+    """Sign-continuous random keys: each a turn of up to `max_step` rad from the previous."""
+    out = np.empty((tracks, keys, 4))
+    for i in range(tracks):
+        q = Rotation.random(random_state=rng)
+        for k in range(keys):
+            out[i, k] = q.as_quat()
+            axis = rng.normal(size=3)
+            q = q * Rotation.from_rotvec(axis / np.linalg.norm(axis) * rng.uniform(0.0, max_step))
+    return out
+
+
+def angle(a, b):
+    """Angle between rotations (sign-blind), elementwise over the last axis; the atan2 form
+    stays accurate for nearly equal rotations, where arccos of a dot product cannot go below
+    ~3e-8 rad."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
+    return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+
+def test_slerp_matches_scipy():
+    rng = np.random.default_rng(1)
+    keys = random_keys(rng, 1, 6)[0]
+    times = np.cumsum(rng.uniform(0.2, 1.0, 6))
+    t = np.linspace(times[0], times[-1], 101)
+    expected = Slerp(times, Rotation.from_quat(keys))(t).as_quat()
+    got = quatcurve.evaluate(keys, times, t, curve="slerp", device="reference")
+    assert got.shape == (101, 4) and got.dtype == np.float64
+    assert angle(got, expected).max() < 1e-9
+    fast = quatcurve.evaluate(keys, times, t, curve="slerp", device="cpu")
+    assert fast.dtype == np.float32 and angle(fast.astype(np.float64), expected).max() < 1e-5
+
+
+def about_z(angles):
+    half = 0.5 * np.asarray(angles)
+    return np.stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)], axis=-1)
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_bspline_interp_about_one_axis_is_scipys_cubic_spline(periodic):
+    rng = np.random.default_rng(2)
+    times = np.cumsum(rng.uniform(0.3, 1.2, 8))
+    angles = np.cumsum(rng.uniform(-1.0, 1.0, 8))
+    if periodic:
+        angles[-1] = angles[0]
+    spline = CubicSpline(times, angles, bc_type="periodic" if periodic else "natural")
+    t = np.linspace(times[0], times[-1], 200)
+    q, omega, alpha = quatcurve.evaluate(about_z(angles), times, t, curve="bspline-interp", loop=periodic, derivatives=True, device="reference")
+    assert angle(q, about_z(spline(t))).max() < 1e-9
+    # Body rates about z are the spline's derivatives.
+    assert np.abs(omega[:, 2] - spline(t, 1)).max() < 1e-8
+    assert np.abs(alpha[:, 2] - spline(t, 2)).max() < 1e-7
+    assert np.abs(omega[:, :2]).max() < 1e-12
+
+
+def cli():
+    for build in ("release", "debug"):
+        path = REPO / "target" / build / "quatcurve"
+        if path.exists():
+            return path
+    if os.environ.get("QUATCURVE_REQUIRE_CLI") == "1":
+        pytest.fail("QUATCURVE_REQUIRE_CLI=1 but no target/*/quatcurve binary")
+    pytest.skip("no quatcurve binary built (cargo build)")
+
+
+CURVES = ["slerp", "squad", "bezier", "hermite", "nam-kim", "bspline", "bspline-interp"]
+
+
+@pytest.mark.parametrize("curve", CURVES)
+def test_every_curve_matches_the_cli(curve, tmp_path):
+    binary = cli()
+    rng = np.random.default_rng(3)
+    keys = random_keys(rng, 3, 6)
+    times = np.arange(6) * 0.4
+    tracks = [{"name": f"t{i}", "times": times.tolist(), "rotations": keys[i].tolist()} for i in range(3)]
+    path = tmp_path / "tracks.json"
+    path.write_text(json.dumps({"tracks": tracks}))
+    run = subprocess.run(
+        [str(binary), "eval", "--input", str(path), "--curve", curve, "--samples", "9", "--derivatives", "--device", "reference"],
+        capture_output=True, text=True, check=True,
+    )
+    doc = json.loads(run.stdout)
+    q, omega, alpha = quatcurve.evaluate(keys, times, samples=9, curve=curve, derivatives=True, device="reference")
+    assert q.shape == (3, 9, 4)
+    for i, track in enumerate(doc["tracks"]):
+        np.testing.assert_allclose(q[i], track["rotations"], atol=1e-12)
+        np.testing.assert_allclose(omega[i], track["angular_velocity"], atol=1e-9)
+        np.testing.assert_allclose(alpha[i], track["angular_acceleration"], atol=1e-7)
+
+
+def test_batch_shapes_dtypes_and_per_track_sample_times():
+    rng = np.random.default_rng(4)
+    keys = random_keys(rng, 5, 7)
+    shared = quatcurve.evaluate(keys, np.arange(7.0), np.linspace(0, 6, 13), device="cpu")
+    assert shared.shape == (5, 13, 4) and shared.dtype == np.float32
+    # Per-track times and sample times: each track on its own clock.
+    times = np.arange(7.0) + np.arange(5.0)[:, None] * 10.0
+    own = np.linspace(0, 6, 13) + np.arange(5.0)[:, None] * 10.0
+    moved = quatcurve.evaluate(keys, times, own, device="reference")
+    assert moved.shape == (5, 13, 4) and moved.dtype == np.float64
+    assert angle(moved, shared.astype(np.float64)).max() < 1e-5
+    # rate and samples; float32 and int inputs are accepted.
+    assert quatcurve.evaluate(keys.astype(np.float32), rate=2.0).shape == (5, 13, 4)
+    assert quatcurve.evaluate(np.array([[0, 0, 0, 1], [0, 0, 1, 0]]), samples=3).shape == (3, 4)
+    # Derivatives are views of one array.
+    q, omega, alpha = quatcurve.evaluate(keys, samples=4, derivatives=True, device="cpu")
+    assert q.shape == (5, 4, 4) and omega.shape == (5, 4, 3) and alpha.shape == (5, 4, 3)
+    assert q.base is not None and q.base is omega.base
+
+
+def test_curve_mirrors_rotation_spline_and_takes_rotations():
+    rng = np.random.default_rng(5)
+    keys = random_keys(rng, 1, 6, max_step=0.5)[0]
+    times = np.cumsum(rng.uniform(0.3, 1.0, 6))
+    curve = quatcurve.Curve(times, Rotation.from_quat(keys), device="reference")
+    t = np.linspace(times[0], times[-1], 50)
+    q = curve(t)
+    assert q.shape == (50, 4) and curve(times[2]).shape == (4,)
+    assert angle(curve(times), keys).max() < 1e-12
+    # Body rates rotated by the orientation are the world-frame rates (what RotationSpline
+    # returns), here by central differences of the curve itself.
+    inner = t[1:-1]
+    omega = curve(inner, 1)
+    world = Rotation.from_quat(curve(inner)).apply(omega)
+    eps = 1e-6
+    dq = (Rotation.from_quat(curve(inner + eps)) * Rotation.from_quat(curve(inner - eps)).inv()).as_rotvec() / (2 * eps)
+    np.testing.assert_allclose(world, dq, atol=1e-5)
+    assert curve(t, 2).shape == (50, 3)
+    with pytest.raises(ValueError, match="order"):
+        curve(t, 3)
+
+
+def test_errors_are_value_errors_naming_track_and_key():
+    good = np.tile([0.0, 0.0, 0.0, 1.0], (2, 4, 1))
+    bad = good.copy()
+    bad[1, 2] = 0.0
+    with pytest.raises(ValueError, match=r"track 1: key 2 has norm 0"):
+        quatcurve.evaluate(bad, samples=3)
+    bad = good.copy()
+    bad[0, 3, 1] = np.nan
+    with pytest.raises(ValueError, match=r"track 0: key 3 is not finite"):
+        quatcurve.evaluate(bad, samples=3)
+    with pytest.raises(ValueError, match="rectangular"):
+        quatcurve.evaluate([[[0, 0, 0, 1]], [[0, 0, 0, 1], [0, 0, 0, 1]]], samples=3)
+    with pytest.raises(ValueError, match="dtype"):
+        quatcurve.evaluate(np.array([["a", "b", "c", "d"]] * 2), samples=3)
+    with pytest.raises(ValueError, match="4 components"):
+        quatcurve.evaluate(np.zeros((3, 3)), samples=3)
+    with pytest.raises(ValueError, match="times must have shape"):
+        quatcurve.evaluate(good, np.arange(5.0), samples=3)
+    with pytest.raises(ValueError, match="key 2 .* not greater"):
+        quatcurve.evaluate(good[0], [0.0, 1.0, 1.0, 2.0], samples=3)
+    with pytest.raises(ValueError, match="curve"):
+        quatcurve.evaluate(good, samples=3, curve="spiral")
+    with pytest.raises(ValueError, match="sample_times, samples=N or rate"):
+        quatcurve.evaluate(good)
