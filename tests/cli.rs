@@ -550,3 +550,25 @@ fn analyze_on_the_gpu_agrees_with_the_reference() {
         }
     }
 }
+
+#[test]
+fn bench_sweep_covers_long_and_short_batches_of_every_size_and_plots_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let plot = dir.path().join("sweep.svg");
+    let out = quatcurve(&["bench", "--sweep", "--sweep-max", "10000", "--devices", "cpu", "--runs", "1", "--json", "--plot", plot.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let points = doc["sweep"].as_array().unwrap();
+    let shapes: Vec<(String, u64, u64)> = points
+        .iter()
+        .map(|p| (p["shape"].as_str().unwrap().to_string(), p["tracks"].as_u64().unwrap(), p["samples_per_track"].as_u64().unwrap()))
+        .collect();
+    let expected = [("long", 10, 100), ("short", 100, 10), ("long", 10, 1000), ("short", 1000, 10)].map(|(s, t, n)| (s.to_string(), t, n));
+    assert_eq!(shapes, expected);
+    assert!(points.iter().all(|p| p["device"] == "cpu" && p["samples_per_s"].as_f64().unwrap() > 0.0));
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("cpu short") && svg.contains("<polyline"), "{}", &svg[..200.min(svg.len())]);
+    // --plot belongs to --sweep.
+    let out = quatcurve(&["bench", "--plot", plot.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}

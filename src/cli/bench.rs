@@ -9,7 +9,7 @@ use quatcurve::{synthetic, Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJo
 use serde::Serialize;
 use std::time::Instant;
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct BenchArgs {
     /// Tracks in the batch.
     #[arg(long, default_value_t = 10_000)]
@@ -49,6 +49,18 @@ pub struct BenchArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
+    /// Time every device across batch sizes from 10^3 samples up to --sweep-max, each size as
+    /// a few long tracks (10 tracks) and as many short ones (10 samples each), instead of one
+    /// batch: where fixed costs stop dominating and how cost grows with work.
+    #[arg(long)]
+    sweep: bool,
+    /// Largest batch of the sweep, in samples (a power of ten).
+    #[arg(long, default_value_t = 10_000_000, requires = "sweep")]
+    sweep_max: usize,
+    /// With --sweep: a log-log chart of samples/s against batch size, one line per device and
+    /// track shape (.png or .svg).
+    #[arg(long, value_name = "FILE", requires = "sweep")]
+    plot: Option<std::path::PathBuf>,
 }
 
 #[derive(Serialize)]
@@ -93,6 +105,64 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     if args.tracks == 0 || args.samples == 0 || args.runs == 0 {
         return Err(Failure::Input("bench: --tracks, --samples and --runs must be at least 1".into()));
     }
+    if args.sweep {
+        return sweep(args);
+    }
+    let report = measure(args)?;
+    print_stdout(|w| if args.json { writeln!(w, "{}", serde_json::to_string(&report)?) } else { table(w, &report) })
+}
+
+/// One point of `--sweep`.
+#[derive(Serialize)]
+struct SweepPoint {
+    /// "long" (10 tracks) or "short" (10 samples per track).
+    shape: &'static str,
+    tracks: usize,
+    samples_per_track: usize,
+    #[serde(flatten)]
+    row: Row,
+}
+
+fn sweep(args: &BenchArgs) -> Result<(), Failure> {
+    let mut points = Vec::new();
+    let mut total = 1_000;
+    while total <= args.sweep_max {
+        for (shape, tracks) in [("long", 10), ("short", total / 10)] {
+            let point = BenchArgs { tracks, samples: total / tracks, sweep: false, reference_samples: args.reference_samples.min(total), ..args.clone() };
+            let report = measure(&point)?;
+            points.extend(report.results.into_iter().map(|row| SweepPoint { shape, tracks, samples_per_track: point.samples, row }));
+        }
+        total *= 10;
+    }
+    if let Some(path) = &args.plot {
+        let mut lines: Vec<super::plot::Line> = Vec::new();
+        for p in &points {
+            let label = format!("{} {} ({})", p.row.device, p.shape, if p.shape == "long" { "10 tracks" } else { "10 samples each" });
+            let at = ((p.tracks * p.samples_per_track) as f64, p.row.samples_per_s);
+            match lines.iter_mut().find(|l| l.label == label) {
+                Some(line) => line.points.push(at),
+                None => lines.push(super::plot::Line { label, points: vec![at] }),
+            }
+        }
+        let title = format!("quatcurve bench --sweep: {} {}, end to end", args.curve, if args.derivatives { "with derivatives" } else { "rotation only" });
+        super::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines).map_err(Failure::Input)?;
+    }
+    print_stdout(|w| {
+        if args.json {
+            return writeln!(w, "{}", serde_json::json!({ "curve": args.curve.name(), "derivatives": args.derivatives, "sweep": points }));
+        }
+        writeln!(w, "(the reference times at most --reference-samples of each batch)")?;
+        writeln!(w, "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14} {:>16}", "shape", "tracks", "per track", "batch", "device", "M samples/s", "kernel-only M/s")?;
+        for p in &points {
+            let kernel = p.row.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
+            writeln!(w, "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14.2} {:>16}", p.shape, p.tracks, p.samples_per_track, p.tracks * p.samples_per_track, p.row.device, p.row.samples_per_s / 1e6, kernel)?;
+        }
+        Ok(())
+    })
+}
+
+/// Times one batch on every requested device.
+fn measure(args: &BenchArgs) -> Result<Report, Failure> {
     let spec = args.options.spec(args.curve, KnotMode::Uniform, args.looping);
     let (batch, times) =
         synthetic::workload(args.tracks, args.samples, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
@@ -135,7 +205,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
         },
         results,
     };
-    print_stdout(|w| if args.json { writeln!(w, "{}", serde_json::to_string(&report)?) } else { table(w, &report) })
+    Ok(report)
 }
 
 /// Median wall time of `runs` calls after one warm-up.

@@ -1,5 +1,5 @@
-//! Charts of `analyze --plot` and `bake --preview`: PNG or SVG by the file's extension,
-//! written atomically.
+//! Charts of `analyze --plot`, `bake --preview` and `bench --sweep --plot`: PNG or SVG by
+//! the file's extension, written atomically.
 //!
 //! Labels use DejaVu Sans embedded in the binary (the `dejavu` crate), so a chart renders the
 //! same on a server without fonts (SVG names the family and leaves drawing text to the viewer).
@@ -22,6 +22,67 @@ pub struct Series {
 }
 
 const FONT: &str = "sans-serif";
+
+/// One line of a [`log_log`] chart.
+pub struct Line {
+    /// The legend's text.
+    pub label: String,
+    /// `(x, y)` points, both positive.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A log-log chart of `lines` to `path` (`.png` or `.svg`).
+///
+/// # Errors
+/// As [`rates`].
+pub fn log_log(path: &Path, title: &str, x: &str, y: &str, lines: &[Line]) -> Result<(), String> {
+    render(path, (1000, 640), &LogLog { title, x, y, lines })
+}
+
+struct LogLog<'a> {
+    title: &'a str,
+    x: &'a str,
+    y: &'a str,
+    lines: &'a [Line],
+}
+
+impl Figure for LogLog<'_> {
+    fn draw<B: DrawingBackend>(&self, root: DrawingArea<B, Shift>) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+        root.fill(&WHITE)?;
+        let bounds = |pick: fn(&(f64, f64)) -> f64| {
+            let values = self.lines.iter().flat_map(|l| l.points.iter().map(pick)).filter(|v| *v > 0.0 && v.is_finite());
+            let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+            if lo <= hi { (lo / 1.5, hi * 1.5) } else { (1.0, 10.0) }
+        };
+        let ((x0, x1), (y0, y1)) = (bounds(|p| p.0), bounds(|p| p.1));
+        let mut chart = ChartBuilder::on(&root)
+            .caption(self.title, (FONT, 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
+        let powers = |v: &f64| format!("{v:.0e}");
+        chart
+            .configure_mesh()
+            .x_desc(self.x)
+            .y_desc(self.y)
+            .x_label_formatter(&powers)
+            .y_label_formatter(&powers)
+            .label_style((FONT, 13))
+            .light_line_style(WHITE.mix(0.0))
+            .bold_line_style(BLACK.mix(0.08))
+            .draw()?;
+        for (i, line) in self.lines.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(line.points.iter().copied(), color.stroke_width(2)).point_size(3))?
+                .label(&line.label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        }
+        chart.configure_series_labels().label_font((FONT, 13)).position(SeriesLabelPosition::LowerRight).background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
+        root.present()
+    }
+}
 
 /// Frames a preview overlays.
 const PREVIEW_FRAMES: usize = 5;
