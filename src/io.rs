@@ -66,16 +66,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
 /// # Errors
 /// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
 pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    check_fill(path, shape, data.len())?;
-    write_atomic(path, |w| {
-        w.write_all(&npy_header("<f4", shape))?;
-        // Whole blocks, not a call per value: baked textures run to hundreds of MB.
-        for block in data.chunks(1 << 16) {
-            let bytes: Vec<u8> = block.iter().flat_map(|v| v.to_le_bytes()).collect();
-            w.write_all(&bytes)?;
-        }
-        Ok(())
-    })
+    write_npy_as(path, shape, data, "<f4", f32::to_le_bytes)
 }
 
 /// Writes `data` as a float16 `.npy` array (`<f2`) of the given shape, atomically: each value
@@ -84,11 +75,17 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError
 /// # Errors
 /// As [`write_npy`].
 pub fn write_npy_f16(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
+    write_npy_as(path, shape, data, "<f2", |v| half::f16::from_f32(v).to_le_bytes())
+}
+
+/// `data` as `.npy` of element type `descr`, each value's little-endian bytes from `encode`.
+fn write_npy_as<const N: usize>(path: &Path, shape: &[u64], data: &[f32], descr: &str, encode: impl Fn(f32) -> [u8; N]) -> Result<(), IoError> {
     check_fill(path, shape, data.len())?;
     write_atomic(path, |w| {
-        w.write_all(&npy_header("<f2", shape))?;
+        w.write_all(&npy_header(descr, shape))?;
+        // Whole blocks, not a call per value: baked textures run to hundreds of MB.
         for block in data.chunks(1 << 16) {
-            let bytes: Vec<u8> = block.iter().flat_map(|&v| half::f16::from_f32(v).to_le_bytes()).collect();
+            let bytes: Vec<u8> = block.iter().flat_map(|&v| encode(v)).collect();
             w.write_all(&bytes)?;
         }
         Ok(())
