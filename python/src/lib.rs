@@ -86,13 +86,16 @@ fn evaluate_batch<'py>(
             ..Track::from_rotations(rows::<4>(quats, keys, i).collect())
         })
         .collect();
-    let sampled = sample_times.as_ref().map(|s| (s.shape()[1], s.as_slice())).map(|(m, s)| s.map(|s| (m, s))).transpose().map_err(value_error)?;
+    let sampled = match &sample_times {
+        Some(s) => Some((s.shape()[1], s.as_slice().map_err(value_error)?)),
+        None => None,
+    };
     let sampling = match (rate, samples) {
         (_, Some(n)) => Sampling::Count(n),
         (Some(hz), None) => Sampling::Rate(hz),
         (None, None) => Sampling::Count(0),
     };
-    let channels = if derivatives { 10 } else { 4 };
+    let channels = quatcurve::job::channels(derivatives, false);
     let out = py.detach(|| -> Result<Samples, String> {
         let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
         let overrides: Vec<Option<&[f64]>> = match sampled {
