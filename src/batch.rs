@@ -120,9 +120,18 @@ impl Batch {
             .with_min_len(64)
             .map(|(index, track)| prepare(&TrackId { index, name: track.name.clone() }, track, &spec(index)))
             .collect();
+        let prepared = prepared.into_iter().collect::<Result<Vec<Prepared>>>()?;
+        // Every array allocated once at its final size: grown by doubling, the copies and
+        // fresh pages of hundreds of MB (a crowd bake) cost more than preparing the tracks.
         let mut builder = BatchBuilder::new();
+        let b = &mut builder.batch;
+        b.tracks.reserve_exact(prepared.len());
+        b.ids.reserve_exact(prepared.len());
+        b.points.reserve_exact(prepared.iter().map(|p| p.points.len()).sum());
+        b.coefs.reserve_exact(prepared.iter().map(|p| p.coefs.len()).sum());
+        b.knots.reserve_exact(prepared.iter().map(|p| p.knots.len()).sum());
         for (index, (track, packed)) in tracks.iter().zip(prepared).enumerate() {
-            builder.append(track, &spec(index), packed?);
+            builder.append(track, &spec(index), packed);
         }
         builder.build()
     }

@@ -66,7 +66,8 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
 /// # Errors
 /// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
 pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    write_npy_as(path, shape, data, "<f4", f32::to_le_bytes)
+    let npy = Npy::f32(shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    write_atomic(path, |w| npy.write(w))
 }
 
 /// Writes `data` as a float16 `.npy` array (`<f2`) of the given shape, atomically: each value
@@ -75,21 +76,72 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError
 /// # Errors
 /// As [`write_npy`].
 pub fn write_npy_f16(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    write_npy_as(path, shape, data, "<f2", |v| half::f16::from_f32(v).to_le_bytes())
+    let npy = Npy::f16(shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    write_atomic(path, |w| npy.write(w))
 }
 
-/// `data` as `.npy` of element type `descr`, each value's little-endian bytes from `encode`.
-fn write_npy_as<const N: usize>(path: &Path, shape: &[u64], data: &[f32], descr: &str, encode: impl Fn(f32) -> [u8; N]) -> Result<(), IoError> {
-    check_fill(path, shape, data.len())?;
-    write_atomic(path, |w| {
-        w.write_all(&npy_header(descr, shape))?;
-        // Whole blocks, not a call per value: baked textures run to hundreds of MB.
-        for block in data.chunks(1 << 16) {
-            let bytes: Vec<u8> = block.iter().flat_map(|&v| encode(v)).collect();
-            w.write_all(&bytes)?;
-        }
-        Ok(())
-    })
+/// The bytes of a `.npy` file, encoded before anything is written, so a caller can write
+/// them and hash them at the same time (`bake` records every output's SHA-256).
+#[derive(Clone, Debug)]
+pub struct Npy<'a> {
+    /// The header, byte for byte what `numpy.save` writes.
+    pub header: Vec<u8>,
+    /// The values, little-endian: borrowed from the floats where they already are those
+    /// bytes (f32 on a little-endian machine), else converted.
+    pub body: std::borrow::Cow<'a, [u8]>,
+}
+
+impl<'a> Npy<'a> {
+    /// `data` as `<f4` of `shape` (C order).
+    ///
+    /// # Errors
+    /// When `data` does not fill `shape` exactly.
+    pub fn f32(shape: &[u64], data: &'a [f32]) -> std::io::Result<Self> {
+        check_fill(shape, data.len())?;
+        let body = if cfg!(target_endian = "little") {
+            std::borrow::Cow::Borrowed(bytemuck::cast_slice(data))
+        } else {
+            std::borrow::Cow::Owned(data.iter().flat_map(|v| v.to_le_bytes()).collect())
+        };
+        Ok(Self { header: npy_header("<f4", shape), body })
+    }
+
+    /// `data` as `<f2` of `shape`, each value rounded to the nearest half (on every core).
+    ///
+    /// # Errors
+    /// When `data` does not fill `shape` exactly.
+    pub fn f16(shape: &[u64], data: &[f32]) -> std::io::Result<Self> {
+        use rayon::prelude::*;
+        check_fill(shape, data.len())?;
+        let mut body = vec![0u8; 2 * data.len()];
+        body.par_chunks_mut(1 << 16).zip(data.par_chunks(1 << 15)).for_each(|(out, values)| {
+            for (o, &v) in out.chunks_exact_mut(2).zip(values) {
+                o.copy_from_slice(&half::f16::from_f32(v).to_le_bytes());
+            }
+        });
+        Ok(Self { header: npy_header("<f2", shape), body: std::borrow::Cow::Owned(body) })
+    }
+
+    /// Header, then values.
+    ///
+    /// # Errors
+    /// The writer's.
+    pub fn write(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        w.write_all(&self.header)?;
+        w.write_all(&self.body)
+    }
+
+    /// Bytes in the file.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.header.len() + self.body.len()
+    }
+
+    /// Never: a header is always there.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        false
+    }
 }
 
 /// The header of a version 1.0 `.npy` file (the NumPy format specification): magic, version,
@@ -111,12 +163,11 @@ fn npy_header(descr: &str, shape: &[u64]) -> Vec<u8> {
 }
 
 /// `len` values must fill `shape` exactly.
-fn check_fill(path: &Path, shape: &[u64], len: usize) -> Result<(), IoError> {
+fn check_fill(shape: &[u64], len: usize) -> std::io::Result<()> {
     if shape.iter().product::<u64>() == len as u64 {
         return Ok(());
     }
-    let source = std::io::Error::other(format!("{len} values do not fill shape {shape:?}"));
-    Err(IoError::Write { path: path.display().to_string(), source })
+    Err(std::io::Error::other(format!("{len} values do not fill shape {shape:?}")))
 }
 
 /// Rows of results as JSON. Results a device computed in f32 print each value as the

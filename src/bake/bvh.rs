@@ -267,13 +267,13 @@ impl BvhFile {
     /// BVH text of the baked clip at its baked rate: the original hierarchy, new frames.
     #[must_use]
     pub fn to_text(&self, clip: &Clip, baked: &Baked) -> String {
-        let result = &baked.clips[0];
+        let (result, values) = (&baked.clips[0], baked.values(0));
         let frames = result.times.len();
         let mut out = self.hierarchy.clone();
         let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {:.9}\n", 1.0 / result.rate);
         // Per joint: its baked rotation and translation series, if any.
         let series = |joint: usize, property: Property| {
-            clip.channels.iter().position(|c| c.joint == joint && c.property == property).map(|i| &result.values[i])
+            clip.channels.iter().position(|c| c.joint == joint && c.property == property).map(|i| values[i])
         };
         let mut previous: Vec<Vec<f64>> = vec![Vec::new(); self.joints.len()];
         let mut row = String::new();

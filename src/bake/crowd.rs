@@ -4,6 +4,7 @@
 
 use super::{Animation, Channel, Clip, Joint, Property};
 use crate::quat::{DQuat, DVec3};
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 /// Characters in the default crowd.
@@ -53,41 +54,51 @@ pub const JOINTS: usize = SKELETON.len();
 pub fn crowd(characters: usize) -> Animation {
     let keys = (SECONDS * KEY_RATE).round() as usize + 1;
     let times: Vec<f64> = (0..keys).map(|i| i as f64 / KEY_RATE).collect();
-    let mut joints = Vec::with_capacity(characters * JOINTS);
-    let mut channels = Vec::with_capacity(characters * (JOINTS + 1));
     let side = (characters as f64).sqrt().ceil() as usize;
-    for c in 0..characters {
-        let h = |k: u64| ((c as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
-        let cycles = 9.0 + (4.0 * h(1)).floor(); // 0.9 to 1.2 steps per second
-        let (vigour, lean) = (0.8 + 0.4 * h(2), 0.1 * h(3) - 0.05);
-        let phase = TAU * h(4);
-        let origin = [1.5 * (c % side) as f64, 0.0, 1.5 * (c / side) as f64];
-        let first = joints.len();
-        for (j, &(name, parent, rest, amplitude, offset)) in SKELETON.iter().enumerate() {
-            let joint = joints.len();
-            let (parent, rest) = if j == 0 { (None, [origin[0], 0.95, origin[2]]) } else { (Some(first + parent), rest) };
-            joints.push(Joint::at(format!("c{c}/{name}"), parent, rest));
+    // Characters on every core, then laid end to end in character order.
+    let people: Vec<(Vec<Joint>, Vec<Channel>)> = (0..characters).into_par_iter().map(|c| character(c, side, &times)).collect();
+    let (mut joints, mut channels) = (Vec::with_capacity(characters * JOINTS), Vec::with_capacity(characters * (JOINTS + 1)));
+    for (js, chs) in people {
+        joints.extend(js);
+        channels.extend(chs);
+    }
+    Animation { joints, clips: vec![Clip { name: "walk".into(), channels }], skins: Vec::new() }
+}
+
+/// Character `c` of a crowd `side` characters wide: its joints (indices [`JOINTS`] `* c`
+/// onwards) and channels keyed at `times`.
+fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>) {
+    let (mut joints, mut channels) = (Vec::with_capacity(JOINTS), Vec::with_capacity(JOINTS + 1));
+    let h = |k: u64| ((c as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
+    let cycles = 9.0 + (4.0 * h(1)).floor(); // 0.9 to 1.2 steps per second
+    let (vigour, lean) = (0.8 + 0.4 * h(2), 0.1 * h(3) - 0.05);
+    let phase = TAU * h(4);
+    let origin = [1.5 * (c % side) as f64, 0.0, 1.5 * (c / side) as f64];
+    let first = c * JOINTS;
+    for (j, &(name, parent, rest, amplitude, offset)) in SKELETON.iter().enumerate() {
+        let joint = first + j;
+        let (parent, rest) = if j == 0 { (None, [origin[0], 0.95, origin[2]]) } else { (Some(first + parent), rest) };
+        joints.push(Joint::at(format!("c{c}/{name}"), parent, rest));
+        let values = times
+            .iter()
+            .map(|&t| {
+                let a = (TAU * cycles * t / SECONDS + phase + offset).sin();
+                let swing = 0.5 * vigour * amplitude * a;
+                DQuat::exp(DVec3::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
+            })
+            .collect();
+        channels.push(Channel { joint, property: Property::Rotation, times: times.to_vec(), values });
+        if j == 0 {
+            let speed = 1.2 * vigour;
             let values = times
                 .iter()
                 .map(|&t| {
-                    let a = (TAU * cycles * t / SECONDS + phase + offset).sin();
-                    let swing = 0.5 * vigour * amplitude * a;
-                    DQuat::exp(DVec3::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
+                    let bob = 0.03 * (2.0 * (TAU * cycles * t / SECONDS + phase)).cos();
+                    [origin[0], 0.95 + bob, origin[2] + speed * t, 0.0]
                 })
                 .collect();
-            channels.push(Channel { joint, property: Property::Rotation, times: times.clone(), values });
-            if j == 0 {
-                let speed = 1.2 * vigour;
-                let values = times
-                    .iter()
-                    .map(|&t| {
-                        let bob = 0.03 * (2.0 * (TAU * cycles * t / SECONDS + phase)).cos();
-                        [origin[0], 0.95 + bob, origin[2] + speed * t, 0.0]
-                    })
-                    .collect();
-                channels.push(Channel { joint, property: Property::Translation, times: times.clone(), values });
-            }
+            channels.push(Channel { joint, property: Property::Translation, times: times.to_vec(), values });
         }
     }
-    Animation { joints, clips: vec![Clip { name: "walk".into(), channels }], skins: Vec::new() }
+    (joints, channels)
 }

@@ -406,11 +406,11 @@ impl GltfFile {
             accessors.push(accessor);
             accessors.len() - 1
         };
-        for ((clip, sources), result) in self.animation.clips.iter().zip(&self.samplers).zip(&baked.clips) {
+        for (index, ((clip, sources), result)) in self.animation.clips.iter().zip(&self.samplers).zip(&baked.clips).enumerate() {
             let times: Vec<f32> = result.times.iter().map(|&t| t as f32).collect();
             let bounds = (times[0], times[times.len() - 1]);
             let input_accessor = push(&mut bin, &times, "SCALAR", times.len(), Some(bounds));
-            for ((channel, &(anim, sampler)), values) in clip.channels.iter().zip(sources).zip(&result.values) {
+            for ((channel, &(anim, sampler)), values) in clip.channels.iter().zip(sources).zip(baked.values(index)) {
                 let (data, kind): (Vec<f32>, _) = match channel.property {
                     Property::Rotation => (values.iter().flatten().copied().collect(), "VEC4"),
                     _ => (values.iter().flat_map(|v| [v[0], v[1], v[2]]).collect(), "VEC3"),

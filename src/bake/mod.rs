@@ -20,6 +20,7 @@ use crate::job::{EvalJob, Layout};
 use crate::quat::DQuat;
 use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use crate::track::Track;
+use rayon::prelude::*;
 
 /// What a channel animates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -179,7 +180,7 @@ pub enum LoopMode {
 
 crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
 
-/// A resampled clip: frame times and, per channel (in the clip's order), one value per frame.
+/// A resampled clip: frame times, and where each channel's frames lie in [`Baked`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedClip {
     /// Open clips: `start + i / rate` while not past the clip's last key ([`frame_grid`]).
@@ -190,8 +191,17 @@ pub struct BakedClip {
     pub rate: f64,
     /// Whether the clip was baked as a loop (periodic curves, seam continuity).
     pub looping: bool,
-    /// Per channel, per frame: rotations `x, y, z, w`; vectors `x, y, z, 0`.
-    pub values: Vec<Vec<[f32; 4]>>,
+    /// Per channel, in the clip's order: where its frames are ([`Baked::values`]).
+    frames: Vec<Frames>,
+}
+
+/// Where one channel's frames are kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Frames {
+    /// Rows `start..end` of the device's output ([`Baked`]'s `rotations`), as it wrote them.
+    Device(usize, usize),
+    /// Entry `i` of the values computed on the host (vectors, one-key channels).
+    Host(usize),
 }
 
 /// The result of [`bake`].
@@ -205,13 +215,36 @@ pub struct Baked {
     /// The device that evaluated the rotations ([`Device::evaluate_named`]); `None` when
     /// there was no rotation channel to evaluate.
     pub device: Option<String>,
+    /// The device's output, kept as it came (rows `x, y, z, w`, track after track): the
+    /// textures and files read their rows from it, with no copy per channel.
+    rotations: Vec<f32>,
+    /// Channels evaluated on the host, one value per frame.
+    host: Vec<Vec<[f32; 4]>>,
 }
 
 impl Baked {
+    /// Clip `clip`'s channels (in the clip's order), one value per frame: rotations
+    /// `x, y, z, w`; vectors `x, y, z, 0`.
+    ///
+    /// # Panics
+    /// When `clip` is not a clip of this bake.
+    #[must_use]
+    pub fn values(&self, clip: usize) -> Vec<&[[f32; 4]]> {
+        let rows: &[[f32; 4]] = bytemuck::cast_slice(&self.rotations);
+        self.clips[clip]
+            .frames
+            .iter()
+            .map(|&f| match f {
+                Frames::Device(start, end) => &rows[start..end],
+                Frames::Host(i) => self.host[i].as_slice(),
+            })
+            .collect()
+    }
+
     /// Samples written, over every channel.
     #[must_use]
     pub fn sample_count(&self) -> usize {
-        self.clips.iter().flat_map(|c| &c.values).map(Vec::len).sum()
+        (0..self.clips.len()).flat_map(|c| self.values(c)).map(<[_]>::len).sum()
     }
 }
 
@@ -303,17 +336,15 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// [`DeviceError::Input`] naming the clip, joint, property and key for bad keys;
 /// [`DeviceError::Device`] for device failures.
 pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, DeviceError> {
+    // Per clip: whether it loops, its frame grid, and the sample budget, counted before
+    // anything is allocated for it (frames rounded up; the channel samples and the texture's
+    // joint rows).
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
+    let mut grids = Vec::with_capacity(animation.clips.len());
     let mut total_samples = 0usize;
-    // Rotation channels with two keys or more go to the device: (clip, channel) per track.
-    let (mut tracks, mut owners, mut track_clips, mut clip_grids) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut specs = Vec::new();
-    let input = |e: crate::Error| DeviceError::Input(e.to_string());
-    for (c, clip) in animation.clips.iter().enumerate() {
+    for clip in &animation.clips {
         let [start, end] = clip.span();
         let looping = clip_loops(animation, clip, spec, loops)?;
-        // Counted before anything is allocated for the clip (frames rounded up): the channel
-        // samples and the texture's joint rows.
         let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
@@ -329,67 +360,114 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         }
         total_samples += samples as usize;
         let (grid, clip_rate) = if looping { loop_frame_grid(start, end, rate)? } else { (frame_grid(start, end, rate)?, rate) };
-        let times = grid_times(grid);
-        clip_grids.push(grid);
-        let spec = &CurveSpec { looping, ..*spec };
-        let mut values = Vec::with_capacity(clip.channels.len());
-        for (k, channel) in clip.channels.iter().enumerate() {
+        clips.push(BakedClip { times: grid_times(grid), rate: clip_rate, looping, frames: Vec::new() });
+        grids.push(grid);
+    }
+    // Every channel, on every core: rotations with two keys or more become device tracks,
+    // the rest is evaluated here. Errors are reported in channel order.
+    let channels: Vec<(usize, usize)> = animation.clips.iter().enumerate().flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k))).collect();
+    let prepared: Vec<Result<Prepared, DeviceError>> = channels
+        .par_iter()
+        .with_min_len(16)
+        .map(|&(c, k)| {
+            let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
+            let spec = CurveSpec { looping: clips[c].looping, ..*spec };
             let name = animation.label(clip, channel);
-            let id = TrackId { index: k, name: Some(name.clone()) };
-            values.push(match (channel.property, channel.values.len()) {
-                (_, 1) => constant(&id, channel, times.len())?,
+            let frames = &clips[c].times;
+            Ok(match (channel.property, channel.values.len()) {
+                (_, 1) => Prepared::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
                 (Property::Rotation, _) => {
-                    let track = Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) };
-                    specs.push(*spec);
-                    tracks.push(track);
-                    owners.push((c, k));
-                    track_clips.push(c);
-                    Vec::new()
+                    Prepared::Track(Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) }, spec)
                 }
                 _ => {
+                    let id = TrackId { index: k, name: Some(name) };
                     let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, spec).map_err(|e| DeviceError::Input(e.to_string()))?;
-                    times.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect()
+                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec).map_err(|e| DeviceError::Input(e.to_string()))?;
+                    Prepared::Host(frames.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect())
                 }
-            });
-        }
-        clips.push(BakedClip { times, rate: clip_rate, looping, values });
-    }
-    let (mut max_key_error, mut used) = (None, None);
-    if !tracks.is_empty() {
-        // Prepared on every core (bspline-interp solves a system per track).
-        let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
-        // Each channel on its clip's frame grid (three numbers, not a list per channel); a
-        // looping channel whose keys span less than its clip gets the list, which wraps.
-        let times = SampleTimes::per_track(&batch, |i, [first, last]| {
-            let c = track_clips[i];
-            let (frames, grid) = (&clips[c].times, clip_grids[c]);
-            let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
-            Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grid) })
+            })
         })
-        .map_err(input)?;
-        let (out, name) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
-        used = Some(name);
-        for (i, &(c, k)) in owners.iter().enumerate() {
-            let rows = &out.data[4 * times.offsets[i]..4 * times.offsets[i + 1]];
-            clips[c].values[k] = rows.chunks_exact(4).map(|r| [r[0], r[1], r[2], r[3]]).collect();
-        }
-        if interpolates(spec) {
-            let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
-            let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).map_err(input)?;
-            let (out, _) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
-            let worst = tracks
-                .iter()
-                .enumerate()
-                .flat_map(|(i, track)| {
-                    let got = out.data[4 * times.offsets[i]..4 * times.offsets[i + 1]].chunks_exact(4);
-                    track.rotations.iter().zip(got).map(|(&key, q)| DQuat::from_array(key).normalize().angle_to(DQuat::from_xyzw(q[0].into(), q[1].into(), q[2].into(), q[3].into())))
-                })
-                .fold(0.0, f64::max);
-            max_key_error = Some(worst);
+        .collect();
+    let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (&(c, _), prepared) in channels.iter().zip(prepared) {
+        clips[c].frames.push(match prepared? {
+            Prepared::Host(values) => {
+                host.push(values);
+                Frames::Host(host.len() - 1)
+            }
+            Prepared::Track(track, spec) => {
+                tracks.push(track);
+                specs.push(spec);
+                track_clips.push(c);
+                Frames::Device(0, 0)
+            }
+        });
+    }
+    let mut baked = Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host };
+    if tracks.is_empty() {
+        return Ok(baked);
+    }
+    let input = |e: crate::Error| DeviceError::Input(e.to_string());
+    // Prepared on every core (bspline-interp solves a system per track).
+    let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
+    // Each channel on its clip's frame grid (three numbers, not a list per channel); a
+    // looping channel whose keys span less than its clip gets the list, which wraps.
+    let clips = &baked.clips;
+    let times = SampleTimes::per_track(&batch, |i, [first, last]| {
+        let c = track_clips[i];
+        let frames = &clips[c].times;
+        let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
+        Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grids[c]) })
+    })
+    .map_err(input)?;
+    let (out, name) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+    let mut next = 0;
+    for clip in &mut baked.clips {
+        for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
+            *frames = Frames::Device(times.offsets[next], times.offsets[next + 1]);
+            next += 1;
         }
     }
-    Ok(Baked { clips, max_key_error, device: used })
+    baked.rotations = out.data;
+    baked.device = Some(name);
+    if interpolates(spec) {
+        baked.max_key_error = Some(key_error(&tracks, &batch, device)?);
+    }
+    Ok(baked)
+}
+
+/// A channel ready to evaluate: a device track, or its frames computed here.
+enum Prepared {
+    Track(Track, CurveSpec),
+    Host(Vec<[f32; 4]>),
+}
+
+/// The largest angle (rad) between a rotation key and the curve evaluated at that key's time
+/// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
+/// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
+/// per key.
+fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<f64, DeviceError> {
+    let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
+    let times = SampleTimes::new(batch, &overrides, Sampling::Count(1)).map_err(|e| DeviceError::Input(e.to_string()))?;
+    let (out, _) = device.evaluate_f32(&EvalJob { batch, times: &times, layout: Layout::Track, derivatives: false })?;
+    let rows: &[[f32; 4]] = bytemuck::cast_slice(&out.data);
+    let chord = |key: DQuat, q: DQuat| {
+        let s = if key.dot(q) < 0.0 { -1.0 } else { 1.0 };
+        (key - q.mul_scalar(s)).length()
+    };
+    let worst = tracks
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(i, track)| {
+            let got = &rows[times.offsets[i]..times.offsets[i + 1]];
+            track.rotations.iter().zip(got).map(|(&key, q)| {
+                let (key, q) = (DQuat::from_array(key).normalize(), DQuat::from_array(q.map(f64::from)));
+                (chord(key, q.normalize()), key, q)
+            })
+        })
+        // NaN (a non-finite sample) wins, as it would in a max over angles that fails.
+        .reduce(|| (0.0, DQuat::identity(), DQuat::identity()), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a });
+    Ok(if worst.0.is_nan() { f64::NAN } else { worst.1.angle_to(worst.2) })
 }
 
 /// A one-key channel held for every frame (checked like any key).

@@ -11,7 +11,7 @@
 //! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
 //! value), frames on every core.
 
-use super::{Animation, BakedClip, Clip, Property, Skin};
+use super::{Animation, Baked, Property, Skin};
 use crate::device::{Device, DeviceError};
 use rayon::prelude::*;
 
@@ -70,17 +70,18 @@ crate::curve::names!(Precision, "precision", F32 => "f32", F16 => "f16");
 /// translation, scale), joints in [`Animation::joints`] order; what the clip does not
 /// animate keeps the joint's rest value.
 #[must_use]
-pub fn local(animation: &Animation, clip: &Clip, baked: &BakedClip) -> Vec<f32> {
+pub fn local(animation: &Animation, baked: &Baked, clip: usize) -> Vec<f32> {
+    let (values, frames) = (baked.values(clip), baked.clips[clip].times.len());
     let rest: Vec<f32> = animation
         .joints
         .iter()
         .flat_map(|j| j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>())
         .collect();
     let row = rest.len();
-    let mut data = vec![0.0f32; baked.times.len() * row];
+    let mut data = vec![0.0f32; frames * row];
     data.par_chunks_mut(row.max(1)).enumerate().for_each(|(frame, out)| {
         out.copy_from_slice(&rest);
-        for (channel, values) in clip.channels.iter().zip(&baked.values) {
+        for (channel, values) in animation.clips[clip].channels.iter().zip(&values) {
             let at = channel.joint * LOCAL_CHANNELS;
             let v = &values[frame];
             match channel.property {
@@ -191,8 +192,8 @@ pub struct Sheet {
 ///
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
-pub fn sheets(animation: &Animation, order: &[usize], clip: &Clip, baked: &BakedClip, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, DeviceError> {
-    let local = local(animation, clip, baked);
+pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, DeviceError> {
+    let local = local(animation, baked, clip);
     let model = if kind == TextureKind::Local { None } else { Some(model_on(device, animation, order, &local)?) };
     Ok(arrange(animation, order, kind, local, model))
 }

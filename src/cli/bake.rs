@@ -3,14 +3,14 @@
 //! Per input file: read, bake every clip, then write all of that file's outputs atomically;
 //! a failure in one file is reported and the others still finish (exit non-zero at the end).
 
-use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
+use super::manifest::{hash_bytes, hash_file, hash_parts, FileRecord, InputRecord, Manifest, ShardRecord};
 use super::shard::Shard;
 use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use quatcurve::bake::texture::{self, Precision, TextureKind};
 use quatcurve::bake::{self, bvh, crowd, gltf, Animation, Baked, LoopMode};
-use quatcurve::io::{write_atomic, write_npy, write_npy_f16};
+use quatcurve::io::{write_atomic, Npy};
 use quatcurve::{Curve, CurveSpec, Device, KnotMode};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -87,9 +87,22 @@ struct Row {
     samples: usize,
     seconds: f64,
     max_key_error: Option<f64>,
-    outcome: Result<Vec<PathBuf>, Failure>,
+    outcome: Result<Vec<Written>, Failure>,
     /// Skipped by `--resume`: the earlier run's outputs were verified and kept.
     resumed: bool,
+}
+
+/// A file an input wrote, with its size and SHA-256 when they were taken as it was written
+/// (the textures: hashed from memory while the bytes go to disk, not read back).
+struct Written {
+    path: PathBuf,
+    hash: Option<(u64, String)>,
+}
+
+impl From<PathBuf> for Written {
+    fn from(path: PathBuf) -> Self {
+        Self { path, hash: None }
+    }
 }
 
 /// A source read into the common model, with what it needs to write itself back.
@@ -298,7 +311,7 @@ fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), Failure> {
 
 /// An input `--resume` skips: the earlier run's record, its outputs verified intact.
 fn resumed_row(name: &str, record: &InputRecord, dir: &Path) -> Row {
-    let files = record.outputs.iter().map(|o| dir.join(&o.file)).collect();
+    let files = record.outputs.iter().map(|o| Written::from(dir.join(&o.file))).collect();
     Row { source: name.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(files), resumed: true }
 }
 
@@ -307,7 +320,13 @@ fn input_record(row: &Row, (size, sha256): (u64, String), kept: Option<&InputRec
     let (status, error, outputs) = match (&row.outcome, kept) {
         (Ok(_), Some(kept)) => ("resumed", None, kept.outputs.clone()),
         (Ok(files), None) => {
-            let record = |p: &PathBuf| FileRecord::of(p, p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()));
+            let record = |w: &Written| {
+                let file = w.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                match &w.hash {
+                    Some((size, sha256)) => Ok(FileRecord { file, size: *size, sha256: sha256.clone() }),
+                    None => FileRecord::of(&w.path, file),
+                }
+            };
             match files.iter().map(record).collect::<std::io::Result<Vec<_>>>() {
                 Ok(outputs) => ("ok", None, outputs),
                 Err(e) => ("failed", Some(format!("cannot hash an output: {e}")), Vec::new()),
@@ -431,10 +450,10 @@ fn bake_one(
 /// Writes the baked file (GLB or BVH), one `.npy` texture per clip and the sidecar; if any
 /// write fails, removes the ones already written so the job leaves nothing partial.
 /// Forward kinematics (model and skin textures, previews) runs on `fk_device`, the bake's.
-fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &BakeArgs, device: &str, fk_device: &Device) -> Result<Vec<PathBuf>, Failure> {
+fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &BakeArgs, device: &str, fk_device: &Device) -> Result<Vec<Written>, Failure> {
     let animation = src.animation();
     let dir = &args.output;
-    let mut written: Vec<PathBuf> = Vec::new();
+    let mut written: Vec<Written> = Vec::new();
     let result = (|| {
         // Checked before anything is written.
         let order = animation.parents_first()?;
@@ -450,18 +469,26 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
             let path = dir.join(name);
             refuse_overwriting_input(&path, source)?;
             write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| Failure::Input(e.to_string()))?;
-            written.push(path);
+            written.push(path.into());
         }
         let channels = args.texture.channels();
-        let write_sheet = |name: &str, frames: usize, width: usize, data: &[f32]| -> Result<PathBuf, Failure> {
+        let write_sheet = |name: &str, frames: usize, width: usize, data: &[f32]| -> Result<Written, Failure> {
             let path = dir.join(name);
             let shape = [frames as u64, width as u64, channels as u64];
-            match args.precision {
-                Precision::F32 => write_npy(&path, &shape, data),
-                Precision::F16 => write_npy_f16(&path, &shape, data),
+            let failed = |e: std::io::Error| Failure::Input(format!("{}: cannot write: {e}", path.display()));
+            let npy = match args.precision {
+                Precision::F32 => Npy::f32(&shape, data),
+                Precision::F16 => Npy::f16(&shape, data),
             }
-            .map_err(|e| Failure::Input(e.to_string()))?;
-            Ok(path)
+            .map_err(failed)?;
+            // The manifest's SHA-256 on another core while the bytes go to disk.
+            let (sha256, result) = std::thread::scope(|s| {
+                let sha256 = s.spawn(|| hash_parts(&[&npy.header, &npy.body]));
+                (sha256.join(), write_atomic(&path, |w| npy.write(w)))
+            });
+            result.map_err(|e| Failure::Input(e.to_string()))?;
+            let sha256 = sha256.map_err(|_| Failure::Internal(format!("{}: hashing failed", path.display())))?;
+            Ok(Written { path, hash: Some((npy.len() as u64, sha256)) })
         };
         let mut clips = Vec::new();
         // --atlas: per sheet, every clip's rows.
@@ -470,13 +497,13 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
             let frames = result.times.len();
             // Forward kinematics once per clip, for the textures and the preview alike.
-            let local = texture::local(animation, clip, result);
+            let local = texture::local(animation, baked, index);
             let model = if args.texture != TextureKind::Local || args.preview { Some(texture::model_on(fk_device, animation, &order, &local)?) } else { None };
             let preview = match &model {
                 Some(model) if args.preview => {
                     let name = format!("{stem}.{index}.png");
                     super::plot::skeleton(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), model, animation, frames).map_err(Failure::Input)?;
-                    written.push(dir.join(&name));
+                    written.push(dir.join(&name).into());
                     Some(name)
                 }
                 _ => None,
@@ -541,14 +568,14 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| Failure::Input(e.to_string()))?;
-        written.push(path);
+        written.push(path.into());
         Ok(())
     })();
     match result {
         Ok(()) => Ok(written),
         Err(e) => {
-            for path in &written {
-                let _ = std::fs::remove_file(path);
+            for file in &written {
+                let _ = std::fs::remove_file(&file.path);
             }
             Err(e)
         }

@@ -90,7 +90,16 @@ pub fn hash_file(path: &Path) -> std::io::Result<(u64, String)> {
 
 /// Lowercase hex SHA-256 of bytes.
 pub fn hash_bytes(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
+    hash_parts(&[bytes])
+}
+
+/// Lowercase hex SHA-256 of `parts` one after another (a file's bytes before they are written).
+pub fn hash_parts(parts: &[&[u8]]) -> String {
+    let mut hasher = Sha256::new();
+    for part in parts {
+        hasher.update(part);
+    }
+    hex(&hasher.finalize())
 }
 
 fn hex(bytes: &[u8]) -> String {

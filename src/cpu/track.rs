@@ -82,12 +82,15 @@ pub struct Tables<'a> {
 }
 
 impl<'a> Tables<'a> {
-    /// Converts the batch's points and coefficients to f32.
+    /// Converts the batch's points and coefficients to f32 (on every core: a crowd's
+    /// millions of keys cost more here than evaluating its few samples per key).
     pub fn new(batch: &Batch, bases: &'a Bases) -> Self {
-        let points = batch.points.iter().map(|q| q.to_array().map(|v| v as f32)).collect();
+        use rayon::prelude::*;
+        let points = batch.points.par_iter().with_min_len(1 << 12).map(|q| q.to_array().map(|v| v as f32)).collect();
         let axes = batch
             .coefs
-            .iter()
+            .par_iter()
+            .with_min_len(1 << 12)
             .map(|c| {
                 let theta = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
                 if theta > 0.0 {

@@ -177,8 +177,8 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 let baked = bake::bake(&file.animation, &spec, 10.0, LoopMode::Auto, device())?;
                 file.to_glb(&baked)?;
                 let order = file.animation.parents_first()?;
-                for (clip, result) in file.animation.clips.iter().zip(&baked.clips) {
-                    let _ = bake::texture::sheets(&file.animation, &order, clip, result, bake::texture::TextureKind::Skin, device());
+                for clip in 0..baked.clips.len() {
+                    let _ = bake::texture::sheets(&file.animation, &order, &baked, clip, bake::texture::TextureKind::Skin, device());
                 }
             }
             Kind::Bvh => {
@@ -191,7 +191,7 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 let baked = bake::bake(&animation, &spec, 10.0, LoopMode::Auto, device())?;
                 let _ = file.to_text(&animation.clips[0], &baked);
                 let order = animation.parents_first()?;
-                let _ = bake::texture::sheets(&animation, &order, &animation.clips[0], &baked.clips[0], bake::texture::TextureKind::Model, device());
+                let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
             }
             Kind::Npy => {
                 let dir = tempfile::tempdir().unwrap();
