@@ -1,5 +1,6 @@
 // The batch evaluation kernel: the twin of src/reference.rs. One invocation per sample.
-// The packed batch is the reference's, converted to f32 (times and knots as double-floats).
+// The packed batch is the reference's, converted to f32 (times and knots as 32.32 fixed
+// point, see segment.wgsl).
 
 const WORKGROUP_SIZE: u32 = 64u;
 

@@ -45,7 +45,9 @@ fn quat_rotate(q: vec4f, v: vec3f) -> vec3f {
     return quat_mul(quat_mul(q, vec4f(v, 0.0)), quat_conjugate(q)).xyz;
 }
 
-/// Row-major 3x3 rotation matrix, rows as vectors.
+/// The rows of the rotation matrix R (`R p = q p q^-1`), row r as `m[r]`. WGSL's `mat3x3f`
+/// constructor takes columns, so as a WGSL matrix this value is R transposed: read its
+/// vectors as rows, never multiply it as R.
 fn quat_to_mat3(q: vec4f) -> mat3x3f {
     let x = q.x;
     let y = q.y;

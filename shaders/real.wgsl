@@ -80,7 +80,7 @@ fn horner_step(acc: vec3f, x: f32, ck: f32) -> vec3f {
 fn cos_sqrt(x: f32) -> vec3f {
     if x < SERIES_LIMIT {
         var acc = vec3f(0.0);
-        acc = horner_step(acc, x, 2.087675699e-09);
+        acc = horner_step(acc, x, 2.08767569878681e-09);
         acc = horner_step(acc, x, -2.755731922e-07);
         acc = horner_step(acc, x, 2.48015873e-05);
         acc = horner_step(acc, x, -0.001388888889);

@@ -23,7 +23,7 @@
 //! with their seam neighbours built in (tangents, auxiliary and phantom points, periodic control
 //! points) and [`PackedTrack::looping`] set, so that evaluators wrap sample times.
 
-use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
+use crate::curve::{Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER, MIN_ORDER};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::{DQuat, DVec3};
 use crate::track::Track;
@@ -563,8 +563,8 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
 /// Shared with the Euclidean analogue ([`crate::euclidean`]), so both use the same basis.
 pub(crate) fn bspline_knots(id: &TrackId, explicit: Option<&[f64]>, spec: &CurveSpec, times: &[f64]) -> Result<Vec<f64>> {
     let k = spec.order;
-    if !(2..=8).contains(&k) {
-        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside 2..=8") });
+    if !(MIN_ORDER..=MAX_ORDER).contains(&k) {
+        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside {MIN_ORDER}..={MAX_ORDER}") });
     }
     let n = times.len() - 1;
     let (t0, tn) = (times[0], times[n]);

@@ -55,12 +55,18 @@ pub enum Blend {
     Quadratic,
 }
 
+/// Lowest B-spline order (degree + 1): a piecewise slerp.
+pub const MIN_ORDER: usize = 2;
+/// Highest B-spline order every evaluator runs. The CPU's fitted bases and the GPU's
+/// tables are sized for it; the shader's `MAX_ORDER` is checked against it by a test.
+pub const MAX_ORDER: usize = 8;
+
 /// Everything that selects and shapes a curve, besides the track data itself.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CurveSpec {
     /// The family.
     pub curve: Curve,
-    /// B-spline order k (degree k - 1), 2..=8. Ignored by other families.
+    /// B-spline order k (degree k - 1), [`MIN_ORDER`]`..=`[`MAX_ORDER`]. Ignored by other families.
     pub order: usize,
     /// B-spline knot mode. Ignored by other families.
     pub knots: KnotMode,

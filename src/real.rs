@@ -382,4 +382,23 @@ mod tests {
             check(-(x - x.scale(3.0)), |t| 2.0 * t, t);
         }
     }
+
+    /// The shader's Taylor coefficients, typed as decimals in `shaders/real.wgsl`
+    /// (`horner_step(acc, x, c)`, highest power first), are this file's tables rounded to f32.
+    #[test]
+    fn shader_series_are_these_series() {
+        let wgsl = include_str!("../shaders/real.wgsl");
+        let coefficients = |function: &str| -> Vec<f64> {
+            let body = &wgsl[wgsl.find(&format!("fn {function}(")).unwrap_or_else(|| panic!("no fn {function}"))..];
+            let body = &body[..body.find("\n}\n").expect("function end")];
+            body.split("horner_step(acc, x, ").skip(1).map(|rest| rest[..rest.find(')').expect(")")].parse().expect("a number")).collect()
+        };
+        for (function, series) in [("cos_sqrt", &COS_SERIES[..]), ("sinc_sqrt", &SINC_SERIES[..]), ("atanc_sqrt", &ATANC_SERIES[..])] {
+            let shader = coefficients(function);
+            assert!(shader.len() >= 7, "{function}: {shader:?}");
+            for (k, &c) in shader.iter().rev().enumerate() {
+                assert_eq!(c as f32, series[k] as f32, "{function}: coefficient of x^{k}");
+            }
+        }
+    }
 }

@@ -88,10 +88,10 @@ fn codes_and_limits_match_the_shader_constants() {
     assert_eq!(layout::FLAG_HAS_LAST, c("FLAG_HAS_LAST"));
     assert_eq!(layout::FLAG_UNIFORM_KNOTS, c("FLAG_UNIFORM_KNOTS"));
     assert_eq!(layout::MAX_BEZIER_DEGREE as u32, c("MAX_BEZIER_DEGREE"));
-    assert_eq!(8, c("MAX_ORDER"), "B-spline orders 2..=8");
+    assert_eq!(quatcurve::curve::MAX_ORDER as u32, c("MAX_ORDER"), "highest B-spline order");
     assert_eq!(layout::POLY_HERMITE, c("POLY_HERMITE"));
     // The table: the uniform B-spline bases of orders 2..=8, then Hermite's three functions.
-    let bspline_functions: usize = (2..=8).map(|k| k - 1).sum();
+    let bspline_functions: usize = (quatcurve::curve::MIN_ORDER..=quatcurve::curve::MAX_ORDER).map(|k| k - 1).sum();
     assert_eq!(layout::POLY_HERMITE as usize, bspline_functions);
     assert_eq!(layout::polynomial_table().len(), 2 * (bspline_functions + 3));
 }
@@ -120,4 +120,42 @@ fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
     // The channel counts the kernel strides by are the texture's.
     assert_eq!(shader::constant_u32(&module, "FK_LOCAL_CHANNELS"), Some(quatcurve::bake::texture::LOCAL_CHANNELS as u32));
     assert_eq!(shader::constant_u32(&module, "FK_MATRIX_CHANNELS"), Some(quatcurve::bake::texture::MATRIX_CHANNELS as u32));
+}
+
+#[test]
+fn series_limit_is_the_rusts() {
+    let (module, _) = shader::module().unwrap();
+    let (_, limit) = module.constants.iter().find(|(_, c)| c.name.as_deref() == Some("SERIES_LIMIT")).expect("SERIES_LIMIT");
+    match module.global_expressions[limit.init] {
+        naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(f64::from(v), quatcurve::real::SERIES_LIMIT),
+        ref other => panic!("SERIES_LIMIT is {other:?}"),
+    }
+}
+
+#[test]
+fn bind_group_layouts_come_from_the_shaders() {
+    use wgpu::{BindingType, BufferBindingType};
+    let kind = |e: &wgpu::BindGroupLayoutEntry| match e.ty {
+        BindingType::Buffer { ty: BufferBindingType::Uniform, .. } => "uniform",
+        BindingType::Buffer { ty: BufferBindingType::Storage { read_only: true }, .. } => "read",
+        BindingType::Buffer { ty: BufferBindingType::Storage { read_only: false }, .. } => "read_write",
+        _ => "other",
+    };
+    let (eval, _) = shader::module().unwrap();
+    let (fk, _) = shader::fk_module().unwrap();
+    for (module, expected) in [
+        (&eval, &[("params", "uniform"), ("tracks", "read"), ("points", "read"), ("coefs", "read"), ("knots", "read"), ("times", "read"), ("out", "read_write"), ("poly", "read")][..]),
+        (&fk, &[("fk_local", "read"), ("fk_parents", "read"), ("fk_level_joints", "read"), ("fk_model", "read_write"), ("fk_level", "uniform")][..]),
+    ] {
+        let resources = shader::Resources::of(module).unwrap();
+        let got: Vec<(&str, &str)> = resources.iter().map(|(name, e)| (name, kind(e))).collect();
+        assert_eq!(got, expected);
+        // Binding numbers in order, as the layout lists them.
+        let numbers: Vec<u32> = resources.layout_entries().iter().map(|e| e.binding).collect();
+        assert!(numbers.windows(2).all(|w| w[0] < w[1]), "{numbers:?}");
+        for (name, _) in expected {
+            assert!(resources.binding(name).is_ok(), "{name}");
+        }
+    }
+    assert!(shader::Resources::of(&eval).unwrap().binding("nothing").is_err());
 }

@@ -465,7 +465,7 @@ fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<
                 (chord(key, q.normalize()), key, q)
             })
         })
-        // NaN (a non-finite sample) wins, as it would in a max over angles that fails.
+        // A NaN (a non-finite sample) wins: it must not pass for a small error.
         .reduce(|| (0.0, DQuat::identity(), DQuat::identity()), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a });
     Ok(if worst.0.is_nan() { f64::NAN } else { worst.1.angle_to(worst.2) })
 }

@@ -10,11 +10,12 @@ use crate::quat::DQuat;
 use crate::reference;
 use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
+use crate::curve::{MAX_ORDER, MIN_ORDER};
 use std::ops::Range;
 use wide::f32x8;
 
-/// Most factors in one product: order-8 B-spline.
-pub(super) const MAX_FACTORS: usize = 7;
+/// Most factors in one product: a B-spline of the highest order.
+pub(super) const MAX_FACTORS: usize = MAX_ORDER - 1;
 
 /// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
 /// `count` functions of degree `len - 1 < 8`, f32 coefficients lowest first.
@@ -57,7 +58,7 @@ impl PolyBasis {
 pub struct Bases {
     slerp: PolyBasis,
     hermite: PolyBasis,
-    /// Uniform-knot B-spline bases, index `k - 2` for orders 2..=8.
+    /// Uniform-knot B-spline bases, index `k - MIN_ORDER` for orders [`MIN_ORDER`]`..=`[`MAX_ORDER`].
     bspline: Vec<PolyBasis>,
 }
 
@@ -67,7 +68,7 @@ impl Bases {
         Self {
             slerp: PolyBasis::new(1, fit_polynomials(1, |u| vec![[u, 1.0, 0.0]])),
             hermite: PolyBasis::new(3, bernstein_polynomials(3)),
-            bspline: (2..=8).map(|k| PolyBasis::new(k - 1, uniform_bspline_polynomials(k))).collect(),
+            bspline: (MIN_ORDER..=MAX_ORDER).map(|k| PolyBasis::new(k - 1, uniform_bspline_polynomials(k))).collect(),
         }
     }
 }
@@ -147,7 +148,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
-            let basis = if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - 2]) } else { Basis::CoxDeBoor };
+            let basis = if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - MIN_ORDER]) } else { Basis::CoxDeBoor };
             (basis, k - 1, k - 1, view.points.len() - 1)
         }
         // One segment; degrees beyond the product's capacity take the reference below.

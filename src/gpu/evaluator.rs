@@ -71,6 +71,8 @@ pub struct GpuEvaluator {
     software: bool,
     module: wgpu::ShaderModule,
     bind_group_layout: wgpu::BindGroupLayout,
+    /// The program's buffers by name (binding numbers read from the shader).
+    resources: shader::Resources,
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
     workgroup_size: u32,
@@ -158,38 +160,8 @@ impl GpuEvaluator {
             label: Some("quatcurve eval"),
             source: wgpu::ShaderSource::Wgsl(shader::source().into()),
         });
-        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("quatcurve eval"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage(1, true),
-                storage(2, true),
-                storage(3, true),
-                storage(4, true),
-                storage(5, true),
-                storage(6, false),
-                storage(7, true),
-            ],
-        });
+        let resources = shader::Resources::of(&naga_module).map_err(GpuError::Shader)?;
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve eval"), entries: &resources.layout_entries() });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("quatcurve eval"),
             bind_group_layouts: &[Some(&bind_group_layout)],
@@ -214,6 +186,7 @@ impl GpuEvaluator {
             software: false,
             module,
             bind_group_layout,
+            resources,
             pipeline_layout,
             pipelines: Mutex::new(HashMap::new()),
             workgroup_size,
@@ -456,10 +429,12 @@ impl GpuEvaluator {
                 mapped_at_creation: false,
             }),
         };
-        let mut entries: Vec<wgpu::BindGroupEntry<'_>> =
-            inputs.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
-        entries.push(wgpu::BindGroupEntry { binding: 6, resource: output.as_entire_binding() });
-        entries.push(wgpu::BindGroupEntry { binding: 7, resource: self.polynomials.as_entire_binding() });
+        // Bound by the shader's variable names, which are also the buffers' labels.
+        let names = ["params", "tracks", "points", "coefs", "knots", "times"];
+        let buffers = names.iter().zip(&inputs).chain([(&"out", &output), (&"poly", &self.polynomials)]);
+        let entries = buffers
+            .map(|(name, buffer)| Ok(wgpu::BindGroupEntry { binding: self.resources.binding(name).map_err(GpuError::Shader)?, resource: buffer.as_entire_binding() }))
+            .collect::<Result<Vec<_>, GpuError>>()?;
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("quatcurve eval"),
             layout: &self.bind_group_layout,

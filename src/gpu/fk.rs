@@ -30,6 +30,8 @@ pub struct FkLevel {
 pub(crate) struct FkPipeline {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// The program's buffers by name (binding numbers read from the shader).
+    resources: shader::Resources,
     workgroup_size: u32,
 }
 
@@ -38,22 +40,8 @@ impl FkPipeline {
         let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
         let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
         let scope = ErrorScope::push(device);
-        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        let uniform = wgpu::BindGroupLayoutEntry {
-            binding: 4,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("quatcurve fk"),
-            entries: &[storage(0, true), storage(1, true), storage(2, true), storage(3, false), uniform],
-        });
+        let resources = shader::Resources::of(&module).map_err(GpuError::Shader)?;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve fk"), entries: &resources.layout_entries() });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("quatcurve fk"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("quatcurve fk"), source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()) });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -65,7 +53,7 @@ impl FkPipeline {
             cache: None,
         });
         scope.pop()?;
-        Ok(Self { pipeline, layout, workgroup_size })
+        Ok(Self { pipeline, layout, resources, workgroup_size })
     }
 }
 
@@ -175,12 +163,15 @@ impl GpuEvaluator {
                     contents: bytemuck::bytes_of(&level),
                     usage: wgpu::BufferUsages::UNIFORM,
                 });
-                let entries = [local.as_entire_binding(), parents.as_entire_binding(), levels.as_entire_binding(), model.as_entire_binding(), uniform.as_entire_binding()];
-                let entries: Vec<wgpu::BindGroupEntry<'_>> = entries.into_iter().enumerate().map(|(i, resource)| wgpu::BindGroupEntry { binding: i as u32, resource }).collect();
+                let buffers = [("fk_local", &local), ("fk_parents", parents), ("fk_level_joints", levels), ("fk_model", &model), ("fk_level", &uniform)];
+                let entries = buffers
+                    .into_iter()
+                    .map(|(name, buffer)| Ok(wgpu::BindGroupEntry { binding: fk.resources.binding(name).map_err(GpuError::Shader)?, resource: buffer.as_entire_binding() }))
+                    .collect::<Result<Vec<_>, GpuError>>()?;
                 let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("quatcurve fk"), layout: &fk.layout, entries: &entries });
-                (group, [x, y])
+                Ok((group, [x, y]))
             })
-            .collect();
+            .collect::<Result<_, GpuError>>()?;
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve fk"), timestamp_writes: None });
             pass.set_pipeline(&fk.pipeline);

@@ -180,7 +180,7 @@ pub const POLY_HERMITE: u32 = 28;
 /// memory (half the kernel's time).
 #[must_use]
 pub fn polynomial_table() -> Vec<[f32; 4]> {
-    let functions = (2..=8).flat_map(crate::basis::uniform_bspline_polynomials).chain(crate::basis::bernstein_polynomials(3));
+    let functions = (crate::curve::MIN_ORDER..=crate::curve::MAX_ORDER).flat_map(crate::basis::uniform_bspline_polynomials).chain(crate::basis::bernstein_polynomials(3));
     functions.flat_map(|c| [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]]].map(|v| v.map(|x| x as f32))).collect()
 }
 

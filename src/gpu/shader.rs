@@ -88,6 +88,72 @@ pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, St
     }
 }
 
+/// A program's buffers as naga reflects them: every module-scope variable with a `@binding`,
+/// by name, with the bind group layout entry its address space implies. The host builds its
+/// layouts and bind groups from this, so binding numbers and access modes are written once, in
+/// the shader.
+#[derive(Clone, Debug)]
+pub struct Resources {
+    /// `(variable name, layout entry)`, by binding number.
+    entries: Vec<(String, wgpu::BindGroupLayoutEntry)>,
+}
+
+impl Resources {
+    /// Reads the resources of `module`.
+    ///
+    /// # Errors
+    /// A resource outside group 0, unnamed, or not a uniform or storage buffer.
+    pub fn of(module: &naga::Module) -> Result<Self, String> {
+        let mut entries = Vec::new();
+        for (_, var) in module.global_variables.iter() {
+            let Some(binding) = &var.binding else { continue };
+            let name = var.name.clone().ok_or("a resource without a name")?;
+            if binding.group != 0 {
+                return Err(format!("`{name}` is in group {}; the host binds group 0 only", binding.group));
+            }
+            let ty = match var.space {
+                naga::AddressSpace::Uniform => wgpu::BufferBindingType::Uniform,
+                naga::AddressSpace::Storage { access } => wgpu::BufferBindingType::Storage {
+                    read_only: !access.contains(naga::StorageAccess::STORE),
+                },
+                other => return Err(format!("`{name}` is in {other:?}, not a buffer")),
+            };
+            let entry = wgpu::BindGroupLayoutEntry {
+                binding: binding.binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            };
+            entries.push((name, entry));
+        }
+        entries.sort_by_key(|(_, e)| e.binding);
+        Ok(Self { entries })
+    }
+
+    /// The bind group layout entries, by binding number.
+    #[must_use]
+    pub fn layout_entries(&self) -> Vec<wgpu::BindGroupLayoutEntry> {
+        self.entries.iter().map(|(_, e)| *e).collect()
+    }
+
+    /// The binding number of the buffer variable `name`.
+    ///
+    /// # Errors
+    /// When the program has no such buffer.
+    pub fn binding(&self, name: &str) -> Result<u32, String> {
+        self.entries
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, e)| e.binding)
+            .ok_or_else(|| format!("the shader has no buffer `{name}`"))
+    }
+
+    /// `(name, layout entry)` of every buffer, by binding number.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &wgpu::BindGroupLayoutEntry)> {
+        self.entries.iter().map(|(n, e)| (n.as_str(), e))
+    }
+}
+
 /// A `u32` module-scope constant, by name (curve codes, limits).
 #[must_use]
 pub fn constant_u32(module: &naga::Module, name: &str) -> Option<u32> {
