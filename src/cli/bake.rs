@@ -487,7 +487,11 @@ fn write_outputs(src: &Source, baked: &Baked, source: &str, stem: &str, args: &B
                 (sha256.join(), write_atomic(&path, |w| npy.write(w)))
             });
             result.map_err(|e| Failure::Input(e.to_string()))?;
-            let sha256 = sha256.map_err(|_| Failure::Internal(format!("{}: hashing failed", path.display())))?;
+            // Written but not recorded: taken away again, as every output of a failed input is.
+            let sha256 = sha256.map_err(|_| {
+                let _ = std::fs::remove_file(&path);
+                Failure::Internal(format!("{}: hashing failed", path.display()))
+            })?;
             Ok(Written { path, hash: Some((npy.len() as u64, sha256)) })
         };
         let mut clips = Vec::new();

@@ -12,7 +12,7 @@ use crate::curve::{Blend, Curve};
 use crate::quat::{DQuat, DVec3};
 use crate::sampling::SampleTimes;
 use crate::segment::locate;
-use wide::{f32x8, CmpGt, CmpLe, CmpLt};
+use super::simd::{Isa, Lanes};
 
 /// The great arc `start * exp(x v)`, written `cos(x theta) start + sin(x theta) lead` with
 /// `lead = start * (axis, 0)`: no quaternion product per sample.
@@ -40,28 +40,30 @@ impl Arc {
 }
 
 /// Eight lanes of one [`Arc`] (the same arc broadcast, or gathered per lane).
-struct Arc8 {
-    start: Q8,
-    lead: Q8,
-    theta: f32x8,
+struct Arc8<S> {
+    start: Q8<S>,
+    lead: Q8<S>,
+    theta: S,
 }
 
-impl Arc8 {
+impl<S: Lanes> Arc8<S> {
+    #[inline(always)]
     fn gather(arcs: &[Arc; LANES]) -> Self {
         Self {
             start: Q8::gather(&arcs.map(|a| a.start)),
             lead: Q8::gather(&arcs.map(|a| a.lead)),
-            theta: f32x8::new(arcs.map(|a| a.theta)),
+            theta: S::new(arcs.map(|a| a.theta)),
         }
     }
 
+    #[inline(always)]
     fn splat(a: &Arc) -> Self {
-        Self { start: Q8::splat(a.start), lead: Q8::splat(a.lead), theta: f32x8::splat(a.theta) }
+        Self { start: Q8::splat(a.start), lead: Q8::splat(a.lead), theta: S::splat(a.theta) }
     }
 
     /// The point at parameter `x`.
     #[inline(always)]
-    fn at(&self, x: f32x8) -> Q8 {
+    fn at(&self, x: S) -> Q8<S> {
         let (sin, cos) = (x * self.theta).sin_cos();
         self.start.along(self.lead, sin, cos)
     }
@@ -71,17 +73,20 @@ impl Arc8 {
 /// end, `q * exp((1 - g) log(q^-1 p))`, and about the `x` axis where the log has no axis
 /// (`p^-1 q = (-1, 0, 0, 0)` exactly).
 #[inline(always)]
-fn geodesic(p: Q8, q: Q8, g: f32x8) -> Q8 {
-    let flip = g.cmp_gt(f32x8::splat(0.5));
-    let pick = |a: Q8, b: Q8| Q8 { x: flip.blend(b.x, a.x), y: flip.blend(b.y, a.y), z: flip.blend(b.z, a.z), w: flip.blend(b.w, a.w) };
-    let (p, q, g) = (pick(p, q), pick(q, p), flip.blend(f32x8::ONE - g, g));
+fn geodesic<S: Lanes>(p: Q8<S>, q: Q8<S>, g: S) -> Q8<S> {
+    let flip = g.cmp_gt(S::splat(0.5));
+    #[inline(always)]
+    fn pick<S: Lanes>(flip: S, a: Q8<S>, b: Q8<S>) -> Q8<S> {
+        Q8 { x: flip.blend(b.x, a.x), y: flip.blend(b.y, a.y), z: flip.blend(b.z, a.z), w: flip.blend(b.w, a.w) }
+    }
+    let (p, q, g) = (pick(flip, p, q), pick(flip, q, p), flip.blend(S::ONE - g, g));
     let r = p.conjugate() * q;
     let n = (r.x * r.x + r.y * r.y + r.z * r.z).sqrt();
     let angle = n.atan2(r.w);
     let (sin, cos) = (g * angle).sin_cos();
-    let some = n.cmp_gt(f32x8::ZERO);
-    let k = some.blend(sin / n, f32x8::ZERO);
-    let x_axis = r.w.cmp_lt(f32x8::ZERO) & !some & f32x8::ONE;
+    let some = n.cmp_gt(S::ZERO);
+    let k = some.blend(sin / n, S::ZERO);
+    let x_axis = r.w.cmp_lt(S::ZERO) & !some & S::ONE;
     p * Q8 { x: r.x.mul_add(k, x_axis * sin), y: r.y * k, z: r.z * k, w: cos }
 }
 
@@ -100,12 +105,31 @@ fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
 
 /// Writes the rotations of samples `from..from + n` of squad or Nam-Kim track `index` into
 /// `out` (rows of `channels` floats, rotation first).
-pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate(isa: Isa, view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+    match isa {
+        // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { evaluate_avx2(view, times, index, from, n, channels, out) },
+        _ => evaluate_lanes::<wide::f32x8>(view, times, index, from, n, channels, out),
+    }
+}
+
+/// [`evaluate_lanes`] on AVX2 registers, compiled for them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn evaluate_avx2(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+    evaluate_lanes::<super::simd::Avx2>(view, times, index, from, n, channels, out);
+}
+
+/// [`evaluate`] on lanes of type `S`.
+#[inline(always)]
+fn evaluate_lanes<S: Lanes>(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
     let knots = view.knots;
     let last = knots.len() - 2;
     let arcs = segment_arcs(view);
     let (squad, blend) = (view.track.curve == Curve::Squad, view.track.blend);
-    let second_offset = f32x8::splat(if squad { 0.0 } else { 1.0 });
+    let second_offset = S::splat(if squad { 0.0 } else { 1.0 });
     let mut hint = 0;
     for g in (0..n).step_by(LANES) {
         let valid = LANES.min(n - g);
@@ -118,14 +142,14 @@ pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, from: us
             spans[lane] = span;
             h[lane] = ((t - knots[span]) / (knots[span + 1] - knots[span])) as f32;
         }
-        let h = f32x8::new(h);
+        let h = S::new(h);
         let (first, second) = if spans.iter().all(|&s| s == spans[0]) {
             let [a, b] = &arcs[spans[0]];
             (Arc8::splat(a), Arc8::splat(b))
         } else {
             (Arc8::gather(&spans.map(|s| arcs[s][0])), Arc8::gather(&spans.map(|s| arcs[s][1])))
         };
-        let weight = if squad { (h - h * h) * f32x8::splat(2.0) } else { blend_weight(blend, h) };
+        let weight = if squad { (h - h * h) * S::splat(2.0) } else { blend_weight(blend, h) };
         let q = geodesic(first.at(h), second.at(h - second_offset), weight);
         write_columns([q.x, q.y, q.z, q.w], &mut out[g * channels..(g + valid) * channels], channels, 0, 4, valid);
     }
@@ -133,12 +157,12 @@ pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, from: us
 
 /// Nam-Kim's blend ratio `f(s)`, as [`crate::curve::Blend::ratio`].
 #[inline(always)]
-fn blend_weight(kind: Blend, s: f32x8) -> f32x8 {
+fn blend_weight<S: Lanes>(kind: Blend, s: S) -> S {
     match kind {
-        Blend::Cubic => s * s * (f32x8::splat(3.0) - s * f32x8::splat(2.0)),
+        Blend::Cubic => s * s * (S::splat(3.0) - s * S::splat(2.0)),
         Blend::Quadratic => {
-            let r = s - f32x8::ONE;
-            s.cmp_le(f32x8::splat(0.5)).blend(s * s * f32x8::splat(2.0), f32x8::ONE - r * r * f32x8::splat(2.0))
+            let r = s - S::ONE;
+            s.cmp_le(S::splat(0.5)).blend(s * s * S::splat(2.0), S::ONE - r * r * S::splat(2.0))
         }
     }
 }

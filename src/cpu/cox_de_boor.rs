@@ -5,7 +5,7 @@
 
 use super::lanes::LANES;
 use super::track::MAX_FACTORS;
-use wide::f32x8;
+use super::simd::Lanes;
 
 /// `1 / (b - a)`, or 0 for a zero-length interval (the reference's convention).
 fn inverse(a: f64, b: f64) -> f64 {
@@ -60,7 +60,7 @@ impl SpanKnots {
     /// lanes, which the compiler vectorizes): in f32 its rounding, summed over seven factors
     /// of near half-turns, reached 1.1e-5 rad at order 8, over DESIGN's bar.
     #[inline(always)]
-    pub fn jets<const F: usize, const DERIVATIVES: bool>(&self, t: &[f64; LANES], out: &mut [[f32x8; 3]; F]) {
+    pub fn jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(&self, t: &[f64; LANES], out: &mut [[S; 3]; F]) {
         debug_assert_eq!(self.k, F + 1);
         let k = F + 1;
         let x = t.map(|t| t - self.origin);
@@ -85,7 +85,6 @@ impl SpanKnots {
                 tri[m + 1][r] = b;
             }
         }
-        let lanes = |v: [f64; LANES]| f32x8::new(v.map(|v| v as f32));
         let kf = k as f64;
         let mut tail = [0.0; LANES];
         for f in (0..F).rev() {
@@ -94,7 +93,7 @@ impl SpanKnots {
             for lane in 0..LANES {
                 tail[lane] += tri[k][f + 1][lane];
             }
-            let mut jet = [lanes(tail), f32x8::ZERO, f32x8::ZERO];
+            let mut jet = [lanes(tail), S::ZERO, S::ZERO];
             if DERIVATIVES {
                 let [d1, d2a, d2b] = self.derivative[f];
                 jet[1] = lanes(tri[k - 1][f].map(|b| b * (kf - 1.0) * d1));
@@ -111,4 +110,10 @@ impl SpanKnots {
             out[f] = jet;
         }
     }
+}
+
+/// f64 lanes rounded into a lane register.
+#[inline(always)]
+fn lanes<S: Lanes>(v: [f64; LANES]) -> S {
+    S::new(v.map(|v| v as f32))
 }

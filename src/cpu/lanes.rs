@@ -1,43 +1,43 @@
-//! Eight samples at a time: structure-of-arrays quaternions and vectors on `wide::f32x8`
-//! (AVX/AVX2 registers when the build targets them), and the KKS cumulative product with its
-//! body derivatives, the twin of [`crate::reference::cumulative_product`].
+//! Eight samples at a time: structure-of-arrays quaternions and vectors on any [`Lanes`] type
+//! (module `simd`: AVX2 registers where the CPU has them), and the KKS cumulative product with
+//! its body derivatives, the twin of [`crate::reference::cumulative_product`].
 
-use wide::f32x8;
+use super::simd::Lanes;
 
 /// Samples per SIMD group.
 pub const LANES: usize = 8;
 
 /// Eight 3-vectors.
 #[derive(Clone, Copy, Debug)]
-pub struct V8 {
-    pub x: f32x8,
-    pub y: f32x8,
-    pub z: f32x8,
+pub struct V8<S> {
+    pub x: S,
+    pub y: S,
+    pub z: S,
 }
 
 /// Eight quaternions `x, y, z, w`.
 #[derive(Clone, Copy, Debug)]
-pub struct Q8 {
-    pub x: f32x8,
-    pub y: f32x8,
-    pub z: f32x8,
-    pub w: f32x8,
+pub struct Q8<S> {
+    pub x: S,
+    pub y: S,
+    pub z: S,
+    pub w: S,
 }
 
-impl V8 {
+impl<S: Lanes> V8<S> {
     /// All zero.
-    pub const ZERO: Self = Self { x: f32x8::ZERO, y: f32x8::ZERO, z: f32x8::ZERO };
+    pub const ZERO: Self = Self { x: S::ZERO, y: S::ZERO, z: S::ZERO };
 
     /// Lane-wise gather from `[x, y, z, _]` rows.
     #[inline(always)]
     pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
-        Self { x: f32x8::new(rows.map(|r| r[0])), y: f32x8::new(rows.map(|r| r[1])), z: f32x8::new(rows.map(|r| r[2])) }
+        Self { x: S::new(rows.map(|r| r[0])), y: S::new(rows.map(|r| r[1])), z: S::new(rows.map(|r| r[2])) }
     }
 
     /// The same `[x, y, z, _]` in every lane.
     #[inline(always)]
     pub fn splat(r: [f32; 4]) -> Self {
-        Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]) }
+        Self { x: S::splat(r[0]), y: S::splat(r[1]), z: S::splat(r[2]) }
     }
 
     #[inline(always)]
@@ -46,7 +46,7 @@ impl V8 {
     }
 
     #[inline(always)]
-    fn scale(self, k: f32x8) -> Self {
+    fn scale(self, k: S) -> Self {
         Self { x: self.x * k, y: self.y * k, z: self.z * k }
     }
 
@@ -56,28 +56,28 @@ impl V8 {
     }
 }
 
-impl Q8 {
+impl<S: Lanes> Q8<S> {
     /// Lane-wise gather from `[x, y, z, w]` rows.
     #[inline(always)]
     pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
         Self {
-            x: f32x8::new(rows.map(|r| r[0])),
-            y: f32x8::new(rows.map(|r| r[1])),
-            z: f32x8::new(rows.map(|r| r[2])),
-            w: f32x8::new(rows.map(|r| r[3])),
+            x: S::new(rows.map(|r| r[0])),
+            y: S::new(rows.map(|r| r[1])),
+            z: S::new(rows.map(|r| r[2])),
+            w: S::new(rows.map(|r| r[3])),
         }
     }
 
     /// The same `[x, y, z, w]` in every lane.
     #[inline(always)]
     pub fn splat(r: [f32; 4]) -> Self {
-        Self { x: f32x8::splat(r[0]), y: f32x8::splat(r[1]), z: f32x8::splat(r[2]), w: f32x8::splat(r[3]) }
+        Self { x: S::splat(r[0]), y: S::splat(r[1]), z: S::splat(r[2]), w: S::splat(r[3]) }
     }
 
     /// `cos * self + sin * lead`: with `lead = self * (axis, 0)`, the point
     /// `self * exp(angle * axis)` of the great arc, without a quaternion product.
     #[inline(always)]
-    pub fn along(self, lead: Self, sin: f32x8, cos: f32x8) -> Self {
+    pub fn along(self, lead: Self, sin: S, cos: S) -> Self {
         Self {
             x: self.x.mul_add(cos, lead.x * sin),
             y: self.y.mul_add(cos, lead.y * sin),
@@ -94,14 +94,14 @@ impl Q8 {
 
     /// `self^-1 v self` for unit `self`: `v + 2 w (v x u) + 2 u x (u x v)` with `u = -vec`.
     #[inline(always)]
-    fn rotate_inverse(self, v: V8) -> V8 {
+    fn rotate_inverse(self, v: V8<S>) -> V8<S> {
         let u = V8 { x: -self.x, y: -self.y, z: -self.z };
-        let t = u.cross(v).scale(f32x8::splat(2.0));
+        let t = u.cross(v).scale(S::splat(2.0));
         v.add(t.scale(self.w)).add(u.cross(t))
     }
 }
 
-impl std::ops::Mul for Q8 {
+impl<S: Lanes> std::ops::Mul for Q8<S> {
     type Output = Self;
 
     /// Hamilton product `self * o`.
@@ -117,43 +117,15 @@ impl std::ops::Mul for Q8 {
 }
 
 /// Writes columns `col..col + width` (`width <= 4`) of the first `valid` rows of `rows` (rows of
-/// `stride` floats): row `lane` gets `v[0][lane], v[1][lane], ...`. A 4x8 transpose in
-/// registers where AVX is available: scattering lanes one float at a time cost a fifth of
-/// the evaluation.
+/// `stride` floats): row `lane` gets `v[0][lane], v[1][lane], ...`, through the lane type's
+/// transpose ([`Lanes::transpose`]).
 #[inline(always)]
-pub fn write_columns(v: [f32x8; 4], rows: &mut [f32], stride: usize, col: usize, width: usize, valid: usize) {
-    let quads = transpose(v);
+pub fn write_columns<S: Lanes>(v: [S; 4], rows: &mut [f32], stride: usize, col: usize, width: usize, valid: usize) {
+    let quads = S::transpose(v);
     for (lane, quad) in quads.iter().enumerate().take(valid) {
         let at = lane * stride + col;
         rows[at..at + width].copy_from_slice(&quad[..width]);
     }
-}
-
-/// The eight lanes' `[v0, v1, v2, v3]`.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-#[inline(always)]
-fn transpose(v: [f32x8; 4]) -> [[f32; 4]; LANES] {
-    use std::arch::x86_64::{__m128, __m256, _mm256_castps256_ps128, _mm256_extractf128_ps, _mm256_shuffle_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps};
-    // SAFETY: `f32x8` is `#[repr(C, align(32))]` around one `__m256` when AVX is enabled, and
-    // `__m128` and `[f32; 4]` have the same size with every bit pattern valid.
-    unsafe {
-        let [x, y, z, w] = v.map(|v| std::mem::transmute::<f32x8, __m256>(v));
-        let (t0, t1) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
-        let (t2, t3) = (_mm256_unpacklo_ps(z, w), _mm256_unpackhi_ps(z, w));
-        // u0 = lanes 0 | 4, u1 = 1 | 5, u2 = 2 | 6, u3 = 3 | 7.
-        let u = [_mm256_shuffle_ps::<0x44>(t0, t2), _mm256_shuffle_ps::<0xEE>(t0, t2), _mm256_shuffle_ps::<0x44>(t1, t3), _mm256_shuffle_ps::<0xEE>(t1, t3)];
-        let lo = u.map(|u| _mm256_castps256_ps128(u));
-        let hi = u.map(|u| _mm256_extractf128_ps::<1>(u));
-        [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]].map(|q| std::mem::transmute::<__m128, [f32; 4]>(q))
-    }
-}
-
-/// The eight lanes' `[v0, v1, v2, v3]`.
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-#[inline(always)]
-fn transpose(v: [f32x8; 4]) -> [[f32; 4]; LANES] {
-    let a = v.map(f32x8::to_array);
-    std::array::from_fn(|lane| [a[0][lane], a[1][lane], a[2][lane], a[3][lane]])
 }
 
 /// Largest `|x|` that [`sin_cos_small`] takes: a little over `pi / 2`, the half-angle of every
@@ -165,14 +137,14 @@ pub const SMALL_ANGLE: f32 = 1.6;
 /// `small_sin_cos_is_accurate`). Half the work of a general `sin_cos`, which must first
 /// reduce its argument modulo `pi / 2`.
 #[inline(always)]
-pub fn sin_cos_small(x: f32x8) -> (f32x8, f32x8) {
-    const S: [f32; 7] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
-    const C: [f32; 7] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
+pub fn sin_cos_small<S: Lanes>(x: S) -> (S, S) {
+    const SIN: [f32; 7] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
+    const COS: [f32; 7] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
     let x2 = x * x;
-    let (mut s, mut c) = (f32x8::splat(S[6]), f32x8::splat(C[6]));
+    let (mut s, mut c) = (S::splat(SIN[6]), S::splat(COS[6]));
     for k in (0..6).rev() {
-        s = s.mul_add(x2, f32x8::splat(S[k]));
-        c = c.mul_add(x2, f32x8::splat(C[k]));
+        s = s.mul_add(x2, S::splat(SIN[k]));
+        c = c.mul_add(x2, S::splat(COS[k]));
     }
     (s * x, c)
 }
@@ -180,10 +152,10 @@ pub fn sin_cos_small(x: f32x8) -> (f32x8, f32x8) {
 /// One factor `exp(v b(t))` of eight samples: `v = theta * axis` (half-angle vector, axis
 /// unit or zero) and the basis jet `[b, b', b'']` in time units.
 #[derive(Clone, Copy, Debug)]
-pub struct Factor8 {
-    pub axis: V8,
-    pub theta: f32x8,
-    pub b: [f32x8; 3],
+pub struct Factor8<S> {
+    pub axis: V8<S>,
+    pub theta: S,
+    pub b: [S; 3],
 }
 
 /// `start * prod exp(v_j b_j)` and, with `derivatives`, the body angular velocity and
@@ -192,19 +164,20 @@ pub struct Factor8 {
 /// `lead`: `start * (axis_0, 0)` when the caller has it (all lanes on one segment), which
 /// turns the first product into `cos * start + sin * lead`.
 #[inline(always)]
-pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: &[Factor8; F], derivatives: bool, small: bool) -> (Q8, V8, V8) {
-    let sin_cos = |f: &Factor8| {
+pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q8<S>>, factors: &[Factor8<S>; F], derivatives: bool, small: bool) -> (Q8<S>, V8<S>, V8<S>) {
+    #[inline(always)]
+    fn sin_cos<S: Lanes>(f: &Factor8<S>, small: bool) -> (S, S) {
         let angle = f.theta * f.b[0];
         if small {
             sin_cos_small(angle)
         } else {
             angle.sin_cos()
         }
-    };
+    }
     let Some((head, rest)) = factors.split_first() else {
         return (start, V8::ZERO, V8::ZERO);
     };
-    let (sin, cos) = sin_cos(head);
+    let (sin, cos) = sin_cos(head, small);
     let mut q = match lead {
         Some(lead) => start.along(lead, sin, cos),
         None => start * Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos },
@@ -212,18 +185,18 @@ pub fn cumulative_product<const F: usize>(start: Q8, lead: Option<Q8>, factors: 
     // W and W' start at zero: nothing to carry through the first factor.
     let (mut w, mut w_dot) = if derivatives { (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2])) } else { (V8::ZERO, V8::ZERO) };
     for f in rest {
-        let (sin, cos) = sin_cos(f);
+        let (sin, cos) = sin_cos(f, small);
         let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
         if derivatives {
             let spin = f.axis.scale(f.theta * f.b[1]);
             let accel = f.axis.scale(f.theta * f.b[2]);
             let carried = a.rotate_inverse(w);
-            w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(f32x8::splat(2.0))).add(accel);
+            w_dot = a.rotate_inverse(w_dot).add(carried.cross(spin).scale(S::splat(2.0))).add(accel);
             w = carried.add(spin);
         }
         q = q * a;
     }
-    let two = f32x8::splat(2.0);
+    let two = S::splat(2.0);
     (q, w.scale(two), w_dot.scale(two))
 }
 

@@ -15,6 +15,7 @@ mod arcs;
 mod cox_de_boor;
 pub mod forward;
 pub mod lanes;
+pub mod simd;
 mod track;
 
 use crate::batch::Batch;
@@ -22,6 +23,7 @@ use crate::error::Result;
 use crate::job::{EvalJob, FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use rayon::prelude::*;
+use simd::Isa;
 use track::{Bases, Tables};
 
 /// Samples per parallel work item (a piece of one track).
@@ -46,6 +48,8 @@ pub struct CpuOptions {
 #[derive(Clone, Debug)]
 pub struct CpuEvaluator {
     bases: Bases,
+    /// The lane type, chosen for this CPU when the evaluator is created.
+    isa: Isa,
 }
 
 impl Default for CpuEvaluator {
@@ -55,25 +59,30 @@ impl Default for CpuEvaluator {
 }
 
 impl CpuEvaluator {
-    /// A new evaluator (fits the bases: microseconds).
+    /// A new evaluator on the best lane type this CPU has ([`Isa::detect`]); fits the bases
+    /// (microseconds).
     #[must_use]
     pub fn new() -> Self {
-        Self { bases: Bases::new() }
+        Self { bases: Bases::new(), isa: Isa::detect() }
+    }
+
+    /// An evaluator on lane type `isa`, or `None` where this CPU lacks it: to compare the
+    /// paths in tests and benchmarks.
+    #[must_use]
+    pub fn with_isa(isa: Isa) -> Option<Self> {
+        isa.available().then(|| Self { bases: Bases::new(), isa })
+    }
+
+    /// The lane type it runs.
+    #[must_use]
+    pub fn isa(&self) -> Isa {
+        self.isa
     }
 
     /// `f32x8 (<instruction set>), <threads> threads`, for outputs and benchmarks.
     #[must_use]
     pub fn name(&self) -> String {
-        let isa = if cfg!(target_feature = "avx2") {
-            "AVX2"
-        } else if cfg!(target_feature = "avx") {
-            "AVX"
-        } else if cfg!(target_feature = "sse2") {
-            "SSE2"
-        } else {
-            "portable"
-        };
-        format!("f32x8 ({isa}), {} threads", rayon::current_num_threads())
+        format!("f32x8 ({}), {} threads", self.isa.name(), rayon::current_num_threads())
     }
 
     /// Evaluates every track at its sample times: `samples x channels` floats, per sample the
@@ -104,7 +113,7 @@ impl CpuEvaluator {
                 times.total()
             )));
         }
-        let tables = Tables::new(batch, &self.bases);
+        let tables = Tables::new(batch, &self.bases, self.isa);
         // Work items: pieces of at most PIECE samples of one track.
         let pieces: Vec<(usize, usize, usize)> = (0..batch.len())
             .flat_map(|i| {

@@ -12,7 +12,7 @@ use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
 use crate::curve::{MAX_ORDER, MIN_ORDER};
 use std::ops::Range;
-use wide::f32x8;
+use super::simd::{Isa, Lanes};
 
 /// Most factors in one product: a B-spline of the highest order.
 pub(super) const MAX_FACTORS: usize = MAX_ORDER - 1;
@@ -35,19 +35,19 @@ impl PolyBasis {
     /// `[p, p', p'']` of each of the `F` functions (of degree `F`) at `u`, derivatives in
     /// `u`; without `derivatives` only `p`, by Horner's rule.
     #[inline(always)]
-    fn eval<const F: usize>(&self, u: f32x8, derivatives: bool, out: &mut [[f32x8; 3]; F]) {
+    fn eval<S: Lanes, const F: usize>(&self, u: S, derivatives: bool, out: &mut [[S; 3]; F]) {
         debug_assert!(self.count == F && self.len == F + 1);
         for (c, out) in self.coefs.iter().zip(out.iter_mut()) {
-            let (mut p, mut d1, mut d2) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
+            let (mut p, mut d1, mut d2) = (S::ZERO, S::ZERO, S::ZERO);
             for k in (0..=F).rev() {
-                let ck = f32x8::splat(c[k]);
+                let ck = S::splat(c[k]);
                 if derivatives {
                     d2 = d2.mul_add(u, d1);
                     d1 = d1.mul_add(u, p);
                 }
                 p = p.mul_add(u, ck);
             }
-            *out = [p, d1, d2 * f32x8::splat(2.0)];
+            *out = [p, d1, d2 * S::splat(2.0)];
         }
     }
 }
@@ -73,8 +73,10 @@ impl Bases {
     }
 }
 
-/// Batch-wide f32 tables, built once per evaluation, with the evaluator's bases.
+/// Batch-wide f32 tables, built once per evaluation, with the evaluator's bases and lane type.
 pub struct Tables<'a> {
+    /// The lane type the kernels run.
+    isa: Isa,
     /// Points `[x, y, z, w]`.
     points: Vec<[f32; 4]>,
     /// Coefficients as `[axis x, axis y, axis z, theta]` (axis unit, or zero with theta 0).
@@ -85,7 +87,7 @@ pub struct Tables<'a> {
 impl<'a> Tables<'a> {
     /// Converts the batch's points and coefficients to f32 (on every core: a crowd's
     /// millions of keys cost more here than evaluating its few samples per key).
-    pub fn new(batch: &Batch, bases: &'a Bases) -> Self {
+    pub fn new(batch: &Batch, bases: &'a Bases, isa: Isa) -> Self {
         use rayon::prelude::*;
         let points = batch.points.par_iter().with_min_len(1 << 12).map(|q| q.to_array().map(|v| v as f32)).collect();
         let axes = batch
@@ -101,7 +103,7 @@ impl<'a> Tables<'a> {
                 }
             })
             .collect();
-        Self { points, axes, bases }
+        Self { isa, points, axes, bases }
     }
 }
 
@@ -154,7 +156,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
         // One segment; degrees beyond the product's capacity take the reference below.
         Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order, 0, 0),
         Curve::Squad | Curve::NamKim if !options.derivatives => {
-            super::arcs::evaluate(view, times, index, range.start, range.len(), channels, out);
+            super::arcs::evaluate(tables.isa, view, times, index, range.start, range.len(), channels, out);
             if options.matrix {
                 write_matrices(out, channels, 4);
             }
@@ -184,13 +186,13 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
     macro_rules! by_factors {
         ($d:literal, $s:literal) => {
             match factors {
-                1 => piece.groups::<1, $d, $s>(range.len(), out),
-                2 => piece.groups::<2, $d, $s>(range.len(), out),
-                3 => piece.groups::<3, $d, $s>(range.len(), out),
-                4 => piece.groups::<4, $d, $s>(range.len(), out),
-                5 => piece.groups::<5, $d, $s>(range.len(), out),
-                6 => piece.groups::<6, $d, $s>(range.len(), out),
-                _ => piece.groups::<7, $d, $s>(range.len(), out),
+                1 => piece.run::<1, $d, $s>(range.len(), out),
+                2 => piece.run::<2, $d, $s>(range.len(), out),
+                3 => piece.run::<3, $d, $s>(range.len(), out),
+                4 => piece.run::<4, $d, $s>(range.len(), out),
+                5 => piece.run::<5, $d, $s>(range.len(), out),
+                6 => piece.run::<6, $d, $s>(range.len(), out),
+                _ => piece.run::<7, $d, $s>(range.len(), out),
             }
         };
     }
@@ -235,13 +237,25 @@ impl Piece<'_> {
         }
     }
 
-    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time; `SMALL`: every
-    /// angle is within [`SMALL_ANGLE`].
-    fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(&self, n: usize, out: &mut [f32]) {
+    /// [`Piece::groups`] on the evaluator's lane type.
+    fn run<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(&self, n: usize, out: &mut [f32]) {
+        match self.tables.isa {
+            // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { groups_avx2::<F, DERIVATIVES, SMALL>(self, n, out) },
+            _ => self.groups::<F, DERIVATIVES, SMALL, wide::f32x8>(n, out),
+        }
+    }
+
+    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time on lanes `S`;
+    /// `SMALL`: every angle is within [`SMALL_ANGLE`]. Inlined into [`Piece::run`]'s
+    /// instances, so that the AVX2 one compiles for AVX2.
+    #[inline(always)]
+    fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool, S: Lanes>(&self, n: usize, out: &mut [f32]) {
         let (knots, tables, options, channels) = (self.view.knots, self.tables, self.options, self.channels);
         let (first, last) = (self.first, self.last);
         let mut hint = first;
-        let mut jets = [[f32x8::ZERO; 3]; F];
+        let mut jets = [[S::ZERO; 3]; F];
         // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
         // of a `--samples` grid is the exact domain end instead.
         let uniform = match self.times.tracks[self.index] {
@@ -286,7 +300,7 @@ impl Piece<'_> {
                     *u = ((t - knots[h]) * inv_len) as f32;
                 }
                 (start[0], coef[0]) = self.segment(h);
-                f32x8::splat(inv_len as f32)
+                S::splat(inv_len as f32)
             } else {
                 let mut inv = [0.0f32; LANES];
                 let mut known = usize::MAX;
@@ -302,11 +316,11 @@ impl Piece<'_> {
                     inv[lane] = inv_len as f32;
                     (start[lane], coef[lane]) = self.segment(span);
                 }
-                f32x8::new(inv)
+                S::new(inv)
             };
             match self.basis {
-                Basis::Poly(poly) => poly.eval::<F>(f32x8::new(u), DERIVATIVES, &mut jets),
-                Basis::Bernstein => bernstein_cumulative_lanes::<F>(f32x8::new(u), &mut jets),
+                Basis::Poly(poly) => poly.eval::<S, F>(S::new(u), DERIVATIVES, &mut jets),
+                Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(S::new(u), &mut jets),
                 Basis::CoxDeBoor => {
                     // Once per distinct span among the lanes: one, or two where the group
                     // straddles a knot; lanes of other spans are blended out.
@@ -321,11 +335,11 @@ impl Piece<'_> {
                         }
                         let constants = span_knots.get_or_insert_with(|| SpanKnots::new(knots, F + 1, span));
                         if shared {
-                            constants.jets::<F, DERIVATIVES>(&t, &mut jets);
+                            constants.jets::<S, F, DERIVATIVES>(&t, &mut jets);
                             break;
                         }
-                        let mut these = [[f32x8::ZERO; 3]; F];
-                        constants.jets::<F, DERIVATIVES>(&t, &mut these);
+                        let mut these = [[S::ZERO; 3]; F];
+                        constants.jets::<S, F, DERIVATIVES>(&t, &mut these);
                         let mut mask = [0.0f32; LANES];
                         for (l, m) in mask.iter_mut().enumerate() {
                             if spans[l] == span {
@@ -333,7 +347,7 @@ impl Piece<'_> {
                                 done[l] = true;
                             }
                         }
-                        let mask = f32x8::new(mask);
+                        let mask = S::new(mask);
                         for (jet, this) in jets.iter_mut().zip(&these) {
                             for d in 0..3 {
                                 jet[d] = mask.blend(this[d], jet[d]);
@@ -345,21 +359,21 @@ impl Piece<'_> {
             // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
             if DERIVATIVES && !matches!(self.basis, Basis::CoxDeBoor) {
                 for jet in &mut jets {
-                    jet[1] *= inv;
-                    jet[2] *= inv * inv;
+                    jet[1] = jet[1] * inv;
+                    jet[2] = jet[2] * (inv * inv);
                 }
             }
-            let mut factors = [Factor8 { axis: V8::ZERO, theta: f32x8::ZERO, b: [f32x8::ZERO; 3] }; F];
+            let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
             for (f, factor) in factors.iter_mut().enumerate() {
                 let (axis, theta) = if shared {
                     let r = tables.axes[coef[0] + f];
-                    (V8::splat(r), f32x8::splat(r[3]))
+                    (V8::splat(r), S::splat(r[3]))
                 } else {
                     let mut rows = [[0.0f32; 4]; LANES];
                     for (row, &c) in rows.iter_mut().zip(&coef) {
                         *row = tables.axes[c + f];
                     }
-                    (V8::gather(&rows), f32x8::new(rows.map(|r| r[3])))
+                    (V8::gather(&rows), S::new(rows.map(|r| r[3])))
                 };
                 *factor = Factor8 { axis, theta, b: jets[f] };
             }
@@ -377,7 +391,7 @@ impl Piece<'_> {
             write_columns([q.x, q.y, q.z, q.w], rows, channels, 0, 4, valid);
             if DERIVATIVES {
                 write_columns([w.x, w.y, w.z, a.x], rows, channels, 4, 4, valid);
-                write_columns([a.y, a.z, f32x8::ZERO, f32x8::ZERO], rows, channels, 8, 2, valid);
+                write_columns([a.y, a.z, S::ZERO, S::ZERO], rows, channels, 8, 2, valid);
             }
             if options.matrix {
                 write_matrices(rows, channels, if DERIVATIVES { 10 } else { 4 });
@@ -386,15 +400,22 @@ impl Piece<'_> {
     }
 }
 
+/// [`Piece::groups`] on AVX2 registers, compiled for them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn groups_avx2<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(piece: &Piece<'_>, n: usize, out: &mut [f32]) {
+    piece.groups::<F, DERIVATIVES, SMALL, super::simd::Avx2>(n, out);
+}
+
 /// The cumulative Bernstein basis of degree `F` and its `u` derivatives, eight parameters at
 /// a time: the SIMD twin of [`crate::basis::bernstein_cumulative`] (de Casteljau rows `F - 2`,
 /// `F - 1`, `F`; sums from the top).
 #[inline(always)]
-fn bernstein_cumulative_lanes<const F: usize>(u: f32x8, out: &mut [[f32x8; 3]; F]) {
-    let v = f32x8::ONE - u;
-    let zero = [f32x8::ZERO; MAX_FACTORS + 1];
+fn bernstein_cumulative_lanes<S: Lanes, const F: usize>(u: S, out: &mut [[S; 3]; F]) {
+    let v = S::ONE - u;
+    let zero = [S::ZERO; MAX_FACTORS + 1];
     let (mut row, mut prev, mut prev2) = (zero, zero, zero);
-    row[0] = f32x8::ONE;
+    row[0] = S::ONE;
     for m in 1..=F {
         let mut next = zero;
         next[0] = v * row[0];
@@ -405,11 +426,11 @@ fn bernstein_cumulative_lanes<const F: usize>(u: f32x8, out: &mut [[f32x8; 3]; F
         (prev2, prev, row) = (prev, row, next);
     }
     let n = F as f32;
-    let mut tail = f32x8::ZERO;
+    let mut tail = S::ZERO;
     for i in (1..=F).rev() {
-        tail += row[i];
-        let below = if i >= 2 { prev2[i - 2] } else { f32x8::ZERO };
-        out[i - 1] = [tail, prev[i - 1] * f32x8::splat(n), (below - prev2[i - 1]) * f32x8::splat(n * (n - 1.0))];
+        tail = tail + row[i];
+        let below = if i >= 2 { prev2[i - 2] } else { S::ZERO };
+        out[i - 1] = [tail, prev[i - 1] * S::splat(n), (below - prev2[i - 1]) * S::splat(n * (n - 1.0))];
     }
 }
 

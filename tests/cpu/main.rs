@@ -11,12 +11,33 @@ mod fast;
 
 use common::*;
 use fast::*;
+use quatcurve::cpu::simd::Isa;
 use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::job::FloatOutput;
 use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
     CpuEvaluator::new().evaluate(batch, times, &CpuOptions { layout, derivatives, ..CpuOptions::default() }).unwrap()
+}
+
+fn on_portable_lanes(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
+    let cpu = CpuEvaluator::with_isa(Isa::Portable).expect("the baseline runs everywhere");
+    cpu.evaluate(batch, times, &CpuOptions { layout, derivatives, ..CpuOptions::default() }).unwrap()
+}
+
+/// The lane type is chosen at run time (AVX2 where the CPU has it): the suites above run the
+/// chosen one; here the baseline (`wide` at the build's target) meets the same bars, so a
+/// machine without AVX2 runs tested code.
+#[test]
+fn the_baseline_lanes_meet_the_same_bars() {
+    assert_eq!(CpuEvaluator::new().isa(), Isa::detect());
+    every_family_order_and_knot_mode(&on_portable_lanes).assert_within_bars("cpu portable: all families, 4 kinds, both layouts");
+    interp_and_loops(&on_portable_lanes).assert_within_bars("cpu portable: bspline-interp and loops");
+    samples_on_knots_and_domain_ends(&on_portable_lanes).assert_within_bars("cpu portable: samples on knots and domain ends");
+    let (batch, times) = mixed_batch_with_repeated_knots();
+    compare_output(&on_portable_lanes(&batch, &times, Layout::Track, true), &batch, &times, Layout::Track, true, "mixed")
+        .assert_within_bars("cpu portable: mixed batch with repeated knots");
+    odd_sizes(&on_portable_lanes);
 }
 
 #[test]
