@@ -16,7 +16,7 @@ fuzz_target!(|bytes: &[u8]| {
     if let Ok(baked) = bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), 10.0, LoopMode::Auto, &device) {
         let _ = file.to_text(&animation.clips[0], &baked);
         if let Ok(order) = animation.parents_first() {
-            let _ = bake::texture::sheets(&animation, &order, &animation.clips[0], &baked.clips[0], bake::texture::TextureKind::Model, &device);
+            let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, &device);
         }
     }
 });
