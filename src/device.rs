@@ -3,6 +3,7 @@
 
 use crate::cpu::{CpuEvaluator, CpuOptions};
 use crate::curve::names;
+#[cfg(feature = "gpu")]
 use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
 use crate::job::{EvalJob, FloatOutput, Output};
 use std::fmt;
@@ -40,12 +41,14 @@ pub enum Device {
     /// The f64 reference ([`EvalJob::run`]).
     Reference,
     /// The WGSL kernel.
+    #[cfg(feature = "gpu")]
     Gpu(Box<GpuEvaluator>),
     /// The fast f32 CPU path.
     Cpu(CpuEvaluator),
     /// `auto` with a hardware adapter: the GPU, and the CPU path for a batch the kernel cannot take
     /// (a Bezier above degree 32, one track's keys larger than a binding), so `auto` never
     /// fails where `cpu` works. [`Device::evaluate_named`] says which one ran.
+    #[cfg(feature = "gpu")]
     Auto(Box<GpuEvaluator>, CpuEvaluator),
 }
 
@@ -63,13 +66,19 @@ impl Device {
     pub fn open(choice: DeviceChoice) -> Result<Self, DeviceError> {
         match choice {
             DeviceChoice::Reference => Ok(Device::Reference),
+            #[cfg(feature = "gpu")]
             DeviceChoice::Gpu => GpuEvaluator::new()
                 .map(|g| Device::Gpu(Box::new(g)))
                 .map_err(|e| DeviceError::Device(format!("--device gpu: {e}"))),
+            #[cfg(not(feature = "gpu"))]
+            DeviceChoice::Gpu => Err(DeviceError::Device("--device gpu: this build of quatcurve has no GPU path (cargo feature `gpu`)".into())),
+            #[cfg(feature = "gpu")]
             DeviceChoice::Auto => Ok(match GpuEvaluator::new() {
                 Ok(g) if !g.is_software() => Device::Auto(Box::new(g), CpuEvaluator::new()),
                 _ => Device::Cpu(CpuEvaluator::new()),
             }),
+            #[cfg(not(feature = "gpu"))]
+            DeviceChoice::Auto => Ok(Device::Cpu(CpuEvaluator::new())),
             DeviceChoice::Cpu => Ok(Device::Cpu(CpuEvaluator::new())),
         }
     }
@@ -80,6 +89,7 @@ impl Device {
     pub fn name(&self) -> String {
         match self {
             Device::Reference => "reference".into(),
+            #[cfg(feature = "gpu")]
             Device::Gpu(g) | Device::Auto(g, _) => format!("gpu: {}", g.adapter_name()),
             Device::Cpu(c) => format!("cpu: {}", c.name()),
         }
@@ -120,7 +130,9 @@ impl Device {
                 Ok((FloatOutput::from_output(&out), self.name()))
             }
             Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
+            #[cfg(feature = "gpu")]
             Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
+            #[cfg(feature = "gpu")]
             Device::Auto(g, c) => match on_gpu(g, job) {
                 Err(Refused::Pack(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
                 other => Ok((other?, self.name())),
@@ -130,11 +142,13 @@ impl Device {
 }
 
 /// A GPU evaluation that failed: a batch the kernel cannot take, or anything else.
+#[cfg(feature = "gpu")]
 enum Refused {
     Pack(String),
     Other(DeviceError),
 }
 
+#[cfg(feature = "gpu")]
 impl From<Refused> for DeviceError {
     fn from(r: Refused) -> Self {
         match r {
@@ -144,6 +158,7 @@ impl From<Refused> for DeviceError {
     }
 }
 
+#[cfg(feature = "gpu")]
 fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
     let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
     g.evaluate(job.batch, job.times, &options).map_err(|e| match e {

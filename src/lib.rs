@@ -42,6 +42,7 @@ pub mod arrays;
 pub mod batch;
 pub mod curve;
 pub mod device;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod error;
 pub mod euclidean;

@@ -225,6 +225,7 @@ pub fn arrange(animation: &Animation, order: &[usize], kind: TextureKind, local:
 /// The GPU's (a device failure, a frame larger than a storage binding).
 pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: &[f32]) -> Result<Vec<f32>, DeviceError> {
     match device {
+        #[cfg(feature = "gpu")]
         Device::Gpu(g) | Device::Auto(g, _) => {
             let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
             g.forward_kinematics(&parents, order, local).map_err(|e| DeviceError::Device(format!("forward kinematics: {e}")))

@@ -29,7 +29,7 @@ use track::{Bases, Tables};
 /// Samples per parallel work item (a piece of one track).
 const PIECE: usize = 4096;
 
-/// What to evaluate besides rotations, and in which order (as [`crate::gpu::GpuOptions`]).
+/// What to evaluate besides rotations, and in which order (as the GPU's `GpuOptions`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CpuOptions {
     /// Output order.
