@@ -1,4 +1,5 @@
-//! The fast CPU path: f32, eight samples per SIMD group ([`lanes`]), tracks spread over all
+//! The fast CPU path: f32, eight samples per SIMD group (module `lanes`, on the lane type
+//! [`Isa`] names, chosen at run time), tracks spread over all
 //! cores with rayon. It evaluates the same packed [`Batch`] as the reference and the GPU and
 //! returns the same [`FloatOutput`] as the GPU.
 //!
@@ -14,16 +15,17 @@
 mod arcs;
 mod cox_de_boor;
 pub mod forward;
-pub mod lanes;
-pub mod simd;
+mod lanes;
+mod simd;
 mod track;
+
+pub use simd::Isa;
 
 use crate::batch::Batch;
 use crate::error::Result;
 use crate::job::{EvalJob, FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use rayon::prelude::*;
-use simd::Isa;
 use track::{Bases, Tables};
 
 /// Samples per parallel work item (a piece of one track).

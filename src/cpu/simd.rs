@@ -1,5 +1,5 @@
 //! The eight-lane float type the fast CPU path computes with, chosen when the evaluator is
-//! created rather than when the crate is built: [`Avx2`] (AVX2 registers and FMA) on x86-64
+//! created rather than when the crate is built: `Avx2` (AVX2 registers and FMA) on x86-64
 //! CPUs that have them, else `wide::f32x8` at the build's baseline (SSE2 on x86-64, NEON on
 //! aarch64). So dependents, portable binaries and Python wheels built once get the fast path
 //! wherever it exists, without build flags.
@@ -31,7 +31,8 @@ pub trait Lanes:
     fn splat(v: f32) -> Self;
     /// The lanes of `v`.
     fn new(v: [f32; 8]) -> Self;
-    /// The lanes as an array.
+    /// The lanes as an array (the tests read lanes back).
+    #[cfg(test)]
     fn to_array(self) -> [f32; 8];
     /// `self * m + a`, fused where the hardware fuses.
     fn mul_add(self, m: Self, a: Self) -> Self;
@@ -64,7 +65,7 @@ pub trait Lanes:
 /// Which lane type an evaluator runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Isa {
-    /// [`Avx2`]: AVX2 and FMA, detected at run time.
+    /// One AVX2 register per eight lanes, with FMA; detected at run time.
     Avx2,
     /// `wide::f32x8` at the build's baseline.
     Portable,
@@ -123,7 +124,7 @@ impl Lanes for wide::f32x8 {
     fn new(v: [f32; 8]) -> Self {
         wide::f32x8::new(v)
     }
-    #[inline(always)]
+    #[cfg(test)]
     fn to_array(self) -> [f32; 8] {
         wide::f32x8::to_array(self)
     }
@@ -230,7 +231,7 @@ mod avx2 {
     use super::Lanes;
     use std::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_max_ps, _mm256_min_ps, _mm256_blendv_ps, _mm256_castps256_ps128, _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_ps,
-        _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
+        _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_ps,
         _mm256_sub_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _MM_FROUND_NO_EXC,
         _MM_FROUND_TO_NEAREST_INT,
     };
@@ -301,11 +302,11 @@ mod avx2 {
             // SAFETY: see the type; the load reads the eight floats of `v`.
             Self(unsafe { _mm256_loadu_ps(v.as_ptr()) })
         }
-        #[inline(always)]
+        #[cfg(test)]
         fn to_array(self) -> [f32; 8] {
             let mut out = [0.0; 8];
             // SAFETY: see the type; the store writes the eight floats of `out`.
-            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+            unsafe { std::arch::x86_64::_mm256_storeu_ps(out.as_mut_ptr(), self.0) };
             out
         }
         #[inline(always)]

@@ -11,8 +11,7 @@ mod fast;
 
 use common::*;
 use fast::*;
-use quatcurve::cpu::simd::Isa;
-use quatcurve::cpu::{CpuEvaluator, CpuOptions};
+use quatcurve::cpu::{CpuEvaluator, CpuOptions, Isa};
 use quatcurve::job::FloatOutput;
 use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
 
