@@ -63,8 +63,8 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
         (Member::read(npy, size).map_err(|m| err("rotations", m))?.floats("rotations", path)?, None, None, None)
     };
     match (key_rate, &times) {
-        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => return Err(err("times", format!("--key-rate must be a positive number of keys per second, not {rate}"))),
-        (Some(_), Some(_)) => return Err(err("times", "the archive has times and --key-rate was given; use one".into())),
+        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => return Err(err("times", format!("the key rate must be a positive number of keys per second, not {rate}"))),
+        (Some(_), Some(_)) => return Err(err("times", "the archive has times and a key rate was given; use one".into())),
         _ => {}
     }
     let [tracks, keys, 4] = rotations.shape[..] else {

@@ -49,6 +49,8 @@ pub mod euclidean;
 pub mod interp;
 pub mod io;
 pub mod job;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod quat;
 pub mod real;
 pub mod reference;

@@ -318,7 +318,7 @@ fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String>
         let (_, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are supported")?;
         return base64::engine::general_purpose::STANDARD.decode(data).map_err(|e| format!("bad base64: {e}"));
     }
-    let refuse = |why: &str| format!("{why}; only data URIs and relative paths inside the file's directory are read (--allow-external-uris reads it anyway)");
+    let refuse = |why: &str| format!("{why}; only data URIs and relative paths inside the file's directory are read (the bake option to allow external URIs reads it anyway)");
     let (path, external) = match uri.strip_prefix("file://") {
         Some(rest) => (percent_decode(rest)?, true),
         None if has_scheme(uri) => return Err(format!("{} URIs are not read", uri.split(':').next().unwrap_or_default())),

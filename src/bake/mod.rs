@@ -10,7 +10,13 @@
 pub mod bvh;
 pub mod crowd;
 pub mod gltf;
+pub mod job;
+pub mod manifest;
+pub mod shard;
 pub mod texture;
+
+pub use job::{BakeError, BakeJob, BakeReport, InputReport, Progress};
+pub use shard::Shard;
 
 use crate::curve::{Curve, CurveSpec};
 use crate::device::{Device, DeviceError};
@@ -271,11 +277,11 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
         LoopMode::On => {
             if !spec.can_loop() {
-                return Err(DeviceError::Input(format!("clip '{}': --loop on needs a curve that loops; {} does not", clip.name, spec.curve)));
+                return Err(DeviceError::Input(format!("clip '{}': loop mode on needs a curve that loops; {} does not", clip.name, spec.curve)));
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
                 return Err(DeviceError::Input(format!(
-                    "{}: --loop on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most 1e-3)",
+                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most 1e-3)",
                     animation.label(clip, c),
                     crate::error::Number(angle)
                 )));
@@ -349,7 +355,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
             return Err(DeviceError::Input(format!(
-                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower --rate",
+                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
                 clip.name,
                 crate::error::Number(end - start),
                 crate::error::Number(frames - 1.0),

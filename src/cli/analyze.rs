@@ -1,7 +1,7 @@
 //! `quatcurve analyze`: energy, torque and smoothness of several curves through the same keys
 //! (DESIGN section 8), and `--paper`, the rerun of KKS section 6.1.
 
-use super::plot::{self, Series};
+use quatcurve::plot::{self, Series};
 use super::{names, print_stdout, read_tracks, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::analysis::paper::{self, PaperSetup, RegimeTable, KKS_CURVES};
@@ -81,7 +81,7 @@ impl From<AnalysisError> for Failure {
 
 pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
     let options = args.analysis_options()?;
-    let device = Device::open(args.device)?;
+    let device = super::open_device(args.device, "--device")?;
     if args.paper {
         return run_paper(args, options, &device);
     }

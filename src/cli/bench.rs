@@ -135,17 +135,17 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
         total *= 10;
     }
     if let Some(path) = &args.plot {
-        let mut lines: Vec<super::plot::Line> = Vec::new();
+        let mut lines: Vec<quatcurve::plot::Line> = Vec::new();
         for p in &points {
             let label = format!("{} {} ({})", p.row.device, p.shape, if p.shape == "long" { "10 tracks" } else { "10 samples each" });
             let at = ((p.tracks * p.samples_per_track) as f64, p.row.samples_per_s);
             match lines.iter_mut().find(|l| l.label == label) {
                 Some(line) => line.points.push(at),
-                None => lines.push(super::plot::Line { label, points: vec![at] }),
+                None => lines.push(quatcurve::plot::Line { label, points: vec![at] }),
             }
         }
         let title = format!("quatcurve bench --sweep: {} {}, end to end", args.curve, if args.derivatives { "with derivatives" } else { "rotation only" });
-        super::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines).map_err(Failure::Input)?;
+        quatcurve::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines).map_err(Failure::Input)?;
     }
     print_stdout(|w| {
         if args.json {
@@ -174,11 +174,11 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
     let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();
     for choice in devices {
-        let device = match (choice, Device::open(choice)) {
+        let device = match (choice, super::open_device(choice, "--devices")) {
             (DeviceChoice::Auto, _) => return Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into())),
             (_, Ok(device)) => device,
-            (_, Err(e)) if explicit => return Err(e.into()),
-            (_, Err(e)) => {
+            (_, Err(e)) if explicit => return Err(e),
+            (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
                 eprintln!("skipped {choice}: {e}");
                 continue;
             }

@@ -104,7 +104,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     }
     let job = EvalJob { batch: &batch, times: &times, layout, derivatives: args.derivatives };
     job.validate().map_err(input_err)?;
-    let device = Device::open(args.device.device)?;
+    let device = super::open_device(args.device.device, "--device")?;
     let (out, device_name) = device.evaluate_named(&job).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
     let device = device_name;

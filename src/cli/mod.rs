@@ -5,12 +5,9 @@ pub mod analyze;
 pub mod bake;
 pub mod bench;
 pub mod eval;
-mod manifest;
-mod plot;
-mod shard;
 
 use clap::Args;
-use quatcurve::{Blend, Curve, CurveSpec, DeviceChoice, DeviceError, KnotMode, Tangents};
+use quatcurve::{Blend, Curve, CurveSpec, Device, DeviceChoice, DeviceError, KnotMode, Tangents};
 use std::io::Write;
 use std::path::Path;
 
@@ -39,6 +36,15 @@ impl Failure {
             Failure::Internal(msg) => Failure::Internal(format!("{what}: {msg}")),
         }
     }
+}
+
+/// Opens the device `choice`; the library's message (`gpu: no adapter ...`) gets the flag
+/// that chose it in front (`--device gpu: no adapter ...`).
+pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> {
+    Device::open(choice).map_err(|e| match e {
+        DeviceError::Input(msg) => Failure::Input(format!("{flag} {msg}")),
+        DeviceError::Device(msg) => Failure::Internal(format!("{flag} {msg}")),
+    })
 }
 
 /// A type the command line names by one of a fixed list of words.

@@ -417,5 +417,5 @@ fn hierarchies_with_two_parents_or_a_cycle_are_refused() {
     std::fs::write(&input, tiny_gltf_value(&[0.0, 1.0], &[[0.0, 0.0, 0.0, 1.0]; 2]).0.to_string()).unwrap();
     let result = bake(&["--input", input.to_str().unwrap(), "--output", dir.path().join("out").to_str().unwrap(), "--texture", "skin"]);
     assert_eq!(result.status.code(), Some(2));
-    assert!(stderr(&result).contains("no skin; use --texture model"), "{}", stderr(&result));
+    assert!(stderr(&result).contains("has no skin to bake a skin texture for; bake a model texture instead"), "{}", stderr(&result));
 }

@@ -1,12 +1,12 @@
-//! Charts of `analyze --plot`, `bake --preview` and `bench --sweep --plot`: PNG or SVG by
-//! the file's extension, written atomically.
+//! Charts of `analyze --plot`, the bake's previews and `bench --sweep --plot`: PNG or SVG by
+//! the file's extension, written atomically (cargo feature `plot`).
 //!
 //! Labels use DejaVu Sans embedded in the binary (the `dejavu` crate), so a chart renders the
 //! same on a server without fonts (SVG names the family and leaves drawing text to the viewer).
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use quatcurve::io::write_atomic;
+use crate::io::write_atomic;
 use std::path::Path;
 
 /// One line of the chart: `|omega|` and `|alpha|` of one curve at `times`.
@@ -84,8 +84,8 @@ impl Figure for LogLog<'_> {
     }
 }
 
-/// Frames a preview overlays.
-const PREVIEW_FRAMES: usize = 5;
+/// Frames a [`skeleton`] preview overlays.
+pub const PREVIEW_FRAMES: usize = 5;
 
 /// Draws a model texture's skeleton (a line from each joint to its parent) at
 /// [`PREVIEW_FRAMES`] evenly spaced frames, front view (x, y) beside side view (z, y), one
@@ -93,10 +93,10 @@ const PREVIEW_FRAMES: usize = 5;
 ///
 /// # Errors
 /// As [`rates`].
-pub fn skeleton(path: &Path, title: &str, model: &[f32], animation: &quatcurve::bake::Animation, frames: usize) -> Result<(), String> {
+pub fn skeleton(path: &Path, title: &str, model: &[f32], animation: &crate::bake::Animation, frames: usize) -> Result<(), String> {
     let joints = animation.joints.len();
     let picks: Vec<usize> = (0..PREVIEW_FRAMES.min(frames)).map(|i| if PREVIEW_FRAMES.min(frames) > 1 { i * (frames - 1) / (PREVIEW_FRAMES.min(frames) - 1) } else { 0 }).collect();
-    let at = |frame: usize, j: usize| quatcurve::bake::texture::position(model, joints, frame, j).map(f64::from);
+    let at = |frame: usize, j: usize| crate::bake::texture::position(model, joints, frame, j).map(f64::from);
     // Bones of every picked frame: (frame's place in picks, from, to).
     let bones: Vec<(usize, [f64; 3], [f64; 3])> = picks
         .iter()

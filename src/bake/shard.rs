@@ -1,8 +1,8 @@
-//! Which share of a job this process runs (DESIGN section 7): `--shard I/N`, or the array
-//! index and count an existing scheduler sets in the environment. quatcurve schedules
-//! nothing itself; it is a well-behaved array task.
+//! Which share of a job this process runs (DESIGN section 7): `I/N` given, or the array index
+//! and count an existing scheduler sets in the environment. quatcurve schedules nothing
+//! itself; it is a well-behaved array task.
 
-use super::Failure;
+use super::job::BakeError;
 use std::path::PathBuf;
 
 /// This process's share: inputs `k` with `k mod count == index`.
@@ -27,12 +27,27 @@ impl Shard {
         k % self.count == self.index
     }
 
-    /// `--shard` when given, else the first scheduler whose index variable is set.
-    pub fn resolve(flag: Option<&str>, env: &dyn Fn(&str) -> Option<String>) -> Result<Self, Failure> {
-        if let Some(flag) = flag {
-            let (index, count) = flag.split_once('/').ok_or_else(|| bad(format!("--shard {flag}: expected I/N, e.g. 0/4")))?;
-            return Self::new(number("--shard index", index)?, number("--shard count", count)?, format!("--shard {flag}"));
+    /// `I/N`, as `--shard` and Python's `shard=` give it.
+    ///
+    /// # Errors
+    /// [`BakeError::Option`] (`shard`): not two whole numbers, or no such shard.
+    pub fn parse(text: &str) -> Result<Self, BakeError> {
+        let bad = |reason: String| BakeError::option("shard", format!("{text}: {reason}"));
+        let (index, count) = text.split_once('/').ok_or_else(|| bad("expected I/N, e.g. 0/4".into()))?;
+        let number = |what: &str, n: &str| n.trim().parse().map_err(|_| bad(format!("the {what} {n:?} is not a whole number")));
+        let (index, count) = (number("index", index)?, number("count", count)?);
+        if count == 0 || index >= count {
+            return Err(bad(format!("shard {index} of {count} does not exist (need 0 <= index < count)")));
         }
+        Ok(Self { index, count, source: format!("shard {text}") })
+    }
+
+    /// The first scheduler whose index variable `env` has, else the whole job.
+    ///
+    /// # Errors
+    /// [`BakeError::Job`]: an index without its count, a value that is not a whole number, or
+    /// a shard that does not exist.
+    pub fn from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Self, BakeError> {
         // (scheduler, index variable, minimum variable to subtract, count variable)
         let schedulers: [(&str, &str, Option<&str>, &str); 4] = [
             ("Slurm", "SLURM_ARRAY_TASK_ID", Some("SLURM_ARRAY_TASK_MIN"), "SLURM_ARRAY_TASK_COUNT"),
@@ -43,7 +58,7 @@ impl Shard {
         for (scheduler, index_var, min_var, count_var) in schedulers {
             let Some(index) = env(index_var) else { continue };
             let count = env(count_var).ok_or_else(|| {
-                bad(format!("{scheduler}: {index_var} is set but {count_var} is not; set it to the number of array tasks (or pass --shard I/N)"))
+                bad(format!("{scheduler}: {index_var} is set but {count_var} is not; set it to the number of array tasks (or give the shard as I/N)"))
             })?;
             let mut index = number(index_var, &index)?;
             let mut source = format!("{scheduler}: {index_var}");
@@ -57,7 +72,7 @@ impl Shard {
         Ok(Self::whole())
     }
 
-    fn new(index: usize, count: usize, source: String) -> Result<Self, Failure> {
+    fn new(index: usize, count: usize, source: String) -> Result<Self, BakeError> {
         if count == 0 || index >= count {
             return Err(bad(format!("{source}: shard {index} of {count} does not exist (need 0 <= index < count)")));
         }
@@ -70,11 +85,11 @@ impl Shard {
     }
 }
 
-fn bad(msg: String) -> Failure {
-    Failure::Input(msg)
+fn bad(msg: String) -> BakeError {
+    BakeError::Job(msg)
 }
 
-fn number(what: &str, text: &str) -> Result<usize, Failure> {
+fn number(what: &str, text: &str) -> Result<usize, BakeError> {
     text.trim().parse().map_err(|_| bad(format!("{what}: {text:?} is not a whole number")))
 }
 
@@ -87,32 +102,28 @@ mod tests {
     }
 
     #[test]
-    fn flag_wins_then_schedulers_in_order() {
+    fn a_given_shard_parses_and_schedulers_go_in_order() {
         let slurm = [("SLURM_ARRAY_TASK_ID", "7"), ("SLURM_ARRAY_TASK_MIN", "5"), ("SLURM_ARRAY_TASK_COUNT", "3")];
-        assert_eq!(Shard::resolve(Some("1/4"), &env(&slurm)).ok().map(|s| (s.index, s.count)), Some((1, 4)));
-        let s = Shard::resolve(None, &env(&slurm)).ok().unwrap();
+        assert_eq!(Shard::parse("1/4").ok().map(|s| (s.index, s.count)), Some((1, 4)));
+        let s = Shard::from_env(&env(&slurm)).ok().unwrap();
         assert_eq!((s.index, s.count), (2, 3));
         assert!(s.source.contains("SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT"));
         let k8s = [("JOB_COMPLETION_INDEX", "0"), ("QUATCURVE_SHARD_COUNT", "2")];
-        assert_eq!(Shard::resolve(None, &env(&k8s)).ok().map(|s| (s.index, s.count)), Some((0, 2)));
+        assert_eq!(Shard::from_env(&env(&k8s)).ok().map(|s| (s.index, s.count)), Some((0, 2)));
         let aws = [("AWS_BATCH_JOB_ARRAY_INDEX", "1"), ("QUATCURVE_SHARD_COUNT", "2")];
-        assert_eq!(Shard::resolve(None, &env(&aws)).ok().map(|s| (s.index, s.count)), Some((1, 2)));
+        assert_eq!(Shard::from_env(&env(&aws)).ok().map(|s| (s.index, s.count)), Some((1, 2)));
         let google = [("BATCH_TASK_INDEX", "3"), ("BATCH_TASK_COUNT", "4")];
-        assert_eq!(Shard::resolve(None, &env(&google)).ok().map(|s| (s.index, s.count)), Some((3, 4)));
-        assert_eq!(Shard::resolve(None, &env(&[])).ok(), Some(Shard::whole()));
+        assert_eq!(Shard::from_env(&env(&google)).ok().map(|s| (s.index, s.count)), Some((3, 4)));
+        assert_eq!(Shard::from_env(&env(&[])).ok(), Some(Shard::whole()));
     }
 
     #[test]
     fn an_index_without_a_count_and_out_of_range_shards_are_errors() {
-        for (flag, pairs) in [
-            (None, vec![("JOB_COMPLETION_INDEX", "0")]),
-            (None, vec![("BATCH_TASK_INDEX", "0")]),
-            (Some("4/4"), vec![]),
-            (Some("0/0"), vec![]),
-            (Some("1"), vec![]),
-            (Some("a/2"), vec![]),
-        ] {
-            assert!(matches!(Shard::resolve(flag, &env(&pairs)), Err(Failure::Input(_))), "{flag:?} {pairs:?}");
+        for pairs in [vec![("JOB_COMPLETION_INDEX", "0")], vec![("BATCH_TASK_INDEX", "0")], vec![("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")]] {
+            assert!(matches!(Shard::from_env(&env(&pairs)), Err(BakeError::Job(_))), "{pairs:?}");
+        }
+        for text in ["4/4", "0/0", "1", "a/2"] {
+            assert!(matches!(Shard::parse(text), Err(BakeError::Option { option: "shard", .. })), "{text}");
         }
     }
 }

@@ -1,0 +1,712 @@
+//! The bake as a job over files (DESIGN sections 5b and 7): read each input (glTF/GLB, BVH,
+//! or the built-in crowd), bake every clip, write its outputs atomically, and keep the shard's
+//! manifest current. The command line (`quatcurve bake`) and the Python package
+//! (`quatcurve.bake`) both fill a [`BakeJob`] and run it; neither holds a second copy.
+//!
+//! One input failing is reported in its [`InputReport`] and the others still finish; only a
+//! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
+
+use super::manifest::{hash_bytes, hash_file, hash_parts, FileRecord, InputRecord, Manifest, ShardRecord};
+use super::shard::Shard;
+use super::texture::{self, Precision, TextureKind};
+use super::{bvh, crowd, gltf, Animation, Baked, LoopMode};
+use crate::curve::{Curve, CurveSpec};
+use crate::device::{Device, DeviceChoice, DeviceError};
+use crate::io::{write_atomic, Npy};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Why a bake job could not start, or could not keep its manifest.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BakeError {
+    /// An option outside its rules; `option` is its name (`rate`, `shard`, `output`, ...),
+    /// which the command line shows as its flag.
+    #[error("{option} {reason}")]
+    Option {
+        /// The option's name.
+        option: &'static str,
+        /// What is wrong with it, said after the name.
+        reason: String,
+    },
+    /// The job as a whole is inconsistent (two inputs writing the same outputs, a scheduler's
+    /// index without its count).
+    #[error("{0}")]
+    Job(String),
+    /// The manifest could not be written.
+    #[error(transparent)]
+    Manifest(#[from] crate::io::IoError),
+}
+
+impl BakeError {
+    pub(crate) fn option(option: &'static str, reason: impl Into<String>) -> Self {
+        Self::Option { option, reason: reason.into() }
+    }
+}
+
+/// Everything a bake reads: the inputs, where the outputs go, and how they are made. Fill it
+/// with [`BakeJob::new`] and field updates, then [`BakeJob::run`] (which validates first).
+#[derive(Clone, Debug)]
+pub struct BakeJob {
+    /// `.gltf`, `.glb` and `.bvh` files, or directories of them; none: the built-in crowd.
+    pub inputs: Vec<PathBuf>,
+    /// Output directory (created if missing, removed again if the job wrote nothing).
+    pub output: PathBuf,
+    /// Output frame rate in Hz.
+    pub rate: f64,
+    /// Curve and its options (`looping` is ignored: [`BakeJob::looping`] decides per clip).
+    pub spec: CurveSpec,
+    /// Which clips loop.
+    pub looping: LoopMode,
+    /// The device the job is recorded as using (the one [`BakeJob::run`] is given was opened
+    /// from it); part of the options that `resume` compares.
+    pub device: DeviceChoice,
+    /// Read glTF buffers from anywhere their URIs point, not only data URIs and files beside
+    /// the input.
+    pub allow_external_uris: bool,
+    /// Texture per clip: local, model or skin (DESIGN 5b).
+    pub texture: TextureKind,
+    /// Texture element type.
+    pub precision: Precision,
+    /// One texture per input with every clip stacked along frames.
+    pub atlas: bool,
+    /// Also draw each clip's skeleton to `<stem>.<clip>.png` (cargo feature `plot`).
+    pub preview: bool,
+    /// Characters in the built-in crowd.
+    pub characters: usize,
+    /// This process's share of the inputs; `None`: the share a scheduler's environment names
+    /// (Slurm, Kubernetes, AWS Batch, Google Batch), else the whole job.
+    pub shard: Option<Shard>,
+    /// Skip inputs whose outputs this shard's manifest records as intact, from the same bytes
+    /// and options.
+    pub resume: bool,
+    /// Inputs read, baked and written at once (each bake also uses every core).
+    pub jobs: usize,
+}
+
+impl BakeJob {
+    /// The defaults of `quatcurve bake`: 30 Hz, C2 through every key (`bspline-interp`),
+    /// loops detected, local f32 textures, one job.
+    #[must_use]
+    pub fn new(inputs: Vec<PathBuf>, output: impl Into<PathBuf>) -> Self {
+        Self {
+            inputs,
+            output: output.into(),
+            rate: 30.0,
+            spec: CurveSpec::new(Curve::BSplineInterp),
+            looping: LoopMode::Auto,
+            device: DeviceChoice::Auto,
+            allow_external_uris: false,
+            texture: TextureKind::Local,
+            precision: Precision::F32,
+            atlas: false,
+            preview: false,
+            characters: crowd::CHARACTERS,
+            shard: None,
+            resume: false,
+            jobs: 1,
+        }
+    }
+
+    /// Checks the options that do not need the inputs.
+    ///
+    /// # Errors
+    /// [`BakeError::Option`] naming the option.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        if !(self.rate.is_finite() && self.rate > 0.0) {
+            return Err(BakeError::option("rate", format!("must be a positive number of Hz, not {}", self.rate)));
+        }
+        if self.jobs == 0 {
+            return Err(BakeError::option("jobs", "must be at least 1"));
+        }
+        if self.inputs.is_empty() && self.characters == 0 {
+            return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
+        }
+        if self.preview && !cfg!(feature = "plot") {
+            return Err(BakeError::option("preview", "needs the `plot` cargo feature, which this build of quatcurve leaves out"));
+        }
+        Ok(())
+    }
+
+    /// The options that decide the outputs (the manifest's `options`; `resume` redoes every
+    /// input when they differ).
+    fn record(&self) -> serde_json::Value {
+        let s = &self.spec;
+        serde_json::json!({
+            "curve": s.curve.name(), "order": s.order, "knots": s.knots.name(), "tangents": s.tangents.name(),
+            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "device": self.device.name(),
+            "allow_external_uris": self.allow_external_uris, "characters": self.characters,
+            "texture": self.texture.name(), "precision": self.precision.name(), "atlas": self.atlas, "preview": self.preview,
+        })
+    }
+
+    /// Bakes this shard's inputs on `device` (opened from [`BakeJob::device`]; a caller baking
+    /// repeatedly keeps one open), telling `progress` as inputs start and finish.
+    ///
+    /// # Errors
+    /// A job that cannot start or cannot write its manifest. Inputs that fail are not errors
+    /// here: see [`BakeReport::failed`].
+    pub fn run(&self, device: &Device, progress: &dyn Progress) -> Result<BakeReport, BakeError> {
+        self.validate()?;
+        let shard = match &self.shard {
+            Some(shard) => shard.clone(),
+            None => Shard::from_env(&|name| std::env::var(name).ok())?,
+        };
+        let inputs = expand(&self.inputs)?;
+        // Over the whole job, so every shard refuses the same clashes.
+        let stems = output_stems(&inputs)?;
+        let output = OutputDir::create(&self.output)?;
+        let device_name = device.name();
+        let options = self.record();
+        let manifest_path = shard.manifest_path(&self.output);
+        let previous = if self.resume { Manifest::load(&manifest_path) } else { None };
+        let mut manifest = Manifest {
+            tool: format!("quatcurve {}", env!("CARGO_PKG_VERSION")),
+            shard: ShardRecord { index: shard.index, count: shard.count, source: shard.source.clone() },
+            options: options.clone(),
+            host: super::manifest::host(),
+            started: super::manifest::now(),
+            updated: 0,
+            inputs: Vec::new(),
+        };
+        // This shard's inputs: (name, stem, path); the built-in crowd is input 0 of its job.
+        let crowd_name = format!("built-in crowd: {} x {} joints, {} s", self.characters, crowd::JOINTS, crowd::SECONDS);
+        let all: Vec<(String, &str, Option<&Path>)> = if self.inputs.is_empty() {
+            vec![(crowd_name, "crowd", None)]
+        } else {
+            inputs.iter().zip(&stems).map(|(p, s)| (p.display().to_string(), s.as_str(), Some(p.as_path()))).collect()
+        };
+        let job_inputs = all.len();
+        let mine: Vec<_> = all.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, input)| input).collect();
+        progress.start(mine.len());
+        // One input: verify and keep (resume), or read, bake and write.
+        let process = |(name, stem, path): &(String, &str, Option<&Path>)| -> (InputReport, InputRecord) {
+            progress.begin(name);
+            let fingerprint = match path {
+                Some(path) => hash_file(path).unwrap_or((0, String::new())),
+                None => (0, hash_bytes(options.to_string().as_bytes())),
+            };
+            let kept = previous.as_ref().and_then(|m| m.resumable(&options, name, fingerprint.0, &fingerprint.1, &self.output));
+            let (report, written) = match (kept, path) {
+                (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
+                (None, Some(path)) => self.bake_one(name, stem, || self.read(path), device),
+                (None, None) => self.bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(self.characters))), device),
+            };
+            let record = input_record(&report, &written, fingerprint, kept);
+            progress.finish(&report);
+            (report, record)
+        };
+        // Kept current while the job runs, so a killed task resumes from where it was.
+        let (last_write, write_error) = (Mutex::new(Instant::now()), Mutex::new(None));
+        let results = in_order(&mine, self.jobs, process, |done| {
+            let mut last = last_write.lock().unwrap_or_else(|e| e.into_inner());
+            if last.elapsed().as_secs_f64() > 2.0 {
+                let mut partial = Manifest { inputs: done.iter().flatten().map(|(_, r)| r.clone()).collect(), ..manifest.clone() };
+                if let Err(e) = write_manifest(&mut partial, &manifest_path) {
+                    *write_error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+                }
+                *last = Instant::now();
+            }
+        });
+        if let Some(e) = write_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            return Err(e);
+        }
+        let (inputs, records): (Vec<InputReport>, Vec<InputRecord>) = results.into_iter().unzip();
+        manifest.inputs = records;
+        // A record of what was done, unless nothing was (a failed job leaves nothing behind).
+        if inputs.iter().any(|r| r.outcome.is_ok()) {
+            write_manifest(&mut manifest, &manifest_path)?;
+        }
+        output.remove_if_unused();
+        Ok(BakeReport { device: device_name, shard, job_inputs, inputs })
+    }
+
+    fn read(&self, path: &Path) -> Result<Source, DeviceError> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, gltf::UriPolicy { allow_external: self.allow_external_uris })?))),
+            Some("bvh") => {
+                let file = bvh::read(path)?;
+                let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
+                let animation = file.animation(&name);
+                Ok(Source::Bvh(file, animation))
+            }
+            _ => Err(DeviceError::Input("unknown format: expected .gltf, .glb or .bvh".into())),
+        }
+    }
+
+    /// Reads, bakes and writes one input; the files it wrote come back with the report.
+    fn bake_one(&self, source: &str, stem: &str, read: impl FnOnce() -> Result<Source, DeviceError>, device: &Device) -> (InputReport, Vec<Written>) {
+        let start = Instant::now();
+        let mut report = InputReport { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false };
+        let result = read().and_then(|src| {
+            let animation = src.animation();
+            report.clips = animation.clips.len();
+            report.channels = animation.clips.iter().map(|c| c.channels.len()).sum();
+            report.keys = animation.key_count();
+            if animation.clips.is_empty() {
+                return Err(DeviceError::Input("no rotation, translation or scale animation to bake".into()));
+            }
+            let baked = super::bake(animation, &self.spec, self.rate, self.looping, device)?;
+            report.samples = baked.sample_count();
+            report.max_key_error = baked.max_key_error;
+            // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
+            let used = baked.device.clone().unwrap_or_else(|| device.name());
+            self.write_outputs(&src, &baked, source, stem, &used, device)
+        });
+        report.seconds = start.elapsed().as_secs_f64();
+        let written = match result {
+            Ok(written) => {
+                report.outcome = Ok(written.iter().map(|w| w.path.clone()).collect());
+                written
+            }
+            Err(e) => {
+                report.outcome = Err(e);
+                Vec::new()
+            }
+        };
+        (report, written)
+    }
+
+    /// Writes the baked file (GLB or BVH), the textures and the sidecar; if any write fails,
+    /// removes the ones already written so the job leaves nothing partial. Forward kinematics
+    /// (model and skin textures, previews) runs on `fk_device`, the bake's.
+    fn write_outputs(&self, src: &Source, baked: &Baked, source: &str, stem: &str, device: &str, fk_device: &Device) -> Result<Vec<Written>, DeviceError> {
+        let animation = src.animation();
+        let dir = &self.output;
+        let mut written: Vec<Written> = Vec::new();
+        let result = (|| {
+            // Checked before anything is written.
+            let order = animation.parents_first()?;
+            if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+                return Err(DeviceError::Input("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
+            }
+            let baked_file = match src {
+                Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
+                Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
+                Source::Crowd(_) => None,
+            };
+            if let Some((name, bytes)) = &baked_file {
+                let path = dir.join(name);
+                refuse_overwriting_input(&path, source)?;
+                write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| DeviceError::Input(e.to_string()))?;
+                written.push(path.into());
+            }
+            let mut clips = Vec::new();
+            // atlas: per sheet, every clip's rows.
+            let mut atlas: Vec<texture::Sheet> = Vec::new();
+            let mut first_row = 0;
+            for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
+                let frames = result.times.len();
+                // Forward kinematics once per clip, for the textures and the preview alike.
+                let local = texture::local(animation, baked, index);
+                let model = if self.texture != TextureKind::Local || self.preview { Some(texture::model_on(fk_device, animation, &order, &local)?) } else { None };
+                let preview = match &model {
+                    Some(model) if self.preview => {
+                        let name = format!("{stem}.{index}.png");
+                        draw_preview(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), model, animation, frames)?;
+                        written.push(dir.join(&name).into());
+                        Some(name)
+                    }
+                    _ => None,
+                };
+                let clip_sheets = texture::arrange(animation, &order, self.texture, local, model);
+                let mut files = Vec::new();
+                for (k, sheet) in clip_sheets.iter().enumerate() {
+                    let suffix = &sheet.suffix;
+                    if self.atlas {
+                        files.push(format!("{stem}{suffix}.npy"));
+                        match atlas.get_mut(k) {
+                            Some(rows) => rows.data.extend_from_slice(&sheet.data),
+                            None => atlas.push(sheet.clone()),
+                        }
+                    } else {
+                        let name = format!("{stem}.{index}{suffix}.npy");
+                        written.push(self.write_sheet(&dir.join(&name), frames, sheet.width, &sheet.data)?);
+                        files.push(name);
+                    }
+                }
+                let (start, end) = (result.times[0], result.times[frames - 1]);
+                clips.push(SidecarClip {
+                    name: clip.name.clone(),
+                    file: files[0].clone(),
+                    files,
+                    first_row: if self.atlas { first_row } else { 0 },
+                    frames,
+                    start,
+                    end,
+                    rate: result.rate,
+                    looping: result.looping,
+                    preview,
+                });
+                first_row += frames;
+            }
+            for sheet in &atlas {
+                written.push(self.write_sheet(&dir.join(format!("{stem}{}.npy", sheet.suffix)), first_row, sheet.width, &sheet.data)?);
+            }
+            let sidecar = self.sidecar(animation, baked, source, device, baked_file.map(|(name, _)| name), clips);
+            let path = dir.join(format!("{stem}.json"));
+            write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
+                .map_err(|e| DeviceError::Input(e.to_string()))?;
+            written.push(path.into());
+            Ok(())
+        })();
+        match result {
+            Ok(()) => Ok(written),
+            Err(e) => {
+                for file in &written {
+                    let _ = std::fs::remove_file(&file.path);
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// One `.npy` texture `[frames, width, channels]`, hashed on another core while its bytes
+    /// go to disk (the manifest's SHA-256 without reading the file back).
+    fn write_sheet(&self, path: &Path, frames: usize, width: usize, data: &[f32]) -> Result<Written, DeviceError> {
+        let shape = [frames as u64, width as u64, self.texture.channels() as u64];
+        let failed = |e: std::io::Error| DeviceError::Input(format!("{}: cannot write: {e}", path.display()));
+        let npy = match self.precision {
+            Precision::F32 => Npy::f32(&shape, data),
+            Precision::F16 => Npy::f16(&shape, data),
+        }
+        .map_err(failed)?;
+        let (sha256, result) = std::thread::scope(|s| {
+            let sha256 = s.spawn(|| hash_parts(&[&npy.header, &npy.body]));
+            (sha256.join(), write_atomic(path, |w| npy.write(w)))
+        });
+        result.map_err(|e| DeviceError::Input(e.to_string()))?;
+        // Written but not recorded: taken away again, as every output of a failed input is.
+        let sha256 = sha256.map_err(|_| {
+            let _ = std::fs::remove_file(path);
+            DeviceError::Device(format!("{}: hashing failed", path.display()))
+        })?;
+        Ok(Written { path: path.to_path_buf(), hash: Some((npy.len() as u64, sha256)) })
+    }
+
+    fn sidecar<'a>(&'a self, animation: &'a Animation, baked: &Baked, source: &'a str, device: &'a str, baked_file: Option<String>, clips: Vec<SidecarClip>) -> Sidecar<'a> {
+        let channels = self.texture.channels();
+        let names = self.texture.channel_names().join(",");
+        let layout = match (self.atlas, self.texture) {
+            (false, TextureKind::Skin) if !animation.skins.is_empty() => format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", self.precision),
+            (false, _) => format!("per clip: [frames, joints, {channels}] {}: {names}", self.precision),
+            (true, _) => format!("one atlas: [frames of every clip, joints, {channels}] {}: {names}; clip rows from first_row", self.precision),
+        };
+        Sidecar {
+            source,
+            curve: self.spec.curve.name(),
+            rate: self.rate,
+            device,
+            texture: self.texture.name(),
+            channels: self.texture.channel_names(),
+            precision: self.precision.name(),
+            layout,
+            max_key_error_rad: baked.max_key_error,
+            baked_file,
+            joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
+            parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),
+            rest: animation.joints.iter().map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale }).collect(),
+            skins: animation.skins.iter().map(|s| SidecarSkin { name: &s.name, joints: &s.joints }).collect(),
+            clips,
+        }
+    }
+}
+
+#[cfg(feature = "plot")]
+fn draw_preview(path: &Path, title: &str, model: &[f32], animation: &Animation, frames: usize) -> Result<(), DeviceError> {
+    crate::plot::skeleton(path, title, model, animation, frames).map_err(DeviceError::Input)
+}
+
+#[cfg(not(feature = "plot"))]
+fn draw_preview(_: &Path, _: &str, _: &[f32], _: &Animation, _: usize) -> Result<(), DeviceError> {
+    // validate() refuses previews without the feature.
+    Err(DeviceError::Input("previews need the `plot` cargo feature".into()))
+}
+
+/// What a running job tells its caller (a progress bar, a log); every method has a default
+/// that does nothing, and `()` is the silent observer. Called from the job's worker threads.
+pub trait Progress: Sync {
+    /// The job starts `inputs` inputs (this shard's).
+    fn start(&self, inputs: usize) {
+        let _ = inputs;
+    }
+    /// An input is being read (or verified, when resuming).
+    fn begin(&self, source: &str) {
+        let _ = source;
+    }
+    /// An input is done, baked, resumed or failed.
+    fn finish(&self, input: &InputReport) {
+        let _ = input;
+    }
+}
+
+impl Progress for () {}
+
+/// What a job did: its device and shard, and one report per input of this shard, in job order.
+#[derive(Debug)]
+pub struct BakeReport {
+    /// The device's name (with its adapter or instruction set).
+    pub device: String,
+    /// The share of the job that ran.
+    pub shard: Shard,
+    /// Inputs in the whole job (every shard's).
+    pub job_inputs: usize,
+    /// This shard's inputs.
+    pub inputs: Vec<InputReport>,
+}
+
+impl BakeReport {
+    /// The inputs that failed.
+    pub fn failed(&self) -> impl Iterator<Item = &InputReport> {
+        self.inputs.iter().filter(|r| r.outcome.is_err())
+    }
+}
+
+/// What one input became.
+#[derive(Debug)]
+pub struct InputReport {
+    /// The input's path as given or found, or the built-in crowd's description.
+    pub source: String,
+    /// Clips, keyed channels and keys read.
+    pub clips: usize,
+    /// Keyed channels over every clip.
+    pub channels: usize,
+    /// Keys over every channel.
+    pub keys: usize,
+    /// Samples baked (frames times channels).
+    pub samples: usize,
+    /// Wall time of reading, baking and writing.
+    pub seconds: f64,
+    /// The largest angle between a rotation key and the baked curve at its time, where the
+    /// curve is meant to pass through keys.
+    pub max_key_error: Option<f64>,
+    /// The files written (or kept, when resumed), or why the input failed: `Input` for the
+    /// file's own faults, `Device` for the machine's.
+    pub outcome: Result<Vec<PathBuf>, DeviceError>,
+    /// Skipped by `resume`: the earlier run's outputs were verified and kept.
+    pub resumed: bool,
+}
+
+/// A file an input wrote, with its size and SHA-256 when they were taken as it was written
+/// (the textures: hashed from memory while the bytes go to disk, not read back).
+struct Written {
+    path: PathBuf,
+    hash: Option<(u64, String)>,
+}
+
+impl From<PathBuf> for Written {
+    fn from(path: PathBuf) -> Self {
+        Self { path, hash: None }
+    }
+}
+
+/// A source read into the common model, with what it needs to write itself back.
+enum Source {
+    Gltf(Box<gltf::GltfFile>),
+    Bvh(bvh::BvhFile, Animation),
+    Crowd(Animation),
+}
+
+impl Source {
+    fn animation(&self) -> &Animation {
+        match self {
+            Source::Gltf(f) => &f.animation,
+            Source::Bvh(_, a) | Source::Crowd(a) => a,
+        }
+    }
+}
+
+/// The sidecar JSON next to the animation textures (DESIGN section 5b).
+#[derive(Serialize)]
+struct Sidecar<'a> {
+    source: &'a str,
+    curve: &'a str,
+    rate: f64,
+    device: &'a str,
+    texture: &'a str,
+    channels: &'static [&'static str],
+    precision: &'a str,
+    layout: String,
+    max_key_error_rad: Option<f64>,
+    baked_file: Option<String>,
+    joints: Vec<&'a str>,
+    /// Parent joint index, -1 for a root.
+    parents: Vec<i64>,
+    rest: Vec<Rest>,
+    skins: Vec<SidecarSkin<'a>>,
+    clips: Vec<SidecarClip>,
+}
+
+/// A joint's rest pose, parent-relative.
+#[derive(Serialize)]
+struct Rest {
+    translation: [f64; 3],
+    rotation: [f64; 4],
+    scale: [f64; 3],
+}
+
+#[derive(Serialize)]
+struct SidecarSkin<'a> {
+    name: &'a str,
+    /// Joint indices in the skin's order (the rows of its skin texture).
+    joints: &'a [usize],
+}
+
+#[derive(Serialize)]
+struct SidecarClip {
+    name: String,
+    /// The texture (for `skin`, skin 0's).
+    file: String,
+    /// Every texture of the clip: one, or for `skin` one per glTF skin.
+    files: Vec<String>,
+    /// First row (frame) of the clip in `file`: 0, or its place in the atlas texture.
+    first_row: usize,
+    frames: usize,
+    start: f64,
+    end: f64,
+    /// Frames per second: the job's rate, or for a loop the nearest rate that fits a whole
+    /// number of frames in its period.
+    rate: f64,
+    /// Baked as a loop: periodic curves, continuous across the seam.
+    #[serde(rename = "loop")]
+    looping: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    preview: Option<String>,
+}
+
+/// `work` over `items` on `jobs` threads, taking items in order; the results come back in item
+/// order whatever finishes first, so nothing written depends on timing. `progress` sees every
+/// slot (finished or not) after each item; it should be cheap unless it acts (the manifest
+/// writer checks the time first).
+fn in_order<I: Sync, R: Send>(items: &[I], jobs: usize, work: impl Fn(&I) -> R + Sync, progress: impl Fn(&[Option<R>]) + Sync) -> Vec<R> {
+    let done: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.clamp(1, items.len().max(1)) {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(item) = items.get(k) else { break };
+                let result = work(item);
+                let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
+                done[k] = Some(result);
+                progress(&done);
+            });
+        }
+    });
+    done.into_inner().unwrap_or_else(|e| e.into_inner()).into_iter().flatten().collect()
+}
+
+fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), BakeError> {
+    manifest.updated = super::manifest::now();
+    write_atomic(path, |w| serde_json::to_writer_pretty(&mut *w, manifest).map_err(std::io::Error::from))
+        .map_err(BakeError::Manifest)
+}
+
+/// An input `resume` skips: the earlier run's record, its outputs verified intact.
+fn resumed(name: &str, record: &InputRecord, dir: &Path) -> InputReport {
+    let files = record.outputs.iter().map(|o| dir.join(&o.file)).collect();
+    InputReport { source: name.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(files), resumed: true }
+}
+
+/// The manifest entry of a finished input.
+fn input_record(report: &InputReport, written: &[Written], (size, sha256): (u64, String), kept: Option<&InputRecord>) -> InputRecord {
+    let (status, error, outputs) = match (&report.outcome, kept) {
+        (Ok(_), Some(kept)) => ("resumed", None, kept.outputs.clone()),
+        (Ok(_), None) => {
+            let record = |w: &Written| {
+                let file = w.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                match &w.hash {
+                    Some((size, sha256)) => Ok(FileRecord { file, size: *size, sha256: sha256.clone() }),
+                    None => FileRecord::of(&w.path, file),
+                }
+            };
+            match written.iter().map(record).collect::<std::io::Result<Vec<_>>>() {
+                Ok(outputs) => ("ok", None, outputs),
+                Err(e) => ("failed", Some(format!("cannot hash an output: {e}")), Vec::new()),
+            }
+        }
+        (Err(e), _) => ("failed", Some(e.to_string()), Vec::new()),
+    };
+    InputRecord { path: report.source.clone(), size, sha256, status: status.into(), error, seconds: report.seconds, outputs }
+}
+
+/// The output directory, created for the job; if this job created it (and any missing
+/// parents) and wrote nothing into it, [`Self::remove_if_unused`] takes them away again, so a
+/// failed job leaves nothing behind.
+struct OutputDir {
+    /// Directories this job created, deepest first.
+    created: Vec<PathBuf>,
+}
+
+impl OutputDir {
+    fn create(dir: &Path) -> Result<Self, BakeError> {
+        let created: Vec<PathBuf> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
+        std::fs::create_dir_all(dir).map_err(|e| BakeError::option("output", format!("{}: cannot create the directory: {e}", dir.display())))?;
+        Ok(Self { created })
+    }
+
+    fn remove_if_unused(&self) {
+        // remove_dir only removes empty directories.
+        for dir in &self.created {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
+}
+
+/// Files given, with directories replaced by their .gltf/.glb/.bvh files, sorted by path. A
+/// directory without one is an error: baking the built-in crowd instead would be a surprise.
+fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
+    let known = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("gltf" | "glb" | "bvh"));
+    let mut files = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input).map_err(|e| BakeError::option("input", format!("{}: cannot list: {e}", input.display())))?;
+            let found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
+            if found.is_empty() {
+                return Err(BakeError::option("input", format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display())));
+            }
+            files.extend(found);
+        } else {
+            files.push(input.clone());
+        }
+    }
+    // One order for every shard (DESIGN section 7): by path, bytewise.
+    files.sort_by(|a, b| a.as_os_str().as_encoded_bytes().cmp(b.as_os_str().as_encoded_bytes()));
+    Ok(files)
+}
+
+/// Each input's output stem (its file name without extension). Two inputs with one stem
+/// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
+/// replacing the first: refused before anything is baked.
+fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
+    let stems: Vec<String> = inputs.iter().map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned())).collect();
+    let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::new();
+    for (stem, path) in stems.iter().zip(inputs) {
+        if let Some(first) = seen.insert(stem, path) {
+            return Err(BakeError::Job(format!(
+                "{} and {} would both write {stem}.*; bake them into separate output directories",
+                first.display(),
+                path.display(),
+            )));
+        }
+    }
+    Ok(stems)
+}
+
+/// Baking into the input's own directory must not replace the input.
+fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), DeviceError> {
+    let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(DeviceError::Input(format!("{} would overwrite the input; choose another output directory", output.display())));
+    }
+    Ok(())
+}
