@@ -37,9 +37,9 @@ def _quiet_runtime_dir():
 
 _quiet_runtime_dir()
 
-from ._quatcurve import __version__, evaluate_batch  # noqa: E402
+from ._quatcurve import __version__, bake_files, evaluate_batch  # noqa: E402
 
-__all__ = ["evaluate", "Curve", "__version__"]
+__all__ = ["evaluate", "bake", "Curve", "__version__"]
 
 
 def _float64(name, value, ndims):
@@ -187,3 +187,99 @@ class Curve:
         result = evaluate(self.rotations, self.times, samples, curve=self.curve, derivatives=order > 0, **self.options)
         value = result if order == 0 else result[order]
         return value[0] if scalar else value
+
+
+def bake(
+    inputs=None,
+    output="baked",
+    *,
+    rate=30.0,
+    curve="bspline-interp",
+    order=4,
+    knots="phantom",
+    tangents="catmull-rom",
+    blend="cubic",
+    loop="auto",
+    texture="local",
+    precision="f32",
+    atlas=False,
+    preview=False,
+    characters=1000,
+    shard=None,
+    resume=False,
+    jobs=1,
+    allow_external_uris=False,
+    device="auto",
+    errors="raise",
+):
+    """Resamples animation files at a fixed rate into animation textures, as ``quatcurve bake``
+    does (DESIGN section 5b), and returns one summary row per input.
+
+    Parameters
+    ----------
+    inputs : str, os.PathLike or a list of them, optional
+        ``.gltf``, ``.glb`` and ``.bvh`` files, or directories of them. None (or an empty
+        list): the built-in synthetic crowd of ``characters`` characters.
+    output : str or os.PathLike
+        Output directory, created if missing. Per input ``<stem>``: the baked file
+        (``<stem>.glb`` or ``<stem>.bvh``), textures ``<stem>.<clip>.npy`` (or one
+        ``<stem>.npy`` with ``atlas``), the sidecar ``<stem>.json``; per shard a manifest.
+    rate : float
+        Frames per second (a looping clip takes the nearest rate that fits its period).
+    curve, order, knots, tangents, blend
+        As :func:`evaluate`; the default is C2 through every key.
+    loop : str
+        ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
+    texture : str
+        ``local`` ``[frames, joints, 10]`` (rotation, translation, scale), ``model``
+        ``[frames, joints, 12]`` (3x4 matrices by forward kinematics) or ``skin`` (model
+        times inverse bind matrix, per glTF skin).
+    precision : str
+        ``f32`` or ``f16``.
+    atlas, preview : bool
+        Stack every clip of an input in one texture; draw a skeleton PNG per clip.
+    shard : str, optional
+        ``"I/N"``: bake only inputs ``k`` with ``k % N == I`` (default: the share a Slurm,
+        Kubernetes, AWS Batch or Google Batch array task is given, else all).
+    resume : bool
+        Skip inputs whose outputs this shard's manifest records as intact.
+    jobs : int
+        Inputs baked at once.
+    device : str
+        As :func:`evaluate`.
+    errors : str
+        ``raise`` (default): after every input is done, raise ``ValueError`` if any failed,
+        naming each with its error; ``report``: return the rows, failures included.
+
+    Returns
+    -------
+    list of dict
+        Per input: ``source``, ``clips``, ``channels``, ``keys``, ``samples``, ``seconds``,
+        ``max_key_error`` (rad, or None), ``status`` (``ok``, ``resumed`` or ``failed``),
+        ``error`` (the message, or None) and ``files`` (``pathlib.Path``s written or kept).
+
+    Raises
+    ------
+    ValueError
+        An option outside its rules, or with ``errors="raise"`` any input that failed.
+    """
+    if errors not in ("raise", "report"):
+        raise ValueError(f"errors must be 'raise' or 'report', got {errors!r}")
+    if inputs is None:
+        inputs = []
+    elif isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    paths = [os.fspath(p) for p in inputs]
+    for name, value in (("order", order), ("characters", characters), ("jobs", jobs)):
+        if isinstance(value, bool) or int(value) != value or value < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+    rows = bake_files(
+        paths, os.fspath(output), float(rate), str(curve), int(order), str(knots), str(tangents), str(blend),
+        str(loop), str(texture), str(precision), bool(atlas), bool(preview), int(characters),
+        None if shard is None else str(shard), bool(resume), int(jobs), bool(allow_external_uris), str(device),
+    )
+    failed = [row for row in rows if row["status"] == "failed"]
+    if failed and errors == "raise":
+        lines = "; ".join(f"{row['source']}: {row['error']}" for row in failed)
+        raise ValueError(f"{len(failed)} of {len(rows)} inputs failed (the others were baked): {lines}")
+    return rows

@@ -1,4 +1,6 @@
-from typing import Any, Literal, overload
+import os
+import pathlib
+from typing import Any, Literal, Sequence, TypedDict, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -44,6 +46,42 @@ def evaluate(
     derivatives: Literal[True],
     device: DeviceName = ...,
 ) -> tuple[npt.NDArray[np.floating[Any]], npt.NDArray[np.floating[Any]], npt.NDArray[np.floating[Any]]]: ...
+
+class BakeRow(TypedDict):
+    source: str
+    clips: int
+    channels: int
+    keys: int
+    samples: int
+    seconds: float
+    max_key_error: float | None
+    status: Literal["ok", "resumed", "failed"]
+    error: str | None
+    files: list[pathlib.Path]
+
+def bake(
+    inputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = ...,
+    output: str | os.PathLike[str] = ...,
+    *,
+    rate: float = ...,
+    curve: CurveName = ...,
+    order: int = ...,
+    knots: Literal["phantom", "uniform", "clamped"] = ...,
+    tangents: Literal["catmull-rom", "zero", "given"] = ...,
+    blend: Literal["cubic", "quadratic"] = ...,
+    loop: Literal["auto", "on", "off"] = ...,
+    texture: Literal["local", "model", "skin"] = ...,
+    precision: Literal["f32", "f16"] = ...,
+    atlas: bool = ...,
+    preview: bool = ...,
+    characters: int = ...,
+    shard: str | None = ...,
+    resume: bool = ...,
+    jobs: int = ...,
+    allow_external_uris: bool = ...,
+    device: DeviceName = ...,
+    errors: Literal["raise", "report"] = ...,
+) -> list[BakeRow]: ...
 
 class Curve:
     rotations: npt.NDArray[np.float64]

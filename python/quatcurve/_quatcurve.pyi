@@ -21,3 +21,25 @@ def evaluate_batch(
     derivatives: bool,
     device: str,
 ) -> npt.NDArray[np.floating[Any]]: ...
+
+def bake_files(
+    inputs: list[str],
+    output: str,
+    rate: float,
+    curve: str,
+    order: int,
+    knots: str,
+    tangents: str,
+    blend: str,
+    looping: str,
+    texture: str,
+    precision: str,
+    atlas: bool,
+    preview: bool,
+    characters: int,
+    shard: str | None,
+    resume: bool,
+    jobs: int,
+    allow_external_uris: bool,
+    device: str,
+) -> list[dict[str, Any]]: ...

@@ -3,11 +3,16 @@
 //! [`evaluate_batch`] with C-contiguous float64 arrays of fixed rank; this file builds the
 //! library's batch from them, evaluates with the GIL released, and hands the samples back as
 //! one numpy array `[tracks, samples, channels]` that owns the evaluator's buffer (no copy).
+//! [`bake_files`] fills the library's [`BakeJob`] (the same job `quatcurve bake` runs) and
+//! returns its per-input report as dictionaries.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use quatcurve::bake::{BakeJob, Shard};
 use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, Track};
+use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::OnceLock;
 
@@ -147,10 +152,92 @@ enum Samples {
     F32(Vec<f32>),
 }
 
+/// Bakes `inputs` (glTF/GLB/BVH files or directories; none: the built-in crowd) into `output`
+/// as `quatcurve bake` does, with the GIL released. Returns one dictionary per input of this
+/// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
+/// `resumed`, `failed`), `error` and `files`. See `quatcurve.bake`.
+#[pyfunction]
+#[pyo3(signature = (inputs, output, rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device))]
+#[allow(clippy::too_many_arguments)]
+fn bake_files<'py>(
+    py: Python<'py>,
+    inputs: Vec<PathBuf>,
+    output: PathBuf,
+    rate: f64,
+    curve: &str,
+    order: usize,
+    knots: &str,
+    tangents: &str,
+    blend: &str,
+    looping: &str,
+    texture: &str,
+    precision: &str,
+    atlas: bool,
+    preview: bool,
+    characters: usize,
+    shard: Option<&str>,
+    resume: bool,
+    jobs: usize,
+    allow_external_uris: bool,
+    device: &str,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let choice: DeviceChoice = parse("device", device)?;
+    let job = BakeJob {
+        rate,
+        spec: CurveSpec {
+            curve: parse("curve", curve)?,
+            order,
+            knots: parse("knots", knots)?,
+            tangents: parse("tangents", tangents)?,
+            blend: parse("blend", blend)?,
+            looping: false,
+        },
+        looping: parse("loop", looping)?,
+        device: choice,
+        allow_external_uris,
+        texture: parse("texture", texture)?,
+        precision: parse("precision", precision)?,
+        atlas,
+        preview,
+        characters,
+        shard: shard.map(Shard::parse).transpose().map_err(value_error)?,
+        resume,
+        jobs,
+        ..BakeJob::new(inputs, output)
+    };
+    job.validate().map_err(value_error)?;
+    let device = self::device(choice)?;
+    let report = py.detach(|| job.run(device, &())).map_err(value_error)?;
+    report
+        .inputs
+        .iter()
+        .map(|input| {
+            let row = PyDict::new(py);
+            row.set_item("source", &input.source)?;
+            row.set_item("clips", input.clips)?;
+            row.set_item("channels", input.channels)?;
+            row.set_item("keys", input.keys)?;
+            row.set_item("samples", input.samples)?;
+            row.set_item("seconds", input.seconds)?;
+            row.set_item("max_key_error", input.max_key_error)?;
+            let status = match &input.outcome {
+                Ok(_) if input.resumed => "resumed",
+                Ok(_) => "ok",
+                Err(_) => "failed",
+            };
+            row.set_item("status", status)?;
+            row.set_item("error", input.outcome.as_ref().err().map(ToString::to_string))?;
+            row.set_item("files", input.outcome.as_ref().map_or_else(|_| Vec::new(), Clone::clone))?;
+            Ok(row)
+        })
+        .collect()
+}
+
 /// The compiled module, `quatcurve._quatcurve`.
 #[pymodule]
 fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(bake_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -173,3 +173,77 @@ def test_errors_are_value_errors_naming_track_and_key():
         quatcurve.evaluate(good, samples=3, curve="spiral")
     with pytest.raises(ValueError, match="sample_times, samples=N or rate"):
         quatcurve.evaluate(good)
+
+
+DATA = REPO.parent / "shared" / "data"
+
+
+def data_files(*names):
+    """Files of ../shared/data (real animation made by others), required where CI says so."""
+    missing = [n for n in names if not (DATA / n).exists()]
+    if missing:
+        if os.environ.get("QUATCURVE_REQUIRE_DATA") == "1":
+            pytest.fail(f"QUATCURVE_REQUIRE_DATA=1 but {missing} are not in {DATA}")
+        pytest.skip(f"{DATA} lacks {missing}")
+    return [str(DATA / n) for n in names]
+
+
+def outputs(directory):
+    """Every output file's bytes by name, manifests left out (they hold times and hosts)."""
+    return {p.name: p.read_bytes() for p in sorted(pathlib.Path(directory).iterdir()) if not p.name.startswith("manifest.")}
+
+
+@pytest.mark.parametrize("options, kwargs", [
+    (["--texture", "model"], {"texture": "model"}),
+    (["--precision", "f16", "--atlas", "--curve", "hermite"], {"precision": "f16", "atlas": True, "curve": "hermite"}),
+])
+def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
+    binary = cli()
+    inputs = data_files("CesiumMan.glb", "cmu_131_01.bvh")
+    subprocess.run([str(binary), "bake", "--input", *inputs, "--output", str(tmp_path / "cli"), "--device", "cpu", *options],
+                   capture_output=True, text=True, check=True)
+    rows = quatcurve.bake(inputs, tmp_path / "py", device="cpu", **kwargs)
+    assert [row["source"] for row in rows] == inputs
+    assert all(row["status"] == "ok" and row["error"] is None and row["samples"] > 0 for row in rows), rows
+    expected = outputs(tmp_path / "cli")
+    assert outputs(tmp_path / "py") == expected
+    assert sorted(pathlib.Path(f).name for row in rows for f in row["files"]) == sorted(expected)
+    manifest = json.loads((tmp_path / "py" / "manifest.0-of-1.json").read_text())
+    assert [record["status"] for record in manifest["inputs"]] == ["ok", "ok"]
+
+
+def test_bake_of_the_built_in_crowd_is_a_texture_per_clip(tmp_path):
+    rows = quatcurve.bake(output=tmp_path, characters=2, rate=10, texture="model", device="cpu")
+    assert len(rows) == 1 and rows[0]["status"] == "ok" and rows[0]["source"].startswith("built-in crowd: 2 x")
+    sidecar = json.loads((tmp_path / "crowd.json").read_text())
+    texture = np.load(tmp_path / sidecar["clips"][0]["file"])
+    assert texture.dtype == np.float32
+    assert texture.shape == (sidecar["clips"][0]["frames"], len(sidecar["joints"]), 12)
+    # Rotation blocks of model matrices are rotations: orthonormal rows.
+    r = texture[..., [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(texture.shape[:2] + (3, 3))
+    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-5)
+    # Resumed: the outputs are verified and kept, not baked again.
+    again = quatcurve.bake(output=tmp_path, characters=2, rate=10, texture="model", device="cpu", resume=True)
+    assert again[0]["status"] == "resumed" and again[0]["samples"] == 0
+
+
+def test_bake_errors_name_the_option_or_the_input(tmp_path):
+    with pytest.raises(ValueError, match="rate must be a positive number of Hz, not -1"):
+        quatcurve.bake(output=tmp_path / "a", rate=-1)
+    with pytest.raises(ValueError, match="texture: unknown texture 'pretty'"):
+        quatcurve.bake(output=tmp_path / "a", texture="pretty")
+    with pytest.raises(ValueError, match="shard 3/2: shard 3 of 2 does not exist"):
+        quatcurve.bake(output=tmp_path / "a", shard="3/2")
+    with pytest.raises(ValueError, match="errors must be"):
+        quatcurve.bake(output=tmp_path / "a", errors="ignore")
+    assert not (tmp_path / "a").exists()
+    # One bad input among good ones: the good one is baked, the bad one named with its rule.
+    bad = tmp_path / "bad.bvh"
+    bad.write_text("HIERARCHY\nROOT hips\n{\n")
+    good = data_files("cmu_131_03.bvh")[0]
+    with pytest.raises(ValueError, match=r"1 of 2 inputs failed \(the others were baked\): .*bad\.bvh: "):
+        quatcurve.bake([bad, good], tmp_path / "b", device="cpu")
+    rows = quatcurve.bake([bad, good], tmp_path / "c", device="cpu", errors="report")
+    assert [row["status"] for row in rows] == ["failed", "ok"]
+    assert rows[0]["files"] == [] and "bad.bvh" not in rows[0]["error"] and rows[0]["error"]
+    assert (tmp_path / "c" / "cmu_131_03.bvh").exists() and not (tmp_path / "c" / "bad.json").exists()
