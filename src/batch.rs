@@ -111,28 +111,8 @@ impl Batch {
     /// # Errors
     /// The first rule broken, naming the track and key ([`Error`]).
     pub fn from_tracks_each(tracks: &[Track], spec: impl Fn(usize) -> CurveSpec + Sync) -> Result<Self> {
-        use rayon::prelude::*;
-        // Tracks are prepared on every core (bspline-interp solves a Newton system per track),
-        // then appended in order, so the first error reported is the first track's.
-        let prepared: Vec<Result<Prepared>> = tracks
-            .par_iter()
-            .enumerate()
-            .with_min_len(64)
-            .map(|(index, track)| prepare(&TrackId { index, name: track.name.clone() }, track, &spec(index)))
-            .collect();
-        let prepared = prepared.into_iter().collect::<Result<Vec<Prepared>>>()?;
-        // Every array allocated once at its final size: grown by doubling, the copies and
-        // fresh pages of hundreds of MB (a crowd bake) cost more than preparing the tracks.
         let mut builder = BatchBuilder::new();
-        let b = &mut builder.batch;
-        b.tracks.reserve_exact(prepared.len());
-        b.ids.reserve_exact(prepared.len());
-        b.points.reserve_exact(prepared.iter().map(|p| p.points.len()).sum());
-        b.coefs.reserve_exact(prepared.iter().map(|p| p.coefs.len()).sum());
-        b.knots.reserve_exact(prepared.iter().map(|p| p.knots.len()).sum());
-        for (index, (track, packed)) in tracks.iter().zip(prepared).enumerate() {
-            builder.append(track, &spec(index), packed);
-        }
+        builder.extend(tracks, spec)?;
         builder.build()
     }
 
@@ -207,7 +187,10 @@ pub struct TrackView<'a> {
     pub knots: &'a [f64],
 }
 
-/// Builds a [`Batch`] track by track; tracks may use different curve specs.
+/// Tracks [`BatchBuilder::extend`] prepares at once.
+const EXTEND_CHUNK: usize = 1 << 14;
+
+/// Builds a [`Batch`] track by track or slice by slice; tracks may use different curve specs.
 #[derive(Debug, Default)]
 pub struct BatchBuilder {
     batch: Batch,
@@ -229,6 +212,60 @@ impl BatchBuilder {
         let id = TrackId { index, name: track.name.clone() };
         let packed = prepare(&id, track, spec)?;
         Ok(self.append(track, spec, packed))
+    }
+
+    /// Validates and appends `tracks`, track `i` of the slice with curve `spec(i)`, preparing
+    /// them on every core; returns their indices in the batch. A caller with more tracks than
+    /// it wants in memory at once passes them in slices and drops each after.
+    ///
+    /// # Errors
+    /// The first rule broken (the first track's in slice order), naming the track (by its
+    /// index in the batch) and key; the builder is unchanged then.
+    pub fn extend(&mut self, tracks: &[Track], spec: impl Fn(usize) -> CurveSpec + Sync) -> Result<std::ops::Range<usize>> {
+        use rayon::prelude::*;
+        let b = &self.batch;
+        let (first, lengths) = (b.tracks.len(), [b.points.len(), b.coefs.len(), b.knots.len()]);
+        // Prepared a chunk at a time (bspline-interp solves a Newton system per track), so the
+        // per-track vectors of only one chunk are alive beside the packed arrays.
+        for (c, chunk) in tracks.chunks(EXTEND_CHUNK).enumerate() {
+            let offset = c * EXTEND_CHUNK;
+            let prepared: Result<Vec<Prepared>> = chunk
+                .par_iter()
+                .enumerate()
+                .with_min_len(64)
+                .map(|(i, track)| prepare(&TrackId { index: first + offset + i, name: track.name.clone() }, track, &spec(offset + i)))
+                .collect();
+            let prepared = match prepared {
+                Ok(prepared) => prepared,
+                Err(e) => {
+                    self.truncate(first, lengths);
+                    return Err(e);
+                }
+            };
+            // Room for every track at the first chunk's sizes (exact for a batch of alike
+            // tracks): arrays of hundreds of MB grown by doubling cost copies and fresh pages.
+            let scale = |n: usize| if c == 0 { n * tracks.len() / chunk.len() } else { n };
+            let b = &mut self.batch;
+            b.tracks.reserve(scale(prepared.len()));
+            b.ids.reserve(scale(prepared.len()));
+            b.points.reserve(scale(prepared.iter().map(|p| p.points.len()).sum()));
+            b.coefs.reserve(scale(prepared.iter().map(|p| p.coefs.len()).sum()));
+            b.knots.reserve(scale(prepared.iter().map(|p| p.knots.len()).sum()));
+            for (i, (track, packed)) in chunk.iter().zip(prepared).enumerate() {
+                self.append(track, &spec(offset + i), packed);
+            }
+        }
+        Ok(first..self.batch.tracks.len())
+    }
+
+    /// Drops every track from index `tracks` on, the packed arrays back to `lengths`.
+    fn truncate(&mut self, tracks: usize, [points, coefs, knots]: [usize; 3]) {
+        let b = &mut self.batch;
+        b.tracks.truncate(tracks);
+        b.ids.truncate(tracks);
+        b.points.truncate(points);
+        b.coefs.truncate(coefs);
+        b.knots.truncate(knots);
     }
 
     /// Appends a prepared track; returns its index.

@@ -2,29 +2,31 @@
 //! a little per-track variation, no randomness crate needed.
 
 use crate::quat::{DQuat, DVec3};
-use crate::batch::Batch;
+use crate::batch::{Batch, BatchBuilder};
 use crate::curve::CurveSpec;
 use crate::error::Result;
 use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
+use std::ops::Range;
 
 /// `tracks` tracks of `keys` keys each at `rate` keys per second: each joint swings about a
 /// tilted axis with a per-track phase, amplitude and twist (up to about 80 degrees).
 #[must_use]
 pub fn walk_tracks(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
-    swings(tracks, keys, rate, |h| 0.8 + 0.6 * h)
+    swings(0..tracks, keys, rate, |h| 0.8 + 0.6 * h)
 }
 
 /// Like [`walk_tracks`], but each track is one whole gait cycle: its last key is its first
 /// pose again, as in a looping clip (the `--loop` workload).
 #[must_use]
 pub fn walk_cycles(tracks: usize, keys: usize, rate: f64) -> Vec<Track> {
-    swings(tracks, keys, rate, |_| rate / (keys - 1).max(1) as f64)
+    swings(0..tracks, keys, rate, |_| rate / (keys - 1).max(1) as f64)
 }
 
-/// The swings of [`walk_tracks`] at the frequency `frequency(h)` picks from a hash in [0, 1).
-fn swings(tracks: usize, keys: usize, rate: f64, frequency: impl Fn(f64) -> f64) -> Vec<Track> {
-    (0..tracks)
+/// The swings of [`walk_tracks`] with indices `tracks`, at the frequency `frequency(h)` picks
+/// from a hash in [0, 1).
+fn swings(tracks: Range<usize>, keys: usize, rate: f64, frequency: impl Fn(f64) -> f64) -> Vec<Track> {
+    tracks
         .map(|i| {
             // A cheap hash of the track index for variety.
             let h = |k: u64| ((i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
@@ -49,12 +51,39 @@ pub const WORKLOAD_KEYS: usize = 32;
 /// The tracks of [`workload`]: [`walk_tracks`], or [`walk_cycles`] when `spec` loops.
 #[must_use]
 pub fn workload_tracks(tracks: usize, keys: usize, spec: &CurveSpec) -> Vec<Track> {
+    workload_slice(0..tracks, keys, spec)
+}
+
+/// Tracks `range` of [`workload_tracks`] (each track is a function of its index alone).
+fn workload_slice(range: Range<usize>, keys: usize, spec: &CurveSpec) -> Vec<Track> {
+    const RATE: f64 = 30.0;
     if spec.looping {
-        walk_cycles(tracks, keys, 30.0)
+        swings(range, keys, RATE, |_| RATE / (keys - 1).max(1) as f64)
     } else {
-        walk_tracks(tracks, keys, 30.0)
+        swings(range, keys, RATE, |h| 0.8 + 0.6 * h)
     }
 }
+
+/// The batch of [`workload_tracks`], built from slices of [`SLICE`] tracks generated one at a
+/// time, so the tracks of the whole batch never sit in memory beside it; with the seconds
+/// spent in [`BatchBuilder::extend`] (validation and coefficients, generation not counted).
+///
+/// # Errors
+/// As [`workload`].
+pub fn workload_batch(tracks: usize, keys: usize, spec: &CurveSpec) -> Result<(Batch, f64)> {
+    let mut builder = BatchBuilder::new();
+    let mut seconds = 0.0;
+    for start in (0..tracks).step_by(SLICE) {
+        let slice = workload_slice(start..(start + SLICE).min(tracks), keys, spec);
+        let timer = std::time::Instant::now();
+        builder.extend(&slice, |_| *spec)?;
+        seconds += timer.elapsed().as_secs_f64();
+    }
+    Ok((builder.build()?, seconds))
+}
+
+/// Tracks [`workload_batch`] generates at once.
+pub const SLICE: usize = 1 << 16;
 
 /// The benchmark workload shared by `quatcurve bench` and the criterion benches:
 /// `tracks` [`workload_tracks`] of `keys` keys ([`WORKLOAD_KEYS`] by default) at 30 Hz,
@@ -63,7 +92,7 @@ pub fn workload_tracks(tracks: usize, keys: usize, spec: &CurveSpec) -> Vec<Trac
 /// # Errors
 /// The spec's errors (an order outside 2..=8, phantom knots with order other than 4).
 pub fn workload(tracks: usize, samples: usize, keys: usize, spec: &CurveSpec) -> Result<(Batch, SampleTimes)> {
-    let batch = Batch::from_tracks(&workload_tracks(tracks, keys, spec), spec)?;
+    let (batch, _) = workload_batch(tracks, keys, spec)?;
     let times = SampleTimes::uniform(&batch, Sampling::Count(samples))?;
     Ok((batch, times))
 }

@@ -5,7 +5,7 @@ use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::cpu::{CpuEvaluator, CpuOptions};
 use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes};
+use quatcurve::{synthetic, Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes, Sampling};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -164,12 +164,20 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
 /// Times one batch on every requested device.
 fn measure(args: &BenchArgs) -> Result<Report, Failure> {
     let spec = args.options.spec(args.curve, KnotMode::Uniform, args.looping);
-    let (batch, times) =
-        synthetic::workload(args.tracks, args.samples, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
-    // The build, timed on its own: the cost a caller pays once per set of keys.
-    let tracks = synthetic::workload_tracks(args.tracks, args.keys, &spec);
-    let build_seconds = median_seconds(args.runs, || Batch::from_tracks(&tracks, &spec).map(drop).map_err(|e| Failure::Input(format!("bench: {e}"))))?;
-    drop(tracks);
+    // The build, timed on its own: the cost a caller pays once per set of keys. The batch of
+    // the last run is the one evaluated; one batch is alive at a time.
+    let mut batch = None;
+    let mut builds = Vec::with_capacity(args.runs);
+    for _ in 0..args.runs {
+        drop(batch.take());
+        let (built, seconds) = synthetic::workload_batch(args.tracks, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+        builds.push(seconds);
+        batch = Some(built);
+    }
+    let batch = batch.ok_or_else(|| Failure::Input("bench: --runs must be at least 1".into()))?;
+    builds.sort_by(f64::total_cmp);
+    let build_seconds = builds[builds.len() / 2];
+    let times = SampleTimes::uniform(&batch, Sampling::Count(args.samples)).map_err(|e| Failure::Input(format!("bench: {e}")))?;
     let explicit = args.devices.is_some();
     let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();

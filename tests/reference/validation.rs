@@ -183,3 +183,21 @@ fn bad_sampling_requests() {
         assert!(matches!(SampleTimes::uniform(&batch, bad), Err(Error::BadSampling(_))), "{bad:?}");
     }
 }
+
+#[test]
+fn a_batch_extended_in_slices_is_the_batch_built_at_once_and_a_bad_slice_changes_nothing() {
+    // More tracks than one prepared chunk, mixed curves, so slices cross chunk boundaries.
+    let spec = |i: usize| CurveSpec { looping: false, ..CurveSpec::new(if i % 3 == 0 { Curve::Hermite } else { Curve::BSplineInterp }) };
+    let tracks: Vec<Track> = (0..20_000).map(|i| Track { name: Some(format!("t{i}")), ..Track::from_rotations(keys(4 + i % 5)) }).collect();
+    let whole = Batch::from_tracks_each(&tracks, spec).unwrap();
+    let mut builder = quatcurve::BatchBuilder::new();
+    assert_eq!(builder.extend(&tracks[..7], spec).unwrap(), 0..7);
+    assert_eq!(builder.extend(&tracks[7..], |i| spec(i + 7)).unwrap(), 7..20_000);
+    // A slice whose 17,001st track is bad: an error naming its index in the batch, and the
+    // builder as it was (its chunk and every chunk before it dropped again).
+    let mut bad: Vec<Track> = tracks[..17_001].to_vec();
+    bad[17_000].rotations[2] = [0.0; 4];
+    let err = builder.extend(&bad, spec).expect_err("a zero key").to_string();
+    assert!(err.contains("track 37000 \"t17000\": key 2 has norm 0"), "{err}");
+    assert_eq!(builder.build().unwrap(), whole);
+}
