@@ -26,7 +26,7 @@ use crate::error::Result;
 use crate::job::{EvalJob, FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use rayon::prelude::*;
-use track::{Bases, Tables};
+use track::{Bases, Context};
 
 /// Samples per parallel work item (a piece of one track).
 const PIECE: usize = 4096;
@@ -115,7 +115,7 @@ impl CpuEvaluator {
                 times.total()
             )));
         }
-        let tables = Tables::new(batch, &self.bases, self.isa);
+        let tables = Context::new(batch, &self.bases, self.isa);
         // Work items: pieces of at most PIECE samples of one track.
         let pieces: Vec<(usize, usize, usize)> = (0..batch.len())
             .flat_map(|i| {

@@ -73,38 +73,47 @@ impl Bases {
     }
 }
 
-/// Batch-wide f32 tables, built once per evaluation, with the evaluator's bases and lane type.
-pub struct Tables<'a> {
+/// What every piece of one evaluation shares: the evaluator's bases and lane type, and the
+/// batch, whose f64 points and coefficients the kernels convert to f32 where they read them.
+/// No batch-wide f32 copy: for a million short tracks it doubled the batch's memory and its
+/// conversion took as long as the evaluation.
+pub struct Context<'a> {
     /// The lane type the kernels run.
     isa: Isa,
-    /// Points `[x, y, z, w]`.
-    points: Vec<[f32; 4]>,
-    /// Coefficients as `[axis x, axis y, axis z, theta]` (axis unit, or zero with theta 0).
-    axes: Vec<[f32; 4]>,
     bases: &'a Bases,
+    batch: &'a Batch,
 }
 
-impl<'a> Tables<'a> {
-    /// Converts the batch's points and coefficients to f32 (on every core: a crowd's
-    /// millions of keys cost more here than evaluating its few samples per key).
-    pub fn new(batch: &Batch, bases: &'a Bases, isa: Isa) -> Self {
-        use rayon::prelude::*;
-        let points = batch.points.par_iter().with_min_len(1 << 12).map(|q| q.to_array().map(|v| v as f32)).collect();
-        let axes = batch
-            .coefs
-            .par_iter()
-            .with_min_len(1 << 12)
-            .map(|c| {
-                let theta = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-                if theta > 0.0 {
-                    [(c[0] / theta) as f32, (c[1] / theta) as f32, (c[2] / theta) as f32, theta as f32]
-                } else {
-                    [0.0; 4]
-                }
-            })
-            .collect();
-        Self { isa, points, axes, bases }
+impl<'a> Context<'a> {
+    /// The context of evaluating `batch` with `bases` on `isa`.
+    pub fn new(batch: &'a Batch, bases: &'a Bases, isa: Isa) -> Self {
+        Self { isa, bases, batch }
     }
+
+    /// Point `i` `[x, y, z, w]` in f32.
+    #[inline(always)]
+    fn point(&self, i: usize) -> [f32; 4] {
+        self.batch.points[i].to_array().map(|v| v as f32)
+    }
+
+    /// Coefficient `c` as `[axis x, axis y, axis z, theta]` in f32 (axis unit, or zero with
+    /// theta 0).
+    #[inline(always)]
+    fn axis(&self, c: usize) -> [f32; 4] {
+        let c = &self.batch.coefs[c];
+        let theta = angle(c);
+        if theta > 0.0 {
+            [(c[0] / theta) as f32, (c[1] / theta) as f32, (c[2] / theta) as f32, theta as f32]
+        } else {
+            [0.0; 4]
+        }
+    }
+}
+
+/// The length of a coefficient's vector part: the angle of its factor.
+#[inline(always)]
+fn angle(c: &[f64; 4]) -> f64 {
+    (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
 }
 
 /// How a track's basis is computed.
@@ -137,7 +146,7 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
 
 /// Evaluates samples `range` of track `index` into `out` (`range.len() x channels`).
 #[allow(clippy::too_many_arguments)]
-pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
     if super::forward::applies(view, times, index, options) {
         super::forward::evaluate(view, times, index, range, options, channels, out);
         return;
@@ -178,8 +187,7 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
     };
     // Every basis here stays within [0, 1] on the domain, so every angle is at most its
     // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
-    let c0 = track.coef_offset;
-    let small = tables.axes[c0..c0 + track.coef_count].iter().all(|a| a[3] <= SMALL_ANGLE * 0.99);
+    let small = view.coefs.iter().all(|c| angle(c) as f32 <= SMALL_ANGLE * 0.99);
     let piece = Piece { tables, view, times, index, from: range.start, options, channels, basis, first, last };
     // Constant factor counts and flags let the compiler unroll the basis and the product,
     // keep them in registers and drop the branches.
@@ -204,9 +212,18 @@ pub fn evaluate(tables: &Tables<'_>, view: TrackView<'_>, times: &SampleTimes, i
     }
 }
 
+/// One segment's data as the kernels read it ([`Piece::segment`]).
+#[derive(Clone, Copy)]
+struct Segment<const F: usize> {
+    span: usize,
+    start: [f32; 4],
+    /// `[axis x, axis y, axis z, theta]` of each factor.
+    axes: [[f32; 4]; F],
+}
+
 /// One piece of a vectorized track, and what it needs.
 struct Piece<'a> {
-    tables: &'a Tables<'a>,
+    tables: &'a Context<'a>,
     view: TrackView<'a>,
     times: &'a SampleTimes,
     index: usize,
@@ -221,20 +238,22 @@ struct Piece<'a> {
 }
 
 impl Piece<'_> {
-    /// Where the segment of `span` starts: its first point (sign-aligned for Hermite) and
-    /// first coefficient.
+    /// The segment of `span` in f32: its first point (sign-aligned for Hermite) and its `F`
+    /// factors' axes and angles. Converted once per span a group meets (the kernels keep the
+    /// last one), not once per batch: no f32 copy of the whole batch.
     #[inline(always)]
-    fn segment(&self, span: usize) -> ([f32; 4], usize) {
+    fn segment<const F: usize>(&self, span: usize) -> Segment<F> {
         let (track, p0, c0) = (self.view.track, self.view.track.point_offset, self.view.track.coef_offset);
-        match track.curve {
-            Curve::Slerp => (self.tables.points[p0 + span], c0 + span),
-            Curve::Bezier => (self.tables.points[p0], c0),
+        let (start, coef) = match track.curve {
+            Curve::Slerp => (self.tables.point(p0 + span), c0 + span),
+            Curve::Bezier => (self.tables.point(p0), c0),
             Curve::Hermite => {
                 let sign = self.view.coefs[3 * span + 1][3] as f32;
-                (self.tables.points[p0 + span].map(|v| v * sign), c0 + 3 * span)
+                (self.tables.point(p0 + span).map(|v| v * sign), c0 + 3 * span)
             }
-            _ => (self.tables.points[p0 + span + 1 - track.order], c0 + span + 1 - track.order),
-        }
+            _ => (self.tables.point(p0 + span + 1 - track.order), c0 + span + 1 - track.order),
+        };
+        Segment { span, start, axes: std::array::from_fn(|f| self.tables.axis(coef + f)) }
     }
 
     /// [`Piece::groups`] on the evaluator's lane type.
@@ -252,7 +271,7 @@ impl Piece<'_> {
     /// instances, so that the AVX2 one compiles for AVX2.
     #[inline(always)]
     fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool, S: Lanes>(&self, n: usize, out: &mut [f32]) {
-        let (knots, tables, options, channels) = (self.view.knots, self.tables, self.options, self.channels);
+        let (knots, options, channels) = (self.view.knots, self.options, self.channels);
         let (first, last) = (self.first, self.last);
         let mut hint = first;
         let mut jets = [[S::ZERO; 3]; F];
@@ -264,8 +283,12 @@ impl Piece<'_> {
         };
         // The knot constants of the last span Cox-de Boor needed.
         let mut span_knots: Option<SpanKnots> = None;
-        // `start * (axis_0, 0)` of the segment the last shared group was on.
-        let (mut lead_span, mut lead) = (usize::MAX, [0.0f32; 4]);
+        // The segment the last shared group was on, and its `start * (axis_0, 0)`.
+        let mut shared_segment: Option<(Segment<F>, [f32; 4])> = None;
+        // Each lane's segment start and factors in a group that is not shared (set there
+        // before they are read; kept across groups so that they are not cleared per group).
+        let mut starts = [[0.0f32; 4]; LANES];
+        let mut axes = [[[0.0f32; 4]; F]; LANES];
         for g in (0..n).step_by(LANES) {
             let valid = LANES.min(n - g);
             // Lanes past the end repeat the last sample and are not written.
@@ -293,28 +316,30 @@ impl Piece<'_> {
                 let (k0, k1) = (knots[h], knots[h + 1]);
                 t.iter().fold(true, |inside, &t| inside & (k0 <= t) & (t < k1))
             };
-            let (mut start, mut coef) = ([[0.0f32; 4]; LANES], [0usize; LANES]);
             let inv = if shared {
                 let inv_len = 1.0 / (knots[h + 1] - knots[h]);
                 for (u, t) in u.iter_mut().zip(&t) {
                     *u = ((t - knots[h]) * inv_len) as f32;
                 }
-                (start[0], coef[0]) = self.segment(h);
+                if shared_segment.as_ref().map(|s| s.0.span) != Some(h) {
+                    let segment = self.segment::<F>(h);
+                    shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
+                }
                 S::splat(inv_len as f32)
             } else {
                 let mut inv = [0.0f32; LANES];
-                let mut known = usize::MAX;
-                let mut inv_len = 0.0;
+                // Lanes' spans ascend with their times: each distinct one converted once.
+                let mut current: Option<(Segment<F>, f64)> = None;
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
-                    if span != known {
-                        known = span;
-                        inv_len = 1.0 / (knots[span + 1] - knots[span]);
-                    }
+                    let (segment, inv_len) = match current {
+                        Some(c) if c.0.span == span => c,
+                        _ => *current.insert((self.segment::<F>(span), 1.0 / (knots[span + 1] - knots[span]))),
+                    };
                     (spans[lane], t[lane]) = (span, tl);
                     u[lane] = ((tl - knots[span]) * inv_len) as f32;
                     inv[lane] = inv_len as f32;
-                    (start[lane], coef[lane]) = self.segment(span);
+                    (starts[lane], axes[lane]) = (segment.start, segment.axes);
                 }
                 S::new(inv)
             };
@@ -365,26 +390,18 @@ impl Piece<'_> {
             }
             let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
             for (f, factor) in factors.iter_mut().enumerate() {
-                let (axis, theta) = if shared {
-                    let r = tables.axes[coef[0] + f];
-                    (V8::splat(r), S::splat(r[3]))
-                } else {
-                    let mut rows = [[0.0f32; 4]; LANES];
-                    for (row, &c) in rows.iter_mut().zip(&coef) {
-                        *row = tables.axes[c + f];
+                let (axis, theta) = match &shared_segment {
+                    Some((segment, _)) if shared => (V8::splat(segment.axes[f]), S::splat(segment.axes[f][3])),
+                    _ => {
+                        let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| axes[lane][f]);
+                        (V8::gather(&rows), S::new(rows.map(|r| r[3])))
                     }
-                    (V8::gather(&rows), S::new(rows.map(|r| r[3])))
                 };
                 *factor = Factor8 { axis, theta, b: jets[f] };
             }
-            let (start, lead) = if shared {
-                if lead_span != h {
-                    lead_span = h;
-                    lead = times_axis(start[0], tables.axes[coef[0]]);
-                }
-                (Q8::splat(start[0]), Some(Q8::splat(lead)))
-            } else {
-                (Q8::gather(&start), None)
+            let (start, lead) = match &shared_segment {
+                Some((segment, lead)) if shared => (Q8::splat(segment.start), Some(Q8::splat(*lead))),
+                _ => (Q8::gather(&starts), None),
             };
             let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, SMALL);
             let rows = &mut out[g * channels..(g + valid) * channels];
