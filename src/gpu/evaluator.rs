@@ -1,6 +1,6 @@
 //! [`GpuEvaluator`]: device and pipelines made once, then any number of batch evaluations.
 
-use super::layout::{self, Chunk, GpuTrack, Params, ANY_CURVE};
+use super::layout::{self, Chunk, ChunkPlan, GpuTrack, Params, ANY_CURVE};
 use super::shader;
 use super::GpuError;
 use crate::batch::Batch;
@@ -24,12 +24,17 @@ pub struct GpuOptions {
     pub generic_kernel: bool,
 }
 
+/// Largest binding of one chunk [`GpuEvaluator::evaluate`] streams (64 MiB): small enough that
+/// the packed chunk and its device copy (host memory too, on a software adapter) stay a
+/// fraction of a large batch, large enough that a dispatch's fixed cost is amortized.
+pub const STREAM_CHUNK_BYTES: u64 = 64 << 20;
+
 /// Host result of the GPU path (the float arrays every fast path returns).
 pub type GpuOutput = FloatOutput;
 
 /// A batch uploaded to the device by [`GpuEvaluator::prepare`].
 pub struct PreparedBatch {
-    plans: Vec<Chunk>,
+    plans: Vec<ChunkPlan>,
     chunks: Vec<PreparedChunk>,
     channels: usize,
     layout: Layout,
@@ -239,10 +244,11 @@ impl GpuEvaluator {
         self
     }
 
-    /// Evaluates every track at its sample times and reads the result back. Chunks are
-    /// uploaded, run and read one at a time, so device memory holds one chunk at most; the
-    /// output buffer is kept for reuse by the next chunk and the next call (at most one
-    /// binding, [`GpuEvaluator::binding_limit`]; [`GpuEvaluator::release_buffers`] frees it).
+    /// Evaluates every track at its sample times and reads the result back. Chunks of at most
+    /// [`STREAM_CHUNK_BYTES`] per binding are packed, uploaded, run and read one at a time, so
+    /// host and device memory hold one chunk beside the batch and the output; the output
+    /// buffer is kept for reuse by the next chunk and the next call
+    /// ([`GpuEvaluator::release_buffers`] frees it).
     ///
     /// # Errors
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
@@ -250,11 +256,11 @@ impl GpuEvaluator {
     pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
         let channels = crate::job::channels(options.derivatives, options.matrix);
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
-        for chunk in &self.plan(batch, times, options, channels)? {
-            let prepared = self.upload(chunk, batch, options, channels, None)?;
+        for plan in &self.plan(batch, times, options, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))? {
+            let prepared = self.upload(&layout::pack(plan, batch, times), options, channels, None)?;
             self.submit(&prepared)?;
             // The readback copy is queued behind the dispatch: one wait covers both.
-            self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, chunk, times, options.layout, channels, &mut data))?;
+            self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, plan, times, options.layout, channels, &mut data))?;
             *self.spare_output.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.output);
         }
         Ok(GpuOutput { channels, data })
@@ -272,8 +278,9 @@ impl GpuEvaluator {
     /// As [`GpuEvaluator::evaluate`].
     pub fn prepare(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<PreparedBatch, GpuError> {
         let channels = crate::job::channels(options.derivatives, options.matrix);
-        let plans = self.plan(batch, times, options, channels)?;
-        let chunks = plans.iter().map(|c| self.upload(c, batch, options, channels, None)).collect::<Result<_, _>>()?;
+        // The chunks `evaluate` streams, so a dispatch-only figure times the same dispatches.
+        let plans = self.plan(batch, times, options, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))?;
+        let chunks = plans.iter().map(|plan| self.upload(&layout::pack(plan, batch, times), options, channels, None)).collect::<Result<_, _>>()?;
         Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
     }
 
@@ -314,7 +321,7 @@ impl GpuEvaluator {
         if target.size() < needed {
             return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));
         }
-        let chunks = self.plan(batch, times, options, channels)?;
+        let chunks = self.plan(batch, times, options, channels, self.binding_limit)?;
         if chunks.len() != 1 {
             return Err(GpuError::Job(format!(
                 "the batch needs {} bindings of at most {} bytes; evaluate_into takes one",
@@ -322,15 +329,16 @@ impl GpuEvaluator {
                 self.binding_limit
             )));
         }
-        let prepared = self.upload(&chunks[0], batch, options, channels, Some(target))?;
+        let prepared = self.upload(&layout::pack(&chunks[0], batch, times), options, channels, Some(target))?;
         self.submit(&prepared)?;
         self.wait()
     }
 
-    fn plan(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, channels: usize) -> Result<Vec<Chunk>, GpuError> {
+    /// Validates the job and plans its chunks, every binding within `limit` bytes.
+    fn plan(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, channels: usize, limit: u64) -> Result<Vec<ChunkPlan>, GpuError> {
         let job = crate::EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives };
         job.validate().map_err(|e| GpuError::Job(e.to_string()))?;
-        layout::plan_chunks(batch, times, channels, self.binding_limit).map_err(GpuError::Pack)
+        layout::plan_chunks(batch, times, channels, limit).map_err(GpuError::Pack)
     }
 
     /// Runs the write-only roofline kernel over a prepared batch's chunks and waits: the same
@@ -381,20 +389,19 @@ impl GpuEvaluator {
     }
 
     /// Creates a chunk's buffers, bind group and pipeline; output into `target` when given.
-    fn upload(&self, chunk: &Chunk, batch: &Batch, options: &GpuOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
+    fn upload(&self, chunk: &Chunk, options: &GpuOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
-        let tracks = &batch.tracks[chunk.first_track..chunk.first_track + chunk.tracks.len()];
-        let single = tracks.iter().all(|t| t.curve == tracks[0].curve);
-        let only_curve = if single && !options.generic_kernel { layout::curve_code(tracks[0].curve) } else { ANY_CURVE };
+        let single = chunk.tracks.iter().all(|t| t.curve == chunk.tracks[0].curve);
+        let only_curve = if single && !options.generic_kernel { chunk.tracks[0].curve } else { ANY_CURVE };
         let pipeline = self.pipeline(PipelineKey { only_curve, derivatives: options.derivatives, matrix: options.matrix })?;
-        let groups = (chunk.samples as u64).div_ceil(u64::from(self.workgroup_size));
+        let groups = (chunk.plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
         let groups_x = groups.min(u64::from(self.max_groups_per_dim)).max(1) as u32;
         let groups_y = groups.div_ceil(u64::from(groups_x)).max(1);
         if groups_y > u64::from(self.max_groups_per_dim) {
-            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", chunk.samples)));
+            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", chunk.plan.samples)));
         }
         let params = Params {
-            sample_count: chunk.samples as u32,
+            sample_count: chunk.plan.samples as u32,
             track_count: chunk.tracks.len() as u32,
             channels: channels as u32,
             frame_major: u32::from(options.layout == Layout::Frame),
@@ -403,10 +410,15 @@ impl GpuEvaluator {
         };
         let scope = ErrorScope::push(&self.device);
         let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // Bindings may not be empty: pad to 16 bytes.
-            let mut bytes = contents.to_vec();
-            bytes.resize(bytes.len().max(16), 0);
-            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &bytes, usage })
+            // Bindings may not be empty: pad to 16 bytes (a copy only for tiny contents).
+            let padded;
+            let contents = if contents.len() >= 16 {
+                contents
+            } else {
+                padded = [contents, &[0u8; 16][contents.len()..]].concat();
+                &padded
+            };
+            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
         let storage = wgpu::BufferUsages::STORAGE;
         let inputs = [
@@ -417,7 +429,7 @@ impl GpuEvaluator {
             init("knots", bytemuck::cast_slice(&chunk.knots), storage),
             init("times", bytemuck::cast_slice(&chunk.times), storage),
         ];
-        let output_bytes = (chunk.samples * channels * 4) as u64;
+        let output_bytes = (chunk.plan.samples * channels * 4) as u64;
         let spare = if target.is_none() { self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take().filter(|b| b.size() >= output_bytes) } else { None };
         let output = match (target, spare) {
             (Some(buffer), _) => buffer.clone(),
@@ -511,7 +523,7 @@ impl GpuEvaluator {
 }
 
 /// Copies a chunk's local output into its place in the whole output.
-fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, channels: usize, data: &mut [f32]) {
+fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout, channels: usize, data: &mut [f32]) {
     match layout {
         Layout::Track => {
             // In parallel pieces: one thread alone copies a few GB/s, a third of the kernel's
@@ -524,7 +536,7 @@ fn scatter(local: &[f32], chunk: &Chunk, times: &SampleTimes, layout: Layout, ch
         }
         Layout::Frame => {
             // Local rows are [frame][chunk track]; global rows are [frame][track].
-            let n = chunk.tracks.len();
+            let n = chunk.tracks;
             let frames = chunk.samples.checked_div(n).unwrap_or(0);
             for j in 0..frames {
                 let src = j * n * channels;

@@ -130,14 +130,34 @@ pub fn fixed_step(step: f64) -> [u32; 3] {
 }
 
 
-/// A contiguous range of tracks that fits every binding limit, packed for the kernel; or one
-/// piece of a track too long for one binding (its samples from `sample_base` on).
-#[derive(Clone, Debug, Default)]
-pub struct Chunk {
+/// A contiguous range of tracks that fits every binding limit, or one piece of a track too
+/// long for one binding (its samples from `sample_base` on): where [`pack`] takes its data
+/// from, and how much. Planning copies nothing, so a batch is packed one chunk at a time.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ChunkPlan {
     /// First track of the batch in this chunk.
     pub first_track: usize,
+    /// Tracks in the chunk (1 for a piece).
+    pub tracks: usize,
     /// First sample of the first track in this chunk (non-zero only for a piece).
     pub sample_base: usize,
+    /// Samples in the chunk.
+    pub samples: usize,
+    /// Entries of each packed array: points, coefficients, knots, explicit times.
+    pub points: usize,
+    /// Coefficients.
+    pub coefs: usize,
+    /// Knots.
+    pub knots: usize,
+    /// Explicit sample times.
+    pub times: usize,
+}
+
+/// A chunk packed for the kernel: its plan and the f32 / fixed-point arrays of its tracks.
+#[derive(Clone, Debug, Default)]
+pub struct Chunk {
+    /// What the chunk covers.
+    pub plan: ChunkPlan,
     /// Tracks, rebased to the chunk's arrays.
     pub tracks: Vec<GpuTrack>,
     /// Points `[x, y, z, w]`.
@@ -148,8 +168,6 @@ pub struct Chunk {
     pub knots: Vec<[u32; 2]>,
     /// Explicit sample times in 32.32 fixed point.
     pub times: Vec<[u32; 2]>,
-    /// Samples in the chunk.
-    pub samples: usize,
 }
 
 /// Why a batch cannot go to the GPU.
@@ -190,77 +208,199 @@ pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
 /// Splits `batch` into chunks whose every buffer stays within `binding_limit` bytes. A track
 /// whose samples alone overflow a binding is cut into pieces of consecutive samples, one
 /// chunk each (so no track is refused for its length; its keys travel with every piece).
+/// Constant work per track, nothing copied: [`pack`] fills each chunk when it is needed.
 ///
 /// # Errors
 /// [`PackError`] naming the track: a Bezier degree the kernel cannot take, more than
 /// [`MAX_SAMPLES_PER_TRACK`] samples, or keys that alone overflow a binding.
-pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<Chunk>, PackError> {
-    let mut chunks = vec![Chunk::default()];
+pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<ChunkPlan>, PackError> {
+    let mut chunks = vec![ChunkPlan::default()];
     for index in 0..batch.len() {
-        let view = batch.view(index);
+        let track = &batch.tracks[index];
         let count = times.count(index);
         let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
-        let name = batch.ids[index].to_string();
-        if view.track.curve == Curve::Bezier && view.track.order > MAX_BEZIER_DEGREE {
-            return Err(PackError::BezierTooLong { track: name, degree: view.track.order, max: MAX_BEZIER_DEGREE });
+        let name = || batch.ids[index].to_string();
+        if track.curve == Curve::Bezier && track.order > MAX_BEZIER_DEGREE {
+            return Err(PackError::BezierTooLong { track: name(), degree: track.order, max: MAX_BEZIER_DEGREE });
         }
         if count >= MAX_SAMPLES_PER_TRACK {
-            return Err(PackError::TooManySamples { track: name, count, max: MAX_SAMPLES_PER_TRACK - 1 });
+            return Err(PackError::TooManySamples { track: name(), count, max: MAX_SAMPLES_PER_TRACK - 1 });
         }
-        // Bytes each binding of chunk `c` holds with `samples` more samples of this track.
-        let needs = |c: &Chunk, samples: usize| -> [u64; 6] {
+        // Chunk `c` with `samples` more samples of this track.
+        let grown = |c: &ChunkPlan, samples: usize| ChunkPlan {
+            tracks: c.tracks + 1,
+            samples: c.samples + samples,
+            points: c.points + track.point_count,
+            coefs: c.coefs + track.coef_count,
+            knots: c.knots + track.knot_count,
+            times: c.times + if explicit { samples } else { 0 },
+            ..c.clone()
+        };
+        // Bytes each binding of the chunk holds.
+        let needs = |c: &ChunkPlan| -> [u64; 6] {
             [
-                ((c.tracks.len() + 1) * std::mem::size_of::<GpuTrack>()) as u64,
-                ((c.points.len() + view.points.len()) * 16) as u64,
-                ((c.coefs.len() + view.coefs.len()) * 16) as u64,
-                ((c.knots.len() + view.knots.len()) * 8) as u64,
-                ((c.times.len() + if explicit { samples } else { 0 }) * 8) as u64,
-                ((c.samples + samples) * channels * 4) as u64,
+                (c.tracks * std::mem::size_of::<GpuTrack>()) as u64,
+                (c.points * 16) as u64,
+                (c.coefs * 16) as u64,
+                (c.knots * 8) as u64,
+                (c.times * 8) as u64,
+                (c.samples * channels * 4) as u64,
             ]
         };
-        let fits = |c: &Chunk, samples: usize| needs(c, samples).iter().all(|&b| b <= binding_limit) && c.samples + samples < u32::MAX as usize;
-        if fits(chunks.last().unwrap(), count) {
-            push_piece(chunks.last_mut().unwrap(), index, &view, times, 0..count);
+        let fits = |c: &ChunkPlan| needs(c).iter().all(|&b| b <= binding_limit) && c.samples < u32::MAX as usize;
+        let last = chunks.last_mut().expect("one chunk at least");
+        let with = grown(last, count);
+        if fits(&with) {
+            *last = with;
             continue;
         }
-        if fits(&Chunk::default(), count) {
-            chunks.push(Chunk { first_track: index, ..Chunk::default() });
-            push_piece(chunks.last_mut().unwrap(), index, &view, times, 0..count);
+        let fresh = grown(&ChunkPlan { first_track: index, ..ChunkPlan::default() }, count);
+        if fits(&fresh) {
+            chunks.push(fresh);
             continue;
         }
         // Too long for one binding: pieces as large as a fresh chunk takes.
         let per_sample = (channels * 4 + if explicit { 8 } else { 0 }) as u64;
         let piece = (binding_limit / per_sample).min(u32::MAX as u64 / 2) as usize;
-        if piece == 0 || !fits(&Chunk::default(), piece.min(count)) {
-            let bytes = *needs(&Chunk::default(), 1).iter().max().unwrap();
-            return Err(PackError::TrackTooLarge { track: name, bytes, limit: binding_limit });
+        let one = grown(&ChunkPlan { first_track: index, ..ChunkPlan::default() }, piece.min(count));
+        if piece == 0 || !fits(&one) {
+            let bytes = *needs(&grown(&ChunkPlan::default(), 1)).iter().max().unwrap();
+            return Err(PackError::TrackTooLarge { track: name(), bytes, limit: binding_limit });
         }
         for start in (0..count).step_by(piece) {
-            chunks.push(Chunk { first_track: index, sample_base: start, ..Chunk::default() });
-            push_piece(chunks.last_mut().unwrap(), index, &view, times, start..(start + piece).min(count));
+            chunks.push(grown(&ChunkPlan { first_track: index, sample_base: start, ..ChunkPlan::default() }, (start + piece).min(count) - start));
         }
         // Later tracks start a chunk of their own (a piece's chunk holds that piece only).
-        chunks.push(Chunk { first_track: index + 1, ..Chunk::default() });
+        chunks.push(ChunkPlan { first_track: index + 1, ..ChunkPlan::default() });
     }
-    chunks.retain(|c| !c.tracks.is_empty());
+    chunks.retain(|c| c.tracks > 0);
     Ok(chunks)
 }
 
-/// Appends samples `range` of track `index` to `chunk` (the whole track, or one piece).
-fn push_piece(chunk: &mut Chunk, index: usize, view: &crate::batch::TrackView<'_>, times: &SampleTimes, range: std::ops::Range<usize>) {
-    let count = range.len();
+/// Tracks [`pack`] gives one task.
+const PACK_TASK: usize = 1 << 12;
+
+/// The kernel's arrays for `plan`, its tracks packed on every core (each into its own slices
+/// of arrays allocated once at their final sizes).
+#[must_use]
+pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes) -> Chunk {
+    use rayon::prelude::*;
+    let mut chunk = Chunk {
+        plan: plan.clone(),
+        tracks: vec![GpuTrack::default(); plan.tracks],
+        points: vec![[0.0; 4]; plan.points],
+        coefs: vec![[0.0; 4]; plan.coefs],
+        knots: vec![[0; 2]; plan.knots],
+        times: vec![[0; 2]; plan.times],
+    };
+    // Each task's tracks and where their entries start: (first track, tracks, offsets).
+    let mut tasks = Vec::with_capacity(plan.tracks.div_ceil(PACK_TASK));
+    let mut at = Offsets::default();
+    for first in (0..plan.tracks).step_by(PACK_TASK) {
+        let n = PACK_TASK.min(plan.tracks - first);
+        tasks.push((first, n, at));
+        for i in first..first + n {
+            at = at.after(batch, times, plan, i);
+        }
+    }
+    // Every task's slices of the five arrays, split off in order.
+    let (mut tracks, mut points, mut coefs, mut knots, mut sample_times) =
+        (&mut chunk.tracks[..], &mut chunk.points[..], &mut chunk.coefs[..], &mut chunk.knots[..], &mut chunk.times[..]);
+    let ends: Vec<Offsets> = tasks.iter().skip(1).map(|t| t.2).chain([at]).collect();
+    let mut work = Vec::with_capacity(tasks.len());
+    for (&(first, n, start), end) in tasks.iter().zip(&ends) {
+        let (t, rest) = std::mem::take(&mut tracks).split_at_mut(n);
+        tracks = rest;
+        let (p, rest) = std::mem::take(&mut points).split_at_mut(end.points - start.points);
+        points = rest;
+        let (c, rest) = std::mem::take(&mut coefs).split_at_mut(end.coefs - start.coefs);
+        coefs = rest;
+        let (k, rest) = std::mem::take(&mut knots).split_at_mut(end.knots - start.knots);
+        knots = rest;
+        let (s, rest) = std::mem::take(&mut sample_times).split_at_mut(end.times - start.times);
+        sample_times = rest;
+        work.push((first, n, start, t, p, c, k, s));
+    }
+    work.into_par_iter().for_each(|(first, n, mut at, t, p, c, k, s)| {
+        let base = at;
+        for (i, gpu) in (first..first + n).zip(t.iter_mut()) {
+            let index = plan.first_track + i;
+            let view = batch.view(index);
+            let range = piece_range(plan, times, index);
+            *gpu = track_entry(&view, times, index, range.clone(), &at);
+            let (p0, c0, k0, s0) = (at.points - base.points, at.coefs - base.coefs, at.knots - base.knots, at.times - base.times);
+            for (to, q) in p[p0..p0 + view.points.len()].iter_mut().zip(view.points) {
+                *to = q.to_array().map(|v| v as f32);
+            }
+            for (to, w) in c[c0..c0 + view.coefs.len()].iter_mut().zip(view.coefs) {
+                *to = w.map(|v| v as f32);
+            }
+            for (to, &knot) in k[k0..k0 + view.knots.len()].iter_mut().zip(view.knots) {
+                *to = fixed_time(knot);
+            }
+            if let TrackTimes::Explicit { offset, .. } = times.tracks[index] {
+                for (to, &time) in s[s0..s0 + range.len()].iter_mut().zip(&times.explicit[offset + range.start..offset + range.end]) {
+                    *to = fixed_time(time);
+                }
+            }
+            at = at.after(batch, times, plan, i);
+        }
+    });
+    chunk
+}
+
+/// Where a track's entries start in its chunk's arrays.
+#[derive(Clone, Copy, Debug, Default)]
+struct Offsets {
+    points: usize,
+    coefs: usize,
+    knots: usize,
+    times: usize,
+    samples: usize,
+}
+
+impl Offsets {
+    /// The offsets after chunk track `i`.
+    fn after(self, batch: &Batch, times: &SampleTimes, plan: &ChunkPlan, i: usize) -> Self {
+        let index = plan.first_track + i;
+        let track = &batch.tracks[index];
+        let samples = piece_range(plan, times, index).len();
+        let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
+        Self {
+            points: self.points + track.point_count,
+            coefs: self.coefs + track.coef_count,
+            knots: self.knots + track.knot_count,
+            times: self.times + if explicit { samples } else { 0 },
+            samples: self.samples + samples,
+        }
+    }
+}
+
+/// The samples of track `index` that chunk `plan` holds: all, or its piece (a piece is the
+/// only track of its chunk, and so is a whole track with the chunk's every sample).
+fn piece_range(plan: &ChunkPlan, times: &SampleTimes, index: usize) -> std::ops::Range<usize> {
+    if plan.tracks == 1 {
+        plan.sample_base..plan.sample_base + plan.samples
+    } else {
+        0..times.count(index)
+    }
+}
+
+/// The kernel's record of samples `range` of track `index` (the whole track, or one piece),
+/// its entries from `at` in the chunk's arrays.
+fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: usize, range: std::ops::Range<usize>, at: &Offsets) -> GpuTrack {
     let mut gpu = GpuTrack {
         curve: curve_code(view.track.curve),
         order: view.track.order as u32,
         blend: blend_code(view.track.blend),
-        point_offset: chunk.points.len() as u32,
+        point_offset: at.points as u32,
         point_count: view.points.len() as u32,
-        coef_offset: chunk.coefs.len() as u32,
-        knot_offset: chunk.knots.len() as u32,
+        coef_offset: at.coefs as u32,
+        knot_offset: at.knots as u32,
         knot_count: view.knots.len() as u32,
-        sample_offset: chunk.samples as u32,
-        sample_count: count as u32,
-        time_offset: chunk.times.len() as u32,
+        sample_offset: at.samples as u32,
+        sample_count: range.len() as u32,
+        time_offset: at.times as u32,
         sample_base: range.start as u32,
         ..GpuTrack::default()
     };
@@ -268,10 +408,7 @@ fn push_piece(chunk: &mut Chunk, index: usize, view: &crate::batch::TrackView<'_
         gpu.flags |= FLAG_UNIFORM_KNOTS;
     }
     match times.tracks[index] {
-        TrackTimes::Explicit { offset, .. } => {
-            gpu.flags |= FLAG_EXPLICIT_TIMES;
-            chunk.times.extend(times.explicit[offset + range.start..offset + range.end].iter().map(|&t| fixed_time(t)));
-        }
+        TrackTimes::Explicit { .. } => gpu.flags |= FLAG_EXPLICIT_TIMES,
         TrackTimes::Uniform { start, step, last, count: total } => {
             [gpu.start_lo, gpu.start_hi] = fixed_time(start);
             [gpu.step_whole, gpu.step_frac_hi, gpu.step_frac_lo] = fixed_step(step);
@@ -282,9 +419,5 @@ fn push_piece(chunk: &mut Chunk, index: usize, view: &crate::batch::TrackView<'_
             }
         }
     }
-    chunk.tracks.push(gpu);
-    chunk.points.extend(view.points.iter().map(|q| q.to_array().map(|c| c as f32)));
-    chunk.coefs.extend(view.coefs.iter().map(|c| c.map(|x| x as f32)));
-    chunk.knots.extend(view.knots.iter().map(|&k| fixed_time(k)));
-    chunk.samples += count;
+    gpu
 }
