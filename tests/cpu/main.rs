@@ -155,3 +155,57 @@ fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
         free.assert_within_bars("free-running long segment");
     }
 }
+
+/// Many short tracks (0 to 20 samples each: one partial SIMD group, or two) of every spec in
+/// blocks of one spec: per-track sample times inside and outside the domain, both layouts,
+/// with derivatives and matrices, on the chosen lanes and the baseline.
+#[test]
+fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
+    let mut g = Gen::new(1811);
+    let mut builder = quatcurve::BatchBuilder::new();
+    let specs = all_specs();
+    for i in 0..600 {
+        // Blocks of six tracks of one spec.
+        let spec = specs[(i / 6) % specs.len()];
+        let count = spec.min_keys().max(2) + i % 5;
+        builder.add(&accurate_track(&mut g, &spec, count, KINDS[i % 4]), &spec).unwrap();
+    }
+    let batch = builder.build().unwrap();
+    // Track-major: 0 to 20 samples per track; frame-major needs one count: 10.
+    let mut lists = |fixed: Option<usize>| -> Vec<Vec<f64>> {
+        (0..batch.len())
+            .map(|i| {
+                let [a, b] = batch.tracks[i].domain;
+                let n = fixed.unwrap_or((g.next_u64() % 21) as usize);
+                let mut t: Vec<f64> = (0..n).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
+                t.sort_by(f64::total_cmp);
+                t
+            })
+            .collect()
+    };
+    let (ragged, even) = (lists(None), lists(Some(10)));
+    let mut all = Worst::default();
+    for (layout, lists) in [(Layout::Track, &ragged), (Layout::Frame, &even)] {
+        let overrides: Vec<Option<&[f64]>> = lists.iter().map(|l| Some(l.as_slice())).collect();
+        let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap();
+        assert!(times.total() > 5000, "{}", times.total());
+        for (name, eval) in [("chosen", &on_cpu as Eval<'_>), ("portable", &on_portable_lanes)] {
+            for derivatives in [false, true] {
+                all.merge(compare_output(&eval(&batch, &times, layout, derivatives), &batch, &times, layout, derivatives, &format!("{name} {layout:?} {derivatives}")));
+            }
+        }
+    }
+    all.assert_within_bars("cpu: many short tracks");
+    // Matrices ride along: each row's matrix is its quaternion's.
+    let overrides: Vec<Option<&[f64]>> = ragged.iter().map(|l| Some(l.as_slice())).collect();
+    let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap();
+    let out = CpuEvaluator::new().evaluate(&batch, &times, &CpuOptions { matrix: true, ..CpuOptions::default() }).unwrap();
+    for row in out.data.chunks_exact(out.channels) {
+        let m = DQuat::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();
+        for (r, m) in m.iter().enumerate() {
+            for (c, m) in m.iter().enumerate() {
+                assert!((f64::from(row[4 + 3 * r + c]) - m).abs() < 1e-5, "{row:?}");
+            }
+        }
+    }
+}
