@@ -328,7 +328,8 @@ impl Piece<'_> {
                 S::splat(inv_len as f32)
             } else {
                 let mut inv = [0.0f32; LANES];
-                // Lanes' spans ascend with their times: each distinct one converted once.
+                // Consecutive lanes in one span share one conversion (every distinct span
+                // once when the times are sorted, as grids are).
                 let mut current: Option<(Segment<F>, f64)> = None;
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
