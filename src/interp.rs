@@ -26,7 +26,9 @@ use crate::basis::bspline_cumulative;
 use crate::batch::relative_log;
 use crate::quat::{DQuat, DVec3};
 use glam::{DMat3, DVec3 as V3};
+use std::cell::RefCell;
 use std::f64::consts::PI;
+use std::rc::Rc;
 
 /// Largest angle (rad) a solved curve may miss a key by (DESIGN section 3).
 pub const KEY_TOLERANCE: f64 = 1e-12;
@@ -117,6 +119,25 @@ struct System {
 }
 
 impl System {
+    /// The system for `times`, shared with the previous solve on this thread when that had
+    /// the same times: the tracks of a clip share their key times, and the basis values at
+    /// every knot were a measured part of each solve.
+    fn shared(times: &[f64], periodic: bool) -> Rc<Self> {
+        thread_local! {
+            static LAST: RefCell<Option<(Vec<f64>, Rc<System>)>> = const { RefCell::new(None) };
+        }
+        LAST.with_borrow_mut(|last| {
+            if let Some((last_times, system)) = last {
+                if system.periodic == periodic && last_times.as_slice() == times {
+                    return Rc::clone(system);
+                }
+            }
+            let system = Rc::new(Self::new(times, periodic));
+            *last = Some((times.to_vec(), Rc::clone(&system)));
+            system
+        })
+    }
+
     fn new(times: &[f64], periodic: bool) -> Self {
         let n = times.len() - 1;
         let key_row = |knots: &[f64], i: usize| {
@@ -173,18 +194,32 @@ fn skew(v: V3) -> DMat3 {
 }
 
 /// Right Jacobian of the half-angle exp: `exp(v + d) = exp(v) exp(jr(v) d)` to first order.
-/// It is SO(3)'s `J_r(2 v)`: `I - (sin^2 h / h^2) [v]x + ((2h - sin 2h) / 2h^3) [v]x^2`, `h = |v|`.
-fn jr(v: V3) -> DMat3 {
-    let h = v.length();
-    let (c1, c2) = if h < 1e-4 {
-        (1.0 - h * h / 3.0, 2.0 / 3.0 - 2.0 * h * h / 15.0)
-    } else {
-        // One sin_cos: sin 2h = 2 sin h cos h.
-        let (s, c) = h.sin_cos();
-        (s * s / (h * h), (2.0 * h - 2.0 * s * c) / (2.0 * h * h * h))
-    };
+/// It is SO(3)'s `J_r(2 v)`: `I - (sin^2 h / h^2) [v]x + ((2h - sin 2h) / 2h^3) [v]x^2`, `h = |v|`;
+/// `c` holds the two coefficients ([`exp_jr`]).
+fn jr(v: V3, c: [f64; 2]) -> DMat3 {
     let k = skew(v);
-    DMat3::IDENTITY - k * c1 + k * k * c2
+    DMat3::IDENTITY - k * c[0] + k * k * c[1]
+}
+
+/// `exp(v)` and the coefficients of [`jr`]`(v)`, from one `sin_cos` (the row evaluation needs
+/// the one, its Jacobian the other, and they share the angle).
+fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
+    let h2 = v.length_squared();
+    let h = h2.sqrt();
+    let c = if h < 1e-4 {
+        [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]
+    } else {
+        // One sin_cos: sin 2h = 2 sin h cos h. exp's own value-only branch below 1e-2 is
+        // kept, so the rotation is exactly `DQuat::exp`'s.
+        let (s, c) = h.sin_cos();
+        if h2 >= 1e-4 {
+            let sinc = s / h;
+            let e = DQuat::from_xyzw(v.x * sinc, v.y * sinc, v.z * sinc, c);
+            return (e, [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)]);
+        }
+        [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)]
+    };
+    (DQuat::exp(d(v)), c)
 }
 
 /// Inverse right and left Jacobians of the half-angle log: `log(exp(v) exp(d)) = v + jr_inv d`
@@ -198,6 +233,26 @@ fn j_inv(v: V3) -> (DMat3, DMat3) {
         let (s, c) = h.sin_cos();
         (1.0 - h * c / s) / (h * h)
     };
+    j_inv_with(v, c)
+}
+
+/// [`j_inv`] of a step `v` whose rotation `rel` is at hand (`exp v = +-rel`, so `rel = +-(cos
+/// h, sin h v / h)`): `cot h` read off `rel` instead of a `sin_cos`. Components of `rel` carry
+/// rounding of order 1e-16, so `c h^2` does of order 1e-16 / h: the series covers `h < 1e-3`.
+fn j_inv_of_step(v: V3, rel: DQuat) -> (DMat3, DMat3) {
+    let h2 = v.length_squared();
+    let c = if h2 < 1e-6 {
+        1.0 / 3.0 + h2 / 45.0
+    } else {
+        // h cot h = h^2 cos h / (sin h h) = h^2 rel.w / (rel.vec . v).
+        let along = rel.x * v.x + rel.y * v.y + rel.z * v.z;
+        (1.0 - h2 * rel.w / along) / h2
+    };
+    j_inv_with(v, c)
+}
+
+/// `I +- [v]x + c [v]x^2`.
+fn j_inv_with(v: V3, c: f64) -> (DMat3, DMat3) {
     let k = skew(v);
     let k2 = k * k * c;
     (DMat3::IDENTITY + k + k2, DMat3::IDENTITY - k + k2)
@@ -212,37 +267,59 @@ fn rot_inv(q: DQuat) -> DMat3 {
     DMat3::from_quat(glam::DQuat::from(q.conjugate()))
 }
 
-/// The curve's rotation at a key row's knot, `P_0 exp(a w) exp(b w')`, with the two factors.
-fn key_point(p0: DQuat, w: [DVec3; 2], a: f64, b: f64) -> (DQuat, DQuat, DQuat) {
-    let (e1, e2) = (DQuat::exp(w[0].scale(a)), DQuat::exp(w[1].scale(b)));
-    let c = e1 * e2;
-    (p0 * c, e2, c)
+/// A key row's curve point `P_0 exp(a w) exp(b w')`, with what its Jacobian reuses: the
+/// second factor, the product of both, and both factors' [`jr`] coefficients.
+#[derive(Clone, Copy, Debug)]
+struct KeyPoint {
+    q: DQuat,
+    e2: DQuat,
+    c: DQuat,
+    jr: [[f64; 2]; 2],
+}
+
+impl KeyPoint {
+    /// What end rows carry (nothing reads it).
+    const NONE: Self = {
+        let one = DQuat { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };
+        Self { q: one, e2: one, c: one, jr: [[0.0; 2]; 2] }
+    };
+
+    fn new(p0: DQuat, w: [DVec3; 2], a: f64, b: f64) -> Self {
+        let (e1, j1) = exp_jr(g(w[0]) * a);
+        let (e2, j2) = exp_jr(g(w[1]) * b);
+        let c = e1 * e2;
+        Self { q: p0 * c, e2, c, jr: [j1, j2] }
+    }
 }
 
 /// One row's residual at control points `p` whose steps are `w` (`p[1] = p[0] exp(w[0])`,
 /// `p[2] = p[1] exp(w[1])`, not folded): the key error as a body rotation vector, or the
-/// natural-end condition.
-fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> V3 {
+/// natural-end condition; with the key row's point for [`row_jacobian`].
+fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, KeyPoint) {
     match row {
-        Row::Key { a, b, key } => g(relative_log(keys[key], key_point(p[0], w, a, b).0)),
+        Row::Key { a, b, key } => {
+            let point = KeyPoint::new(p[0], w, a, b);
+            (g(relative_log(keys[key], point.q)), point)
+        }
         Row::End { c1, c2, k } => {
             let (v1, v2) = (g(w[0]), g(w[1]));
-            v1 * c1 + v2 * c2 + v1.cross(v2) * k
+            (v1 * c1 + v2 * c2 + v1.cross(v2) * k, KeyPoint::NONE)
         }
     }
 }
 
 /// The derivatives of row `residual` `r` with respect to body moves of its three points, given
-/// the steps' inverse Jacobians `jw` ([`j_inv`], shared by the two rows each step enters).
-fn row_jacobian(row: Row, p0: DQuat, w: [DVec3; 2], jw: [(DMat3, DMat3); 2], r: V3) -> [DMat3; 3] {
+/// the row's [`KeyPoint`] and the steps' inverse Jacobians `jw` ([`j_inv`], shared by the two
+/// rows each step enters).
+fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jw: [(DMat3, DMat3); 2], r: V3) -> [DMat3; 3] {
     let (v1, v2) = (g(w[0]), g(w[1]));
     let [(r1, l1), (r2, l2)] = jw;
     match row {
         Row::Key { a, b, .. } => {
-            let (_, e2, c) = key_point(p0, w, a, b);
+            let KeyPoint { e2, c, jr: [j1, j2], .. } = *point;
             // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
-            let k1 = rot_inv(e2) * jr(v1 * a) * a;
-            let k2 = jr(v2 * b) * b;
+            let k1 = rot_inv(e2) * jr(v1 * a, j1) * a;
+            let k2 = jr(v2 * b, j2) * b;
             let outer = j_inv(r).0;
             [outer * (rot_inv(c) - k1 * l1), outer * (k1 * r1 - k2 * l2), outer * (k2 * r2)]
         }
@@ -281,9 +358,10 @@ impl Block for (V3, DMat3) {
 
 /// Block tridiagonal solve (block Thomas) of `lower_r x_{r-1} + diag_r x_r + upper_r x_{r+1}
 /// = rhs_r` in place; `None` when a pivot block is singular.
-fn solve_tridiagonal<T: Block>(lower: &[DMat3], diag: &[DMat3], upper: &[DMat3], rhs: &mut [T]) -> Option<()> {
+/// `carry` is scratch space.
+fn solve_tridiagonal<T: Block>(lower: &[DMat3], diag: &[DMat3], upper: &[DMat3], rhs: &mut [T], carry: &mut Vec<DMat3>) -> Option<()> {
     let n = rhs.len();
-    let mut carry: Vec<DMat3> = Vec::with_capacity(n);
+    carry.clear();
     for r in 0..n {
         let mut d = diag[r];
         if r > 0 {
@@ -304,16 +382,30 @@ fn solve_tridiagonal<T: Block>(lower: &[DMat3], diag: &[DMat3], upper: &[DMat3],
     Some(())
 }
 
+/// The arrays a linear solve fills, kept across Newton iterations (allocating and zeroing
+/// them per solve was a measured cost).
+#[derive(Default)]
+struct Scratch {
+    lower: Vec<DMat3>,
+    diag: Vec<DMat3>,
+    upper: Vec<DMat3>,
+    /// Row 0: column n-1; row n-1: column 0 (cyclic systems, n >= 3).
+    corner: Vec<DMat3>,
+    carry: Vec<DMat3>,
+    aug: Vec<(V3, DMat3)>,
+}
+
 /// Solves the (possibly cyclic) block tridiagonal system whose row `r` has blocks `blocks[r]`
-/// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add).
-fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], periodic: bool) -> Option<Vec<V3>> {
+/// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add) into `x`.
+fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], periodic: bool, scratch: &mut Scratch, x: &mut Vec<V3>) -> Option<()> {
     let n = rhs.len();
     let zero = DMat3::ZERO;
     // Sort each row's blocks into lower / diagonal / upper / corner (cyclic wrap).
-    let mut lower = vec![zero; n];
-    let mut diag = vec![zero; n];
-    let mut upper = vec![zero; n];
-    let mut corner = vec![zero; n]; // row 0: column n-1; row n-1: column 0 (n >= 3)
+    let Scratch { lower, diag, upper, corner, carry, aug } = scratch;
+    for v in [&mut *lower, &mut *diag, &mut *upper, &mut *corner] {
+        v.clear();
+        v.resize(n, zero);
+    }
     for r in 0..n {
         for (col, block) in columns[r].iter().zip(&blocks[r]) {
             let Some(c) = *col else { continue };
@@ -329,20 +421,21 @@ fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], peri
             *slot += *block;
         }
     }
+    x.clear();
     if !periodic || n < 3 {
-        let mut x = rhs.to_vec();
-        solve_tridiagonal(&lower, &diag, &upper, &mut x)?;
-        return Some(x);
+        x.extend_from_slice(rhs);
+        return solve_tridiagonal(lower, diag, upper, x, carry);
     }
     // Border the last unknown: rows 0..n-2 solve T [y | Z] = [rhs | border], then the last
     // row gives x_{n-1}, and x' = y - Z x_{n-1}.
     let m = n - 1;
-    let mut aug: Vec<(V3, DMat3)> = (0..m).map(|r| (rhs[r], zero)).collect();
+    aug.clear();
+    aug.extend((0..m).map(|r| (rhs[r], zero)));
     aug[0].1 = corner[0];
     aug[m - 1].1 += upper[m - 1];
-    let mut upper_t = upper[..m].to_vec();
-    upper_t[m - 1] = zero;
-    solve_tridiagonal(&lower[..m], &diag[..m], &upper_t, &mut aug)?;
+    // Row m - 1's upper block went into the border: the tridiagonal part ends there.
+    upper[m - 1] = zero;
+    solve_tridiagonal(&lower[..m], &diag[..m], &upper[..m], aug, carry)?;
     let (first, last) = (corner[m], lower[m]);
     let s = diag[m] - last * aug[m - 1].1 - first * aug[0].1;
     let det = s.determinant();
@@ -350,9 +443,9 @@ fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], peri
         return None;
     }
     let xm = s.inverse() * (rhs[m] - last * aug[m - 1].0 - first * aug[0].0);
-    let mut x: Vec<V3> = aug.iter().map(|(y, z)| *y - *z * xm).collect();
+    x.extend(aug.iter().map(|(y, z)| *y - *z * xm));
     x.push(xm);
-    Some(x)
+    Some(())
 }
 
 /// How far a set of control points is from solving the system.
@@ -383,6 +476,7 @@ struct State {
     points: Vec<DQuat>,
     steps: Vec<DVec3>,
     step_jacobians: Vec<(DMat3, DMat3)>,
+    key_points: Vec<KeyPoint>,
     blocks: Vec<[DMat3; 3]>,
     rhs: Vec<V3>,
 }
@@ -393,7 +487,8 @@ fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
     let last = keys.len() - 1;
     for (r, &row) in system.rows.iter().enumerate() {
         let [i, j, k] = system.triple(r);
-        let res = residual(row, [state.points[i], state.points[j], state.points[k]], [state.steps[j], state.steps[k]], keys);
+        let (res, point) = residual(row, [state.points[i], state.points[j], state.points[k]], [state.steps[j], state.steps[k]], keys);
+        state.key_points[r] = point;
         let size = res.length();
         match row {
             Row::Key { key, .. } if 2.0 * size > health.key.0 => health.key = (2.0 * size, key),
@@ -413,13 +508,14 @@ fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
 /// Fills `state`'s step Jacobians and Jacobian blocks (after [`assess`], whose residuals the
 /// key rows' blocks read). Only states that Newton steps from need them.
 fn linearize(system: &System, state: &mut State) {
-    let State { points, steps, step_jacobians, blocks, rhs } = state;
-    for (jac, w) in step_jacobians.iter_mut().zip(steps.iter()) {
-        *jac = j_inv(g(*w));
+    let State { points, steps, step_jacobians, key_points, blocks, rhs } = state;
+    let count = points.len();
+    for (j, (jac, w)) in step_jacobians.iter_mut().zip(steps.iter()).enumerate() {
+        *jac = j_inv_of_step(g(*w), points[(j + count - 1) % count].conjugate() * points[j]);
     }
     for (r, &row) in system.rows.iter().enumerate() {
-        let [i, j, k] = system.triple(r);
-        blocks[r] = row_jacobian(row, points[i], [steps[j], steps[k]], [step_jacobians[j], step_jacobians[k]], -rhs[r]);
+        let [_, j, k] = system.triple(r);
+        blocks[r] = row_jacobian(row, &key_points[r], [steps[j], steps[k]], [step_jacobians[j], step_jacobians[k]], -rhs[r]);
     }
 }
 
@@ -475,7 +571,7 @@ fn first_guess(system: &System, keys: &[DQuat]) -> (Vec<DQuat>, Vec<DVec3>) {
 /// [`MAX_ITERATIONS`] (or meets a singular system), naming the worst key.
 pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
     let n = keys.len() - 1;
-    let system = System::new(times, periodic);
+    let system = System::shared(times, periodic);
     let (points, steps) = first_guess(&system, keys);
     let unknowns = system.unknowns();
     let count = points.len();
@@ -488,18 +584,20 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
         points,
         steps,
         step_jacobians: vec![(DMat3::ZERO, DMat3::ZERO); count],
+        key_points: vec![KeyPoint::NONE; unknowns],
         blocks: vec![[DMat3::ZERO; 3]; unknowns],
         rhs: vec![V3::ZERO; unknowns],
     };
     let mut health = assess(&system, &mut state, keys);
     // The trial state, swapped in when a step is accepted.
     let mut trial = state.clone();
+    let (mut scratch, mut delta) = (Scratch::default(), Vec::new());
     let mut iterations = 0;
     while !health.converged() && iterations < MAX_ITERATIONS {
         iterations += 1;
         let fail = |h: &Health| NoConvergence { worst_key: h.key.1, error: h.key.0, iterations };
         linearize(&system, &mut state);
-        let delta = solve(&columns, &state.blocks, &state.rhs, periodic).ok_or_else(|| fail(&health))?;
+        solve(&columns, &state.blocks, &state.rhs, periodic, &mut scratch, &mut delta).ok_or_else(|| fail(&health))?;
         let moved = |p: usize, scale: f64| system.unknown(p).map_or(V3::ZERO, |u| delta[u] * scale);
         // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
         // lands in another basin), then halve the step until the residual decreases.
@@ -549,7 +647,7 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
         let chained = out_points[j - 1] * DQuat::exp(coefs[j - 1]);
         out_points[j] = out_points[j].aligned_with(chained);
     }
-    Ok(Solved { points: out_points, coefs, knots: system.knots, iterations, key_error: health.key.0 })
+    Ok(Solved { points: out_points, coefs, knots: system.knots.clone(), iterations, key_error: health.key.0 })
 }
 
 fn d(v: V3) -> DVec3 {
@@ -615,7 +713,8 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
         blocks.push(weights.map(|w| DMat3::from_diagonal(V3::splat(w))));
         rhs.push(target);
     }
-    let x = solve(&columns, &blocks, &rhs, periodic)?;
+    let mut x = Vec::with_capacity(unknowns);
+    solve(&columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x)?;
     let d = |v: V3| DVec3::new(v.x, v.y, v.z);
     let points = if periodic {
         (0..n + 3).map(|j| d(x[(j + n - 1) % n])).collect()
@@ -646,7 +745,8 @@ mod tests {
         for row in rows {
             let w = |p: [DQuat; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
             let jw = w(p).map(|v| j_inv(g(v)));
-            let blocks = row_jacobian(row, p[0], w(p), jw, residual(row, p, w(p), &keys));
+            let (r, point) = residual(row, p, w(p), &keys);
+            let blocks = row_jacobian(row, &point, w(p), jw, r);
             for (which, block) in blocks.iter().enumerate() {
                 for axis in 0..3 {
                     let h = 1e-6;
@@ -656,7 +756,7 @@ mod tests {
                         let mut p = p;
                         let d = e * s;
                         p[which] = p[which] * DQuat::exp(DVec3::new(d.x, d.y, d.z));
-                        residual(row, p, w(p), &keys)
+                        residual(row, p, w(p), &keys).0
                     };
                     let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
                     let exact = block.col(axis);
