@@ -11,9 +11,9 @@
 //! Run: `cargo bench --bench throughput` (filter with e.g. `-- cpu`).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use quatcurve::cpu::{CpuEvaluator, CpuOptions};
-use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, KnotMode, Layout};
+use quatcurve::cpu::CpuEvaluator;
+use quatcurve::gpu::GpuEvaluator;
+use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, EvalOptions, KnotMode};
 
 const TRACKS: usize = 10_000;
 const SAMPLES: usize = 1_000;
@@ -40,20 +40,19 @@ fn paths(c: &mut Criterion) {
             group.sample_size(10);
             group.throughput(Throughput::Elements(slice_times.total() as u64));
             group.bench_function("reference_1k_tracks", |b| {
-                b.iter(|| EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives }.run().unwrap())
+                b.iter(|| EvalJob::new(&slice, &slice_times).derivatives(derivatives).run().unwrap())
             });
             group.throughput(Throughput::Elements(times.total() as u64));
-            let options = CpuOptions { derivatives, ..CpuOptions::default() };
-            group.bench_function("cpu", |b| b.iter(|| cpu.evaluate(&batch, &times, &options).unwrap()));
-            let mut buffer = vec![0.0f32; times.total() * quatcurve::job::channels(derivatives, false)];
-            group.bench_function("cpu_reused_buffer", |b| b.iter(|| cpu.evaluate_into(&batch, &times, &options, &mut buffer).unwrap()));
+            let job = EvalJob::new(&batch, &times).derivatives(derivatives);
+            group.bench_function("cpu", |b| b.iter(|| cpu.evaluate(&job).unwrap()));
+            let mut buffer = vec![0.0f32; times.total() * job.options.row().channels()];
+            group.bench_function("cpu_reused_buffer", |b| b.iter(|| cpu.evaluate_into(&job, &mut buffer).unwrap()));
             if let Some(gpu) = &gpu {
-                let options = GpuOptions { derivatives, ..GpuOptions::default() };
-                group.bench_function("gpu_end_to_end", |b| b.iter(|| gpu.evaluate(&batch, &times, &options).unwrap()));
-                let prepared = gpu.prepare(&batch, &times, &options).unwrap();
+                group.bench_function("gpu_end_to_end", |b| b.iter(|| gpu.evaluate(&job).unwrap()));
+                let prepared = gpu.prepare(&job).unwrap();
                 group.bench_function("gpu_dispatch_only", |b| b.iter(|| gpu.dispatch(&prepared).unwrap()));
                 if name == "bspline4_uniform" {
-                    let generic = gpu.prepare(&batch, &times, &GpuOptions { generic_kernel: true, ..options }).unwrap();
+                    let generic = gpu.prepare(&job.with(EvalOptions { generic_kernel: true, ..job.options })).unwrap();
                     group.bench_function("gpu_dispatch_only_generic_kernel", |b| b.iter(|| gpu.dispatch(&generic).unwrap()));
                 }
             }
@@ -83,7 +82,7 @@ fn interp(c: &mut Criterion) {
         b.iter(|| {
             let batch = quatcurve::Batch::from_tracks(&open, &spec).unwrap();
             let times = quatcurve::SampleTimes::uniform(&batch, quatcurve::Sampling::Count(1_000)).unwrap();
-            cpu.evaluate(&batch, &times, &CpuOptions::default()).unwrap()
+            cpu.evaluate(&EvalJob::new(&batch, &times)).unwrap()
         })
     });
     group.finish();

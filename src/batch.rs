@@ -26,6 +26,7 @@
 use crate::curve::{Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER, MIN_ORDER};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::{DQuat, DVec3};
+use crate::quat::relative_log;
 use crate::track::Track;
 use std::f64::consts::PI;
 
@@ -376,11 +377,6 @@ fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
     Ok(())
 }
 
-/// `log(a^-1 b)` with `b` folded into `a`'s hemisphere: the shortest relative rotation.
-#[must_use]
-pub fn relative_log(a: DQuat, b: DQuat) -> DVec3 {
-    (a.conjugate() * b.aligned_with(a)).log()
-}
 
 /// The curve as messages name it: B-splines with their order and knot mode.
 fn curve_label(spec: &CurveSpec) -> String {
@@ -398,21 +394,27 @@ fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Resul
     }
     let mut keys: Vec<DQuat> = Vec::with_capacity(rotations.len());
     for (key, &value) in rotations.iter().enumerate() {
-        let q = DQuat::from_array(value);
-        if !q.is_finite() {
-            return Err(Error::NonFiniteKey { track: id.clone(), key, value });
-        }
-        let norm = q.length();
-        if norm < MIN_KEY_NORM {
-            return Err(Error::ZeroKey { track: id.clone(), key, norm });
-        }
-        let q = q.mul_scalar(1.0 / norm);
+        let q = normalized_key(id, key, value)?;
         keys.push(match keys.last() {
             Some(&prev) => q.aligned_with(prev),
             None => q,
         });
     }
     Ok(keys)
+}
+
+/// Key `key` of track `id` as a unit quaternion: finite and not (near) zero. The one check of
+/// a rotation key, also for the keys bake holds constant.
+pub(crate) fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<DQuat> {
+    let q = DQuat::from_array(value);
+    if !q.is_finite() {
+        return Err(Error::NonFiniteKey { track: id.clone(), key, value });
+    }
+    let norm = q.length();
+    if norm < MIN_KEY_NORM {
+        return Err(Error::ZeroKey { track: id.clone(), key, norm });
+    }
+    Ok(q.mul_scalar(1.0 / norm))
 }
 
 /// The key times, defaulting to `0, 1, ..., n`; finite and strictly increasing.

@@ -1,11 +1,12 @@
 //! Which evaluator runs a job: the one place that maps `--device` to a path, so `eval`,
 //! `bake` and `bench` choose and name devices the same way.
 
-use crate::cpu::{CpuEvaluator, CpuOptions};
+use crate::cpu::CpuEvaluator;
 use crate::curve::names;
 #[cfg(feature = "gpu")]
-use crate::gpu::{GpuError, GpuEvaluator, GpuOptions};
-use crate::job::{EvalJob, FloatOutput, Output};
+use crate::gpu::{GpuError, GpuEvaluator};
+use crate::job::EvalJob;
+use crate::output::{FloatOutput, Output};
 use std::fmt;
 
 /// What the user asked for (`--device`).
@@ -114,7 +115,7 @@ impl Device {
             return job.run().map(|out| (out, self.name())).map_err(|e| DeviceError::Input(e.to_string()));
         }
         let (rows, name) = self.evaluate_f32(job)?;
-        Ok((rows.to_output(job.derivatives), name))
+        Ok((rows.to_output(job.options.derivatives), name))
     }
 
     /// [`Device::evaluate_named`] in the fast paths' own float32 rows (the reference's f64
@@ -127,7 +128,7 @@ impl Device {
         match self {
             Device::Reference => {
                 let out = job.run().map_err(|e| DeviceError::Input(e.to_string()))?;
-                Ok((FloatOutput::from_output(&out), self.name()))
+                Ok((FloatOutput::from_output(&out, job.options.matrix), self.name()))
             }
             Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
             #[cfg(feature = "gpu")]
@@ -160,8 +161,7 @@ impl From<Refused> for DeviceError {
 
 #[cfg(feature = "gpu")]
 fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
-    let options = GpuOptions { layout: job.layout, derivatives: job.derivatives, ..GpuOptions::default() };
-    g.evaluate(job.batch, job.times, &options).map_err(|e| match e {
+    g.evaluate(job).map_err(|e| match e {
         GpuError::Pack(_) => Refused::Pack(e.to_string()),
         GpuError::Job(_) => Refused::Other(DeviceError::Input(e.to_string())),
         _ => Refused::Other(DeviceError::Device(e.to_string())),
@@ -169,6 +169,5 @@ fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
 }
 
 fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
-    let options = CpuOptions { layout: job.layout, derivatives: job.derivatives, ..CpuOptions::default() };
-    c.evaluate(job.batch, job.times, &options).map_err(|e| DeviceError::Input(e.to_string()))
+    c.evaluate(job).map_err(|e| DeviceError::Input(e.to_string()))
 }

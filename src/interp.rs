@@ -23,8 +23,7 @@
 //! blocks, solved once.
 
 use crate::basis::bspline_cumulative;
-use crate::batch::relative_log;
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{relative_log, DQuat, DVec3};
 use glam::{DMat3, DVec3 as V3};
 use std::cell::RefCell;
 use std::f64::consts::PI;

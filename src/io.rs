@@ -1,7 +1,7 @@
 //! Reading track files and writing results: JSON formats of DESIGN section 5, atomic writes,
 //! and the built-in demo input.
 
-use crate::job::Output;
+use crate::output::Output;
 use crate::quat::{DQuat, DVec3};
 use crate::sampling::SampleTimes;
 use crate::track::{Track, TrackFile};

@@ -10,13 +10,13 @@
 //! key ([`interp`]), open or looping (`CurveSpec::looping`).
 //!
 //! Flow: user [`Track`]s -> [`BatchBuilder`] (validation, hemisphere alignment, coefficients,
-//! knots: done once, in f64) -> packed [`Batch`] -> an [`EvalJob`] with `validate()` then
-//! `run()`. Conventions (quaternion order `x, y, z, w`, half-angle exp/log, body-frame
+//! knots: done once, in f64) -> packed [`Batch`] -> an [`EvalJob`] (with `validate()`) that
+//! every device runs -> [`Output`] (f64) or [`FloatOutput`] rows. Conventions (quaternion order `x, y, z, w`, half-angle exp/log, body-frame
 //! derivatives) are those of the project's design document, `docs/DESIGN.md` (cited as
 //! "DESIGN section N" throughout), summarized in the README.
 //!
 //! ```
-//! use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, Track};
+//! use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, SampleTimes, Sampling, Track};
 //!
 //! // Two tracks of three keys (x, y, z, w) at times 0, 0.5 and 1 s.
 //! let quarter = [0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2];
@@ -29,7 +29,7 @@
 //! let times = SampleTimes::uniform(&batch, Sampling::Rate(60.0))?;
 //! // Any device: a hardware GPU when there is one, else the fast CPU path.
 //! let device = Device::open(DeviceChoice::Auto)?;
-//! let out = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: true })?;
+//! let out = device.evaluate(&EvalJob::new(&batch, &times).derivatives(true))?;
 //! assert_eq!(out.rotations.len(), 2 * 61);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -49,6 +49,7 @@ pub mod euclidean;
 pub mod interp;
 pub mod io;
 pub mod job;
+pub mod output;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod quat;
@@ -60,10 +61,14 @@ pub mod synthetic;
 pub mod track;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
+pub use cpu::CpuEvaluator;
+#[cfg(feature = "gpu")]
+pub use gpu::GpuEvaluator;
 pub use device::{Device, DeviceChoice, DeviceError};
 pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 pub use error::{Error, Result, TrackId};
-pub use job::{EvalJob, Layout, Output};
+pub use job::{EvalJob, EvalOptions};
+pub use output::{FloatOutput, Layout, Output, Row};
 pub use quat::{DQuat, DVec3, Quat, Vec3};
 pub use reference::{evaluate, Sample};
 pub use sampling::{SampleTimes, Sampling};

@@ -424,6 +424,13 @@ impl<R: Real> Neg for Quat<R> {
     }
 }
 
+/// `log(a^-1 b)` with `b` folded into `a`'s hemisphere: the shortest relative rotation (the
+/// step `w_i` of the cumulative form between consecutive keys).
+#[must_use]
+pub fn relative_log(a: DQuat, b: DQuat) -> DVec3 {
+    (a.conjugate() * b.aligned_with(a)).log()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, TrackFile};
+use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, SampleTimes, Sampling, TrackFile};
 
 fuzz_target!(|bytes: &[u8]| {
     let Ok(file) = serde_json::from_slice::<TrackFile>(bytes) else { return };
@@ -13,7 +13,7 @@ fuzz_target!(|bytes: &[u8]| {
             let Ok(batch) = Batch::from_tracks(&file.tracks, &CurveSpec { looping, ..CurveSpec::new(curve) }) else { continue };
             let overrides: Vec<Option<&[f64]>> = file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();
             let Ok(times) = SampleTimes::new(&batch, &overrides, Sampling::Count(7)) else { continue };
-            let _ = device.evaluate(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: true });
+            let _ = device.evaluate(&EvalJob::new(&batch, &times).derivatives(true));
         }
     }
 });

@@ -11,7 +11,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use quatcurve::bake::{BakeJob, Shard};
-use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, Layout, SampleTimes, Sampling, Track};
+use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, Row, SampleTimes, Sampling, Track};
 use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::OnceLock;
@@ -100,7 +100,7 @@ fn evaluate_batch<'py>(
         (Some(hz), None) => Sampling::Rate(hz),
         (None, None) => Sampling::Count(0),
     };
-    let channels = quatcurve::job::channels(derivatives, false);
+    let channels = Row { derivatives, matrix: false }.channels();
     let out = py.detach(|| -> Result<Samples, String> {
         let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
         let overrides: Vec<Option<&[f64]>> = match sampled {
@@ -115,18 +115,9 @@ fn evaluate_batch<'py>(
                 times.count(i)
             ));
         }
-        let job = EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives };
+        let job = EvalJob::new(&batch, &times).derivatives(derivatives);
         if choice == DeviceChoice::Reference {
-            let out = job.run().map_err(|e| e.to_string())?;
-            let mut data: Vec<f64> = Vec::with_capacity(out.rotations.len() * channels);
-            for (i, q) in out.rotations.iter().enumerate() {
-                data.extend_from_slice(q);
-                if derivatives {
-                    data.extend_from_slice(&out.angular_velocity[i]);
-                    data.extend_from_slice(&out.angular_acceleration[i]);
-                }
-            }
-            return Ok(Samples::F64(data));
+            return Ok(Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows()));
         }
         let (rows, _) = device.evaluate_f32(&job).map_err(|e| e.to_string())?;
         Ok(Samples::F32(rows.data))

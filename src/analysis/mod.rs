@@ -17,7 +17,8 @@ pub mod paper;
 use crate::batch::{Batch, TrackView};
 use crate::device::{Device, DeviceError};
 use crate::error::Number;
-use crate::job::{EvalJob, Layout, Output};
+use crate::job::EvalJob;
+use crate::output::Output;
 use crate::sampling::{PerTrack, SampleTimes};
 
 /// Simpson steps per span when no step is given: 1/1000 of the shortest span.
@@ -287,6 +288,6 @@ pub fn profile(batch: &Batch, index: usize, device: &Device, points: usize) -> R
 /// Rotations and derivatives of `batch`'s tracks at their nodes, track after track.
 fn derivatives_at(batch: &Batch, nodes: &[Nodes], device: &Device) -> Result<Output, AnalysisError> {
     let times = SampleTimes::per_track(batch, |i, _| Ok(PerTrack::List(&nodes[i].times))).map_err(|e| DeviceError::Input(e.to_string()))?;
-    let job = EvalJob { batch, times: &times, layout: Layout::Track, derivatives: true };
+    let job = EvalJob::new(batch, &times).derivatives(true);
     Ok(device.evaluate(&job)?)
 }

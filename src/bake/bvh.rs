@@ -8,7 +8,7 @@
 //! channel order, unwrapping angles to the previous frame so curves stay continuous.
 
 use super::{Animation, Baked, Channel, Clip, Joint, Property};
-use crate::device::DeviceError;
+use super::InputError;
 use crate::quat::{DQuat, DVec3};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -48,16 +48,17 @@ pub struct BvhFile {
     hierarchy: String,
 }
 
-fn bad(line: usize, msg: impl std::fmt::Display) -> DeviceError {
-    DeviceError::Input(format!("line {line}: {msg}"))
+fn bad(line: usize, msg: impl std::fmt::Display) -> InputError {
+    InputError::Bvh { line, reason: msg.to_string() }
 }
 
 /// Reads a BVH file.
 ///
 /// # Errors
-/// [`DeviceError::Input`] naming the line for a malformed hierarchy or motion section.
-pub fn read(path: &Path) -> Result<BvhFile, DeviceError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DeviceError::Input(format!("cannot read: {e}")))?;
+/// [`InputError::Read`], or [`InputError::Bvh`] naming the line for a malformed hierarchy or
+/// motion section.
+pub fn read(path: &Path) -> Result<BvhFile, InputError> {
+    let text = std::fs::read_to_string(path).map_err(InputError::Read)?;
     parse(&text)
 }
 
@@ -65,7 +66,7 @@ pub fn read(path: &Path) -> Result<BvhFile, DeviceError> {
 ///
 /// # Errors
 /// As [`read`].
-pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
+pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     let motion_at = text.find("MOTION").ok_or_else(|| bad(text.lines().count(), "no MOTION section"))?;
     let hierarchy = &text[..motion_at];
     let mut tokens = hierarchy.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))).peekable();
@@ -150,7 +151,7 @@ pub fn parse(text: &str) -> Result<BvhFile, DeviceError> {
     }
     let first_line = hierarchy.lines().count() + 1;
     let mut lines = text[motion_at..].lines().enumerate().map(|(i, l)| (first_line + i, l)).skip(1);
-    let mut header = |key: &str| -> Result<f64, DeviceError> {
+    let mut header = |key: &str| -> Result<f64, InputError> {
         let (line, l) = lines.next().ok_or_else(|| bad(first_line, format!("missing {key}")))?;
         let value = l.trim().strip_prefix(key).ok_or_else(|| bad(line, format!("expected {key}")))?;
         value.trim().parse().map_err(|_| bad(line, format!("bad {key} {}", value.trim())))

@@ -8,7 +8,7 @@
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 
 use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
-use crate::device::DeviceError;
+use super::InputError;
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::{json, Value};
@@ -27,8 +27,8 @@ pub struct GltfFile {
     samplers: Vec<Vec<(usize, usize)>>,
 }
 
-fn input(msg: String) -> DeviceError {
-    DeviceError::Input(msg)
+fn input(msg: String) -> InputError {
+    InputError::Gltf(msg)
 }
 
 /// Which buffer URIs a glTF file may name (DESIGN: files made by others are untrusted).
@@ -43,12 +43,12 @@ pub struct UriPolicy {
 /// Reads a `.gltf` (buffers embedded as data URIs or in files beside it) or `.glb` file.
 ///
 /// # Errors
-/// [`DeviceError::Input`] for an unreadable or corrupt file, a buffer URI the policy refuses
+/// [`InputError::Read`] for an unreadable file, [`InputError::Gltf`] for a corrupt one, a buffer URI the policy refuses
 /// or that cannot be read, a missing buffer, an accessor whose declared count or stride needs
 /// more bytes than its buffer holds, or a channel whose key and value counts differ, naming
 /// the clip and channel.
-pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, DeviceError> {
-    let bytes = std::fs::read(path).map_err(|e| input(format!("cannot read: {e}")))?;
+pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
+    let bytes = std::fs::read(path).map_err(InputError::Read)?;
     from_bytes(&bytes, path.parent().unwrap_or(Path::new(".")), uris)
 }
 
@@ -56,7 +56,7 @@ pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, DeviceError> {
 ///
 /// # Errors
 /// As [`read`].
-pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, DeviceError> {
+pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
     let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
     validate(gltf.document.as_json())?;
     let json: Value = if bytes.starts_with(b"glTF") {
@@ -194,7 +194,7 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
 /// Accessors without buffer views (Draco-compressed meshes) and extensions the crate does not
 /// know are flagged but do not concern animation, which is read defensively; indices out of
 /// range and invalid values are real corruption.
-fn validate(root: &gltf::json::Root) -> Result<(), DeviceError> {
+fn validate(root: &gltf::json::Root) -> Result<(), InputError> {
     use gltf::json::validation::{Error, Validate};
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
@@ -373,8 +373,8 @@ impl GltfFile {
     /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames.
     ///
     /// # Errors
-    /// [`DeviceError::Device`] if the GLB cannot be assembled (over 4 GiB).
-    pub fn to_glb(&self, baked: &Baked) -> Result<Vec<u8>, DeviceError> {
+    /// [`InputError::Output`] if the GLB cannot be assembled (over 4 GiB).
+    pub fn to_glb(&self, baked: &Baked) -> Result<Vec<u8>, InputError> {
         let mut json = self.json.clone();
         let mut bin: Vec<u8> = Vec::new();
         let pad = |bin: &mut Vec<u8>, to: usize| bin.resize(bin.len().div_ceil(to) * to, 0);
@@ -427,14 +427,14 @@ impl GltfFile {
         json["accessors"] = Value::Array(accessors);
         json["buffers"] = json!([{"byteLength": bin.len()}]);
         if u32::try_from(bin.len() + (1 << 20)).is_err() {
-            return Err(DeviceError::Device("the baked GLB would exceed 4 GiB".into()));
+            return Err(InputError::Output("the baked GLB would exceed 4 GiB".into()));
         }
-        let text = serde_json::to_vec(&json).map_err(|e| DeviceError::Device(e.to_string()))?;
+        let text = serde_json::to_vec(&json).map_err(|e| InputError::Output(e.to_string()))?;
         let glb = gltf::binary::Glb {
             header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
             json: text.into(),
             bin: Some(bin.into()),
         };
-        glb.to_vec().map_err(|e| DeviceError::Device(format!("cannot assemble GLB: {e}")))
+        glb.to_vec().map_err(|e| InputError::Output(format!("cannot assemble GLB: {e}")))
     }
 }

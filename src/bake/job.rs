@@ -9,43 +9,16 @@
 use super::manifest::{hash_bytes, hash_file, hash_parts, FileRecord, InputRecord, Manifest, ShardRecord};
 use super::shard::Shard;
 use super::texture::{self, Precision, TextureKind};
+use super::error::{BakeError, InputError};
 use super::{bvh, crowd, gltf, Animation, Baked, LoopMode};
 use crate::curve::{Curve, CurveSpec};
-use crate::device::{Device, DeviceChoice, DeviceError};
+use crate::device::{Device, DeviceChoice};
 use crate::io::{write_atomic, Npy};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
-
-/// Why a bake job could not start, or could not keep its manifest.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum BakeError {
-    /// An option outside its rules; `option` is its name (`rate`, `shard`, `output`, ...),
-    /// which the command line shows as its flag.
-    #[error("{option} {reason}")]
-    Option {
-        /// The option's name.
-        option: &'static str,
-        /// What is wrong with it, said after the name.
-        reason: String,
-    },
-    /// The job as a whole is inconsistent (two inputs writing the same outputs, a scheduler's
-    /// index without its count).
-    #[error("{0}")]
-    Job(String),
-    /// The manifest could not be written.
-    #[error(transparent)]
-    Manifest(#[from] crate::io::IoError),
-}
-
-impl BakeError {
-    pub(crate) fn option(option: &'static str, reason: impl Into<String>) -> Self {
-        Self::Option { option, reason: reason.into() }
-    }
-}
 
 /// Everything a bake reads: the inputs, where the outputs go, and how they are made. Fill it
 /// with [`BakeJob::new`] and field updates, then [`BakeJob::run`] (which validates first).
@@ -224,7 +197,7 @@ impl BakeJob {
         Ok(BakeReport { device: device_name, shard, job_inputs, inputs })
     }
 
-    fn read(&self, path: &Path) -> Result<Source, DeviceError> {
+    fn read(&self, path: &Path) -> Result<Source, InputError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, gltf::UriPolicy { allow_external: self.allow_external_uris })?))),
@@ -234,12 +207,12 @@ impl BakeJob {
                 let animation = file.animation(&name);
                 Ok(Source::Bvh(file, animation))
             }
-            _ => Err(DeviceError::Input("unknown format: expected .gltf, .glb or .bvh".into())),
+            _ => Err(InputError::UnknownFormat),
         }
     }
 
     /// Reads, bakes and writes one input; the files it wrote come back with the report.
-    fn bake_one(&self, source: &str, stem: &str, read: impl FnOnce() -> Result<Source, DeviceError>, device: &Device) -> (InputReport, Vec<Written>) {
+    fn bake_one(&self, source: &str, stem: &str, read: impl FnOnce() -> Result<Source, InputError>, device: &Device) -> (InputReport, Vec<Written>) {
         let start = Instant::now();
         let mut report = InputReport { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false };
         let result = read().and_then(|src| {
@@ -248,7 +221,7 @@ impl BakeJob {
             report.channels = animation.clips.iter().map(|c| c.channels.len()).sum();
             report.keys = animation.key_count();
             if animation.clips.is_empty() {
-                return Err(DeviceError::Input("no rotation, translation or scale animation to bake".into()));
+                return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
             }
             let baked = super::bake(animation, &self.spec, self.rate, self.looping, device)?;
             report.samples = baked.sample_count();
@@ -274,7 +247,7 @@ impl BakeJob {
     /// Writes the baked file (GLB or BVH), the textures and the sidecar; if any write fails,
     /// removes the ones already written so the job leaves nothing partial. Forward kinematics
     /// (model and skin textures, previews) runs on `fk_device`, the bake's.
-    fn write_outputs(&self, src: &Source, baked: &Baked, source: &str, stem: &str, device: &str, fk_device: &Device) -> Result<Vec<Written>, DeviceError> {
+    fn write_outputs(&self, src: &Source, baked: &Baked, source: &str, stem: &str, device: &str, fk_device: &Device) -> Result<Vec<Written>, InputError> {
         let animation = src.animation();
         let dir = &self.output;
         let mut written: Vec<Written> = Vec::new();
@@ -282,7 +255,7 @@ impl BakeJob {
             // Checked before anything is written.
             let order = animation.parents_first()?;
             if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
-                return Err(DeviceError::Input("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
+                return Err(InputError::Animation("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
             }
             let baked_file = match src {
                 Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
@@ -292,7 +265,7 @@ impl BakeJob {
             if let Some((name, bytes)) = &baked_file {
                 let path = dir.join(name);
                 refuse_overwriting_input(&path, source)?;
-                write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| DeviceError::Input(e.to_string()))?;
+                write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
                 written.push(path.into());
             }
             let mut clips = Vec::new();
@@ -350,7 +323,7 @@ impl BakeJob {
             let sidecar = self.sidecar(animation, baked, source, device, baked_file.map(|(name, _)| name), clips);
             let path = dir.join(format!("{stem}.json"));
             write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
-                .map_err(|e| DeviceError::Input(e.to_string()))?;
+                .map_err(|e| InputError::Output(e.to_string()))?;
             written.push(path.into());
             Ok(())
         })();
@@ -367,9 +340,9 @@ impl BakeJob {
 
     /// One `.npy` texture `[frames, width, channels]`, hashed on another core while its bytes
     /// go to disk (the manifest's SHA-256 without reading the file back).
-    fn write_sheet(&self, path: &Path, frames: usize, width: usize, data: &[f32]) -> Result<Written, DeviceError> {
+    fn write_sheet(&self, path: &Path, frames: usize, width: usize, data: &[f32]) -> Result<Written, InputError> {
         let shape = [frames as u64, width as u64, self.texture.channels() as u64];
-        let failed = |e: std::io::Error| DeviceError::Input(format!("{}: cannot write: {e}", path.display()));
+        let failed = |e: std::io::Error| InputError::Output(format!("{}: cannot write: {e}", path.display()));
         let npy = match self.precision {
             Precision::F32 => Npy::f32(&shape, data),
             Precision::F16 => Npy::f16(&shape, data),
@@ -379,11 +352,11 @@ impl BakeJob {
             let sha256 = s.spawn(|| hash_parts(&[&npy.header, &npy.body]));
             (sha256.join(), write_atomic(path, |w| npy.write(w)))
         });
-        result.map_err(|e| DeviceError::Input(e.to_string()))?;
+        result.map_err(|e| InputError::Output(e.to_string()))?;
         // Written but not recorded: taken away again, as every output of a failed input is.
         let sha256 = sha256.map_err(|_| {
             let _ = std::fs::remove_file(path);
-            DeviceError::Device(format!("{}: hashing failed", path.display()))
+            InputError::Internal(format!("{}: hashing failed", path.display()))
         })?;
         Ok(Written { path: path.to_path_buf(), hash: Some((npy.len() as u64, sha256)) })
     }
@@ -417,14 +390,14 @@ impl BakeJob {
 }
 
 #[cfg(feature = "plot")]
-fn draw_preview(path: &Path, title: &str, model: &[f32], animation: &Animation, frames: usize) -> Result<(), DeviceError> {
-    crate::plot::skeleton(path, title, model, animation, frames).map_err(DeviceError::Input)
+fn draw_preview(path: &Path, title: &str, model: &[f32], animation: &Animation, frames: usize) -> Result<(), InputError> {
+    crate::plot::skeleton(path, title, model, animation, frames).map_err(InputError::Output)
 }
 
 #[cfg(not(feature = "plot"))]
-fn draw_preview(_: &Path, _: &str, _: &[f32], _: &Animation, _: usize) -> Result<(), DeviceError> {
+fn draw_preview(_: &Path, _: &str, _: &[f32], _: &Animation, _: usize) -> Result<(), InputError> {
     // validate() refuses previews without the feature.
-    Err(DeviceError::Input("previews need the `plot` cargo feature".into()))
+    Err(InputError::Output("previews need the `plot` cargo feature".into()))
 }
 
 /// What a running job tells its caller (a progress bar, a log); every method has a default
@@ -486,7 +459,7 @@ pub struct InputReport {
     pub max_key_error: Option<f64>,
     /// The files written (or kept, when resumed), or why the input failed: `Input` for the
     /// file's own faults, `Device` for the machine's.
-    pub outcome: Result<Vec<PathBuf>, DeviceError>,
+    pub outcome: Result<Vec<PathBuf>, InputError>,
     /// Skipped by `resume`: the earlier run's outputs were verified and kept.
     pub resumed: bool,
 }
@@ -700,13 +673,13 @@ fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
 }
 
 /// Baking into the input's own directory must not replace the input.
-fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), DeviceError> {
+fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputError> {
     let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
     };
     if same {
-        return Err(DeviceError::Input(format!("{} would overwrite the input; choose another output directory", output.display())));
+        return Err(InputError::Output(format!("{} would overwrite the input; choose another output directory", output.display())));
     }
     Ok(())
 }

@@ -9,20 +9,23 @@
 
 pub mod bvh;
 pub mod crowd;
+pub mod error;
 pub mod gltf;
 pub mod job;
 pub mod manifest;
 pub mod shard;
 pub mod texture;
 
-pub use job::{BakeError, BakeJob, BakeReport, InputReport, Progress};
+pub use error::{BakeError, InputError};
+use error::InputError as E;
+pub use job::{BakeJob, BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
 use crate::curve::{Curve, CurveSpec};
-use crate::device::{Device, DeviceError};
+use crate::device::Device;
 use crate::error::TrackId;
 use crate::euclidean::VectorCurve;
-use crate::job::{EvalJob, Layout};
+use crate::job::EvalJob;
 use crate::quat::DQuat;
 use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use crate::track::Track;
@@ -121,8 +124,8 @@ impl Animation {
     /// walks).
     ///
     /// # Errors
-    /// [`DeviceError::Input`] for a parent index out of range or a cycle, naming a joint on it.
-    pub fn parents_first(&self) -> Result<Vec<usize>, DeviceError> {
+    /// [`InputError::Animation`] for a parent index out of range or a cycle, naming a joint on it.
+    pub fn parents_first(&self) -> Result<Vec<usize>, InputError> {
         let n = self.joints.len();
         // Depth by walking up; a chain longer than the joint count is a cycle.
         let mut depth = vec![usize::MAX; n];
@@ -133,9 +136,9 @@ impl Animation {
                 chain.push(at);
                 match self.joints[at].parent {
                     None => break,
-                    Some(p) if p >= n => return Err(DeviceError::Input(format!("joint {at} ({}): parent {p} does not exist", self.joints[at].name))),
+                    Some(p) if p >= n => return Err(E::Animation(format!("joint {at} ({}): parent {p} does not exist", self.joints[at].name))),
                     Some(_) if chain.len() > n => {
-                        return Err(DeviceError::Input(format!("joint {at} ({}) is its own ancestor: the hierarchy has a cycle", self.joints[at].name)))
+                        return Err(E::Animation(format!("joint {at} ({}) is its own ancestor: the hierarchy has a cycle", self.joints[at].name)))
                     }
                     Some(p) => at = p,
                 }
@@ -265,7 +268,7 @@ pub fn interpolates(spec: &CurveSpec) -> bool {
 /// # Errors
 /// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
 /// key is not its first rotation, named.
-pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, DeviceError> {
+pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, InputError> {
     let open = |c: &Channel| {
         let (first, last) = (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
         let angle = first.angle_to(last);
@@ -277,10 +280,10 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
         LoopMode::On => {
             if !spec.can_loop() {
-                return Err(DeviceError::Input(format!("clip '{}': loop mode on needs a curve that loops; {} does not", clip.name, spec.curve)));
+                return Err(E::Animation(format!("clip '{}': loop mode on needs a curve that loops; {} does not", clip.name, spec.curve)));
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
-                return Err(DeviceError::Input(format!(
+                return Err(E::Animation(format!(
                     "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most 1e-3)",
                     animation.label(clip, c),
                     crate::error::Number(angle)
@@ -306,9 +309,9 @@ pub const END_TOLERANCE_FRAMES: f64 = 0.01;
 /// last frame.
 ///
 /// # Errors
-/// [`DeviceError::Input`] for a rate that is not finite and positive.
-pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, DeviceError> {
-    Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| DeviceError::Input(e.to_string()))
+/// [`InputError::Animation`] for a rate that is not finite and positive, or a grid too long.
+pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, InputError> {
+    Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| E::Animation(e.to_string()))
 }
 
 /// The frame grid of a looping clip spanning `[start, end]`: `N = round((end - start) rate)`
@@ -317,8 +320,8 @@ pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, DeviceE
 /// exactly.
 ///
 /// # Errors
-/// [`DeviceError::Input`] for a rate that is not finite and positive.
-pub fn loop_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f64), DeviceError> {
+/// As [`frame_grid`].
+pub fn loop_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f64), InputError> {
     let period = end - start;
     let intervals = (period * rate).round().max(1.0);
     // Counted as Sampling::Rate counts, so a hostile period meets the same limits.
@@ -339,9 +342,10 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// DESIGN section 3, translations keeping their per-cycle offset.
 ///
 /// # Errors
-/// [`DeviceError::Input`] naming the clip, joint, property and key for bad keys;
-/// [`DeviceError::Device`] for device failures.
-pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, DeviceError> {
+/// [`InputError::Keys`] naming the clip, joint, property and key for bad keys;
+/// [`InputError::Animation`] for a clip that cannot bake as asked; [`InputError::Device`]
+/// when the device refuses or fails.
+pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, InputError> {
     // Per clip: whether it loops, its frame grid, and the sample budget, counted before
     // anything is allocated for it (frames rounded up; the channel samples and the texture's
     // joint rows).
@@ -354,7 +358,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
-            return Err(DeviceError::Input(format!(
+            return Err(E::Animation(format!(
                 "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
                 clip.name,
                 crate::error::Number(end - start),
@@ -372,7 +376,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     // Every channel, on every core: rotations with two keys or more become device tracks,
     // the rest is evaluated here. Errors are reported in channel order.
     let channels: Vec<(usize, usize)> = animation.clips.iter().enumerate().flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k))).collect();
-    let prepared: Vec<Result<Prepared, DeviceError>> = channels
+    let prepared: Vec<Result<Prepared, InputError>> = channels
         .par_iter()
         .with_min_len(16)
         .map(|&(c, k)| {
@@ -388,7 +392,7 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
                 _ => {
                     let id = TrackId { index: k, name: Some(name) };
                     let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec).map_err(|e| DeviceError::Input(e.to_string()))?;
+                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
                     Prepared::Host(frames.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect())
                 }
             })
@@ -413,9 +417,8 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
     if tracks.is_empty() {
         return Ok(baked);
     }
-    let input = |e: crate::Error| DeviceError::Input(e.to_string());
     // Prepared on every core (bspline-interp solves a system per track).
-    let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i]).map_err(input)?;
+    let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i])?;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
     let clips = &baked.clips;
@@ -424,9 +427,8 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         let frames = &clips[c].times;
         let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
         Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grids[c]) })
-    })
-    .map_err(input)?;
-    let (out, name) = device.evaluate_f32(&EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false })?;
+    })?;
+    let (out, name) = device.evaluate_f32(&EvalJob::new(&batch, &times))?;
     let mut next = 0;
     for clip in &mut baked.clips {
         for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
@@ -452,10 +454,10 @@ enum Prepared {
 /// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
 /// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
 /// per key.
-fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<f64, DeviceError> {
+fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<f64, InputError> {
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
-    let times = SampleTimes::new(batch, &overrides, Sampling::Count(1)).map_err(|e| DeviceError::Input(e.to_string()))?;
-    let (out, _) = device.evaluate_f32(&EvalJob { batch, times: &times, layout: Layout::Track, derivatives: false })?;
+    let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
+    let (out, _) = device.evaluate_f32(&EvalJob::new(batch, &times))?;
     let rows: &[[f32; 4]] = bytemuck::cast_slice(&out.data);
     let chord = |key: DQuat, q: DQuat| {
         let s = if key.dot(q) < 0.0 { -1.0 } else { 1.0 };
@@ -477,19 +479,14 @@ fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<
 }
 
 /// A one-key channel held for every frame (checked like any key).
-fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 4]>, DeviceError> {
+fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 4]>, InputError> {
     let value = channel.values[0];
     let value = if channel.property == Property::Rotation {
-        let q = DQuat::from_array(value);
-        let norm = q.length();
-        if !q.is_finite() || norm < crate::batch::MIN_KEY_NORM {
-            return Err(DeviceError::Input(format!("{id}: key 0 ({value:?}) is not a finite non-zero quaternion")));
-        }
-        q.mul_scalar(1.0 / norm).to_array()
+        crate::batch::normalized_key(id, 0, value)?.to_array()
     } else if value.iter().all(|v| v.is_finite()) {
         value
     } else {
-        return Err(DeviceError::Input(crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.to_string()));
+        return Err(crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.into());
     };
     Ok(vec![value.map(|v| v as f32); frames])
 }

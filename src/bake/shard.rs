@@ -2,7 +2,7 @@
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
 
-use super::job::BakeError;
+use super::error::BakeError;
 use std::path::PathBuf;
 
 /// This process's share: inputs `k` with `k mod count == index`.

@@ -12,7 +12,8 @@
 //! value), frames on every core.
 
 use super::{Animation, Baked, Property, Skin};
-use crate::device::{Device, DeviceError};
+use super::InputError;
+use crate::device::Device;
 use rayon::prelude::*;
 
 /// Which texture `bake --texture` writes.
@@ -29,10 +30,7 @@ pub enum TextureKind {
 
 crate::curve::names!(TextureKind, "texture", Local => "local", Model => "model", Skin => "skin");
 
-/// Floats per joint and frame of a [`TextureKind::Local`] texture.
-pub const LOCAL_CHANNELS: usize = 10;
-/// Floats per joint and frame of a matrix texture.
-pub const MATRIX_CHANNELS: usize = 12;
+pub use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 
 impl TextureKind {
     /// Floats per joint and frame.
@@ -192,7 +190,7 @@ pub struct Sheet {
 ///
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
-pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, DeviceError> {
+pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, InputError> {
     let local = local(animation, baked, clip);
     let model = if kind == TextureKind::Local { None } else { Some(model_on(device, animation, order, &local)?) };
     Ok(arrange(animation, order, kind, local, model))
@@ -223,12 +221,12 @@ pub fn arrange(animation: &Animation, order: &[usize], kind: TextureKind, local:
 ///
 /// # Errors
 /// The GPU's (a device failure, a frame larger than a storage binding).
-pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: &[f32]) -> Result<Vec<f32>, DeviceError> {
+pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: &[f32]) -> Result<Vec<f32>, InputError> {
     match device {
         #[cfg(feature = "gpu")]
         Device::Gpu(g) | Device::Auto(g, _) => {
             let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-            g.forward_kinematics(&parents, order, local).map_err(|e| DeviceError::Device(format!("forward kinematics: {e}")))
+            g.forward_kinematics(&parents, order, local).map_err(|e| InputError::Device(crate::DeviceError::Device(format!("forward kinematics: {e}"))))
         }
         Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
     }

@@ -9,7 +9,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use quatcurve::bake::texture::{Precision, TextureKind};
 use quatcurve::bake::{crowd, BakeError, BakeJob, BakeReport, InputReport, LoopMode, Progress, Shard};
-use quatcurve::{Curve, DeviceError, KnotMode};
+use quatcurve::{Curve, KnotMode};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -147,7 +147,7 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     let mut internal = false;
     for input in &failed {
         if let Err(e) = &input.outcome {
-            internal |= matches!(e, DeviceError::Device(_));
+            internal |= e.is_internal_failure();
             eprintln!("error: {}: {e}", input.source);
         }
     }
@@ -167,8 +167,8 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
         let status = match &r.outcome {
             Ok(files) if r.resumed => format!("ok (resumed: {} files intact)", files.len()),
             Ok(files) => format!("ok ({} files)", files.len()),
-            Err(DeviceError::Input(_)) => "FAILED (input)".to_string(),
-            Err(DeviceError::Device(_)) => "FAILED (device)".to_string(),
+            Err(e) if e.is_internal_failure() => "FAILED (device)".to_string(),
+            Err(_) => "FAILED (input)".to_string(),
         };
         let chars = r.source.chars().count();
         let name = if chars > 44 { format!("...{}", r.source.chars().skip(chars - 41).collect::<String>()) } else { r.source.clone() };

@@ -3,9 +3,7 @@
 
 use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
-use quatcurve::cpu::{CpuEvaluator, CpuOptions};
-use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::{synthetic, Batch, Curve, CurveSpec, Device, DeviceChoice, EvalJob, KnotMode, Layout, SampleTimes, Sampling};
+use quatcurve::{synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator, KnotMode, SampleTimes, Sampling};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -234,17 +232,17 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Re
 fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
     let (slice, slice_times) = synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
-    let job = EvalJob { batch: &slice, times: &slice_times, layout: Layout::Track, derivatives: args.derivatives };
+    let job = EvalJob::new(&slice, &slice_times).derivatives(args.derivatives);
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();
     Ok(Row { device: "reference", adapter: "f64, one thread".into(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None, roofline_samples_per_s: None })
 }
 
 fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
-    let options = GpuOptions { derivatives: args.derivatives, ..GpuOptions::default() };
+    let job = EvalJob::new(batch, times).derivatives(args.derivatives);
     let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
-    let seconds = median_seconds(args.runs, || gpu.evaluate(batch, times, &options).map(drop).map_err(device_err))?;
-    let prepared = gpu.prepare(batch, times, &options).map_err(device_err)?;
+    let seconds = median_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;
+    let prepared = gpu.prepare(&job).map_err(device_err)?;
     let dispatch = median_seconds(args.runs, || gpu.dispatch(&prepared).map_err(device_err))?;
     let roofline = median_seconds(args.runs, || gpu.roofline(&prepared).map_err(device_err))?;
     let samples = times.total();
@@ -260,12 +258,13 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
 }
 
 fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
-    let options = CpuOptions { derivatives: args.derivatives, forward_difference: args.forward_difference, ..CpuOptions::default() };
+    let options = EvalOptions { derivatives: args.derivatives, forward_difference: args.forward_difference, ..EvalOptions::default() };
+    let job = EvalJob::new(batch, times).with(options);
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
-    let seconds = median_seconds(args.runs, || cpu.evaluate(batch, times, &options).map(drop).map_err(input))?;
+    let seconds = median_seconds(args.runs, || cpu.evaluate(&job).map(drop).map_err(input))?;
     // The CPU's analogue of dispatch-only: into a reused buffer (no allocation, no page faults).
-    let mut buffer = vec![0.0f32; times.total() * quatcurve::job::channels(args.derivatives, false)];
-    let compute = median_seconds(args.runs, || cpu.evaluate_into(batch, times, &options, &mut buffer).map_err(input))?;
+    let mut buffer = vec![0.0f32; times.total() * options.row().channels()];
+    let compute = median_seconds(args.runs, || cpu.evaluate_into(&job, &mut buffer).map_err(input))?;
     let samples = times.total();
     Ok(Row {
         device: "cpu",

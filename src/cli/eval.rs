@@ -3,7 +3,7 @@
 use super::{names, print_stdout, read_tracks, CurveArgs, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{write_atomic, write_npy, ResultFile};
-use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, Layout, Output, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, FloatOutput, Layout, Output, SampleTimes, Sampling};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -102,7 +102,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
             )));
         }
     }
-    let job = EvalJob { batch: &batch, times: &times, layout, derivatives: args.derivatives };
+    let job = EvalJob::new(&batch, &times).layout(layout).derivatives(args.derivatives);
     job.validate().map_err(input_err)?;
     let device = super::open_device(args.device.device, "--device")?;
     let (out, device_name) = device.evaluate_named(&job).map_err(|e| Failure::from(e).context(&source))?;
@@ -139,18 +139,9 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// Float32 rows of DESIGN section 5's `.npy`: `x, y, z, w` then, with derivatives, omega and
-/// alpha. Returns the data and the channel count.
+/// Float32 rows of DESIGN section 5's `.npy` ([`quatcurve::Row`]s without matrices).
+/// Returns the data and the channel count.
 fn npy_rows(out: &Output) -> (Vec<f32>, u64) {
-    let derivatives = !out.angular_velocity.is_empty();
-    let channels = if derivatives { 10 } else { 4 };
-    let mut data = Vec::with_capacity(out.rotations.len() * channels);
-    for (i, q) in out.rotations.iter().enumerate() {
-        data.extend(q.iter().map(|&v| v as f32));
-        if derivatives {
-            data.extend(out.angular_velocity[i].iter().map(|&v| v as f32));
-            data.extend(out.angular_acceleration[i].iter().map(|&v| v as f32));
-        }
-    }
+    let FloatOutput { channels, data } = FloatOutput::from_output(out, false);
     (data, channels as u64)
 }

@@ -4,7 +4,7 @@
 //! repeated knots as in the reference) and the triangle itself is all lane arithmetic.
 
 use super::lanes::LANES;
-use super::track::MAX_FACTORS;
+use super::lanes::MAX_FACTORS;
 use super::simd::Lanes;
 
 /// `1 / (b - a)`, or 0 for a zero-length interval (the reference's convention).

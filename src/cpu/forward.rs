@@ -8,7 +8,7 @@
 //! `reseed` steps, and at every segment start, the arcs are seeded again from a direct f64
 //! evaluation. Values only: derivative requests take the direct path.
 
-use super::CpuOptions;
+use crate::job::EvalOptions;
 use crate::batch::TrackView;
 use crate::curve::Curve;
 use crate::quat::{DQuat, DVec3};
@@ -20,7 +20,7 @@ use std::ops::Range;
 /// Whether track `index` can use the generator: slerp or Nam-Kim, uniform times, no
 /// derivatives.
 #[must_use]
-pub fn applies(view: TrackView<'_>, times: &SampleTimes, index: usize, options: &CpuOptions) -> bool {
+pub fn applies(view: TrackView<'_>, times: &SampleTimes, index: usize, options: &EvalOptions) -> bool {
     matches!(view.track.curve, Curve::Slerp | Curve::NamKim)
         && matches!(times.tracks[index], TrackTimes::Uniform { .. })
         && !options.derivatives
@@ -70,15 +70,16 @@ fn geodesic(a: Quat, b: Quat, h: f32) -> Quat {
     from * Quat::from_vec4((rel.xyz() * (sin / s)).extend(cos))
 }
 
-/// Samples `range` of track `index` into `out` rows of `channels` floats.
-pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+/// Samples `range` of track `index` into `out`'s rows.
+pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &EvalOptions, out: &mut [f32]) {
+    let layout = options.row();
     let TrackTimes::Uniform { step, count, .. } = times.tracks[index] else { return };
     let reseed = options.forward_difference.unwrap_or(usize::MAX).max(1);
     let knots = view.knots;
     let coef = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
     let (mut segment, mut since, mut s, mut h) = (usize::MAX, 0, 0.0f64, 0.0f64);
     let mut arcs: Vec<Arc> = Vec::with_capacity(2);
-    for (row, j) in out.chunks_exact_mut(channels).zip(range) {
+    for (row, j) in out.chunks_exact_mut(layout.channels()).zip(range) {
         let t = times.time(index, j);
         let (i, clamped) = locate(knots, 0, knots.len() - 2, t);
         // Seed at segment changes, every `reseed` steps, where clamping or the exact last
@@ -107,6 +108,6 @@ pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, range: R
             Curve::Slerp => arcs[0].value(),
             _ => geodesic(arcs[0].value(), arcs[1].value(), view.track.blend.ratio(s) as f32),
         };
-        super::track::write(row, q.to_array(), [0.0; 3], [0.0; 3], options);
+        layout.write(row, q.to_array(), [0.0; 3], [0.0; 3]);
     }
 }

@@ -2,10 +2,13 @@
 //! (module `simd`: AVX2 registers where the CPU has them), and the KKS cumulative product with
 //! its body derivatives, the twin of [`crate::reference::cumulative_product`].
 
-use super::simd::Lanes;
+use super::simd::{sin_cos_small, Lanes};
 
 /// Samples per SIMD group.
 pub const LANES: usize = 8;
+
+/// Most factors in one product: a B-spline of the highest order.
+pub const MAX_FACTORS: usize = crate::curve::MAX_ORDER - 1;
 
 /// Eight 3-vectors.
 #[derive(Clone, Copy, Debug)]
@@ -128,27 +131,6 @@ pub fn write_columns<S: Lanes>(v: [S; 4], rows: &mut [f32], stride: usize, col: 
     }
 }
 
-/// Largest `|x|` that [`sin_cos_small`] takes: a little over `pi / 2`, the half-angle of every
-/// shortest-path key step, so that keyed tracks never need range reduction.
-pub const SMALL_ANGLE: f32 = 1.6;
-
-/// `(sin x, cos x)` for `|x| <= SMALL_ANGLE`, by Taylor polynomials through `x^13` and `x^12`:
-/// truncation error below 1e-9 there, so the f32 result is within a few ulps (test
-/// `small_sin_cos_is_accurate`). Half the work of a general `sin_cos`, which must first
-/// reduce its argument modulo `pi / 2`.
-#[inline(always)]
-pub fn sin_cos_small<S: Lanes>(x: S) -> (S, S) {
-    const SIN: [f32; 7] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
-    const COS: [f32; 7] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
-    let x2 = x * x;
-    let (mut s, mut c) = (S::splat(SIN[6]), S::splat(COS[6]));
-    for k in (0..6).rev() {
-        s = s.mul_add(x2, S::splat(SIN[k]));
-        c = c.mul_add(x2, S::splat(COS[k]));
-    }
-    (s * x, c)
-}
-
 /// One factor `exp(v b(t))` of eight samples: `v = theta * axis` (half-angle vector, axis
 /// unit or zero) and the basis jet `[b, b', b'']` in time units.
 #[derive(Clone, Copy, Debug)]
@@ -160,7 +142,8 @@ pub struct Factor8<S> {
 
 /// `start * prod exp(v_j b_j)` and, with `derivatives`, the body angular velocity and
 /// acceleration by DESIGN section 2's recursion (see the reference for the formulas).
-/// `small`: every `|theta b|` is at most [`SMALL_ANGLE`], so [`sin_cos_small`] applies.
+/// `small`: every `|theta b|` is at most [`super::simd::SMALL_ANGLE`], so [`sin_cos_small`]
+/// applies.
 /// `lead`: `start * (axis_0, 0)` when the caller has it (all lanes on one segment), which
 /// turns the first product into `cos * start + sin * lead`.
 #[inline(always)]
@@ -202,7 +185,7 @@ pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q
 
 #[cfg(test)]
 mod sin_cos_tests {
-    use super::{sin_cos_small, SMALL_ANGLE};
+    use crate::cpu::simd::{sin_cos_small, SMALL_ANGLE};
     use wide::f32x8;
 
     #[test]

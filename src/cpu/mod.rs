@@ -1,6 +1,6 @@
 //! The fast CPU path: f32, eight samples per SIMD group (module `lanes`, on the lane type
 //! [`Isa`] names, chosen at run time), tracks spread over all
-//! cores with rayon. It evaluates the same packed [`Batch`] as the reference and the GPU and
+//! cores with rayon. It evaluates the same packed [`crate::Batch`] as the reference and the GPU and
 //! returns the same [`FloatOutput`] as the GPU.
 //!
 //! What is vectorized: every family's rotation, eight samples per group. Slerp, cubic
@@ -21,29 +21,14 @@ mod track;
 
 pub use simd::Isa;
 
-use crate::batch::Batch;
 use crate::error::Result;
-use crate::job::{EvalJob, FloatOutput, Layout};
-use crate::sampling::SampleTimes;
+use crate::job::EvalJob;
+use crate::output::{FloatOutput, Layout};
 use rayon::prelude::*;
 use track::{Bases, Context};
 
 /// Samples per parallel work item (a piece of one track).
 const PIECE: usize = 4096;
-
-/// What to evaluate besides rotations, and in which order (as the GPU's `GpuOptions`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CpuOptions {
-    /// Output order.
-    pub layout: Layout,
-    /// Also write body angular velocity and acceleration.
-    pub derivatives: bool,
-    /// Also write the 3x3 rotation matrix (row-major).
-    pub matrix: bool,
-    /// Generate uniformly sampled slerp and Nam-Kim tracks by forward differences
-    /// ([`forward`]), seeding again every this many steps; `None`: direct evaluation.
-    pub forward_difference: Option<usize>,
-}
 
 /// The fast CPU evaluator: holds the fitted polynomial bases; uses rayon's global thread
 /// pool. Create once and reuse.
@@ -87,15 +72,14 @@ impl CpuEvaluator {
         format!("f32x8 ({}), {} threads", self.isa.name(), rayon::current_num_threads())
     }
 
-    /// Evaluates every track at its sample times: `samples x channels` floats, per sample the
-    /// rotation `x, y, z, w`, then with derivatives omega and alpha, then with a matrix its
-    /// nine entries (the GPU's layout).
+    /// Evaluates every track of `job` at its sample times: `samples x channels` floats, each
+    /// sample a [`crate::Row`] (the GPU's layout).
     ///
     /// # Errors
     /// As [`EvalJob::validate`].
-    pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions) -> Result<FloatOutput> {
-        let mut out = FloatOutput::zeroed(times.total(), crate::job::channels(options.derivatives, options.matrix));
-        self.evaluate_into(batch, times, options, &mut out.data)?;
+    pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<FloatOutput> {
+        let mut out = FloatOutput::zeroed(job.times.total(), job.options.row().channels());
+        self.evaluate_into(job, &mut out.data)?;
         Ok(out)
     }
 
@@ -105,9 +89,10 @@ impl CpuEvaluator {
     ///
     /// # Errors
     /// As [`EvalJob::validate`], and [`crate::Error::BadJob`] for a buffer of the wrong size.
-    pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &CpuOptions, data: &mut [f32]) -> Result<()> {
-        EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives }.validate()?;
-        let channels = crate::job::channels(options.derivatives, options.matrix);
+    pub fn evaluate_into(&self, job: &EvalJob<'_>, data: &mut [f32]) -> Result<()> {
+        job.validate()?;
+        let EvalJob { batch, times, options } = *job;
+        let channels = options.row().channels();
         if data.len() != times.total() * channels {
             return Err(crate::Error::BadJob(format!(
                 "output buffer holds {} floats but {} samples x {channels} channels are needed",
@@ -124,7 +109,7 @@ impl CpuEvaluator {
             })
             .collect();
         let run = |&(track, from, to): &(usize, usize, usize), out: &mut [f32]| {
-            track::evaluate(&tables, batch.view(track), times, track, from..to, options, channels, out);
+            track::evaluate(&tables, batch.view(track), times, track, from..to, &options, out);
         };
         match options.layout {
             Layout::Track => {

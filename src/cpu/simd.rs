@@ -183,9 +183,30 @@ impl Lanes for wide::f32x8 {
     }
 }
 
+/// Largest `|x|` that [`sin_cos_small`] takes: a little over `pi / 2`, the half-angle of every
+/// shortest-path key step, so that keyed tracks never need range reduction.
+pub const SMALL_ANGLE: f32 = 1.6;
+
+/// `(sin x, cos x)` for `|x| <= SMALL_ANGLE`, by Taylor polynomials through `x^13` and `x^12`:
+/// truncation error below 1e-9 there, so the f32 result is within a few ulps (test
+/// `small_sin_cos_is_accurate`). Half the work of a general `sin_cos`, which must first
+/// reduce its argument modulo `pi / 2`.
+#[inline(always)]
+pub fn sin_cos_small<S: Lanes>(x: S) -> (S, S) {
+    const SIN: [f32; 7] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
+    const COS: [f32; 7] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
+    let x2 = x * x;
+    let (mut s, mut c) = (S::splat(SIN[6]), S::splat(COS[6]));
+    for k in (0..6).rev() {
+        s = s.mul_add(x2, S::splat(SIN[k]));
+        c = c.mul_add(x2, S::splat(COS[k]));
+    }
+    (s * x, c)
+}
+
 /// `(sin x, cos x)` from [`Lanes`] arithmetic alone: Cody-Waite reduction by `pi / 2` in three
 /// parts (as `shaders/real.wgsl`: `k * HALF_PI_1` is exact for `|k| < 2^16`), the Taylor
-/// polynomials of [`super::lanes::sin_cos_small`] on `[-pi/4, pi/4]`, then the quadrant by
+/// polynomials of [`sin_cos_small`] on `[-pi/4, pi/4]`, then the quadrant by
 /// masks. Absolute error about 1e-7 for `|x| < 1e4`, as the shader's.
 #[inline(always)]
 pub fn reduced_sin_cos<S: Lanes>(x: S) -> (S, S) {
@@ -194,7 +215,7 @@ pub fn reduced_sin_cos<S: Lanes>(x: S) -> (S, S) {
     const HALF_PI_3: f32 = 7.549_79e-8;
     let k = (x * S::splat(std::f32::consts::FRAC_2_PI)).round();
     let r = (-k).mul_add(S::splat(HALF_PI_3), (-k).mul_add(S::splat(HALF_PI_2), (-k).mul_add(S::splat(HALF_PI_1), x)));
-    let (s, c) = super::lanes::sin_cos_small(r);
+    let (s, c) = sin_cos_small(r);
     // The quadrant k mod 4 in 0..=3, from exact float integers: k / 4 has a fractional part
     // of 0, 1/4, 1/2 or 3/4, which the -3/8 makes round down.
     let q = k - S::splat(4.0) * (k * S::splat(0.25) - S::splat(0.375)).round();

@@ -1,21 +1,18 @@
 //! One piece of one track on the CPU: per-lane segment lookup, basis, then the SIMD product.
 
-use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, SMALL_ANGLE, V8};
-use super::CpuOptions;
+use super::lanes::{cumulative_product, write_columns, Factor8, LANES, MAX_FACTORS, Q8, V8};
 use super::cox_de_boor::SpanKnots;
 use crate::basis::{bernstein_polynomials, fit_polynomials, uniform_bspline_polynomials};
 use crate::batch::{Batch, TrackView};
 use crate::curve::Curve;
-use crate::quat::DQuat;
+use crate::job::EvalOptions;
+use crate::output::Row;
 use crate::reference;
 use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
 use crate::curve::{MAX_ORDER, MIN_ORDER};
 use std::ops::Range;
-use super::simd::{Isa, Lanes};
-
-/// Most factors in one product: a B-spline of the highest order.
-pub(super) const MAX_FACTORS: usize = MAX_ORDER - 1;
+use super::simd::{Isa, Lanes, SMALL_ANGLE};
 
 /// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
 /// `count` functions of degree `len - 1 < 8`, f32 coefficients lowest first.
@@ -144,11 +141,12 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
     (span, t)
 }
 
-/// Evaluates samples `range` of track `index` into `out` (`range.len() x channels`).
-#[allow(clippy::too_many_arguments)]
-pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &CpuOptions, channels: usize, out: &mut [f32]) {
+/// Evaluates samples `range` of track `index` into `out` (`range.len()` [`Row`]s).
+pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &EvalOptions, out: &mut [f32]) {
+    let row = options.row();
+    let channels = row.channels();
     if super::forward::applies(view, times, index, options) {
-        super::forward::evaluate(view, times, index, range, options, channels, out);
+        super::forward::evaluate(view, times, index, range, options, out);
         return;
     }
     let track = view.track;
@@ -166,20 +164,18 @@ pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, 
         Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order, 0, 0),
         Curve::Squad | Curve::NamKim if !options.derivatives => {
             super::arcs::evaluate(tables.isa, view, times, index, range.start, range.len(), channels, out);
-            if options.matrix {
-                write_matrices(out, channels, 4);
-            }
+            out.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));
             return;
         }
         Curve::Squad | Curve::NamKim | Curve::Bezier => {
-            for (row, j) in out.chunks_exact_mut(channels).zip(range) {
+            for (dst, j) in out.chunks_exact_mut(channels).zip(range) {
                 let t = times.time(index, j);
                 if options.derivatives {
                     let s = reference::evaluate(view, t);
                     let f = |v: crate::quat::DVec3| v.to_array().map(|c| c as f32);
-                    write(row, s.rotation.to_array().map(|v| v as f32), f(s.angular_velocity), f(s.angular_acceleration), options);
+                    row.write(dst, s.rotation.to_array().map(|v| v as f32), f(s.angular_velocity), f(s.angular_acceleration));
                 } else {
-                    write(row, reference::evaluate_rotation(view, t).to_array().map(|v| v as f32), [0.0; 3], [0.0; 3], options);
+                    row.write(dst, reference::evaluate_rotation(view, t).to_array().map(|v| v as f32), [0.0; 3], [0.0; 3]);
                 }
             }
             return;
@@ -229,7 +225,7 @@ struct Piece<'a> {
     index: usize,
     /// First sample of the piece.
     from: usize,
-    options: &'a CpuOptions,
+    options: &'a EvalOptions,
     channels: usize,
     basis: Basis<'a>,
     /// Spans the domain covers.
@@ -406,13 +402,14 @@ impl Piece<'_> {
             };
             let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, SMALL);
             let rows = &mut out[g * channels..(g + valid) * channels];
-            write_columns([q.x, q.y, q.z, q.w], rows, channels, 0, 4, valid);
+            // Row's columns: the rotation, then omega and alpha back to back.
+            write_columns([q.x, q.y, q.z, q.w], rows, channels, Row::ROTATION.start, 4, valid);
             if DERIVATIVES {
-                write_columns([w.x, w.y, w.z, a.x], rows, channels, 4, 4, valid);
-                write_columns([a.y, a.z, S::ZERO, S::ZERO], rows, channels, 8, 2, valid);
+                write_columns([w.x, w.y, w.z, a.x], rows, channels, Row::OMEGA.start, 4, valid);
+                write_columns([a.y, a.z, S::ZERO, S::ZERO], rows, channels, Row::ALPHA.start + 1, 2, valid);
             }
             if options.matrix {
-                write_matrices(rows, channels, if DERIVATIVES { 10 } else { 4 });
+                rows.chunks_exact_mut(channels).for_each(|r| options.row().fill_matrix(r));
             }
         }
     }
@@ -456,37 +453,4 @@ fn bernstein_cumulative_lanes<S: Lanes, const F: usize>(u: S, out: &mut [[S; 3];
 fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
     let [x, y, z, w] = p;
     [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
-}
-
-/// Fills columns `at..at + 9` of every row with the matrix of the row's rotation (its first
-/// four columns).
-fn write_matrices(rows: &mut [f32], channels: usize, at: usize) {
-    for row in rows.chunks_exact_mut(channels) {
-        let q = [row[0], row[1], row[2], row[3]];
-        write_matrix(&mut row[at..at + 9], q);
-    }
-}
-
-/// The row-major matrix of rotation `q`.
-#[inline(always)]
-fn write_matrix(out: &mut [f32], q: [f32; 4]) {
-    let m = DQuat::from_array(q.map(f64::from)).to_mat3();
-    for (o, v) in out.iter_mut().zip(m.iter().flatten()) {
-        *o = *v as f32;
-    }
-}
-
-/// One output row: rotation, then optional derivatives and matrix.
-#[inline(always)]
-pub(super) fn write(row: &mut [f32], q: [f32; 4], w: [f32; 3], a: [f32; 3], options: &CpuOptions) {
-    row[..4].copy_from_slice(&q);
-    let mut at = 4;
-    if options.derivatives {
-        row[4..7].copy_from_slice(&w);
-        row[7..10].copy_from_slice(&a);
-        at = 10;
-    }
-    if options.matrix {
-        write_matrix(&mut row[at..at + 9], q);
-    }
 }

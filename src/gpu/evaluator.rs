@@ -3,26 +3,12 @@
 use super::layout::{self, Chunk, ChunkPlan, GpuTrack, Params, ANY_CURVE};
 use super::shader;
 use super::GpuError;
-use crate::batch::Batch;
-use crate::job::{FloatOutput, Layout};
+use crate::job::{EvalJob, EvalOptions};
+use crate::output::{FloatOutput, Layout};
 use crate::sampling::SampleTimes;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
-
-/// What to evaluate besides rotations, and in which order.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct GpuOptions {
-    /// Output order.
-    pub layout: Layout,
-    /// Also write body angular velocity and acceleration.
-    pub derivatives: bool,
-    /// Also write the 3x3 rotation matrix (row-major).
-    pub matrix: bool,
-    /// Use the generic kernel (a switch per track) even for single-family batches; the default
-    /// specializes the kernel to the family when the whole batch has one.
-    pub generic_kernel: bool,
-}
 
 /// Largest binding of one chunk [`GpuEvaluator::evaluate`] streams (64 MiB): small enough that
 /// the packed chunk and its device copy (host memory too, on a software adapter) stay a
@@ -86,7 +72,7 @@ pub struct GpuEvaluator {
     /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
     pub(super) map_outputs: bool,
     /// The forward-kinematics pipeline, built on first use ([`super::fk`]).
-    pub(super) fk: std::sync::OnceLock<super::fk::FkPipeline>,
+    pub(super) fk: std::sync::OnceLock<shader::Compiled>,
     /// [`layout::polynomial_table`], the same for every batch.
     polynomials: wgpu::Buffer,
     /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
@@ -237,6 +223,33 @@ impl GpuEvaluator {
         self.binding_limit
     }
 
+    /// Another evaluator on this one's device: the device, queue, program and compiled
+    /// pipelines are shared (no second device), the reused output buffer and the binding
+    /// limit are its own. For a host that wants evaluators with different limits, and for
+    /// tests that run beside each other on one device.
+    #[must_use]
+    pub fn share_device(&self) -> Self {
+        Self {
+            device: self.device.clone(),
+            queue: self.queue.clone(),
+            adapter_name: self.adapter_name.clone(),
+            software: self.software,
+            module: self.module.clone(),
+            bind_group_layout: self.bind_group_layout.clone(),
+            resources: self.resources.clone(),
+            pipeline_layout: self.pipeline_layout.clone(),
+            pipelines: Mutex::new(self.pipelines.lock().unwrap_or_else(|e| e.into_inner()).clone()),
+            workgroup_size: self.workgroup_size,
+            binding_limit: self.binding_limit,
+            max_groups_per_dim: self.max_groups_per_dim,
+            map_outputs: self.map_outputs,
+            fk: std::sync::OnceLock::new(),
+            polynomials: self.polynomials.clone(),
+            spare_output: Mutex::new(None),
+            lost: Arc::clone(&self.lost),
+        }
+    }
+
     /// Lowers the binding limit used for chunking, e.g. to exercise chunking in tests.
     #[must_use]
     pub fn with_binding_limit(mut self, bytes: u64) -> Self {
@@ -253,11 +266,12 @@ impl GpuEvaluator {
     /// # Errors
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
     /// mismatched inputs, device errors as [`GpuError::Device`] or [`GpuError::DeviceLost`].
-    pub fn evaluate(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<GpuOutput, GpuError> {
-        let channels = crate::job::channels(options.derivatives, options.matrix);
+    pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<GpuOutput, GpuError> {
+        let EvalJob { batch, times, options } = *job;
+        let channels = options.row().channels();
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
-        for plan in &self.plan(batch, times, options, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))? {
-            let prepared = self.upload(&layout::pack(plan, batch, times), options, channels, None)?;
+        for plan in &self.plan(job, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))? {
+            let prepared = self.upload(&layout::pack(plan, batch, times), &options, channels, None)?;
             self.submit(&prepared)?;
             // The readback copy is queued behind the dispatch: one wait covers both.
             self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, plan, times, options.layout, channels, &mut data))?;
@@ -276,11 +290,12 @@ impl GpuEvaluator {
     ///
     /// # Errors
     /// As [`GpuEvaluator::evaluate`].
-    pub fn prepare(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions) -> Result<PreparedBatch, GpuError> {
-        let channels = crate::job::channels(options.derivatives, options.matrix);
+    pub fn prepare(&self, job: &EvalJob<'_>) -> Result<PreparedBatch, GpuError> {
+        let EvalJob { batch, times, options } = *job;
+        let channels = options.row().channels();
         // The chunks `evaluate` streams, so a dispatch-only figure times the same dispatches.
-        let plans = self.plan(batch, times, options, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))?;
-        let chunks = plans.iter().map(|plan| self.upload(&layout::pack(plan, batch, times), options, channels, None)).collect::<Result<_, _>>()?;
+        let plans = self.plan(job, channels, self.binding_limit.min(STREAM_CHUNK_BYTES))?;
+        let chunks = plans.iter().map(|plan| self.upload(&layout::pack(plan, batch, times), &options, channels, None)).collect::<Result<_, _>>()?;
         Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
     }
 
@@ -315,13 +330,14 @@ impl GpuEvaluator {
     /// # Errors
     /// As [`GpuEvaluator::evaluate`], and [`GpuError::Job`] when the buffer is too small or
     /// the batch needs more than one binding (evaluate it in parts, or use `evaluate`).
-    pub fn evaluate_into(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, target: &wgpu::Buffer) -> Result<(), GpuError> {
-        let channels = crate::job::channels(options.derivatives, options.matrix);
+    pub fn evaluate_into(&self, job: &EvalJob<'_>, target: &wgpu::Buffer) -> Result<(), GpuError> {
+        let EvalJob { batch, times, options } = *job;
+        let channels = options.row().channels();
         let needed = (times.total() * channels * 4) as u64;
         if target.size() < needed {
             return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));
         }
-        let chunks = self.plan(batch, times, options, channels, self.binding_limit)?;
+        let chunks = self.plan(job, channels, self.binding_limit)?;
         if chunks.len() != 1 {
             return Err(GpuError::Job(format!(
                 "the batch needs {} bindings of at most {} bytes; evaluate_into takes one",
@@ -329,16 +345,15 @@ impl GpuEvaluator {
                 self.binding_limit
             )));
         }
-        let prepared = self.upload(&layout::pack(&chunks[0], batch, times), options, channels, Some(target))?;
+        let prepared = self.upload(&layout::pack(&chunks[0], batch, times), &options, channels, Some(target))?;
         self.submit(&prepared)?;
         self.wait()
     }
 
     /// Validates the job and plans its chunks, every binding within `limit` bytes.
-    fn plan(&self, batch: &Batch, times: &SampleTimes, options: &GpuOptions, channels: usize, limit: u64) -> Result<Vec<ChunkPlan>, GpuError> {
-        let job = crate::EvalJob { batch, times, layout: options.layout, derivatives: options.derivatives };
+    fn plan(&self, job: &EvalJob<'_>, channels: usize, limit: u64) -> Result<Vec<ChunkPlan>, GpuError> {
         job.validate().map_err(|e| GpuError::Job(e.to_string()))?;
-        layout::plan_chunks(batch, times, channels, limit).map_err(GpuError::Pack)
+        layout::plan_chunks(job.batch, job.times, channels, limit).map_err(GpuError::Pack)
     }
 
     /// Runs the write-only roofline kernel over a prepared batch's chunks and waits: the same
@@ -389,7 +404,7 @@ impl GpuEvaluator {
     }
 
     /// Creates a chunk's buffers, bind group and pipeline; output into `target` when given.
-    fn upload(&self, chunk: &Chunk, options: &GpuOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
+    fn upload(&self, chunk: &Chunk, options: &EvalOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
         let single = chunk.tracks.iter().all(|t| t.curve == chunk.tracks[0].curve);
         let only_curve = if single && !options.generic_kernel { chunk.tracks[0].curve } else { ANY_CURVE };

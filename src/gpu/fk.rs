@@ -4,8 +4,9 @@
 //! of frames in one pass; frames are split into chunks that fit a storage binding.
 
 use super::evaluator::{ErrorScope, GpuEvaluator};
-use super::{shader, GpuError};
-use crate::bake::texture::{LOCAL_CHANNELS, MATRIX_CHANNELS};
+use super::shader::{self, Compiled};
+use super::GpuError;
+use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `FkLevel` (32 bytes).
@@ -26,35 +27,25 @@ pub struct FkLevel {
     pub pad: [u32; 3],
 }
 
-/// The compiled kernel and its bind group layout, built on first use.
-pub(crate) struct FkPipeline {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
-    /// The program's buffers by name (binding numbers read from the shader).
-    resources: shader::Resources,
-    workgroup_size: u32,
-}
-
-impl FkPipeline {
-    fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
-        let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
-        let scope = ErrorScope::push(device);
-        let resources = shader::Resources::of(&module).map_err(GpuError::Shader)?;
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve fk"), entries: &resources.layout_entries() });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("quatcurve fk"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("quatcurve fk"), source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()) });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("quatcurve fk"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some(shader::FK_ENTRY_POINT),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
-            cache: None,
-        });
-        scope.pop()?;
-        Ok(Self { pipeline, layout, resources, workgroup_size })
-    }
+/// Compiles the forward-kinematics program (on first use: most evaluators never run it).
+fn compile(device: &wgpu::Device) -> Result<Compiled, GpuError> {
+    let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
+    let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
+    let scope = ErrorScope::push(device);
+    let resources = shader::Resources::of(&module).map_err(GpuError::Shader)?;
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve fk"), entries: &resources.layout_entries() });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("quatcurve fk"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("quatcurve fk"), source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()) });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("quatcurve fk"),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(shader::FK_ENTRY_POINT),
+        compilation_options: wgpu::PipelineCompilationOptions::default(),
+        cache: None,
+    });
+    scope.pop()?;
+    Ok(Compiled { pipeline, layout, resources, workgroup_size })
 }
 
 /// Joint indices grouped by depth (roots first) and where each depth starts, from `parents`
@@ -108,7 +99,7 @@ impl GpuEvaluator {
         let fk = match self.fk.get() {
             Some(fk) => fk,
             None => {
-                let built = FkPipeline::new(&self.device)?;
+                let built = compile(&self.device)?;
                 self.fk.get_or_init(|| built)
             }
         };
@@ -133,7 +124,7 @@ impl GpuEvaluator {
 
     /// One chunk of whole frames: upload, one dispatch per level, read back into `out`.
     #[allow(clippy::too_many_arguments)]
-    fn fk_chunk(&self, fk: &FkPipeline, parents: &wgpu::Buffer, levels: &wgpu::Buffer, starts: &[u32], joints: usize, rows: &[f32], out: &mut [f32]) -> Result<(), GpuError> {
+    fn fk_chunk(&self, fk: &Compiled, parents: &wgpu::Buffer, levels: &wgpu::Buffer, starts: &[u32], joints: usize, rows: &[f32], out: &mut [f32]) -> Result<(), GpuError> {
         let frames = rows.len() / (joints * LOCAL_CHANNELS);
         let scope = ErrorScope::push(&self.device);
         let local = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

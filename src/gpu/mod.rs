@@ -10,7 +10,7 @@ pub mod fk;
 pub mod layout;
 pub mod shader;
 
-pub use evaluator::{GpuEvaluator, GpuOptions, GpuOutput, PreparedBatch};
+pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 
 /// Why the GPU path failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -88,6 +88,17 @@ pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, St
     }
 }
 
+/// A compute program compiled on a device: its pipeline, bind group layout, buffers by name
+/// and workgroup width. The evaluator keeps the forward-kinematics program in one, built on
+/// first use by [`super::fk`].
+pub(crate) struct Compiled {
+    pub(crate) pipeline: wgpu::ComputePipeline,
+    pub(crate) layout: wgpu::BindGroupLayout,
+    /// The program's buffers by name (binding numbers read from the shader).
+    pub(crate) resources: Resources,
+    pub(crate) workgroup_size: u32,
+}
+
 /// A program's buffers as naga reflects them: every module-scope variable with a `@binding`,
 /// by name, with the bind group layout entry its address space implies. The host builds its
 /// layouts and bind groups from this, so binding numbers and access modes are written once, in

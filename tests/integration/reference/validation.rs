@@ -170,10 +170,10 @@ fn frame_layout_needs_equal_counts() {
     let batch = Batch::from_tracks(&[Track::from_rotations(keys(3)), named(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
     let own = [0.5];
     let times = SampleTimes::new(&batch, &[None, Some(&own)], Sampling::Count(3)).unwrap();
-    let job = EvalJob { batch: &batch, times: &times, layout: Layout::Frame, derivatives: false };
+    let job = EvalJob::new(&batch, &times).layout(Layout::Frame).derivatives(false);
     let msg = job.validate().unwrap_err().to_string();
     assert!(msg.contains("track 1 \"hips\" has 1"), "{msg}");
-    assert!(EvalJob { layout: Layout::Track, ..job }.run().is_ok());
+    assert!(job.layout(Layout::Track).run().is_ok());
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! the reference, and batch generators within the bars' domain. Included by path.
 
 use crate::common::*;
-use quatcurve::job::FloatOutput;
+use quatcurve::FloatOutput;
 use quatcurve::{Batch, BatchBuilder, Curve, CurveSpec, DQuat, DVec3, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Track};
 
 /// DESIGN section 6: rotation error bar (rad) and derivative relative error bar.
@@ -73,7 +73,7 @@ pub static EXCLUDED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicU
 /// Compares a fast path's output for `batch` at `times` (in `layout`) with the reference
 /// and returns the worst differences.
 pub fn compare_output(out: &FloatOutput, batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool, label: &str) -> Worst {
-    let reference = EvalJob { batch, times, layout, derivatives }.run().unwrap();
+    let reference = EvalJob::new(batch, times).layout(layout).derivatives(derivatives).run().unwrap();
     let out = out.to_output(derivatives);
     assert_eq!(out.rotations.len(), reference.rotations.len(), "{label}");
     let mut worst = Worst::default();

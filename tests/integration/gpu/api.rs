@@ -1,9 +1,10 @@
 //! The evaluator's API: embedding in an existing device, writing into a caller's buffer,
 //! specialized and generic kernels, and errors as values.
 
-use crate::accuracy::gpu;
+use crate::shared_gpu as gpu;
 use crate::common::*;
-use quatcurve::gpu::{GpuError, GpuEvaluator, GpuOptions};
+use quatcurve::gpu::{GpuError, GpuEvaluator};
+use quatcurve::{EvalJob, EvalOptions};
 use quatcurve::{Batch, Curve, CurveSpec, Layout, SampleTimes, Sampling};
 
 fn small_batch(spec: &CurveSpec) -> Batch {
@@ -17,8 +18,8 @@ fn evaluate_into_a_caller_buffer_without_readback() {
     let Some(gpu) = gpu() else { return };
     let batch = small_batch(&CurveSpec::default());
     let times = SampleTimes::uniform(&batch, Sampling::Count(33)).unwrap();
-    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
-    let expected = gpu.evaluate(&batch, &times, &options).unwrap();
+    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let expected = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
     let bytes = (expected.data.len() * 4) as u64;
     let target = gpu.device().create_buffer(&wgpu::BufferDescriptor {
         label: Some("engine buffer"),
@@ -26,7 +27,7 @@ fn evaluate_into_a_caller_buffer_without_readback() {
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    gpu.evaluate_into(&batch, &times, &options, &target).unwrap();
+    gpu.evaluate_into(&EvalJob::new(&batch, &times).with(options), &target).unwrap();
     // Read it back here only to check it.
     let staging = gpu.device().create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -48,7 +49,7 @@ fn evaluate_into_a_caller_buffer_without_readback() {
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    let err = gpu.evaluate_into(&batch, &times, &options, &too_small).unwrap_err();
+    let err = gpu.evaluate_into(&EvalJob::new(&batch, &times).with(options), &too_small).unwrap_err();
     assert!(matches!(err, GpuError::Job(_)), "{err}");
 }
 
@@ -64,16 +65,16 @@ fn with_device_embeds_in_an_existing_application() {
     assert_eq!(evaluator.adapter_name(), "host application");
     let batch = small_batch(&CurveSpec::new(Curve::Squad));
     let times = SampleTimes::uniform(&batch, Sampling::Count(9)).unwrap();
-    let out = evaluator.evaluate(&batch, &times, &GpuOptions::default()).unwrap();
+    let out = evaluator.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap();
     assert_eq!(out.data.len(), times.total() * 4);
     // A device without MAPPABLE_PRIMARY_BUFFERS reads back through a staging copy; where
     // `GpuEvaluator::new` mapped its outputs directly (unified memory, as lavapipe), the
     // two paths must agree bit for bit, also over several chunks.
-    assert_eq!(out.data, gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap().data);
+    assert_eq!(out.data, gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap().data);
     let evaluator = evaluator.with_binding_limit(1024);
-    let frame = GpuOptions { layout: Layout::Frame, derivatives: true, ..GpuOptions::default() };
-    assert!(evaluator.prepare(&batch, &times, &frame).unwrap().chunk_count() > 1);
-    assert_eq!(evaluator.evaluate(&batch, &times, &frame).unwrap().data, gpu.evaluate(&batch, &times, &frame).unwrap().data);
+    let frame = EvalOptions { layout: Layout::Frame, derivatives: true, ..EvalOptions::default() };
+    assert!(evaluator.prepare(&EvalJob::new(&batch, &times).with(frame)).unwrap().chunk_count() > 1);
+    assert_eq!(evaluator.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data, gpu.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data);
 }
 
 #[test]
@@ -82,8 +83,8 @@ fn specialized_and_generic_kernels_agree() {
     for spec in all_specs() {
         let batch = small_batch(&spec);
         let times = SampleTimes::uniform(&batch, Sampling::Rate(17.0)).unwrap();
-        let special = gpu.evaluate(&batch, &times, &GpuOptions { derivatives: true, ..GpuOptions::default() }).unwrap();
-        let generic = gpu.evaluate(&batch, &times, &GpuOptions { derivatives: true, generic_kernel: true, ..GpuOptions::default() }).unwrap();
+        let special = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, ..EvalOptions::default() })).unwrap();
+        let generic = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, generic_kernel: true, ..EvalOptions::default() })).unwrap();
         // Same code, different specialization: allow only f32 rounding differences.
         let diff = special.data.iter().zip(&generic.data).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0f32, f32::max);
         assert!(diff < 1e-5, "{}: {diff}", describe(&spec));
@@ -95,7 +96,7 @@ fn matrix_output_matches_the_rotation() {
     let Some(gpu) = gpu() else { return };
     let batch = small_batch(&CurveSpec::new(Curve::Hermite));
     let times = SampleTimes::uniform(&batch, Sampling::Count(11)).unwrap();
-    let out = gpu.evaluate(&batch, &times, &GpuOptions { matrix: true, ..GpuOptions::default() }).unwrap();
+    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() })).unwrap();
     assert_eq!(out.channels, 13);
     for row in out.data.chunks_exact(13) {
         let q = quatcurve::DQuat::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
@@ -116,7 +117,7 @@ fn unsupported_batches_are_errors_naming_the_track() {
     let track = track(&mut g, &spec, 40, Kind::Random);
     let batch = Batch::from_tracks(&[track], &spec).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(3)).unwrap();
-    let err = gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap_err().to_string();
+    let err = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("degree 39"), "{err}");
 }
 
@@ -124,17 +125,17 @@ fn unsupported_batches_are_errors_naming_the_track() {
 fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
     let Some(_) = gpu() else { return };
     // An evaluator of its own: the shared one is used by other tests in parallel.
-    let evaluator = GpuEvaluator::new().unwrap();
+    let evaluator = gpu().unwrap().share_device();
     let batch = small_batch(&CurveSpec::new(Curve::Hermite));
     let (big, small) = (SampleTimes::uniform(&batch, Sampling::Count(500)).unwrap(), SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap());
-    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
-    let fresh = evaluator.evaluate(&batch, &small, &options).unwrap();
-    evaluator.evaluate(&batch, &big, &options).unwrap();
+    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let fresh = evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap();
+    evaluator.evaluate(&EvalJob::new(&batch, &big).with(options)).unwrap();
     // Now the kept buffer is larger than this output and holds the big batch's samples.
-    let reused = evaluator.evaluate(&batch, &small, &options).unwrap();
+    let reused = evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap();
     assert_eq!(reused.data, fresh.data);
     evaluator.release_buffers();
-    assert_eq!(evaluator.evaluate(&batch, &small, &options).unwrap().data, fresh.data);
+    assert_eq!(evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap().data, fresh.data);
 }
 
 /// The roofline kernel writes what `bench` says it does: the same bytes as the evaluation
@@ -142,11 +143,11 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
 #[test]
 fn the_roofline_kernel_writes_every_output_float() {
     let Some(gpu) = gpu() else { return };
-    let evaluator = GpuEvaluator::new().unwrap().with_binding_limit(4096);
+    let evaluator = gpu.share_device().with_binding_limit(4096);
     let batch = small_batch(&CurveSpec::default());
     let times = SampleTimes::uniform(&batch, Sampling::Count(70)).unwrap();
-    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
-    let prepared = evaluator.prepare(&batch, &times, &options).unwrap();
+    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let prepared = evaluator.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap();
     assert!(prepared.chunk_count() > 1);
     evaluator.roofline(&prepared).unwrap();
     let out = evaluator.read(&prepared).unwrap();
@@ -170,18 +171,18 @@ fn the_roofline_kernel_writes_every_output_float() {
 #[test]
 fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     let Some(_) = gpu() else { return };
-    let evaluator = GpuEvaluator::new().unwrap();
+    let evaluator = gpu().unwrap().share_device();
     let software = evaluator.is_software();
     let device = quatcurve::Device::Auto(Box::new(evaluator), quatcurve::cpu::CpuEvaluator::new());
     let keys: Vec<[f64; 4]> = (0..40).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
     let batch = Batch::from_tracks(&[quatcurve::Track::from_rotations(keys)], &CurveSpec::new(Curve::Bezier)).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(5)).unwrap();
-    let job = quatcurve::EvalJob { batch: &batch, times: &times, layout: Layout::Track, derivatives: false };
+    let job = quatcurve::EvalJob::new(&batch, &times).layout(Layout::Track).derivatives(false);
     let (_, name) = device.evaluate_named(&job).unwrap();
     assert!(name.starts_with("cpu:"), "{name}");
     let small = small_batch(&CurveSpec::default());
     let times = SampleTimes::uniform(&small, Sampling::Count(5)).unwrap();
-    let (_, name) = device.evaluate_named(&quatcurve::EvalJob { batch: &small, times: &times, layout: Layout::Track, derivatives: false }).unwrap();
+    let (_, name) = device.evaluate_named(&quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false)).unwrap();
     assert!(name.starts_with("gpu:"), "{name}");
     // lavapipe is a software adapter: plain `auto` opens the CPU path there.
     if software {

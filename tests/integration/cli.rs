@@ -194,9 +194,7 @@ fn unavailable_device_exits_1_without_fallback() {
 
 #[test]
 fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
-    if quatcurve::gpu::GpuEvaluator::new().is_err() {
-        assert_ne!(std::env::var("QUATCURVE_REQUIRE_GPU").as_deref(), Ok("1"), "QUATCURVE_REQUIRE_GPU=1 but no adapter");
-        eprintln!("skipped: no GPU adapter");
+    if crate::shared_gpu().is_none() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -526,9 +524,7 @@ fn analyze_plots_decode_and_are_not_blank() {
 
 #[test]
 fn analyze_on_the_gpu_agrees_with_the_reference() {
-    if quatcurve::gpu::GpuEvaluator::new().is_err() {
-        assert_ne!(std::env::var("QUATCURVE_REQUIRE_GPU").as_deref(), Ok("1"), "QUATCURVE_REQUIRE_GPU=1 but no adapter");
-        eprintln!("skipped: no GPU adapter");
+    if crate::shared_gpu().is_none() {
         return;
     }
     let args = ["--curves", "bspline-interp,hermite,nam-kim", "--inertia", "1,2,3", "--step", "0.002"];

@@ -161,7 +161,7 @@ fn model_textures_match_forward_kinematics_of_the_baked_files() {
         }
     }
     // On the GPU (lavapipe in CI): curves and forward kinematics in f32 there.
-    if quatcurve::gpu::GpuEvaluator::new().is_ok() {
+    if crate::shared_gpu().is_some() {
         let out = dir.path().join("gpu");
         let sidecar = bake_into(&out, &data.join("Fox.glb"), &["--texture", "model", "--device", "gpu"]);
         assert!(sidecar["device"].as_str().unwrap().starts_with("gpu:"));

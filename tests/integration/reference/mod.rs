@@ -1,6 +1,4 @@
-//! Tests of the f64 reference evaluator against the mathematics (one test binary).
-
-mod common;
+//! Tests of the f64 reference evaluator against the mathematics.
 
 mod analysis;
 mod bspline;

@@ -1,27 +1,20 @@
 //! The fast CPU path against the f64 reference (DESIGN section 6 bars): the same suites as the
 //! GPU, plus layouts and matrices checked against the GPU-independent reference directly.
 
-#[path = "../reference/common.rs"]
-#[allow(dead_code)]
-mod common;
-
-#[path = "../shared/fast.rs"]
-#[allow(dead_code)]
-mod fast;
-
-use common::*;
-use fast::*;
-use quatcurve::cpu::{CpuEvaluator, CpuOptions, Isa};
-use quatcurve::job::FloatOutput;
+use crate::common::*;
+use crate::fast::*;
+use quatcurve::cpu::{CpuEvaluator, Isa};
+use quatcurve::{EvalJob, EvalOptions};
+use quatcurve::FloatOutput;
 use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
-    CpuEvaluator::new().evaluate(batch, times, &CpuOptions { layout, derivatives, ..CpuOptions::default() }).unwrap()
+    CpuEvaluator::new().evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() })).unwrap()
 }
 
 fn on_portable_lanes(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
     let cpu = CpuEvaluator::with_isa(Isa::Portable).expect("the baseline runs everywhere");
-    cpu.evaluate(batch, times, &CpuOptions { layout, derivatives, ..CpuOptions::default() }).unwrap()
+    cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() })).unwrap()
 }
 
 /// The lane type is chosen at run time (AVX2 where the CPU has it): the suites above run the
@@ -101,8 +94,8 @@ fn tracks_longer_than_one_work_piece_and_matrices() {
     let batch = batch_for(3, &spec, Kind::Random, 3);
     let times = SampleTimes::uniform(&batch, Sampling::Count(10_000)).unwrap();
     let cpu = CpuEvaluator::new();
-    let by_track = cpu.evaluate(&batch, &times, &CpuOptions { layout: Layout::Track, derivatives: true, matrix: true, ..CpuOptions::default() }).unwrap();
-    let by_frame = cpu.evaluate(&batch, &times, &CpuOptions { layout: Layout::Frame, derivatives: true, matrix: true, ..CpuOptions::default() }).unwrap();
+    let by_track = cpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { layout: Layout::Track, derivatives: true, matrix: true, ..EvalOptions::default() })).unwrap();
+    let by_frame = cpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { layout: Layout::Frame, derivatives: true, matrix: true, ..EvalOptions::default() })).unwrap();
     assert_eq!(by_track.channels, 19);
     compare_output(&by_track, &batch, &times, Layout::Track, true, "long tracks").assert_within_bars("cpu: 3 x 10,000");
     for track in 0..3 {
@@ -123,7 +116,7 @@ fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
     use quatcurve::{Curve, Track};
     let cpu = CpuEvaluator::new();
     let fd = |batch: &Batch, times: &SampleTimes, layout: Layout, reseed: usize| {
-        cpu.evaluate(batch, times, &CpuOptions { layout, forward_difference: Some(reseed), ..CpuOptions::default() }).unwrap()
+        cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, forward_difference: Some(reseed), ..EvalOptions::default() })).unwrap()
     };
     // The usual sets, both layouts, both samplings (the exact last sample of --samples).
     let mut all = Worst::default();
@@ -199,7 +192,7 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
     // Matrices ride along: each row's matrix is its quaternion's.
     let overrides: Vec<Option<&[f64]>> = ragged.iter().map(|l| Some(l.as_slice())).collect();
     let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap();
-    let out = CpuEvaluator::new().evaluate(&batch, &times, &CpuOptions { matrix: true, ..CpuOptions::default() }).unwrap();
+    let out = CpuEvaluator::new().evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() })).unwrap();
     for row in out.data.chunks_exact(out.channels) {
         let m = DQuat::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();
         for (r, m) in m.iter().enumerate() {

@@ -8,8 +8,8 @@
 
 use super::{data_dir, tiny_gltf};
 use proptest::prelude::*;
-use quatcurve::bake::{self, bvh, gltf, LoopMode};
-use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, DeviceError, SampleTimes, Sampling, TrackFile};
+use quatcurve::bake::{self, bvh, gltf, InputError, LoopMode};
+use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, SampleTimes, Sampling, TrackFile};
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -154,7 +154,7 @@ fn device() -> &'static Device {
 /// `Err` for what must never happen (a device error on a file's contents).
 fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
     let spec = CurveSpec::new(Curve::BSplineInterp);
-    let outcome: Result<(), DeviceError> = (|| {
+    let outcome: Result<(), InputError> = (|| {
         match seed.kind {
             Kind::Gltf | Kind::GlbJson => {
                 let packed;
@@ -164,7 +164,7 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                         json: bytes.into(),
                         bin: Some(seed.bin.as_slice().into()),
                     };
-                    packed = glb.to_vec().map_err(|e| DeviceError::Input(e.to_string()))?;
+                    packed = glb.to_vec().map_err(|e| InputError::Output(e.to_string()))?;
                     &packed[..]
                 } else {
                     bytes
@@ -199,8 +199,8 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 std::fs::write(&path, bytes).unwrap();
                 let Ok(tracks) = quatcurve::arrays::read_tracks(&path, Some(30.0)) else { return Ok(()) };
                 if let Ok(batch) = Batch::from_tracks(&tracks, &spec) {
-                    let times = SampleTimes::uniform(&batch, Sampling::Count(5)).map_err(|e| DeviceError::Input(e.to_string()))?;
-                    device().evaluate(&quatcurve::EvalJob { batch: &batch, times: &times, layout: quatcurve::Layout::Track, derivatives: true })?;
+                    let times = SampleTimes::uniform(&batch, Sampling::Count(5))?;
+                    device().evaluate(&quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true))?;
                 }
             }
             Kind::Tracks => {
@@ -209,15 +209,16 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                     let Ok(batch) = Batch::from_tracks(&file.tracks, &CurveSpec::new(curve)) else { continue };
                     let overrides: Vec<Option<&[f64]>> = file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();
                     let Ok(times) = SampleTimes::new(&batch, &overrides, Sampling::Count(5)) else { continue };
-                    device().evaluate(&quatcurve::EvalJob { batch: &batch, times: &times, layout: quatcurve::Layout::Track, derivatives: true })?;
+                    device().evaluate(&quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true))?;
                 }
             }
         }
         Ok(())
     })();
+    // Every failure must be the input's (named, exit code 2), never the device's or ours.
     match outcome {
-        Ok(()) | Err(DeviceError::Input(_)) => Ok(()),
-        Err(e) => Err(format!("{}: a device error from file contents: {e}", seed.name)),
+        Err(e) if e.is_internal_failure() => Err(format!("{}: a device error from file contents: {e}", seed.name)),
+        _ => Ok(()),
     }
 }
 

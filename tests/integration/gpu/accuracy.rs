@@ -3,39 +3,22 @@
 
 use crate::common::*;
 use crate::fast::*;
-use quatcurve::gpu::{GpuEvaluator, GpuOptions};
-use quatcurve::job::FloatOutput;
+use crate::shared_gpu as gpu;
+use quatcurve::gpu::GpuEvaluator;
+use quatcurve::{EvalJob, EvalOptions};
+use quatcurve::FloatOutput;
 use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
-use std::sync::OnceLock;
 
-/// The shared evaluator, or None (skip) when there is no adapter and none is required.
-pub fn gpu() -> Option<&'static GpuEvaluator> {
-    static GPU: OnceLock<Option<GpuEvaluator>> = OnceLock::new();
-    GPU.get_or_init(|| match GpuEvaluator::new() {
-        Ok(g) => {
-            eprintln!("GPU tests on: {}", g.adapter_name());
-            Some(g)
-        }
-        Err(e) if std::env::var("QUATCURVE_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("QUATCURVE_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipped: no GPU adapter ({e})");
-            None
-        }
-    })
-    .as_ref()
-}
 
 /// Evaluates `batch` on the GPU and compares with the reference.
-pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: GpuOptions, label: &str) -> Worst {
-    let out = gpu.evaluate(batch, times, &options).unwrap();
+pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: EvalOptions, label: &str) -> Worst {
+    let out = gpu.evaluate(&EvalJob::new(batch, times).with(options)).unwrap();
     compare_output(&out, batch, times, options.layout, options.derivatives, label)
 }
 
 /// The GPU as a fast path under test.
 fn on_gpu(gpu: &GpuEvaluator, generic_kernel: bool) -> impl Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput + '_ {
-    move |batch, times, layout, derivatives| gpu.evaluate(batch, times, &GpuOptions { layout, derivatives, generic_kernel, ..GpuOptions::default() }).unwrap()
+    move |batch, times, layout, derivatives| gpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, generic_kernel, ..EvalOptions::default() })).unwrap()
 }
 
 #[test]
@@ -78,16 +61,16 @@ fn sizes_that_are_not_multiples_of_the_workgroup() {
 #[test]
 fn batches_forced_through_many_chunks_match_one_chunk() {
     let Some(full) = gpu() else { return };
-    let small = GpuEvaluator::new().unwrap().with_binding_limit(32 * 1024);
+    let small = gpu().unwrap().share_device().with_binding_limit(32 * 1024);
     for spec in [CurveSpec::default(), CurveSpec { knots: KnotMode::Explicit, order: 5, ..CurveSpec::default() }, CurveSpec::new(Curve::NamKim)] {
         let batch = batch_for(3, &spec, Kind::Random, 40);
         for (times, layout) in [
             (SampleTimes::uniform(&batch, Sampling::Rate(40.0)).unwrap(), Layout::Track),
             (SampleTimes::uniform(&batch, Sampling::Count(50)).unwrap(), Layout::Frame),
         ] {
-            let options = GpuOptions { layout, derivatives: true, ..GpuOptions::default() };
-            let one = full.evaluate(&batch, &times, &options).unwrap();
-            let many = small.evaluate(&batch, &times, &options).unwrap();
+            let options = EvalOptions { layout, derivatives: true, ..EvalOptions::default() };
+            let one = full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
+            let many = small.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
             assert_eq!(one, many, "{layout:?}: chunked result differs");
             compare(&small, &batch, &times, options, "chunked").assert_within_bars("chunked");
         }
@@ -95,7 +78,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     // Tracks whose samples overflow a binding are cut into pieces, bit for bit the same:
     // uniform times (rate), uniform with the exact last sample (count), explicit times, in
     // both layouts.
-    let pieces = GpuEvaluator::new().unwrap().with_binding_limit(4096);
+    let pieces = gpu().unwrap().share_device().with_binding_limit(4096);
     let batch = batch_for(3, &CurveSpec::default(), Kind::Random, 6);
     let explicit: Vec<f64> = (0..700).map(|i| 0.05 + f64::from(i) * 0.0007).collect();
     let overrides = vec![Some(&explicit[..]); 3];
@@ -105,15 +88,15 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
         (SampleTimes::uniform(&batch, Sampling::Count(777)).unwrap(), Layout::Frame),
         (SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap(), Layout::Track),
     ] {
-        let options = GpuOptions { layout, derivatives: true, ..GpuOptions::default() };
-        assert!(pieces.prepare(&batch, &times, &options).unwrap().chunk_count() > 3 * 5, "{layout:?}: tracks were not cut");
-        assert_eq!(pieces.evaluate(&batch, &times, &options).unwrap(), full.evaluate(&batch, &times, &options).unwrap(), "{layout:?}: pieces differ");
+        let options = EvalOptions { layout, derivatives: true, ..EvalOptions::default() };
+        assert!(pieces.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 3 * 5, "{layout:?}: tracks were not cut");
+        assert_eq!(pieces.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), "{layout:?}: pieces differ");
     }
     // A track whose keys alone overflow a binding is an error naming it, not a crash.
-    let tiny = GpuEvaluator::new().unwrap().with_binding_limit(64);
+    let tiny = gpu().unwrap().share_device().with_binding_limit(64);
     let batch = batch_for(1, &CurveSpec::default(), Kind::Random, 1);
     let times = SampleTimes::uniform(&batch, Sampling::Count(100)).unwrap();
-    let err = tiny.evaluate(&batch, &times, &GpuOptions::default()).unwrap_err().to_string();
+    let err = tiny.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("binding"), "{err}");
 }
 
@@ -124,7 +107,7 @@ fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
     let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
     let batch = batch_for(8, &spec, Kind::Random, 2);
     let times = SampleTimes::uniform(&batch, Sampling::Count(2_150_000)).unwrap();
-    let out = gpu.evaluate(&batch, &times, &GpuOptions::default()).unwrap();
+    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap();
     assert_eq!(out.data.len(), 4_300_000 * 4);
     let mut worst = 0.0f64;
     for slot in (0..4_300_000).step_by(997).chain([4_299_999]) {
@@ -151,15 +134,15 @@ fn a_track_longer_than_a_binding_is_evaluated_in_pieces() {
     if gpu().is_none() {
         return;
     }
-    let gpu = GpuEvaluator::new().unwrap().with_binding_limit(100 << 20);
+    let gpu = gpu().unwrap().share_device().with_binding_limit(100 << 20);
     // A 6.3 s walk keyed at 10 Hz, sampled at 3.2 MHz.
     let batch = Batch::from_tracks(&quatcurve::synthetic::walk_tracks(1, 64, 10.0), &CurveSpec::new(Curve::BSplineInterp)).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(20_000_000)).unwrap();
-    let options = GpuOptions { derivatives: true, ..GpuOptions::default() };
-    let out = gpu.evaluate(&batch, &times, &options).unwrap();
+    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
     assert!(out.data.len() * 4 > 7 * (100 << 20), "the output must overflow seven bindings");
     drop(gpu);
-    let cpu = quatcurve::cpu::CpuEvaluator::new().evaluate(&batch, &times, &quatcurve::cpu::CpuOptions { derivatives: true, ..Default::default() }).unwrap();
+    let cpu = quatcurve::cpu::CpuEvaluator::new().evaluate(&quatcurve::EvalJob::new(&batch, &times).with(quatcurve::EvalOptions { derivatives: true, ..Default::default() })).unwrap();
     let (mut rotation, mut omega) = (0.0f32, 0.0f32);
     for slot in (0..20_000_000).step_by(997).chain([19_999_999]) {
         let (g, c) = (&out.data[slot * 10..slot * 10 + 10], &cpu.data[slot * 10..slot * 10 + 10]);

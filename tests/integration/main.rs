@@ -1,0 +1,53 @@
+//! Every integration test in one binary: one link instead of six, one GPU device for all.
+//!
+//! - [`reference`]: the f64 reference against the mathematics;
+//! - [`cpu`], [`gpu`]: the fast paths against the reference (DESIGN section 6 bars), with the
+//!   helpers they share in [`common`] (tracks, specs, generators) and [`fast`] (comparisons);
+//! - [`shaders`]: the WGSL program without a GPU (naga) and the facts Rust shares with it;
+//! - [`cli`], [`bake`]: the command line end to end, real files and hostile ones;
+//! - [`architecture`]: the layer map of `ARCHITECTURE.md`, checked against the imports.
+
+#[allow(dead_code)]
+mod common;
+#[allow(dead_code)]
+mod fast;
+
+mod architecture;
+mod cpu;
+mod reference;
+
+#[cfg(feature = "gpu")]
+mod gpu;
+#[cfg(feature = "gpu")]
+mod shaders;
+
+#[cfg(feature = "cli")]
+mod bake;
+#[cfg(feature = "cli")]
+mod cli;
+
+#[cfg(feature = "gpu")]
+use quatcurve::gpu::GpuEvaluator;
+#[cfg(feature = "gpu")]
+use std::sync::OnceLock;
+
+#[cfg(feature = "gpu")]
+/// The one GPU evaluator of the test binary (tests that need other limits take
+/// [`GpuEvaluator::share_device`]), or None (skip) when there is no adapter and none is required.
+pub fn shared_gpu() -> Option<&'static GpuEvaluator> {
+    static GPU: OnceLock<Option<GpuEvaluator>> = OnceLock::new();
+    GPU.get_or_init(|| match GpuEvaluator::new() {
+        Ok(g) => {
+            eprintln!("GPU tests on: {}", g.adapter_name());
+            Some(g)
+        }
+        Err(e) if std::env::var("QUATCURVE_REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("QUATCURVE_REQUIRE_GPU=1 but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipped: no GPU adapter ({e})");
+            None
+        }
+    })
+    .as_ref()
+}
