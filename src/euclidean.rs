@@ -44,32 +44,9 @@ impl VectorCurve {
     /// [`Error::NonFiniteValue`] for a NaN or infinite value; [`Error::VectorTangents`] for
     /// `tangents = given` (vector channels carry no per-key velocities).
     pub fn new(id: &TrackId, times: Option<&[f64]>, values: &[[f64; 3]], explicit_knots: Option<&[f64]>, spec: &CurveSpec) -> Result<Self> {
-        let min = spec.min_keys();
-        if values.len() < min {
-            return Err(Error::TooFewKeys { track: id.clone(), curve: spec.curve.to_string(), min, found: values.len() });
-        }
-        if let Some(key) = values.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
-            return Err(Error::NonFiniteValue { track: id.clone(), key, value: values[key] });
-        }
-        let times = key_times(id, times, values.len())?;
-        let mut keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
-        let n = keys.len() - 1;
+        let (keys, times, drift) = detrended_keys(id, times, values, spec)?;
         let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
-        let (t0, tn) = (times[0], times[n]);
-        let mut drift = None;
-        if spec.looping {
-            if !spec.can_loop() {
-                return Err(Error::LoopUnsupported { track: id.clone(), curve: spec.curve.to_string() });
-            }
-            // Remove the per-cycle offset; p~_n = p~_0 exactly.
-            let rate = (keys[n] - keys[0]).scale(1.0 / (tn - t0));
-            for (i, key) in keys.iter_mut().enumerate().skip(1) {
-                *key = *key - rate.scale(times[i] - t0);
-            }
-            keys[n] = keys[0];
-            drift = Some(rate);
-        }
-        let looping = spec.looping;
+        let n = keys.len() - 1;
         let mut curve = VectorCurve {
             curve: spec.curve,
             order: 0,
@@ -77,9 +54,20 @@ impl VectorCurve {
             coefs: steps(&keys),
             points: keys,
             knots: times.clone(),
-            domain: [t0, tn],
+            domain: [times[0], times[n]],
             drift,
         };
+        curve.fit(id, spec, explicit_knots, &times)?;
+        Ok(curve)
+    }
+
+    /// Fills the family's coefficients (and points, knots and domain where the family changes
+    /// them) from the keys in `points` at `times`.
+    fn fit(&mut self, id: &TrackId, spec: &CurveSpec, explicit_knots: Option<&[f64]>, times: &[f64]) -> Result<()> {
+        let curve = self;
+        let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
+        let (n, looping) = (curve.points.len() - 1, spec.looping);
+        let [t0, tn] = curve.domain;
         match spec.curve {
             Curve::Slerp => {}
             Curve::Bezier => {
@@ -88,7 +76,7 @@ impl VectorCurve {
             }
             Curve::Squad => curve.coefs = squad_points(&curve.points, looping),
             Curve::Hermite => {
-                let v = velocities(id, spec.tangents, &curve.points, &times, looping)?;
+                let v = velocities(id, spec.tangents, &curve.points, times, looping)?;
                 curve.coefs = (0..n)
                     .flat_map(|i| {
                         let third = (times[i + 1] - times[i]) / 3.0;
@@ -98,13 +86,13 @@ impl VectorCurve {
                     .collect();
             }
             Curve::NamKim => {
-                let v = velocities(id, spec.tangents, &curve.points, &times, looping)?;
+                let v = velocities(id, spec.tangents, &curve.points, times, looping)?;
                 curve.coefs = (0..n).flat_map(|i| [v[i], v[i + 1]].map(|v| v.scale(times[i + 1] - times[i]))).collect();
             }
             Curve::BSpline => {
                 let k = spec.order;
                 curve.order = k;
-                curve.knots = bspline_knots(id, explicit_knots, spec, &times)?;
+                curve.knots = bspline_knots(id, explicit_knots, spec, times)?;
                 if spec.knots == KnotMode::Phantom {
                     let p = &curve.points;
                     // Mirrored key steps, or looping the neighbours across the seam.
@@ -119,7 +107,7 @@ impl VectorCurve {
             Curve::BSplineInterp => {
                 // The natural (or periodic) cubic spline, as a cubic B-spline on the same
                 // knots as the rotation curve.
-                let (points, knots) = crate::interp::solve_vectors(&curve.points, &times, looping)
+                let (points, knots) = crate::interp::solve_vectors(&curve.points, times, looping)
                     .ok_or_else(|| Error::NoConvergence { track: id.clone(), key: 0, error: f64::NAN, iterations: 1 })?;
                 curve.curve = Curve::BSpline;
                 curve.order = 4;
@@ -128,7 +116,7 @@ impl VectorCurve {
                 curve.knots = knots;
             }
         }
-        Ok(curve)
+        Ok(())
     }
 
     /// The curve's domain; evaluation clamps to it.
@@ -226,4 +214,34 @@ fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64], l
             })
             .collect()),
     }
+}
+
+/// The checked keys of a vector channel and their times; looping, with the per-cycle offset
+/// removed (the last key equals the first exactly) and returned as a rate per unit time.
+fn detrended_keys(id: &TrackId, times: Option<&[f64]>, values: &[[f64; 3]], spec: &CurveSpec) -> Result<(Vec<DVec3>, Vec<f64>, Option<DVec3>)> {
+    let min = spec.min_keys();
+    if values.len() < min {
+        return Err(Error::TooFewKeys { track: id.clone(), curve: spec.curve.to_string(), min, found: values.len() });
+    }
+    if let Some(key) = values.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+        return Err(Error::NonFiniteValue { track: id.clone(), key, value: values[key] });
+    }
+    let times = key_times(id, times, values.len())?;
+    let mut keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
+    let n = keys.len() - 1;
+    let (t0, tn) = (times[0], times[n]);
+    let mut drift = None;
+    if spec.looping {
+        if !spec.can_loop() {
+            return Err(Error::LoopUnsupported { track: id.clone(), curve: spec.curve.to_string() });
+        }
+        // Remove the per-cycle offset; p~_n = p~_0 exactly.
+        let rate = (keys[n] - keys[0]).scale(1.0 / (tn - t0));
+        for (i, key) in keys.iter_mut().enumerate().skip(1) {
+            *key = *key - rate.scale(times[i] - t0);
+        }
+        keys[n] = keys[0];
+        drift = Some(rate);
+    }
+    Ok((keys, times, drift))
 }

@@ -69,6 +69,16 @@ pub fn read(path: &Path) -> Result<BvhFile, InputError> {
 pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     let motion_at = text.find("MOTION").ok_or_else(|| bad(text.lines().count(), "no MOTION section"))?;
     let hierarchy = &text[..motion_at];
+    let joints = parse_hierarchy(hierarchy)?;
+    let (frame_time, frames) = parse_motion(&text[motion_at..], hierarchy.lines().count() + 1, &joints)?;
+    Ok(BvhFile { joints, frame_time, frames, hierarchy: hierarchy.to_string() })
+}
+
+/// A token with its line, or the error that the text ended where `what` was expected.
+type Token<'a> = Result<(usize, &'a str), InputError>;
+
+/// The joints of the HIERARCHY section, parents first.
+fn parse_hierarchy(hierarchy: &str) -> Result<Vec<BvhJoint>, InputError> {
     let mut tokens = hierarchy.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))).peekable();
     let mut next = |what: &str| tokens.next().ok_or_else(|| bad(hierarchy.lines().count(), format!("the hierarchy ends where {what} was expected")));
     let (line, word) = next("HIERARCHY")?;
@@ -78,56 +88,10 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     let mut joints: Vec<BvhJoint> = Vec::new();
     // The joints whose braces are open, innermost last.
     let mut enclosing: Vec<usize> = Vec::new();
-    let number = |(line, word): (usize, &str)| word.parse::<f64>().map_err(|_| bad(line, format!("expected a number, found {word}")));
     while let Ok((line, word)) = next("a joint") {
         match word {
             "ROOT" | "JOINT" => {
-                let (_, name) = next("a joint name")?;
-                let (line, open) = next("{")?;
-                if open != "{" {
-                    return Err(bad(line, format!("expected {{ after {word} {name}, found {open}")));
-                }
-                let (line, kw) = next("OFFSET")?;
-                if kw != "OFFSET" {
-                    return Err(bad(line, format!("expected OFFSET in joint {name}, found {kw}")));
-                }
-                let offset = [number(next("OFFSET x")?)?, number(next("OFFSET y")?)?, number(next("OFFSET z")?)?];
-                let (line, kw) = next("CHANNELS")?;
-                if kw != "CHANNELS" {
-                    return Err(bad(line, format!("expected CHANNELS in joint {name}, found {kw}")));
-                }
-                let (line, count) = next("a channel count")?;
-                let count: usize = count.parse().map_err(|_| bad(line, format!("bad channel count {count}")))?;
-                // Three positions and three rotations at most; a larger count is corruption
-                // (and must not size an allocation).
-                if count > 6 {
-                    return Err(bad(line, format!("joint {name} declares {count} channels; a BVH joint has at most 6")));
-                }
-                let mut channels = Vec::with_capacity(count);
-                for _ in 0..count {
-                    let (line, c) = next("a channel name")?;
-                    let axis = match c.as_bytes().first() {
-                        Some(b'X' | b'x') => 0,
-                        Some(b'Y' | b'y') => 1,
-                        Some(b'Z' | b'z') => 2,
-                        _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
-                    };
-                    channels.push(match &c[1..] {
-                        "position" => BvhChannel::Position(axis),
-                        "rotation" => BvhChannel::Rotation(axis),
-                        _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
-                    });
-                }
-                // Writing back solves for the angles, which needs 0, 1 or 3 distinct axes (found by
-                // fuzzing: 4 rotation channels, or one axis twice, crashed the writer).
-                let mut axes: Vec<usize> = channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
-                let listed = axes.len();
-                axes.sort_unstable();
-                axes.dedup();
-                if !matches!(listed, 0 | 1 | 3) || axes.len() != listed {
-                    return Err(bad(line, format!("joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 distinct axes are supported", axes.len())));
-                }
-                joints.push(BvhJoint { name: name.to_string(), parent: enclosing.last().copied(), offset, channels });
+                joints.push(parse_joint(&mut next, word, enclosing.last().copied())?);
                 enclosing.push(joints.len() - 1);
             }
             "End" => {
@@ -149,8 +113,68 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     if !enclosing.is_empty() || joints.is_empty() {
         return Err(bad(hierarchy.lines().count(), "the hierarchy is empty or its braces are unbalanced"));
     }
-    let first_line = hierarchy.lines().count() + 1;
-    let mut lines = text[motion_at..].lines().enumerate().map(|(i, l)| (first_line + i, l)).skip(1);
+    Ok(joints)
+}
+
+/// A number token.
+fn number((line, word): (usize, &str)) -> Result<f64, InputError> {
+    word.parse::<f64>().map_err(|_| bad(line, format!("expected a number, found {word}")))
+}
+
+/// One `ROOT` or `JOINT` (`word`) after its keyword: name, `{`, OFFSET and CHANNELS.
+fn parse_joint<'a>(next: &mut impl FnMut(&str) -> Token<'a>, word: &str, parent: Option<usize>) -> Result<BvhJoint, InputError> {
+    let (_, name) = next("a joint name")?;
+    let (line, open) = next("{")?;
+    if open != "{" {
+        return Err(bad(line, format!("expected {{ after {word} {name}, found {open}")));
+    }
+    let (line, kw) = next("OFFSET")?;
+    if kw != "OFFSET" {
+        return Err(bad(line, format!("expected OFFSET in joint {name}, found {kw}")));
+    }
+    let offset = [number(next("OFFSET x")?)?, number(next("OFFSET y")?)?, number(next("OFFSET z")?)?];
+    let (line, kw) = next("CHANNELS")?;
+    if kw != "CHANNELS" {
+        return Err(bad(line, format!("expected CHANNELS in joint {name}, found {kw}")));
+    }
+    let (line, count) = next("a channel count")?;
+    let count: usize = count.parse().map_err(|_| bad(line, format!("bad channel count {count}")))?;
+    // Three positions and three rotations at most; a larger count is corruption
+    // (and must not size an allocation).
+    if count > 6 {
+        return Err(bad(line, format!("joint {name} declares {count} channels; a BVH joint has at most 6")));
+    }
+    let mut channels = Vec::with_capacity(count);
+    for _ in 0..count {
+        let (line, c) = next("a channel name")?;
+        let axis = match c.as_bytes().first() {
+            Some(b'X' | b'x') => 0,
+            Some(b'Y' | b'y') => 1,
+            Some(b'Z' | b'z') => 2,
+            _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
+        };
+        channels.push(match &c[1..] {
+            "position" => BvhChannel::Position(axis),
+            "rotation" => BvhChannel::Rotation(axis),
+            _ => return Err(bad(line, format!("unknown channel {c} in joint {name}"))),
+        });
+    }
+    // Writing back solves for the angles, which needs 0, 1 or 3 distinct axes (found by
+    // fuzzing: 4 rotation channels, or one axis twice, crashed the writer).
+    let mut axes: Vec<usize> = channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
+    let listed = axes.len();
+    axes.sort_unstable();
+    axes.dedup();
+    if !matches!(listed, 0 | 1 | 3) || axes.len() != listed {
+        return Err(bad(line, format!("joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 distinct axes are supported", axes.len())));
+    }
+    Ok(BvhJoint { name: name.to_string(), parent, offset, channels })
+}
+
+/// The MOTION section (from its keyword, whose line is `first_line`): the frame time and one
+/// row of channel values per frame.
+fn parse_motion(motion: &str, first_line: usize, joints: &[BvhJoint]) -> Result<(f64, Vec<Vec<f64>>), InputError> {
+    let mut lines = motion.lines().enumerate().map(|(i, l)| (first_line + i, l)).skip(1);
     let mut header = |key: &str| -> Result<f64, InputError> {
         let (line, l) = lines.next().ok_or_else(|| bad(first_line, format!("missing {key}")))?;
         let value = l.trim().strip_prefix(key).ok_or_else(|| bad(line, format!("expected {key}")))?;
@@ -164,7 +188,7 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     let columns: usize = joints.iter().map(|j| j.channels.len()).sum();
     // `Frames:` is checked against the lines present afterwards; it never sizes an allocation
     // by itself (a crafted header could ask for billions).
-    let mut frames = Vec::with_capacity((count as usize).min(text.len() / (2 * columns.max(1)) + 1));
+    let mut frames = Vec::with_capacity((count as usize).min(motion.len() / (2 * columns.max(1)) + 1));
     for (line, l) in lines.filter(|(_, l)| !l.trim().is_empty()) {
         let row: Vec<f64> = l
             .split_whitespace()
@@ -178,7 +202,7 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     if frames.len() != count as usize {
         return Err(bad(first_line, format!("Frames: {count} but {} frame lines follow", frames.len())));
     }
-    Ok(BvhFile { joints, frame_time, frames, hierarchy: hierarchy.to_string() })
+    Ok((frame_time, frames))
 }
 
 /// The rotation `R_1(a_1) R_2(a_2) ...` of a joint's rotation channels (degrees).

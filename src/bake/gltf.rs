@@ -66,6 +66,34 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
         serde_json::from_slice(bytes)
     }
     .map_err(|e| input(format!("not valid glTF JSON: {e}")))?;
+    let buffers = read_buffers(&gltf, dir, uris)?;
+    let joints = read_joints(&gltf)?;
+    let skins = read_skins(&gltf, &buffers)?;
+    let mut animation = Animation { joints, clips: Vec::new(), skins };
+    animation.parents_first()?;
+    let root = gltf.document.as_json();
+    let mut samplers = Vec::new();
+    for anim in gltf.animations() {
+        let name = anim.name().map_or_else(|| format!("animation{}", anim.index()), str::to_string);
+        let mut clip = Clip { name, channels: Vec::new() };
+        let mut sources = Vec::new();
+        for channel in anim.channels() {
+            if let Some(keyed) = read_channel(root, &buffers, &animation, &clip, &channel)? {
+                clip.channels.push(keyed);
+                sources.push((anim.index(), channel.sampler().index()));
+            }
+        }
+        if !clip.channels.is_empty() {
+            animation.clips.push(clip);
+            samplers.push(sources);
+        }
+    }
+    Ok(GltfFile { animation, json, buffers, samplers })
+}
+
+/// Every buffer's bytes (the BIN chunk, data URIs, files the policy allows), each at least its
+/// declared length, and every buffer view inside its buffer.
+fn read_buffers(gltf: &gltf::Gltf, dir: &Path, uris: UriPolicy) -> Result<Vec<Vec<u8>>, InputError> {
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -84,6 +112,11 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
             return Err(input(format!("bufferViews[{}]: bytes {}+{} lie outside buffer {}", view.index(), view.offset(), view.length(), view.buffer().index())));
         }
     }
+    Ok(buffers)
+}
+
+/// The nodes as joints (at most one parent each; a `matrix` node by its TRS decomposition).
+fn read_joints(gltf: &gltf::Gltf) -> Result<Vec<Joint>, InputError> {
     let mut parents: Vec<Option<usize>> = vec![None; gltf.nodes().len()];
     for node in gltf.nodes() {
         for child in node.children() {
@@ -92,7 +125,7 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
             }
         }
     }
-    let joints = gltf
+    Ok(gltf
         .nodes()
         .map(|node| {
             // A `matrix` node becomes its TRS decomposition (glTF requires matrices that have one).
@@ -105,7 +138,11 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
                 scale: scale.map(f64::from),
             }
         })
-        .collect();
+        .collect())
+}
+
+/// The skins with their inverse bind matrices (identity when absent), one per joint.
+fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, InputError> {
     let root = gltf.document.as_json();
     let mut skins = Vec::new();
     for skin in gltf.skins() {
@@ -126,67 +163,58 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
         };
         skins.push(Skin { name, joints, inverse_bind });
     }
-    let mut animation = Animation { joints, clips: Vec::new(), skins };
-    animation.parents_first()?;
-    let mut samplers = Vec::new();
-    for anim in gltf.animations() {
-        let name = anim.name().map_or_else(|| format!("animation{}", anim.index()), str::to_string);
-        let mut clip = Clip { name, channels: Vec::new() };
-        let mut sources = Vec::new();
-        for channel in anim.channels() {
-            // The crate's accessors unwrap enum fields it could not parse (a panic on a
-            // crafted file): read them checked.
-            let unknown = |what: &str| input(format!("clip '{}', channel {}: unknown {what}", clip.name, channel.index()));
-            let raw = &root.animations[anim.index()];
-            let property = match &raw.channels[channel.index()].target.path {
-                Checked::Valid(gltf::json::animation::Property::Rotation) => Property::Rotation,
-                Checked::Valid(gltf::json::animation::Property::Translation) => Property::Translation,
-                Checked::Valid(gltf::json::animation::Property::Scale) => Property::Scale,
-                Checked::Valid(gltf::json::animation::Property::MorphTargetWeights) => continue,
-                Checked::Invalid => return Err(unknown("target path")),
-            };
-            let cubic = match &raw.samplers[channel.sampler().index()].interpolation {
-                Checked::Valid(interpolation) => *interpolation == gltf::json::animation::Interpolation::CubicSpline,
-                Checked::Invalid => return Err(unknown("interpolation")),
-            };
-            let joint = channel.target().node().index();
-            let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new() };
-            let label = animation.label(&clip, &keyed);
-            // The crate's readers trust accessor counts (and allocate from them): check every
-            // accessor against the bytes present first.
-            let sampler = channel.sampler();
-            let values_kind = if property == Property::Rotation { Element::Rotations } else { Element::Vectors };
-            for (what, accessor, kind) in [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)] {
-                check_accessor(&accessor, &root.accessors[accessor.index()], kind)
-                    .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
-            }
-            let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-            keyed.times = reader.read_inputs().ok_or_else(|| input(format!("{label}: key times cannot be read")))?.map(f64::from).collect();
-            let values: Vec<[f64; 4]> = match reader.read_outputs().ok_or_else(|| input(format!("{label}: key values cannot be read")))? {
-                gltf::animation::util::ReadOutputs::Rotations(r) => r.into_f32().map(|v| v.map(f64::from)).collect(),
-                gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => {
-                    v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()
-                }
-                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
-            };
-            // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
-            keyed.values = if cubic {
-                values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect()
-            } else {
-                values
-            };
-            if keyed.values.len() != keyed.times.len() || keyed.times.is_empty() {
-                return Err(input(format!("{label}: {} key times but {} key values", keyed.times.len(), keyed.values.len())));
-            }
-            clip.channels.push(keyed);
-            sources.push((anim.index(), channel.sampler().index()));
-        }
-        if !clip.channels.is_empty() {
-            animation.clips.push(clip);
-            samplers.push(sources);
-        }
+    Ok(skins)
+}
+
+/// One animation channel as keys, or `None` for morph target weights; every accessor checked
+/// against the bytes present before the crate's readers (which trust the counts) run.
+fn read_channel(root: &gltf::json::Root, buffers: &[Vec<u8>], animation: &Animation, clip: &Clip, channel: &gltf::animation::Channel<'_>) -> Result<Option<Channel>, InputError> {
+    let anim = channel.animation();
+    // The crate's accessors unwrap enum fields it could not parse (a panic on a
+    // crafted file): read them checked.
+    let unknown = |what: &str| input(format!("clip '{}', channel {}: unknown {what}", clip.name, channel.index()));
+    let raw = &root.animations[anim.index()];
+    let property = match &raw.channels[channel.index()].target.path {
+        Checked::Valid(gltf::json::animation::Property::Rotation) => Property::Rotation,
+        Checked::Valid(gltf::json::animation::Property::Translation) => Property::Translation,
+        Checked::Valid(gltf::json::animation::Property::Scale) => Property::Scale,
+        Checked::Valid(gltf::json::animation::Property::MorphTargetWeights) => return Ok(None),
+        Checked::Invalid => return Err(unknown("target path")),
+    };
+    let cubic = match &raw.samplers[channel.sampler().index()].interpolation {
+        Checked::Valid(interpolation) => *interpolation == gltf::json::animation::Interpolation::CubicSpline,
+        Checked::Invalid => return Err(unknown("interpolation")),
+    };
+    let joint = channel.target().node().index();
+    let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new() };
+    let label = animation.label(clip, &keyed);
+    // The crate's readers trust accessor counts (and allocate from them): check every
+    // accessor against the bytes present first.
+    let sampler = channel.sampler();
+    let values_kind = if property == Property::Rotation { Element::Rotations } else { Element::Vectors };
+    for (what, accessor, kind) in [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)] {
+        check_accessor(&accessor, &root.accessors[accessor.index()], kind)
+            .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
     }
-    Ok(GltfFile { animation, json, buffers, samplers })
+    let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    keyed.times = reader.read_inputs().ok_or_else(|| input(format!("{label}: key times cannot be read")))?.map(f64::from).collect();
+    let values: Vec<[f64; 4]> = match reader.read_outputs().ok_or_else(|| input(format!("{label}: key values cannot be read")))? {
+        gltf::animation::util::ReadOutputs::Rotations(r) => r.into_f32().map(|v| v.map(f64::from)).collect(),
+        gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => {
+            v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()
+        }
+        gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
+    };
+    // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
+    keyed.values = if cubic {
+        values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect()
+    } else {
+        values
+    };
+    if keyed.values.len() != keyed.times.len() || keyed.times.is_empty() {
+        return Err(input(format!("{label}: {} key times but {} key values", keyed.times.len(), keyed.values.len())));
+    }
+    Ok(Some(keyed))
 }
 
 /// The crate's validation, run here so that a known panic in it is avoided first: its

@@ -248,94 +248,94 @@ impl BakeJob {
     /// removes the ones already written so the job leaves nothing partial. Forward kinematics
     /// (model and skin textures, previews) runs on `fk_device`, the bake's.
     fn write_outputs(&self, src: &Source, baked: &Baked, source: &str, stem: &str, device: &str, fk_device: &Device) -> Result<Vec<Written>, InputError> {
-        let animation = src.animation();
-        let dir = &self.output;
-        let mut written: Vec<Written> = Vec::new();
-        let result = (|| {
-            // Checked before anything is written.
-            let order = animation.parents_first()?;
-            if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
-                return Err(InputError::Animation("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
-            }
-            let baked_file = match src {
-                Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
-                Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
-                Source::Crowd(_) => None,
-            };
-            if let Some((name, bytes)) = &baked_file {
-                let path = dir.join(name);
-                refuse_overwriting_input(&path, source)?;
-                write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
-                written.push(path.into());
-            }
-            let mut clips = Vec::new();
-            // atlas: per sheet, every clip's rows.
-            let mut atlas: Vec<texture::Sheet> = Vec::new();
-            let mut first_row = 0;
-            for (index, (clip, result)) in animation.clips.iter().zip(&baked.clips).enumerate() {
-                let frames = result.times.len();
-                // Forward kinematics once per clip, for the textures and the preview alike.
-                let local = texture::local(animation, baked, index);
-                let model = if self.texture != TextureKind::Local || self.preview { Some(texture::model_on(fk_device, animation, &order, &local)?) } else { None };
-                let preview = match &model {
-                    Some(model) if self.preview => {
-                        let name = format!("{stem}.{index}.png");
-                        draw_preview(&dir.join(&name), &format!("{source}: clip '{}'", clip.name), model, animation, frames)?;
-                        written.push(dir.join(&name).into());
-                        Some(name)
-                    }
-                    _ => None,
-                };
-                let clip_sheets = texture::arrange(animation, &order, self.texture, local, model);
-                let mut files = Vec::new();
-                for (k, sheet) in clip_sheets.iter().enumerate() {
-                    let suffix = &sheet.suffix;
-                    if self.atlas {
-                        files.push(format!("{stem}{suffix}.npy"));
-                        match atlas.get_mut(k) {
-                            Some(rows) => rows.data.extend_from_slice(&sheet.data),
-                            None => atlas.push(sheet.clone()),
-                        }
-                    } else {
-                        let name = format!("{stem}.{index}{suffix}.npy");
-                        written.push(self.write_sheet(&dir.join(&name), frames, sheet.width, &sheet.data)?);
-                        files.push(name);
-                    }
-                }
-                let (start, end) = (result.times[0], result.times[frames - 1]);
-                clips.push(SidecarClip {
-                    name: clip.name.clone(),
-                    file: files[0].clone(),
-                    files,
-                    first_row: if self.atlas { first_row } else { 0 },
-                    frames,
-                    start,
-                    end,
-                    rate: result.rate,
-                    looping: result.looping,
-                    preview,
-                });
-                first_row += frames;
-            }
-            for sheet in &atlas {
-                written.push(self.write_sheet(&dir.join(format!("{stem}{}.npy", sheet.suffix)), first_row, sheet.width, &sheet.data)?);
-            }
-            let sidecar = self.sidecar(animation, baked, source, device, baked_file.map(|(name, _)| name), clips);
-            let path = dir.join(format!("{stem}.json"));
-            write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
-                .map_err(|e| InputError::Output(e.to_string()))?;
-            written.push(path.into());
-            Ok(())
-        })();
-        match result {
-            Ok(()) => Ok(written),
+        let mut out = Outputs { dir: &self.output, stem, source, written: Vec::new(), atlas: Vec::new(), rows: 0 };
+        match self.write_all(&mut out, src, baked, device, fk_device) {
+            Ok(()) => Ok(out.written),
             Err(e) => {
-                for file in &written {
+                for file in &out.written {
                     let _ = std::fs::remove_file(&file.path);
                 }
                 Err(e)
             }
         }
+    }
+
+    /// [`BakeJob::write_outputs`]'s files, recorded in `out` as they are written.
+    fn write_all(&self, out: &mut Outputs<'_>, src: &Source, baked: &Baked, device: &str, fk_device: &Device) -> Result<(), InputError> {
+        let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
+        // Checked before anything is written.
+        let order = animation.parents_first()?;
+        if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+            return Err(InputError::Animation("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
+        }
+        let baked_file = match src {
+            Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
+            Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
+            Source::Crowd(_) => None,
+        };
+        if let Some((name, bytes)) = &baked_file {
+            let path = dir.join(name);
+            refuse_overwriting_input(&path, out.source)?;
+            write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
+            out.written.push(path.into());
+        }
+        let clips = (0..animation.clips.len()).map(|index| self.write_clip(out, animation, baked, &order, index, fk_device)).collect::<Result<Vec<_>, _>>()?;
+        for sheet in std::mem::take(&mut out.atlas) {
+            let written = self.write_sheet(&dir.join(format!("{stem}{}.npy", sheet.suffix)), out.rows, sheet.width, &sheet.data)?;
+            out.written.push(written);
+        }
+        let sidecar = self.sidecar(animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
+        let path = dir.join(format!("{stem}.json"));
+        write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from)).map_err(|e| InputError::Output(e.to_string()))?;
+        out.written.push(path.into());
+        Ok(())
+    }
+
+    /// Clip `index`'s textures (or its rows of the atlas) and preview; its sidecar entry.
+    fn write_clip(&self, out: &mut Outputs<'_>, animation: &Animation, baked: &Baked, order: &[usize], index: usize, fk_device: &Device) -> Result<SidecarClip, InputError> {
+        let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
+        let frames = result.times.len();
+        // Forward kinematics once per clip, for the textures and the preview alike.
+        let local = texture::local(animation, baked, index);
+        let model = if self.texture != TextureKind::Local || self.preview { Some(texture::model_on(fk_device, animation, order, &local)?) } else { None };
+        let preview = match &model {
+            Some(model) if self.preview => {
+                let name = format!("{stem}.{index}.png");
+                draw_preview(&dir.join(&name), &format!("{}: clip '{}'", out.source, clip.name), model, animation, frames)?;
+                out.written.push(dir.join(&name).into());
+                Some(name)
+            }
+            _ => None,
+        };
+        let mut files = Vec::new();
+        for (k, sheet) in texture::arrange(animation, order, self.texture, local, model).into_iter().enumerate() {
+            let suffix = &sheet.suffix;
+            if self.atlas {
+                files.push(format!("{stem}{suffix}.npy"));
+                match out.atlas.get_mut(k) {
+                    Some(rows) => rows.data.extend_from_slice(&sheet.data),
+                    None => out.atlas.push(sheet),
+                }
+            } else {
+                let name = format!("{stem}.{index}{suffix}.npy");
+                out.written.push(self.write_sheet(&dir.join(&name), frames, sheet.width, &sheet.data)?);
+                files.push(name);
+            }
+        }
+        let first_row = if self.atlas { out.rows } else { 0 };
+        out.rows += frames;
+        Ok(SidecarClip {
+            name: clip.name.clone(),
+            file: files[0].clone(),
+            files,
+            first_row,
+            frames,
+            start: result.times[0],
+            end: result.times[frames - 1],
+            rate: result.rate,
+            looping: result.looping,
+            preview,
+        })
     }
 
     /// One `.npy` texture `[frames, width, channels]`, hashed on another core while its bytes
@@ -670,6 +670,18 @@ fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
         }
     }
     Ok(stems)
+}
+
+/// Where one input's outputs go and what is written so far (taken away again if the input
+/// fails), with the atlas being gathered and its row count.
+struct Outputs<'a> {
+    dir: &'a Path,
+    stem: &'a str,
+    source: &'a str,
+    written: Vec<Written>,
+    atlas: Vec<texture::Sheet>,
+    /// Frames of the clips so far (the atlas's rows).
+    rows: usize,
 }
 
 /// Baking into the input's own directory must not replace the input.

@@ -346,60 +346,9 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// [`InputError::Animation`] for a clip that cannot bake as asked; [`InputError::Device`]
 /// when the device refuses or fails.
 pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, InputError> {
-    // Per clip: whether it loops, its frame grid, and the sample budget, counted before
-    // anything is allocated for it (frames rounded up; the channel samples and the texture's
-    // joint rows).
-    let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
-    let mut grids = Vec::with_capacity(animation.clips.len());
-    let mut total_samples = 0usize;
-    for clip in &animation.clips {
-        let [start, end] = clip.span();
-        let looping = clip_loops(animation, clip, spec, loops)?;
-        let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
-        let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
-        if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
-            return Err(E::Animation(format!(
-                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
-                clip.name,
-                crate::error::Number(end - start),
-                crate::error::Number(frames - 1.0),
-                crate::error::Number(rate),
-                clip.channels.len(),
-                animation.joints.len()
-            )));
-        }
-        total_samples += samples as usize;
-        let (grid, clip_rate) = if looping { loop_frame_grid(start, end, rate)? } else { (frame_grid(start, end, rate)?, rate) };
-        clips.push(BakedClip { times: grid_times(grid), rate: clip_rate, looping, frames: Vec::new() });
-        grids.push(grid);
-    }
-    // Every channel, on every core: rotations with two keys or more become device tracks,
-    // the rest is evaluated here. Errors are reported in channel order.
-    let channels: Vec<(usize, usize)> = animation.clips.iter().enumerate().flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k))).collect();
-    let prepared: Vec<Result<Prepared, InputError>> = channels
-        .par_iter()
-        .with_min_len(16)
-        .map(|&(c, k)| {
-            let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
-            let spec = CurveSpec { looping: clips[c].looping, ..*spec };
-            let name = animation.label(clip, channel);
-            let frames = &clips[c].times;
-            Ok(match (channel.property, channel.values.len()) {
-                (_, 1) => Prepared::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
-                (Property::Rotation, _) => {
-                    Prepared::Track(Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) }, spec)
-                }
-                _ => {
-                    let id = TrackId { index: k, name: Some(name) };
-                    let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                    let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
-                    Prepared::Host(frames.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect())
-                }
-            })
-        })
-        .collect();
+    let (mut clips, grids) = plan_clips(animation, spec, rate, loops)?;
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for (&(c, _), prepared) in channels.iter().zip(prepared) {
+    for (c, prepared) in prepare_channels(animation, spec, &clips) {
         clips[c].frames.push(match prepared? {
             Prepared::Host(values) => {
                 host.push(values);
@@ -442,6 +391,63 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
         baked.max_key_error = Some(key_error(&tracks, &batch, device)?);
     }
     Ok(baked)
+}
+
+/// Per clip: whether it loops and its frame grid, within the sample budget, which is counted
+/// before anything is allocated for the clip (frames rounded up; the channel samples and the
+/// texture's joint rows).
+fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
+    let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
+    let mut grids = Vec::with_capacity(animation.clips.len());
+    let mut total_samples = 0usize;
+    for clip in &animation.clips {
+        let [start, end] = clip.span();
+        let looping = clip_loops(animation, clip, spec, loops)?;
+        let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
+        let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
+        if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
+            return Err(E::Animation(format!(
+                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
+                clip.name,
+                crate::error::Number(end - start),
+                crate::error::Number(frames - 1.0),
+                crate::error::Number(rate),
+                clip.channels.len(),
+                animation.joints.len()
+            )));
+        }
+        total_samples += samples as usize;
+        let (grid, clip_rate) = if looping { loop_frame_grid(start, end, rate)? } else { (frame_grid(start, end, rate)?, rate) };
+        clips.push(BakedClip { times: grid_times(grid), rate: clip_rate, looping, frames: Vec::new() });
+        grids.push(grid);
+    }
+    Ok((clips, grids))
+}
+
+/// Every channel, prepared on every core, with its clip's index: rotations with two keys or
+/// more become device tracks, the rest is evaluated here. The results are in channel order, so
+/// that the first error reported is the first channel's.
+fn prepare_channels(animation: &Animation, spec: &CurveSpec, clips: &[BakedClip]) -> Vec<(usize, Result<Prepared, InputError>)> {
+    let channels: Vec<(usize, usize)> = animation.clips.iter().enumerate().flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k))).collect();
+    let prepare = |c: usize, k: usize| -> Result<Prepared, InputError> {
+        let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
+        let spec = CurveSpec { looping: clips[c].looping, ..*spec };
+        let name = animation.label(clip, channel);
+        let frames = &clips[c].times;
+        Ok(match (channel.property, channel.values.len()) {
+            (_, 1) => Prepared::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
+            (Property::Rotation, _) => {
+                Prepared::Track(Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) }, spec)
+            }
+            _ => {
+                let id = TrackId { index: k, name: Some(name) };
+                let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+                let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
+                Prepared::Host(frames.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect())
+            }
+        })
+    };
+    channels.par_iter().with_min_len(16).map(|&(c, k)| (c, prepare(c, k))).collect()
 }
 
 /// A channel ready to evaluate: a device track, or its frames computed here.

@@ -13,9 +13,11 @@
 //! reference per sample, in parallel.
 
 mod arcs;
+mod bases;
 mod cox_de_boor;
 pub mod forward;
 mod lanes;
+mod piece;
 mod simd;
 mod track;
 
@@ -25,7 +27,8 @@ use crate::error::Result;
 use crate::job::EvalJob;
 use crate::output::{FloatOutput, Layout};
 use rayon::prelude::*;
-use track::{Bases, Context};
+use bases::Bases;
+use piece::Context;
 
 /// Samples per parallel work item (a piece of one track).
 const PIECE: usize = 4096;

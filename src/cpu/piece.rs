@@ -1,0 +1,348 @@
+//! One piece of one vectorized track: per-lane span lookup, the basis, the SIMD cumulative
+//! product and the rows' columns, eight samples at a time.
+
+use super::bases::{bernstein_cumulative_lanes, Bases, Basis};
+use super::cox_de_boor::SpanKnots;
+use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, V8};
+use super::simd::{Isa, Lanes, SMALL_ANGLE};
+use crate::batch::{Batch, TrackView};
+use crate::curve::Curve;
+use crate::job::EvalOptions;
+use crate::output::Row;
+use crate::sampling::{SampleTimes, TrackTimes};
+use crate::segment::locate;
+
+/// What every piece of one evaluation shares: the evaluator's bases and lane type, and the
+/// batch, whose f64 points and coefficients the kernels convert to f32 where they read them.
+/// No batch-wide f32 copy: for a million short tracks it doubled the batch's memory and its
+/// conversion took as long as the evaluation.
+pub struct Context<'a> {
+    /// The lane type the kernels run.
+    pub(super) isa: Isa,
+    pub(super) bases: &'a Bases,
+    batch: &'a Batch,
+}
+
+impl<'a> Context<'a> {
+    /// The context of evaluating `batch` with `bases` on `isa`.
+    pub fn new(batch: &'a Batch, bases: &'a Bases, isa: Isa) -> Self {
+        Self { isa, bases, batch }
+    }
+
+    /// Point `i` `[x, y, z, w]` in f32.
+    #[inline(always)]
+    fn point(&self, i: usize) -> [f32; 4] {
+        self.batch.points[i].to_array().map(|v| v as f32)
+    }
+
+    /// Coefficient `c` as `[axis x, axis y, axis z, theta]` in f32 (axis unit, or zero with
+    /// theta 0).
+    #[inline(always)]
+    fn axis(&self, c: usize) -> [f32; 4] {
+        let c = &self.batch.coefs[c];
+        let theta = angle(c);
+        if theta > 0.0 {
+            [(c[0] / theta) as f32, (c[1] / theta) as f32, (c[2] / theta) as f32, theta as f32]
+        } else {
+            [0.0; 4]
+        }
+    }
+}
+
+/// The length of a coefficient's vector part: the angle of its factor.
+#[inline(always)]
+pub(super) fn angle(c: &[f64; 4]) -> f64 {
+    (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+}
+
+/// `locate`, first trying the previous span and the next (sample times usually increase).
+#[inline(always)]
+fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) {
+    let h = *hint;
+    if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
+        return (h, t);
+    }
+    // Or the next one.
+    let h = h + 1;
+    if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
+        *hint = h;
+        return (h, t);
+    }
+    let (span, t) = locate(knots, first, last, t);
+    *hint = span;
+    (span, t)
+}
+
+/// One segment's data as the kernels read it ([`Piece::segment`]).
+#[derive(Clone, Copy)]
+struct Segment<const F: usize> {
+    span: usize,
+    start: [f32; 4],
+    /// `[axis x, axis y, axis z, theta]` of each factor.
+    axes: [[f32; 4]; F],
+}
+
+/// One piece of a vectorized track, and what it needs.
+pub(super) struct Piece<'a> {
+    pub(super) tables: &'a Context<'a>,
+    pub(super) view: TrackView<'a>,
+    pub(super) times: &'a SampleTimes,
+    pub(super) index: usize,
+    /// First sample of the piece.
+    pub(super) from: usize,
+    pub(super) options: &'a EvalOptions,
+    pub(super) basis: Basis<'a>,
+    /// Factors per sample.
+    pub(super) factors: usize,
+    /// Spans the domain covers.
+    pub(super) first: usize,
+    pub(super) last: usize,
+}
+
+impl Piece<'_> {
+    /// Evaluates the piece's `n` samples into `out`, on the kernel instance for its factor
+    /// count, derivatives and angle range.
+    pub(super) fn evaluate(&self, n: usize, out: &mut [f32]) {
+        // Every basis here stays within [0, 1] on the domain, so every angle is at most its
+        // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
+        let small = self.view.coefs.iter().all(|c| angle(c) as f32 <= SMALL_ANGLE * 0.99);
+        // Constant factor counts and flags let the compiler unroll the basis and the product,
+        // keep them in registers and drop the branches.
+        macro_rules! by_factors {
+            ($d:literal, $s:literal) => {
+                match self.factors {
+                    1 => self.run::<1, $d, $s>(n, out),
+                    2 => self.run::<2, $d, $s>(n, out),
+                    3 => self.run::<3, $d, $s>(n, out),
+                    4 => self.run::<4, $d, $s>(n, out),
+                    5 => self.run::<5, $d, $s>(n, out),
+                    6 => self.run::<6, $d, $s>(n, out),
+                    _ => self.run::<7, $d, $s>(n, out),
+                }
+            };
+        }
+        match (self.options.derivatives, small) {
+            (false, true) => by_factors!(false, true),
+            (false, false) => by_factors!(false, false),
+            (true, true) => by_factors!(true, true),
+            (true, false) => by_factors!(true, false),
+        }
+    }
+
+    /// The segment of `span` in f32: its first point (sign-aligned for Hermite) and its `F`
+    /// factors' axes and angles. Converted once per span a group meets (the kernels keep the
+    /// last one), not once per batch: no f32 copy of the whole batch.
+    #[inline(always)]
+    fn segment<const F: usize>(&self, span: usize) -> Segment<F> {
+        let (track, p0, c0) = (self.view.track, self.view.track.point_offset, self.view.track.coef_offset);
+        let (start, coef) = match track.curve {
+            Curve::Slerp => (self.tables.point(p0 + span), c0 + span),
+            Curve::Bezier => (self.tables.point(p0), c0),
+            Curve::Hermite => {
+                let sign = self.view.coefs[3 * span + 1][3] as f32;
+                (self.tables.point(p0 + span).map(|v| v * sign), c0 + 3 * span)
+            }
+            _ => (self.tables.point(p0 + span + 1 - track.order), c0 + span + 1 - track.order),
+        };
+        Segment { span, start, axes: std::array::from_fn(|f| self.tables.axis(coef + f)) }
+    }
+
+    /// [`Piece::groups`] on the evaluator's lane type.
+    fn run<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(&self, n: usize, out: &mut [f32]) {
+        match self.tables.isa {
+            // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { groups_avx2::<F, DERIVATIVES, SMALL>(self, n, out) },
+            _ => self.groups::<F, DERIVATIVES, SMALL, wide::f32x8>(n, out),
+        }
+    }
+
+    /// Evaluates the piece's `n` samples, `F` factors each, eight at a time on lanes `S`;
+    /// `SMALL`: every angle is within [`SMALL_ANGLE`]. Inlined into [`Piece::run`]'s
+    /// instances, so that the AVX2 one compiles for AVX2.
+    #[inline(always)]
+    fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool, S: Lanes>(&self, n: usize, out: &mut [f32]) {
+        let (knots, options) = (self.view.knots, self.options);
+        let channels = options.row().channels();
+        let (first, last) = (self.first, self.last);
+        let mut hint = first;
+        let mut jets = [[S::ZERO; 3]; F];
+        // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
+        // of a `--samples` grid is the exact domain end instead.
+        let uniform = match self.times.tracks[self.index] {
+            TrackTimes::Uniform { start, step, count, last } => Some((start, step, if last.is_some() { count - 1 } else { count })),
+            TrackTimes::Explicit { .. } => None,
+        };
+        // The knot constants of the last span Cox-de Boor needed.
+        let mut span_knots: Option<SpanKnots> = None;
+        // The segment the last shared group was on, and its `start * (axis_0, 0)`.
+        let mut shared_segment: Option<(Segment<F>, [f32; 4])> = None;
+        // Each lane's segment start and factors in a group that is not shared (set there
+        // before they are read; kept across groups so that they are not cleared per group).
+        let mut starts = [[0.0f32; 4]; LANES];
+        let mut axes = [[[0.0f32; 4]; F]; LANES];
+        for g in (0..n).step_by(LANES) {
+            let valid = LANES.min(n - g);
+            let mut t = self.group_times(uniform, self.from + g, valid);
+            let mut spans = [hint; LANES];
+            let mut u = [0.0f32; LANES];
+            // Usually all eight samples lie in the span of the previous group: one lookup, one
+            // division, and the segment's data broadcast instead of gathered.
+            let h = hint;
+            let shared = h >= first && h <= last && {
+                let (k0, k1) = (knots[h], knots[h + 1]);
+                t.iter().fold(true, |inside, &t| inside & (k0 <= t) & (t < k1))
+            };
+            let inv = if shared {
+                let inv_len = 1.0 / (knots[h + 1] - knots[h]);
+                for (u, t) in u.iter_mut().zip(&t) {
+                    *u = ((t - knots[h]) * inv_len) as f32;
+                }
+                if shared_segment.as_ref().map(|s| s.0.span) != Some(h) {
+                    let segment = self.segment::<F>(h);
+                    shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
+                }
+                S::splat(inv_len as f32)
+            } else {
+                let mut inv = [0.0f32; LANES];
+                // Consecutive lanes in one span share one conversion (every distinct span
+                // once when the times are sorted, as grids are).
+                let mut current: Option<(Segment<F>, f64)> = None;
+                for lane in 0..LANES {
+                    let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
+                    let (segment, inv_len) = match current {
+                        Some(c) if c.0.span == span => c,
+                        _ => *current.insert((self.segment::<F>(span), 1.0 / (knots[span + 1] - knots[span]))),
+                    };
+                    (spans[lane], t[lane]) = (span, tl);
+                    u[lane] = ((tl - knots[span]) * inv_len) as f32;
+                    inv[lane] = inv_len as f32;
+                    (starts[lane], axes[lane]) = (segment.start, segment.axes);
+                }
+                S::new(inv)
+            };
+            match self.basis {
+                Basis::Poly(poly) => poly.eval::<S, F>(S::new(u), DERIVATIVES, &mut jets),
+                Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(S::new(u), &mut jets),
+                Basis::CoxDeBoor => cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut span_knots, &mut jets),
+            }
+            // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
+            if DERIVATIVES && !matches!(self.basis, Basis::CoxDeBoor) {
+                for jet in &mut jets {
+                    jet[1] = jet[1] * inv;
+                    jet[2] = jet[2] * (inv * inv);
+                }
+            }
+            let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
+            for (f, factor) in factors.iter_mut().enumerate() {
+                let (axis, theta) = match &shared_segment {
+                    Some((segment, _)) if shared => (V8::splat(segment.axes[f]), S::splat(segment.axes[f][3])),
+                    _ => {
+                        let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| axes[lane][f]);
+                        (V8::gather(&rows), S::new(rows.map(|r| r[3])))
+                    }
+                };
+                *factor = Factor8 { axis, theta, b: jets[f] };
+            }
+            let (start, lead) = match &shared_segment {
+                Some((segment, lead)) if shared => (Q8::splat(segment.start), Some(Q8::splat(*lead))),
+                _ => (Q8::gather(&starts), None),
+            };
+            let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, SMALL);
+            write_group::<S, DERIVATIVES>(options.row(), q, [w, a], &mut out[g * channels..(g + valid) * channels], valid);
+        }
+    }
+
+    /// The times of the group of `valid` samples from sample `j`; lanes past the end repeat
+    /// the last sample (they are not written).
+    #[inline(always)]
+    fn group_times(&self, uniform: Option<(f64, f64, usize)>, j: usize, valid: usize) -> [f64; LANES] {
+        let mut t = [0.0f64; LANES];
+        match uniform {
+            // The loops below are branch-free so that the compiler vectorizes them.
+            Some((start, step, plain)) if j + LANES <= plain => {
+                for (lane, t) in t.iter_mut().enumerate() {
+                    *t = start + (j + lane) as f64 * step;
+                }
+            }
+            _ => {
+                for (lane, t) in t.iter_mut().enumerate() {
+                    *t = self.times.time(self.index, j + lane.min(valid - 1));
+                }
+            }
+        }
+        t
+    }
+}
+
+/// Cox-de Boor basis jets of a group at times `t` in spans `spans`: once per distinct span
+/// among the lanes (one, or two where the group straddles a knot), lanes of other spans
+/// blended out; `span_knots` keeps the last span's constants across groups.
+#[inline(always)]
+fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
+    knots: &[f64],
+    spans: &[usize; LANES],
+    t: &[f64; LANES],
+    shared: bool,
+    span_knots: &mut Option<SpanKnots>,
+    jets: &mut [[S; 3]; F],
+) {
+    let mut done = [false; LANES];
+    for lane in 0..LANES {
+        if done[lane] {
+            continue;
+        }
+        let span = spans[lane];
+        if span_knots.as_ref().map(|c| c.span) != Some(span) {
+            *span_knots = None;
+        }
+        let constants = span_knots.get_or_insert_with(|| SpanKnots::new(knots, F + 1, span));
+        if shared {
+            constants.jets::<S, F, DERIVATIVES>(t, jets);
+            return;
+        }
+        let mut these = [[S::ZERO; 3]; F];
+        constants.jets::<S, F, DERIVATIVES>(t, &mut these);
+        let mut mask = [0.0f32; LANES];
+        for (l, m) in mask.iter_mut().enumerate() {
+            if spans[l] == span {
+                *m = f32::from_bits(u32::MAX);
+                done[l] = true;
+            }
+        }
+        let mask = S::new(mask);
+        for (jet, this) in jets.iter_mut().zip(&these) {
+            for d in 0..3 {
+                jet[d] = mask.blend(this[d], jet[d]);
+            }
+        }
+    }
+}
+
+/// A group's rows (`valid` of them): the [`Row`] columns, rotation then omega and alpha back
+/// to back, then the matrix when the row has one.
+#[inline(always)]
+fn write_group<S: Lanes, const DERIVATIVES: bool>(row: Row, q: Q8<S>, [w, a]: [V8<S>; 2], rows: &mut [f32], valid: usize) {
+    let channels = row.channels();
+    write_columns([q.x, q.y, q.z, q.w], rows, channels, Row::ROTATION.start, 4, valid);
+    if DERIVATIVES {
+        write_columns([w.x, w.y, w.z, a.x], rows, channels, Row::OMEGA.start, 4, valid);
+        write_columns([a.y, a.z, S::ZERO, S::ZERO], rows, channels, Row::ALPHA.start + 1, 2, valid);
+    }
+    if row.matrix {
+        rows.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));
+    }
+}
+
+/// [`Piece::groups`] on AVX2 registers, compiled for them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn groups_avx2<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(piece: &Piece<'_>, n: usize, out: &mut [f32]) {
+    piece.groups::<F, DERIVATIVES, SMALL, super::simd::Avx2>(n, out);
+}
+
+/// `p * (a, 0)`: a quaternion times a pure one, `(p.w a + p.v x a, -p.v . a)`.
+fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
+    let [x, y, z, w] = p;
+    [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
+}
