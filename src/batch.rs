@@ -61,7 +61,7 @@ pub struct PackedTrack {
     /// The domain `[start, end]`; sample times are clamped to it, or wrapped when looping.
     pub domain: [f64; 2],
     /// A periodic track: times outside the domain wrap by its length
-    /// ([`crate::segment::wrap`]).
+    /// (DESIGN section 3; `segment::wrap` inside the crate).
     pub looping: bool,
     /// Equally spaced knots ([`knots_are_uniform`]), decided once here: the CPU and GPU
     /// paths then find spans by arithmetic and use the fixed polynomial span bases.

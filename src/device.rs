@@ -26,15 +26,29 @@ pub enum DeviceChoice {
 
 names!(DeviceChoice, "device", Auto => "auto", Gpu => "gpu", Cpu => "cpu", Reference => "reference");
 
-/// Why a device could not be opened or failed while evaluating.
+/// Why a device could not be opened, refused a job, or failed while evaluating.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum DeviceError {
-    /// The inputs are wrong (a batch the device cannot take, mismatched sample lists).
+    /// The job breaks a rule ([`EvalJob::validate`]: sample lists that do not match the batch,
+    /// non-finite sample times, a frame-major layout with unequal sample counts).
+    #[error(transparent)]
+    Job(#[from] crate::Error),
+    /// The GPU kernel cannot take this batch (a Bezier curve above its degree limit, one
+    /// track's keys larger than a storage binding): `auto` hands such a batch to the CPU path.
     #[error("{0}")]
-    Input(String),
-    /// The device is missing or failed (exit code 1 in the CLI).
+    Unsupported(String),
+    /// The device is missing or failed (exit code 1 in the CLI; the others are exit code 2).
     #[error("{0}")]
     Device(String),
+}
+
+impl DeviceError {
+    /// Whether the device failed, rather than the job or batch being at fault.
+    #[must_use]
+    pub fn is_device_failure(&self) -> bool {
+        matches!(self, Self::Device(_))
+    }
 }
 
 /// An opened evaluator.
@@ -99,8 +113,8 @@ impl Device {
     /// Evaluates a job in its layout; results in f64 whatever the device computed in.
     ///
     /// # Errors
-    /// [`DeviceError::Input`] for inputs the job or device rejects, [`DeviceError::Device`]
-    /// for device failures.
+    /// [`DeviceError::Job`] for a job that breaks a rule, [`DeviceError::Unsupported`] for a
+    /// batch the GPU kernel cannot take, [`DeviceError::Device`] for device failures.
     pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
         self.evaluate_named(job).map(|(out, _)| out)
     }
@@ -112,7 +126,7 @@ impl Device {
     /// As [`Device::evaluate`].
     pub fn evaluate_named(&self, job: &EvalJob<'_>) -> Result<(Output, String), DeviceError> {
         if let Device::Reference = self {
-            return job.run().map(|out| (out, self.name())).map_err(|e| DeviceError::Input(e.to_string()));
+            return Ok((job.run()?, self.name()));
         }
         let (rows, name) = self.evaluate_f32(job)?;
         Ok((rows.to_output(job.options.derivatives), name))
@@ -127,7 +141,7 @@ impl Device {
     pub fn evaluate_f32(&self, job: &EvalJob<'_>) -> Result<(FloatOutput, String), DeviceError> {
         match self {
             Device::Reference => {
-                let out = job.run().map_err(|e| DeviceError::Input(e.to_string()))?;
+                let out = job.run()?;
                 Ok((FloatOutput::from_output(&out, job.options.matrix), self.name()))
             }
             Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
@@ -153,7 +167,7 @@ enum Refused {
 impl From<Refused> for DeviceError {
     fn from(r: Refused) -> Self {
         match r {
-            Refused::Pack(msg) => DeviceError::Input(msg),
+            Refused::Pack(msg) => DeviceError::Unsupported(msg),
             Refused::Other(e) => e,
         }
     }
@@ -163,11 +177,11 @@ impl From<Refused> for DeviceError {
 fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
     g.evaluate(job).map_err(|e| match e {
         GpuError::Pack(_) => Refused::Pack(e.to_string()),
-        GpuError::Job(_) => Refused::Other(DeviceError::Input(e.to_string())),
+        GpuError::Job(_) => Refused::Other(DeviceError::Unsupported(e.to_string())),
         _ => Refused::Other(DeviceError::Device(e.to_string())),
     })
 }
 
 fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
-    c.evaluate(job).map_err(|e| DeviceError::Input(e.to_string()))
+    Ok(c.evaluate(job)?)
 }

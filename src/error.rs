@@ -119,11 +119,53 @@ pub enum Error {
     #[error("{track}: sample time {sample} is not finite ({value})")]
     NonFiniteSampleTime { track: TrackId, sample: usize, value: f64 },
     /// A sampling request that cannot produce samples.
-    #[error("{0}")]
-    BadSampling(String),
+    #[error(transparent)]
+    BadSampling(#[from] SamplingError),
     /// Output buffers or per-track sample lists do not match the batch.
-    #[error("{0}")]
-    BadJob(String),
+    #[error(transparent)]
+    BadJob(#[from] JobError),
+}
+
+/// Why a sampling request (`Sampling::Count`, `Sampling::Rate`) gives no samples.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SamplingError {
+    /// `Count(0)`.
+    #[error("a sample count must be at least 1")]
+    ZeroCount,
+    /// A count above the per-track limit.
+    #[error("{count} samples is more than {limit} per track")]
+    TooMany { count: usize, limit: usize },
+    /// A rate that is not finite and positive.
+    #[error("a sample rate must be a positive number of samples per second, got {0}")]
+    BadRate(f64),
+    /// A rate that gives more samples over the domain than the per-track limit.
+    #[error("a rate of {hz} Hz gives {count} samples over a domain of {span}, more than {limit} per track")]
+    RateTooHigh { hz: f64, count: f64, span: f64, limit: usize },
+}
+
+/// Why an evaluation job's parts do not fit together.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum JobError {
+    /// The sample times were made for another batch.
+    #[error("sample times cover {times} tracks but the batch has {batch}")]
+    TrackCount { times: usize, batch: usize },
+    /// A looping track's uniform grid leaves its period (fast paths do not wrap grids).
+    #[error("{track}: a looping track's uniform sample times must stay within its period [{lo}, {hi}]; give other times as an explicit list (SampleTimes::new wraps them)")]
+    GridOutsidePeriod { track: TrackId, lo: f64, hi: f64 },
+    /// A track's explicit times point outside the list.
+    #[error("{track}: explicit sample times out of range")]
+    ExplicitOutOfRange { track: TrackId },
+    /// A frame-major layout over tracks with different sample counts.
+    #[error("frame-major layout needs the same sample count in every track: {first} has {count}, {other} has {other_count}")]
+    UnequalCounts { first: TrackId, count: usize, other: TrackId, other_count: usize },
+    /// A grid given as a list (`SampleTimes::per_track`).
+    #[error("{track}: a sample grid must be uniform")]
+    GridNotUniform { track: TrackId },
+    /// A caller's output buffer of the wrong size.
+    #[error("output buffer holds {floats} floats but {samples} samples x {channels} channels are needed")]
+    BufferSize { floats: usize, samples: usize, channels: usize },
 }
 
 /// Short-hand result type.

@@ -2,7 +2,7 @@
 //! then the reference's `run()` or a device's `evaluate` (the ozz-animation shape).
 
 use crate::batch::Batch;
-use crate::error::{Error, Result};
+use crate::error::{Error, JobError, Result};
 use crate::output::{Layout, Output, Row};
 use crate::reference;
 use crate::sampling::{SampleTimes, TrackTimes};
@@ -88,11 +88,7 @@ impl<'a> EvalJob<'a> {
             return Err(Error::EmptyBatch);
         }
         if self.times.track_count() != self.batch.len() || self.times.offsets.len() != self.batch.len() + 1 {
-            return Err(Error::BadJob(format!(
-                "sample times cover {} tracks but the batch has {}",
-                self.times.track_count(),
-                self.batch.len()
-            )));
+            return Err(JobError::TrackCount { times: self.times.track_count(), batch: self.batch.len() }.into());
         }
         for (index, times) in self.times.tracks.iter().enumerate() {
             let track = &self.batch.tracks[index];
@@ -101,16 +97,11 @@ impl<'a> EvalJob<'a> {
                 let end = last.unwrap_or(start + step * count.saturating_sub(1) as f64);
                 let [lo, hi] = track.domain;
                 if track.looping && count > 0 && (start < lo || end > hi + 1e-9 * (hi - lo)) {
-                    return Err(Error::BadJob(format!(
-                        "{}: a looping track's uniform sample times must stay within its period [{lo}, {hi}]; give other times as an explicit list (SampleTimes::new wraps them)",
-                        self.batch.ids[index]
-                    )));
+                    return Err(JobError::GridOutsidePeriod { track: self.batch.ids[index].clone(), lo, hi }.into());
                 }
             }
             if let TrackTimes::Explicit { offset, count } = *times {
-                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| {
-                    Error::BadJob(format!("{}: explicit sample times out of range", self.batch.ids[index]))
-                })?;
+                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.ids[index].clone() })?;
                 if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
                     let track = self.batch.ids[index].clone();
                     return Err(Error::NonFiniteSampleTime { track, sample, value: own[sample] });
@@ -120,12 +111,8 @@ impl<'a> EvalJob<'a> {
         let first = self.times.count(0);
         if self.options.layout == Layout::Frame {
             if let Some(index) = (0..self.batch.len()).find(|&i| self.times.count(i) != first) {
-                return Err(Error::BadJob(format!(
-                    "frame-major layout needs the same sample count in every track: {} has {first}, {} has {}",
-                    self.batch.ids[0],
-                    self.batch.ids[index],
-                    self.times.count(index)
-                )));
+                let (first_id, other) = (self.batch.ids[0].clone(), self.batch.ids[index].clone());
+                return Err(JobError::UnequalCounts { first: first_id, count: first, other, other_count: self.times.count(index) }.into());
             }
         }
         Ok(())

@@ -35,7 +35,7 @@
 //! ```
 
 pub mod bake;
-pub mod basis;
+pub(crate) mod basis;
 pub mod cpu;
 pub mod analysis;
 pub mod arrays;
@@ -56,7 +56,7 @@ pub mod quat;
 pub mod real;
 pub mod reference;
 pub mod sampling;
-pub mod segment;
+pub(crate) mod segment;
 pub mod synthetic;
 pub mod track;
 

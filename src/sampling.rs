@@ -5,7 +5,7 @@
 //! times; tracks with their own `sample_times` keep an explicit list.
 
 use crate::batch::Batch;
-use crate::error::{Error, Result};
+use crate::error::{Error, JobError, Result, SamplingError};
 
 /// At most this many samples per track: a guard against a typo such as `--rate 1e9`
 /// turning into an out-of-memory crash instead of an error.
@@ -84,22 +84,16 @@ impl Sampling {
     pub fn over(self, start: f64, end: f64) -> Result<TrackTimes> {
         let span = end - start;
         match self {
-            Sampling::Count(0) => Err(Error::BadSampling("a sample count must be at least 1".into())),
-            Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => {
-                Err(Error::BadSampling(format!("{n} samples is more than {MAX_SAMPLES_PER_TRACK} per track")))
-            }
+            Sampling::Count(0) => Err(SamplingError::ZeroCount.into()),
+            Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => Err(SamplingError::TooMany { count: n, limit: MAX_SAMPLES_PER_TRACK }.into()),
             Sampling::Count(1) => Ok(TrackTimes::Uniform { start, step: 0.0, count: 1, last: None }),
             Sampling::Count(n) => Ok(TrackTimes::Uniform { start, step: span / (n - 1) as f64, count: n, last: Some(end) }),
-            Sampling::Rate(hz) if !(hz.is_finite() && hz > 0.0) => {
-                Err(Error::BadSampling(format!("a sample rate must be a positive number of samples per second, got {hz}")))
-            }
+            Sampling::Rate(hz) if !(hz.is_finite() && hz > 0.0) => Err(SamplingError::BadRate(hz).into()),
             Sampling::Rate(hz) => {
                 // A relative slack of 1e-9 keeps the end when j / hz lands a rounding error past it.
                 let count = (span * hz * (1.0 + 1e-9)).floor() + 1.0;
                 if count > MAX_SAMPLES_PER_TRACK as f64 {
-                    return Err(Error::BadSampling(format!(
-                        "a rate of {hz} Hz gives {count} samples over a domain of {span}, more than {MAX_SAMPLES_PER_TRACK} per track"
-                    )));
+                    return Err(SamplingError::RateTooHigh { hz, count, span, limit: MAX_SAMPLES_PER_TRACK }.into());
                 }
                 Ok(TrackTimes::Uniform { start, step: 1.0 / hz, count: count as usize, last: None })
             }
@@ -159,7 +153,7 @@ impl SampleTimes {
                 }
                 PerTrack::Grid(grid @ TrackTimes::Uniform { .. }) => grid,
                 PerTrack::Grid(TrackTimes::Explicit { .. }) => {
-                    return Err(Error::BadJob(format!("{}: a sample grid must be uniform", batch.ids[index])));
+                    return Err(JobError::GridNotUniform { track: batch.ids[index].clone() }.into());
                 }
             };
             out.offsets.push(out.offsets[index] + times.count());

@@ -67,6 +67,9 @@ pub enum AnalysisError {
         /// Samples it would need.
         nodes: usize,
     },
+    /// The tracks or sample times break a rule of the builder (named track and key).
+    #[error(transparent)]
+    Keys(#[from] crate::Error),
     /// The device rejected the job or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),
@@ -287,7 +290,7 @@ pub fn profile(batch: &Batch, index: usize, device: &Device, points: usize) -> R
 
 /// Rotations and derivatives of `batch`'s tracks at their nodes, track after track.
 fn derivatives_at(batch: &Batch, nodes: &[Nodes], device: &Device) -> Result<Output, AnalysisError> {
-    let times = SampleTimes::per_track(batch, |i, _| Ok(PerTrack::List(&nodes[i].times))).map_err(|e| DeviceError::Input(e.to_string()))?;
+    let times = SampleTimes::per_track(batch, |i, _| Ok(PerTrack::List(&nodes[i].times)))?;
     let job = EvalJob::new(batch, &times).derivatives(true);
     Ok(device.evaluate(&job)?)
 }

@@ -139,7 +139,7 @@ fn regime_table(regime: &Regime, setup: &PaperSetup, device: &Device) -> Result<
             per_curve.push(Vec::new());
             continue;
         }
-        let batch = Batch::from_tracks(&kept, &spec(curve)).map_err(|e| crate::device::DeviceError::Input(e.to_string()))?;
+        let batch = Batch::from_tracks(&kept, &spec(curve))?;
         per_curve.push(analyze(&batch, device, &setup.options)?);
     }
     let squad = &per_curve[0];

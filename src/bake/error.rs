@@ -78,6 +78,6 @@ impl InputError {
     /// Whether the device or quatcurve itself failed, rather than the input being at fault.
     #[must_use]
     pub fn is_internal_failure(&self) -> bool {
-        matches!(self, Self::Device(DeviceError::Device(_)) | Self::Internal(_))
+        matches!(self, Self::Internal(_)) || matches!(self, Self::Device(e) if e.is_device_failure())
     }
 }

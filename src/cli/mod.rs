@@ -22,8 +22,8 @@ pub enum Failure {
 impl From<DeviceError> for Failure {
     fn from(e: DeviceError) -> Self {
         match e {
-            DeviceError::Input(msg) => Failure::Input(msg),
             DeviceError::Device(msg) => Failure::Internal(msg),
+            other => Failure::Input(other.to_string()),
         }
     }
 }
@@ -42,8 +42,8 @@ impl Failure {
 /// that chose it in front (`--device gpu: no adapter ...`).
 pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> {
     Device::open(choice).map_err(|e| match e {
-        DeviceError::Input(msg) => Failure::Input(format!("{flag} {msg}")),
         DeviceError::Device(msg) => Failure::Internal(format!("{flag} {msg}")),
+        other => Failure::Input(format!("{flag} {other}")),
     })
 }
 

@@ -15,7 +15,7 @@
 mod arcs;
 mod bases;
 mod cox_de_boor;
-pub mod forward;
+mod forward;
 mod lanes;
 mod piece;
 mod simd;
@@ -97,11 +97,7 @@ impl CpuEvaluator {
         let EvalJob { batch, times, options } = *job;
         let channels = options.row().channels();
         if data.len() != times.total() * channels {
-            return Err(crate::Error::BadJob(format!(
-                "output buffer holds {} floats but {} samples x {channels} channels are needed",
-                data.len(),
-                times.total()
-            )));
+            return Err(crate::error::JobError::BufferSize { floats: data.len(), samples: times.total(), channels }.into());
         }
         let tables = Context::new(batch, &self.bases, self.isa);
         // Work items: pieces of at most PIECE samples of one track.

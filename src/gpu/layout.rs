@@ -192,7 +192,7 @@ pub const MAX_BEZIER_DEGREE: usize = 32;
 pub const POLY_HERMITE: u32 = 28;
 
 /// The span bases that are the same on every span, as polynomials in the span parameter
-/// ([`crate::basis::fit_polynomials`], the CPU path's too): two `vec4f` per function, lowest
+/// (fitted once by the crate's `basis` module, the CPU path's too): two `vec4f` per function, lowest
 /// coefficient first. The kernel evaluates these with Horner's rule instead of running the
 /// Cox-de Boor or de Casteljau triangle per sample, whose small arrays lavapipe keeps in
 /// memory (half the kernel's time).
