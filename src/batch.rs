@@ -93,7 +93,8 @@ pub struct Batch {
     pub points: Vec<DQuat>,
     /// Derived coefficients, `[x, y, z, extra]` (see the module table).
     pub coefs: Vec<[f64; 4]>,
-    /// Segment boundaries or B-spline knot vectors.
+    /// Segment boundaries or B-spline knot vectors; consecutive tracks with equal knots share
+    /// one entry (a track's are `knots[knot_offset..knot_offset + knot_count]`).
     pub knots: Vec<f64>,
 }
 
@@ -274,6 +275,14 @@ impl BatchBuilder {
         let index = self.batch.tracks.len();
         let id = TrackId { index, name: track.name.clone() };
         let b = &mut self.batch;
+        // Tracks keyed at the same times (the channels of a clip, a synthetic batch) share one
+        // knot vector: views only slice the array, and a million 32-key tracks save 0.3 GB.
+        let shared = b.tracks.last().filter(|last| b.knots[last.knot_offset..last.knot_offset + last.knot_count] == packed.knots[..]);
+        let (knot_offset, uniform_knots) = match shared {
+            Some(last) => (last.knot_offset, last.uniform_knots),
+            None => (b.knots.len(), knots_are_uniform(&packed.knots)),
+        };
+        let share = shared.is_some();
         b.tracks.push(PackedTrack {
             curve: packed.curve,
             order: packed.order,
@@ -282,15 +291,17 @@ impl BatchBuilder {
             point_count: packed.points.len(),
             coef_offset: b.coefs.len(),
             coef_count: packed.coefs.len(),
-            knot_offset: b.knots.len(),
+            knot_offset,
             knot_count: packed.knots.len(),
             domain: packed.domain,
             looping: spec.looping,
-            uniform_knots: knots_are_uniform(&packed.knots),
+            uniform_knots,
         });
         b.points.extend(packed.points);
         b.coefs.extend(packed.coefs);
-        b.knots.extend(packed.knots);
+        if !share {
+            b.knots.extend(packed.knots);
+        }
         b.ids.push(id);
         index
     }

@@ -159,7 +159,10 @@ impl Piece<'_> {
 
     /// Evaluates the piece's `n` samples, `F` factors each, eight at a time on lanes `S`;
     /// `SMALL`: every angle is within [`SMALL_ANGLE`]. Inlined into [`Piece::run`]'s
-    /// instances, so that the AVX2 one compiles for AVX2.
+    /// instances, so that the AVX2 one compiles for AVX2. It stays one loop of about 90 lines
+    /// on purpose: the state carried from group to group (span hint, shared segment, Cox-de
+    /// Boor constants, per-lane starts and axes) lives in registers and on this frame; the
+    /// steps that carry none are inline helpers below.
     #[inline(always)]
     fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool, S: Lanes>(&self, n: usize, out: &mut [f32]) {
         let (knots, options) = (self.view.knots, self.options);

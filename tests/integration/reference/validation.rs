@@ -201,3 +201,27 @@ fn a_batch_extended_in_slices_is_the_batch_built_at_once_and_a_bad_slice_changes
     assert!(err.contains("track 37000 \"t17000\": key 2 has norm 0"), "{err}");
     assert_eq!(builder.build().unwrap(), whole);
 }
+
+/// Tracks keyed at the same times share one knot vector in the batch; each still sees its own
+/// (equal to the batch of that track alone), and other times get their own.
+#[test]
+fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
+    let at = |times: &[f64], turn: f64| Track {
+        times: Some(times.to_vec()),
+        ..Track::from_rotations((0..times.len()).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(turn * i as f64, 0.2, 0.0)).to_array()).collect())
+    };
+    let (same, other) = ([0.0, 0.4, 1.0, 1.7, 2.0], [0.0, 0.5, 1.0, 1.5, 2.5]);
+    let tracks = [at(&same, 0.1), at(&same, 0.3), at(&same, -0.2), at(&other, 0.1)];
+    for curve in [Curve::BSplineInterp, Curve::Hermite, Curve::Slerp] {
+        let spec = CurveSpec::new(curve);
+        let batch = Batch::from_tracks(&tracks, &spec).unwrap();
+        let offsets: Vec<usize> = batch.tracks.iter().map(|t| t.knot_offset).collect();
+        assert!(offsets[0] == offsets[1] && offsets[1] == offsets[2] && offsets[3] != offsets[0], "{curve}: {offsets:?}");
+        assert_eq!(batch.knots.len(), batch.tracks[0].knot_count + batch.tracks[3].knot_count, "{curve}");
+        for (i, track) in tracks.iter().enumerate() {
+            let alone = Batch::from_tracks(std::slice::from_ref(track), &spec).unwrap();
+            let (a, b) = (batch.view(i), alone.view(0));
+            assert!(a.knots == b.knots && a.points == b.points && a.coefs == b.coefs && a.track.uniform_knots == b.track.uniform_knots, "{curve} track {i}");
+        }
+    }
+}
