@@ -119,7 +119,10 @@ impl CpuEvaluator {
                     slices.push(head);
                     rest = tail;
                 }
-                pieces.par_iter().zip(slices).for_each(|(piece, out)| run(piece, out));
+                // At least PIECE samples per task: a million 10-sample tracks are not a million
+                // tasks.
+                let per_task = (PIECE * pieces.len()).div_ceil(times.total().max(1)).max(1);
+                pieces.par_iter().zip(slices).with_min_len(per_task).for_each(|(piece, out)| run(piece, out));
             }
             Layout::Frame => {
                 let results: Vec<Vec<f32>> = pieces

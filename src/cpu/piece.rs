@@ -55,9 +55,11 @@ pub(super) fn angle(c: &[f64; 4]) -> f64 {
     (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
 }
 
-/// `locate`, first trying the previous span and the next (sample times usually increase).
+/// `locate`, first trying the previous span and the next (sample times usually increase);
+/// on equally spaced knots (`inv_step` their inverse spacing, else 0) by arithmetic, else by
+/// bisection. Short tracks land on a new span at almost every sample.
 #[inline(always)]
-fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) {
+fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
     let h = *hint;
     if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
         return (h, t);
@@ -68,8 +70,25 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
         *hint = h;
         return (h, t);
     }
-    let (span, t) = locate(knots, first, last, t);
+    let (span, t) = if inv_step > 0.0 { locate_uniform(knots, first, last, t, inv_step) } else { locate(knots, first, last, t) };
     *hint = span;
+    (span, t)
+}
+
+/// [`locate`] on strictly increasing, equally spaced knots: the span from the spacing, then
+/// corrected by a step where rounding put it one off, so the result is [`locate`]'s.
+#[inline(always)]
+fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
+    let (lo, hi) = (knots[first], knots[last + 1]);
+    let t = if t >= lo { t.min(hi) } else { lo };
+    let guess = ((t - lo) * inv_step).floor();
+    let mut span = if guess > 0.0 { (first + guess as usize).min(last) } else { first };
+    while span < last && knots[span + 1] <= t {
+        span += 1;
+    }
+    while span > first && knots[span] > t {
+        span -= 1;
+    }
     (span, t)
 }
 
@@ -100,12 +119,22 @@ pub(super) struct Piece<'a> {
 }
 
 impl Piece<'_> {
+    /// The inverse knot spacing for [`locate_from`] on equally spaced knots, else 0.
+    fn inv_step(&self) -> f64 {
+        let knots = self.view.knots;
+        if self.view.track.uniform_knots && knots.len() > 1 { (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0]) } else { 0.0 }
+    }
+}
+
+impl Piece<'_> {
     /// Evaluates the piece's `n` samples into `out`, on the kernel instance for its factor
     /// count, derivatives and angle range.
     pub(super) fn evaluate(&self, n: usize, out: &mut [f32]) {
         // Every basis here stays within [0, 1] on the domain, so every angle is at most its
         // coefficient's: shortest-path keys (all of them below pi / 2) need no range reduction.
-        let small = self.view.coefs.iter().all(|c| angle(c) as f32 <= SMALL_ANGLE * 0.99);
+        // Squared, without a square root per coefficient (a cost that short tracks felt).
+        let limit = f64::from(SMALL_ANGLE * 0.99);
+        let small = self.view.coefs.iter().all(|c| c[0] * c[0] + c[1] * c[1] + c[2] * c[2] <= limit * limit);
         // Constant factor counts and flags let the compiler unroll the basis and the product,
         // keep them in registers and drop the branches.
         macro_rules! by_factors {
@@ -169,6 +198,7 @@ impl Piece<'_> {
         let channels = options.row().channels();
         let (first, last) = (self.first, self.last);
         let mut hint = first;
+        let inv_step = self.inv_step();
         let mut jets = [[S::ZERO; 3]; F];
         // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
         // of a `--samples` grid is the exact domain end instead.
@@ -212,7 +242,7 @@ impl Piece<'_> {
                 // once when the times are sorted, as grids are).
                 let mut current: Option<(Segment<F>, f64)> = None;
                 for lane in 0..LANES {
-                    let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane]);
+                    let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane], inv_step);
                     let (segment, inv_len) = match current {
                         Some(c) if c.0.span == span => c,
                         _ => *current.insert((self.segment::<F>(span), 1.0 / (knots[span + 1] - knots[span]))),
@@ -348,4 +378,30 @@ unsafe fn groups_avx2<const F: usize, const DERIVATIVES: bool, const SMALL: bool
 fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
     let [x, y, z, w] = p;
     [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{locate_uniform, locate};
+
+    /// The arithmetic lookup gives `locate`'s span and clamped time on equally spaced knots,
+    /// also where the spacing is only equal to the builder's tolerance, at every knot, just
+    /// beside it, outside the domain and for NaN.
+    #[test]
+    fn uniform_lookup_is_locate() {
+        for (k, count, t0, dt) in [(4, 37, 0.0, 1.0 / 30.0), (2, 12, -3.5, 0.1), (6, 40, 1e6, 0.013), (4, 8, 0.25, 7.0)] {
+            // Knots as the builder would accept them: equal spacing with a 1e-10 wobble.
+            let knots: Vec<f64> = (0..count).map(|i| t0 + dt * i as f64 * (1.0 + 1e-10 * ((i * 7919) % 13) as f64 / 13.0)).collect();
+            let (first, last) = (k - 1, count - k);
+            let inv = (count - 1) as f64 / (knots[count - 1] - knots[0]);
+            let mut times: Vec<f64> = vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY, t0 - 1.0, knots[count - 1] + 1.0];
+            for &knot in &knots {
+                times.extend([knot, knot.next_up(), knot.next_down(), knot + 0.5 * dt]);
+            }
+            for t in times {
+                let (a, b) = (locate_uniform(&knots, first, last, t, inv), locate(&knots, first, last, t));
+                assert!(a.0 == b.0 && a.1.to_bits() == b.1.to_bits(), "order {k}, t {t}: {a:?} vs {b:?}");
+            }
+        }
+    }
 }
