@@ -139,6 +139,8 @@ impl Device {
     /// # Errors
     /// As [`Device::evaluate`].
     pub fn evaluate_f32(&self, job: &EvalJob<'_>) -> Result<(FloatOutput, String), DeviceError> {
+        // First, so that a job breaking a rule is the same typed error on every device.
+        job.validate()?;
         match self {
             Device::Reference => {
                 let out = job.run()?;
@@ -149,36 +151,20 @@ impl Device {
             Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
             #[cfg(feature = "gpu")]
             Device::Auto(g, c) => match on_gpu(g, job) {
-                Err(Refused::Pack(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
+                Err(DeviceError::Unsupported(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
                 other => Ok((other?, self.name())),
             },
         }
     }
 }
 
-/// A GPU evaluation that failed: a batch the kernel cannot take, or anything else.
+/// The GPU path's errors as a device's: a batch the kernel cannot take (including one too large
+/// for a dispatch) is [`DeviceError::Unsupported`], which `auto` hands to the CPU path.
 #[cfg(feature = "gpu")]
-enum Refused {
-    Pack(String),
-    Other(DeviceError),
-}
-
-#[cfg(feature = "gpu")]
-impl From<Refused> for DeviceError {
-    fn from(r: Refused) -> Self {
-        match r {
-            Refused::Pack(msg) => DeviceError::Unsupported(msg),
-            Refused::Other(e) => e,
-        }
-    }
-}
-
-#[cfg(feature = "gpu")]
-fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, Refused> {
+fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     g.evaluate(job).map_err(|e| match e {
-        GpuError::Pack(_) => Refused::Pack(e.to_string()),
-        GpuError::Job(_) => Refused::Other(DeviceError::Unsupported(e.to_string())),
-        _ => Refused::Other(DeviceError::Device(e.to_string())),
+        GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Unsupported(e.to_string()),
+        _ => DeviceError::Device(e.to_string()),
     })
 }
 

@@ -124,9 +124,7 @@ impl Piece<'_> {
         let knots = self.view.knots;
         if self.view.track.uniform_knots && knots.len() > 1 { (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0]) } else { 0.0 }
     }
-}
 
-impl Piece<'_> {
     /// Evaluates the piece's `n` samples into `out`, on the kernel instance for its factor
     /// count, derivatives and angle range.
     pub(super) fn evaluate(&self, n: usize, out: &mut [f32]) {
