@@ -3,7 +3,6 @@
 
 use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
-use quatcurve::gpu::evaluator::STREAM_CHUNK_BYTES;
 use quatcurve::sampling::{PerTrack, TrackTimes};
 use quatcurve::{synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator, KnotMode, SampleTimes, Sampling};
 use serde::Serialize;
@@ -249,7 +248,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
     // without holding the whole batch on the device (on a software adapter, device memory is
     // host memory: a million short tracks held 3 GB more).
     let (mut dispatch, mut roofline) = (0.0, 0.0);
-    for range in device_pieces(batch, times, job.options.row().channels()) {
+    for range in device_pieces(batch, times, job.options.row().channels(), gpu.stream_chunk_bytes()) {
         let piece = batch.subset(range.clone());
         let piece_times = SampleTimes::per_track(&piece, |i, _| {
             let at = range.start + i;
@@ -276,12 +275,12 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
 }
 
 /// Ranges of tracks whose packed f32 data and output come to about one streamed chunk
-/// ([`STREAM_CHUNK_BYTES`]) each.
-fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize) -> Vec<std::ops::Range<usize>> {
+/// (`chunk` bytes) each.
+fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64) -> Vec<std::ops::Range<usize>> {
     let knots: usize = batch.tracks.iter().map(|t| t.knot_count).sum();
     let bytes = 16 * (batch.points.len() + batch.coefs.len()) + 4 * knots + 4 * channels * times.total();
     let per_track = (bytes / batch.len().max(1)).max(1);
-    let piece = (STREAM_CHUNK_BYTES as usize / per_track).clamp(1, batch.len().max(1));
+    let piece = (chunk as usize / per_track).clamp(1, batch.len().max(1));
     (0..batch.len()).step_by(piece).map(|start| start..(start + piece).min(batch.len())).collect()
 }
 
