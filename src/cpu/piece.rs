@@ -81,8 +81,9 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
 fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
     let (lo, hi) = (knots[first], knots[last + 1]);
     let t = if t >= lo { t.min(hi) } else { lo };
-    let guess = ((t - lo) * inv_step).floor();
-    let mut span = if guess > 0.0 { (first + guess as usize).min(last) } else { first };
+    // Clamped before the cast: a tiny domain can make the spacing's inverse infinite.
+    let guess = ((t - lo) * inv_step).floor().min((last - first) as f64);
+    let mut span = if guess > 0.0 { first + guess as usize } else { first };
     while span < last && knots[span + 1] <= t {
         span += 1;
     }
@@ -387,7 +388,8 @@ mod tests {
     /// beside it, outside the domain and for NaN.
     #[test]
     fn uniform_lookup_is_locate() {
-        for (k, count, t0, dt) in [(4, 37, 0.0, 1.0 / 30.0), (2, 12, -3.5, 0.1), (6, 40, 1e6, 0.013), (4, 8, 0.25, 7.0)] {
+        // The last: a domain so short that the spacing's inverse overflows to infinity.
+        for (k, count, t0, dt) in [(4, 37, 0.0, 1.0 / 30.0), (2, 12, -3.5, 0.1), (6, 40, 1e6, 0.013), (4, 8, 0.25, 7.0), (4, 9, 0.0, 1e-310)] {
             // Knots as the builder would accept them: equal spacing with a 1e-10 wobble.
             let knots: Vec<f64> = (0..count).map(|i| t0 + dt * i as f64 * (1.0 + 1e-10 * ((i * 7919) % 13) as f64 / 13.0)).collect();
             let (first, last) = (k - 1, count - k);
