@@ -205,20 +205,16 @@ fn jr(v: V3, c: [f64; 2]) -> DMat3 {
 fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
     let h2 = v.length_squared();
     let h = h2.sqrt();
-    let c = if h < 1e-4 {
-        [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]
-    } else {
-        // One sin_cos: sin 2h = 2 sin h cos h. exp's own value-only branch below 1e-2 is
-        // kept, so the rotation is exactly `DQuat::exp`'s.
-        let (s, c) = h.sin_cos();
-        if h2 >= 1e-4 {
-            let sinc = s / h;
-            let e = DQuat::from_xyzw(v.x * sinc, v.y * sinc, v.z * sinc, c);
-            return (e, [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)]);
-        }
-        [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)]
-    };
-    (DQuat::exp(d(v)), c)
+    if h < 1e-4 {
+        return (DQuat::exp(d(v)), [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]);
+    }
+    // One sin_cos: sin 2h = 2 sin h cos h.
+    let (s, c) = h.sin_cos();
+    let jr = [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)];
+    // Below h = 1e-2 `DQuat::exp` takes its value-only series; kept, so that the rotation is
+    // exactly `DQuat::exp`'s.
+    let e = if h2 >= 1e-4 { DQuat::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c) } else { DQuat::exp(d(v)) };
+    (e, jr)
 }
 
 /// Inverse right and left Jacobians of the half-angle log: `log(exp(v) exp(d)) = v + jr_inv d`
