@@ -1,6 +1,13 @@
 // The batch evaluation kernel: the twin of src/reference.rs. One invocation per sample.
 // The packed batch is the reference's, converted to f32 (times and knots as 32.32 fixed
 // point, see segment.wgsl).
+//
+// Written for SIMD hosts as well as GPUs. On a software adapter (lavapipe) both sides of every
+// branch run, masked, and every storage load is a loop over the lanes; measured there, a
+// sample's time went to loads (point, factors, table, knots: half), the exp products (a fifth)
+// and the span lookup. So branches that a whole batch never takes are compiled out by the
+// override constants below, records and tables are read as whole vec4s, and the polynomial
+// table is a uniform, read at constant offsets once the order is fixed.
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -21,6 +28,12 @@ const FLAG_UNIFORM_KNOTS: u32 = 4u;
 
 /// Specialization: evaluate only this curve (ANY_CURVE: switch per track).
 override ONLY_CURVE: u32 = 255u;
+/// Specialization: every track's knots are equally spaced (FLAG_UNIFORM_KNOTS), so the
+/// general Cox-de Boor path is left out.
+override UNIFORM_KNOTS_ONLY: bool = false;
+/// Specialization: every B-spline track has this order (0: read it per track), so the basis
+/// loops unroll and the polynomial table is read at constant offsets.
+override ONLY_ORDER: u32 = 0u;
 /// Whether to compute and write angular velocity and acceleration.
 override DERIVATIVES: bool = true;
 /// Whether to write the 3x3 rotation matrix.
@@ -64,7 +77,8 @@ struct GpuTrack {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> tracks: array<GpuTrack>;
+// Each GpuTrack as TRACK_WORDS vec4u (`load_track`): a few vector loads instead of one per field.
+@group(0) @binding(1) var<storage, read> tracks: array<array<vec4u, TRACK_WORDS>>;
 @group(0) @binding(2) var<storage, read> points: array<vec4f>;
 @group(0) @binding(3) var<storage, read> coefs: array<vec4f>;
 @group(0) @binding(4) var<storage, read> knots: array<vec2u>;
@@ -73,9 +87,27 @@ struct GpuTrack {
 // Span bases as polynomials in u, two vec4f (8 coefficients, lowest first) per function:
 // uniform B-splines of orders 2..8 (order k from function (k - 2)(k - 1) / 2), then the cubic
 // Hermite basis from POLY_HERMITE. Fitted from the reference's bases on the host.
-@group(0) @binding(7) var<storage, read> poly: array<vec4f>;
+@group(0) @binding(7) var<uniform> poly: array<vec4f, POLY_ENTRIES>;
 
 const POLY_HERMITE: u32 = 28u;
+/// The table's length: two vec4f per function, the uniform B-splines' and Hermite's three.
+const POLY_ENTRIES: u32 = 2u * (POLY_HERMITE + 3u);
+/// GpuTrack's size in vec4u (checked against the host struct by a test).
+const TRACK_WORDS: u32 = 5u;
+
+/// Track i, from its words in the order of GpuTrack's fields.
+fn load_track(i: u32) -> GpuTrack {
+    let w = tracks[i];
+    return GpuTrack(
+        w[0].x, w[0].y, w[0].z, w[0].w, w[1].x, w[1].y, w[1].z, w[1].w, w[2].x, w[2].y,
+        w[2].z, w[2].w, w[3].x, w[3].y, w[3].z, w[3].w, w[4].x, w[4].y, w[4].z, w[4].w,
+    );
+}
+
+/// Track i's first sample (GpuTrack.sample_offset), the one field the track search reads.
+fn track_sample_offset(i: u32) -> u32 {
+    return tracks[i][2].y;
+}
 
 /// (p, p', p'') in u of polynomial basis function f, of degree `degree`.
 fn poly_jet(f: u32, degree: u32, u: f32) -> vec3f {
@@ -192,9 +224,9 @@ fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
 }
 
 fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
-    let k = tr.order;
+    let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     let m = tr.point_count - 1u;
-    if (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
+    if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
         // Span by arithmetic, then checked against the exact knots (so long clips keep
         // full precision); the basis is the same polynomials of u on every span.
         let lo = knot(tr.knot_offset, k - 1u);
@@ -278,7 +310,7 @@ fn find_track(g: u32, lo: u32, hi: u32) -> u32 {
     var b = hi;
     while a < b {
         let mid = (a + b + 1u) / 2u;
-        if tracks[mid].sample_offset <= g {
+        if track_sample_offset(mid) <= g {
             a = mid;
         } else {
             b = mid - 1u;
@@ -298,13 +330,13 @@ fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index
     }
     let g = first + local;
     var a = workgroupUniformLoad(&group_track);
-    while a < last_track && tracks[a + 1u].sample_offset <= g {
+    while a < last_track && track_sample_offset(a + 1u) <= g {
         a += 1u;
     }
     if g >= params.sample_count {
         return;
     }
-    let tr = tracks[a];
+    let tr = load_track(a);
     let j = g - tr.sample_offset;
     let t = sample_time(tr, j);
     let curve = select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE);

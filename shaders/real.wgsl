@@ -21,9 +21,10 @@ fn sin_cos(x: f32) -> vec2f {
     let k = round(x * 0.636619772367581);
     let r = ((x - k * HALF_PI_1) - k * HALF_PI_2) - k * HALF_PI_3;
     let r2 = r * r;
-    // Taylor series on [-pi/4, pi/4]: truncation below 1e-11.
-    let s = r * (1.0 - r2 / 6.0 * (1.0 - r2 / 20.0 * (1.0 - r2 / 42.0 * (1.0 - r2 / 72.0 * (1.0 - r2 / 110.0)))));
-    let c = 1.0 - r2 / 2.0 * (1.0 - r2 / 12.0 * (1.0 - r2 / 30.0 * (1.0 - r2 / 56.0 * (1.0 - r2 / 90.0 * (1.0 - r2 / 132.0)))));
+    // Taylor series on [-pi/4, pi/4]: truncation below 1e-11. Written with the reciprocals of
+    // the factorial ratios: a driver need not turn a division by a constant into a product.
+    let s = r * (1.0 - r2 * (1.0 / 6.0) * (1.0 - r2 * (1.0 / 20.0) * (1.0 - r2 * (1.0 / 42.0) * (1.0 - r2 * (1.0 / 72.0) * (1.0 - r2 * (1.0 / 110.0))))));
+    let c = 1.0 - r2 * 0.5 * (1.0 - r2 * (1.0 / 12.0) * (1.0 - r2 * (1.0 / 30.0) * (1.0 - r2 * (1.0 / 56.0) * (1.0 - r2 * (1.0 / 90.0) * (1.0 - r2 * (1.0 / 132.0))))));
     switch (i32(k) & 3) {
         case 0: { return vec2f(s, c); }
         case 1: { return vec2f(c, -s); }

@@ -23,7 +23,8 @@ pub struct EvalOptions {
     /// bars); `None`: direct evaluation. The reference and the GPU evaluate directly.
     pub forward_difference: Option<usize>,
     /// GPU: the generic kernel (a switch per track) even for single-family batches, which by
-    /// default run a kernel specialized to their family. Others ignore it.
+    /// default run a kernel specialized to their family (and for B-splines to a shared order
+    /// and to equally spaced knots). Others ignore it.
     pub generic_kernel: bool,
 }
 

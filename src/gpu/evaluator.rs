@@ -1,8 +1,9 @@
 //! [`GpuEvaluator`]: device and pipelines made once, then any number of batch evaluations.
 
-use super::layout::{self, Chunk, ChunkPlan, GpuTrack, Params, ANY_CURVE};
+use super::layout::{self, Chunk, ChunkPlan, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
 use super::shader;
 use super::GpuError;
+use crate::curve::Curve;
 use crate::job::{EvalJob, EvalOptions};
 use crate::output::{FloatOutput, Layout};
 use crate::sampling::SampleTimes;
@@ -51,12 +52,36 @@ struct PreparedChunk {
     groups: [u32; 2],
 }
 
-/// Pipelines are specialized by these override constants.
+/// Pipelines are specialized by these override constants (WGSL `ONLY_CURVE`, ...).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct PipelineKey {
     only_curve: u32,
+    /// The B-spline order every track of the chunk has, or 0.
+    only_order: u32,
+    /// Every track of the chunk is a B-spline on equally spaced knots.
+    uniform_knots_only: bool,
     derivatives: bool,
     matrix: bool,
+}
+
+impl PipelineKey {
+    /// The narrowest kernel that evaluates every track of `tracks` (the generic one when
+    /// `options.generic_kernel` asks for it). On a software adapter every branch of the
+    /// kernel runs, so what a chunk never takes is best compiled out.
+    fn for_chunk(tracks: &[GpuTrack], options: &EvalOptions) -> Self {
+        let first = tracks.first().copied().unwrap_or_default();
+        let specialize = !options.generic_kernel && !tracks.is_empty();
+        let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));
+        let only_curve = if same(|t| t.curve) { first.curve } else { ANY_CURVE };
+        let bspline = only_curve == layout::curve_code(Curve::BSpline);
+        Self {
+            only_curve,
+            only_order: if bspline && same(|t| t.order) { first.order } else { 0 },
+            uniform_knots_only: bspline && tracks.iter().all(|t| t.flags & FLAG_UNIFORM_KNOTS != 0),
+            derivatives: options.derivatives,
+            matrix: options.matrix,
+        }
+    }
 }
 
 /// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch.
@@ -168,7 +193,7 @@ impl GpuEvaluator {
         let polynomials = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("quatcurve polynomials"),
             contents: bytemuck::cast_slice(&table),
-            usage: wgpu::BufferUsages::STORAGE,
+            usage: wgpu::BufferUsages::UNIFORM,
         });
         scope.pop()?;
         let lost = Arc::new(Mutex::new(None));
@@ -402,6 +427,8 @@ impl GpuEvaluator {
             ("ONLY_CURVE", f64::from(key.only_curve)),
             ("DERIVATIVES", f64::from(u8::from(key.derivatives))),
             ("MATRIX", f64::from(u8::from(key.matrix))),
+            ("ONLY_ORDER", f64::from(key.only_order)),
+            ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(key.uniform_knots_only))),
         ];
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("quatcurve eval"),
@@ -419,9 +446,7 @@ impl GpuEvaluator {
     /// Creates a chunk's buffers, bind group and pipeline; output into `target` when given.
     fn upload(&self, chunk: &Chunk, options: &EvalOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
-        let single = chunk.tracks.iter().all(|t| t.curve == chunk.tracks[0].curve);
-        let only_curve = if single && !options.generic_kernel { chunk.tracks[0].curve } else { ANY_CURVE };
-        let pipeline = self.pipeline(PipelineKey { only_curve, derivatives: options.derivatives, matrix: options.matrix })?;
+        let pipeline = self.pipeline(PipelineKey::for_chunk(&chunk.tracks, options))?;
         let groups = (chunk.plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
         let groups_x = groups.min(u64::from(self.max_groups_per_dim)).max(1) as u32;
         let groups_y = groups.div_ceil(u64::from(groups_x)).max(1);

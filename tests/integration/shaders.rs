@@ -94,6 +94,9 @@ fn codes_and_limits_match_the_shader_constants() {
     let bspline_functions: usize = (quatcurve::curve::MIN_ORDER..=quatcurve::curve::MAX_ORDER).map(|k| k - 1).sum();
     assert_eq!(layout::POLY_HERMITE as usize, bspline_functions);
     assert_eq!(layout::polynomial_table().len(), 2 * (bspline_functions + 3));
+    assert_eq!(layout::polynomial_table().len(), c("POLY_ENTRIES") as usize, "the uniform table's declared length");
+    // The kernel reads each track as whole vec4u words.
+    assert_eq!(std::mem::size_of::<GpuTrack>(), 16 * c("TRACK_WORDS") as usize);
 }
 
 #[test]
@@ -144,7 +147,7 @@ fn bind_group_layouts_come_from_the_shaders() {
     let (eval, _) = shader::module().unwrap();
     let (fk, _) = shader::fk_module().unwrap();
     for (module, expected) in [
-        (&eval, &[("params", "uniform"), ("tracks", "read"), ("points", "read"), ("coefs", "read"), ("knots", "read"), ("times", "read"), ("out", "read_write"), ("poly", "read")][..]),
+        (&eval, &[("params", "uniform"), ("tracks", "read"), ("points", "read"), ("coefs", "read"), ("knots", "read"), ("times", "read"), ("out", "read_write"), ("poly", "uniform")][..]),
         (&fk, &[("fk_local", "read"), ("fk_parents", "read"), ("fk_level_joints", "read"), ("fk_model", "read_write"), ("fk_level", "uniform")][..]),
     ] {
         let resources = shader::Resources::of(module).unwrap();

@@ -53,6 +53,23 @@ fn repeated_knots_and_mixed_families_in_one_batch() {
 }
 
 #[test]
+fn bspline_batches_mixing_orders_and_knot_spacings() {
+    let Some(gpu) = gpu() else { return };
+    let uniform = [KnotMode::Uniform, KnotMode::Phantom];
+    for (orders, modes, what) in [
+        (&[4, 2, 4, 5, 3, 8][..], &[KnotMode::Uniform, KnotMode::Phantom, KnotMode::Clamped][..], "mixed orders and spacings"),
+        (&[3, 4, 7][..], &uniform[..], "mixed orders, equally spaced"),
+        (&[5][..], &[KnotMode::Clamped, KnotMode::Uniform][..], "one order, mixed spacings"),
+        (&[4][..], &uniform[..], "one order, equally spaced (both specializations)"),
+    ] {
+        let (batch, times) = bspline_batch(orders, modes);
+        for layout in [Layout::Track, Layout::Frame] {
+            compare_output(&on_gpu(gpu, false)(&batch, &times, layout, true), &batch, &times, layout, true, what).assert_within_bars(what);
+        }
+    }
+}
+
+#[test]
 fn sizes_that_are_not_multiples_of_the_workgroup() {
     let Some(gpu) = gpu() else { return };
     odd_sizes(&on_gpu(gpu, false));
