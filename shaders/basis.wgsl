@@ -5,6 +5,8 @@
 const MAX_BEZIER_DEGREE: u32 = 32u;
 /// Largest B-spline order.
 const MAX_ORDER: u32 = 8u;
+/// Knots a span's basis reads (`KnotWindow`).
+const KNOT_WINDOW: u32 = 2u * MAX_ORDER;
 
 fn bernstein_at(row: ptr<function, array<f32, 33>>, m: i32, j: i32) -> f32 {
     if m < 0 || j < 0 || j > m {
@@ -54,7 +56,7 @@ fn safe_div(a: f32, b: f32) -> f32 {
 }
 
 /// B_{j,m}(t) from the triangle row of order m (row[r] = B_{l-m+1+r, m}); 0 outside it.
-fn bspline_at(row: ptr<function, array<f32, 8>>, l: u32, m: u32, j: u32) -> f32 {
+fn bspline_at(row: ptr<function, array<f32, MAX_ORDER>>, l: u32, m: u32, j: u32) -> f32 {
     let first = i32(l) - i32(m) + 1;
     let r = i32(j) - first;
     if m == 0u || r < 0 || r >= i32(m) {
@@ -63,29 +65,54 @@ fn bspline_at(row: ptr<function, array<f32, 8>>, l: u32, m: u32, j: u32) -> f32 
     return (*row)[r];
 }
 
-/// Where the basis takes knot differences from: the fixed-point knot vector at `base`, and
-/// the (clamped) time `t`.
-struct KnotSource {
-    base: u32,
+/// The knots the basis of span l reads, l - k + 1 ..= l + k, copied once from the fixed-point
+/// knot vector at `base` (a storage load per knot, instead of one per knot difference), and
+/// the (clamped) time `t`. Knot l sits at index k - 1.
+struct KnotWindow {
+    knots: array<vec2u, KNOT_WINDOW>,
     t: vec2u,
 }
 
-/// t - knot j, in seconds.
-fn t_minus_knot(src: KnotSource, j: u32) -> f32 {
-    return time_sub(src.t, knot(src.base, j));
+fn knot_window(base: u32, k: u32, l: u32, t: vec2u) -> KnotWindow {
+    var w: KnotWindow;
+    w.t = t;
+    for (var i = 0u; i < 2u * k; i++) {
+        w.knots[i] = knot(base, l + 1u + i - k);
+    }
+    return w;
 }
 
-/// knot a - knot b, in seconds.
-fn knot_minus_knot(src: KnotSource, a: u32, b: u32) -> f32 {
-    return time_sub(knot(src.base, a), knot(src.base, b));
+/// t - knot j (window index), in seconds.
+fn t_minus_knot(w: ptr<function, KnotWindow>, j: u32) -> f32 {
+    return time_sub((*w).t, (*w).knots[j]);
 }
 
-/// Cumulative B-spline basis of order k in span l at t (knot differences from `src`):
-/// out[r] for i = l-k+2+r, r = 0..k-2, derivatives in time.
-fn bspline_cumulative(src: KnotSource, k: u32, l: u32, out: ptr<function, array<vec3f, 7>>) {
-    var row: array<f32, 8>;
-    var row_k1: array<f32, 8>; // order k - 1
-    var row_k2: array<f32, 8>; // order k - 2
+/// knot a - knot b (window indices), in seconds.
+fn knot_minus_knot(w: ptr<function, KnotWindow>, a: u32, b: u32) -> f32 {
+    return time_sub((*w).knots[a], (*w).knots[b]);
+}
+
+/// Cumulative B-spline basis of order k on the span of window `w` at its time: out[r] for
+/// i = l-k+2+r, r = 0..k-2, derivatives in time. Indices below are window indices: the span
+/// is l = k - 1. The triangle is de Boor's: the 2k - 2 distances from t to the knots are
+/// formed once (exact fixed-point differences, then one rounding each) and every quotient of
+/// the recurrence reads them, so each order costs additions and one division per term
+/// instead of four fixed-point subtractions. A zero-length interval gives 0, as in the
+/// reference: its distances cancel exactly.
+fn bspline_cumulative(window: KnotWindow, k: u32, out: ptr<function, array<vec3f, 7>>) {
+    var w = window;
+    let l = k - 1u;
+    // left[j] = t - knot(l + 1 - j), right[j] = knot(l + j) - t.
+    var left: array<f32, MAX_ORDER>;
+    var right: array<f32, MAX_ORDER>;
+    for (var j = 1u; j < k; j++) {
+        left[j] = t_minus_knot(&w, l + 1u - j);
+        right[j] = -t_minus_knot(&w, l + j);
+    }
+    // row[r] = B_{l-m+1+r, m}, the basis of order m (row_k1, row_k2: orders k - 1, k - 2).
+    var row: array<f32, MAX_ORDER>;
+    var row_k1: array<f32, MAX_ORDER>;
+    var row_k2: array<f32, MAX_ORDER>;
     row[0] = 1.0;
     if k == 2u {
         row_k1 = row;
@@ -94,22 +121,13 @@ fn bspline_cumulative(src: KnotSource, k: u32, l: u32, out: ptr<function, array<
         row_k2 = row;
     }
     for (var m = 1u; m < k; m++) {
-        var next: array<f32, 8>;
-        for (var r = 0u; r <= m; r++) {
-            let j = l - m + r;
-            var left = 0.0;
-            var right = 0.0;
-            if r >= 1u {
-                let den = knot_minus_knot(src, j + m, j);
-                left = safe_div(t_minus_knot(src, j), den) * row[r - 1u];
-            }
-            if r < m {
-                let den = knot_minus_knot(src, j + m + 1u, j + 1u);
-                right = safe_div(-t_minus_knot(src, j + m + 1u), den) * row[r];
-            }
-            next[r] = left + right;
+        var saved = 0.0;
+        for (var r = 0u; r < m; r++) {
+            let quotient = safe_div(row[r], right[r + 1u] + left[m - r]);
+            row[r] = saved + right[r + 1u] * quotient;
+            saved = left[m - r] * quotient;
         }
-        row = next;
+        row[m] = saved;
         if m + 1u == k - 1u {
             row_k1 = row;
         }
@@ -122,12 +140,12 @@ fn bspline_cumulative(src: KnotSource, k: u32, l: u32, out: ptr<function, array<
     var tail = 0.0;
     for (var i = l; i >= first; i--) {
         tail += bspline_at(&row, l, k, i);
-        let span1 = knot_minus_knot(src, i + k - 1u, i);
+        let span1 = knot_minus_knot(&w, i + k - 1u, i);
         let d1 = (kf - 1.0) * safe_div(bspline_at(&row_k1, l, k - 1u, i), span1);
         var d2 = 0.0;
         if k >= 3u {
-            let inner = safe_div(bspline_at(&row_k2, l, k - 2u, i), knot_minus_knot(src, i + k - 2u, i))
-                - safe_div(bspline_at(&row_k2, l, k - 2u, i + 1u), knot_minus_knot(src, i + k - 1u, i + 1u));
+            let inner = safe_div(bspline_at(&row_k2, l, k - 2u, i), knot_minus_knot(&w, i + k - 2u, i))
+                - safe_div(bspline_at(&row_k2, l, k - 2u, i + 1u), knot_minus_knot(&w, i + k - 1u, i + 1u));
             d2 = (kf - 1.0) * (kf - 2.0) * safe_div(inner, span1);
         }
         (*out)[i - first] = vec3f(tail, d1, d2);

@@ -28,8 +28,8 @@ const FLAG_UNIFORM_KNOTS: u32 = 4u;
 
 /// Specialization: evaluate only this curve (ANY_CURVE: switch per track).
 override ONLY_CURVE: u32 = 255u;
-/// Specialization: every track's knots are equally spaced (FLAG_UNIFORM_KNOTS), so the
-/// general Cox-de Boor path is left out.
+/// Specialization: every track's knots (or key times) are equally spaced (FLAG_UNIFORM_KNOTS),
+/// so spans are found by arithmetic alone and the general Cox-de Boor path is left out.
 override UNIFORM_KNOTS_ONLY: bool = false;
 /// Specialization: every B-spline track has this order (0: read it per track), so the basis
 /// loops unroll and the polynomial table is read at constant offsets.
@@ -187,7 +187,13 @@ struct Piece {
 }
 
 fn key_segment(tr: GpuTrack, t: vec2u) -> Piece {
-    let loc = locate(tr.knot_offset, 0u, tr.knot_count - 2u, t);
+    var loc: Located;
+    // The per-track flag is not consulted: on a SIMD host both searches would then run.
+    if UNIFORM_KNOTS_ONLY {
+        loc = locate_uniform(tr.knot_offset, 0u, tr.knot_count - 2u, t);
+    } else {
+        loc = locate(tr.knot_offset, 0u, tr.knot_count - 2u, t);
+    }
     let k0 = knot(tr.knot_offset, loc.span);
     let len = time_sub(knot(tr.knot_offset, loc.span + 1u), k0);
     return Piece(loc.span, time_sub(loc.t, k0) / len, 1.0 / len);
@@ -227,28 +233,13 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     let m = tr.point_count - 1u;
     if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
-        // Span by arithmetic, then checked against the exact knots (so long clips keep
-        // full precision); the basis is the same polynomials of u on every span.
-        let lo = knot(tr.knot_offset, k - 1u);
-        let hi = knot(tr.knot_offset, m + 1u);
-        var tc = t;
-        if !time_le(lo, tc) {
-            tc = lo;
-        }
-        if !time_le(tc, hi) {
-            tc = hi;
-        }
-        let dt = time_sub(knot(tr.knot_offset, k), lo);
-        var l = k - 1u + u32(clamp(floor(time_sub(tc, lo) / dt), 0.0, f32(m + 1u - k)));
-        if l > k - 1u && !time_le(knot(tr.knot_offset, l), tc) {
-            l -= 1u;
-        }
-        if l < m && time_le(knot(tr.knot_offset, l + 1u), tc) {
-            l += 1u;
-        }
+        // Span by arithmetic, checked against the exact knots (so long clips keep full
+        // precision); the basis is the same polynomials of u on every span.
+        let loc = locate_uniform(tr.knot_offset, k - 1u, m, t);
+        let l = loc.span;
         let start = knot(tr.knot_offset, l);
         let len = time_sub(knot(tr.knot_offset, l + 1u), start);
-        let u = time_sub(tc, start) / len;
+        let u = time_sub(loc.t, start) / len;
         let scale = vec3f(1.0, 1.0 / len, 1.0 / (len * len));
         let base = (k - 2u) * (k - 1u) / 2u;
         var p = product_start(points[tr.point_offset + l + 1u - k]);
@@ -260,7 +251,7 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let loc = locate(tr.knot_offset, k - 1u, m, t);
     let l = loc.span;
     var basis: array<vec3f, 7>;
-    bspline_cumulative(KnotSource(tr.knot_offset, loc.t), k, l, &basis);
+    bspline_cumulative(knot_window(tr.knot_offset, k, l, loc.t), k, &basis);
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {
         p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, basis[r]);

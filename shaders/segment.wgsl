@@ -97,3 +97,26 @@ fn locate(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
     }
     return Located(a, t);
 }
+
+/// `locate` on equally spaced knots (no empty spans): the span by arithmetic, then stepped to
+/// the exact knots' answer, so a time on a knot takes the span `locate` gives it.
+fn locate_uniform(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
+    let lo = knot(base, first);
+    let hi = knot(base, last + 1u);
+    var t = t_in;
+    if !time_le(lo, t) {
+        t = lo;
+    }
+    if !time_le(t, hi) {
+        t = hi;
+    }
+    let step = time_sub(knot(base, first + 1u), lo);
+    var a = first + u32(clamp(floor(time_sub(t, lo) / step), 0.0, f32(last - first)));
+    while a > first && !time_le(knot(base, a), t) {
+        a -= 1u;
+    }
+    while a < last && time_le(knot(base, a + 1u), t) {
+        a += 1u;
+    }
+    return Located(a, t);
+}

@@ -58,7 +58,7 @@ struct PipelineKey {
     only_curve: u32,
     /// The B-spline order every track of the chunk has, or 0.
     only_order: u32,
-    /// Every track of the chunk is a B-spline on equally spaced knots.
+    /// Every track of the chunk has equally spaced knots (`FLAG_UNIFORM_KNOTS`).
     uniform_knots_only: bool,
     derivatives: bool,
     matrix: bool,
@@ -77,7 +77,7 @@ impl PipelineKey {
         Self {
             only_curve,
             only_order: if bspline && same(|t| t.order) { first.order } else { 0 },
-            uniform_knots_only: bspline && tracks.iter().all(|t| t.flags & FLAG_UNIFORM_KNOTS != 0),
+            uniform_knots_only: specialize && tracks.iter().all(|t| t.flags & FLAG_UNIFORM_KNOTS != 0),
             derivatives: options.derivatives,
             matrix: options.matrix,
         }

@@ -82,9 +82,9 @@ pub struct Params {
 pub const FLAG_EXPLICIT_TIMES: u32 = 1;
 /// `FLAG_HAS_LAST` in the shader.
 pub const FLAG_HAS_LAST: u32 = 2;
-/// `FLAG_UNIFORM_KNOTS` in the shader: B-spline knots equally spaced
-/// ([`crate::batch::PackedTrack::uniform_knots`]),
-/// so the kernel finds spans by arithmetic and uses integer knot differences.
+/// `FLAG_UNIFORM_KNOTS` in the shader: knots (a B-spline's, or the key times) equally spaced
+/// ([`crate::batch::PackedTrack::uniform_knots`]), so the kernel finds spans by arithmetic
+/// and a B-spline takes the fixed polynomial span bases.
 pub const FLAG_UNIFORM_KNOTS: u32 = 4;
 
 /// `ANY_CURVE` in the shader: no specialization.
@@ -404,7 +404,7 @@ fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: u
         sample_base: range.start as u32,
         ..GpuTrack::default()
     };
-    if view.track.curve == Curve::BSpline && view.track.uniform_knots {
+    if view.track.uniform_knots {
         gpu.flags |= FLAG_UNIFORM_KNOTS;
     }
     match times.tracks[index] {
