@@ -70,18 +70,17 @@ struct Located {
     t: vec2u,
 }
 
+/// t clamped to [lo, hi].
+fn time_clamp(t: vec2u, lo: vec2u, hi: vec2u) -> vec2u {
+    let above = select(t, lo, !time_le(lo, t));
+    return select(above, hi, !time_le(above, hi));
+}
+
 /// Clamps t to [knot first, knot last + 1] and finds the largest non-empty span in
 /// first..=last with knot[span] <= t (the last span is closed).
 fn locate(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
     let lo = knot(base, first);
-    let hi = knot(base, last + 1u);
-    var t = t_in;
-    if !time_le(lo, t) {
-        t = lo;
-    }
-    if !time_le(t, hi) {
-        t = hi;
-    }
+    let t = time_clamp(t_in, lo, knot(base, last + 1u));
     var a = first;
     var b = last;
     while a < b {
@@ -102,14 +101,7 @@ fn locate(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
 /// the exact knots' answer, so a time on a knot takes the span `locate` gives it.
 fn locate_uniform(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
     let lo = knot(base, first);
-    let hi = knot(base, last + 1u);
-    var t = t_in;
-    if !time_le(lo, t) {
-        t = lo;
-    }
-    if !time_le(t, hi) {
-        t = hi;
-    }
+    let t = time_clamp(t_in, lo, knot(base, last + 1u));
     let step = time_sub(knot(base, first + 1u), lo);
     var a = first + u32(clamp(floor(time_sub(t, lo) / step), 0.0, f32(last - first)));
     while a > first && !time_le(knot(base, a), t) {
