@@ -31,8 +31,9 @@ override ONLY_CURVE: u32 = 255u;
 /// Specialization: every track's knots (or key times) are equally spaced (FLAG_UNIFORM_KNOTS),
 /// so spans are found by arithmetic alone and the general Cox-de Boor path is left out.
 override UNIFORM_KNOTS_ONLY: bool = false;
-/// Specialization: every B-spline track has this order (0: read it per track), so the basis
-/// loops unroll and the polynomial table is read at constant offsets.
+/// Specialization: every B-spline track has this order (0: read it per track), so the order
+/// is a constant to the driver's compiler and the polynomial table is read at constant
+/// offsets (uniform loads, not one per lane).
 override ONLY_ORDER: u32 = 0u;
 /// Whether to compute and write angular velocity and acceleration.
 override DERIVATIVES: bool = true;

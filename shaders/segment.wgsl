@@ -103,7 +103,9 @@ fn locate_uniform(base: u32, first: u32, last: u32, t_in: vec2u) -> Located {
     let lo = knot(base, first);
     let t = time_clamp(t_in, lo, knot(base, last + 1u));
     let step = time_sub(knot(base, first + 1u), lo);
-    var a = first + u32(clamp(floor(time_sub(t, lo) / step), 0.0, f32(last - first)));
+    // Bounded as an integer too: a NaN quotient (knots that collapse in fixed point) converts
+    // to an indeterminate u32, and the steps below must stay within first..=last.
+    var a = first + min(u32(clamp(floor(time_sub(t, lo) / step), 0.0, f32(last - first))), last - first);
     while a > first && !time_le(knot(base, a), t) {
         a -= 1u;
     }

@@ -182,6 +182,18 @@ pub enum PackError {
     /// Too many samples in one track for exact in-shader time generation.
     #[error("{track}: {count} samples is more than the GPU limit of {max} per track")]
     TooManySamples { track: String, count: usize, max: usize },
+    /// Two distinct knots (key times) that the kernel's 32.32 fixed-point times cannot tell
+    /// apart: the span between them would have zero length there (NaN samples).
+    #[error("{track}: knots {knot} and {next} are {gap:e} s apart, closer than the GPU's time resolution of {resolution:e} s; use the cpu device", next = knot + 1)]
+    KnotsTooClose { track: String, knot: usize, gap: f64, resolution: f64 },
+}
+
+/// The kernel's time resolution: one tick of 32.32 fixed point, 2^-32 s.
+pub const TIME_RESOLUTION: f64 = 1.0 / 4_294_967_296.0;
+
+/// The first non-empty span of `knots` that is empty in fixed point, as its start index.
+fn collapsed_span(knots: &[f64]) -> Option<usize> {
+    knots.windows(2).position(|w| w[1] > w[0] && fixed_time(w[1]) == fixed_time(w[0]))
 }
 
 /// Largest Bezier degree the shader evaluates (`MAX_BEZIER_DEGREE`, checked by a test).
@@ -208,11 +220,13 @@ pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
 /// Splits `batch` into chunks whose every buffer stays within `binding_limit` bytes. A track
 /// whose samples alone overflow a binding is cut into pieces of consecutive samples, one
 /// chunk each (so no track is refused for its length; its keys travel with every piece).
-/// Constant work per track, nothing copied: [`pack`] fills each chunk when it is needed.
+/// Constant work per track (and one pass over each knot vector that consecutive tracks do not
+/// share), nothing copied: [`pack`] fills each chunk when it is needed.
 ///
 /// # Errors
 /// [`PackError`] naming the track: a Bezier degree the kernel cannot take, more than
-/// [`MAX_SAMPLES_PER_TRACK`] samples, or keys that alone overflow a binding.
+/// [`MAX_SAMPLES_PER_TRACK`] samples, distinct knots closer than [`TIME_RESOLUTION`], or keys
+/// that alone overflow a binding.
 pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<ChunkPlan>, PackError> {
     let mut chunks = vec![ChunkPlan::default()];
     for index in 0..batch.len() {
@@ -225,6 +239,13 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         }
         if count >= MAX_SAMPLES_PER_TRACK {
             return Err(PackError::TooManySamples { track: name(), count, max: MAX_SAMPLES_PER_TRACK - 1 });
+        }
+        let shared = index > 0 && batch.tracks[index - 1].knot_offset == track.knot_offset;
+        if !shared {
+            let knots = &batch.knots[track.knot_offset..track.knot_offset + track.knot_count];
+            if let Some(knot) = collapsed_span(knots) {
+                return Err(PackError::KnotsTooClose { track: name(), knot, gap: knots[knot + 1] - knots[knot], resolution: TIME_RESOLUTION });
+            }
         }
         // Chunk `c` with `samples` more samples of this track.
         let grown = |c: &ChunkPlan, samples: usize| ChunkPlan {

@@ -121,6 +121,29 @@ fn unsupported_batches_are_errors_naming_the_track() {
     assert!(err.contains("track 0") && err.contains("degree 39"), "{err}");
 }
 
+/// Key times closer than the kernel's 32.32 fixed-point resolution would give zero-length
+/// spans there and NaN samples: refused, naming the track and the knots; `auto` takes the
+/// CPU path, which evaluates them.
+#[test]
+fn knots_closer_than_the_gpu_time_resolution_are_refused() {
+    let Some(gpu) = gpu() else { return };
+    let keys: Vec<[f64; 4]> = (0..5).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.1 * f64::from(i), 0.0, 0.0)).to_array()).collect();
+    let times: Vec<f64> = (0..5).map(|i| 1e-11 * f64::from(i)).collect();
+    let mut tiny = quatcurve::Track::from_rotations(keys.clone());
+    tiny.times = Some(times);
+    tiny.name = Some("tiny".into());
+    let normal = quatcurve::Track::from_rotations(keys);
+    for curve in [Curve::Slerp, Curve::Hermite, Curve::BSpline] {
+        let batch = Batch::from_tracks(&[normal.clone(), tiny.clone()], &CurveSpec::new(curve)).unwrap();
+        let times = SampleTimes::uniform(&batch, Sampling::Count(4)).unwrap();
+        let err = gpu.evaluate(&EvalJob::new(&batch, &times)).unwrap_err().to_string();
+        assert!(err.contains("tiny") && err.contains("time resolution"), "{curve}: {err}");
+        let device = quatcurve::Device::Auto(Box::new(gpu.share_device()), quatcurve::cpu::CpuEvaluator::new());
+        let (out, name) = device.evaluate_named(&EvalJob::new(&batch, &times)).unwrap();
+        assert!(name.starts_with("cpu:") && out.rotations.iter().flatten().all(|v| v.is_finite()), "{curve}: {name}");
+    }
+}
+
 #[test]
 fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
     let Some(_) = gpu() else { return };
