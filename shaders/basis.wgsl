@@ -5,6 +5,8 @@
 const MAX_BEZIER_DEGREE: u32 = 32u;
 /// Largest B-spline order.
 const MAX_ORDER: u32 = 8u;
+/// Factors of a B-spline span's product (cumulative basis functions): k - 1.
+const MAX_FACTORS: u32 = MAX_ORDER - 1u;
 /// Knots a span's basis reads (`KnotWindow`).
 const KNOT_WINDOW: u32 = 2u * MAX_ORDER;
 
@@ -92,14 +94,14 @@ fn knot_minus_knot(w: ptr<function, KnotWindow>, a: u32, b: u32) -> f32 {
     return time_sub((*w).knots[a], (*w).knots[b]);
 }
 
-/// Cumulative B-spline basis of order k on the span of window `w` at its time: out[r] for
+/// Cumulative B-spline basis of order k on the span of `window` at its time: out[r] for
 /// i = l-k+2+r, r = 0..k-2, derivatives in time. Indices below are window indices: the span
 /// is l = k - 1. The triangle is de Boor's: the 2k - 2 distances from t to the knots are
 /// formed once (exact fixed-point differences, then one rounding each) and every quotient of
 /// the recurrence reads them, so each order costs additions and one division per term
 /// instead of four fixed-point subtractions. A zero-length interval gives 0, as in the
 /// reference: its distances cancel exactly.
-fn bspline_cumulative(window: KnotWindow, k: u32, out: ptr<function, array<vec3f, 7>>) {
+fn bspline_cumulative(window: KnotWindow, k: u32, out: ptr<function, array<vec3f, MAX_FACTORS>>) {
     var w = window;
     let l = k - 1u;
     // left[j] = t - knot(l + 1 - j), right[j] = knot(l + j) - t.

@@ -251,7 +251,7 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     }
     let loc = locate(tr.knot_offset, k - 1u, m, t);
     let l = loc.span;
-    var basis: array<vec3f, 7>;
+    var basis: array<vec3f, MAX_FACTORS>;
     bspline_cumulative(knot_window(tr.knot_offset, k, l, loc.t), k, &basis);
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {

@@ -89,6 +89,8 @@ fn codes_and_limits_match_the_shader_constants() {
     assert_eq!(layout::FLAG_UNIFORM_KNOTS, c("FLAG_UNIFORM_KNOTS"));
     assert_eq!(layout::MAX_BEZIER_DEGREE as u32, c("MAX_BEZIER_DEGREE"));
     assert_eq!(quatcurve::curve::MAX_ORDER as u32, c("MAX_ORDER"), "highest B-spline order");
+    assert_eq!(quatcurve::curve::MAX_ORDER as u32 - 1, c("MAX_FACTORS"), "factors of an order-8 span");
+    assert_eq!(2 * quatcurve::curve::MAX_ORDER as u32, c("KNOT_WINDOW"), "knots an order-8 span's basis reads");
     assert_eq!(layout::POLY_HERMITE, c("POLY_HERMITE"));
     // The table: the uniform B-spline bases of orders 2..=8, then Hermite's three functions.
     let bspline_functions: usize = (quatcurve::curve::MIN_ORDER..=quatcurve::curve::MAX_ORDER).map(|k| k - 1).sum();
