@@ -113,11 +113,14 @@ pub fn blend_code(blend: Blend) -> u32 {
     }
 }
 
+/// The kernel's time resolution: one tick of 32.32 fixed point, 2^-32 s.
+pub const TIME_RESOLUTION: f64 = 1.0 / 4_294_967_296.0;
+
 /// Seconds as 32.32 fixed point `[low word, high word]` (two's complement), rounded to the
 /// nearest 2^-32 s. Times beyond +-2^31 s saturate.
 #[must_use]
 pub fn fixed_time(t: f64) -> [u32; 2] {
-    let ticks = (t * 4_294_967_296.0).round().clamp(i64::MIN as f64, i64::MAX as f64) as i64;
+    let ticks = (t / TIME_RESOLUTION).round().clamp(i64::MIN as f64, i64::MAX as f64) as i64;
     [ticks as u32, (ticks >> 32) as u32]
 }
 
@@ -188,8 +191,6 @@ pub enum PackError {
     KnotsTooClose { track: String, knot: usize, gap: f64, resolution: f64 },
 }
 
-/// The kernel's time resolution: one tick of 32.32 fixed point, 2^-32 s.
-pub const TIME_RESOLUTION: f64 = 1.0 / 4_294_967_296.0;
 
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.
 fn collapsed_span(knots: &[f64]) -> Option<usize> {
