@@ -1,6 +1,6 @@
 //! [`GpuEvaluator`]: device and pipelines made once, then any number of batch evaluations.
 
-use super::layout::{self, Chunk, ChunkPlan, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
+use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
 use super::shader;
 use super::GpuError;
 use crate::curve::Curve;
@@ -305,11 +305,11 @@ impl GpuEvaluator {
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
     /// mismatched inputs, device errors as [`GpuError::Device`] or [`GpuError::DeviceLost`].
     pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<GpuOutput, GpuError> {
-        let EvalJob { batch, times, options } = *job;
+        let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
         for plan in &self.plan(job, channels, self.binding_limit.min(self.stream_chunk_bytes()))? {
-            let prepared = self.upload(&layout::pack(plan, batch, times), &options, channels, None)?;
+            let prepared = self.upload(plan, job, channels, None)?;
             self.submit(&prepared)?;
             // The readback copy is queued behind the dispatch: one wait covers both.
             self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, plan, times, options.layout, channels, &mut data))?;
@@ -329,11 +329,11 @@ impl GpuEvaluator {
     /// # Errors
     /// As [`GpuEvaluator::evaluate`].
     pub fn prepare(&self, job: &EvalJob<'_>) -> Result<PreparedBatch, GpuError> {
-        let EvalJob { batch, times, options } = *job;
+        let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
         // The chunks `evaluate` streams, so a dispatch-only figure times the same dispatches.
         let plans = self.plan(job, channels, self.binding_limit.min(self.stream_chunk_bytes()))?;
-        let chunks = plans.iter().map(|plan| self.upload(&layout::pack(plan, batch, times), &options, channels, None)).collect::<Result<_, _>>()?;
+        let chunks = plans.iter().map(|plan| self.upload(plan, job, channels, None)).collect::<Result<_, _>>()?;
         Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
     }
 
@@ -369,7 +369,7 @@ impl GpuEvaluator {
     /// As [`GpuEvaluator::evaluate`], and [`GpuError::Job`] when the buffer is too small or
     /// the batch needs more than one binding (evaluate it in parts, or use `evaluate`).
     pub fn evaluate_into(&self, job: &EvalJob<'_>, target: &wgpu::Buffer) -> Result<(), GpuError> {
-        let EvalJob { batch, times, options } = *job;
+        let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
         let needed = (times.total() * channels * 4) as u64;
         if target.size() < needed {
@@ -383,7 +383,7 @@ impl GpuEvaluator {
                 self.binding_limit
             )));
         }
-        let prepared = self.upload(&layout::pack(&chunks[0], batch, times), &options, channels, Some(target))?;
+        let prepared = self.upload(&chunks[0], job, channels, Some(target))?;
         self.submit(&prepared)?;
         self.wait()
     }
@@ -443,25 +443,43 @@ impl GpuEvaluator {
         Ok(pipeline)
     }
 
-    /// Creates a chunk's buffers, bind group and pipeline; output into `target` when given.
-    fn upload(&self, chunk: &Chunk, options: &EvalOptions, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
+    /// Creates a chunk's buffers, packs its tracks straight into them ([`layout::pack`]), and
+    /// makes its bind group and pipeline; output into `target` when given.
+    fn upload(&self, plan: &ChunkPlan, job: &EvalJob<'_>, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
-        let pipeline = self.pipeline(PipelineKey::for_chunk(&chunk.tracks, options))?;
-        let groups = (chunk.plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
+        let options = &job.options;
+        let groups = (plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
         let groups_x = groups.min(u64::from(self.max_groups_per_dim)).max(1) as u32;
         let groups_y = groups.div_ceil(u64::from(groups_x)).max(1);
         if groups_y > u64::from(self.max_groups_per_dim) {
-            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", chunk.plan.samples)));
+            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", plan.samples)));
         }
+        let scope = ErrorScope::push(&self.device);
+        // Mapped at creation and written in place; where buffers the kernel reads can be
+        // mapped themselves (`MAPPABLE_PRIMARY_BUFFERS`, unified memory), without a staging copy.
+        let storage = wgpu::BufferUsages::STORAGE;
+        let writable = storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
+        let mapped = |label: &str, bytes: usize| {
+            // Bindings may not be empty.
+            let size = (bytes as u64).max(16);
+            self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: writable, mapped_at_creation: true })
+        };
+        let packed = [mapped("points", plan.points * 16), mapped("coefs", plan.coefs * 16), mapped("knots", plan.knots * 8), mapped("times", plan.times * 8)];
+        let tracks = {
+            let [p, c, k, t] = packed.each_ref().map(|b| b.get_mapped_range_mut(..).map_err(|e| GpuError::Device(format!("writing the packed batch: {e}"))));
+            let (mut p, mut c, mut k, mut t) = (p?, c?, k?, t?);
+            layout::pack(plan, job.batch, job.times, ChunkTargets { points: p.slice(..), coefs: c.slice(..), knots: k.slice(..), times: t.slice(..) })
+        };
+        packed.iter().for_each(wgpu::Buffer::unmap);
+        let pipeline = self.pipeline(PipelineKey::for_chunk(&tracks, options))?;
         let params = Params {
-            sample_count: chunk.plan.samples as u32,
-            track_count: chunk.tracks.len() as u32,
+            sample_count: plan.samples as u32,
+            track_count: tracks.len() as u32,
             channels: channels as u32,
             frame_major: u32::from(options.layout == Layout::Frame),
             groups_x,
             ..Params::default()
         };
-        let scope = ErrorScope::push(&self.device);
         let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             // Bindings may not be empty: pad to 16 bytes (a copy only for tiny contents).
             let padded;
@@ -473,16 +491,16 @@ impl GpuEvaluator {
             };
             self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
-        let storage = wgpu::BufferUsages::STORAGE;
+        let [points, coefs, knots, times] = packed;
         let inputs = [
             init("params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
-            init("tracks", bytemuck::cast_slice::<GpuTrack, u8>(&chunk.tracks), storage),
-            init("points", bytemuck::cast_slice(&chunk.points), storage),
-            init("coefs", bytemuck::cast_slice(&chunk.coefs), storage),
-            init("knots", bytemuck::cast_slice(&chunk.knots), storage),
-            init("times", bytemuck::cast_slice(&chunk.times), storage),
+            init("tracks", bytemuck::cast_slice::<GpuTrack, u8>(&tracks), storage),
+            points,
+            coefs,
+            knots,
+            times,
         ];
-        let output_bytes = (chunk.plan.samples * channels * 4) as u64;
+        let output_bytes = (plan.samples * channels * 4) as u64;
         let spare = if target.is_none() { self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take().filter(|b| b.size() >= output_bytes) } else { None };
         let output = match (target, spare) {
             (Some(buffer), _) => buffer.clone(),

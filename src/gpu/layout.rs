@@ -156,21 +156,18 @@ pub struct ChunkPlan {
     pub times: usize,
 }
 
-/// A chunk packed for the kernel: its plan and the f32 / fixed-point arrays of its tracks.
-#[derive(Clone, Debug, Default)]
-pub struct Chunk {
-    /// What the chunk covers.
-    pub plan: ChunkPlan,
-    /// Tracks, rebased to the chunk's arrays.
-    pub tracks: Vec<GpuTrack>,
-    /// Points `[x, y, z, w]`.
-    pub points: Vec<[f32; 4]>,
-    /// Coefficients.
-    pub coefs: Vec<[f32; 4]>,
-    /// Knots in 32.32 fixed point.
-    pub knots: Vec<[u32; 2]>,
+/// Where [`pack`] writes a chunk's arrays, as bytes: on the device path, its buffers mapped at
+/// creation, so that the packed data is written once, straight into memory the kernel reads
+/// (no host copy of the chunk beside them). Each view holds at least the plan's entries.
+pub struct ChunkTargets<'a> {
+    /// Points `[x, y, z, w]` as f32.
+    pub points: wgpu::WriteOnly<'a, [u8]>,
+    /// Coefficients as f32.
+    pub coefs: wgpu::WriteOnly<'a, [u8]>,
+    /// Knots in 32.32 fixed point (one copy per run of tracks sharing a knot vector).
+    pub knots: wgpu::WriteOnly<'a, [u8]>,
     /// Explicit sample times in 32.32 fixed point.
-    pub times: Vec<[u32; 2]>,
+    pub times: wgpu::WriteOnly<'a, [u8]>,
 }
 
 /// Why a batch cannot go to the GPU.
@@ -195,6 +192,16 @@ pub enum PackError {
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.
 fn collapsed_span(knots: &[f64]) -> Option<usize> {
     knots.windows(2).position(|w| w[1] > w[0] && fixed_time(w[1]) == fixed_time(w[0]))
+}
+
+/// Whether track `index` has the knot vector of the track before it (the builder shares one
+/// entry between consecutive tracks keyed at the same times). Within a chunk such a track
+/// reads the same packed knots too: a million tracks sharing 36 knots pack 0.3 GB less.
+fn shares_knots(batch: &Batch, index: usize) -> bool {
+    index > 0 && {
+        let (previous, track) = (&batch.tracks[index - 1], &batch.tracks[index]);
+        previous.knot_offset == track.knot_offset && previous.knot_count == track.knot_count
+    }
 }
 
 /// Largest Bezier degree the shader evaluates (`MAX_BEZIER_DEGREE`, checked by a test).
@@ -241,7 +248,7 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         if count >= MAX_SAMPLES_PER_TRACK {
             return Err(PackError::TooManySamples { track: name(), count, max: MAX_SAMPLES_PER_TRACK - 1 });
         }
-        let shared = index > 0 && batch.tracks[index - 1].knot_offset == track.knot_offset;
+        let shared = shares_knots(batch, index);
         if !shared {
             let knots = &batch.knots[track.knot_offset..track.knot_offset + track.knot_count];
             if let Some(knot) = collapsed_span(knots) {
@@ -254,7 +261,7 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
             samples: c.samples + samples,
             points: c.points + track.point_count,
             coefs: c.coefs + track.coef_count,
-            knots: c.knots + track.knot_count,
+            knots: c.knots + if c.tracks > 0 && shared { 0 } else { track.knot_count },
             times: c.times + if explicit { samples } else { 0 },
             ..c.clone()
         };
@@ -302,19 +309,17 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
 /// Tracks [`pack`] gives one task.
 const PACK_TASK: usize = 1 << 12;
 
-/// The kernel's arrays for `plan`, its tracks packed on every core (each into its own slices
-/// of arrays allocated once at their final sizes).
+/// Entries a task converts before copying them to their target (64 KiB of points): small
+/// enough to stay in cache between the conversion and the copy.
+const STAGE_ENTRIES: usize = 1 << 12;
+
+/// Packs `plan`'s tracks into `targets` on every core (each task into its own ranges of the
+/// targets, converted through a small staging buffer) and returns their records, for the
+/// `tracks` binding and for choosing the kernel.
 #[must_use]
-pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes) -> Chunk {
+pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes, targets: ChunkTargets<'_>) -> Vec<GpuTrack> {
     use rayon::prelude::*;
-    let mut chunk = Chunk {
-        plan: plan.clone(),
-        tracks: vec![GpuTrack::default(); plan.tracks],
-        points: vec![[0.0; 4]; plan.points],
-        coefs: vec![[0.0; 4]; plan.coefs],
-        knots: vec![[0; 2]; plan.knots],
-        times: vec![[0; 2]; plan.times],
-    };
+    let mut records = vec![GpuTrack::default(); plan.tracks];
     // Each task's tracks and where their entries start: (first track, tracks, offsets).
     let mut tasks = Vec::with_capacity(plan.tracks.div_ceil(PACK_TASK));
     let mut at = Offsets::default();
@@ -325,50 +330,86 @@ pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes) -> Chunk {
             at = at.after(batch, times, plan, i);
         }
     }
-    // Every task's slices of the five arrays, split off in order.
-    let (mut tracks, mut points, mut coefs, mut knots, mut sample_times) =
-        (&mut chunk.tracks[..], &mut chunk.points[..], &mut chunk.coefs[..], &mut chunk.knots[..], &mut chunk.times[..]);
+    // Every task's records and byte ranges of the four targets, split off in order.
+    let ChunkTargets { mut points, mut coefs, mut knots, times: mut sample_times } = targets;
+    let mut rest = &mut records[..];
     let ends: Vec<Offsets> = tasks.iter().skip(1).map(|t| t.2).chain([at]).collect();
     let mut work = Vec::with_capacity(tasks.len());
     for (&(first, n, start), end) in tasks.iter().zip(&ends) {
-        let (t, rest) = std::mem::take(&mut tracks).split_at_mut(n);
-        tracks = rest;
-        let (p, rest) = std::mem::take(&mut points).split_at_mut(end.points - start.points);
-        points = rest;
-        let (c, rest) = std::mem::take(&mut coefs).split_at_mut(end.coefs - start.coefs);
-        coefs = rest;
-        let (k, rest) = std::mem::take(&mut knots).split_at_mut(end.knots - start.knots);
-        knots = rest;
-        let (s, rest) = std::mem::take(&mut sample_times).split_at_mut(end.times - start.times);
-        sample_times = rest;
-        work.push((first, n, start, t, p, c, k, s));
+        let (t, tail) = std::mem::take(&mut rest).split_at_mut(n);
+        rest = tail;
+        let p = split_bytes(&mut points, (end.points - start.points) * 16);
+        let c = split_bytes(&mut coefs, (end.coefs - start.coefs) * 16);
+        let k = split_bytes(&mut knots, (end.knots - start.knots) * 8);
+        let s = split_bytes(&mut sample_times, (end.times - start.times) * 8);
+        work.push((first, n, start, t, [Target(p), Target(c)], [Target(k), Target(s)]));
     }
-    work.into_par_iter().for_each(|(first, n, mut at, t, p, c, k, s)| {
-        let base = at;
-        for (i, gpu) in (first..first + n).zip(t.iter_mut()) {
+    work.into_par_iter().for_each(|(first, n, mut at, t, [p, c], [k, s])| {
+        let (mut p, mut c, mut k, mut s) = (Staged::new(p.0), Staged::new(c.0), Staged::new(k.0), Staged::new(s.0));
+        for (i, record) in (first..first + n).zip(t.iter_mut()) {
             let index = plan.first_track + i;
             let view = batch.view(index);
             let range = piece_range(plan, times, index);
-            *gpu = track_entry(&view, times, index, range.clone(), &at);
-            let (p0, c0, k0, s0) = (at.points - base.points, at.coefs - base.coefs, at.knots - base.knots, at.times - base.times);
-            for (to, q) in p[p0..p0 + view.points.len()].iter_mut().zip(view.points) {
-                *to = q.to_array().map(|v| v as f32);
-            }
-            for (to, w) in c[c0..c0 + view.coefs.len()].iter_mut().zip(view.coefs) {
-                *to = w.map(|v| v as f32);
-            }
-            for (to, &knot) in k[k0..k0 + view.knots.len()].iter_mut().zip(view.knots) {
-                *to = fixed_time(knot);
+            *record = track_entry(&view, times, index, range.clone(), &at, at.knots_of(batch, plan, i));
+            p.extend(view.points.iter().map(|q| q.to_array().map(|v| v as f32)));
+            c.extend(view.coefs.iter().map(|w| w.map(|v| v as f32)));
+            if Offsets::owns_knots(batch, plan, i) {
+                k.extend(view.knots.iter().map(|&knot| fixed_time(knot)));
             }
             if let TrackTimes::Explicit { offset, .. } = times.tracks[index] {
-                for (to, &time) in s[s0..s0 + range.len()].iter_mut().zip(&times.explicit[offset + range.start..offset + range.end]) {
-                    *to = fixed_time(time);
-                }
+                s.extend(times.explicit[offset + range.start..offset + range.end].iter().map(|&time| fixed_time(time)));
             }
             at = at.after(batch, times, plan, i);
         }
+        p.flush();
+        c.flush();
+        k.flush();
+        s.flush();
     });
-    chunk
+    records
+}
+
+/// A task's range of a target, handed to the thread that packs it. `WriteOnly<[u8]>` is
+/// exclusive access to plain bytes, like `&mut [u8]` (which is `Send`); wgpu's own `Send` impl
+/// misses it only because it asks for a sized `T`.
+struct Target<'a>(wgpu::WriteOnly<'a, [u8]>);
+
+// SAFETY: the view is the only access to its bytes (split ranges never overlap), and bytes
+// carry no thread affinity.
+unsafe impl Send for Target<'_> {}
+
+/// The first `bytes` of `view`, split off its front.
+fn split_bytes<'a>(view: &mut wgpu::WriteOnly<'a, [u8]>, bytes: usize) -> wgpu::WriteOnly<'a, [u8]> {
+    let (head, tail) = std::mem::take(view).split_at(bytes);
+    *view = tail;
+    head
+}
+
+/// Entries converted into a buffer and copied to a write-only target in runs of
+/// [`STAGE_ENTRIES`].
+struct Staged<'a, T> {
+    buffer: Vec<T>,
+    target: wgpu::WriteOnly<'a, [u8]>,
+}
+
+impl<'a, T: Pod> Staged<'a, T> {
+    fn new(target: wgpu::WriteOnly<'a, [u8]>) -> Self {
+        Self { buffer: Vec::new(), target }
+    }
+
+    fn extend(&mut self, entries: impl IntoIterator<Item = T>) {
+        self.buffer.extend(entries);
+        if self.buffer.len() >= STAGE_ENTRIES {
+            self.flush();
+        }
+    }
+
+    /// Copies the staged entries to the front of the target, which then starts after them.
+    fn flush(&mut self) {
+        let bytes: &[u8] = bytemuck::cast_slice(&self.buffer);
+        split_bytes(&mut self.target, bytes.len()).copy_from_slice(bytes);
+        self.buffer.clear();
+    }
 }
 
 /// Where a track's entries start in its chunk's arrays.
@@ -376,12 +417,26 @@ pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes) -> Chunk {
 struct Offsets {
     points: usize,
     coefs: usize,
+    /// The next free knot entry.
     knots: usize,
     times: usize,
     samples: usize,
+    /// Where the previous track's knots start (a track sharing them reads them there).
+    previous_knots: usize,
 }
 
 impl Offsets {
+    /// Whether chunk track `i` packs its own knots: it does not share the previous track's,
+    /// or it is the chunk's first.
+    fn owns_knots(batch: &Batch, plan: &ChunkPlan, i: usize) -> bool {
+        i == 0 || !shares_knots(batch, plan.first_track + i)
+    }
+
+    /// Where chunk track `i` reads its knots: its own from `knots`, or the previous track's.
+    fn knots_of(&self, batch: &Batch, plan: &ChunkPlan, i: usize) -> usize {
+        if Self::owns_knots(batch, plan, i) { self.knots } else { self.previous_knots }
+    }
+
     /// The offsets after chunk track `i`.
     fn after(self, batch: &Batch, times: &SampleTimes, plan: &ChunkPlan, i: usize) -> Self {
         let index = plan.first_track + i;
@@ -391,9 +446,10 @@ impl Offsets {
         Self {
             points: self.points + track.point_count,
             coefs: self.coefs + track.coef_count,
-            knots: self.knots + track.knot_count,
+            knots: self.knots + if Self::owns_knots(batch, plan, i) { track.knot_count } else { 0 },
             times: self.times + if explicit { samples } else { 0 },
             samples: self.samples + samples,
+            previous_knots: self.knots_of(batch, plan, i),
         }
     }
 }
@@ -409,8 +465,8 @@ fn piece_range(plan: &ChunkPlan, times: &SampleTimes, index: usize) -> std::ops:
 }
 
 /// The kernel's record of samples `range` of track `index` (the whole track, or one piece),
-/// its entries from `at` in the chunk's arrays.
-fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: usize, range: std::ops::Range<usize>, at: &Offsets) -> GpuTrack {
+/// its entries from `at` in the chunk's arrays and its knots from `knot_offset`.
+fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: usize, range: std::ops::Range<usize>, at: &Offsets, knot_offset: usize) -> GpuTrack {
     let mut gpu = GpuTrack {
         curve: curve_code(view.track.curve),
         order: view.track.order as u32,
@@ -418,7 +474,7 @@ fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: u
         point_offset: at.points as u32,
         point_count: view.points.len() as u32,
         coef_offset: at.coefs as u32,
-        knot_offset: at.knots as u32,
+        knot_offset: knot_offset as u32,
         knot_count: view.knots.len() as u32,
         sample_offset: at.samples as u32,
         sample_count: range.len() as u32,

@@ -117,6 +117,40 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     assert!(err.contains("track 0") && err.contains("binding"), "{err}");
 }
 
+/// Runs of tracks keyed at the same times share one knot vector in the batch and in each GPU
+/// chunk. Every track must read its own run's knots: runs with different times follow each
+/// other (one crossing a packing task of 4,096 tracks), in one chunk and cut at arbitrary
+/// tracks by a small binding limit, where a run's tracks past a cut pack the knots again.
+#[test]
+fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
+    let Some(full) = gpu() else { return };
+    let small = gpu().unwrap().share_device().with_binding_limit(48 * 1024);
+    let mut g = Gen::new(17);
+    // (tracks, keys, first key time, key spacing within the accuracy tests' 0.2..1.5 s): the
+    // first run's times come back last, apart. Key counts - 1 are prime to the 6 sample steps,
+    // so no inner sample lands on a key (where slerp's angular velocity jumps).
+    let runs = [(3, 8, 0.0, 0.5), (4200, 12, 0.35, 0.3), (2, 6, -2.0, 0.7), (5, 8, 0.0, 0.5)];
+    for spec in [CurveSpec::default(), CurveSpec::new(Curve::Slerp)] {
+        let mut builder = quatcurve::BatchBuilder::new();
+        for &(tracks, keys, start, step) in &runs {
+            let times: Vec<f64> = (0..keys).map(|j| start + step * j as f64).collect();
+            for _ in 0..tracks {
+                let track = quatcurve::Track { times: Some(times.clone()), ..accurate_track(&mut g, &spec, keys, Kind::Random) };
+                builder.add(&track, &spec).unwrap();
+            }
+        }
+        let batch = builder.build().unwrap();
+        let vectors: std::collections::BTreeSet<usize> = batch.tracks.iter().map(|t| t.knot_offset).collect();
+        assert_eq!(vectors.len(), runs.len(), "{}: one knot vector per run", describe(&spec));
+        let times = SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap();
+        let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+        assert!(small.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 10, "the small limit cuts the runs");
+        let one = full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
+        assert_eq!(one, small.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), "{}: chunked result differs", describe(&spec));
+        compare(full, &batch, &times, options, "shared knots").assert_within_bars(&format!("{}: shared knots", describe(&spec)));
+    }
+}
+
 #[test]
 fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
     let Some(gpu) = gpu() else { return };
