@@ -30,8 +30,44 @@ use rayon::prelude::*;
 use bases::Bases;
 use piece::Context;
 
-/// Samples per parallel work item (a piece of one track).
+/// Samples per parallel work item: a run of whole tracks, or a piece of one longer track.
 const PIECE: usize = 4096;
+
+/// One parallel work item of [`CpuEvaluator::evaluate_into`]: tracks `tracks`, all their
+/// samples, or for a single track longer than [`PIECE`] its samples `samples`.
+struct Task {
+    tracks: std::ops::Range<usize>,
+    samples: std::ops::Range<usize>,
+    /// Samples in the task.
+    len: usize,
+}
+
+/// The batch's samples in tasks of about [`PIECE`] samples, in output order. A few per
+/// [`PIECE`] samples, not one per track: a million 10-sample tracks are not a million tasks,
+/// nor 40 MB of task list and output slices.
+fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
+    let tracks = times.tracks.len();
+    let mut tasks = Vec::with_capacity(times.total() / PIECE + 1);
+    let mut i = 0;
+    while i < tracks {
+        let n = times.count(i);
+        if n > PIECE {
+            tasks.extend((0..n.div_ceil(PIECE)).map(|p| {
+                let samples = p * PIECE..((p + 1) * PIECE).min(n);
+                Task { tracks: i..i + 1, len: samples.len(), samples }
+            }));
+            i += 1;
+            continue;
+        }
+        let (first, mut len) = (i, 0);
+        while i < tracks && times.count(i) <= PIECE && len + times.count(i) <= PIECE {
+            len += times.count(i);
+            i += 1;
+        }
+        tasks.push(Task { tracks: first..i, samples: 0..if i == first + 1 { len } else { 0 }, len });
+    }
+    tasks
+}
 
 /// The fast CPU evaluator: holds the fitted polynomial bases; uses rayon's global thread
 /// pool. Create once and reuse.
@@ -100,43 +136,45 @@ impl CpuEvaluator {
             return Err(crate::error::JobError::BufferSize { floats: data.len(), samples: times.total(), channels }.into());
         }
         let tables = Context::new(batch, &self.bases, self.isa);
-        // Work items: pieces of at most PIECE samples of one track.
-        let pieces: Vec<(usize, usize, usize)> = (0..batch.len())
-            .flat_map(|i| {
-                let n = times.count(i);
-                (0..n.div_ceil(PIECE)).map(move |p| (i, p * PIECE, ((p + 1) * PIECE).min(n)))
-            })
-            .collect();
-        let run = |&(track, from, to): &(usize, usize, usize), out: &mut [f32]| {
-            track::evaluate(&tables, batch.view(track), times, track, from..to, &options, out);
+        let tasks = tasks(times);
+        // A task's samples into `out` (its own rows, track-major), one track or piece at a time.
+        let run = |task: &Task, out: &mut [f32]| {
+            let mut rest = out;
+            for track in task.tracks.clone() {
+                let samples = if task.tracks.len() == 1 { task.samples.clone() } else { 0..times.count(track) };
+                let (head, tail) = std::mem::take(&mut rest).split_at_mut(samples.len() * channels);
+                rest = tail;
+                track::evaluate(&tables, batch.view(track), times, track, samples, &options, head);
+            }
         };
         match options.layout {
             Layout::Track => {
-                let mut slices = Vec::with_capacity(pieces.len());
+                let mut slices = Vec::with_capacity(tasks.len());
                 let mut rest = data;
-                for &(_, from, to) in &pieces {
-                    let (head, tail) = rest.split_at_mut((to - from) * channels);
+                for task in &tasks {
+                    let (head, tail) = rest.split_at_mut(task.len * channels);
                     slices.push(head);
                     rest = tail;
                 }
-                // At least PIECE samples per task: a million 10-sample tracks are not a million
-                // tasks.
-                let per_task = (PIECE * pieces.len()).div_ceil(times.total().max(1)).max(1);
-                pieces.par_iter().zip(slices).with_min_len(per_task).for_each(|(piece, out)| run(piece, out));
+                tasks.par_iter().zip(slices).for_each(|(task, out)| run(task, out));
             }
             Layout::Frame => {
-                let results: Vec<Vec<f32>> = pieces
+                let results: Vec<Vec<f32>> = tasks
                     .par_iter()
-                    .map(|piece| {
-                        let mut out = vec![0.0f32; (piece.2 - piece.1) * channels];
-                        run(piece, &mut out);
+                    .map(|task| {
+                        let mut out = vec![0.0f32; task.len * channels];
+                        run(task, &mut out);
                         out
                     })
                     .collect();
-                for (&(track, from, _), out) in pieces.iter().zip(&results) {
-                    for (k, row) in out.chunks_exact(channels).enumerate() {
-                        let slot = Layout::Frame.slot(times, track, from + k);
-                        data[slot * channels..(slot + 1) * channels].copy_from_slice(row);
+                for (task, out) in tasks.iter().zip(&results) {
+                    let mut rows = out.chunks_exact(channels);
+                    for track in task.tracks.clone() {
+                        let samples = if task.tracks.len() == 1 { task.samples.clone() } else { 0..times.count(track) };
+                        for (j, row) in samples.zip(&mut rows) {
+                            let slot = Layout::Frame.slot(times, track, j);
+                            data[slot * channels..(slot + 1) * channels].copy_from_slice(row);
+                        }
                     }
                 }
             }
