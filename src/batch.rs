@@ -82,13 +82,58 @@ pub fn knots_are_uniform(knots: &[f64]) -> bool {
     knots.windows(2).all(|w| ((w[1] - w[0]) - dt).abs() <= UNIFORM_KNOT_TOLERANCE * dt)
 }
 
+/// The tracks' names, in one string with where each ends: a million named tracks are one
+/// allocation, not a million small ones beside the packed arrays. An empty name reads as none.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrackNames {
+    text: String,
+    ends: Vec<usize>,
+}
+
+impl TrackNames {
+    /// Track `index`'s name, if it has one.
+    ///
+    /// # Panics
+    /// When `index` is past the end, like slice indexing.
+    #[must_use]
+    pub fn get(&self, index: usize) -> Option<&str> {
+        let start = index.checked_sub(1).map_or(0, |i| self.ends[i]);
+        Some(&self.text[start..self.ends[index]]).filter(|name| !name.is_empty())
+    }
+
+    /// Number of tracks.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Whether there is no track.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
+
+    fn push(&mut self, name: Option<&str>) {
+        self.text.push_str(name.unwrap_or(""));
+        self.ends.push(self.text.len());
+    }
+
+    fn truncate(&mut self, tracks: usize) {
+        self.ends.truncate(tracks);
+        self.text.truncate(self.ends.last().copied().unwrap_or(0));
+    }
+}
+
 /// Many tracks packed flat (CSR style). Build one with [`BatchBuilder`] or [`Batch::from_tracks`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Batch {
     /// Per-track parameters and offsets.
     pub tracks: Vec<PackedTrack>,
-    /// Per-track identities, for messages.
-    pub ids: Vec<TrackId>,
+    /// Per-track names, for messages ([`Batch::id`]).
+    pub names: TrackNames,
+    /// The index messages give the first track: 0, or where a [`Batch::subset`] starts in the
+    /// batch it was taken from.
+    pub first_index: usize,
     /// Unit quaternions: keys or control points, sign-continuous within each track.
     pub points: Vec<DQuat>,
     /// Derived coefficients, `[x, y, z, extra]` (see the module table).
@@ -138,8 +183,9 @@ impl Batch {
     /// When `range` reaches past the end, like slice indexing.
     #[must_use]
     pub fn subset(&self, range: std::ops::Range<usize>) -> Batch {
-        let mut out = Batch { ids: self.ids[range.clone()].to_vec(), ..Batch::default() };
+        let mut out = Batch { first_index: self.first_index + range.start, ..Batch::default() };
         for index in range {
+            out.names.push(self.names.get(index));
             let view = self.view(index);
             out.tracks.push(PackedTrack {
                 point_offset: out.points.len(),
@@ -152,6 +198,13 @@ impl Batch {
             out.knots.extend_from_slice(view.knots);
         }
         out
+    }
+
+    /// Track `index` as messages name it: its index (in the batch a subset was taken from) and
+    /// its name.
+    #[must_use]
+    pub fn id(&self, index: usize) -> TrackId {
+        TrackId { index: self.first_index + index, name: self.names.get(index).map(str::to_owned) }
     }
 
     /// The slices of the packed arrays that belong to track `index`, or `None` past the end.
@@ -249,7 +302,7 @@ impl BatchBuilder {
             let scale = |n: usize| if c == 0 { n * tracks.len() / chunk.len() } else { n };
             let b = &mut self.batch;
             b.tracks.reserve(scale(prepared.len()));
-            b.ids.reserve(scale(prepared.len()));
+            b.names.ends.reserve(scale(prepared.len()));
             b.points.reserve(scale(prepared.iter().map(|p| p.points.len()).sum()));
             b.coefs.reserve(scale(prepared.iter().map(|p| p.coefs.len()).sum()));
             b.knots.reserve(scale(prepared.iter().map(|p| p.knots.len()).sum()));
@@ -264,7 +317,7 @@ impl BatchBuilder {
     fn truncate(&mut self, tracks: usize, [points, coefs, knots]: [usize; 3]) {
         let b = &mut self.batch;
         b.tracks.truncate(tracks);
-        b.ids.truncate(tracks);
+        b.names.truncate(tracks);
         b.points.truncate(points);
         b.coefs.truncate(coefs);
         b.knots.truncate(knots);
@@ -273,7 +326,6 @@ impl BatchBuilder {
     /// Appends a prepared track; returns its index.
     fn append(&mut self, track: &Track, spec: &CurveSpec, packed: Prepared) -> usize {
         let index = self.batch.tracks.len();
-        let id = TrackId { index, name: track.name.clone() };
         let b = &mut self.batch;
         // Tracks keyed at the same times (the channels of a clip, a synthetic batch) share one
         // knot vector: views only slice the array, and a million 32-key tracks save 0.3 GB.
@@ -302,7 +354,7 @@ impl BatchBuilder {
         if !share {
             b.knots.extend(packed.knots);
         }
-        b.ids.push(id);
+        b.names.push(track.name.as_deref());
         index
     }
 
@@ -680,4 +732,32 @@ fn explicit_knots(id: &TrackId, knots: Option<&[f64]>, k: usize, n: usize) -> Re
         run_start = knot;
     }
     Ok(knots.to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{BatchBuilder, TrackId};
+    use crate::curve::{Curve, CurveSpec};
+    use crate::track::Track;
+
+    fn named(name: Option<&str>, key_norm: f64) -> Track {
+        Track { name: name.map(str::to_owned), times: Some(vec![0.0, 1.0, 2.0]), ..Track::from_rotations(vec![[0.0, 0.0, 0.0, key_norm]; 3]) }
+    }
+
+    /// Names read back per track (empty as none), a failed `extend` leaves no name behind, and a
+    /// subset's messages keep the indices and names of the batch it came from.
+    #[test]
+    fn track_names_survive_failed_extends_and_subsets() {
+        let spec = CurveSpec::new(Curve::Slerp);
+        let mut builder = BatchBuilder::new();
+        builder.extend(&[named(Some("a"), 1.0), named(None, 1.0)], |_| spec).unwrap();
+        assert!(builder.extend(&[named(Some("dropped"), 1.0), named(Some("bad"), 0.0)], |_| spec).is_err());
+        builder.extend(&[named(Some(""), 1.0), named(Some("dé"), 1.0)], |_| spec).unwrap();
+        let batch = builder.build().unwrap();
+        let id = |index: usize, name: Option<&str>| TrackId { index, name: name.map(str::to_owned) };
+        assert_eq!((0..4).map(|i| batch.id(i)).collect::<Vec<_>>(), [id(0, Some("a")), id(1, None), id(2, None), id(3, Some("dé"))]);
+        let subset = batch.subset(1..4).subset(1..3);
+        assert_eq!(subset.names.len(), 2);
+        assert_eq!([subset.id(0), subset.id(1)], [id(2, None), id(3, Some("dé"))]);
+    }
 }

@@ -98,13 +98,13 @@ impl<'a> EvalJob<'a> {
                 let end = last.unwrap_or(start + step * count.saturating_sub(1) as f64);
                 let [lo, hi] = track.domain;
                 if track.looping && count > 0 && (start < lo || end > hi + 1e-9 * (hi - lo)) {
-                    return Err(JobError::GridOutsidePeriod { track: self.batch.ids[index].clone(), lo, hi }.into());
+                    return Err(JobError::GridOutsidePeriod { track: self.batch.id(index), lo, hi }.into());
                 }
             }
             if let TrackTimes::Explicit { offset, count } = *times {
-                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.ids[index].clone() })?;
+                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.id(index) })?;
                 if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
-                    let track = self.batch.ids[index].clone();
+                    let track = self.batch.id(index);
                     return Err(Error::NonFiniteSampleTime { track, sample, value: own[sample] });
                 }
             }
@@ -112,7 +112,7 @@ impl<'a> EvalJob<'a> {
         let first = self.times.count(0);
         if self.options.layout == Layout::Frame {
             if let Some(index) = (0..self.batch.len()).find(|&i| self.times.count(i) != first) {
-                let (first_id, other) = (self.batch.ids[0].clone(), self.batch.ids[index].clone());
+                let (first_id, other) = (self.batch.id(0), self.batch.id(index));
                 return Err(JobError::UnequalCounts { first: first_id, count: first, other, other_count: self.times.count(index) }.into());
             }
         }

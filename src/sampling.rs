@@ -138,7 +138,7 @@ impl SampleTimes {
             let times = match each(index, track.domain)? {
                 PerTrack::List(own) => {
                     if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
-                        let (track, value) = (batch.ids[index].clone(), own[sample]);
+                        let (track, value) = (batch.id(index), own[sample]);
                         return Err(Error::NonFiniteSampleTime { track, sample, value });
                     }
                     let offset = out.explicit.len();
@@ -153,7 +153,7 @@ impl SampleTimes {
                 }
                 PerTrack::Grid(grid @ TrackTimes::Uniform { .. }) => grid,
                 PerTrack::Grid(TrackTimes::Explicit { .. }) => {
-                    return Err(JobError::GridNotUniform { track: batch.ids[index].clone() }.into());
+                    return Err(JobError::GridNotUniform { track: batch.id(index) }.into());
                 }
             };
             out.offsets.push(out.offsets[index] + times.count());

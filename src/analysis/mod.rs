@@ -248,7 +248,7 @@ pub fn validate(options: &AnalysisOptions) -> Result<(), AnalysisError> {
 pub fn analyze(batch: &Batch, device: &Device, options: &AnalysisOptions) -> Result<Vec<Metrics>, AnalysisError> {
     validate(options)?;
     let nodes = (0..batch.len())
-        .map(|i| nodes(batch.view(i), &batch.ids[i].to_string(), options.step))
+        .map(|i| nodes(batch.view(i), &batch.id(i).to_string(), options.step))
         .collect::<Result<Vec<_>, _>>()?;
     let mut out = Vec::with_capacity(batch.len());
     let mut start = 0;
@@ -282,7 +282,7 @@ pub fn analyze(batch: &Batch, device: &Device, options: &AnalysisOptions) -> Res
 pub fn profile(batch: &Batch, index: usize, device: &Device, points: usize) -> Result<[Vec<f64>; 3], AnalysisError> {
     let view = batch.view(index);
     let [lo, hi] = view.track.domain;
-    let nodes = nodes(view, &batch.ids[index].to_string(), Some((hi - lo) / points.max(2) as f64))?;
+    let nodes = nodes(view, &batch.id(index).to_string(), Some((hi - lo) / points.max(2) as f64))?;
     let sampled = derivatives_at(&batch.subset(index..index + 1), std::slice::from_ref(&nodes), device)?;
     let norm = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     Ok([nodes.times, sampled.angular_velocity.iter().map(norm).collect(), sampled.angular_acceleration.iter().map(norm).collect()])

@@ -96,8 +96,8 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         if let Some(i) = (0..batch.len()).find(|&i| times.count(i) != first) {
             return Err(Failure::Input(format!(
                 "{source}: .npy output needs the same sample count in every track: {} has {first}, {} has {}",
-                batch.ids[0],
-                batch.ids[i],
+                batch.id(0),
+                batch.id(i),
                 times.count(i)
             )));
         }

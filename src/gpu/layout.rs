@@ -241,7 +241,7 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         let track = &batch.tracks[index];
         let count = times.count(index);
         let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
-        let name = || batch.ids[index].to_string();
+        let name = || batch.id(index).to_string();
         if track.curve == Curve::Bezier && track.order > MAX_BEZIER_DEGREE {
             return Err(PackError::BezierTooLong { track: name(), degree: track.order, max: MAX_BEZIER_DEGREE });
         }
