@@ -744,14 +744,19 @@ mod tests {
         Track { name: name.map(str::to_owned), times: Some(vec![0.0, 1.0, 2.0]), ..Track::from_rotations(vec![[0.0, 0.0, 0.0, key_norm]; 3]) }
     }
 
-    /// Names read back per track (empty as none), a failed `extend` leaves no name behind, and a
-    /// subset's messages keep the indices and names of the batch it came from.
+    /// Names read back per track (empty as none), a failed `extend` leaves no name behind (also
+    /// when it fails after appending a slice), and a subset's messages keep the indices and
+    /// names of the batch it came from.
     #[test]
     fn track_names_survive_failed_extends_and_subsets() {
         let spec = CurveSpec::new(Curve::Slerp);
         let mut builder = BatchBuilder::new();
         builder.extend(&[named(Some("a"), 1.0), named(None, 1.0)], |_| spec).unwrap();
         assert!(builder.extend(&[named(Some("dropped"), 1.0), named(Some("bad"), 0.0)], |_| spec).is_err());
+        // A failure in a later slice: the first slice was appended and must be taken back.
+        let mut many: Vec<Track> = (0..=super::EXTEND_CHUNK).map(|i| named(Some(&format!("n{i}")), 1.0)).collect();
+        many[super::EXTEND_CHUNK] = named(Some("bad"), 0.0);
+        assert!(builder.extend(&many, |_| spec).is_err());
         builder.extend(&[named(Some(""), 1.0), named(Some("dé"), 1.0)], |_| spec).unwrap();
         let batch = builder.build().unwrap();
         let id = |index: usize, name: Option<&str>| TrackId { index, name: name.map(str::to_owned) };
