@@ -34,12 +34,20 @@ use piece::Context;
 const PIECE: usize = 4096;
 
 /// One parallel work item of [`CpuEvaluator::evaluate_into`]: tracks `tracks`, all their
-/// samples, or for a single track longer than [`PIECE`] its samples `samples`.
+/// samples, or one piece of a single track longer than [`PIECE`].
 struct Task {
     tracks: std::ops::Range<usize>,
-    samples: std::ops::Range<usize>,
+    /// The piece's samples, for a piece.
+    piece: Option<std::ops::Range<usize>>,
     /// Samples in the task.
     len: usize,
+}
+
+impl Task {
+    /// The samples of `track` (one of the task's) that the task evaluates.
+    fn samples(&self, track: usize, times: &crate::SampleTimes) -> std::ops::Range<usize> {
+        self.piece.clone().unwrap_or(0..times.count(track))
+    }
 }
 
 /// The batch's samples in tasks of about [`PIECE`] samples, in output order. A few per
@@ -53,8 +61,8 @@ fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
         let n = times.count(i);
         if n > PIECE {
             tasks.extend((0..n.div_ceil(PIECE)).map(|p| {
-                let samples = p * PIECE..((p + 1) * PIECE).min(n);
-                Task { tracks: i..i + 1, len: samples.len(), samples }
+                let piece = p * PIECE..((p + 1) * PIECE).min(n);
+                Task { tracks: i..i + 1, len: piece.len(), piece: Some(piece) }
             }));
             i += 1;
             continue;
@@ -64,7 +72,7 @@ fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
             len += times.count(i);
             i += 1;
         }
-        tasks.push(Task { tracks: first..i, samples: 0..if i == first + 1 { len } else { 0 }, len });
+        tasks.push(Task { tracks: first..i, piece: None, len });
     }
     tasks
 }
@@ -141,7 +149,7 @@ impl CpuEvaluator {
         let run = |task: &Task, out: &mut [f32]| {
             let mut rest = out;
             for track in task.tracks.clone() {
-                let samples = if task.tracks.len() == 1 { task.samples.clone() } else { 0..times.count(track) };
+                let samples = task.samples(track, times);
                 let (head, tail) = std::mem::take(&mut rest).split_at_mut(samples.len() * channels);
                 rest = tail;
                 track::evaluate(&tables, batch.view(track), times, track, samples, &options, head);
@@ -170,8 +178,7 @@ impl CpuEvaluator {
                 for (task, out) in tasks.iter().zip(&results) {
                     let mut rows = out.chunks_exact(channels);
                     for track in task.tracks.clone() {
-                        let samples = if task.tracks.len() == 1 { task.samples.clone() } else { 0..times.count(track) };
-                        for (j, row) in samples.zip(&mut rows) {
+                        for (j, row) in task.samples(track, times).zip(&mut rows) {
                             let slot = Layout::Frame.slot(times, track, j);
                             data[slot * channels..(slot + 1) * channels].copy_from_slice(row);
                         }
