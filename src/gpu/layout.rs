@@ -204,6 +204,12 @@ fn shares_knots(batch: &Batch, index: usize) -> bool {
     }
 }
 
+/// Whether track `index` packs its own knots into its chunk: it does not share the previous
+/// track's, or it starts the chunk. The one rule [`plan_chunks`] counts by and [`pack`] writes by.
+fn packs_own_knots(batch: &Batch, index: usize, starts_chunk: bool) -> bool {
+    starts_chunk || !shares_knots(batch, index)
+}
+
 /// Largest Bezier degree the shader evaluates (`MAX_BEZIER_DEGREE`, checked by a test).
 pub const MAX_BEZIER_DEGREE: usize = 32;
 /// First function of the cubic Hermite (Bernstein) basis in [`polynomial_table`]
@@ -248,8 +254,7 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         if count >= MAX_SAMPLES_PER_TRACK {
             return Err(PackError::TooManySamples { track: name(), count, max: MAX_SAMPLES_PER_TRACK - 1 });
         }
-        let shared = shares_knots(batch, index);
-        if !shared {
+        if !shares_knots(batch, index) {
             let knots = &batch.knots[track.knot_offset..track.knot_offset + track.knot_count];
             if let Some(knot) = collapsed_span(knots) {
                 return Err(PackError::KnotsTooClose { track: name(), knot, gap: knots[knot + 1] - knots[knot], resolution: TIME_RESOLUTION });
@@ -261,7 +266,7 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
             samples: c.samples + samples,
             points: c.points + track.point_count,
             coefs: c.coefs + track.coef_count,
-            knots: c.knots + if c.tracks > 0 && shared { 0 } else { track.knot_count },
+            knots: c.knots + if packs_own_knots(batch, index, c.tracks == 0) { track.knot_count } else { 0 },
             times: c.times + if explicit { samples } else { 0 },
             ..c.clone()
         };
@@ -426,10 +431,9 @@ struct Offsets {
 }
 
 impl Offsets {
-    /// Whether chunk track `i` packs its own knots: it does not share the previous track's,
-    /// or it is the chunk's first.
+    /// Whether chunk track `i` packs its own knots ([`packs_own_knots`]).
     fn owns_knots(batch: &Batch, plan: &ChunkPlan, i: usize) -> bool {
-        i == 0 || !shares_knots(batch, plan.first_track + i)
+        packs_own_knots(batch, plan.first_track + i, i == 0)
     }
 
     /// Where chunk track `i` reads its knots: its own from `knots`, or the previous track's.
