@@ -115,6 +115,8 @@ struct System {
     periodic: bool,
     rows: Vec<Row>,
     knots: Vec<f64>,
+    /// The unknown each row's three points are ([`System::triple`], [`System::unknown`]).
+    columns: Vec<[Option<usize>; 3]>,
 }
 
 impl System {
@@ -146,7 +148,7 @@ impl System {
         if periodic {
             let knots = periodic_knots(times);
             let rows = (0..n).map(|i| key_row(&knots, i)).collect();
-            return Self { periodic, rows, knots };
+            return Self { periodic, rows, knots, columns: Vec::new() }.with_columns();
         }
         let knots = open_knots(times);
         let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Row::End { c1: b1[2] * d * d, c2: b2[2] * d * d, k: 2.0 * b1[1] * b2[1] * d * d };
@@ -155,7 +157,12 @@ impl System {
         let mut rows = vec![end(start[0], start[1], times[1] - times[0])];
         rows.extend((1..n).map(|i| key_row(&knots, i)));
         rows.push(end(finish[1], finish[2], times[n] - times[n - 1]));
-        Self { periodic, rows, knots }
+        Self { periodic, rows, knots, columns: Vec::new() }.with_columns()
+    }
+
+    fn with_columns(mut self) -> Self {
+        self.columns = (0..self.unknowns()).map(|r| self.triple(r).map(|p| self.unknown(p))).collect();
+        self
     }
 
     /// Number of unknown control points.
@@ -192,15 +199,56 @@ fn skew(v: V3) -> DMat3 {
     DMat3::from_cols(V3::new(0.0, v.z, -v.y), V3::new(-v.z, 0.0, v.x), V3::new(v.y, -v.x, 0.0))
 }
 
-/// Right Jacobian of the half-angle exp: `exp(v + d) = exp(v) exp(jr(v) d)` to first order.
-/// It is SO(3)'s `J_r(2 v)`: `I - (sin^2 h / h^2) [v]x + ((2h - sin 2h) / 2h^3) [v]x^2`, `h = |v|`;
-/// `c` holds the two coefficients ([`exp_jr`]).
-fn jr(v: V3, c: [f64; 2]) -> DMat3 {
-    let k = skew(v);
-    DMat3::IDENTITY - k * c[0] + k * k * c[1]
+/// `c[0] I + c[1] [v]x + c[2] [v]x^2`. Every Jacobian of the half-angle exp and log about one
+/// rotation vector `v` has this form, and two of them about the same `v` multiply as
+/// polynomials in `[v]x` (`[v]x^3 = -|v|^2 [v]x`): a few scalars instead of a 3x3 product,
+/// and a vector is moved by two cross products.
+#[derive(Clone, Copy, Debug)]
+struct AxisPoly {
+    v: V3,
+    c: [f64; 3],
 }
 
-/// `exp(v)` and the coefficients of [`jr`]`(v)`, from one `sin_cos` (the row evaluation needs
+impl AxisPoly {
+    /// Right Jacobian of the half-angle exp at `s v`, times `s`: `exp(s (v + d)) = exp(s v)
+    /// exp(s jr(s v) d)` to first order. `jr(u)` is SO(3)'s `J_r(2 u)`, `I - (sin^2 h / h^2)
+    /// [u]x + ((2h - sin 2h) / 2h^3) [u]x^2` with `h = |u|`; `c` holds those two coefficients
+    /// for `u = s v` ([`exp_jr`]).
+    fn exp_jacobian(v: V3, s: f64, c: [f64; 2]) -> Self {
+        Self { v, c: [s, -s * s * c[0], s * s * s * c[1]] }
+    }
+
+    /// Inverse right and left Jacobians of the half-angle log at `v`: `log(exp(v) exp(d)) = v
+    /// + jr_inv d` and `log(exp(d) exp(v)) = v + jl_inv d` to first order, `I +- [v]x + c
+    /// [v]x^2` with `c = (1 - h cot h) / h^2`, `h = |v| < pi` ([`log_jacobian_coef`]).
+    fn log_jacobians(v: V3, c: f64) -> (Self, Self) {
+        (Self { v, c: [1.0, 1.0, c] }, Self { v, c: [1.0, -1.0, c] })
+    }
+
+    /// The product `self * o` of two polynomials about the same vector.
+    fn times(self, o: Self) -> Self {
+        let ([a0, a1, a2], [b0, b1, b2]) = (self.c, o.c);
+        let h2 = self.v.length_squared();
+        let c = [a0 * b0, a0 * b1 + a1 * b0 - h2 * (a1 * b2 + a2 * b1), a0 * b2 + a1 * b1 + a2 * b0 - h2 * a2 * b2];
+        Self { v: self.v, c }
+    }
+
+    /// `self x`.
+    fn apply(self, x: V3) -> V3 {
+        let vx = self.v.cross(x);
+        x * self.c[0] + vx * self.c[1] + self.v.cross(vx) * self.c[2]
+    }
+
+    /// The matrix, with `[v]x^2 = v v^T - |v|^2 I`.
+    fn matrix(self) -> DMat3 {
+        let ([c0, c1, c2], v) = (self.c, self.v);
+        let diagonal = c0 - c2 * v.length_squared();
+        let column = |j: usize, e: V3| v * (c2 * v[j]) + v.cross(e) * c1 + e * diagonal;
+        DMat3::from_cols(column(0, V3::X), column(1, V3::Y), column(2, V3::Z))
+    }
+}
+
+/// `exp(v)` and the coefficients of its Jacobian ([`AxisPoly::exp_jacobian`]), from one `sin_cos` (the row evaluation needs
 /// the one, its Jacobian the other, and they share the angle).
 fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
     let h2 = v.length_squared();
@@ -217,40 +265,30 @@ fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
     (e, jr)
 }
 
-/// Inverse right and left Jacobians of the half-angle log: `log(exp(v) exp(d)) = v + jr_inv d`
-/// and `log(exp(d) exp(v)) = v + jl_inv d` to first order:
-/// `I +- [v]x + ((1 - h cot h) / h^2) [v]x^2`, `h = |v| < pi`.
-fn j_inv(v: V3) -> (DMat3, DMat3) {
+/// The coefficient of [`AxisPoly::log_jacobians`] at `v`.
+fn log_coef(v: V3) -> f64 {
     let h = v.length();
-    let c = if h < 1e-4 {
+    if h < 1e-4 {
         1.0 / 3.0 + h * h / 45.0
     } else {
         let (s, c) = h.sin_cos();
         (1.0 - h * c / s) / (h * h)
-    };
-    j_inv_with(v, c)
+    }
 }
 
-/// [`j_inv`] of a step `v` whose rotation `rel` is at hand (`exp v = +-rel`, so `rel = +-(cos
-/// h, sin h v / h)`): `cot h` read off `rel` instead of a `sin_cos`. Components of `rel` carry
-/// rounding of order 1e-16, so `c h^2` does of order 1e-16 / h: the series covers `h < 1e-3`.
-fn j_inv_of_step(v: V3, rel: DQuat) -> (DMat3, DMat3) {
+/// The coefficient of [`AxisPoly::log_jacobians`] for a step `v` whose rotation `rel` is at
+/// hand (`exp v = +-rel`, so `rel = +-(cos h, sin h v / h)`): `cot h` read off `rel` instead
+/// of a `sin_cos`. Components of `rel` carry rounding of order 1e-16, so `c h^2` does of order
+/// 1e-16 / h: the series covers `h < 1e-3`.
+fn step_log_coef(v: V3, rel: DQuat) -> f64 {
     let h2 = v.length_squared();
-    let c = if h2 < 1e-6 {
+    if h2 < 1e-6 {
         1.0 / 3.0 + h2 / 45.0
     } else {
         // h cot h = h^2 cos h / (sin h h) = h^2 rel.w / (rel.vec . v).
         let along = rel.x * v.x + rel.y * v.y + rel.z * v.z;
         (1.0 - h2 * rel.w / along) / h2
-    };
-    j_inv_with(v, c)
-}
-
-/// `I +- [v]x + c [v]x^2`.
-fn j_inv_with(v: V3, c: f64) -> (DMat3, DMat3) {
-    let k = skew(v);
-    let k2 = k * k * c;
-    (DMat3::IDENTITY + k + k2, DMat3::IDENTITY - k + k2)
+    }
 }
 
 fn g(v: DVec3) -> V3 {
@@ -303,24 +341,30 @@ fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, KeyP
     }
 }
 
-/// The derivatives of row `residual` `r` with respect to body moves of its three points, given
-/// the row's [`KeyPoint`] and the steps' inverse Jacobians `jw` ([`j_inv`], shared by the two
-/// rows each step enters).
-fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jw: [(DMat3, DMat3); 2], r: V3) -> [DMat3; 3] {
+/// The derivatives of a row's residual with respect to body moves of its three points, given
+/// the row's [`KeyPoint`] and the coefficients `jc` of its two steps' log Jacobians
+/// ([`AxisPoly::log_jacobians`], shared by the two rows each step enters).
+///
+/// A key row's residual is `r = log(key^-1 q)`, whose exact derivative is `jr_inv(r) B` with
+/// `B` the derivative of `q`'s body move returned here. The factor is left out on purpose:
+/// `jr_inv(r) r = r` (`[r]x r = 0`), so the Newton step `J^-1 (-R)` with `J = diag(jr_inv(r_k))
+/// B` equals `B^-1 (-R)` exactly, and the factor would cost a `sin_cos` and three products per
+/// row.
+fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jc: [f64; 2]) -> [DMat3; 3] {
     let (v1, v2) = (g(w[0]), g(w[1]));
-    let [(r1, l1), (r2, l2)] = jw;
+    let [(r1, l1), (r2, l2)] = [AxisPoly::log_jacobians(v1, jc[0]), AxisPoly::log_jacobians(v2, jc[1])];
     match row {
         Row::Key { a, b, .. } => {
             let KeyPoint { e2, c, jr: [j1, j2], .. } = *point;
             // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
-            let k1 = rot_inv(e2) * jr(v1 * a, j1) * a;
-            let k2 = jr(v2 * b, j2) * b;
-            let outer = j_inv(r).0;
-            [outer * (rot_inv(c) - k1 * l1), outer * (k1 * r1 - k2 * l2), outer * (k2 * r2)]
+            let (k1, k2) = (AxisPoly::exp_jacobian(v1, a, j1), AxisPoly::exp_jacobian(v2, b, j2));
+            let e = rot_inv(e2);
+            [rot_inv(c) - e * k1.times(l1).matrix(), e * k1.times(r1).matrix() - k2.times(l2).matrix(), k2.times(r2).matrix()]
         }
         Row::End { c1, c2, k } => {
             let f1 = DMat3::from_diagonal(V3::splat(c1)) - skew(v2) * k;
             let f2 = DMat3::from_diagonal(V3::splat(c2)) + skew(v1) * k;
+            let [r1, l1, r2, l2] = [r1, l1, r2, l2].map(AxisPoly::matrix);
             [-(f1 * l1), f1 * r1 - f2 * l2, f2 * r2]
         }
     }
@@ -466,11 +510,12 @@ impl Health {
 
 /// A candidate solution and its linearization: control points, the step into each, the
 /// steps' inverse Jacobians, and every row's Jacobian blocks and negated residual.
-#[derive(Clone)]
+#[derive(Clone, Default)]
 struct State {
     points: Vec<DQuat>,
     steps: Vec<DVec3>,
-    step_jacobians: Vec<(DMat3, DMat3)>,
+    /// Each step's [`AxisPoly::log_jacobians`] coefficient.
+    step_coefs: Vec<f64>,
     key_points: Vec<KeyPoint>,
     blocks: Vec<[DMat3; 3]>,
     rhs: Vec<V3>,
@@ -503,14 +548,14 @@ fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
 /// Fills `state`'s step Jacobians and Jacobian blocks (after [`assess`], whose residuals the
 /// key rows' blocks read). Only states that Newton steps from need them.
 fn linearize(system: &System, state: &mut State) {
-    let State { points, steps, step_jacobians, key_points, blocks, rhs } = state;
+    let State { points, steps, step_coefs, key_points, blocks, .. } = state;
     let count = points.len();
-    for (j, (jac, w)) in step_jacobians.iter_mut().zip(steps.iter()).enumerate() {
-        *jac = j_inv_of_step(g(*w), points[(j + count - 1) % count].conjugate() * points[j]);
+    for (j, (coef, w)) in step_coefs.iter_mut().zip(steps.iter()).enumerate() {
+        *coef = step_log_coef(g(*w), points[(j + count - 1) % count].conjugate() * points[j]);
     }
     for (r, &row) in system.rows.iter().enumerate() {
         let [_, j, k] = system.triple(r);
-        blocks[r] = row_jacobian(row, &key_points[r], [steps[j], steps[k]], [step_jacobians[j], step_jacobians[k]], -rhs[r]);
+        blocks[r] = row_jacobian(row, &key_points[r], [steps[j], steps[k]], [step_coefs[j], step_coefs[k]]);
     }
 }
 
@@ -521,19 +566,26 @@ fn linearize(system: &System, state: &mut State) {
 /// chord that solves the natural-end rows' linear part (`c1 w + c2 w' = 0`). Starting from the
 /// keys themselves cost most tracks one more iteration. The steps follow the moves to first
 /// order and take the nearest branch, as in a Newton update.
-fn first_guess(system: &System, keys: &[DQuat]) -> (Vec<DQuat>, Vec<DVec3>) {
+fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: &mut Vec<DVec3>, moves: &mut Vec<V3>) {
     let n = keys.len() - 1;
-    let points: Vec<DQuat> = if system.periodic { keys[..n].to_vec() } else { [&keys[..1], keys, &keys[n..]].concat() };
+    points.clear();
+    if system.periodic {
+        points.extend_from_slice(&keys[..n]);
+    } else {
+        points.extend([&keys[..1], keys, &keys[n..]].concat());
+    }
     let count = points.len();
     let prev = |j: usize| (j + count - 1) % count;
     // Steps between keys are short (the keys are sign-continuous), so folding is right here.
-    let steps: Vec<V3> = (0..count).map(|j| g(relative_log(points[prev(j)], points[j]))).collect();
-    let mut moves = vec![V3::ZERO; count];
+    steps.clear();
+    steps.extend((0..count).map(|j| relative_log(points[prev(j)], points[j])));
+    moves.clear();
+    moves.resize(count, V3::ZERO);
     for (r, &row) in system.rows.iter().enumerate() {
         if let Row::Key { a, b, .. } = row {
             // Residual at the keys: (1 - a) back along the step in, b along the step out.
             let j = system.triple(r)[1];
-            moves[j] = steps[j] * (1.0 - a) - steps[(j + 1) % count] * b;
+            moves[j] = g(steps[j]) * (1.0 - a) - g(steps[(j + 1) % count]) * b;
         }
     }
     if !system.periodic {
@@ -541,20 +593,59 @@ fn first_guess(system: &System, keys: &[DQuat]) -> (Vec<DQuat>, Vec<DVec3>) {
             if let Row::End { c1, c2, .. } = system.rows[row] {
                 let s = -c2 / (c1 - c2);
                 let s = if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 };
-                let chord = steps[j] + steps[j + 1] + moves[j + 1] - moves[j - 1];
-                moves[j] = chord * s - steps[j] + moves[j - 1];
+                let chord = g(steps[j]) + g(steps[j + 1]) + moves[j + 1] - moves[j - 1];
+                moves[j] = chord * s - g(steps[j]) + moves[j - 1];
             }
         }
     }
-    let moved: Vec<DQuat> = points.iter().zip(&moves).map(|(p, m)| *p * DQuat::exp(d(*m))).collect();
-    let moved_steps = (0..count)
-        .map(|j| {
-            let (r, l) = j_inv(steps[j]);
-            let predicted = d(steps[j] + r * moves[j] - l * moves[prev(j)]);
-            nearest_log(moved[prev(j)].conjugate() * moved[j], predicted)
+    for (p, m) in points.iter_mut().zip(moves.iter()) {
+        *p = *p * DQuat::exp(d(*m));
+    }
+    // Each step from its own value before the moves (read before it is overwritten).
+    for j in 0..count {
+        let (r, l) = AxisPoly::log_jacobians(g(steps[j]), log_coef(g(steps[j])));
+        let predicted = d(g(steps[j]) + r.apply(moves[j]) - l.apply(moves[prev(j)]));
+        steps[j] = nearest_log(points[prev(j)].conjugate() * points[j], predicted);
+    }
+}
+
+/// What a solve allocates, kept per thread across solves: a bake solves tens of thousands of
+/// tracks, and fresh vectors per solve (with the allocator handing their pages back to the
+/// system in between) were a measured part of each.
+#[derive(Default)]
+struct Workspace {
+    state: State,
+    trial: State,
+    scratch: Scratch,
+    delta: Vec<V3>,
+    /// The moves of the first guess, then each Newton step's first-order change of the steps.
+    step_change: Vec<V3>,
+}
+
+impl Workspace {
+    /// Runs `f` with this thread's workspace (a fresh one if a solve on this thread is already
+    /// running it, which does not happen today).
+    fn with<R>(f: impl FnOnce(&mut Workspace) -> R) -> R {
+        thread_local! {
+            static SPARE: RefCell<Workspace> = RefCell::new(Workspace::default());
+        }
+        SPARE.with(|spare| match spare.try_borrow_mut() {
+            Ok(mut workspace) => f(&mut workspace),
+            Err(_) => f(&mut Workspace::default()),
         })
-        .collect();
-    (moved, moved_steps)
+    }
+}
+
+impl State {
+    /// Room for `count` control points and `unknowns` rows (values are filled before read).
+    fn resize(&mut self, count: usize, unknowns: usize) {
+        self.points.resize(count, DQuat::identity());
+        self.steps.resize(count, DVec3::zero());
+        self.step_coefs.resize(count, 0.0);
+        self.key_points.resize(unknowns, KeyPoint::NONE);
+        self.blocks.resize(unknowns, [DMat3::ZERO; 3]);
+        self.rhs.resize(unknowns, V3::ZERO);
+    }
 }
 
 /// Solves the control points of the curve through `keys` (sign-continuous, normalized) at
@@ -565,45 +656,40 @@ fn first_guess(system: &System, keys: &[DQuat]) -> (Vec<DQuat>, Vec<DVec3>) {
 /// [`NoConvergence`] when Newton does not bring every key within [`KEY_TOLERANCE`] in
 /// [`MAX_ITERATIONS`] (or meets a singular system), naming the worst key.
 pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
+    Workspace::with(|workspace| solve_in(workspace, keys, times, periodic))
+}
+
+/// [`solve_rotations`] in `workspace`'s arrays.
+fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
     let n = keys.len() - 1;
     let system = System::shared(times, periodic);
-    let (points, steps) = first_guess(&system, keys);
+    let Workspace { state, trial, scratch, delta, step_change } = workspace;
+    first_guess(&system, keys, &mut state.points, &mut state.steps, step_change);
     let unknowns = system.unknowns();
-    let count = points.len();
+    let count = state.points.len();
     // The step into each point (`steps[j]`: P_{j-1} to P_j, cyclic when periodic; unused
     // `steps[0]` when open). Steps are never folded: an interpolating spline's control polygon
     // overshoots its keys (about 3x on alternating keys), so its steps can pass a half turn.
     let prev = |j: usize| (j + count - 1) % count;
-    let columns: Vec<[Option<usize>; 3]> = (0..unknowns).map(|r| system.triple(r).map(|p| system.unknown(p))).collect();
-    let mut state = State {
-        points,
-        steps,
-        step_jacobians: vec![(DMat3::ZERO, DMat3::ZERO); count],
-        key_points: vec![KeyPoint::NONE; unknowns],
-        blocks: vec![[DMat3::ZERO; 3]; unknowns],
-        rhs: vec![V3::ZERO; unknowns],
-    };
-    let mut health = assess(&system, &mut state, keys);
-    // The trial state, swapped in when a step is accepted.
-    let mut trial = state.clone();
-    let (mut scratch, mut delta) = (Scratch::default(), Vec::new());
+    state.resize(count, unknowns);
+    trial.resize(count, unknowns);
+    let mut health = assess(&system, state, keys);
     let mut iterations = 0;
     while !health.converged() && iterations < MAX_ITERATIONS {
         iterations += 1;
         let fail = |h: &Health| NoConvergence { worst_key: h.key.1, error: h.key.0, iterations };
-        linearize(&system, &mut state);
-        solve(&columns, &state.blocks, &state.rhs, periodic, &mut scratch, &mut delta).ok_or_else(|| fail(&health))?;
+        linearize(&system, state);
+        solve(&system.columns, &state.blocks, &state.rhs, periodic, scratch, delta).ok_or_else(|| fail(&health))?;
         let moved = |p: usize, scale: f64| system.unknown(p).map_or(V3::ZERO, |u| delta[u] * scale);
         // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
         // lands in another basin), then halve the step until the residual decreases.
         let largest = delta.iter().map(|v| v.length()).fold(0.0, f64::max);
         // First-order change of each step for the full move (the line search scales it).
-        let step_change: Vec<V3> = (0..count)
-            .map(|j| {
-                let (r, l) = state.step_jacobians[j];
-                r * moved(j, 1.0) - l * moved(prev(j), 1.0)
-            })
-            .collect();
+        step_change.clear();
+        step_change.extend((0..count).map(|j| {
+            let (r, l) = AxisPoly::log_jacobians(g(state.steps[j]), state.step_coefs[j]);
+            r.apply(moved(j, 1.0)) - l.apply(moved(prev(j), 1.0))
+        }));
         let mut scale = if largest > MAX_MOVE { MAX_MOVE / largest } else { 1.0 };
         let mut accepted = None;
         for _ in 0..30 {
@@ -616,7 +702,7 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
                 let predicted = state.steps[j] + d(*change * scale);
                 trial.steps[j] = nearest_log(trial.points[prev(j)].conjugate() * trial.points[j], predicted);
             }
-            let h = assess(&system, &mut trial, keys);
+            let h = assess(&system, trial, keys);
             if h.norm < health.norm || h.converged() {
                 accepted = Some(h);
                 break;
@@ -624,14 +710,14 @@ pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<
             scale *= 0.5;
         }
         let Some(h) = accepted else { break };
-        std::mem::swap(&mut state, &mut trial);
+        std::mem::swap(state, trial);
         health = h;
     }
-    let State { points, steps, .. } = state;
     if !health.acceptable() {
         let (worst_key, error) = if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
         return Err(NoConvergence { worst_key, error, iterations });
     }
+    let State { points, steps, .. } = state;
     // Open: P_0..P_{n+2}. Periodic: one period of the repeating sequence, P_{n-1}, P_0, ...,
     // P_{n-1}, P_0, P_1, with the step into each.
     let order: Vec<usize> = if periodic { (0..n + 3).map(|j| (j + n - 1) % n).collect() } else { (0..count).collect() };
@@ -687,7 +773,6 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
             _ => V3::ZERO,
         }
     };
-    let mut columns = Vec::with_capacity(unknowns);
     let mut blocks = Vec::with_capacity(unknowns);
     let mut rhs = Vec::with_capacity(unknowns);
     for (r, &row) in system.rows.iter().enumerate() {
@@ -697,19 +782,17 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
             Row::Key { a, b, key } => ([1.0 - a, a - b, b], g(values[key])),
             Row::End { c1, c2, .. } => ([-c1, c1 - c2, c2], V3::ZERO),
         };
-        let triple = system.triple(r);
         let mut target = target;
-        for (&p, &w) in triple.iter().zip(&weights) {
-            if system.unknown(p).is_none() {
+        for ((&p, column), &w) in system.triple(r).iter().zip(&system.columns[r]).zip(&weights) {
+            if column.is_none() {
                 target -= fixed(p) * w;
             }
         }
-        columns.push(triple.map(|p| system.unknown(p)));
         blocks.push(weights.map(|w| DMat3::from_diagonal(V3::splat(w))));
         rhs.push(target);
     }
     let mut x = Vec::with_capacity(unknowns);
-    solve(&columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x)?;
+    solve(&system.columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x)?;
     let d = |v: V3| DVec3::new(v.x, v.y, v.z);
     let points = if periodic {
         (0..n + 3).map(|j| d(x[(j + n - 1) % n])).collect()
@@ -731,7 +814,8 @@ mod tests {
         DQuat::exp(DVec3::from_array(v))
     }
 
-    /// Every row's Jacobian blocks against central differences of its residual.
+    /// Every row's Jacobian blocks against central differences of its residual (a key row's
+    /// blocks times `jr_inv(r)`, the factor [`row_jacobian`] leaves out because it fixes `r`).
     #[test]
     fn row_jacobians_match_finite_differences() {
         let keys = [q([0.3, -0.2, 0.5]), q([0.9, 0.4, -0.3]), q([-0.2, 1.1, 0.2])];
@@ -739,9 +823,15 @@ mod tests {
         let rows = [Row::Key { a: 0.8, b: 0.15, key: 1 }, Row::End { c1: 1.7, c2: -0.6, k: 0.9 }];
         for row in rows {
             let w = |p: [DQuat; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
-            let jw = w(p).map(|v| j_inv(g(v)));
+            let jc = w(p).map(|v| log_coef(g(v)));
             let (r, point) = residual(row, p, w(p), &keys);
-            let blocks = row_jacobian(row, &point, w(p), jw, r);
+            let outer = match row {
+                Row::Key { .. } => AxisPoly::log_jacobians(r, log_coef(r)).0.matrix(),
+                Row::End { .. } => DMat3::IDENTITY,
+            };
+            // What makes leaving the factor out exact: it does not move the residual itself.
+            assert!((outer * r - r).length() < 1e-15 * (1.0 + r.length()), "{row:?}: jr_inv(r) r = {} for r = {r}", outer * r);
+            let blocks = row_jacobian(row, &point, w(p), jc).map(|b| outer * b);
             for (which, block) in blocks.iter().enumerate() {
                 for axis in 0..3 {
                     let h = 1e-6;
@@ -759,6 +849,21 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Polynomials in `[v]x`: matrix, product and action against plain 3x3 arithmetic.
+    #[test]
+    fn axis_polynomials_multiply_as_their_matrices() {
+        let v = V3::new(0.7, -1.3, 0.4);
+        let (a, b) = (AxisPoly { v, c: [0.9, -0.35, 0.6] }, AxisPoly { v, c: [1.1, 0.8, -0.25] });
+        let k = skew(v);
+        let plain = |p: AxisPoly| DMat3::IDENTITY * p.c[0] + k * p.c[1] + k * k * p.c[2];
+        let close = |x: DMat3, y: DMat3| (0..3).all(|j| (x.col(j) - y.col(j)).length() < 1e-14);
+        assert!(close(a.matrix(), plain(a)), "{:?} against {:?}", a.matrix(), plain(a));
+        assert!(close(a.times(b).matrix(), plain(a) * plain(b)));
+        assert!(close(b.times(a).matrix(), plain(a) * plain(b)), "they commute");
+        let x = V3::new(-0.2, 0.5, 2.0);
+        assert!((a.apply(x) - plain(a) * x).length() < 1e-14);
     }
 
     #[test]
