@@ -218,9 +218,9 @@ impl AxisPoly {
         Self { v, c: [s, -s * s * c[0], s * s * s * c[1]] }
     }
 
-    /// Inverse right and left Jacobians of the half-angle log at `v`: `log(exp(v) exp(d)) = v
-    /// + jr_inv d` and `log(exp(d) exp(v)) = v + jl_inv d` to first order, `I +- [v]x + c
-    /// [v]x^2` with `c = (1 - h cot h) / h^2`, `h = |v| < pi` ([`log_jacobian_coef`]).
+    /// Inverse right and left Jacobians of the half-angle log at `v`, `I +- [v]x + c [v]x^2`:
+    /// `log(exp(v) exp(d)) = v + jr_inv d` and `log(exp(d) exp(v)) = v + jl_inv d` to first
+    /// order, with `c = (1 - h cot h) / h^2`, `h = |v| < pi` ([`log_coef`], [`step_log_coef`]).
     fn log_jacobians(v: V3, c: f64) -> (Self, Self) {
         (Self { v, c: [1.0, 1.0, c] }, Self { v, c: [1.0, -1.0, c] })
     }
@@ -301,7 +301,8 @@ fn rot_inv(q: DQuat) -> DMat3 {
 }
 
 /// A key row's curve point `P_0 exp(a w) exp(b w')`, with what its Jacobian reuses: the
-/// second factor, the product of both, and both factors' [`jr`] coefficients.
+/// second factor, the product of both, and both factors' Jacobian coefficients
+/// ([`AxisPoly::exp_jacobian`]).
 #[derive(Clone, Copy, Debug)]
 struct KeyPoint {
     q: DQuat,
