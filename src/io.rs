@@ -41,24 +41,76 @@ pub fn read_track_file(path: &Path) -> Result<TrackFile, IoError> {
 /// # Errors
 /// [`IoError::Write`] naming `path`.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<(), IoError> {
-    let err = |source| IoError::Write { path: path.display().to_string(), source };
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".quatcurve-").suffix(".tmp");
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder.tempfile_in(dir).map_err(err)?;
-    {
-        let mut buffered = std::io::BufWriter::new(tmp.as_file_mut());
-        write(&mut buffered).map_err(err)?;
-        buffered.flush().map_err(err)?;
+    let mut file = AtomicFile::create(path)?;
+    write(&mut file).map_err(|source| file.error(source))?;
+    file.commit()
+}
+
+/// A file written atomically as it goes ([`write_atomic`] for a writer that is handed around,
+/// as a texture streamed block by block is): bytes go to a temporary file beside `path`, and
+/// [`AtomicFile::commit`] flushes, syncs and renames it over `path`. Dropped without a commit
+/// (an error on the way), the temporary file is removed and `path` is untouched.
+#[derive(Debug)]
+pub struct AtomicFile {
+    path: std::path::PathBuf,
+    out: std::io::BufWriter<tempfile::NamedTempFile>,
+}
+
+impl AtomicFile {
+    /// The temporary file for `path` (0666 minus the umask, as [`write_atomic`]'s).
+    ///
+    /// # Errors
+    /// [`IoError::Write`] naming `path` when the directory does not take a new file.
+    pub fn create(path: &Path) -> Result<Self, IoError> {
+        let dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => Path::new("."),
+        };
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".quatcurve-").suffix(".tmp");
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let tmp = builder.tempfile_in(dir).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+        Ok(Self { path: path.to_path_buf(), out: std::io::BufWriter::new(tmp) })
     }
-    tmp.as_file().sync_all().map_err(err)?;
-    tmp.persist(path).map_err(|e| err(e.error))?;
-    Ok(())
+
+    /// The file's path (where it lands on commit).
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// `source` as this file's [`IoError::Write`].
+    #[must_use]
+    pub fn error(&self, source: std::io::Error) -> IoError {
+        IoError::Write { path: self.path.display().to_string(), source }
+    }
+
+    /// Flushes, syncs (the bytes are on disk before the name is) and renames over the path.
+    ///
+    /// # Errors
+    /// [`IoError::Write`] naming the path; the temporary file is removed.
+    pub fn commit(self) -> Result<(), IoError> {
+        let err = |source| IoError::Write { path: self.path.display().to_string(), source };
+        let tmp = self.out.into_inner().map_err(|e| err(e.into_error()))?;
+        tmp.as_file().sync_all().map_err(err)?;
+        tmp.persist(&self.path).map_err(|e| err(e.error))?;
+        Ok(())
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.out.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.out.write_all(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
 }
 
 /// Writes a float32 `.npy` array of the given shape atomically (C order, little-endian).
@@ -66,7 +118,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
 /// # Errors
 /// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
 pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    let npy = Npy::f32(shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    let npy = Npy::new(NpyElement::F32, shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
     write_atomic(path, |w| npy.write(w))
 }
 
@@ -76,50 +128,67 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError
 /// # Errors
 /// As [`write_npy`].
 pub fn write_npy_f16(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    let npy = Npy::f16(shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    let npy = Npy::new(NpyElement::F16, shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
     write_atomic(path, |w| npy.write(w))
 }
 
-/// The bytes of a `.npy` file, encoded before anything is written, so a caller can write
-/// them and hash them at the same time (`bake` records every output's SHA-256).
+/// The element type a `.npy` file stores f32 values as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NpyElement {
+    /// Little-endian IEEE single (`<f4`).
+    F32,
+    /// Little-endian IEEE half (`<f2`), each value rounded to the nearest half.
+    F16,
+}
+
+impl NpyElement {
+    /// NumPy's `descr` of the type.
+    #[must_use]
+    pub fn descr(self) -> &'static str {
+        match self {
+            NpyElement::F32 => "<f4",
+            NpyElement::F16 => "<f2",
+        }
+    }
+
+    /// `values` as this type's little-endian bytes: borrowed where the floats already are
+    /// those bytes (f32 on a little-endian machine), else converted (f16 on every core).
+    #[must_use]
+    pub fn bytes(self, values: &[f32]) -> std::borrow::Cow<'_, [u8]> {
+        use rayon::prelude::*;
+        match self {
+            NpyElement::F32 if cfg!(target_endian = "little") => std::borrow::Cow::Borrowed(bytemuck::cast_slice(values)),
+            NpyElement::F32 => std::borrow::Cow::Owned(values.iter().flat_map(|v| v.to_le_bytes()).collect()),
+            NpyElement::F16 => {
+                let mut body = vec![0u8; 2 * values.len()];
+                body.par_chunks_mut(1 << 16).zip(values.par_chunks(1 << 15)).for_each(|(out, values)| {
+                    for (o, &v) in out.chunks_exact_mut(2).zip(values) {
+                        o.copy_from_slice(&half::f16::from_f32(v).to_le_bytes());
+                    }
+                });
+                std::borrow::Cow::Owned(body)
+            }
+        }
+    }
+}
+
+/// The bytes of a `.npy` file, encoded before anything is written.
 #[derive(Clone, Debug)]
 pub struct Npy<'a> {
     /// The header, byte for byte what `numpy.save` writes.
     pub header: Vec<u8>,
-    /// The values, little-endian: borrowed from the floats where they already are those
-    /// bytes (f32 on a little-endian machine), else converted.
+    /// The values ([`NpyElement::bytes`]).
     pub body: std::borrow::Cow<'a, [u8]>,
 }
 
 impl<'a> Npy<'a> {
-    /// `data` as `<f4` of `shape` (C order).
+    /// `data` as `element` values of `shape` (C order).
     ///
     /// # Errors
     /// When `data` does not fill `shape` exactly.
-    pub fn f32(shape: &[u64], data: &'a [f32]) -> std::io::Result<Self> {
+    pub fn new(element: NpyElement, shape: &[u64], data: &'a [f32]) -> std::io::Result<Self> {
         check_fill(shape, data.len())?;
-        let body = if cfg!(target_endian = "little") {
-            std::borrow::Cow::Borrowed(bytemuck::cast_slice(data))
-        } else {
-            std::borrow::Cow::Owned(data.iter().flat_map(|v| v.to_le_bytes()).collect())
-        };
-        Ok(Self { header: npy_header("<f4", shape), body })
-    }
-
-    /// `data` as `<f2` of `shape`, each value rounded to the nearest half (on every core).
-    ///
-    /// # Errors
-    /// When `data` does not fill `shape` exactly.
-    pub fn f16(shape: &[u64], data: &[f32]) -> std::io::Result<Self> {
-        use rayon::prelude::*;
-        check_fill(shape, data.len())?;
-        let mut body = vec![0u8; 2 * data.len()];
-        body.par_chunks_mut(1 << 16).zip(data.par_chunks(1 << 15)).for_each(|(out, values)| {
-            for (o, &v) in out.chunks_exact_mut(2).zip(values) {
-                o.copy_from_slice(&half::f16::from_f32(v).to_le_bytes());
-            }
-        });
-        Ok(Self { header: npy_header("<f2", shape), body: std::borrow::Cow::Owned(body) })
+        Ok(Self { header: npy_header(element.descr(), shape), body: element.bytes(data) })
     }
 
     /// Header, then values.
@@ -149,7 +218,8 @@ impl<'a> Npy<'a> {
 /// newline, byte for byte what `numpy.save` writes. Written here so that the data can follow
 /// in whole blocks: npyz's writer takes one value per call, 3.5x slower on the crowd's 350 MB
 /// model texture (1.16 s against 0.33 s here). npyz still reads every file in the tests.
-fn npy_header(descr: &str, shape: &[u64]) -> Vec<u8> {
+#[must_use]
+pub fn npy_header(descr: &str, shape: &[u64]) -> Vec<u8> {
     let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
     let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
     let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");

@@ -84,26 +84,25 @@ impl Figure for LogLog<'_> {
     }
 }
 
-/// Frames a [`skeleton`] preview overlays.
-pub const PREVIEW_FRAMES: usize = 5;
-
-/// Draws a model texture's skeleton (a line from each joint to its parent) at
-/// [`PREVIEW_FRAMES`] evenly spaced frames, front view (x, y) beside side view (z, y), one
-/// colour per frame, to `path` (`.png` or `.svg`).
+/// Draws a skeleton (a line from each joint to its parent) at the clip's frames `picks`
+/// ([`crate::bake::texture::preview_frames`]), given the model texture rows of those frames
+/// alone, front view (x, y) beside side view (z, y), one colour per frame, to `path` (`.png`
+/// or `.svg`).
 ///
 /// # Errors
 /// As [`rates`].
-pub fn skeleton(path: &Path, title: &str, model: &[f32], animation: &crate::bake::Animation, frames: usize) -> Result<(), String> {
+pub fn skeleton(path: &Path, title: &str, model: &[f32], picks: &[usize], animation: &crate::bake::Animation) -> Result<(), String> {
     let joints = animation.joints.len();
-    let picks: Vec<usize> = (0..PREVIEW_FRAMES.min(frames)).map(|i| if PREVIEW_FRAMES.min(frames) > 1 { i * (frames - 1) / (PREVIEW_FRAMES.min(frames) - 1) } else { 0 }).collect();
-    let at = |frame: usize, j: usize| crate::bake::texture::position(model, joints, frame, j).map(f64::from);
+    let picks = picks.to_vec();
+    // `k`: the frame's place in `picks` (and its row in `model`).
+    let at = |k: usize, j: usize| crate::bake::texture::position(model, joints, k, j).map(f64::from);
     // Bones of every picked frame: (frame's place in picks, from, to).
     let bones: Vec<(usize, [f64; 3], [f64; 3])> = picks
         .iter()
         .enumerate()
-        .flat_map(|(k, &frame)| animation.joints.iter().enumerate().filter_map(move |(j, joint)| joint.parent.map(|p| (k, at(frame, p), at(frame, j)))))
+        .flat_map(|(k, _)| animation.joints.iter().enumerate().filter_map(move |(j, joint)| joint.parent.map(|p| (k, at(k, p), at(k, j)))))
         .collect();
-    let points = || bones.iter().flat_map(|(_, a, b)| [*a, *b]).chain((0..joints).flat_map(|j| picks.iter().map(move |&f| at(f, j))));
+    let points = || bones.iter().flat_map(|(_, a, b)| [*a, *b]).chain((0..joints).flat_map(|j| (0..picks.len()).map(move |k| at(k, j))));
     let range = |axis: usize| points().map(|p| p[axis]).filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     let ranges = [range(0), range(1), range(2)];
     // One scale for every axis, so the skeleton keeps its proportions.

@@ -6,14 +6,16 @@
 //! One input failing is reported in its [`InputReport`] and the others still finish; only a
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
-use super::manifest::{hash_bytes, hash_file, hash_parts, FileRecord, InputRecord, Manifest, ShardRecord};
+use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
 use super::shard::Shard;
 use super::texture::{self, Precision, TextureKind};
 use super::error::{BakeError, InputError};
 use super::{bvh, crowd, gltf, Animation, Baked, LoopMode};
 use crate::curve::{Curve, CurveSpec};
 use crate::device::{Device, DeviceChoice};
-use crate::io::{write_atomic, Npy};
+use crate::io::{npy_header, write_atomic, AtomicFile, NpyElement};
+use sha2::{Digest, Sha256};
+use std::io::Write;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -279,10 +281,14 @@ impl BakeJob {
             write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
             out.written.push(path.into());
         }
+        // An atlas stacks every clip's frames in one file per sheet, opened with its whole shape.
+        if self.atlas {
+            let rows = baked.clips.iter().map(|c| c.times.len()).sum();
+            out.atlas = self.open_textures(animation, rows, |suffix| dir.join(format!("{stem}{suffix}.npy")))?;
+        }
         let clips = (0..animation.clips.len()).map(|index| self.write_clip(out, animation, baked, &order, index, fk_device)).collect::<Result<Vec<_>, _>>()?;
-        for sheet in std::mem::take(&mut out.atlas) {
-            let written = self.write_sheet(&dir.join(format!("{stem}{}.npy", sheet.suffix)), out.rows, sheet.width, &sheet.data)?;
-            out.written.push(written);
+        for texture in std::mem::take(&mut out.atlas) {
+            out.written.push(texture.finish()?);
         }
         let sidecar = self.sidecar(animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
         let path = dir.join(format!("{stem}.json"));
@@ -295,35 +301,30 @@ impl BakeJob {
     fn write_clip(&self, out: &mut Outputs<'_>, animation: &Animation, baked: &Baked, order: &[usize], index: usize, fk_device: &Device) -> Result<SidecarClip, InputError> {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
         let frames = result.times.len();
-        // Forward kinematics once per clip, for the textures and the preview alike.
-        let local = texture::local(animation, baked, index);
-        let model = if self.texture != TextureKind::Local || self.preview { Some(texture::model_on(fk_device, animation, order, &local)?) } else { None };
-        let preview = match &model {
-            Some(model) if self.preview => {
-                let name = format!("{stem}.{index}.png");
-                draw_preview(&dir.join(&name), &format!("{}: clip '{}'", out.source, clip.name), model, animation, frames)?;
-                out.written.push(dir.join(&name).into());
-                Some(name)
-            }
-            _ => None,
+        let preview = if self.preview {
+            // Forward kinematics of the drawn frames alone.
+            let picks = texture::preview_frames(frames);
+            let model = texture::sheet_rows(animation, order, baked, index, TextureKind::Model, fk_device, &picks)?.swap_remove(0).data;
+            let name = format!("{stem}.{index}.png");
+            draw_preview(&dir.join(&name), &format!("{}: clip '{}'", out.source, clip.name), &model, &picks, animation)?;
+            out.written.push(dir.join(&name).into());
+            Some(name)
+        } else {
+            None
         };
-        let mut files = Vec::new();
-        for (k, sheet) in texture::arrange(animation, order, self.texture, local, model).into_iter().enumerate() {
-            let suffix = &sheet.suffix;
-            if self.atlas {
-                files.push(format!("{stem}{suffix}.npy"));
-                match out.atlas.get_mut(k) {
-                    Some(rows) => rows.data.extend_from_slice(&sheet.data),
-                    None => out.atlas.push(sheet),
-                }
-            } else {
-                let name = format!("{stem}.{index}{suffix}.npy");
-                out.written.push(self.write_sheet(&dir.join(&name), frames, sheet.width, &sheet.data)?);
-                files.push(name);
+        let (files, first_row) = if self.atlas {
+            self.stream_clip(animation, baked, order, index, fk_device, &mut out.atlas)?;
+            out.rows += frames;
+            (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
+        } else {
+            let mut textures = self.open_textures(animation, frames, |suffix| dir.join(format!("{stem}.{index}{suffix}.npy")))?;
+            self.stream_clip(animation, baked, order, index, fk_device, &mut textures)?;
+            let names = textures.iter().map(TextureFile::name).collect();
+            for texture in textures {
+                out.written.push(texture.finish()?);
             }
-        }
-        let first_row = if self.atlas { out.rows } else { 0 };
-        out.rows += frames;
+            (names, 0)
+        };
         Ok(SidecarClip {
             name: clip.name.clone(),
             file: files[0].clone(),
@@ -338,27 +339,54 @@ impl BakeJob {
         })
     }
 
-    /// One `.npy` texture `[frames, width, channels]`, hashed on another core while its bytes
-    /// go to disk (the manifest's SHA-256 without reading the file back).
-    fn write_sheet(&self, path: &Path, frames: usize, width: usize, data: &[f32]) -> Result<Written, InputError> {
-        let shape = [frames as u64, width as u64, self.texture.channels() as u64];
-        let failed = |e: std::io::Error| InputError::Output(format!("{}: cannot write: {e}", path.display()));
-        let npy = match self.precision {
-            Precision::F32 => Npy::f32(&shape, data),
-            Precision::F16 => Npy::f16(&shape, data),
-        }
-        .map_err(failed)?;
-        let (sha256, result) = std::thread::scope(|s| {
-            let sha256 = s.spawn(|| hash_parts(&[&npy.header, &npy.body]));
-            (sha256.join(), write_atomic(path, |w| npy.write(w)))
-        });
-        result.map_err(|e| InputError::Output(e.to_string()))?;
-        // Written but not recorded: taken away again, as every output of a failed input is.
-        let sha256 = sha256.map_err(|_| {
-            let _ = std::fs::remove_file(path);
-            InputError::Internal(format!("{}: hashing failed", path.display()))
-        })?;
-        Ok(Written { path: path.to_path_buf(), hash: Some((npy.len() as u64, sha256)) })
+    /// One [`TextureFile`] per sheet of this job's texture kind ([`texture::layout`]), each
+    /// `[rows, width, channels]`, at `path(suffix)`.
+    fn open_textures(&self, animation: &Animation, rows: usize, path: impl Fn(&str) -> PathBuf) -> Result<Vec<TextureFile>, InputError> {
+        let channels = self.texture.channels();
+        texture::layout(animation, self.texture)
+            .into_iter()
+            .map(|(suffix, width)| TextureFile::create(path(&suffix), self.precision, &[rows as u64, width as u64, channels as u64]))
+            .collect()
+    }
+
+    /// Computes clip `index`'s sheets a block of frames at a time (frames on every core) and
+    /// appends each block to `textures` on another thread as the next block is computed: the
+    /// texture is never whole in memory, and the disk writes overlap the arithmetic.
+    fn stream_clip(&self, animation: &Animation, baked: &Baked, order: &[usize], index: usize, fk_device: &Device, textures: &mut [TextureFile]) -> Result<(), InputError> {
+        let frames = baked.clips[index].times.len();
+        let row_bytes = textures.iter().map(|t| t.row_bytes).max().unwrap_or(1).max(1);
+        let block = (TEXTURE_BLOCK_BYTES / row_bytes).max(1);
+        std::thread::scope(|s| {
+            // One block in flight beside the one being computed.
+            let (send, receive) = std::sync::mpsc::sync_channel::<Vec<texture::Sheet>>(1);
+            let writer = s.spawn(move || -> Result<(), InputError> {
+                for sheets in receive {
+                    for (texture, sheet) in textures.iter_mut().zip(&sheets) {
+                        texture.append(&sheet.data)?;
+                    }
+                }
+                Ok(())
+            });
+            let mut computed = Ok(());
+            for start in (0..frames).step_by(block) {
+                let picks: Vec<usize> = (start..frames.min(start + block)).collect();
+                match texture::sheet_rows(animation, order, baked, index, self.texture, fk_device, &picks) {
+                    // A closed channel: the writer failed, and says why below.
+                    Ok(sheets) => {
+                        if send.send(sheets).is_err() {
+                            break;
+                        }
+                    }
+                    Err(e) => {
+                        computed = Err(e);
+                        break;
+                    }
+                }
+            }
+            drop(send);
+            let written = writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
+            computed.and(written)
+        })
     }
 
     fn sidecar<'a>(&'a self, animation: &'a Animation, baked: &Baked, source: &'a str, device: &'a str, baked_file: Option<String>, clips: Vec<SidecarClip>) -> Sidecar<'a> {
@@ -390,12 +418,12 @@ impl BakeJob {
 }
 
 #[cfg(feature = "plot")]
-fn draw_preview(path: &Path, title: &str, model: &[f32], animation: &Animation, frames: usize) -> Result<(), InputError> {
-    crate::plot::skeleton(path, title, model, animation, frames).map_err(InputError::Output)
+fn draw_preview(path: &Path, title: &str, model: &[f32], picks: &[usize], animation: &Animation) -> Result<(), InputError> {
+    crate::plot::skeleton(path, title, model, picks, animation).map_err(InputError::Output)
 }
 
 #[cfg(not(feature = "plot"))]
-fn draw_preview(_: &Path, _: &str, _: &[f32], _: &Animation, _: usize) -> Result<(), InputError> {
+fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Result<(), InputError> {
     // validate() refuses previews without the feature.
     Err(InputError::Output("previews need the `plot` cargo feature".into()))
 }
@@ -679,9 +707,71 @@ struct Outputs<'a> {
     stem: &'a str,
     source: &'a str,
     written: Vec<Written>,
-    atlas: Vec<texture::Sheet>,
-    /// Frames of the clips so far (the atlas's rows).
+    /// `--atlas`: the open files every clip appends to, and their rows so far.
+    atlas: Vec<TextureFile>,
     rows: usize,
+}
+
+/// Bytes of texture rows computed and written at a time ([`BakeJob::stream_clip`]): large
+/// enough that a block is many frames of a small skeleton and a few of a crowd.
+const TEXTURE_BLOCK_BYTES: usize = 32 << 20;
+
+/// A `.npy` texture being written atomically a block of rows at a time, hashed on the way (the
+/// manifest's SHA-256 without reading the file back).
+struct TextureFile {
+    file: AtomicFile,
+    element: NpyElement,
+    hasher: Sha256,
+    /// Values still to come, and bytes written so far.
+    left: u64,
+    size: u64,
+    /// Bytes of one row (a frame of the sheet), as stored.
+    row_bytes: usize,
+}
+
+impl TextureFile {
+    /// The file at `path` with its header for `shape` written.
+    fn create(path: PathBuf, precision: Precision, shape: &[u64; 3]) -> Result<Self, InputError> {
+        let element = precision.element();
+        let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
+        let row_bytes = (shape[1] * shape[2]) as usize * if element == NpyElement::F16 { 2 } else { 4 };
+        let mut texture = Self { file, element, hasher: Sha256::new(), left: shape.iter().product(), size: 0, row_bytes };
+        texture.write(&npy_header(element.descr(), shape))?;
+        Ok(texture)
+    }
+
+    /// The file's name (as the sidecar lists it).
+    fn name(&self) -> String {
+        self.file.path().file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+    }
+
+    /// Appends `values` (whole rows), hashed on another core while written.
+    fn append(&mut self, values: &[f32]) -> Result<(), InputError> {
+        self.left = self.left.checked_sub(values.len() as u64).ok_or_else(|| InputError::Internal(format!("{}: more values than its shape holds", self.file.path().display())))?;
+        let bytes = self.element.bytes(values);
+        self.write(&bytes)
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> Result<(), InputError> {
+        let Self { file, hasher, .. } = self;
+        let written = std::thread::scope(|s| {
+            s.spawn(|| hasher.update(bytes));
+            file.write_all(bytes)
+        });
+        written.map_err(|e| InputError::Output(self.file.error(e).to_string()))?;
+        self.size += bytes.len() as u64;
+        Ok(())
+    }
+
+    /// Commits the file once its shape is filled; what the manifest records of it.
+    fn finish(self) -> Result<Written, InputError> {
+        let path = self.file.path().to_path_buf();
+        if self.left != 0 {
+            return Err(InputError::Internal(format!("{}: {} values short of its shape", path.display(), self.left)));
+        }
+        self.file.commit().map_err(|e| InputError::Output(e.to_string()))?;
+        Ok(Written { path, hash: Some((self.size, super::manifest::hex(&self.hasher.finalize()))) })
+    }
 }
 
 /// Baking into the input's own directory must not replace the input.

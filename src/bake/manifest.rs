@@ -90,19 +90,11 @@ pub fn hash_file(path: &Path) -> std::io::Result<(u64, String)> {
 
 /// Lowercase hex SHA-256 of bytes.
 pub fn hash_bytes(bytes: &[u8]) -> String {
-    hash_parts(&[bytes])
+    hex(&Sha256::digest(bytes))
 }
 
-/// Lowercase hex SHA-256 of `parts` one after another (a file's bytes before they are written).
-pub fn hash_parts(parts: &[&[u8]]) -> String {
-    let mut hasher = Sha256::new();
-    for part in parts {
-        hasher.update(part);
-    }
-    hex(&hasher.finalize())
-}
-
-fn hex(bytes: &[u8]) -> String {
+/// Lowercase hex of a digest (a streamed file's, hashed as it was written).
+pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 

@@ -64,20 +64,39 @@ pub enum Precision {
 
 crate::curve::names!(Precision, "precision", F32 => "f32", F16 => "f16");
 
+impl Precision {
+    /// The `.npy` element type written.
+    #[must_use]
+    pub fn element(self) -> crate::io::NpyElement {
+        match self {
+            Precision::F32 => crate::io::NpyElement::F32,
+            Precision::F16 => crate::io::NpyElement::F16,
+        }
+    }
+}
+
 /// A clip as a local texture: frame-major `[frames, joints, 10]` (rotation `x, y, z, w`,
 /// translation, scale), joints in [`Animation::joints`] order; what the clip does not
 /// animate keeps the joint's rest value.
 #[must_use]
 pub fn local(animation: &Animation, baked: &Baked, clip: usize) -> Vec<f32> {
-    let (values, frames) = (baked.values(clip), baked.clips[clip].times.len());
+    let frames: Vec<usize> = (0..baked.clips[clip].times.len()).collect();
+    local_rows(animation, baked, clip, &frames)
+}
+
+/// The rows of [`local`] for the clip's `frames` only, in that order (a block of a texture
+/// streamed to disk, or the frames a preview draws).
+#[must_use]
+pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[usize]) -> Vec<f32> {
+    let values = baked.values(clip);
     let rest: Vec<f32> = animation
         .joints
         .iter()
         .flat_map(|j| j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>())
         .collect();
     let row = rest.len();
-    let mut data = vec![0.0f32; frames * row];
-    data.par_chunks_mut(row.max(1)).enumerate().for_each(|(frame, out)| {
+    let mut data = vec![0.0f32; frames.len() * row];
+    data.par_chunks_mut(row.max(1)).zip(frames).for_each(|(out, &frame)| {
         out.copy_from_slice(&rest);
         for (channel, values) in animation.clips[clip].channels.iter().zip(&values) {
             let at = channel.joint * LOCAL_CHANNELS;
@@ -184,36 +203,46 @@ pub struct Sheet {
     pub data: Vec<f32>,
 }
 
-/// The textures of one clip for `kind`: one sheet, or for [`TextureKind::Skin`] one per skin
-/// (the model texture when the animation has no skin, as for BVH). `order` is
-/// [`Animation::parents_first`]; forward kinematics runs on `device` ([`model_on`]).
+/// The sheets a clip's texture of `kind` has, as `(suffix, width)`: one, or for
+/// [`TextureKind::Skin`] one per skin (one model sheet when the animation has no skin, as for
+/// BVH). Known before anything is computed, so that files can be opened with their shapes.
+#[must_use]
+pub fn layout(animation: &Animation, kind: TextureKind) -> Vec<(String, usize)> {
+    if kind == TextureKind::Skin && !animation.skins.is_empty() {
+        animation.skins.iter().enumerate().map(|(k, s)| (format!(".skin{k}"), s.joints.len())).collect()
+    } else {
+        vec![(String::new(), animation.joints.len())]
+    }
+}
+
+/// The textures of one clip for `kind` ([`layout`]). `order` is [`Animation::parents_first`];
+/// forward kinematics runs on `device` ([`model_on`]).
 ///
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
 pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, InputError> {
-    let local = local(animation, baked, clip);
-    let model = if kind == TextureKind::Local { None } else { Some(model_on(device, animation, order, &local)?) };
-    Ok(arrange(animation, order, kind, local, model))
+    let frames: Vec<usize> = (0..baked.clips[clip].times.len()).collect();
+    sheet_rows(animation, order, baked, clip, kind, device, &frames)
 }
 
-/// The sheets of `kind` from a clip's local rows and, for model and skin textures, its model
-/// rows when the caller already has them (else forward kinematics runs here, on the CPU).
-#[must_use]
-pub fn arrange(animation: &Animation, order: &[usize], kind: TextureKind, local: Vec<f32>, model_rows: Option<Vec<f32>>) -> Vec<Sheet> {
-    let joints = animation.joints.len();
-    if kind == TextureKind::Local {
-        return vec![Sheet { suffix: String::new(), width: joints, data: local }];
-    }
-    let model = model_rows.unwrap_or_else(|| model(animation, order, &local));
-    if kind == TextureKind::Model || animation.skins.is_empty() {
-        return vec![Sheet { suffix: String::new(), width: joints, data: model }];
-    }
-    animation
-        .skins
-        .iter()
-        .enumerate()
-        .map(|(k, s)| Sheet { suffix: format!(".skin{k}"), width: s.joints.len(), data: skin(s, joints, &model) })
-        .collect()
+/// The rows of [`sheets`] for the clip's `frames` only, in that order: every frame's rows
+/// depend on that frame alone, so a texture can be computed and written a block at a time.
+///
+/// # Errors
+/// As [`sheets`].
+pub fn sheet_rows(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device, frames: &[usize]) -> Result<Vec<Sheet>, InputError> {
+    let local = local_rows(animation, baked, clip, frames);
+    let data = if kind == TextureKind::Local {
+        vec![local]
+    } else {
+        let model = model_on(device, animation, order, &local)?;
+        if kind == TextureKind::Model || animation.skins.is_empty() {
+            vec![model]
+        } else {
+            animation.skins.iter().map(|s| skin(s, animation.joints.len(), &model)).collect()
+        }
+    };
+    Ok(layout(animation, kind).into_iter().zip(data).map(|((suffix, width), data)| Sheet { suffix, width, data }).collect())
 }
 
 /// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,
@@ -230,6 +259,17 @@ pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: 
         }
         Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
     }
+}
+
+/// Frames a skeleton preview overlays.
+pub const PREVIEW_FRAMES: usize = 5;
+
+/// The frames a preview of a clip of `frames` frames draws: [`PREVIEW_FRAMES`] evenly spaced
+/// from the first to the last (all of them when there are fewer).
+#[must_use]
+pub fn preview_frames(frames: usize) -> Vec<usize> {
+    let count = PREVIEW_FRAMES.min(frames);
+    (0..count).map(|i| if count > 1 { i * (frames - 1) / (count - 1) } else { 0 }).collect()
 }
 
 /// The translation column of joint `j` in frame `frame` of a model texture: where the joint is.
