@@ -151,6 +151,15 @@ impl NpyElement {
         }
     }
 
+    /// Bytes per value.
+    #[must_use]
+    pub fn size(self) -> usize {
+        match self {
+            NpyElement::F32 => 4,
+            NpyElement::F16 => 2,
+        }
+    }
+
     /// `values` as this type's little-endian bytes: borrowed where the floats already are
     /// those bytes (f32 on a little-endian machine), else converted (f16 on every core).
     #[must_use]

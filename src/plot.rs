@@ -97,11 +97,8 @@ pub fn skeleton(path: &Path, title: &str, model: &[f32], picks: &[usize], animat
     // `k`: the frame's place in `picks` (and its row in `model`).
     let at = |k: usize, j: usize| crate::bake::texture::position(model, joints, k, j).map(f64::from);
     // Bones of every picked frame: (frame's place in picks, from, to).
-    let bones: Vec<(usize, [f64; 3], [f64; 3])> = picks
-        .iter()
-        .enumerate()
-        .flat_map(|(k, _)| animation.joints.iter().enumerate().filter_map(move |(j, joint)| joint.parent.map(|p| (k, at(k, p), at(k, j)))))
-        .collect();
+    let bones: Vec<(usize, [f64; 3], [f64; 3])> =
+        (0..picks.len()).flat_map(|k| animation.joints.iter().enumerate().filter_map(move |(j, joint)| joint.parent.map(|p| (k, at(k, p), at(k, j))))).collect();
     let points = || bones.iter().flat_map(|(_, a, b)| [*a, *b]).chain((0..joints).flat_map(|j| (0..picks.len()).map(move |k| at(k, j))));
     let range = |axis: usize| points().map(|p| p[axis]).filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     let ranges = [range(0), range(1), range(2)];

@@ -371,8 +371,8 @@ impl BakeJob {
             for start in (0..frames).step_by(block) {
                 let picks: Vec<usize> = (start..frames.min(start + block)).collect();
                 match texture::sheet_rows(animation, order, baked, index, self.texture, fk_device, &picks) {
-                    // A closed channel: the writer failed, and says why below.
                     Ok(sheets) => {
+                        // A closed channel: the writer failed, and says why below.
                         if send.send(sheets).is_err() {
                             break;
                         }
@@ -734,7 +734,7 @@ impl TextureFile {
     fn create(path: PathBuf, precision: Precision, shape: &[u64; 3]) -> Result<Self, InputError> {
         let element = precision.element();
         let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
-        let row_bytes = (shape[1] * shape[2]) as usize * if element == NpyElement::F16 { 2 } else { 4 };
+        let row_bytes = (shape[1] * shape[2]) as usize * element.size();
         let mut texture = Self { file, element, hasher: Sha256::new(), left: shape.iter().product(), size: 0, row_bytes };
         texture.write(&npy_header(element.descr(), shape))?;
         Ok(texture)
