@@ -248,8 +248,9 @@ impl AxisPoly {
     }
 }
 
-/// `exp(v)` and the coefficients of its Jacobian ([`AxisPoly::exp_jacobian`]), from one `sin_cos` (the row evaluation needs
-/// the one, its Jacobian the other, and they share the angle).
+/// `exp(v)` and the coefficients of its Jacobian ([`AxisPoly::exp_jacobian`]), from one
+/// `sin_cos` (the row evaluation needs the one, its Jacobian the other, and they share the
+/// angle).
 fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
     let h2 = v.length_squared();
     let h = h2.sqrt();
@@ -573,7 +574,9 @@ fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: 
     if system.periodic {
         points.extend_from_slice(&keys[..n]);
     } else {
-        points.extend([&keys[..1], keys, &keys[n..]].concat());
+        points.push(keys[0]);
+        points.extend_from_slice(keys);
+        points.push(keys[n]);
     }
     let count = points.len();
     let prev = |j: usize| (j + count - 1) % count;
