@@ -363,7 +363,29 @@ pub fn demo_tracks() -> Vec<Track> {
 
 #[cfg(test)]
 mod tests {
-    use super::npy_header;
+    use super::{npy_header, AtomicFile};
+    use std::io::Write;
+
+    /// Written in pieces, an atomic file appears whole at commit and not before; dropped
+    /// uncommitted (a failed bake), it leaves the directory as it was, an old file included.
+    #[test]
+    fn atomic_files_appear_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = || std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect::<Vec<_>>();
+        let path = dir.path().join("texture.npy");
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"first ").unwrap();
+        file.write_all(b"second").unwrap();
+        assert!(!path.exists(), "visible before its commit");
+        file.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"first second");
+        assert_eq!(names(), ["texture.npy"], "a temporary file is left");
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"half").unwrap();
+        drop(file);
+        assert_eq!(std::fs::read(&path).unwrap(), b"first second", "an uncommitted file replaced the old one");
+        assert_eq!(names(), ["texture.npy"], "an uncommitted file left its temporary behind");
+    }
 
     #[test]
     fn npy_headers_are_what_numpy_save_writes() {
