@@ -31,12 +31,6 @@ impl<S: Lanes> V8<S> {
     /// All zero.
     pub const ZERO: Self = Self { x: S::ZERO, y: S::ZERO, z: S::ZERO };
 
-    /// Lane-wise gather from `[x, y, z, _]` rows.
-    #[inline(always)]
-    pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
-        Self { x: S::new(rows.map(|r| r[0])), y: S::new(rows.map(|r| r[1])), z: S::new(rows.map(|r| r[2])) }
-    }
-
     /// The same `[x, y, z, _]` in every lane.
     #[inline(always)]
     pub fn splat(r: [f32; 4]) -> Self {
@@ -125,6 +119,13 @@ impl<S: Lanes> std::ops::Mul for Q8<S> {
 #[inline(always)]
 pub fn write_columns<S: Lanes>(v: [S; 4], rows: &mut [f32], stride: usize, col: usize, width: usize, valid: usize) {
     let quads = S::transpose(v);
+    if stride == 4 && width == 4 {
+        // Rows of one quaternion each (rotation-only output): whole rows, no per-row range.
+        for (row, quad) in rows.chunks_exact_mut(4).zip(&quads).take(valid) {
+            row.copy_from_slice(quad);
+        }
+        return;
+    }
     for (lane, quad) in quads.iter().enumerate().take(valid) {
         let at = lane * stride + col;
         rows[at..at + width].copy_from_slice(&quad[..width]);
@@ -140,27 +141,64 @@ pub struct Factor8<S> {
     pub b: [S; 3],
 }
 
+impl<S: Lanes> Factor8<S> {
+    /// The factors of eight lanes from their coefficients as stored, `[x, y, z, _]` rows in
+    /// f32 (a lane's `theta axis`), with basis jets `b`: axes and angles eight lanes at once,
+    /// as [`axis_angle`] computes them one at a time.
+    #[inline(always)]
+    pub fn from_rows(rows: &[[f32; 4]; LANES], b: [S; 3]) -> Self {
+        let [x, y, z, _] = S::from_rows(rows);
+        let theta = (x * x + y * y + z * z).sqrt();
+        let inv = theta.cmp_gt(S::ZERO).blend(S::ONE / theta, S::ZERO);
+        Self { axis: V8 { x: x * inv, y: y * inv, z: z * inv }, theta, b }
+    }
+}
+
+/// A coefficient `[x, y, z, _]` as `[axis x, axis y, axis z, theta]`, axis unit (or zero with
+/// theta 0): the scalar twin of [`Factor8::from_rows`], with the same f32 operations in the
+/// same order, so that a lane gets the same bits either way.
+#[inline(always)]
+pub fn axis_angle([x, y, z, _]: [f32; 4]) -> [f32; 4] {
+    let theta = (x * x + y * y + z * z).sqrt();
+    let inv = if theta > 0.0 { 1.0 / theta } else { 0.0 };
+    [x * inv, y * inv, z * inv, theta]
+}
+
+/// Which sine and cosine [`cumulative_product`] takes.
+#[derive(Clone, Copy, Debug)]
+pub enum AngleRange<S> {
+    /// Every `|theta b|` is at most [`super::simd::SMALL_ANGLE`]: [`sin_cos_small`].
+    Small,
+    /// Any angle: the range-reduced [`Lanes::sin_cos`].
+    Any,
+    /// [`sin_cos_small`] in the lanes this mask sets, [`Lanes::sin_cos`] in the others: each
+    /// lane's choice its own, whatever its neighbours are.
+    PerLane(S),
+}
+
 /// `start * prod exp(v_j b_j)` and, with `derivatives`, the body angular velocity and
 /// acceleration by DESIGN section 2's recursion (see the reference for the formulas).
-/// `small`: every `|theta b|` is at most [`super::simd::SMALL_ANGLE`], so [`sin_cos_small`]
-/// applies.
+/// `range`: which sine and cosine apply.
 /// `lead`: `start * (axis_0, 0)` when the caller has it (all lanes on one segment), which
 /// turns the first product into `cos * start + sin * lead`.
 #[inline(always)]
-pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q8<S>>, factors: &[Factor8<S>; F], derivatives: bool, small: bool) -> (Q8<S>, V8<S>, V8<S>) {
+pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q8<S>>, factors: &[Factor8<S>; F], derivatives: bool, range: AngleRange<S>) -> (Q8<S>, V8<S>, V8<S>) {
     #[inline(always)]
-    fn sin_cos<S: Lanes>(f: &Factor8<S>, small: bool) -> (S, S) {
+    fn sin_cos<S: Lanes>(f: &Factor8<S>, range: AngleRange<S>) -> (S, S) {
         let angle = f.theta * f.b[0];
-        if small {
-            sin_cos_small(angle)
-        } else {
-            angle.sin_cos()
+        match range {
+            AngleRange::Small => sin_cos_small(angle),
+            AngleRange::Any => angle.sin_cos(),
+            AngleRange::PerLane(small) => {
+                let ((s, c), (s_any, c_any)) = (sin_cos_small(angle), angle.sin_cos());
+                (small.blend(s, s_any), small.blend(c, c_any))
+            }
         }
     }
     let Some((head, rest)) = factors.split_first() else {
         return (start, V8::ZERO, V8::ZERO);
     };
-    let (sin, cos) = sin_cos(head, small);
+    let (sin, cos) = sin_cos(head, range);
     let mut q = match lead {
         Some(lead) => start.along(lead, sin, cos),
         None => start * Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos },
@@ -168,7 +206,7 @@ pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q
     // W and W' start at zero: nothing to carry through the first factor.
     let (mut w, mut w_dot) = if derivatives { (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2])) } else { (V8::ZERO, V8::ZERO) };
     for f in rest {
-        let (sin, cos) = sin_cos(f, small);
+        let (sin, cos) = sin_cos(f, range);
         let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
         if derivatives {
             let spin = f.axis.scale(f.theta * f.b[1]);

@@ -18,6 +18,7 @@ mod cox_de_boor;
 mod forward;
 mod lanes;
 mod piece;
+mod runs;
 mod simd;
 mod track;
 
@@ -145,14 +146,30 @@ impl CpuEvaluator {
         }
         let tables = Context::new(batch, &self.bases, self.isa);
         let tasks = tasks(times);
-        // A task's samples into `out` (its own rows, track-major), one track or piece at a time.
+        // A task's samples into `out` (its own rows, track-major): a run of short tracks of
+        // one kind at a time, or one track or piece.
         let run = |task: &Task, out: &mut [f32]| {
             let mut rest = out;
-            for track in task.tracks.clone() {
-                let samples = task.samples(track, times);
-                let (head, tail) = std::mem::take(&mut rest).split_at_mut(samples.len() * channels);
+            let mut track = task.tracks.start;
+            while track < task.tracks.end {
+                let kind = task.piece.is_none().then(|| runs::Kind::of(batch, times, track, &options)).flatten();
+                let (end, samples) = match kind {
+                    Some(kind) => {
+                        let mut end = track + 1;
+                        while end < task.tracks.end && runs::Kind::of(batch, times, end, &options) == Some(kind) {
+                            end += 1;
+                        }
+                        (end, times.offsets[end] - times.offsets[track])
+                    }
+                    None => (track + 1, task.samples(track, times).len()),
+                };
+                let (head, tail) = std::mem::take(&mut rest).split_at_mut(samples * channels);
                 rest = tail;
-                track::evaluate(&tables, batch.view(track), times, track, samples, &options, head);
+                match kind {
+                    Some(kind) => runs::evaluate(&tables, batch, kind, times, track..end, &options, head),
+                    None => track::evaluate(&tables, batch.view(track), times, track, task.samples(track, times), &options, head),
+                }
+                track = end;
             }
         };
         match options.layout {

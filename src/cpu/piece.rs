@@ -3,9 +3,9 @@
 
 use super::bases::{bernstein_cumulative_lanes, Bases, Basis};
 use super::cox_de_boor::SpanKnots;
-use super::lanes::{cumulative_product, write_columns, Factor8, LANES, Q8, V8};
+use super::lanes::{axis_angle, cumulative_product, write_columns, AngleRange, Factor8, LANES, Q8, V8};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
-use crate::batch::{Batch, TrackView};
+use crate::batch::{Batch, PackedTrack, TrackView};
 use crate::curve::Curve;
 use crate::job::EvalOptions;
 use crate::output::Row;
@@ -35,31 +35,138 @@ impl<'a> Context<'a> {
         self.batch.points[i].to_array().map(|v| v as f32)
     }
 
-    /// Coefficient `c` as `[axis x, axis y, axis z, theta]` in f32 (axis unit, or zero with
-    /// theta 0).
+    /// Coefficient `c` as stored, `[x, y, z, w]`, in f32.
     #[inline(always)]
-    fn axis(&self, c: usize) -> [f32; 4] {
-        let c = &self.batch.coefs[c];
-        let theta = angle(c);
-        if theta > 0.0 {
-            [(c[0] / theta) as f32, (c[1] / theta) as f32, (c[2] / theta) as f32, theta as f32]
-        } else {
-            [0.0; 4]
-        }
+    fn coef(&self, c: usize) -> [f32; 4] {
+        self.batch.coefs[c].map(|v| v as f32)
     }
 }
 
-/// The length of a coefficient's vector part: the angle of its factor.
-#[inline(always)]
-pub(super) fn angle(c: &[f64; 4]) -> f64 {
-    (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+/// Where one track's segments lie in the batch: segment `span` starts at point
+/// `point + span - shift`, and its factors are the coefficients from
+/// `coef + stride * span - shift` on (a B-spline's span `k - 1` is its first segment).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Segments {
+    point: usize,
+    coef: usize,
+    stride: usize,
+    shift: usize,
+    /// A Hermite segment's start takes the sign its middle coefficient's `w` keeps.
+    hermite: bool,
+}
+
+impl Segments {
+    /// The segments of `track`.
+    pub(super) fn of(track: &PackedTrack) -> Self {
+        let (point, coef) = (track.point_offset, track.coef_offset);
+        match track.curve {
+            Curve::Slerp => Self { point, coef, stride: 1, shift: 0, hermite: false },
+            Curve::Bezier => Self { point, coef, stride: 0, shift: 0, hermite: false },
+            Curve::Hermite => Self { point, coef, stride: 3, shift: 0, hermite: true },
+            _ => Self { point, coef, stride: 1, shift: track.order - 1, hermite: false },
+        }
+    }
+
+    /// Segment `span`'s first point (sign-aligned for Hermite) and its `F` coefficients, in
+    /// f32 as stored: loads and conversions only, per lane; axes and angles come later,
+    /// eight lanes at once ([`Factor8::from_rows`]).
+    #[inline(always)]
+    pub(super) fn rows<const F: usize>(self, tables: &Context<'_>, span: usize) -> ([f32; 4], [[f32; 4]; F]) {
+        let coef = self.coef + self.stride * span - self.shift;
+        let mut start = tables.point(self.point + span - self.shift);
+        if self.hermite {
+            let sign = tables.batch.coefs[coef + 1][3] as f32;
+            start = start.map(|v| v * sign);
+        }
+        // Loops, not `array::from_fn`, here and below: its closures do not inherit the AVX2
+        // entry point's target features, so they stay calls.
+        let mut coefs = [[0.0f32; 4]; F];
+        for (f, row) in coefs.iter_mut().enumerate() {
+            *row = tables.coef(coef + f);
+        }
+        (start, coefs)
+    }
+}
+
+/// One group's lanes as read, before any SIMD: each lane's time and span knots, and its
+/// segment's rows ([`Segments::rows`]). Lanes a group leaves unset keep finite values.
+pub(super) struct LaneRows<const F: usize> {
+    t: [f64; LANES],
+    k0: [f64; LANES],
+    k1: [f64; LANES],
+    starts: [[f32; 4]; LANES],
+    /// Factor-major, so that each factor's eight rows are one [`Factor8::from_rows`].
+    coefs: [[[f32; 4]; LANES]; F],
+}
+
+impl<const F: usize> LaneRows<F> {
+    /// Zero rows on unit spans.
+    pub(super) fn new() -> Self {
+        Self { t: [0.0; LANES], k0: [0.0; LANES], k1: [1.0; LANES], starts: [[0.0; 4]; LANES], coefs: [[[0.0; 4]; LANES]; F] }
+    }
+
+    /// Lane `lane`: time `t` in the span `[k0, k1)` whose rows are `rows`.
+    #[inline(always)]
+    pub(super) fn set(&mut self, lane: usize, t: f64, [k0, k1]: [f64; 2], (start, coefs): ([f32; 4], [[f32; 4]; F])) {
+        (self.t[lane], self.k0[lane], self.k1[lane], self.starts[lane]) = (t, k0, k1, start);
+        for (f, coef) in coefs.into_iter().enumerate() {
+            self.coefs[f][lane] = coef;
+        }
+    }
+
+    /// Each lane's span parameter `u` and inverse span length (for derivatives in time), as
+    /// the shared groups compute them.
+    #[inline(always)]
+    pub(super) fn params<S: Lanes>(&self) -> (S, S) {
+        let (mut u, mut inv) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for lane in 0..LANES {
+            let inv_len = 1.0 / (self.k1[lane] - self.k0[lane]);
+            u[lane] = ((self.t[lane] - self.k0[lane]) * inv_len) as f32;
+            inv[lane] = inv_len as f32;
+        }
+        (S::new(u), S::new(inv))
+    }
+
+    /// The lanes' first points.
+    #[inline(always)]
+    pub(super) fn start<S: Lanes>(&self) -> Q8<S> {
+        let [x, y, z, w] = S::from_rows(&self.starts);
+        Q8 { x, y, z, w }
+    }
+
+    /// The lanes' factors, with basis jets `jets`.
+    #[inline(always)]
+    pub(super) fn factors<S: Lanes>(&self, jets: &[[S; 3]; F]) -> [Factor8<S>; F] {
+        let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
+        for (f, factor) in factors.iter_mut().enumerate() {
+            *factor = Factor8::from_rows(&self.coefs[f], jets[f]);
+        }
+        factors
+    }
+}
+
+/// The spans a vectorized track's domain covers, first and last: its key segments (slerp,
+/// Hermite), a B-spline's spans from `k - 1` to its last control point, a Bezier curve's one.
+pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
+    match view.track.curve {
+        Curve::Slerp | Curve::Hermite => (0, view.knots.len() - 2),
+        Curve::BSpline | Curve::BSplineInterp => (view.track.order - 1, view.points.len() - 1),
+        _ => (0, 0),
+    }
+}
+
+/// The inverse knot spacing of `view` for span lookup by arithmetic on equally spaced
+/// knots, else 0.
+pub(super) fn inv_step(view: TrackView<'_>) -> f64 {
+    let knots = view.knots;
+    if view.track.uniform_knots && knots.len() > 1 { (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0]) } else { 0.0 }
 }
 
 /// `locate`, first trying the previous span and the next (sample times usually increase);
 /// on equally spaced knots (`inv_step` their inverse spacing, else 0) by arithmetic, else by
 /// bisection. Short tracks land on a new span at almost every sample.
 #[inline(always)]
-fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
+pub(super) fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
     let h = *hint;
     if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
         return (h, t);
@@ -78,12 +185,19 @@ fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f6
 /// [`locate`] on strictly increasing, equally spaced knots: the span from the spacing, then
 /// corrected by a step where rounding put it one off, so the result is [`locate`]'s.
 #[inline(always)]
-fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
-    let (lo, hi) = (knots[first], knots[last + 1]);
+pub(super) fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
+    locate_uniform_in(knots, first, last, [knots[first], knots[last + 1]], t, inv_step)
+}
+
+/// [`locate_uniform`] with the domain `[lo, hi]` (`knots[first]`, `knots[last + 1]`) given,
+/// for callers that keep it.
+#[inline(always)]
+pub(super) fn locate_uniform_in(knots: &[f64], first: usize, last: usize, [lo, hi]: [f64; 2], t: f64, inv_step: f64) -> (usize, f64) {
     let t = if t >= lo { t.min(hi) } else { lo };
     // Clamped before the cast: a tiny domain can make the spacing's inverse infinite.
     let guess = ((t - lo) * inv_step).floor().min((last - first) as f64);
-    let mut span = if guess > 0.0 { first + guess as usize } else { first };
+    // Through u32, a shorter conversion than to usize: no track has 2^32 spans (32 GB of knots).
+    let mut span = if guess > 0.0 { first + guess as u32 as usize } else { first };
     while span < last && knots[span + 1] <= t {
         span += 1;
     }
@@ -120,12 +234,6 @@ pub(super) struct Piece<'a> {
 }
 
 impl Piece<'_> {
-    /// The inverse knot spacing for [`locate_from`] on equally spaced knots, else 0.
-    fn inv_step(&self) -> f64 {
-        let knots = self.view.knots;
-        if self.view.track.uniform_knots && knots.len() > 1 { (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0]) } else { 0.0 }
-    }
-
     /// Evaluates the piece's `n` samples into `out`, on the kernel instance for its factor
     /// count, derivatives and angle range.
     pub(super) fn evaluate(&self, n: usize, out: &mut [f32]) {
@@ -157,22 +265,12 @@ impl Piece<'_> {
         }
     }
 
-    /// The segment of `span` in f32: its first point (sign-aligned for Hermite) and its `F`
-    /// factors' axes and angles. Converted once per span a group meets (the kernels keep the
-    /// last one), not once per batch: no f32 copy of the whole batch.
+    /// The segment of `span` as the shared groups broadcast it: its rows, with each factor's
+    /// axis and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane).
     #[inline(always)]
     fn segment<const F: usize>(&self, span: usize) -> Segment<F> {
-        let (track, p0, c0) = (self.view.track, self.view.track.point_offset, self.view.track.coef_offset);
-        let (start, coef) = match track.curve {
-            Curve::Slerp => (self.tables.point(p0 + span), c0 + span),
-            Curve::Bezier => (self.tables.point(p0), c0),
-            Curve::Hermite => {
-                let sign = self.view.coefs[3 * span + 1][3] as f32;
-                (self.tables.point(p0 + span).map(|v| v * sign), c0 + 3 * span)
-            }
-            _ => (self.tables.point(p0 + span + 1 - track.order), c0 + span + 1 - track.order),
-        };
-        Segment { span, start, axes: std::array::from_fn(|f| self.tables.axis(coef + f)) }
+        let (start, coefs) = Segments::of(self.view.track).rows::<F>(self.tables, span);
+        Segment { span, start, axes: coefs.map(axis_angle) }
     }
 
     /// [`Piece::groups`] on the evaluator's lane type.
@@ -189,15 +287,16 @@ impl Piece<'_> {
     /// `SMALL`: every angle is within [`SMALL_ANGLE`]. Inlined into [`Piece::run`]'s
     /// instances, so that the AVX2 one compiles for AVX2. It stays one loop of about 90 lines
     /// on purpose: the state carried from group to group (span hint, shared segment, Cox-de
-    /// Boor constants, per-lane starts and axes) lives in registers and on this frame; the
-    /// steps that carry none are inline helpers below.
+    /// Boor constants, the lanes of the last unshared group) lives in registers and on this
+    /// frame; the steps that carry none are inline helpers below.
     #[inline(always)]
     fn groups<const F: usize, const DERIVATIVES: bool, const SMALL: bool, S: Lanes>(&self, n: usize, out: &mut [f32]) {
         let (knots, options) = (self.view.knots, self.options);
         let channels = options.row().channels();
         let (first, last) = (self.first, self.last);
         let mut hint = first;
-        let inv_step = self.inv_step();
+        let inv_step = inv_step(self.view);
+        let segments = Segments::of(self.view.track);
         let mut jets = [[S::ZERO; 3]; F];
         // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
         // of a `--samples` grid is the exact domain end instead.
@@ -209,15 +308,13 @@ impl Piece<'_> {
         let mut span_knots: Option<SpanKnots> = None;
         // The segment the last shared group was on, and its `start * (axis_0, 0)`.
         let mut shared_segment: Option<(Segment<F>, [f32; 4])> = None;
-        // Each lane's segment start and factors in a group that is not shared (set there
-        // before they are read; kept across groups so that they are not cleared per group).
-        let mut starts = [[0.0f32; 4]; LANES];
-        let mut axes = [[[0.0f32; 4]; F]; LANES];
+        // The lanes of a group that is not shared (kept across groups, so that they are not
+        // cleared per group).
+        let mut lanes = LaneRows::<F>::new();
         for g in (0..n).step_by(LANES) {
             let valid = LANES.min(n - g);
             let mut t = self.group_times(uniform, self.from + g, valid);
             let mut spans = [hint; LANES];
-            let mut u = [0.0f32; LANES];
             // Usually all eight samples lie in the span of the previous group: one lookup, one
             // division, and the segment's data broadcast instead of gathered.
             let h = hint;
@@ -225,8 +322,9 @@ impl Piece<'_> {
                 let (k0, k1) = (knots[h], knots[h + 1]);
                 t.iter().fold(true, |inside, &t| inside & (k0 <= t) & (t < k1))
             };
-            let inv = if shared {
+            let (u, inv) = if shared {
                 let inv_len = 1.0 / (knots[h + 1] - knots[h]);
+                let mut u = [0.0f32; LANES];
                 for (u, t) in u.iter_mut().zip(&t) {
                     *u = ((t - knots[h]) * inv_len) as f32;
                 }
@@ -234,28 +332,18 @@ impl Piece<'_> {
                     let segment = self.segment::<F>(h);
                     shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
                 }
-                S::splat(inv_len as f32)
+                (S::new(u), S::splat(inv_len as f32))
             } else {
-                let mut inv = [0.0f32; LANES];
-                // Consecutive lanes in one span share one conversion (every distinct span
-                // once when the times are sorted, as grids are).
-                let mut current: Option<(Segment<F>, f64)> = None;
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane], inv_step);
-                    let (segment, inv_len) = match current {
-                        Some(c) if c.0.span == span => c,
-                        _ => *current.insert((self.segment::<F>(span), 1.0 / (knots[span + 1] - knots[span]))),
-                    };
                     (spans[lane], t[lane]) = (span, tl);
-                    u[lane] = ((tl - knots[span]) * inv_len) as f32;
-                    inv[lane] = inv_len as f32;
-                    (starts[lane], axes[lane]) = (segment.start, segment.axes);
+                    lanes.set(lane, tl, [knots[span], knots[span + 1]], segments.rows::<F>(self.tables, span));
                 }
-                S::new(inv)
+                lanes.params::<S>()
             };
             match self.basis {
-                Basis::Poly(poly) => poly.eval::<S, F>(S::new(u), DERIVATIVES, &mut jets),
-                Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(S::new(u), &mut jets),
+                Basis::Poly(poly) => poly.eval::<S, F>(u, DERIVATIVES, &mut jets),
+                Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(u, &mut jets),
                 Basis::CoxDeBoor => cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut span_knots, &mut jets),
             }
             // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
@@ -265,22 +353,18 @@ impl Piece<'_> {
                     jet[2] = jet[2] * (inv * inv);
                 }
             }
-            let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
-            for (f, factor) in factors.iter_mut().enumerate() {
-                let (axis, theta) = match &shared_segment {
-                    Some((segment, _)) if shared => (V8::splat(segment.axes[f]), S::splat(segment.axes[f][3])),
-                    _ => {
-                        let rows: [[f32; 4]; LANES] = std::array::from_fn(|lane| axes[lane][f]);
-                        (V8::gather(&rows), S::new(rows.map(|r| r[3])))
+            let (start, lead, factors) = match &shared_segment {
+                Some((segment, lead)) if shared => {
+                    let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
+                    for (f, factor) in factors.iter_mut().enumerate() {
+                        *factor = Factor8 { axis: V8::splat(segment.axes[f]), theta: S::splat(segment.axes[f][3]), b: jets[f] };
                     }
-                };
-                *factor = Factor8 { axis, theta, b: jets[f] };
-            }
-            let (start, lead) = match &shared_segment {
-                Some((segment, lead)) if shared => (Q8::splat(segment.start), Some(Q8::splat(*lead))),
-                _ => (Q8::gather(&starts), None),
+                    (Q8::splat(segment.start), Some(Q8::splat(*lead)), factors)
+                }
+                _ => (lanes.start(), None, lanes.factors(&jets)),
             };
-            let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, SMALL);
+            let range = if SMALL { AngleRange::Small } else { AngleRange::Any };
+            let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, range);
             write_group::<S, DERIVATIVES>(options.row(), q, [w, a], &mut out[g * channels..(g + valid) * channels], valid);
         }
     }
@@ -354,7 +438,7 @@ fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
 /// A group's rows (`valid` of them): the [`Row`] columns, rotation then omega and alpha back
 /// to back, then the matrix when the row has one.
 #[inline(always)]
-fn write_group<S: Lanes, const DERIVATIVES: bool>(row: Row, q: Q8<S>, [w, a]: [V8<S>; 2], rows: &mut [f32], valid: usize) {
+pub(super) fn write_group<S: Lanes, const DERIVATIVES: bool>(row: Row, q: Q8<S>, [w, a]: [V8<S>; 2], rows: &mut [f32], valid: usize) {
     let channels = row.channels();
     write_columns([q.x, q.y, q.z, q.w], rows, channels, Row::ROTATION.start, 4, valid);
     if DERIVATIVES {

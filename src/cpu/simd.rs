@@ -60,6 +60,11 @@ pub trait Lanes:
     fn blend(self, t: Self, f: Self) -> Self;
     /// The eight lanes' `[v0, v1, v2, v3]`: four vectors of eight samples as eight rows.
     fn transpose(v: [Self; 4]) -> [[f32; 4]; 8];
+    /// Four vectors of eight samples from eight rows `[v0, v1, v2, v3]`: the inverse of
+    /// [`Lanes::transpose`].
+    fn from_rows(rows: &[[f32; 4]; 8]) -> [Self; 4];
+    /// Whether every lane of the mask `self` is set.
+    fn all(self) -> bool;
 }
 
 /// Which lane type an evaluator runs.
@@ -181,6 +186,14 @@ impl Lanes for wide::f32x8 {
         let a = v.map(wide::f32x8::to_array);
         std::array::from_fn(|lane| [a[0][lane], a[1][lane], a[2][lane], a[3][lane]])
     }
+    #[inline(always)]
+    fn from_rows(rows: &[[f32; 4]; 8]) -> [Self; 4] {
+        std::array::from_fn(|c| wide::f32x8::new(rows.map(|r| r[c])))
+    }
+    #[inline(always)]
+    fn all(self) -> bool {
+        self.move_mask() == 0xFF
+    }
 }
 
 /// Largest `|x|` that [`sin_cos_small`] takes: a little over `pi / 2`, the half-angle of every
@@ -252,7 +265,7 @@ mod avx2 {
     use super::Lanes;
     use std::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_max_ps, _mm256_min_ps, _mm256_blendv_ps, _mm256_castps256_ps128, _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_ps,
-        _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_ps,
+        _mm256_fmadd_ps, _mm256_loadu2_m128, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_ps,
         _mm256_sub_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _MM_FROUND_NO_EXC,
         _MM_FROUND_TO_NEAREST_INT,
     };
@@ -416,6 +429,31 @@ mod avx2 {
                 ]
             }
         }
+        /// [`Avx2::transpose`] backwards: rows `i` and `i + 4` loaded into one register, then
+        /// the same 4x4 transposes of both halves.
+        #[inline(always)]
+        fn from_rows(rows: &[[f32; 4]; 8]) -> [Self; 4] {
+            // SAFETY: see the type; each load reads the four floats of two rows.
+            unsafe {
+                let a0 = _mm256_loadu2_m128(rows[4].as_ptr(), rows[0].as_ptr());
+                let a1 = _mm256_loadu2_m128(rows[5].as_ptr(), rows[1].as_ptr());
+                let a2 = _mm256_loadu2_m128(rows[6].as_ptr(), rows[2].as_ptr());
+                let a3 = _mm256_loadu2_m128(rows[7].as_ptr(), rows[3].as_ptr());
+                let (t0, t1) = (_mm256_unpacklo_ps(a0, a1), _mm256_unpackhi_ps(a0, a1));
+                let (t2, t3) = (_mm256_unpacklo_ps(a2, a3), _mm256_unpackhi_ps(a2, a3));
+                [
+                    Self(_mm256_shuffle_ps::<0x44>(t0, t2)),
+                    Self(_mm256_shuffle_ps::<0xEE>(t0, t2)),
+                    Self(_mm256_shuffle_ps::<0x44>(t1, t3)),
+                    Self(_mm256_shuffle_ps::<0xEE>(t1, t3)),
+                ]
+            }
+        }
+        #[inline(always)]
+        fn all(self) -> bool {
+            // SAFETY: see the type.
+            unsafe { _mm256_movemask_ps(self.0) == 0xFF }
+        }
     }
 }
 
@@ -510,6 +548,13 @@ mod tests {
                         same(w & !Lanes::cmp_gt(wc, wa) & f32x8::ONE, v & !vc.cmp_gt(va) & Avx2::ONE, "mask logic");
                     }
                     assert_eq!(<f32x8 as Lanes>::transpose([wa, wb, wc, wa]), Avx2::transpose([va, vb, vc, va]), "transpose");
+                    let rows = Avx2::transpose([va, vb, vc, va]);
+                    for (w, v) in <f32x8 as Lanes>::from_rows(&rows).into_iter().zip(Avx2::from_rows(&rows)) {
+                        same(w, v, "from_rows");
+                    }
+                    assert_eq!(Avx2::from_rows(&rows).map(|v| v.to_array()), [a, b, c, a], "from_rows inverts transpose");
+                    assert_eq!(Lanes::all(Lanes::cmp_gt(wa, wb)), va.cmp_gt(vb).all(), "all");
+                    assert!(va.cmp_le(va).all() && Lanes::all(Lanes::cmp_le(wa, wa)), "all of a full mask");
                     let ((ws, wc2), (vs, vc2)) = (Lanes::sin_cos(wa), va.sin_cos());
                     let close = |w: f32x8, v: Avx2, op: &str| {
                         for (w, v) in w.to_array().into_iter().zip(v.to_array()) {

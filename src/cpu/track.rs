@@ -6,7 +6,7 @@
 
 use super::bases::Basis;
 use super::lanes::MAX_FACTORS;
-use super::piece::{Context, Piece};
+use super::piece::{spans, Context, Piece};
 use crate::batch::TrackView;
 use crate::curve::{Curve, MIN_ORDER};
 use crate::job::EvalOptions;
@@ -23,18 +23,17 @@ pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, 
         return;
     }
     let track = view.track;
-    let knots = view.knots;
-    let (basis, factors, first, last) = match track.curve {
-        Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1, 0, knots.len() - 2),
-        Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3, 0, knots.len() - 2),
+    let (basis, factors) = match track.curve {
+        Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1),
+        Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3),
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
             let basis = if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - MIN_ORDER]) } else { Basis::CoxDeBoor };
-            (basis, k - 1, k - 1, view.points.len() - 1)
+            (basis, k - 1)
         }
         // One segment; degrees beyond the product's capacity take the reference below.
-        Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order, 0, 0),
+        Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order),
         Curve::Squad | Curve::NamKim if !options.derivatives => {
             super::arcs::evaluate(tables.isa, view, times, index, range.start, range.len(), channels, out);
             out.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));
@@ -54,6 +53,7 @@ pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, 
             return;
         }
     };
+    let (first, last) = spans(view);
     let piece = Piece { tables, view, times, index, from: range.start, options, basis, factors, first, last };
     piece.evaluate(range.len(), out);
 }

@@ -202,3 +202,71 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
         }
     }
 }
+
+/// Short tracks share SIMD groups (lanes run across track ends, `cpu::runs`), so each lane's
+/// result must be its own track's whatever shares its group: every track of a batch of short
+/// tracks gives the same bits evaluated alone. Blocks of 1 to 8 tracks of one spec (runs
+/// that start and stop), 0 to 70 samples each (around the run limit of 64), some Hermite
+/// tracks with extra turns so that large and small angles share groups; explicit times and
+/// grids; with and without derivatives. The batch also meets the bars.
+#[test]
+fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
+    use quatcurve::{BatchBuilder, Curve, Track};
+    let mut g = Gen::new(2718);
+    let specs = all_specs();
+    let mut tracks: Vec<(Track, CurveSpec)> = Vec::new();
+    while tracks.len() < 400 {
+        let spec = specs[(g.next_u64() % specs.len() as u64) as usize];
+        for _ in 0..1 + g.next_u64() % 8 {
+            let count = spec.min_keys().max(2) + (g.next_u64() % 6) as usize;
+            let mut track = accurate_track(&mut g, &spec, count, KINDS[tracks.len() % 4]);
+            if spec.curve == Curve::Hermite && g.coin() {
+                track.extra_turns = Some((0..count - 1).map(|s| (s % 3) as i64 - 1).collect());
+            }
+            tracks.push((track, spec));
+        }
+    }
+    let build = |tracks: &[(Track, CurveSpec)]| {
+        let mut builder = BatchBuilder::new();
+        for (track, spec) in tracks {
+            builder.add(track, spec).unwrap();
+        }
+        builder.build().unwrap()
+    };
+    let batch = build(&tracks);
+    let lists: Vec<Vec<f64>> = (0..batch.len())
+        .map(|i| {
+            let [a, b] = batch.tracks[i].domain;
+            let mut t: Vec<f64> = (0..g.next_u64() % 71).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
+            t.sort_by(f64::total_cmp);
+            t
+        })
+        .collect();
+    let explicit = |i: Option<usize>| -> Vec<Option<&[f64]>> {
+        match i {
+            Some(i) => vec![Some(lists[i].as_slice())],
+            None => lists.iter().map(|l| Some(l.as_slice())).collect(),
+        }
+    };
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut worst = Worst::default();
+    for sampling in [None, Some(10), Some(64), Some(65)] {
+        let times_of = |batch: &Batch, i: Option<usize>| match sampling {
+            Some(n) => SampleTimes::uniform(batch, Sampling::Count(n)).unwrap(),
+            None => SampleTimes::new(batch, &explicit(i), Sampling::Count(1)).unwrap(),
+        };
+        let times = times_of(&batch, None);
+        for derivatives in [false, true] {
+            let whole = on_cpu(&batch, &times, Layout::Track, derivatives);
+            worst.merge(compare_output(&whole, &batch, &times, Layout::Track, derivatives, &format!("{sampling:?} samples, derivatives {derivatives}")));
+            let channels = whole.channels;
+            for (i, (track, spec)) in tracks.iter().enumerate() {
+                let alone = build(std::slice::from_ref(&(track.clone(), *spec)));
+                let out = on_cpu(&alone, &times_of(&alone, Some(i)), Layout::Track, derivatives);
+                let own = &whole.data[times.offsets[i] * channels..times.offsets[i + 1] * channels];
+                assert!(bits(&out.data) == bits(own), "track {i} ({}, {sampling:?} samples, derivatives {derivatives}) differs alone", describe(spec));
+            }
+        }
+    }
+    worst.assert_within_bars("cpu: short tracks sharing SIMD groups");
+}
