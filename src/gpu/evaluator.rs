@@ -48,6 +48,8 @@ impl PreparedBatch {
 struct PreparedChunk {
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
+    /// The packed points, coefficients, knots and sample times.
+    inputs: [wgpu::Buffer; 4],
     output: wgpu::Buffer,
     output_bytes: u64,
     groups: [u32; 2],
@@ -111,6 +113,11 @@ pub struct GpuEvaluator {
     /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
     /// of the kernel's time).
     spare_output: Mutex<Option<wgpu::Buffer>>,
+    /// The last input buffers `evaluate` packed, where they are mappable
+    /// ([`GpuEvaluator::map_outputs`]): mapped again for the next chunk instead of created
+    /// mapped, which wgpu zero-fills on one thread, page fault by page fault, before the
+    /// packing overwrites every byte.
+    spare_inputs: Mutex<Option<[wgpu::Buffer; 4]>>,
     lost: Arc<Mutex<Option<String>>>,
 }
 
@@ -219,6 +226,7 @@ impl GpuEvaluator {
             fk: std::sync::OnceLock::new(),
             polynomials,
             spare_output: Mutex::new(None),
+            spare_inputs: Mutex::new(None),
             lost,
         })
     }
@@ -278,6 +286,7 @@ impl GpuEvaluator {
             fk: std::sync::OnceLock::new(),
             polynomials: self.polynomials.clone(),
             spare_output: Mutex::new(None),
+            spare_inputs: Mutex::new(None),
             lost: Arc::clone(&self.lost),
         }
     }
@@ -315,13 +324,17 @@ impl GpuEvaluator {
             // The readback copy is queued behind the dispatch: one wait covers both.
             self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, plan, times, options.layout, channels, &mut data))?;
             *self.spare_output.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.output);
+            if self.map_outputs {
+                *self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.inputs);
+            }
         }
         Ok(GpuOutput { channels, data })
     }
 
-    /// Frees the output buffer kept for reuse by [`GpuEvaluator::evaluate`].
+    /// Frees the buffers kept for reuse by [`GpuEvaluator::evaluate`].
     pub fn release_buffers(&self) {
         self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take();
+        self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()).take();
     }
 
     /// Uploads a batch once for repeated dispatches (benchmarks, or re-evaluation after the
@@ -460,14 +473,17 @@ impl GpuEvaluator {
         // mapped themselves (`MAPPABLE_PRIMARY_BUFFERS`, unified memory), without a staging copy.
         let storage = wgpu::BufferUsages::STORAGE;
         let writable = storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
-        let mapped = |label: &str, bytes: usize| {
-            // Bindings may not be empty.
-            let size = (bytes as u64).max(16);
-            self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: writable, mapped_at_creation: true })
+        // Bindings may not be empty.
+        let sizes = [plan.points * 16, plan.coefs * 16, plan.knots * 8, plan.times * 8].map(|bytes| (bytes as u64).max(16));
+        let packed = match self.reuse_inputs(&sizes)? {
+            Some(buffers) => buffers,
+            None => {
+                let labels = ["points", "coefs", "knots", "times"];
+                std::array::from_fn(|i| self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(labels[i]), size: sizes[i], usage: writable, mapped_at_creation: true }))
+            }
         };
-        let packed = [mapped("points", plan.points * 16), mapped("coefs", plan.coefs * 16), mapped("knots", plan.knots * 8), mapped("times", plan.times * 8)];
         let tracks = {
-            let [p, c, k, t] = packed.each_ref().map(|b| b.get_mapped_range_mut(..).map_err(|e| GpuError::Device(format!("writing the packed batch: {e}"))));
+            let [p, c, k, t] = std::array::from_fn(|i| packed[i].get_mapped_range_mut(..sizes[i]).map_err(|e| GpuError::Device(format!("writing the packed batch: {e}"))));
             let (mut p, mut c, mut k, mut t) = (p?, c?, k?, t?);
             layout::pack(plan, job.batch, job.times, ChunkTargets { points: p.slice(..), coefs: c.slice(..), knots: k.slice(..), times: t.slice(..) })
         };
@@ -492,7 +508,7 @@ impl GpuEvaluator {
             };
             self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
-        let [points, coefs, knots, times] = packed;
+        let [points, coefs, knots, times] = packed.clone();
         let inputs = [
             init("params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
             init("tracks", bytemuck::cast_slice::<GpuTrack, u8>(&tracks), storage),
@@ -525,7 +541,35 @@ impl GpuEvaluator {
             entries: &entries,
         });
         scope.pop()?;
-        Ok(PreparedChunk { pipeline, bind_group, output, output_bytes, groups: [groups_x, groups_y as u32] })
+        Ok(PreparedChunk { pipeline, bind_group, inputs: packed, output, output_bytes, groups: [groups_x, groups_y as u32] })
+    }
+
+    /// The input buffers the last chunk of [`GpuEvaluator::evaluate`] packed, mapped for
+    /// writing again, when it kept them and each holds `sizes` bytes; else `None`.
+    fn reuse_inputs(&self, sizes: &[u64; 4]) -> Result<Option<[wgpu::Buffer; 4]>, GpuError> {
+        let spare = self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let Some(buffers) = spare.filter(|buffers| buffers.iter().zip(sizes).all(|(b, &size)| b.size() >= size)) else {
+            return Ok(None);
+        };
+        let (sender, receiver) = std::sync::mpsc::channel();
+        for (buffer, &size) in buffers.iter().zip(sizes) {
+            let sender = sender.clone();
+            buffer.map_async(wgpu::MapMode::Write, ..size, move |r| {
+                let _ = sender.send(r);
+            });
+        }
+        drop(sender);
+        self.wait()?;
+        // Another thread's poll may run the callbacks: wait for each (a callback dropped
+        // unrun drops its sender, which ends the wait).
+        for _ in &buffers {
+            match receiver.recv() {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => return Err(GpuError::Device(format!("mapping the input buffers: {e}"))),
+                Err(_) => return Err(GpuError::Device("mapping the input buffers: a map callback never ran".into())),
+            }
+        }
+        Ok(Some(buffers))
     }
 
     /// Records and submits one chunk's dispatch.
@@ -621,8 +665,10 @@ fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout
 
 /// Validation and out-of-memory scopes around a group of device calls.
 pub(super) struct ErrorScope {
-    validation: wgpu::ErrorScopeGuard,
+    // Declared in popping order: an early return drops the fields in this order, and wgpu
+    // wants scopes popped in reverse order of pushing.
     memory: wgpu::ErrorScopeGuard,
+    validation: wgpu::ErrorScopeGuard,
 }
 
 impl ErrorScope {

@@ -161,6 +161,27 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
     assert_eq!(evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap().data, fresh.data);
 }
 
+/// The input buffers `evaluate` keeps (where inputs are mappable, as on lavapipe) are packed
+/// again for the next chunk and the next call: a small batch packed into a larger batch's
+/// buffers, whose tails still hold the larger batch's keys and knots, gives the bits of a
+/// fresh evaluator, in one chunk and across chunks.
+#[test]
+fn reused_input_buffers_give_the_same_samples_as_fresh_ones() {
+    let Some(_) = gpu() else { return };
+    let small = crate::fast::batch_for(4, &CurveSpec::default(), Kind::Random, 5);
+    let large = crate::fast::batch_for(9, &CurveSpec::new(Curve::Hermite), Kind::Random, 60);
+    let times = |batch: &Batch| SampleTimes::uniform(batch, Sampling::Count(33)).unwrap();
+    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    for limit in [u64::MAX, 8 * 1024] {
+        let fresh = gpu().unwrap().share_device().with_binding_limit(limit).evaluate(&EvalJob::new(&small, &times(&small)).with(options)).unwrap();
+        // An evaluator of its own: the shared one is used by other tests in parallel.
+        let evaluator = gpu().unwrap().share_device().with_binding_limit(limit);
+        evaluator.evaluate(&EvalJob::new(&large, &times(&large)).with(options)).unwrap();
+        let reused = evaluator.evaluate(&EvalJob::new(&small, &times(&small)).with(options)).unwrap();
+        assert_eq!(reused.data, fresh.data, "binding limit {limit}");
+    }
+}
+
 /// The roofline kernel writes what `bench` says it does: the same bytes as the evaluation
 /// (every channel of every sample of every chunk), here the sample index in each.
 #[test]
