@@ -240,6 +240,36 @@ mod sin_cos_tests {
 }
 
 #[cfg(test)]
+mod axis_angle_tests {
+    use super::{axis_angle, Factor8, LANES};
+    use wide::f32x8;
+
+    /// The eight-lane split of coefficients into axis and angle gives each lane the bits of
+    /// the scalar one (shared groups broadcast the scalar one's): zero, tiny, ordinary and
+    /// large vectors.
+    #[test]
+    fn lanes_split_coefficients_as_the_scalar_twin_does() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = |scale: f32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * scale
+        };
+        for round in 0..500 {
+            let scale = [0.0, 1e-30, 1e-6, 1.0, 3.0, 400.0][round % 6];
+            let rows: [[f32; 4]; LANES] = std::array::from_fn(|_| [next(scale), next(scale), next(scale), next(1.0)]);
+            let lanes = Factor8::<f32x8>::from_rows(&rows, [f32x8::ZERO; 3]);
+            let (x, y, z, theta) = (lanes.axis.x.to_array(), lanes.axis.y.to_array(), lanes.axis.z.to_array(), lanes.theta.to_array());
+            for (lane, row) in rows.iter().enumerate() {
+                let got = [x[lane], y[lane], z[lane], theta[lane]].map(f32::to_bits);
+                assert_eq!(got, axis_angle(*row).map(f32::to_bits), "{row:?}");
+            }
+        }
+    }
+}
+
+#[cfg(test)]
 mod transpose_tests {
     use super::write_columns;
     use wide::f32x8;

@@ -3,10 +3,10 @@
 //! quarter, not two groups with six idle lanes, and the per-track setup of a [`Piece`] (its
 //! shared-segment bookkeeping, its scan for large angles) is not paid per track.
 //!
-//! Only tracks with too few samples per span for [`Piece`]'s shared groups take it, and only
-//! families whose basis is one fitted polynomial of the span parameter (slerp, Hermite,
-//! B-splines on equally spaced knots), which a group can evaluate for lanes of different
-//! tracks. A lane's result depends on its own track and time alone, never on its neighbours
+//! Only tracks of at most [`SHORT`] samples take it (longer ones gain from a [`Piece`]'s
+//! groups that share one segment), and only families whose basis is one fitted polynomial of
+//! the span parameter (slerp, Hermite, B-splines on equally spaced knots), which a group can
+//! evaluate for lanes of different tracks. A lane's result depends on its own track and time alone, never on its neighbours
 //! (its sine and cosine included, [`AngleRange::PerLane`]): outputs do not change with the
 //! batch a track is in.
 //!
