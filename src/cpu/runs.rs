@@ -120,7 +120,6 @@ struct Cursor<'a> {
     plain: usize,
     start: f64,
     step: f64,
-    grid: TrackTimes,
     knots: &'a [f64],
     first: usize,
     last: usize,
@@ -140,14 +139,8 @@ impl Cursor<'_> {
     fn next(&mut self, times: &SampleTimes) -> (f64, usize) {
         let j = self.j;
         self.j += 1;
-        let t = if j < self.plain {
-            self.start + j as f64 * self.step
-        } else {
-            match self.grid {
-                TrackTimes::Uniform { last, .. } => last.unwrap_or(self.start + j as f64 * self.step),
-                TrackTimes::Explicit { offset, .. } => times.explicit[offset + j],
-            }
-        };
+        // A grid's plain samples in line (as `TrackTimes::grid_time`), the others as stored.
+        let t = if j < self.plain { self.start + j as f64 * self.step } else { times.time(self.index, j) };
         // Sparse samples of equally spaced knots: straight to the arithmetic; else the last
         // span first (dense samples share spans).
         let (span, t) = if self.sparse {
@@ -187,7 +180,6 @@ impl Run<'_> {
             plain,
             start,
             step,
-            grid,
             knots: view.knots,
             first,
             last,
