@@ -1,7 +1,8 @@
 //! The fast CPU path: f32, eight samples per SIMD group (module `lanes`, on the lane type
-//! [`Isa`] names, chosen at run time), tracks spread over all
-//! cores with rayon; runs of short tracks share groups across track ends (module `runs`). It evaluates the same packed [`crate::Batch`] as the reference and the GPU and
-//! returns the same [`FloatOutput`] as the GPU.
+//! [`Isa`] names, chosen at run time), tracks spread over all cores with rayon; runs of short
+//! tracks share groups across track ends (module `runs`). It evaluates the same packed
+//! [`crate::Batch`] as the reference and the GPU and returns the same [`FloatOutput`] as the
+//! GPU.
 //!
 //! What is vectorized: every family's rotation, eight samples per group. Slerp, cubic
 //! Hermite and B-splines on equally spaced knots (phantom, uniform) evaluate a polynomial

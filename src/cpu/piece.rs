@@ -86,6 +86,14 @@ impl Segments {
         }
         (start, coefs)
     }
+
+    /// Segment `span` as the shared groups broadcast it: its rows, with each factor's axis
+    /// and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane).
+    #[inline(always)]
+    fn broadcast<const F: usize>(self, tables: &Context<'_>, span: usize) -> Segment<F> {
+        let (start, coefs) = self.rows::<F>(tables, span);
+        Segment { span, start, axes: coefs.map(axis_angle) }
+    }
 }
 
 /// One group's lanes as read, before any SIMD: each lane's time and span knots, and its
@@ -207,7 +215,7 @@ pub(super) fn locate_uniform_in(knots: &[f64], first: usize, last: usize, [lo, h
     (span, t)
 }
 
-/// One segment's data as the kernels read it ([`Piece::segment`]).
+/// One segment's data as the kernels read it ([`Segments::broadcast`]).
 #[derive(Clone, Copy)]
 struct Segment<const F: usize> {
     span: usize,
@@ -263,14 +271,6 @@ impl Piece<'_> {
             (true, true) => by_factors!(true, true),
             (true, false) => by_factors!(true, false),
         }
-    }
-
-    /// The segment of `span` as the shared groups broadcast it: its rows, with each factor's
-    /// axis and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane).
-    #[inline(always)]
-    fn segment<const F: usize>(&self, span: usize) -> Segment<F> {
-        let (start, coefs) = Segments::of(self.view.track).rows::<F>(self.tables, span);
-        Segment { span, start, axes: coefs.map(axis_angle) }
     }
 
     /// [`Piece::groups`] on the evaluator's lane type.
@@ -329,7 +329,7 @@ impl Piece<'_> {
                     *u = ((t - knots[h]) * inv_len) as f32;
                 }
                 if shared_segment.as_ref().map(|s| s.0.span) != Some(h) {
-                    let segment = self.segment::<F>(h);
+                    let segment = segments.broadcast::<F>(self.tables, h);
                     shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
                 }
                 (S::new(u), S::splat(inv_len as f32))
