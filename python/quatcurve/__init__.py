@@ -194,6 +194,7 @@ def bake(
     output="baked",
     *,
     rate=30.0,
+    exact_rate=False,
     curve="bspline-interp",
     order=4,
     knots="phantom",
@@ -225,7 +226,13 @@ def bake(
         (``<stem>.glb`` or ``<stem>.bvh``), textures ``<stem>.<clip>.npy`` (or one
         ``<stem>.npy`` with ``atlas``), the sidecar ``<stem>.json``; per shard a manifest.
     rate : float
-        Frames per second (a looping clip takes the nearest rate that fits its period).
+        Frames per second, fitted per clip: each clip takes the nearest rate that puts a
+        whole number of frames between its first and last keys, so both are baked (the
+        clip's own rate is in the sidecar).
+    exact_rate : bool
+        Bake open clips at exactly ``rate`` (frames ``start + i / rate`` while not past the
+        last key); a clip's end off that grid is not baked, and the row's ``warnings`` say
+        how much. Loops always fit.
     curve, order, knots, tangents, blend
         As :func:`evaluate`; the default is C2 through every key.
     loop : str
@@ -256,7 +263,8 @@ def bake(
     list of dict
         Per input: ``source``, ``clips``, ``channels``, ``keys``, ``samples``, ``seconds``,
         ``max_key_error`` (rad, or None), ``status`` (``ok``, ``resumed`` or ``failed``),
-        ``error`` (the message, or None) and ``files`` (``pathlib.Path``s written or kept).
+        ``error`` (the message, or None), ``files`` (``pathlib.Path``s written or kept) and
+        ``warnings`` (probably broken source keys, clip ends an exact rate did not bake).
 
     Raises
     ------
@@ -274,12 +282,14 @@ def bake(
         if isinstance(value, bool) or int(value) != value or value < 0:
             raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
     rows = bake_files(
-        paths, os.fspath(output), float(rate), str(curve), int(order), str(knots), str(tangents), str(blend),
+        paths, os.fspath(output), float(rate), bool(exact_rate), str(curve), int(order), str(knots), str(tangents), str(blend),
         str(loop), str(texture), str(precision), bool(atlas), bool(preview), int(characters),
         None if shard is None else str(shard), bool(resume), int(jobs), bool(allow_external_uris), str(device),
     )
     failed = [row for row in rows if row["status"] == "failed"]
     if failed and errors == "raise":
         lines = "; ".join(f"{row['source']}: {row['error']}" for row in failed)
-        raise ValueError(f"{len(failed)} of {len(rows)} inputs failed (the others were baked): {lines}")
+        baked = len(rows) - len(failed)
+        rest = "nothing was baked" if baked == 0 else "the other was baked" if baked == 1 else "the others were baked"
+        raise ValueError(f"{len(failed)} of {len(rows)} inputs failed ({rest}): {lines}")
     return rows

@@ -58,12 +58,14 @@ class BakeRow(TypedDict):
     status: Literal["ok", "resumed", "failed"]
     error: str | None
     files: list[pathlib.Path]
+    warnings: list[str]
 
 def bake(
     inputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = ...,
     output: str | os.PathLike[str] = ...,
     *,
     rate: float = ...,
+    exact_rate: bool = ...,
     curve: CurveName = ...,
     order: int = ...,
     knots: Literal["phantom", "uniform", "clamped"] = ...,

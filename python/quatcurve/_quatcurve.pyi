@@ -26,6 +26,7 @@ def bake_files(
     inputs: list[str],
     output: str,
     rate: float,
+    exact_rate: bool,
     curve: str,
     order: int,
     knots: str,

@@ -146,15 +146,16 @@ enum Samples {
 /// Bakes `inputs` (glTF/GLB/BVH files or directories; none: the built-in crowd) into `output`
 /// as `quatcurve bake` does, with the GIL released. Returns one dictionary per input of this
 /// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
-/// `resumed`, `failed`), `error` and `files`. See `quatcurve.bake`.
+/// `resumed`, `failed`), `error`, `files` and `warnings`. See `quatcurve.bake`.
 #[pyfunction]
-#[pyo3(signature = (inputs, output, rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device))]
+#[pyo3(signature = (inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device))]
 #[allow(clippy::too_many_arguments)]
 fn bake_files<'py>(
     py: Python<'py>,
     inputs: Vec<PathBuf>,
     output: PathBuf,
     rate: f64,
+    exact_rate: bool,
     curve: &str,
     order: usize,
     knots: &str,
@@ -175,6 +176,7 @@ fn bake_files<'py>(
     let choice: DeviceChoice = parse("device", device)?;
     let job = BakeJob {
         rate,
+        exact_rate,
         spec: CurveSpec {
             curve: parse("curve", curve)?,
             order,
@@ -219,6 +221,7 @@ fn bake_files<'py>(
             row.set_item("status", status)?;
             row.set_item("error", input.outcome.as_ref().err().map(ToString::to_string))?;
             row.set_item("files", input.outcome.as_ref().map_or_else(|_| Vec::new(), Clone::clone))?;
+            row.set_item("warnings", &input.warnings)?;
             Ok(row)
         })
         .collect()

@@ -196,6 +196,7 @@ def outputs(directory):
 @pytest.mark.parametrize("options, kwargs", [
     (["--texture", "model"], {"texture": "model"}),
     (["--precision", "f16", "--atlas", "--curve", "hermite"], {"precision": "f16", "atlas": True, "curve": "hermite"}),
+    (["--rate", "24", "--exact-rate"], {"rate": 24, "exact_rate": True}),
 ])
 def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     binary = cli()
@@ -241,10 +242,13 @@ def test_bake_errors_name_the_option_or_the_input(tmp_path):
     bad = tmp_path / "bad.bvh"
     bad.write_text("HIERARCHY\nROOT hips\n{\n")
     good = data_files("cmu_131_03.bvh")[0]
-    with pytest.raises(ValueError, match=r"1 of 2 inputs failed \(the others were baked\): .*bad\.bvh: "):
+    with pytest.raises(ValueError, match=r"1 of 2 inputs failed \(the other was baked\): .*bad\.bvh: "):
         quatcurve.bake([bad, good], tmp_path / "b", device="cpu")
     # Rows come in job order (inputs sorted by path), wherever the two files live.
     rows = {pathlib.Path(row["source"]).name: row for row in quatcurve.bake([bad, good], tmp_path / "c", device="cpu", errors="report")}
     assert rows["bad.bvh"]["status"] == "failed" and rows["cmu_131_03.bvh"]["status"] == "ok"
     assert rows["bad.bvh"]["files"] == [] and rows["bad.bvh"]["error"] and "bad.bvh" not in rows["bad.bvh"]["error"]
     assert (tmp_path / "c" / "cmu_131_03.bvh").exists() and not (tmp_path / "c" / "bad.json").exists()
+    # What did not fail the bake but should be known: the take's flipping thumb.
+    assert any("RThumb rotation" in w for w in rows["cmu_131_03.bvh"]["warnings"]), rows["cmu_131_03.bvh"]["warnings"]
+    assert rows["bad.bvh"]["warnings"] == []

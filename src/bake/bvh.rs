@@ -40,7 +40,8 @@ pub struct BvhJoint {
 pub struct BvhFile {
     /// Joints in file order (the order of the motion columns).
     pub joints: Vec<BvhJoint>,
-    /// Seconds per frame.
+    /// Seconds per frame: `1 / N` exactly when the file writes that rounded
+    /// ([`exact_frame_time`]).
     pub frame_time: f64,
     /// Per frame, every channel value in column order.
     pub frames: Vec<Vec<f64>>,
@@ -185,6 +186,7 @@ fn parse_motion(motion: &str, first_line: usize, joints: &[BvhJoint]) -> Result<
     if !(frame_time.is_finite() && frame_time > 0.0) || count.fract() != 0.0 || count < 1.0 {
         return Err(bad(first_line, format!("need at least one frame and a positive frame time (Frames: {count}, Frame Time: {frame_time})")));
     }
+    let frame_time = exact_frame_time(frame_time);
     let columns: usize = joints.iter().map(|j| j.channels.len()).sum();
     // `Frames:` is checked against the lines present afterwards; it never sizes an allocation
     // by itself (a crafted header could ask for billions).
@@ -203,6 +205,19 @@ fn parse_motion(motion: &str, first_line: usize, joints: &[BvhJoint]) -> Result<
         return Err(bad(first_line, format!("Frames: {count} but {} frame lines follow", frames.len())));
     }
     Ok((frame_time, frames))
+}
+
+/// A `Frame Time` within this relative difference of `1 / N` for a whole `N` is read as
+/// exactly `1 / N`: files write the frame time rounded (CMU's `.0083333` for 120 Hz, 4e-6
+/// off), and reading it as written drifts the frames from the grid they were captured on.
+pub const FRAME_TIME_SNAP: f64 = 1e-5;
+
+/// `frame_time`, or `1 / N` when it is within [`FRAME_TIME_SNAP`] of it for a whole `N`.
+#[must_use]
+pub fn exact_frame_time(frame_time: f64) -> f64 {
+    let n = (1.0 / frame_time).round();
+    let exact = 1.0 / n;
+    if n >= 1.0 && ((frame_time - exact) / exact).abs() < FRAME_TIME_SNAP { exact } else { frame_time }
 }
 
 /// The rotation `R_1(a_1) R_2(a_2) ...` of a joint's rotation channels (degrees).
@@ -295,7 +310,8 @@ impl BvhFile {
         let (result, values) = (&baked.clips[0], baked.values(0));
         let frames = result.times.len();
         let mut out = self.hierarchy.clone();
-        let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {:.9}\n", 1.0 / result.rate);
+        // Shortest text that reads back as the same f64 (`{}`), so the rate round-trips.
+        let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {}\n", 1.0 / result.rate);
         // Per joint: its baked rotation and translation series, if any.
         let series = |joint: usize, property: Property| {
             clip.channels.iter().position(|c| c.joint == joint && c.property == property).map(|i| values[i])

@@ -80,4 +80,10 @@ impl InputError {
     pub fn is_internal_failure(&self) -> bool {
         matches!(self, Self::Internal(_)) || matches!(self, Self::Device(e) if e.is_device_failure())
     }
+
+    /// Whether an output could not be written (the input itself was fine).
+    #[must_use]
+    pub fn is_output_failure(&self) -> bool {
+        matches!(self, Self::Output(_))
+    }
 }

@@ -11,7 +11,7 @@ use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
 use super::InputError;
 use base64::Engine;
 use gltf::json::validation::Checked;
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::Path;
 
 /// A glTF file read for baking.
@@ -398,71 +398,12 @@ fn percent_decode(uri: &str) -> Result<String, String> {
 }
 
 impl GltfFile {
-    /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames.
+    /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames, and
+    /// nothing left that only the replaced keys used ([`super::glb`]).
     ///
     /// # Errors
-    /// [`InputError::Output`] if the GLB cannot be assembled (over 4 GiB).
+    /// [`InputError::Animation`] if the GLB would exceed 4 GiB.
     pub fn to_glb(&self, baked: &Baked) -> Result<Vec<u8>, InputError> {
-        let mut json = self.json.clone();
-        let mut bin: Vec<u8> = Vec::new();
-        let pad = |bin: &mut Vec<u8>, to: usize| bin.resize(bin.len().div_ceil(to) * to, 0);
-        // All buffers become ranges of the one BIN buffer.
-        let mut base = Vec::with_capacity(self.buffers.len());
-        for data in &self.buffers {
-            pad(&mut bin, 16);
-            base.push(bin.len() as u64);
-            bin.extend_from_slice(data);
-        }
-        let mut views: Vec<Value> = json["bufferViews"].as_array().cloned().unwrap_or_default();
-        for view in &mut views {
-            let buffer = view["buffer"].as_u64().unwrap_or(0) as usize;
-            // In range: the reader checked every view against its buffer.
-            let offset = view["byteOffset"].as_u64().unwrap_or(0).saturating_add(base.get(buffer).copied().unwrap_or(0));
-            view["buffer"] = json!(0);
-            view["byteOffset"] = json!(offset);
-        }
-        let mut accessors: Vec<Value> = json["accessors"].as_array().cloned().unwrap_or_default();
-        let mut push = |bin: &mut Vec<u8>, data: &[f32], kind: &str, count: usize, bounds: Option<(f32, f32)>| -> usize {
-            pad(bin, 4);
-            views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len() * 4}));
-            bin.extend(data.iter().flat_map(|v| v.to_le_bytes()));
-            let mut accessor = json!({"bufferView": views.len() - 1, "componentType": 5126, "count": count, "type": kind});
-            if let Some((min, max)) = bounds {
-                accessor["min"] = json!([min]);
-                accessor["max"] = json!([max]);
-            }
-            accessors.push(accessor);
-            accessors.len() - 1
-        };
-        for (index, ((clip, sources), result)) in self.animation.clips.iter().zip(&self.samplers).zip(&baked.clips).enumerate() {
-            let times: Vec<f32> = result.times.iter().map(|&t| t as f32).collect();
-            let bounds = (times[0], times[times.len() - 1]);
-            let input_accessor = push(&mut bin, &times, "SCALAR", times.len(), Some(bounds));
-            for ((channel, &(anim, sampler)), values) in clip.channels.iter().zip(sources).zip(baked.values(index)) {
-                let (data, kind): (Vec<f32>, _) = match channel.property {
-                    Property::Rotation => (values.iter().flatten().copied().collect(), "VEC4"),
-                    _ => (values.iter().flat_map(|v| [v[0], v[1], v[2]]).collect(), "VEC3"),
-                };
-                let output_accessor = push(&mut bin, &data, kind, values.len(), None);
-                let target = &mut json["animations"][anim]["samplers"][sampler];
-                target["input"] = json!(input_accessor);
-                target["output"] = json!(output_accessor);
-                target["interpolation"] = json!("LINEAR");
-            }
-        }
-        pad(&mut bin, 4);
-        json["bufferViews"] = Value::Array(views);
-        json["accessors"] = Value::Array(accessors);
-        json["buffers"] = json!([{"byteLength": bin.len()}]);
-        if u32::try_from(bin.len() + (1 << 20)).is_err() {
-            return Err(InputError::Output("the baked GLB would exceed 4 GiB".into()));
-        }
-        let text = serde_json::to_vec(&json).map_err(|e| InputError::Output(e.to_string()))?;
-        let glb = gltf::binary::Glb {
-            header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
-            json: text.into(),
-            bin: Some(bin.into()),
-        };
-        glb.to_vec().map_err(|e| InputError::Output(format!("cannot assemble GLB: {e}")))
+        super::glb::write(&self.json, &self.buffers, &self.animation.clips, &self.samplers, baked)
     }
 }

@@ -10,7 +10,7 @@ use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, 
 use super::shard::Shard;
 use super::texture::{self, Precision, TextureKind};
 use super::error::{BakeError, InputError};
-use super::{bvh, crowd, gltf, Animation, Baked, LoopMode};
+use super::{bvh, crowd, gltf, Animation, Baked, ClipRate, LoopMode};
 use crate::curve::{Curve, CurveSpec};
 use crate::device::{Device, DeviceChoice};
 use crate::io::{npy_header, write_atomic, AtomicFile, NpyElement};
@@ -30,8 +30,13 @@ pub struct BakeJob {
     pub inputs: Vec<PathBuf>,
     /// Output directory (created if missing, removed again if the job wrote nothing).
     pub output: PathBuf,
-    /// Output frame rate in Hz.
+    /// Output frame rate in Hz, fitted per clip so that its first and last frames are its
+    /// first and last keys (DESIGN section 5b) unless [`BakeJob::exact_rate`].
     pub rate: f64,
+    /// Bake open clips at exactly [`BakeJob::rate`]: frames `start + i / rate` while not past
+    /// the last key, so the end of a clip off the grid is not baked (each input's report
+    /// warns how much). Loops always fit.
+    pub exact_rate: bool,
     /// Curve and its options (`looping` is ignored: [`BakeJob::looping`] decides per clip).
     pub spec: CurveSpec,
     /// Which clips loop.
@@ -71,6 +76,7 @@ impl BakeJob {
             inputs,
             output: output.into(),
             rate: 30.0,
+            exact_rate: false,
             spec: CurveSpec::new(Curve::BSplineInterp),
             looping: LoopMode::Auto,
             device: DeviceChoice::Auto,
@@ -112,7 +118,7 @@ impl BakeJob {
         let s = &self.spec;
         serde_json::json!({
             "curve": s.curve.name(), "order": s.order, "knots": s.knots.name(), "tangents": s.tangents.name(),
-            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "device": self.device.name(),
+            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "exact_rate": self.exact_rate, "device": self.device.name(),
             "allow_external_uris": self.allow_external_uris, "characters": self.characters,
             "texture": self.texture.name(), "precision": self.precision.name(), "atlas": self.atlas, "preview": self.preview,
         })
@@ -134,6 +140,10 @@ impl BakeJob {
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
         let output = OutputDir::create(&self.output)?;
+        if let Err(e) = self.check_output_names(&inputs, &stems) {
+            output.remove_if_unused();
+            return Err(e);
+        }
         let device_name = device.name();
         let options = self.record();
         let manifest_path = shard.manifest_path(&self.output);
@@ -199,6 +209,30 @@ impl BakeJob {
         Ok(BakeReport { device: device_name, shard, job_inputs, inputs })
     }
 
+    /// The output faults that can be found before any input is baked: a baked file that would
+    /// replace its input, a directory where an input's baked file or sidecar goes.
+    fn check_output_names(&self, inputs: &[PathBuf], stems: &[String]) -> Result<(), BakeError> {
+        let stems: Vec<&str> = if inputs.is_empty() { vec!["crowd"] } else { stems.iter().map(String::as_str).collect() };
+        for (k, stem) in stems.iter().enumerate() {
+            let mut names = vec![format!("{stem}.json")];
+            if let Some(input) = inputs.get(k) {
+                let baked = match input.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+                    Some("gltf" | "glb") => Some(format!("{stem}.glb")),
+                    Some("bvh") => Some(format!("{stem}.bvh")),
+                    _ => None,
+                };
+                if let Some(baked) = baked {
+                    refuse_overwriting_input(&self.output.join(&baked), &input.display().to_string()).map_err(|e| BakeError::Job(format!("{e} (nothing was baked)")))?;
+                    names.push(baked);
+                }
+            }
+            if let Some(dir) = names.iter().map(|n| self.output.join(n)).find(|p| p.is_dir()) {
+                return Err(BakeError::option("output", format!("{}: a directory is where a baked file goes; move it away (nothing was baked)", dir.display())));
+            }
+        }
+        Ok(())
+    }
+
     fn read(&self, path: &Path) -> Result<Source, InputError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
@@ -216,7 +250,7 @@ impl BakeJob {
     /// Reads, bakes and writes one input; the files it wrote come back with the report.
     fn bake_one(&self, source: &str, stem: &str, read: impl FnOnce() -> Result<Source, InputError>, device: &Device) -> (InputReport, Vec<Written>) {
         let start = Instant::now();
-        let mut report = InputReport { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false };
+        let mut report = InputReport::new(source);
         let result = read().and_then(|src| {
             let animation = src.animation();
             report.clips = animation.clips.len();
@@ -225,7 +259,10 @@ impl BakeJob {
             if animation.clips.is_empty() {
                 return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
             }
-            let baked = super::bake(animation, &self.spec, self.rate, self.looping, device)?;
+            report.warnings = super::source_step_warnings(animation);
+            let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
+            let baked = super::bake(animation, &self.spec, rate, self.looping, device)?;
+            report.warnings.extend(unbaked_ends(animation, &baked));
             report.samples = baked.sample_count();
             report.max_key_error = baked.max_key_error;
             // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
@@ -490,6 +527,39 @@ pub struct InputReport {
     pub outcome: Result<Vec<PathBuf>, InputError>,
     /// Skipped by `resume`: the earlier run's outputs were verified and kept.
     pub resumed: bool,
+    /// What the bake did that a user should know but that did not fail it: source keys that
+    /// are probably broken ([`super::source_step_warnings`]), clip ends an exact rate did not
+    /// bake. Each names the clip and channel.
+    pub warnings: Vec<String>,
+}
+
+impl InputReport {
+    /// A report with nothing done yet.
+    fn new(source: &str) -> Self {
+        Self { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false, warnings: Vec::new() }
+    }
+}
+
+/// A warning per clip whose end an exact rate left unbaked ([`super::BakedClip::unbaked_end`]).
+fn unbaked_ends(animation: &Animation, baked: &Baked) -> Vec<String> {
+    let number = crate::error::Number;
+    animation
+        .clips
+        .iter()
+        .zip(&baked.clips)
+        .filter(|(_, b)| b.unbaked_end() * b.rate > 1e-6)
+        .map(|(clip, b)| {
+            let last = b.times[b.times.len() - 1];
+            format!(
+                "clip '{}': at exactly {} Hz the last frame is at {} s, so the last {} s before its last key at {} s are not baked (fit the rate to keep them)",
+                clip.name,
+                number(b.rate),
+                number(last),
+                number(b.unbaked_end()),
+                number(b.end)
+            )
+        })
+        .collect()
 }
 
 /// A file an input wrote, with its size and SHA-256 when they were taken as it was written
@@ -569,8 +639,8 @@ struct SidecarClip {
     frames: usize,
     start: f64,
     end: f64,
-    /// Frames per second: the job's rate, or for a loop the nearest rate that fits a whole
-    /// number of frames in its period.
+    /// Frames per second: the job's rate fitted to the clip's span (its first and last frames
+    /// are its first and last keys), or with an exact rate the job's rate (open clips).
     rate: f64,
     /// Baked as a loop: periodic curves, continuous across the seam.
     #[serde(rename = "loop")]
@@ -610,7 +680,8 @@ fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), BakeError>
 /// An input `resume` skips: the earlier run's record, its outputs verified intact.
 fn resumed(name: &str, record: &InputRecord, dir: &Path) -> InputReport {
     let files = record.outputs.iter().map(|o| dir.join(&o.file)).collect();
-    InputReport { source: name.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(files), resumed: true }
+    let warnings = record.warnings.clone();
+    InputReport { outcome: Ok(files), resumed: true, warnings, ..InputReport::new(name) }
 }
 
 /// The manifest entry of a finished input.
@@ -632,7 +703,7 @@ fn input_record(report: &InputReport, written: &[Written], (size, sha256): (u64,
         }
         (Err(e), _) => ("failed", Some(e.to_string()), Vec::new()),
     };
-    InputRecord { path: report.source.clone(), size, sha256, status: status.into(), error, seconds: report.seconds, outputs }
+    InputRecord { path: report.source.clone(), size, sha256, status: status.into(), error, warnings: report.warnings.clone(), seconds: report.seconds, outputs }
 }
 
 /// The output directory, created for the job; if this job created it (and any missing
@@ -644,10 +715,22 @@ struct OutputDir {
 }
 
 impl OutputDir {
+    /// Creates `dir` and proves it takes a new file (as every output is first written), so an
+    /// output directory that cannot be written is refused before any input is baked.
     fn create(dir: &Path) -> Result<Self, BakeError> {
         let created: Vec<PathBuf> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
-        std::fs::create_dir_all(dir).map_err(|e| BakeError::option("output", format!("{}: cannot create the directory: {e}", dir.display())))?;
-        Ok(Self { created })
+        let refuse = |what: &str, e: std::io::Error| BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()));
+        std::fs::create_dir_all(dir).map_err(|e| refuse("cannot create the directory", e))?;
+        let this = Self { created };
+        if let Err(e) = AtomicFile::create(&dir.join("probe")) {
+            this.remove_if_unused();
+            let e = match e {
+                crate::io::IoError::Write { source, .. } => source,
+                other => std::io::Error::other(other.to_string()),
+            };
+            return Err(refuse("cannot write into the directory", e));
+        }
+        Ok(this)
     }
 
     fn remove_if_unused(&self) {

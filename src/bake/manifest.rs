@@ -45,6 +45,9 @@ pub struct InputRecord {
     pub status: String,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub error: Option<String>,
+    /// The report's warnings (probably broken source keys, unbaked clip ends).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub warnings: Vec<String>,
     pub seconds: f64,
     pub outputs: Vec<FileRecord>,
 }

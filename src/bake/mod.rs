@@ -10,6 +10,7 @@
 pub mod bvh;
 pub mod crowd;
 pub mod error;
+mod glb;
 pub mod gltf;
 pub mod job;
 pub mod manifest;
@@ -32,7 +33,7 @@ use crate::track::Track;
 use rayon::prelude::*;
 
 /// What a channel animates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Property {
     /// Unit quaternion `x, y, z, w`.
     Rotation,
@@ -174,6 +175,38 @@ impl Animation {
     }
 }
 
+/// Consecutive rotation keys more than this many degrees apart (at the source's own rate) are
+/// flagged as probably broken source data: a joint of a motion capture that turns more than a
+/// quarter turn between two frames is a tracking flip far more often than motion.
+pub const SOURCE_STEP_WARNING_DEGREES: f64 = 90.0;
+
+/// One warning per rotation channel with steps between consecutive keys over
+/// [`SOURCE_STEP_WARNING_DEGREES`], naming the channel, the first such step and how many
+/// there are. The bake goes on: the curve smooths the step, and the warning says so.
+#[must_use]
+pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
+    let limit = SOURCE_STEP_WARNING_DEGREES.to_radians();
+    let mut warnings = Vec::new();
+    for clip in &animation.clips {
+        for channel in clip.channels.iter().filter(|c| c.property == Property::Rotation) {
+            let angles = channel.values.windows(2).map(|w| DQuat::from_array(w[0]).normalize().angle_to(DQuat::from_array(w[1]).normalize()));
+            let steps: Vec<(usize, f64)> = angles.enumerate().filter(|&(_, a)| a > limit).collect();
+            let Some(&(first, angle)) = steps.first() else { continue };
+            warnings.push(format!(
+                "{}: {} step{} between consecutive keys turn{} more than {SOURCE_STEP_WARNING_DEGREES} degrees (probably broken source data, smoothed by the curve); the first is key {first} to key {} at {} s, {} degrees",
+                animation.label(clip, channel),
+                steps.len(),
+                if steps.len() == 1 { "" } else { "s" },
+                if steps.len() == 1 { "s" } else { "" },
+                first + 1,
+                crate::error::Number(channel.times[first + 1]),
+                crate::error::Number(angle.to_degrees()),
+            ));
+        }
+    }
+    warnings
+}
+
 /// Which clips bake as loops (DESIGN section 5b, `--loop`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LoopMode {
@@ -192,16 +225,29 @@ crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "
 /// A resampled clip: frame times, and where each channel's frames lie in [`Baked`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedClip {
-    /// Open clips: `start + i / rate` while not past the clip's last key ([`frame_grid`]).
-    /// Loops: a whole number of frames per period ([`loop_frame_grid`]).
+    /// Uniform from the clip's first key to its last, both included ([`fitted_frame_grid`]);
+    /// at an exact rate, open clips end at the last frame not past their last key
+    /// ([`frame_grid`]).
     pub times: Vec<f64>,
-    /// Frames per second of `times`: the requested rate, or for a loop the nearest rate that
-    /// puts a whole number of frames in its period.
+    /// Frames per second of `times`: the requested rate fitted to the clip's span, or the
+    /// requested rate itself ([`ClipRate::Exact`], open clips).
     pub rate: f64,
+    /// The clip's last key time: past the last frame when an exact rate left the end unbaked.
+    pub end: f64,
     /// Whether the clip was baked as a loop (periodic curves, seam continuity).
     pub looping: bool,
     /// Per channel, in the clip's order: where its frames are ([`Baked::values`]).
     frames: Vec<Frames>,
+}
+
+impl BakedClip {
+    /// Seconds of the clip after its last frame: 0 unless an exact rate ([`ClipRate::Exact`])
+    /// left the end of an open clip off the grid (a last frame up to
+    /// [`END_TOLERANCE_FRAMES`] past the end counts as ending on it).
+    #[must_use]
+    pub fn unbaked_end(&self) -> f64 {
+        self.times.last().map_or(0.0, |&last| (self.end - last).max(0.0))
+    }
 }
 
 /// Where one channel's frames are kept.
@@ -299,14 +345,37 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
 /// amount of memory (two keys a year apart at 30 Hz are a billion frames per channel).
 pub const MAX_BAKE_SAMPLES: usize = 1 << 27;
 
-/// How far past the clip's end (in frames) a last frame is still kept.
+/// How far past the clip's end (in frames) a last frame is still kept at an exact rate
+/// ([`ClipRate::Exact`]): glTF stores times as f32, so a clip meant to end on the grid can end
+/// a rounding error before it.
 pub const END_TOLERANCE_FRAMES: f64 = 0.01;
 
-/// The frame grid of a clip spanning `[start, end]` at `rate` Hz: `start + i / rate` while
-/// not past `end` (DESIGN section 5), except that a frame at most [`END_TOLERANCE_FRAMES`] past
-/// the end is kept (and evaluates to the end pose). Source frame times are often rounded
-/// (BVH's `0.0083333` for 120 Hz), and baking such a clip at its own rate must not drop its
-/// last frame.
+/// How a clip's frames are laid on its span `[first key, last key]` (DESIGN section 5b).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ClipRate {
+    /// The rate nearest this one (Hz) that puts a whole number of frames in the clip's span:
+    /// its first and last frames are its first and last keys. The default, and the only
+    /// choice for loops (whose last frame is the seam).
+    Fit(f64),
+    /// This rate exactly for open clips: frames `start + i / rate` while not past the last
+    /// key, so the end of a clip that does not land on the grid is not baked ([`BakedClip::
+    /// unbaked_end`]). Loops still fit.
+    Exact(f64),
+}
+
+impl ClipRate {
+    /// The requested rate in Hz.
+    #[must_use]
+    pub fn hz(self) -> f64 {
+        match self {
+            ClipRate::Fit(hz) | ClipRate::Exact(hz) => hz,
+        }
+    }
+}
+
+/// The frame grid of an open clip at an exact rate: `start + i / rate` while not past `end`
+/// (DESIGN section 5), except that a frame at most [`END_TOLERANCE_FRAMES`] past the end is
+/// kept (and evaluates to the end pose).
 ///
 /// # Errors
 /// [`InputError::Animation`] for a rate that is not finite and positive, or a grid too long.
@@ -314,20 +383,38 @@ pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, InputEr
     Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| E::Animation(e.to_string()))
 }
 
-/// The frame grid of a looping clip spanning `[start, end]`: `N = round((end - start) rate)`
-/// intervals (at least one), so the last frame is the seam and equals the first (DESIGN
-/// section 5b), at the rate `N / (end - start)` it returns with it; the last time is `end`
-/// exactly.
+/// The fitted frame grid of a clip spanning `[start, end]`: `N = round((end - start) rate)`
+/// intervals (at least one), at the rate `N / (end - start)` it returns with it, so the first
+/// frame is `start` and the last is `end` exactly (for a loop: the seam, equal to the first).
+/// A clip of one instant (only one-key channels) is one frame at `rate`.
 ///
 /// # Errors
 /// As [`frame_grid`].
-pub fn loop_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f64), InputError> {
-    let period = end - start;
-    let intervals = (period * rate).round().max(1.0);
-    // Counted as Sampling::Rate counts, so a hostile period meets the same limits.
+pub fn fitted_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes, f64), InputError> {
+    let span = end - start;
+    if span <= 0.0 {
+        return Ok((frame_grid(start, start, rate)?, rate));
+    }
+    let intervals = (span * rate).round().max(1.0);
+    // Counted as Sampling::Rate counts, so a hostile span meets the same limits.
     frame_grid(start, start + intervals / rate, rate)?;
-    let grid = TrackTimes::Uniform { start, step: period / intervals, count: intervals as usize + 1, last: Some(end) };
-    Ok((grid, intervals / period))
+    let grid = TrackTimes::Uniform { start, step: span / intervals, count: intervals as usize + 1, last: Some(end) };
+    // A span that is a whole number of frames keeps the rate as given, not a rounding of it
+    // (a 120 Hz take baked at 120 Hz writes 1/120 s per frame).
+    let fitted = intervals / span;
+    Ok((grid, if ((fitted - rate) / rate).abs() < 1e-9 { rate } else { fitted }))
+}
+
+/// A clip's frame grid and its rate: fitted ([`fitted_frame_grid`]) unless `rate` asks for an
+/// exact rate and the clip is open.
+///
+/// # Errors
+/// As [`frame_grid`].
+pub fn clip_frame_grid(start: f64, end: f64, rate: ClipRate, looping: bool) -> Result<(TrackTimes, f64), InputError> {
+    match rate {
+        ClipRate::Exact(hz) if !looping => Ok((frame_grid(start, end, hz)?, hz)),
+        ClipRate::Fit(hz) | ClipRate::Exact(hz) => fitted_frame_grid(start, end, hz),
+    }
 }
 
 /// The times of a uniform grid, as [`SampleTimes::time`] computes them.
@@ -335,7 +422,7 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
     (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect()
 }
 
-/// Resamples every clip at `rate` Hz with `spec`: rotation channels on `device` (one batch
+/// Resamples every clip at `rate` with `spec`: rotation channels on `device` (one batch
 /// for the whole animation), vector channels with the Euclidean analogue in f64. Channels
 /// with a single key are held constant. Samples outside a channel's keys hold its end value
 /// (glTF's clamping). Clips that loop (`loops`, [`clip_loops`]) use the periodic curves of
@@ -345,7 +432,7 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// [`InputError::Keys`] naming the clip, joint, property and key for bad keys;
 /// [`InputError::Animation`] for a clip that cannot bake as asked; [`InputError::Device`]
 /// when the device refuses or fails.
-pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode, device: &Device) -> Result<Baked, InputError> {
+pub fn bake(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: LoopMode, device: &Device) -> Result<Baked, InputError> {
     let (mut clips, grids) = plan_clips(animation, spec, rate, loops)?;
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (c, prepared) in prepare_channels(animation, spec, &clips) {
@@ -396,14 +483,15 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode,
 /// Per clip: whether it loops and its frame grid, within the sample budget, which is counted
 /// before anything is allocated for the clip (frames rounded up; the channel samples and the
 /// texture's joint rows).
-fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMode) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
+fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: LoopMode) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     let mut grids = Vec::with_capacity(animation.clips.len());
     let mut total_samples = 0usize;
     for clip in &animation.clips {
         let [start, end] = clip.span();
         let looping = clip_loops(animation, clip, spec, loops)?;
-        let frames = ((end - start) * rate).max(0.0).floor() + 2.0;
+        let hz = rate.hz();
+        let frames = ((end - start) * hz).max(0.0).floor() + 2.0;
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
             return Err(E::Animation(format!(
@@ -411,14 +499,14 @@ fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: f64, loops: LoopMod
                 clip.name,
                 crate::error::Number(end - start),
                 crate::error::Number(frames - 1.0),
-                crate::error::Number(rate),
+                crate::error::Number(hz),
                 clip.channels.len(),
                 animation.joints.len()
             )));
         }
         total_samples += samples as usize;
-        let (grid, clip_rate) = if looping { loop_frame_grid(start, end, rate)? } else { (frame_grid(start, end, rate)?, rate) };
-        clips.push(BakedClip { times: grid_times(grid), rate: clip_rate, looping, frames: Vec::new() });
+        let (grid, clip_rate) = clip_frame_grid(start, end, rate, looping)?;
+        clips.push(BakedClip { times: grid_times(grid), rate: clip_rate, end, looping, frames: Vec::new() });
         grids.push(grid);
     }
     Ok((clips, grids))

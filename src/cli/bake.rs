@@ -20,9 +20,14 @@ pub struct BakeArgs {
     /// synthetic crowd.
     #[arg(long, num_args = 1..)]
     input: Vec<PathBuf>,
-    /// Output rate in Hz.
+    /// Output rate in Hz, fitted per clip so that its first and last frames are its first and
+    /// last keys (the clip's own rate is in the sidecar).
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     rate: f64,
+    /// Bake open clips at exactly --rate: frames start + i / rate while not past the last
+    /// key, so a clip's end off that grid is not baked (the summary warns how much).
+    #[arg(long)]
+    exact_rate: bool,
     /// Curve family; the default, bspline-interp, is C2 and passes through every key.
     #[arg(long, default_value = "bspline-interp", value_parser = names::<Curve>())]
     curve: Curve,
@@ -89,6 +94,7 @@ impl BakeArgs {
     fn job(&self) -> Result<BakeJob, Failure> {
         Ok(BakeJob {
             rate: self.rate,
+            exact_rate: self.exact_rate,
             spec: self.options.spec(self.curve, KnotMode::Phantom, false),
             looping: self.looping,
             device: self.device.device,
@@ -140,24 +146,76 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     progress.bar.finish_and_clear();
     let report = report?;
     print_stdout(|w| summary(w, &report, args))?;
+    for input in &report.inputs {
+        for warning in &input.warnings {
+            eprintln!("warning: {}: {warning}", input.source);
+        }
+    }
     let failed: Vec<&InputReport> = report.failed().collect();
     if failed.is_empty() {
         return Ok(());
     }
-    let mut internal = false;
+    let mut counts = [0usize; 3];
     for input in &failed {
         if let Err(e) = &input.outcome {
-            internal |= e.is_internal_failure();
+            counts[Fault::of(e) as usize] += 1;
             eprintln!("error: {}: {e}", input.source);
         }
     }
-    let summary = format!("{} of {} inputs failed (the others were baked)", failed.len(), report.inputs.len());
-    Err(if internal { Failure::Internal(summary) } else { Failure::Input(summary) })
+    let kinds: Vec<String> = [Fault::Input, Fault::Output, Fault::Device].iter().filter(|&&f| counts[f as usize] > 0).map(|&f| format!("{} {}", counts[f as usize], f.said())).collect();
+    let baked = report.inputs.len() - failed.len();
+    let rest = match baked {
+        0 => "nothing was baked",
+        1 => "the other was baked",
+        _ => "the others were baked",
+    };
+    let summary = format!("{} of {} inputs failed ({}); {rest}", failed.len(), report.inputs.len(), kinds.join(", "));
+    // Exit code 1 when the machine is at fault (DESIGN section 5b), else 2.
+    Err(if counts[Fault::Input as usize] == failed.len() { Failure::Input(summary) } else { Failure::Internal(summary) })
+}
+
+/// Whose fault a failed input is: the file's, the output's (a write that failed: disk full,
+/// a file in the way) or the device's (or quatcurve's own).
+#[derive(Clone, Copy)]
+enum Fault {
+    Input,
+    Output,
+    Device,
+}
+
+impl Fault {
+    fn of(e: &quatcurve::bake::InputError) -> Self {
+        if e.is_internal_failure() {
+            Fault::Device
+        } else if e.is_output_failure() {
+            Fault::Output
+        } else {
+            Fault::Input
+        }
+    }
+
+    /// The status column's word, and the closing line's.
+    fn word(self) -> &'static str {
+        match self {
+            Fault::Input => "input",
+            Fault::Output => "output",
+            Fault::Device => "device",
+        }
+    }
+
+    fn said(self) -> &'static str {
+        match self {
+            Fault::Input => "bad input",
+            Fault::Output => "output not written",
+            Fault::Device => "device failure",
+        }
+    }
 }
 
 fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> std::io::Result<()> {
     let (shard, rows) = (&report.shard, &report.inputs);
-    writeln!(w, "baked at {} Hz with {} on {} -> {}", args.rate, args.curve, report.device, args.output.display())?;
+    let rate = if args.exact_rate { format!("exactly {} Hz", args.rate) } else { format!("{} Hz (fitted per clip)", args.rate) };
+    writeln!(w, "baked at {rate} with {} on {} -> {}", args.curve, report.device, args.output.display())?;
     if shard.count > 1 {
         writeln!(w, "shard {} of {} ({}): {} of {} inputs", shard.index, shard.count, shard.source, rows.len(), report.job_inputs)?;
     }
@@ -167,8 +225,7 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
         let status = match &r.outcome {
             Ok(files) if r.resumed => format!("ok (resumed: {} files intact)", files.len()),
             Ok(files) => format!("ok ({} files)", files.len()),
-            Err(e) if e.is_internal_failure() => "FAILED (device)".to_string(),
-            Err(_) => "FAILED (input)".to_string(),
+            Err(e) => format!("FAILED ({})", Fault::of(e).word()),
         };
         let chars = r.source.chars().count();
         let name = if chars > 44 { format!("...{}", r.source.chars().skip(chars - 41).collect::<String>()) } else { r.source.clone() };

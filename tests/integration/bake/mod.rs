@@ -3,8 +3,10 @@
 //! rotations; hostile files one by one ([`hostile`]) and mutated at random ([`mutations`]);
 //! sharded jobs and resume ([`shards`]).
 
+mod clients;
 mod hostile;
 mod mutations;
+mod reporting;
 mod shards;
 mod textures;
 
@@ -45,15 +47,10 @@ fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// Frames of `[start, end]` at `rate` (DESIGN section 5: start + i / rate while not past end,
-/// keeping a last frame up to 1% of a frame past the end).
-fn frames(start: f64, end: f64, rate: f64) -> usize {
-    ((end - start) * rate + 0.01).floor() as usize + 1
-}
-
-/// Frames of a looping clip (DESIGN section 5b: a whole number of frames per period, the last
-/// one the seam).
-fn loop_frames(start: f64, end: f64, rate: f64) -> usize {
+/// Frames of a clip spanning `[start, end]` baked at `rate` (DESIGN section 5b: the rate fitted
+/// to a whole number of intervals, so the first and last frames are the first and last keys;
+/// for a loop the last frame is the seam).
+fn fitted_frames(start: f64, end: f64, rate: f64) -> usize {
     ((end - start) * rate).round().max(1.0) as usize + 1
 }
 
@@ -74,8 +71,7 @@ fn real_files_bake_to_files_that_read_back() {
             let (shape, data) = read_npy(&out.path().join(clip["file"].as_str().unwrap()));
             let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());
             assert_eq!(shape, [clip["frames"].as_u64().unwrap(), joints, 10], "{name}");
-            let expected = if clip["loop"].as_bool().unwrap() { loop_frames(start, end, 30.0) } else { frames(start, end, 30.0) };
-            assert_eq!(shape[0] as usize, expected, "{name}: {start}..{end}");
+            assert_eq!(shape[0] as usize, fitted_frames(start, end, 30.0), "{name}: {start}..{end}");
             for row in data.chunks_exact(10) {
                 let norm = row[..4].iter().map(|v| v * v).sum::<f32>().sqrt();
                 assert!((norm - 1.0).abs() < 1e-5, "{name}: rotation norm {norm}");
@@ -117,9 +113,11 @@ fn real_files_bake_to_files_that_read_back() {
         let original = bvh::read(&data.join(format!("{name}.bvh"))).unwrap();
         let baked = bvh::read(&out.path().join(format!("{name}.bvh"))).unwrap();
         assert_eq!(baked.joints, original.joints);
-        assert!((baked.frame_time - 1.0 / 30.0).abs() < 1e-9);
         let duration = (original.frames.len() - 1) as f64 * original.frame_time;
-        assert_eq!(baked.frames.len(), frames(0.0, duration, 30.0));
+        assert_eq!(baked.frames.len(), fitted_frames(0.0, duration, 30.0));
+        // The clip's own rate, fitted to its span, as the sidecar records it.
+        let rate = json(&out.path().join(format!("{name}.json")))["clips"][0]["rate"].as_f64().unwrap();
+        assert!((baked.frame_time - 1.0 / rate).abs() < 1e-15 && (duration * rate - (baked.frames.len() - 1) as f64).abs() < 1e-9, "{name}: {rate} Hz");
     }
 }
 
@@ -161,31 +159,41 @@ fn baking_at_the_source_rate_reproduces_the_keys_in_the_written_files() {
         }
     }
     assert!(worst <= 1e-5, "CesiumMan keys reproduced to {worst} rad");
-    let bvh_in = data.join("cmu_131_01.bvh");
-    // Its frame time is written rounded (0.0083333 s): bake at exactly that rate.
-    let rate = format!("{}", 1.0 / 0.0083333);
-    let result = bake(&["--input", bvh_in.to_str().unwrap(), "--rate", &rate, "--output", dir]);
-    assert!(result.status.success(), "{}", stderr(&result));
-    let (before, after) = (bvh::read(&bvh_in).unwrap(), bvh::read(&out.path().join("cmu_131_01.bvh")).unwrap());
-    assert_eq!(before.frames.len(), after.frames.len());
-    let mut worst = 0.0f64;
-    let mut worst_position = 0.0f64;
-    for (a, b) in before.frames.iter().zip(&after.frames) {
-        let mut column = 0;
-        for joint in &before.joints {
-            let range = column..column + joint.channels.len();
-            column = range.end;
-            worst = worst.max(angle(bvh::euler_to_quat(&joint.channels, &a[range.clone()]), bvh::euler_to_quat(&joint.channels, &b[range.clone()])));
-            for (i, c) in joint.channels.iter().enumerate() {
-                if matches!(c, BvhChannel::Position(_)) {
-                    worst_position = worst_position.max((a[range.start + i] - b[range.start + i]).abs());
+    // The CMU takes write their frame time rounded (0.0083333 s for 1/120 s): baked at 120 Hz,
+    // every frame is its source frame (no drift), slerp and the C2 curve alike.
+    for (name, curve) in [("cmu_131_01", "slerp"), ("cmu_131_03", "slerp"), ("cmu_131_01", "bspline-interp")] {
+        let bvh_in = data.join(format!("{name}.bvh"));
+        let result = bake(&["--input", bvh_in.to_str().unwrap(), "--rate", "120", "--curve", curve, "--output", dir]);
+        assert!(result.status.success(), "{}", stderr(&result));
+        let baked = out.path().join(format!("{name}.bvh"));
+        let text = std::fs::read_to_string(&baked).unwrap();
+        let written: f64 = text.lines().find_map(|l| l.strip_prefix("Frame Time:")).unwrap().trim().parse().unwrap();
+        assert_eq!(written, 1.0 / 120.0, "{name}: the frame time is written to round-trip");
+        let (before, after) = (bvh::read(&bvh_in).unwrap(), bvh::read(&baked).unwrap());
+        assert_eq!(before.frames.len(), after.frames.len());
+        let mut worst = (0.0f64, 0, "");
+        let mut worst_position = 0.0f64;
+        for (f, (a, b)) in before.frames.iter().zip(&after.frames).enumerate() {
+            let mut column = 0;
+            for joint in &before.joints {
+                let range = column..column + joint.channels.len();
+                column = range.end;
+                let error = angle(bvh::euler_to_quat(&joint.channels, &a[range.clone()]), bvh::euler_to_quat(&joint.channels, &b[range.clone()]));
+                if error > worst.0 {
+                    worst = (error, f, &joint.name);
+                }
+                for (i, c) in joint.channels.iter().enumerate() {
+                    if matches!(c, BvhChannel::Position(_)) {
+                        worst_position = worst_position.max((a[range.start + i] - b[range.start + i]).abs());
+                    }
                 }
             }
         }
+        eprintln!("{name} with {curve} at 120 Hz: worst frame {:.2e} rad (frame {}, {})", worst.0, worst.1, worst.2);
+        // Angles are written with 6 decimals of a degree (1.7e-8 rad).
+        assert!(worst.0 <= 1e-4, "{name} with {curve}: source frames reproduced to {} rad (frame {}, {})", worst.0, worst.1, worst.2);
+        assert!(worst_position <= 1e-5, "{name}: positions reproduced to {worst_position}");
     }
-    // Angles are written with 6 decimals of a degree (1.7e-8 rad).
-    assert!(worst <= 1e-5, "BVH keys reproduced to {worst} rad");
-    assert!(worst_position <= 1e-5, "BVH positions reproduced to {worst_position}");
 }
 
 fn axis_matrix(axis: usize, degrees: f64) -> [[f64; 3]; 3] {

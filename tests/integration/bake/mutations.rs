@@ -174,7 +174,7 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 if file.animation.clips.is_empty() {
                     return Ok(());
                 }
-                let baked = bake::bake(&file.animation, &spec, 10.0, LoopMode::Auto, device())?;
+                let baked = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
                 file.to_glb(&baked)?;
                 let order = file.animation.parents_first()?;
                 for clip in 0..baked.clips.len() {
@@ -188,7 +188,7 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 if animation.clips.is_empty() {
                     return Ok(());
                 }
-                let baked = bake::bake(&animation, &spec, 10.0, LoopMode::Auto, device())?;
+                let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
                 let _ = file.to_text(&animation.clips[0], &baked);
                 let order = animation.parents_first()?;
                 let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());

@@ -250,7 +250,7 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
         animation.joints.push(joint);
     }
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
-    let baked = quatcurve::bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), 30.0, quatcurve::bake::LoopMode::Auto, &device).unwrap();
+    let baked = quatcurve::bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), quatcurve::bake::ClipRate::Fit(30.0), quatcurve::bake::LoopMode::Auto, &device).unwrap();
     let order = animation.parents_first().unwrap();
     let local = texture::local(&animation, &baked, 0);
     let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();

@@ -1,0 +1,127 @@
+//! What a bake tells its user besides the files: output faults found before the work (and
+//! reported as output faults when they happen during it), source keys that are probably
+//! broken, and the clip end an exact rate leaves unbaked.
+
+use super::{bake, data_dir, json, read_npy, stderr, tiny_gltf};
+
+const Q: [f32; 4] = [0.0, 0.0, 0.0, 1.0];
+const TURN: [f32; 4] = [0.0, 0.38268343, 0.0, 0.9238795];
+
+/// Two good inputs in a fresh directory.
+fn two_inputs() -> (tempfile::TempDir, String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("walk.gltf"), dir.path().join("wave.gltf"));
+    std::fs::write(&a, tiny_gltf(&[0.0, 0.5, 1.0], &[Q, TURN, Q])).unwrap();
+    std::fs::write(&b, tiny_gltf(&[0.0, 0.5, 1.0], &[TURN, Q, TURN])).unwrap();
+    let (a, b) = (a.display().to_string(), b.display().to_string());
+    (dir, a, b)
+}
+
+#[test]
+fn an_output_directory_that_cannot_be_written_fails_before_any_input_is_baked() {
+    let (dir, a, b) = two_inputs();
+    // A directory that exists but takes no file (as root too), one that cannot be created,
+    // and one where a baked file's name is a directory.
+    let in_the_way = dir.path().join("in-the-way");
+    std::fs::create_dir_all(in_the_way.join("wave.glb")).unwrap();
+    let mut cases = vec![(in_the_way.clone(), "a directory is where a baked file goes"), (dir.path().join("walk.gltf").join("out"), "cannot create the directory")];
+    if cfg!(target_os = "linux") {
+        cases.push(("/proc".into(), "cannot write into the directory"));
+    }
+    for (output, why) in cases {
+        let result = bake(&["--input", &a, &b, "--output", output.to_str().unwrap()]);
+        let message = stderr(&result);
+        assert_eq!(result.status.code(), Some(2), "{}: {message}", output.display());
+        assert!(message.contains("--output") && message.contains(why) && message.contains("nothing was baked"), "{}: {message}", output.display());
+        // No input was baked: no summary, nothing written.
+        assert!(result.stdout.is_empty(), "{}: {}", output.display(), String::from_utf8_lossy(&result.stdout));
+    }
+    assert_eq!(std::fs::read_dir(&in_the_way).unwrap().count(), 1, "nothing written beside the directory in the way");
+}
+
+#[test]
+fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
+    let (dir, a, b) = two_inputs();
+    let out = dir.path().join("out");
+    // A texture's name (known only once the clips are read) taken by a directory.
+    std::fs::create_dir_all(out.join("walk.0.npy")).unwrap();
+    let result = bake(&["--input", &a, &b, "--output", out.to_str().unwrap()]);
+    let (summary, message) = (String::from_utf8_lossy(&result.stdout).into_owned(), stderr(&result));
+    assert_eq!(result.status.code(), Some(1), "an output fault is the machine's (exit 1): {message}");
+    let walk = summary.lines().find(|l| l.contains("walk.gltf")).unwrap();
+    assert!(walk.contains("FAILED (output)"), "{summary}");
+    assert!(summary.lines().find(|l| l.contains("wave.gltf")).unwrap().contains("ok"), "{summary}");
+    assert!(message.contains("1 of 2 inputs failed (1 output not written); the other was baked"), "{message}");
+    let mut left: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    left.sort();
+    assert_eq!(left, ["manifest.0-of-1.json", "walk.0.npy", "wave.0.npy", "wave.glb", "wave.json"], "the failed input's other outputs are removed");
+    // Both inputs failing say so, not "the others were baked".
+    let out = dir.path().join("out2");
+    for texture in ["walk.0.npy", "wave.0.npy"] {
+        std::fs::create_dir_all(out.join(texture)).unwrap();
+    }
+    let result = bake(&["--input", &a, &b, "--output", out.to_str().unwrap()]);
+    assert!(stderr(&result).contains("2 of 2 inputs failed (2 output not written); nothing was baked"), "{}", stderr(&result));
+}
+
+#[test]
+fn probably_broken_source_keys_are_warned_per_channel_without_failing() {
+    let dir = tempfile::tempdir().unwrap();
+    // Key 2 turns 170 degrees from key 1, then back.
+    let flip = [0.0, 0.9961947, 0.0, 0.0871557];
+    let input = dir.path().join("flip.gltf");
+    std::fs::write(&input, tiny_gltf(&[0.0, 0.5, 1.0, 1.5], &[Q, Q, flip, Q])).unwrap();
+    let out = dir.path().join("out");
+    let result = bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap()]);
+    let message = stderr(&result);
+    assert!(result.status.success(), "{message}");
+    let expected = ["warning:", "flip.gltf", "clip 'wave', bone rotation", "2 steps between consecutive keys turn more than 90 degrees", "key 1 to key 2 at 1 s, 170 degrees"];
+    for part in expected {
+        assert!(message.contains(part), "lacks {part:?}: {message}");
+    }
+    let manifest = json(&out.join("manifest.0-of-1.json"));
+    let warnings = manifest["inputs"][0]["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{manifest}");
+    assert!(warnings[0].as_str().unwrap().contains("bone rotation"), "{manifest}");
+    // A clip without such steps has none.
+    let (_, a, _) = two_inputs();
+    let result = bake(&["--input", &a, "--output", out.to_str().unwrap()]);
+    assert!(!stderr(&result).contains("warning"), "{}", stderr(&result));
+    // The real takes' flipping thumbs are named.
+    let Some(data) = data_dir() else { return };
+    let result = bake(&["--input", data.join("cmu_131_03.bvh").to_str().unwrap(), "--output", out.to_str().unwrap()]);
+    assert!(stderr(&result).contains("clip 'cmu_131_03', RThumb rotation: 14 steps"), "{}", stderr(&result));
+}
+
+#[test]
+fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("walk.gltf");
+    // 1.07 s at 10 Hz: 10.7 intervals, fitted to 11.
+    std::fs::write(&input, tiny_gltf(&[0.0, 0.5, 1.07], &[Q, TURN, Q])).unwrap();
+    let out = dir.path().join("out");
+    for (exact, frames, end, rate) in [(false, 12, 1.07, 11.0 / 1.07), (true, 11, 1.0, 10.0)] {
+        let mut args = vec!["--input", input.to_str().unwrap(), "--rate", "10", "--loop", "off", "--output", out.to_str().unwrap()];
+        if exact {
+            args.push("--exact-rate");
+        }
+        let result = bake(&args);
+        let message = stderr(&result);
+        assert!(result.status.success(), "{message}");
+        let clip = &json(&out.join("walk.json"))["clips"][0];
+        assert_eq!(clip["frames"], frames, "exact rate {exact}: {clip}");
+        assert!((clip["end"].as_f64().unwrap() - end).abs() < 1e-6, "exact rate {exact}: {clip}");
+        assert!((clip["rate"].as_f64().unwrap() - rate).abs() < 1e-5, "exact rate {exact}: {clip}");
+        let (shape, _) = read_npy(&out.join("walk.0.npy"));
+        assert_eq!(shape[0], frames as u64);
+        let warned = message.contains("clip 'wave': at exactly 10 Hz the last frame is at 1 s, so the last 0.07 s before its last key at 1.07 s are not baked");
+        assert_eq!(warned, exact, "{message}");
+    }
+    // CesiumMan's walk (2 s) at 30 Hz ends on its last key.
+    let Some(data) = data_dir() else { return };
+    let result = bake(&["--input", data.join("CesiumMan.glb").to_str().unwrap(), "--rate", "30", "--output", out.to_str().unwrap()]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let clip = &json(&out.join("CesiumMan.json"))["clips"][0];
+    let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());
+    assert!((end - 2.0).abs() < 1e-6 && clip["frames"] == ((end - start) * 30.0).round() as u64 + 1, "{clip}");
+}
