@@ -32,8 +32,10 @@ fn paths(c: &mut Criterion) {
     let cpu = CpuEvaluator::new();
     eprintln!("CPU: {}; GPU: {}", cpu.name(), gpu.as_ref().map_or("none", |g| g.adapter_name()));
     for (name, spec) in workloads() {
-        let (batch, times) = synthetic::workload(TRACKS, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
-        let (slice, slice_times) = synthetic::workload(TRACKS / 10, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
+        let (batch, times) =
+            synthetic::workload(TRACKS, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
+        let (slice, slice_times) =
+            synthetic::workload(TRACKS / 10, SAMPLES, synthetic::WORKLOAD_KEYS, &spec).expect("valid workload");
         for derivatives in [false, true] {
             let what = if derivatives { "derivatives" } else { "value" };
             let mut group = c.benchmark_group(format!("{name}/{what}"));
@@ -53,7 +55,9 @@ fn paths(c: &mut Criterion) {
                 group.bench_function("gpu_dispatch_only", |b| b.iter(|| gpu.dispatch(&prepared).unwrap()));
                 if name == "bspline4_uniform" {
                     let generic = gpu.prepare(&job.with(EvalOptions { generic_kernel: true, ..job.options })).unwrap();
-                    group.bench_function("gpu_dispatch_only_generic_kernel", |b| b.iter(|| gpu.dispatch(&generic).unwrap()));
+                    group.bench_function("gpu_dispatch_only_generic_kernel", |b| {
+                        b.iter(|| gpu.dispatch(&generic).unwrap())
+                    });
                 }
             }
             group.finish();

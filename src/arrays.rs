@@ -40,7 +40,8 @@ struct Floats {
 /// [`ArrayError`] naming the array for a missing `rotations`, a wrong shape or dtype, a shape
 /// larger than the bytes present, or an unreadable file.
 pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, ArrayError> {
-    let err = |array: &str, message: String| ArrayError { path: path.display().to_string(), array: array.into(), message };
+    let err =
+        |array: &str, message: String| ArrayError { path: path.display().to_string(), array: array.into(), message };
     let file = |e: std::io::Error| err("file", e.to_string());
     let is_npz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
     let (rotations, times, names, velocities) = if is_npz {
@@ -52,19 +53,33 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
                 Err(_) => return Ok(None),
             };
             let budget = size.min(compressed.saturating_mul(MAX_EXPANSION).saturating_add(1 << 20));
-            let npy = archive.by_name(name).map_err(|e| err(name, e.to_string()))?.ok_or_else(|| err(name, "cannot be opened".into()))?;
+            let npy = archive
+                .by_name(name)
+                .map_err(|e| err(name, e.to_string()))?
+                .ok_or_else(|| err(name, "cannot be opened".into()))?;
             Ok(Some(Member::read(npy, budget).map_err(|m| err(name, m))?))
         };
-        let rotations = member("rotations")?.ok_or_else(|| err("rotations", "missing: the archive needs a rotations array [tracks, keys, 4]".into()))?;
-        (rotations.floats("rotations", path)?, member("times")?.map(|m| m.floats("times", path)).transpose()?, member("names")?, member("angular_velocities")?.map(|m| m.floats("angular_velocities", path)).transpose()?)
+        let rotations = member("rotations")?
+            .ok_or_else(|| err("rotations", "missing: the archive needs a rotations array [tracks, keys, 4]".into()))?;
+        (
+            rotations.floats("rotations", path)?,
+            member("times")?.map(|m| m.floats("times", path)).transpose()?,
+            member("names")?,
+            member("angular_velocities")?.map(|m| m.floats("angular_velocities", path)).transpose()?,
+        )
     } else {
         let size = std::fs::metadata(path).map_err(file)?.len();
-        let npy = NpyFile::new(std::io::BufReader::new(std::fs::File::open(path).map_err(file)?)).map_err(|e| err("rotations", e.to_string()))?;
+        let npy = NpyFile::new(std::io::BufReader::new(std::fs::File::open(path).map_err(file)?))
+            .map_err(|e| err("rotations", e.to_string()))?;
         (Member::read(npy, size).map_err(|m| err("rotations", m))?.floats("rotations", path)?, None, None, None)
     };
     match (key_rate, &times) {
-        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => return Err(err("times", format!("the key rate must be a positive number of keys per second, not {rate}"))),
-        (Some(_), Some(_)) => return Err(err("times", "the archive has times and a key rate was given; use one".into())),
+        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => {
+            return Err(err("times", format!("the key rate must be a positive number of keys per second, not {rate}")))
+        }
+        (Some(_), Some(_)) => {
+            return Err(err("times", "the archive has times and a key rate was given; use one".into()))
+        }
         _ => {}
     }
     let [tracks, keys, 4] = rotations.shape[..] else {
@@ -79,7 +94,12 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
             (Some(times), _) => Some(match times.shape[..] {
                 [k] if k as usize == keys => times.data.clone(),
                 [n, k] if n as usize == tracks && k as usize == keys => times.data[t * keys..(t + 1) * keys].to_vec(),
-                _ => return Err(err("times", format!("shape {:?}; expected [{keys}] or [{tracks}, {keys}] to match rotations", times.shape))),
+                _ => {
+                    return Err(err(
+                        "times",
+                        format!("shape {:?}; expected [{keys}] or [{tracks}, {keys}] to match rotations", times.shape),
+                    ))
+                }
             }),
             (None, Some(rate)) => Some((0..keys).map(|k| k as f64 / rate).collect()),
             (None, None) => None,
@@ -91,7 +111,10 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
     };
     if let Some(v) = &velocities {
         if v.shape[..] != [tracks as u64, keys as u64, 3] {
-            return Err(err("angular_velocities", format!("shape {:?}; expected [{tracks}, {keys}, 3] to match rotations", v.shape)));
+            return Err(err(
+                "angular_velocities",
+                format!("shape {:?}; expected [{tracks}, {keys}, 3] to match rotations", v.shape),
+            ));
         }
     }
     (0..tracks)
@@ -101,7 +124,9 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
                 name: names.as_ref().map(|n| n[t].clone()),
                 times: times_of(t)?,
                 rotations: rows.chunks_exact(4).map(|q| [q[0], q[1], q[2], q[3]]).collect(),
-                angular_velocities: velocities.as_ref().map(|v| v.data[t * keys * 3..(t + 1) * keys * 3].chunks_exact(3).map(|w| [w[0], w[1], w[2]]).collect()),
+                angular_velocities: velocities.as_ref().map(|v| {
+                    v.data[t * keys * 3..(t + 1) * keys * 3].chunks_exact(3).map(|w| [w[0], w[1], w[2]]).collect()
+                }),
                 ..Track::default()
             })
         })
@@ -119,15 +144,26 @@ impl Member {
     /// `budget` bytes; elements are pushed as they are read, never preallocated from the shape.
     fn read<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Self, String> {
         let shape = npy.shape().to_vec();
-        let count = shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d)).ok_or_else(|| format!("shape {shape:?} overflows"))?;
-        let DType::Plain(ty) = npy.dtype() else { return Err("structured dtype; expected float32, float64 or unicode strings".into()) };
+        let count = shape
+            .iter()
+            .try_fold(1u64, |a, &d| a.checked_mul(d))
+            .ok_or_else(|| format!("shape {shape:?} overflows"))?;
+        let DType::Plain(ty) = npy.dtype() else {
+            return Err("structured dtype; expected float32, float64 or unicode strings".into());
+        };
         let item = ty.num_bytes().unwrap_or(0) as u64;
         if count.saturating_mul(item) > budget {
-            return Err(format!("shape {shape:?} of {ty} needs {} bytes, the file holds {budget}", count.saturating_mul(item)));
+            return Err(format!(
+                "shape {shape:?} of {ty} needs {} bytes, the file holds {budget}",
+                count.saturating_mul(item)
+            ));
         }
         let capacity = count as usize;
         match (ty.type_char(), ty.size_field()) {
-            (TypeChar::Float, 8) => Ok(Self::Floats(Floats { shape, data: collect(npy.data::<f64>().map_err(|e| e.to_string())?, capacity)? })),
+            (TypeChar::Float, 8) => Ok(Self::Floats(Floats {
+                shape,
+                data: collect(npy.data::<f64>().map_err(|e| e.to_string())?, capacity)?,
+            })),
             (TypeChar::Float, 4) => {
                 let data: Vec<f32> = collect(npy.data::<f32>().map_err(|e| e.to_string())?, capacity)?;
                 Ok(Self::Floats(Floats { shape, data: data.into_iter().map(f64::from).collect() }))
@@ -143,7 +179,11 @@ impl Member {
     fn floats(self, array: &str, path: &Path) -> Result<Floats, ArrayError> {
         match self {
             Self::Floats(f) => Ok(f),
-            Self::Strings(..) => Err(ArrayError { path: path.display().to_string(), array: array.into(), message: "holds strings; expected float32 or float64".into() }),
+            Self::Strings(..) => Err(ArrayError {
+                path: path.display().to_string(),
+                array: array.into(),
+                message: "holds strings; expected float32 or float64".into(),
+            }),
         }
     }
 
@@ -162,7 +202,9 @@ fn collect<T>(items: impl Iterator<Item = std::io::Result<T>>, count: usize) -> 
     let mut out = Vec::with_capacity(count.min(1 << 20));
     for item in items {
         out.push(item.map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => format!("the data ends after {} of the {count} values its shape says", out.len()),
+            std::io::ErrorKind::UnexpectedEof => {
+                format!("the data ends after {} of the {count} values its shape says", out.len())
+            }
             _ => format!("after {} values: {e}", out.len()),
         })?);
     }

@@ -39,11 +39,8 @@ pub fn bernstein_cumulative(n: usize, u: f64) -> Vec<BasisJet> {
     let mut tail = 0.0;
     for i in (1..=n_i).rev() {
         tail += at(n_i, i);
-        out[(i - 1) as usize] = [
-            tail,
-            nf * at(n_i - 1, i - 1),
-            nf * (nf - 1.0) * (at(n_i - 2, i - 2) - at(n_i - 2, i - 1)),
-        ];
+        out[(i - 1) as usize] =
+            [tail, nf * at(n_i - 1, i - 1), nf * (nf - 1.0) * (at(n_i - 2, i - 2) - at(n_i - 2, i - 1))];
     }
     out
 }
@@ -85,7 +82,10 @@ pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &
             let j = l as isize - m as isize + r as isize;
             let ju = j.max(0) as usize;
             let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
-            let right = div(knots[(j + m as isize + 1) as usize] - t, knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize]) * b(j + 1);
+            let right = div(
+                knots[(j + m as isize + 1) as usize] - t,
+                knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize],
+            ) * b(j + 1);
             *slot = left + right;
         }
     }

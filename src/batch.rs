@@ -25,8 +25,8 @@
 
 use crate::curve::{Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER, MIN_ORDER};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::{DQuat, DVec3};
 use crate::quat::relative_log;
+use crate::quat::{DQuat, DVec3};
 use crate::track::Track;
 use std::f64::consts::PI;
 
@@ -276,7 +276,11 @@ impl BatchBuilder {
     /// # Errors
     /// The first rule broken (the first track's in slice order), naming the track (by its
     /// index in the batch) and key; the builder is unchanged then.
-    pub fn extend(&mut self, tracks: &[Track], spec: impl Fn(usize) -> CurveSpec + Sync) -> Result<std::ops::Range<usize>> {
+    pub fn extend(
+        &mut self,
+        tracks: &[Track],
+        spec: impl Fn(usize) -> CurveSpec + Sync,
+    ) -> Result<std::ops::Range<usize>> {
         use rayon::prelude::*;
         let b = &self.batch;
         let (first, lengths) = (b.tracks.len(), [b.points.len(), b.coefs.len(), b.knots.len()]);
@@ -288,7 +292,9 @@ impl BatchBuilder {
                 .par_iter()
                 .enumerate()
                 .with_min_len(64)
-                .map(|(i, track)| prepare(&TrackId { index: first + offset + i, name: track.name.clone() }, track, &spec(offset + i)))
+                .map(|(i, track)| {
+                    prepare(&TrackId { index: first + offset + i, name: track.name.clone() }, track, &spec(offset + i))
+                })
                 .collect();
             let prepared = match prepared {
                 Ok(prepared) => prepared,
@@ -329,7 +335,10 @@ impl BatchBuilder {
         let b = &mut self.batch;
         // Tracks keyed at the same times (the channels of a clip, a synthetic batch) share one
         // knot vector: views only slice the array, and a million 32-key tracks save 0.3 GB.
-        let shared = b.tracks.last().filter(|last| b.knots[last.knot_offset..last.knot_offset + last.knot_count] == packed.knots[..]);
+        let shared = b
+            .tracks
+            .last()
+            .filter(|last| b.knots[last.knot_offset..last.knot_offset + last.knot_count] == packed.knots[..]);
         let (knot_offset, uniform_knots) = match shared {
             Some(last) => (last.knot_offset, last.uniform_knots),
             None => (b.knots.len(), knots_are_uniform(&packed.knots)),
@@ -391,10 +400,24 @@ fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
     let (t0, tn) = (times[0], times[n]);
     let vec_coef = |v: DVec3| [v.x, v.y, v.z, 0.0];
     let steps = || (1..=n).map(|i| vec_coef(relative_log(keys[i - 1], keys[i])));
-    let piecewise = |coefs: Vec<[f64; 4]>, points: Vec<DQuat>| Prepared { curve: spec.curve, order: 0, coefs, points, knots: times.clone(), domain: [t0, tn] };
+    let piecewise = |coefs: Vec<[f64; 4]>, points: Vec<DQuat>| Prepared {
+        curve: spec.curve,
+        order: 0,
+        coefs,
+        points,
+        knots: times.clone(),
+        domain: [t0, tn],
+    };
     Ok(match spec.curve {
         Curve::Slerp => piecewise(steps().collect(), keys),
-        Curve::Bezier => Prepared { curve: spec.curve, order: n, coefs: steps().collect(), points: keys, knots: vec![t0, tn], domain: [t0, tn] },
+        Curve::Bezier => Prepared {
+            curve: spec.curve,
+            order: n,
+            coefs: steps().collect(),
+            points: keys,
+            knots: vec![t0, tn],
+            domain: [t0, tn],
+        },
         Curve::Squad => piecewise(squad_points(&keys, spec.looping).into_iter().map(DQuat::to_array).collect(), keys),
         Curve::Hermite => {
             let omega = key_velocities(id, track, spec, &keys, &times)?;
@@ -413,14 +436,18 @@ fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
         }
         Curve::BSpline => bspline(id, track, spec, keys, &times)?,
         Curve::BSplineInterp => {
-            let solved = crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| Error::NoConvergence {
-                track: id.clone(),
-                key: e.worst_key,
-                error: e.error,
-                iterations: e.iterations,
+            let solved = crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| {
+                Error::NoConvergence { track: id.clone(), key: e.worst_key, error: e.error, iterations: e.iterations }
             })?;
             let coefs = solved.coefs.into_iter().map(vec_coef).collect();
-            Prepared { curve: Curve::BSpline, order: 4, points: solved.points, coefs, knots: solved.knots, domain: [t0, tn] }
+            Prepared {
+                curve: Curve::BSpline,
+                order: 4,
+                points: solved.points,
+                coefs,
+                knots: solved.knots,
+                domain: [t0, tn],
+            }
         }
     })
 }
@@ -439,7 +466,6 @@ fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
     }
     Ok(())
 }
-
 
 /// The curve as messages name it: B-splines with their order and knot mode.
 fn curve_label(spec: &CurveSpec) -> String {
@@ -504,7 +530,8 @@ pub(crate) fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Re
 /// `s_n` is `q_n` times the same body offset, so both sides of the seam agree.
 fn squad_points(keys: &[DQuat], looping: bool) -> Vec<DQuat> {
     let n = keys.len() - 1;
-    let offset = |i: usize, prev: DQuat, next: DQuat| (relative_log(keys[i], next) + relative_log(keys[i], prev)).scale(-0.25);
+    let offset =
+        |i: usize, prev: DQuat, next: DQuat| (relative_log(keys[i], next) + relative_log(keys[i], prev)).scale(-0.25);
     let seam = looping.then(|| offset(0, keys[n - 1], keys[1]));
     (0..=n)
         .map(|i| {
@@ -549,13 +576,17 @@ fn key_velocities(id: &TrackId, track: &Track, spec: &CurveSpec, keys: &[DQuat],
         Tangents::CatmullRom => {
             // Across a loop's seam key 0 sees key n-1 before it (d_{-1} = d_{n-1}); key n
             // takes the same body velocity, so both sides of the seam agree.
-            let seam = spec.looping.then(|| catmull_rom(keys[0], keys[n - 1], keys[1], times[n] - times[n - 1], times[1] - times[0]));
+            let seam = spec
+                .looping
+                .then(|| catmull_rom(keys[0], keys[n - 1], keys[1], times[n] - times[n - 1], times[1] - times[0]));
             Ok((0..=n)
                 .map(|i| match seam {
                     Some(v) if i == 0 || i == n => v,
                     _ if i == 0 => relative_log(keys[0], keys[1]).scale(2.0 / (times[1] - times[0])),
                     _ if i == n => relative_log(keys[n - 1], keys[n]).scale(2.0 / (times[n] - times[n - 1])),
-                    _ => catmull_rom(keys[i], keys[i - 1], keys[i + 1], times[i] - times[i - 1], times[i + 1] - times[i]),
+                    _ => {
+                        catmull_rom(keys[i], keys[i - 1], keys[i + 1], times[i] - times[i - 1], times[i + 1] - times[i])
+                    }
                 })
                 .collect())
         }
@@ -663,10 +694,18 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
 /// The full knot vector of a B-spline through `times.len()` keys (DESIGN section 3): phantom
 /// knots cover the two phantom control points too (`n + 7` knots), the other modes `n + k + 1`.
 /// Shared with the Euclidean analogue ([`crate::euclidean`]), so both use the same basis.
-pub(crate) fn bspline_knots(id: &TrackId, explicit: Option<&[f64]>, spec: &CurveSpec, times: &[f64]) -> Result<Vec<f64>> {
+pub(crate) fn bspline_knots(
+    id: &TrackId,
+    explicit: Option<&[f64]>,
+    spec: &CurveSpec,
+    times: &[f64],
+) -> Result<Vec<f64>> {
     let k = spec.order;
     if !(MIN_ORDER..=MAX_ORDER).contains(&k) {
-        return Err(Error::BadOrder { track: id.clone(), reason: format!("bspline order {k} is outside {MIN_ORDER}..={MAX_ORDER}") });
+        return Err(Error::BadOrder {
+            track: id.clone(),
+            reason: format!("bspline order {k} is outside {MIN_ORDER}..={MAX_ORDER}"),
+        });
     }
     let n = times.len() - 1;
     let (t0, tn) = (times[0], times[n]);
@@ -675,7 +714,9 @@ pub(crate) fn bspline_knots(id: &TrackId, explicit: Option<&[f64]>, spec: &Curve
             if k != 4 {
                 return Err(Error::BadOrder {
                     track: id.clone(),
-                    reason: format!("phantom knots are defined for order 4 only, not {k}; use uniform, clamped or explicit"),
+                    reason: format!(
+                        "phantom knots are defined for order 4 only, not {k}; use uniform, clamped or explicit"
+                    ),
                 });
             }
             check_uniform(id, times, spec.knots)?;
@@ -727,7 +768,15 @@ fn explicit_knots(id: &TrackId, knots: Option<&[f64]>, k: usize, n: usize) -> Re
         let inside = value > start && value < end;
         let (max, place) = if inside { (k - 1, "inside the domain") } else { (k, "at or outside the domain ends") };
         if multiplicity > max {
-            return Err(Error::KnotMultiplicity { track: id.clone(), knot: run_start, value, multiplicity, max, order: k, place });
+            return Err(Error::KnotMultiplicity {
+                track: id.clone(),
+                knot: run_start,
+                value,
+                multiplicity,
+                max,
+                order: k,
+                place,
+            });
         }
         run_start = knot;
     }
@@ -741,7 +790,11 @@ mod tests {
     use crate::track::Track;
 
     fn named(name: Option<&str>, key_norm: f64) -> Track {
-        Track { name: name.map(str::to_owned), times: Some(vec![0.0, 1.0, 2.0]), ..Track::from_rotations(vec![[0.0, 0.0, 0.0, key_norm]; 3]) }
+        Track {
+            name: name.map(str::to_owned),
+            times: Some(vec![0.0, 1.0, 2.0]),
+            ..Track::from_rotations(vec![[0.0, 0.0, 0.0, key_norm]; 3])
+        }
     }
 
     /// Names read back per track (empty as none), a failed `extend` leaves no name behind (also
@@ -760,7 +813,10 @@ mod tests {
         builder.extend(&[named(Some(""), 1.0), named(Some("dé"), 1.0)], |_| spec).unwrap();
         let batch = builder.build().unwrap();
         let id = |index: usize, name: Option<&str>| TrackId { index, name: name.map(str::to_owned) };
-        assert_eq!((0..4).map(|i| batch.id(i)).collect::<Vec<_>>(), [id(0, Some("a")), id(1, None), id(2, None), id(3, Some("dé"))]);
+        assert_eq!(
+            (0..4).map(|i| batch.id(i)).collect::<Vec<_>>(),
+            [id(0, Some("a")), id(1, None), id(2, None), id(3, Some("dé"))]
+        );
         let subset = batch.subset(1..4).subset(1..3);
         assert_eq!(subset.names.len(), 2);
         assert_eq!([subset.id(0), subset.id(1)], [id(2, None), id(3, Some("dé"))]);

@@ -1,6 +1,5 @@
 //! The curve families and their options (DESIGN section 3), as the user chooses them.
 
-
 /// A curve family.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Curve {
@@ -85,7 +84,14 @@ impl Default for CurveSpec {
     /// The library defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend, open.
     /// (The CLI's default curve is `bspline-interp`, DESIGN section 5.)
     fn default() -> Self {
-        Self { curve: Curve::BSpline, order: 4, knots: KnotMode::Phantom, tangents: Tangents::CatmullRom, blend: Blend::Cubic, looping: false }
+        Self {
+            curve: Curve::BSpline,
+            order: 4,
+            knots: KnotMode::Phantom,
+            tangents: Tangents::CatmullRom,
+            blend: Blend::Cubic,
+            looping: false,
+        }
     }
 }
 

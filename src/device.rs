@@ -86,7 +86,9 @@ impl Device {
                 .map(|g| Device::Gpu(Box::new(g)))
                 .map_err(|e| DeviceError::Device(format!("gpu: {e}"))),
             #[cfg(not(feature = "gpu"))]
-            DeviceChoice::Gpu => Err(DeviceError::Device("gpu: this build of quatcurve has no GPU path (cargo feature `gpu`)".into())),
+            DeviceChoice::Gpu => {
+                Err(DeviceError::Device("gpu: this build of quatcurve has no GPU path (cargo feature `gpu`)".into()))
+            }
             #[cfg(feature = "gpu")]
             DeviceChoice::Auto => Ok(match GpuEvaluator::new() {
                 Ok(g) if !g.is_software() => Device::Auto(Box::new(g), CpuEvaluator::new()),

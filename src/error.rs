@@ -74,7 +74,9 @@ pub enum Error {
     #[error("{track}: {reason}")]
     BadOrder { track: TrackId, reason: String },
     /// Explicit knots are missing or their count is wrong.
-    #[error("{track}: explicit knots for order {order} with {keys} keys need {expected} knots (n + k + 1), got {found}")]
+    #[error(
+        "{track}: explicit knots for order {order} with {keys} keys need {expected} knots (n + k + 1), got {found}"
+    )]
     KnotCount { track: TrackId, order: usize, keys: usize, expected: usize, found: usize },
     /// A knot is NaN or infinite.
     #[error("{track}: knot {knot} is not finite ({value})")]
@@ -84,7 +86,15 @@ pub enum Error {
     KnotsDecreasing { track: TrackId, knot: usize, value: f64, previous: f64 },
     /// A knot value repeats too often.
     #[error("{track}: knot {knot} (value {value}) has multiplicity {multiplicity}, more than {max} allowed {place} for order {order}")]
-    KnotMultiplicity { track: TrackId, knot: usize, value: f64, multiplicity: usize, max: usize, order: usize, place: &'static str },
+    KnotMultiplicity {
+        track: TrackId,
+        knot: usize,
+        value: f64,
+        multiplicity: usize,
+        max: usize,
+        order: usize,
+        place: &'static str,
+    },
     /// The B-spline domain `[t_{k-1}, t_{n+1}]` is empty.
     #[error("{track}: the curve's domain [knot {first}, knot {last}] = [{start}, {end}] is empty")]
     EmptyDomain { track: TrackId, first: usize, last: usize, start: f64, end: f64 },
@@ -95,7 +105,9 @@ pub enum Error {
     #[error("{track}: angular velocity of key {key} is not finite ({value:?})")]
     NonFiniteVelocity { track: TrackId, key: usize, value: [f64; 3] },
     /// `extra_turns` has the wrong length.
-    #[error("{track}: extra_turns has {found} entries but there are {expected} segments; give one integer per segment")]
+    #[error(
+        "{track}: extra_turns has {found} entries but there are {expected} segments; give one integer per segment"
+    )]
     ExtraTurnsCount { track: TrackId, expected: usize, found: usize },
     /// An extra turn was asked on a segment whose middle coefficient has no axis.
     #[error("{track}: segment {segment} (keys {segment}..{}) asks for {turns} extra turns but its middle rotation w2 is zero, so the turn axis is undefined", segment + 1)]
@@ -158,7 +170,9 @@ pub enum JobError {
     #[error("{track}: explicit sample times out of range")]
     ExplicitOutOfRange { track: TrackId },
     /// A frame-major layout over tracks with different sample counts.
-    #[error("frame-major layout needs the same sample count in every track: {first} has {count}, {other} has {other_count}")]
+    #[error(
+        "frame-major layout needs the same sample count in every track: {first} has {count}, {other} has {other_count}"
+    )]
     UnequalCounts { first: TrackId, count: usize, other: TrackId, other_count: usize },
     /// A grid given as a list (`SampleTimes::per_track`).
     #[error("{track}: a sample grid must be uniform")]
@@ -177,7 +191,17 @@ mod tests {
 
     #[test]
     fn numbers_read_naturally() {
-        let cases = [(0.0, "0"), (0.25, "0.25"), (1.0, "1"), (1234.0, "1234"), (12.345678, "12.35"), (-0.0123456, "-0.01235"), (3.1717e-7, "3.172e-7"), (2.5e9, "2.500e9"), (f64::NAN, "NaN")];
+        let cases = [
+            (0.0, "0"),
+            (0.25, "0.25"),
+            (1.0, "1"),
+            (1234.0, "1234"),
+            (12.345678, "12.35"),
+            (-0.0123456, "-0.01235"),
+            (3.1717e-7, "3.172e-7"),
+            (2.5e9, "2.500e9"),
+            (f64::NAN, "NaN"),
+        ];
         for (x, text) in cases {
             assert_eq!(Number(x).to_string(), text, "{x}");
         }

@@ -43,7 +43,13 @@ impl VectorCurve {
     /// The rotation builder's rules for times, key counts, orders and knots, naming `id`;
     /// [`Error::NonFiniteValue`] for a NaN or infinite value; [`Error::VectorTangents`] for
     /// `tangents = given` (vector channels carry no per-key velocities).
-    pub fn new(id: &TrackId, times: Option<&[f64]>, values: &[[f64; 3]], explicit_knots: Option<&[f64]>, spec: &CurveSpec) -> Result<Self> {
+    pub fn new(
+        id: &TrackId,
+        times: Option<&[f64]>,
+        values: &[[f64; 3]],
+        explicit_knots: Option<&[f64]>,
+        spec: &CurveSpec,
+    ) -> Result<Self> {
         let (keys, times, drift) = detrended_keys(id, times, values, spec)?;
         let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
         let n = keys.len() - 1;
@@ -96,7 +102,8 @@ impl VectorCurve {
                 if spec.knots == KnotMode::Phantom {
                     let p = &curve.points;
                     // Mirrored key steps, or looping the neighbours across the seam.
-                    let (first, last) = if looping { (p[n - 1], p[1]) } else { (p[0].scale(2.0) - p[1], p[n].scale(2.0) - p[n - 1]) };
+                    let (first, last) =
+                        if looping { (p[n - 1], p[1]) } else { (p[0].scale(2.0) - p[1], p[n].scale(2.0) - p[n - 1]) };
                     curve.points.insert(0, first);
                     curve.points.push(last);
                 }
@@ -107,8 +114,9 @@ impl VectorCurve {
             Curve::BSplineInterp => {
                 // The natural (or periodic) cubic spline, as a cubic B-spline on the same
                 // knots as the rotation curve.
-                let (points, knots) = crate::interp::solve_vectors(&curve.points, times, looping)
-                    .ok_or_else(|| Error::NoConvergence { track: id.clone(), key: 0, error: f64::NAN, iterations: 1 })?;
+                let (points, knots) = crate::interp::solve_vectors(&curve.points, times, looping).ok_or_else(|| {
+                    Error::NoConvergence { track: id.clone(), key: 0, error: f64::NAN, iterations: 1 }
+                })?;
                 curve.curve = Curve::BSpline;
                 curve.order = 4;
                 curve.coefs = steps(&points);
@@ -138,7 +146,8 @@ impl VectorCurve {
     /// The curve without the looping offset.
     fn periodic(&self, t: f64) -> DVec3 {
         let Self { points, coefs, knots, .. } = self;
-        let sum = |start: DVec3, terms: &mut dyn Iterator<Item = (DVec3, f64)>| terms.fold(start, |p, (c, b)| p + c.scale(b));
+        let sum =
+            |start: DVec3, terms: &mut dyn Iterator<Item = (DVec3, f64)>| terms.fold(start, |p, (c, b)| p + c.scale(b));
         match self.curve {
             Curve::Slerp => {
                 let (i, t, len) = key_segment(knots, t);
@@ -218,7 +227,12 @@ fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64], l
 
 /// The checked keys of a vector channel and their times; looping, with the per-cycle offset
 /// removed (the last key equals the first exactly) and returned as a rate per unit time.
-fn detrended_keys(id: &TrackId, times: Option<&[f64]>, values: &[[f64; 3]], spec: &CurveSpec) -> Result<(Vec<DVec3>, Vec<f64>, Option<DVec3>)> {
+fn detrended_keys(
+    id: &TrackId,
+    times: Option<&[f64]>,
+    values: &[[f64; 3]],
+    spec: &CurveSpec,
+) -> Result<(Vec<DVec3>, Vec<f64>, Option<DVec3>)> {
     let min = spec.min_keys();
     if values.len() < min {
         return Err(Error::TooFewKeys { track: id.clone(), curve: spec.curve.to_string(), min, found: values.len() });

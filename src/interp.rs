@@ -94,7 +94,11 @@ pub fn periodic_knots(times: &[f64]) -> Vec<f64> {
             let (cycle, r) = (i.div_euclid(n as isize), i.rem_euclid(n as isize) as usize);
             // The key times themselves inside the period (so the domain ends are exact);
             // extended ones carry the period.
-            if (0..=n as isize).contains(&i) { times[i as usize] } else { times[r] + cycle as f64 * period }
+            if (0..=n as isize).contains(&i) {
+                times[i as usize]
+            } else {
+                times[r] + cycle as f64 * period
+            }
         })
         .collect()
 }
@@ -151,7 +155,11 @@ impl System {
             return Self { periodic, rows, knots, columns: Vec::new() }.with_columns();
         }
         let knots = open_knots(times);
-        let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Row::End { c1: b1[2] * d * d, c2: b2[2] * d * d, k: 2.0 * b1[1] * b2[1] * d * d };
+        let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Row::End {
+            c1: b1[2] * d * d,
+            c2: b2[2] * d * d,
+            k: 2.0 * b1[1] * b2[1] * d * d,
+        };
         let start = bspline_cumulative(&knots, 4, 3, times[0]);
         let finish = bspline_cumulative(&knots, 4, n + 2, times[n]);
         let mut rows = vec![end(start[0], start[1], times[1] - times[0])];
@@ -262,7 +270,8 @@ fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
     let jr = [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)];
     // Below h = 1e-2 `DQuat::exp` takes its value-only series; kept, so that the rotation is
     // exactly `DQuat::exp`'s.
-    let e = if h2 >= 1e-4 { DQuat::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c) } else { DQuat::exp(d(v)) };
+    let e =
+        if h2 >= 1e-4 { DQuat::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c) } else { DQuat::exp(d(v)) };
     (e, jr)
 }
 
@@ -361,7 +370,11 @@ fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jc: [f64; 2]) -> [DMa
             // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
             let (k1, k2) = (AxisPoly::exp_jacobian(v1, a, j1), AxisPoly::exp_jacobian(v2, b, j2));
             let e = rot_inv(e2);
-            [rot_inv(c) - e * k1.times(l1).matrix(), e * k1.times(r1).matrix() - k2.times(l2).matrix(), k2.times(r2).matrix()]
+            [
+                rot_inv(c) - e * k1.times(l1).matrix(),
+                e * k1.times(r1).matrix() - k2.times(l2).matrix(),
+                k2.times(r2).matrix(),
+            ]
         }
         Row::End { c1, c2, k } => {
             let f1 = DMat3::from_diagonal(V3::splat(c1)) - skew(v2) * k;
@@ -400,7 +413,13 @@ impl Block for (V3, DMat3) {
 /// Block tridiagonal solve (block Thomas) of `lower_r x_{r-1} + diag_r x_r + upper_r x_{r+1}
 /// = rhs_r` in place; `None` when a pivot block is singular.
 /// `carry` is scratch space.
-fn solve_tridiagonal<T: Block>(lower: &[DMat3], diag: &[DMat3], upper: &[DMat3], rhs: &mut [T], carry: &mut Vec<DMat3>) -> Option<()> {
+fn solve_tridiagonal<T: Block>(
+    lower: &[DMat3],
+    diag: &[DMat3],
+    upper: &[DMat3],
+    rhs: &mut [T],
+    carry: &mut Vec<DMat3>,
+) -> Option<()> {
     let n = rhs.len();
     carry.clear();
     for r in 0..n {
@@ -438,7 +457,14 @@ struct Scratch {
 
 /// Solves the (possibly cyclic) block tridiagonal system whose row `r` has blocks `blocks[r]`
 /// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add) into `x`.
-fn solve(columns: &[[Option<usize>; 3]], blocks: &[[DMat3; 3]], rhs: &[V3], periodic: bool, scratch: &mut Scratch, x: &mut Vec<V3>) -> Option<()> {
+fn solve(
+    columns: &[[Option<usize>; 3]],
+    blocks: &[[DMat3; 3]],
+    rhs: &[V3],
+    periodic: bool,
+    scratch: &mut Scratch,
+    x: &mut Vec<V3>,
+) -> Option<()> {
     let n = rhs.len();
     let zero = DMat3::ZERO;
     // Sort each row's blocks into lower / diagonal / upper / corner (cyclic wrap).
@@ -529,7 +555,8 @@ fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
     let last = keys.len() - 1;
     for (r, &row) in system.rows.iter().enumerate() {
         let [i, j, k] = system.triple(r);
-        let (res, point) = residual(row, [state.points[i], state.points[j], state.points[k]], [state.steps[j], state.steps[k]], keys);
+        let (res, point) =
+            residual(row, [state.points[i], state.points[j], state.points[k]], [state.steps[j], state.steps[k]], keys);
         state.key_points[r] = point;
         let size = res.length();
         match row {
@@ -718,7 +745,8 @@ fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: 
         health = h;
     }
     if !health.acceptable() {
-        let (worst_key, error) = if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
+        let (worst_key, error) =
+            if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
         return Err(NoConvergence { worst_key, error, iterations });
     }
     let State { points, steps, .. } = state;
@@ -834,7 +862,11 @@ mod tests {
                 Row::End { .. } => DMat3::IDENTITY,
             };
             // What makes leaving the factor out exact: it does not move the residual itself.
-            assert!((outer * r - r).length() < 1e-15 * (1.0 + r.length()), "{row:?}: jr_inv(r) r = {} for r = {r}", outer * r);
+            assert!(
+                (outer * r - r).length() < 1e-15 * (1.0 + r.length()),
+                "{row:?}: jr_inv(r) r = {} for r = {r}",
+                outer * r
+            );
             let blocks = row_jacobian(row, &point, w(p), jc).map(|b| outer * b);
             for (which, block) in blocks.iter().enumerate() {
                 for axis in 0..3 {
@@ -876,4 +908,3 @@ mod tests {
         assert_eq!(periodic_knots(&[0.5, 2.0]), vec![-4.0, -2.5, -1.0, 0.5, 2.0, 3.5, 5.0, 6.5]);
     }
 }
-

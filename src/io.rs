@@ -70,7 +70,8 @@ impl AtomicFile {
         builder.prefix(".quatcurve-").suffix(".tmp");
         #[cfg(unix)]
         builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-        let tmp = builder.tempfile_in(dir).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+        let tmp =
+            builder.tempfile_in(dir).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
         Ok(Self { path: path.to_path_buf(), out: std::io::BufWriter::new(tmp) })
     }
 
@@ -118,7 +119,8 @@ impl Write for AtomicFile {
 /// # Errors
 /// [`IoError::Write`] naming `path`; also when `data` does not fill `shape` exactly.
 pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    let npy = Npy::new(NpyElement::F32, shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    let npy = Npy::new(NpyElement::F32, shape, data)
+        .map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
     write_atomic(path, |w| npy.write(w))
 }
 
@@ -128,7 +130,8 @@ pub fn write_npy(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError
 /// # Errors
 /// As [`write_npy`].
 pub fn write_npy_f16(path: &Path, shape: &[u64], data: &[f32]) -> Result<(), IoError> {
-    let npy = Npy::new(NpyElement::F16, shape, data).map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
+    let npy = Npy::new(NpyElement::F16, shape, data)
+        .map_err(|source| IoError::Write { path: path.display().to_string(), source })?;
     write_atomic(path, |w| npy.write(w))
 }
 
@@ -166,7 +169,9 @@ impl NpyElement {
     pub fn bytes(self, values: &[f32]) -> std::borrow::Cow<'_, [u8]> {
         use rayon::prelude::*;
         match self {
-            NpyElement::F32 if cfg!(target_endian = "little") => std::borrow::Cow::Borrowed(bytemuck::cast_slice(values)),
+            NpyElement::F32 if cfg!(target_endian = "little") => {
+                std::borrow::Cow::Borrowed(bytemuck::cast_slice(values))
+            }
             NpyElement::F32 => std::borrow::Cow::Owned(values.iter().flat_map(|v| v.to_le_bytes()).collect()),
             NpyElement::F16 => {
                 let mut body = vec![0u8; 2 * values.len()];
@@ -318,7 +323,14 @@ impl<'a> ResultFile<'a> {
     /// Assembles the document from a track-major [`Output`]; `f32` when the device computed
     /// in f32 (the CPU and GPU paths), so values print as the f32s they are.
     #[must_use]
-    pub fn new(curve: &'a str, device: &'a str, tracks: &'a [Track], times: &'a SampleTimes, out: &'a Output, f32: bool) -> Self {
+    pub fn new(
+        curve: &'a str,
+        device: &'a str,
+        tracks: &'a [Track],
+        times: &'a SampleTimes,
+        out: &'a Output,
+        f32: bool,
+    ) -> Self {
         let derivs = !out.angular_velocity.is_empty();
         let tracks = tracks
             .iter()
@@ -371,7 +383,12 @@ mod tests {
     #[test]
     fn atomic_files_appear_whole_or_not_at_all() {
         let dir = tempfile::tempdir().unwrap();
-        let names = || std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect::<Vec<_>>();
+        let names = || {
+            std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().into_string().unwrap())
+                .collect::<Vec<_>>()
+        };
         let path = dir.path().join("texture.npy");
         let mut file = AtomicFile::create(&path).unwrap();
         file.write_all(b"first ").unwrap();

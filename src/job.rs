@@ -102,7 +102,11 @@ impl<'a> EvalJob<'a> {
                 }
             }
             if let TrackTimes::Explicit { offset, count } = *times {
-                let own = self.times.explicit.get(offset..offset + count).ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.id(index) })?;
+                let own = self
+                    .times
+                    .explicit
+                    .get(offset..offset + count)
+                    .ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.id(index) })?;
                 if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
                     let track = self.batch.id(index);
                     return Err(Error::NonFiniteSampleTime { track, sample, value: own[sample] });
@@ -113,7 +117,13 @@ impl<'a> EvalJob<'a> {
         if self.options.layout == Layout::Frame {
             if let Some(index) = (0..self.batch.len()).find(|&i| self.times.count(i) != first) {
                 let (first_id, other) = (self.batch.id(0), self.batch.id(index));
-                return Err(JobError::UnequalCounts { first: first_id, count: first, other, other_count: self.times.count(index) }.into());
+                return Err(JobError::UnequalCounts {
+                    first: first_id,
+                    count: first,
+                    other,
+                    other_count: self.times.count(index),
+                }
+                .into());
             }
         }
         Ok(())
@@ -140,16 +150,18 @@ impl<'a> EvalJob<'a> {
             let rotations = split_at_offsets(&mut out.rotations, &self.times.offsets);
             let omega = split_at_offsets(&mut out.angular_velocity, &self.times.offsets);
             let alpha = split_at_offsets(&mut out.angular_acceleration, &self.times.offsets);
-            rotations.into_par_iter().zip(omega).zip(alpha).enumerate().for_each(|(index, ((rotations, omega), alpha))| {
-                for (j, q) in rotations.iter_mut().enumerate() {
-                    let sample = evaluate(index, j);
-                    *q = sample.rotation.to_array();
-                    if derivatives {
-                        omega[j] = sample.angular_velocity.to_array();
-                        alpha[j] = sample.angular_acceleration.to_array();
+            rotations.into_par_iter().zip(omega).zip(alpha).enumerate().for_each(
+                |(index, ((rotations, omega), alpha))| {
+                    for (j, q) in rotations.iter_mut().enumerate() {
+                        let sample = evaluate(index, j);
+                        *q = sample.rotation.to_array();
+                        if derivatives {
+                            omega[j] = sample.angular_velocity.to_array();
+                            alpha[j] = sample.angular_acceleration.to_array();
+                        }
                     }
-                }
-            });
+                },
+            );
             return Ok(out);
         }
         for index in 0..tracks {

@@ -34,18 +34,18 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub mod bake;
-pub(crate) mod basis;
-pub mod cpu;
 pub mod analysis;
 pub mod arrays;
+pub mod bake;
+pub(crate) mod basis;
 pub mod batch;
+pub mod cpu;
 pub mod curve;
 pub mod device;
-#[cfg(feature = "gpu")]
-pub mod gpu;
 pub mod error;
 pub mod euclidean;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod interp;
 pub mod io;
 pub mod job;
@@ -62,11 +62,11 @@ pub mod track;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;
+pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+pub use device::{Device, DeviceChoice, DeviceError};
+pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
 pub use gpu::GpuEvaluator;
-pub use device::{Device, DeviceChoice, DeviceError};
-pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
-pub use error::{Error, Result, TrackId};
 pub use job::{EvalJob, EvalOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
 pub use quat::{DQuat, DVec3, Quat, Vec3};

@@ -56,7 +56,9 @@ fn main() -> ExitCode {
 /// at a private directory of ours for this process (removed at exit). Runs first in `main`,
 /// before any thread exists.
 fn quiet_runtime_dir() -> Option<tempfile::TempDir> {
-    if !cfg!(target_os = "linux") || std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir()) {
+    if !cfg!(target_os = "linux")
+        || std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir())
+    {
         return None;
     }
     let mut builder = tempfile::Builder::new();

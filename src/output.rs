@@ -89,7 +89,13 @@ impl Row {
     /// Floats per row.
     #[must_use]
     pub fn channels(self) -> usize {
-        if self.matrix { self.matrix().end } else if self.derivatives { Self::ALPHA.end } else { Self::ROTATION.end }
+        if self.matrix {
+            self.matrix().end
+        } else if self.derivatives {
+            Self::ALPHA.end
+        } else {
+            Self::ROTATION.end
+        }
     }
 
     /// Writes one sample into `row` (of [`Row::channels`] floats); `omega` and `alpha` are
@@ -155,7 +161,11 @@ impl FloatOutput {
         let mut data = vec![0.0; out.rotations.len() * channels];
         let f32s = |v: &[f64]| -> [f32; 3] { [v[0] as f32, v[1] as f32, v[2] as f32] };
         for (i, (q, dst)) in out.rotations.iter().zip(data.chunks_exact_mut(channels)).enumerate() {
-            let (omega, alpha) = if row.derivatives { (f32s(&out.angular_velocity[i]), f32s(&out.angular_acceleration[i])) } else { ([0.0; 3], [0.0; 3]) };
+            let (omega, alpha) = if row.derivatives {
+                (f32s(&out.angular_velocity[i]), f32s(&out.angular_acceleration[i]))
+            } else {
+                ([0.0; 3], [0.0; 3])
+            };
             row.write(dst, q.map(|v| v as f32), omega, alpha);
         }
         Self { channels, data }

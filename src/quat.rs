@@ -65,11 +65,7 @@ impl<R: Real> Vec3<R> {
     /// Cross product.
     #[must_use]
     pub fn cross(self, o: Self) -> Self {
-        Self::new(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
-        )
+        Self::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
     }
 
     /// Squared length.
@@ -465,7 +461,9 @@ mod tests {
     #[test]
     fn log_inverts_exp_across_the_branch_thresholds() {
         let u = DVec3::new(0.6, 0.0, 0.8);
-        for &th in &[0.0, 1e-12, 1e-6, 0.463, 0.4637, FRAC_PI_4 - 1e-9, FRAC_PI_4, FRAC_PI_4 + 1e-9, 1.0, 2.5, PI - 1e-9] {
+        for &th in
+            &[0.0, 1e-12, 1e-6, 0.463, 0.4637, FRAC_PI_4 - 1e-9, FRAC_PI_4, FRAC_PI_4 + 1e-9, 1.0, 2.5, PI - 1e-9]
+        {
             let back = DQuat::exp(u.scale(th)).log();
             let err = (back - u.scale(th)).length();
             assert!(err <= 4e-16 * th.max(1.0), "th {th}: err {err}");

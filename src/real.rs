@@ -14,13 +14,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 /// Branch decisions (small-angle series, hemisphere folds) are taken on [`Real::value`], so a
 /// jet follows exactly the same formula as the plain value it carries.
 pub trait Real:
-    Copy
-    + Debug
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
+    Copy + Debug + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
 {
     /// A constant (zero derivatives).
     fn cst(x: f64) -> Self;
@@ -267,11 +261,7 @@ impl Mul for Jet {
     type Output = Self;
     #[inline]
     fn mul(self, o: Self) -> Self {
-        Self {
-            v: self.v * o.v,
-            d: self.d * o.v + self.v * o.d,
-            dd: self.dd * o.v + 2.0 * self.d * o.d + self.v * o.dd,
-        }
+        Self { v: self.v * o.v, d: self.d * o.v + self.v * o.d, dd: self.dd * o.v + 2.0 * self.d * o.d + self.v * o.dd }
     }
 }
 
@@ -391,9 +381,14 @@ mod tests {
         let coefficients = |function: &str| -> Vec<f64> {
             let body = &wgsl[wgsl.find(&format!("fn {function}(")).unwrap_or_else(|| panic!("no fn {function}"))..];
             let body = &body[..body.find("\n}\n").expect("function end")];
-            body.split("horner_step(acc, x, ").skip(1).map(|rest| rest[..rest.find(')').expect(")")].parse().expect("a number")).collect()
+            body.split("horner_step(acc, x, ")
+                .skip(1)
+                .map(|rest| rest[..rest.find(')').expect(")")].parse().expect("a number"))
+                .collect()
         };
-        for (function, series) in [("cos_sqrt", &COS_SERIES[..]), ("sinc_sqrt", &SINC_SERIES[..]), ("atanc_sqrt", &ATANC_SERIES[..])] {
+        for (function, series) in
+            [("cos_sqrt", &COS_SERIES[..]), ("sinc_sqrt", &SINC_SERIES[..]), ("atanc_sqrt", &ATANC_SERIES[..])]
+        {
             let shader = coefficients(function);
             assert!(shader.len() >= 7, "{function}: {shader:?}");
             for (k, &c) in shader.iter().rev().enumerate() {

@@ -147,7 +147,11 @@ pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> DQuat {
             let t = if view.track.looping { wrap(t, view.track.domain) } else { t };
             let (i, t, len) = key_segment(view.knots, t);
             let h = (t - view.knots[i]) * (1.0 / len);
-            if view.track.curve == Curve::Squad { squad(view, i, h) } else { nam_kim(view, i, h) }
+            if view.track.curve == Curve::Squad {
+                squad(view, i, h)
+            } else {
+                nam_kim(view, i, h)
+            }
         }
         _ => evaluate(view, t).rotation,
     }

@@ -85,9 +85,13 @@ impl Sampling {
         let span = end - start;
         match self {
             Sampling::Count(0) => Err(SamplingError::ZeroCount.into()),
-            Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => Err(SamplingError::TooMany { count: n, limit: MAX_SAMPLES_PER_TRACK }.into()),
+            Sampling::Count(n) if n > MAX_SAMPLES_PER_TRACK => {
+                Err(SamplingError::TooMany { count: n, limit: MAX_SAMPLES_PER_TRACK }.into())
+            }
             Sampling::Count(1) => Ok(TrackTimes::Uniform { start, step: 0.0, count: 1, last: None }),
-            Sampling::Count(n) => Ok(TrackTimes::Uniform { start, step: span / (n - 1) as f64, count: n, last: Some(end) }),
+            Sampling::Count(n) => {
+                Ok(TrackTimes::Uniform { start, step: span / (n - 1) as f64, count: n, last: Some(end) })
+            }
             Sampling::Rate(hz) if !(hz.is_finite() && hz > 0.0) => Err(SamplingError::BadRate(hz).into()),
             Sampling::Rate(hz) => {
                 // A relative slack of 1e-9 keeps the end when j / hz lands a rounding error past it.

@@ -42,7 +42,11 @@ pub fn wrap(t: f64, [start, end]: [f64; 2]) -> f64 {
     }
     let wrapped = start + (t - start).rem_euclid(end - start);
     // rem_euclid can round up to the period itself.
-    if wrapped > end { start } else { wrapped }
+    if wrapped > end {
+        start
+    } else {
+        wrapped
+    }
 }
 
 #[cfg(test)]

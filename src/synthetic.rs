@@ -1,10 +1,10 @@
 //! Deterministic synthetic tracks for benchmarks and demos: smooth, walk-like rotations with
 //! a little per-track variation, no randomness crate needed.
 
-use crate::quat::{DQuat, DVec3};
 use crate::batch::{Batch, BatchBuilder};
 use crate::curve::CurveSpec;
 use crate::error::Result;
+use crate::quat::{DQuat, DVec3};
 use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
 use std::ops::Range;
@@ -29,7 +29,8 @@ fn swings(tracks: Range<usize>, keys: usize, rate: f64, frequency: impl Fn(f64) 
     tracks
         .map(|i| {
             // A cheap hash of the track index for variety.
-            let h = |k: u64| ((i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
+            let h =
+                |k: u64| ((i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15 ^ k) >> 40) as f64 / (1u64 << 24) as f64;
             let (phase, amplitude, twist) = (6.3 * h(1), 0.2 + 0.5 * h(2), 0.3 * h(3) - 0.15);
             let frequency = frequency(h(4));
             let times: Vec<f64> = (0..keys).map(|j| j as f64 / rate).collect();

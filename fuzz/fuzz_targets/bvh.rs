@@ -13,7 +13,13 @@ fuzz_target!(|bytes: &[u8]| {
         return;
     }
     let device = Device::open(DeviceChoice::Cpu).unwrap();
-    if let Ok(baked) = bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), bake::ClipRate::Fit(10.0), LoopMode::Auto, &device) {
+    if let Ok(baked) = bake::bake(
+        &animation,
+        &CurveSpec::new(Curve::BSplineInterp),
+        bake::ClipRate::Fit(10.0),
+        LoopMode::Auto,
+        &device,
+    ) {
         let _ = file.to_text(&animation.clips[0], &baked);
         if let Ok(order) = animation.parents_first() {
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, &device);

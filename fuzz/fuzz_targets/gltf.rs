@@ -8,13 +8,22 @@ use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 use std::path::Path;
 
 fuzz_target!(|bytes: &[u8]| {
-    let Ok(file) = gltf::from_bytes(bytes, Path::new("/nonexistent-quatcurve-dir"), gltf::UriPolicy::default()) else { return };
+    let Ok(file) = gltf::from_bytes(bytes, Path::new("/nonexistent-quatcurve-dir"), gltf::UriPolicy::default()) else {
+        return;
+    };
     let device = Device::open(DeviceChoice::Cpu).unwrap();
-    if let Ok(baked) = bake::bake(&file.animation, &CurveSpec::new(Curve::BSplineInterp), bake::ClipRate::Fit(10.0), LoopMode::Auto, &device) {
+    if let Ok(baked) = bake::bake(
+        &file.animation,
+        &CurveSpec::new(Curve::BSplineInterp),
+        bake::ClipRate::Fit(10.0),
+        LoopMode::Auto,
+        &device,
+    ) {
         let _ = file.to_glb(&baked);
         let Ok(order) = file.animation.parents_first() else { return };
         for clip in 0..baked.clips.len() {
-            let _ = bake::texture::sheets(&file.animation, &order, &baked, clip, bake::texture::TextureKind::Skin, &device);
+            let _ =
+                bake::texture::sheets(&file.animation, &order, &baked, clip, bake::texture::TextureKind::Skin, &device);
         }
     }
 });

@@ -10,7 +10,9 @@ fuzz_target!(|bytes: &[u8]| {
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     for curve in [Curve::Slerp, Curve::Squad, Curve::Hermite, Curve::NamKim, Curve::BSpline, Curve::BSplineInterp] {
         for looping in [false, true] {
-            let Ok(batch) = Batch::from_tracks(&file.tracks, &CurveSpec { looping, ..CurveSpec::new(curve) }) else { continue };
+            let Ok(batch) = Batch::from_tracks(&file.tracks, &CurveSpec { looping, ..CurveSpec::new(curve) }) else {
+                continue;
+            };
             let overrides: Vec<Option<&[f64]>> = file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();
             let Ok(times) = SampleTimes::new(&batch, &overrides, Sampling::Count(7)) else { continue };
             let _ = device.evaluate(&EvalJob::new(&batch, &times).derivatives(true));

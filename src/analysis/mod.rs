@@ -165,10 +165,18 @@ pub fn nodes(view: TrackView<'_>, name: &str, step: Option<f64>) -> Result<Nodes
     let steps_f = |length: f64| 2.0 * (0.5 * (length / step)).ceil().max(1.0);
     let total: f64 = joints.windows(2).map(|w| steps_f(w[1] - w[0]) + 1.0).sum();
     if total > MAX_NODES_PER_TRACK as f64 {
-        return Err(AnalysisError::TooManyNodes { track: name.to_string(), step, nodes: total.min(usize::MAX as f64) as usize });
+        return Err(AnalysisError::TooManyNodes {
+            track: name.to_string(),
+            step,
+            nodes: total.min(usize::MAX as f64) as usize,
+        });
     }
     let steps_of = |length: f64| steps_f(length) as usize;
-    let mut out = Nodes { times: Vec::with_capacity(total as usize), spans: Vec::with_capacity(joints.len()), looping: view.track.looping };
+    let mut out = Nodes {
+        times: Vec::with_capacity(total as usize),
+        spans: Vec::with_capacity(joints.len()),
+        looping: view.track.looping,
+    };
     for w in joints.windows(2) {
         let (a, b) = (w[0], w[1]);
         let length = b - a;
@@ -264,7 +272,8 @@ pub fn analyze(batch: &Batch, device: &Device, options: &AnalysisOptions) -> Res
         let mut offset = 0;
         for n in piece {
             let len = n.times.len();
-            let (omega, alpha) = (&sampled.angular_velocity[offset..offset + len], &sampled.angular_acceleration[offset..offset + len]);
+            let (omega, alpha) =
+                (&sampled.angular_velocity[offset..offset + len], &sampled.angular_acceleration[offset..offset + len]);
             out.push(measure(n, omega, alpha, options.inertia));
             offset += len;
         }
@@ -285,7 +294,11 @@ pub fn profile(batch: &Batch, index: usize, device: &Device, points: usize) -> R
     let nodes = nodes(view, &batch.id(index).to_string(), Some((hi - lo) / points.max(2) as f64))?;
     let sampled = derivatives_at(&batch.subset(index..index + 1), std::slice::from_ref(&nodes), device)?;
     let norm = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    Ok([nodes.times, sampled.angular_velocity.iter().map(norm).collect(), sampled.angular_acceleration.iter().map(norm).collect()])
+    Ok([
+        nodes.times,
+        sampled.angular_velocity.iter().map(norm).collect(),
+        sampled.angular_acceleration.iter().map(norm).collect(),
+    ])
 }
 
 /// Rotations and derivatives of `batch`'s tracks at their nodes, track after track.

@@ -42,7 +42,8 @@ pub struct Regime {
 /// The paper's two regimes: small variations (up to 20 degrees between keys) and large ones
 /// (120 degrees and more; at most 170, away from the half turn, where "the shortest rotation
 /// between two keys" is ill-conditioned).
-pub const REGIMES: [Regime; 2] = [Regime { name: "small", degrees: [2.0, 20.0] }, Regime { name: "large", degrees: [120.0, 170.0] }];
+pub const REGIMES: [Regime; 2] =
+    [Regime { name: "small", degrees: [2.0, 20.0] }, Regime { name: "large", degrees: [120.0, 170.0] }];
 
 /// How the experiment is run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,9 +130,19 @@ pub fn run(setup: &PaperSetup, device: &Device) -> Result<Vec<RegimeTable>, Anal
 
 fn regime_table(regime: &Regime, setup: &PaperSetup, device: &Device) -> Result<RegimeTable, AnalysisError> {
     let tracks = sequences(regime, setup.seed, setup.sequences, setup.keys.max(2));
-    let spec = |curve: Curve| CurveSpec { curve, order: 4, knots: KnotMode::Phantom, tangents: Tangents::CatmullRom, blend: Blend::Cubic, looping: false };
+    let spec = |curve: Curve| CurveSpec {
+        curve,
+        order: 4,
+        knots: KnotMode::Phantom,
+        tangents: Tangents::CatmullRom,
+        blend: Blend::Cubic,
+        looping: false,
+    };
     // Keep the sequences every curve builds.
-    let kept: Vec<Track> = tracks.into_iter().filter(|t| CURVES.iter().all(|&(c, _)| Batch::from_tracks(std::slice::from_ref(t), &spec(c)).is_ok())).collect();
+    let kept: Vec<Track> = tracks
+        .into_iter()
+        .filter(|t| CURVES.iter().all(|&(c, _)| Batch::from_tracks(std::slice::from_ref(t), &spec(c)).is_ok()))
+        .collect();
     let left_out = setup.sequences - kept.len();
     let mut per_curve: Vec<Vec<Metrics>> = Vec::new();
     for &(curve, _) in &CURVES {
@@ -150,7 +161,9 @@ fn regime_table(regime: &Regime, setup: &PaperSetup, device: &Device) -> Result<
         .map(|(&(curve, label), metrics)| {
             let total = Metrics::total(metrics);
             let ratios: Vec<f64> = metrics.iter().zip(squad).map(|(m, s)| m.torque_energy / s.torque_energy).collect();
-            let share = |keep: &dyn Fn(f64) -> bool| ratios.iter().filter(|&&r| keep(r)).count() as f64 / ratios.len().max(1) as f64;
+            let share = |keep: &dyn Fn(f64) -> bool| {
+                ratios.iter().filter(|&&r| keep(r)).count() as f64 / ratios.len().max(1) as f64
+            };
             CurveRow {
                 curve: curve.name().to_string(),
                 label: label.to_string(),
@@ -179,7 +192,9 @@ pub const NO_JUMP: f64 = 1e-4;
 #[must_use]
 pub fn verdicts(tables: &[RegimeTable]) -> Vec<String> {
     let verdict = |ok: bool| if ok { "holds" } else { "does not hold" };
-    let rows = |table: &RegimeTable| -> Vec<CurveRow> { table.curves.iter().filter(|r| KKS_CURVES.iter().any(|c| c.name() == r.curve)).cloned().collect() };
+    let rows = |table: &RegimeTable| -> Vec<CurveRow> {
+        table.curves.iter().filter(|r| KKS_CURVES.iter().any(|c| c.name() == r.curve)).cloned().collect()
+    };
     let mut out = Vec::new();
     if let Some(small) = tables.iter().find(|t| t.regime.name == "small") {
         let parts: Vec<String> = rows(small)
@@ -196,22 +211,46 @@ pub fn verdicts(tables: &[RegimeTable]) -> Vec<String> {
                 format!("{} median {m:.3} ({reading})", r.curve)
             })
             .collect();
-        out.push(format!("small variations, torque within +-5% of Shoemake's (median ratio in [0.95, 1.05]): {}", parts.join("; ")));
+        out.push(format!(
+            "small variations, torque within +-5% of Shoemake's (median ratio in [0.95, 1.05]): {}",
+            parts.join("; ")
+        ));
     }
     if let Some(large) = tables.iter().find(|t| t.regime.name == "large") {
         let parts: Vec<String> = rows(large)
             .iter()
-            .map(|r| format!("{} total {:.3}, below squad in {:.0}% of sequences ({})", r.curve, r.torque_ratio_total, 100.0 * r.below_squad, verdict(r.torque_ratio_total <= MUCH_BETTER)))
+            .map(|r| {
+                format!(
+                    "{} total {:.3}, below squad in {:.0}% of sequences ({})",
+                    r.curve,
+                    r.torque_ratio_total,
+                    100.0 * r.below_squad,
+                    verdict(r.torque_ratio_total <= MUCH_BETTER)
+                )
+            })
             .collect();
-        out.push(format!("large variations, much less torque than Shoemake's (total ratio <= {MUCH_BETTER}): {}", parts.join("; ")));
+        out.push(format!(
+            "large variations, much less torque than Shoemake's (total ratio <= {MUCH_BETTER}): {}",
+            parts.join("; ")
+        ));
     }
     let c2: Vec<String> = tables
         .iter()
         .flat_map(|t| rows(t).into_iter().map(move |r| (t.regime.name, r)))
         .filter(|(_, r)| r.curve != Curve::Hermite.name())
-        .map(|(regime, r)| format!("{} {regime} {:.1e} ({})", r.curve, r.alpha_jump_relative_median, verdict(r.alpha_jump_relative_median <= NO_JUMP)))
+        .map(|(regime, r)| {
+            format!(
+                "{} {regime} {:.1e} ({})",
+                r.curve,
+                r.alpha_jump_relative_median,
+                verdict(r.alpha_jump_relative_median <= NO_JUMP)
+            )
+        })
         .collect();
-    out.push(format!("C2, no torque jump at the joints (median jump / max |alpha| <= {NO_JUMP:.0e}; Hermite is C1 and jumps): {}", c2.join("; ")));
+    out.push(format!(
+        "C2, no torque jump at the joints (median jump / max |alpha| <= {NO_JUMP:.0e}; Hermite is C1 and jumps): {}",
+        c2.join("; ")
+    ));
     out
 }
 
@@ -221,7 +260,11 @@ fn median(mut values: Vec<f64>) -> f64 {
     }
     values.sort_by(f64::total_cmp);
     let n = values.len();
-    if n % 2 == 1 { values[n / 2] } else { 0.5 * (values[n / 2 - 1] + values[n / 2]) }
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
 }
 
 /// SplitMix64 (Steele, Lea & Flood 2014): a small, well-mixed generator, so that a seed means

@@ -7,8 +7,8 @@
 //! the hierarchy text byte for byte and converts each resampled rotation to the joint's own
 //! channel order, unwrapping angles to the previous frame so curves stay continuous.
 
-use super::{Animation, Baked, Channel, Clip, Joint, Property};
 use super::InputError;
+use super::{Animation, Baked, Channel, Clip, Joint, Property};
 use crate::quat::{DQuat, DVec3};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -80,8 +80,13 @@ type Token<'a> = Result<(usize, &'a str), InputError>;
 
 /// The joints of the HIERARCHY section, parents first.
 fn parse_hierarchy(hierarchy: &str) -> Result<Vec<BvhJoint>, InputError> {
-    let mut tokens = hierarchy.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))).peekable();
-    let mut next = |what: &str| tokens.next().ok_or_else(|| bad(hierarchy.lines().count(), format!("the hierarchy ends where {what} was expected")));
+    let mut tokens =
+        hierarchy.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))).peekable();
+    let mut next = |what: &str| {
+        tokens
+            .next()
+            .ok_or_else(|| bad(hierarchy.lines().count(), format!("the hierarchy ends where {what} was expected")))
+    };
     let (line, word) = next("HIERARCHY")?;
     if word != "HIERARCHY" {
         return Err(bad(line, format!("expected HIERARCHY, found {word}")));
@@ -123,7 +128,11 @@ fn number((line, word): (usize, &str)) -> Result<f64, InputError> {
 }
 
 /// One `ROOT` or `JOINT` (`word`) after its keyword: name, `{`, OFFSET and CHANNELS.
-fn parse_joint<'a>(next: &mut impl FnMut(&str) -> Token<'a>, word: &str, parent: Option<usize>) -> Result<BvhJoint, InputError> {
+fn parse_joint<'a>(
+    next: &mut impl FnMut(&str) -> Token<'a>,
+    word: &str,
+    parent: Option<usize>,
+) -> Result<BvhJoint, InputError> {
     let (_, name) = next("a joint name")?;
     let (line, open) = next("{")?;
     if open != "{" {
@@ -162,7 +171,8 @@ fn parse_joint<'a>(next: &mut impl FnMut(&str) -> Token<'a>, word: &str, parent:
     }
     // Writing back solves for the angles, which needs 0, 1 or 3 distinct axes (found by
     // fuzzing: 4 rotation channels, or one axis twice, crashed the writer).
-    let mut axes: Vec<usize> = channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
+    let mut axes: Vec<usize> =
+        channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
     let listed = axes.len();
     axes.sort_unstable();
     axes.dedup();
@@ -184,7 +194,10 @@ fn parse_motion(motion: &str, first_line: usize, joints: &[BvhJoint]) -> Result<
     let count = header("Frames:")?;
     let frame_time = header("Frame Time:")?;
     if !(frame_time.is_finite() && frame_time > 0.0) || count.fract() != 0.0 || count < 1.0 {
-        return Err(bad(first_line, format!("need at least one frame and a positive frame time (Frames: {count}, Frame Time: {frame_time})")));
+        return Err(bad(
+            first_line,
+            format!("need at least one frame and a positive frame time (Frames: {count}, Frame Time: {frame_time})"),
+        ));
     }
     let frame_time = exact_frame_time(frame_time);
     let columns: usize = joints.iter().map(|j| j.channels.len()).sum();
@@ -197,7 +210,10 @@ fn parse_motion(motion: &str, first_line: usize, joints: &[BvhJoint]) -> Result<
             .map(|w| w.parse::<f64>().map_err(|_| bad(line, format!("frame {}: {w} is not a number", frames.len()))))
             .collect::<Result<_, _>>()?;
         if row.len() != columns {
-            return Err(bad(line, format!("frame {} has {} values but the hierarchy has {columns} channels", frames.len(), row.len())));
+            return Err(bad(
+                line,
+                format!("frame {} has {} values but the hierarchy has {columns} channels", frames.len(), row.len()),
+            ));
         }
         frames.push(row);
     }
@@ -217,7 +233,11 @@ pub const FRAME_TIME_SNAP: f64 = 1e-5;
 pub fn exact_frame_time(frame_time: f64) -> f64 {
     let n = (1.0 / frame_time).round();
     let exact = 1.0 / n;
-    if n >= 1.0 && ((frame_time - exact) / exact).abs() < FRAME_TIME_SNAP { exact } else { frame_time }
+    if n >= 1.0 && ((frame_time - exact) / exact).abs() < FRAME_TIME_SNAP {
+        exact
+    } else {
+        frame_time
+    }
 }
 
 /// The rotation `R_1(a_1) R_2(a_2) ...` of a joint's rotation channels (degrees).
@@ -278,7 +298,8 @@ impl BvhFile {
         for (index, joint) in self.joints.iter().enumerate() {
             let range = column..column + joint.channels.len();
             column = range.end;
-            let values = |f: &dyn Fn(&[f64]) -> [f64; 4]| self.frames.iter().map(|row| f(&row[range.clone()])).collect();
+            let values =
+                |f: &dyn Fn(&[f64]) -> [f64; 4]| self.frames.iter().map(|row| f(&row[range.clone()])).collect();
             if joint.channels.iter().any(|c| matches!(c, BvhChannel::Rotation(_))) {
                 let values = values(&|row| euler_to_quat(&joint.channels, row).to_array());
                 channels.push(Channel { joint: index, property: Property::Rotation, times: times.clone(), values });
@@ -296,11 +317,7 @@ impl BvhFile {
                 channels.push(Channel { joint: index, property: Property::Translation, times: times.clone(), values });
             }
         }
-        let joints = self
-            .joints
-            .iter()
-            .map(|j| Joint::at(j.name.clone(), j.parent, j.offset))
-            .collect();
+        let joints = self.joints.iter().map(|j| Joint::at(j.name.clone(), j.parent, j.offset)).collect();
         Animation { joints, clips: vec![Clip { name: clip_name.to_string(), channels }], skins: Vec::new() }
     }
 
@@ -321,7 +338,11 @@ impl BvhFile {
         for frame in 0..frames {
             row.clear();
             for (index, joint) in self.joints.iter().enumerate() {
-                let axes: Vec<usize> = joint.channels.iter().filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None }).collect();
+                let axes: Vec<usize> = joint
+                    .channels
+                    .iter()
+                    .filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None })
+                    .collect();
                 let angles = series(index, Property::Rotation).map(|s| {
                     let q = DQuat::from_array(s[frame].map(f64::from));
                     quat_to_euler(&axes, q, &previous[index])

@@ -56,8 +56,10 @@ pub fn crowd(characters: usize) -> Animation {
     let times: Vec<f64> = (0..keys).map(|i| i as f64 / KEY_RATE).collect();
     let side = (characters as f64).sqrt().ceil() as usize;
     // Characters on every core, then laid end to end in character order.
-    let people: Vec<(Vec<Joint>, Vec<Channel>)> = (0..characters).into_par_iter().map(|c| character(c, side, &times)).collect();
-    let (mut joints, mut channels) = (Vec::with_capacity(characters * JOINTS), Vec::with_capacity(characters * (JOINTS + 1)));
+    let people: Vec<(Vec<Joint>, Vec<Channel>)> =
+        (0..characters).into_par_iter().map(|c| character(c, side, &times)).collect();
+    let (mut joints, mut channels) =
+        (Vec::with_capacity(characters * JOINTS), Vec::with_capacity(characters * (JOINTS + 1)));
     for (js, chs) in people {
         joints.extend(js);
         channels.extend(chs);

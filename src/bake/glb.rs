@@ -49,10 +49,14 @@ const ACCESSOR_INDICES: &[&[&str]] = &[
 ];
 
 /// Where indices of buffer views are, outside the accessors.
-const VIEW_INDICES: &[&[&str]] = &[&["images", "*", "bufferView"], &["meshes", "*", "primitives", "*", "extensions", "KHR_draco_mesh_compression", "bufferView"]];
+const VIEW_INDICES: &[&[&str]] = &[
+    &["images", "*", "bufferView"],
+    &["meshes", "*", "primitives", "*", "extensions", "KHR_draco_mesh_compression", "bufferView"],
+];
 
 /// Where an accessor holds indices of buffer views, from the accessor.
-const ACCESSOR_VIEWS: &[&[&str]] = &[&["bufferView"], &["sparse", "indices", "bufferView"], &["sparse", "values", "bufferView"]];
+const ACCESSOR_VIEWS: &[&[&str]] =
+    &[&["bufferView"], &["sparse", "indices", "bufferView"], &["sparse", "values", "bufferView"]];
 
 /// Extensions whose indices [`ACCESSOR_INDICES`] and [`VIEW_INDICES`] follow.
 const FOLLOWED_EXTENSIONS: &[&str] = &["KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing"];
@@ -93,7 +97,9 @@ fn extensions(value: &Value, names: &mut Vec<String>) {
             for (key, v) in map {
                 match (key.as_str(), v) {
                     ("extensions", Value::Object(used)) => names.extend(used.keys().cloned()),
-                    ("extensionsUsed" | "extensionsRequired", Value::Array(used)) => names.extend(used.iter().filter_map(Value::as_str).map(str::to_string)),
+                    ("extensionsUsed" | "extensionsRequired", Value::Array(used)) => {
+                        names.extend(used.iter().filter_map(Value::as_str).map(str::to_string))
+                    }
                     _ => {}
                 }
                 extensions(v, names);
@@ -123,7 +129,10 @@ impl Renumbering {
     fn without(json: &Value, replaced: &[(usize, usize)]) -> Option<Self> {
         let mut names = Vec::new();
         extensions(json, &mut names);
-        if names.iter().any(|n| !INDEX_FREE_EXTENSIONS.contains(&n.as_str()) && !FOLLOWED_EXTENSIONS.contains(&n.as_str())) {
+        if names
+            .iter()
+            .any(|n| !INDEX_FREE_EXTENSIONS.contains(&n.as_str()) && !FOLLOWED_EXTENSIONS.contains(&n.as_str()))
+        {
             return None;
         }
         let mut doc = json.clone();
@@ -203,7 +212,13 @@ fn pad(bin: &mut Vec<u8>, to: usize) {
 ///
 /// # Errors
 /// [`InputError::Animation`] if the GLB would exceed 4 GiB.
-pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers: &[Vec<(usize, usize)>], baked: &Baked) -> Result<Vec<u8>, InputError> {
+pub(super) fn write(
+    json: &Value,
+    buffers: &[Vec<u8>],
+    clips: &[Clip],
+    samplers: &[Vec<(usize, usize)>],
+    baked: &Baked,
+) -> Result<Vec<u8>, InputError> {
     let mut json = json.clone();
     let old_views: Vec<Value> = json["bufferViews"].as_array().cloned().unwrap_or_default();
     let old_accessors: Vec<Value> = json["accessors"].as_array().cloned().unwrap_or_default();
@@ -211,7 +226,11 @@ pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers:
     let renumbering = Renumbering::without(&json, &replaced);
     // Every byte of every buffer when nothing is removed; else the ranges kept views cover.
     let mut ranges: Vec<Range> = match &renumbering {
-        None => buffers.iter().enumerate().map(|(buffer, data)| Range { buffer, start: 0, end: data.len() as u64, at: 0 }).collect(),
+        None => buffers
+            .iter()
+            .enumerate()
+            .map(|(buffer, data)| Range { buffer, start: 0, end: data.len() as u64, at: 0 })
+            .collect(),
         Some(r) => {
             let mut spans: Vec<(usize, u64, u64)> = old_views
                 .iter()
@@ -219,7 +238,11 @@ pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers:
                 .filter(|(_, new)| new.is_some())
                 .map(|(v, _)| {
                     let start = v["byteOffset"].as_u64().unwrap_or(0);
-                    (v["buffer"].as_u64().unwrap_or(0) as usize, start, start.saturating_add(v["byteLength"].as_u64().unwrap_or(0)))
+                    (
+                        v["buffer"].as_u64().unwrap_or(0) as usize,
+                        start,
+                        start.saturating_add(v["byteLength"].as_u64().unwrap_or(0)),
+                    )
                 })
                 .collect();
             spans.sort_unstable();
@@ -236,7 +259,9 @@ pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers:
     let mut bin: Vec<u8> = Vec::new();
     for range in &mut ranges {
         // In range: the reader checked every view against its buffer.
-        let data = buffers.get(range.buffer).map_or(&[][..], |d| &d[d.len().min(range.start as usize)..d.len().min(range.end as usize)]);
+        let data = buffers
+            .get(range.buffer)
+            .map_or(&[][..], |d| &d[d.len().min(range.start as usize)..d.len().min(range.end as usize)]);
         pad(&mut bin, 16);
         bin.resize(bin.len() + (range.start % 16) as usize, 0);
         range.at = bin.len() as u64;
@@ -248,8 +273,12 @@ pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers:
         if new.is_none() {
             continue;
         }
-        let (buffer, offset) = (view["buffer"].as_u64().unwrap_or(0) as usize, view["byteOffset"].as_u64().unwrap_or(0));
-        let at = ranges.iter().find(|r| r.buffer == buffer && r.start <= offset && offset <= r.end).map_or(0, |r| r.at + (offset - r.start));
+        let (buffer, offset) =
+            (view["buffer"].as_u64().unwrap_or(0) as usize, view["byteOffset"].as_u64().unwrap_or(0));
+        let at = ranges
+            .iter()
+            .find(|r| r.buffer == buffer && r.start <= offset && offset <= r.end)
+            .map_or(0, |r| r.at + (offset - r.start));
         view["buffer"] = json!(0);
         view["byteOffset"] = json!(at);
         views.push(view);
@@ -302,9 +331,15 @@ pub(super) fn write(json: &Value, buffers: &[Vec<u8>], clips: &[Clip], samplers:
     json["accessors"] = Value::Array(accessors);
     json["buffers"] = json!([{"byteLength": bin.len()}]);
     if u32::try_from(bin.len() + (1 << 20)).is_err() {
-        return Err(InputError::Animation("the baked GLB would exceed 4 GiB, the most a GLB can hold; bake at a lower rate".into()));
+        return Err(InputError::Animation(
+            "the baked GLB would exceed 4 GiB, the most a GLB can hold; bake at a lower rate".into(),
+        ));
     }
     let text = serde_json::to_vec(&json).map_err(|e| InputError::Internal(e.to_string()))?;
-    let glb = gltf::binary::Glb { header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 }, json: text.into(), bin: Some(bin.into()) };
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+        json: text.into(),
+        bin: Some(bin.into()),
+    };
     glb.to_vec().map_err(|e| InputError::Internal(format!("cannot assemble GLB: {e}")))
 }

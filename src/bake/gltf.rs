@@ -7,8 +7,8 @@
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 
-use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
 use super::InputError;
+use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;
@@ -57,7 +57,8 @@ pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
 /// # Errors
 /// As [`read`].
 pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
-    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
+    let gltf =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
     validate(gltf.document.as_json())?;
     let json: Value = if bytes.starts_with(b"glTF") {
         let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| input(format!("not a valid GLB file: {e}")))?;
@@ -97,11 +98,20 @@ fn read_buffers(gltf: &gltf::Gltf, dir: &Path, uris: UriPolicy) -> Result<Vec<Ve
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| input(format!("buffer {} refers to a missing BIN chunk", buffer.index())))?,
-            gltf::buffer::Source::Uri(uri) => load_uri(dir, uri, uris).map_err(|e| input(format!("buffer {} (uri {uri:.60}): {e}", buffer.index())))?,
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| input(format!("buffer {} refers to a missing BIN chunk", buffer.index())))?,
+            gltf::buffer::Source::Uri(uri) => load_uri(dir, uri, uris)
+                .map_err(|e| input(format!("buffer {} (uri {uri:.60}): {e}", buffer.index())))?,
         };
         if data.len() < buffer.length() {
-            return Err(input(format!("buffer {} holds {} bytes but declares {}", buffer.index(), data.len(), buffer.length())));
+            return Err(input(format!(
+                "buffer {} holds {} bytes but declares {}",
+                buffer.index(),
+                data.len(),
+                buffer.length()
+            )));
         }
         buffers.push(data);
     }
@@ -109,7 +119,13 @@ fn read_buffers(gltf: &gltf::Gltf, dir: &Path, uris: UriPolicy) -> Result<Vec<Ve
     for view in gltf.views() {
         let end = view.offset().checked_add(view.length());
         if !end.is_some_and(|end| end <= buffers[view.buffer().index()].len()) {
-            return Err(input(format!("bufferViews[{}]: bytes {}+{} lie outside buffer {}", view.index(), view.offset(), view.length(), view.buffer().index())));
+            return Err(input(format!(
+                "bufferViews[{}]: bytes {}+{} lie outside buffer {}",
+                view.index(),
+                view.offset(),
+                view.length(),
+                view.buffer().index()
+            )));
         }
     }
     Ok(buffers)
@@ -121,7 +137,11 @@ fn read_joints(gltf: &gltf::Gltf) -> Result<Vec<Joint>, InputError> {
     for node in gltf.nodes() {
         for child in node.children() {
             if let Some(first) = parents[child.index()].replace(node.index()) {
-                return Err(input(format!("node {} is a child of both node {first} and node {}; a glTF node has at most one parent", child.index(), node.index())));
+                return Err(input(format!(
+                    "node {} is a child of both node {first} and node {}; a glTF node has at most one parent",
+                    child.index(),
+                    node.index()
+                )));
             }
         }
     }
@@ -151,12 +171,18 @@ fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, Input
         let inverse_bind = match skin.inverse_bind_matrices() {
             None => vec![IDENTITY_3X4; joints.len()],
             Some(accessor) => {
-                check_accessor(&accessor, &root.accessors[accessor.index()], Element::Matrices)
-                    .map_err(|e| input(format!("skin '{name}': inverse bind matrices (accessor {}): {e}", accessor.index())))?;
+                check_accessor(&accessor, &root.accessors[accessor.index()], Element::Matrices).map_err(|e| {
+                    input(format!("skin '{name}': inverse bind matrices (accessor {}): {e}", accessor.index()))
+                })?;
                 let reader = skin.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-                let matrices: Vec<[f64; 12]> = reader.read_inverse_bind_matrices().into_iter().flatten().map(affine_rows).collect();
+                let matrices: Vec<[f64; 12]> =
+                    reader.read_inverse_bind_matrices().into_iter().flatten().map(affine_rows).collect();
                 if matrices.len() != joints.len() {
-                    return Err(input(format!("skin '{name}': {} joints but {} inverse bind matrices", joints.len(), matrices.len())));
+                    return Err(input(format!(
+                        "skin '{name}': {} joints but {} inverse bind matrices",
+                        joints.len(),
+                        matrices.len()
+                    )));
                 }
                 matrices
             }
@@ -168,7 +194,13 @@ fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, Input
 
 /// One animation channel as keys, or `None` for morph target weights; every accessor checked
 /// against the bytes present before the crate's readers (which trust the counts) run.
-fn read_channel(root: &gltf::json::Root, buffers: &[Vec<u8>], animation: &Animation, clip: &Clip, channel: &gltf::animation::Channel<'_>) -> Result<Option<Channel>, InputError> {
+fn read_channel(
+    root: &gltf::json::Root,
+    buffers: &[Vec<u8>],
+    animation: &Animation,
+    clip: &Clip,
+    channel: &gltf::animation::Channel<'_>,
+) -> Result<Option<Channel>, InputError> {
     let anim = channel.animation();
     // The crate's accessors unwrap enum fields it could not parse (a panic on a
     // crafted file): read them checked.
@@ -192,25 +224,28 @@ fn read_channel(root: &gltf::json::Root, buffers: &[Vec<u8>], animation: &Animat
     // accessor against the bytes present first.
     let sampler = channel.sampler();
     let values_kind = if property == Property::Rotation { Element::Rotations } else { Element::Vectors };
-    for (what, accessor, kind) in [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)] {
+    for (what, accessor, kind) in
+        [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)]
+    {
         check_accessor(&accessor, &root.accessors[accessor.index()], kind)
             .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
     }
     let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-    keyed.times = reader.read_inputs().ok_or_else(|| input(format!("{label}: key times cannot be read")))?.map(f64::from).collect();
-    let values: Vec<[f64; 4]> = match reader.read_outputs().ok_or_else(|| input(format!("{label}: key values cannot be read")))? {
-        gltf::animation::util::ReadOutputs::Rotations(r) => r.into_f32().map(|v| v.map(f64::from)).collect(),
-        gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => {
-            v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()
-        }
-        gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
-    };
+    keyed.times = reader
+        .read_inputs()
+        .ok_or_else(|| input(format!("{label}: key times cannot be read")))?
+        .map(f64::from)
+        .collect();
+    let values: Vec<[f64; 4]> =
+        match reader.read_outputs().ok_or_else(|| input(format!("{label}: key values cannot be read")))? {
+            gltf::animation::util::ReadOutputs::Rotations(r) => r.into_f32().map(|v| v.map(f64::from)).collect(),
+            gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => {
+                v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()
+            }
+            gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
+        };
     // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
-    keyed.values = if cubic {
-        values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect()
-    } else {
-        values
-    };
+    keyed.values = if cubic { values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect() } else { values };
     if keyed.values.len() != keyed.times.len() || keyed.times.is_empty() {
         return Err(input(format!("{label}: {} key times but {} key values", keyed.times.len(), keyed.values.len())));
     }
@@ -238,7 +273,8 @@ fn validate(root: &gltf::json::Root) -> Result<(), InputError> {
         }
     }
     // The indices this reader follows, checked here: the crate's accessors unwrap them.
-    let bad_index = |what: String, index: usize| Err(input(format!("not a valid glTF file: {what}: index {index} does not exist")));
+    let bad_index =
+        |what: String, index: usize| Err(input(format!("not a valid glTF file: {what}: index {index} does not exist")));
     for (a, anim) in root.animations.iter().enumerate() {
         for (c, channel) in anim.channels.iter().enumerate() {
             if channel.sampler.value() >= anim.samplers.len() {
@@ -308,14 +344,18 @@ fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: 
         return Err("sparse accessors are not supported for animation".into());
     }
     // The element types glTF allows for animation samplers (the readers assume them).
-    let (Checked::Valid(GenericComponentType(component)), Checked::Valid(element_type)) = (&json.component_type, &json.type_) else {
+    let (Checked::Valid(GenericComponentType(component)), Checked::Valid(element_type)) =
+        (&json.component_type, &json.type_)
+    else {
         return Err("unknown component type or element type".into());
     };
     let allowed = match kind {
         Element::Times => *element_type == Type::Scalar && *component == C::F32,
         Element::Vectors => *element_type == Type::Vec3 && *component == C::F32,
         Element::Matrices => *element_type == Type::Mat4 && *component == C::F32,
-        Element::Rotations => *element_type == Type::Vec4 && matches!(component, C::F32 | C::I8 | C::U8 | C::I16 | C::U16),
+        Element::Rotations => {
+            *element_type == Type::Vec4 && matches!(component, C::F32 | C::I8 | C::U8 | C::I16 | C::U16)
+        }
     };
     if !allowed {
         return Err(format!("{element_type:?} of {component:?} is not an element type glTF allows here"));
@@ -333,7 +373,10 @@ fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: 
         .ok_or_else(|| format!("count {count} with stride {stride} overflows"))?;
     // (Every view lies inside its buffer: `from_bytes` checked them all.)
     if needed > view.length() {
-        return Err(format!("count {count} with stride {stride} needs {needed} bytes, its buffer view holds {}", view.length()));
+        return Err(format!(
+            "count {count} with stride {stride} needs {needed} bytes, its buffer view holds {}",
+            view.length()
+        ));
     }
     Ok(())
 }
@@ -346,10 +389,14 @@ fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String>
         let (_, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are supported")?;
         return base64::engine::general_purpose::STANDARD.decode(data).map_err(|e| format!("bad base64: {e}"));
     }
-    let refuse = |why: &str| format!("{why}; only data URIs and relative paths inside the file's directory are read (the bake option to allow external URIs reads it anyway)");
+    let refuse = |why: &str| {
+        format!("{why}; only data URIs and relative paths inside the file's directory are read (the bake option to allow external URIs reads it anyway)")
+    };
     let (path, external) = match uri.strip_prefix("file://") {
         Some(rest) => (percent_decode(rest)?, true),
-        None if has_scheme(uri) => return Err(format!("{} URIs are not read", uri.split(':').next().unwrap_or_default())),
+        None if has_scheme(uri) => {
+            return Err(format!("{} URIs are not read", uri.split(':').next().unwrap_or_default()))
+        }
         None => (percent_decode(uri)?, false),
     };
     let file = dir.join(&path);
@@ -372,7 +419,8 @@ fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String>
 fn has_scheme(uri: &str) -> bool {
     let Some((scheme, _)) = uri.split_once(':') else { return false };
     let mut chars = scheme.chars();
-    chars.next().is_some_and(|c| c.is_ascii_alphabetic()) && chars.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
 }
 
 /// Decodes `%XX` escapes (glTF URIs are percent-encoded: `my%20file.bin`).
@@ -382,7 +430,10 @@ fn percent_decode(uri: &str) -> Result<String, String> {
     let mut i = 0;
     while i < bytes.len() {
         if bytes[i] == b'%' {
-            let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok());
+            let hex = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok());
             out.push(hex.ok_or("a % not followed by two hex digits")?);
             i += 3;
         } else {

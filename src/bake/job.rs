@@ -6,17 +6,17 @@
 //! One input failing is reported in its [`InputReport`] and the others still finish; only a
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
+use super::error::{BakeError, InputError};
 use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
 use super::shard::Shard;
 use super::texture::{self, Precision, TextureKind};
-use super::error::{BakeError, InputError};
 use super::{bvh, crowd, gltf, Animation, Baked, ClipRate, LoopMode};
 use crate::curve::{Curve, CurveSpec};
 use crate::device::{Device, DeviceChoice};
 use crate::io::{npy_header, write_atomic, AtomicFile, NpyElement};
+use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::io::Write;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -107,7 +107,10 @@ impl BakeJob {
             return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
         }
         if self.preview && !cfg!(feature = "plot") {
-            return Err(BakeError::option("preview", "needs the `plot` cargo feature, which this build of quatcurve leaves out"));
+            return Err(BakeError::option(
+                "preview",
+                "needs the `plot` cargo feature, which this build of quatcurve leaves out",
+            ));
         }
         Ok(())
     }
@@ -158,14 +161,16 @@ impl BakeJob {
             inputs: Vec::new(),
         };
         // This shard's inputs: (name, stem, path); the built-in crowd is input 0 of its job.
-        let crowd_name = format!("built-in crowd: {} x {} joints, {} s", self.characters, crowd::JOINTS, crowd::SECONDS);
+        let crowd_name =
+            format!("built-in crowd: {} x {} joints, {} s", self.characters, crowd::JOINTS, crowd::SECONDS);
         let all: Vec<(String, &str, Option<&Path>)> = if self.inputs.is_empty() {
             vec![(crowd_name, "crowd", None)]
         } else {
             inputs.iter().zip(&stems).map(|(p, s)| (p.display().to_string(), s.as_str(), Some(p.as_path()))).collect()
         };
         let job_inputs = all.len();
-        let mine: Vec<_> = all.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, input)| input).collect();
+        let mine: Vec<_> =
+            all.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, input)| input).collect();
         progress.start(mine.len());
         // One input: verify and keep (resume), or read, bake and write.
         let process = |(name, stem, path): &(String, &str, Option<&Path>)| -> (InputReport, InputRecord) {
@@ -174,7 +179,9 @@ impl BakeJob {
                 Some(path) => hash_file(path).unwrap_or((0, String::new())),
                 None => (0, hash_bytes(options.to_string().as_bytes())),
             };
-            let kept = previous.as_ref().and_then(|m| m.resumable(&options, name, fingerprint.0, &fingerprint.1, &self.output));
+            let kept = previous
+                .as_ref()
+                .and_then(|m| m.resumable(&options, name, fingerprint.0, &fingerprint.1, &self.output));
             let (report, written) = match (kept, path) {
                 (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
                 (None, Some(path)) => self.bake_one(name, stem, || self.read(path), device),
@@ -189,7 +196,8 @@ impl BakeJob {
         let results = in_order(&mine, self.jobs, process, |done| {
             let mut last = last_write.lock().unwrap_or_else(|e| e.into_inner());
             if last.elapsed().as_secs_f64() > 2.0 {
-                let mut partial = Manifest { inputs: done.iter().flatten().map(|(_, r)| r.clone()).collect(), ..manifest.clone() };
+                let mut partial =
+                    Manifest { inputs: done.iter().flatten().map(|(_, r)| r.clone()).collect(), ..manifest.clone() };
                 if let Err(e) = write_manifest(&mut partial, &manifest_path) {
                     *write_error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
                 }
@@ -212,7 +220,8 @@ impl BakeJob {
     /// The output faults that can be found before any input is baked: a baked file that would
     /// replace its input, a directory where an input's baked file or sidecar goes.
     fn check_output_names(&self, inputs: &[PathBuf], stems: &[String]) -> Result<(), BakeError> {
-        let stems: Vec<&str> = if inputs.is_empty() { vec!["crowd"] } else { stems.iter().map(String::as_str).collect() };
+        let stems: Vec<&str> =
+            if inputs.is_empty() { vec!["crowd"] } else { stems.iter().map(String::as_str).collect() };
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
@@ -222,12 +231,19 @@ impl BakeJob {
                     _ => None,
                 };
                 if let Some(baked) = baked {
-                    refuse_overwriting_input(&self.output.join(&baked), &input.display().to_string()).map_err(|e| BakeError::Job(format!("{e} (nothing was baked)")))?;
+                    refuse_overwriting_input(&self.output.join(&baked), &input.display().to_string())
+                        .map_err(|e| BakeError::Job(format!("{e} (nothing was baked)")))?;
                     names.push(baked);
                 }
             }
             if let Some(dir) = names.iter().map(|n| self.output.join(n)).find(|p| p.is_dir()) {
-                return Err(BakeError::option("output", format!("{}: a directory is where a baked file goes; move it away (nothing was baked)", dir.display())));
+                return Err(BakeError::option(
+                    "output",
+                    format!(
+                        "{}: a directory is where a baked file goes; move it away (nothing was baked)",
+                        dir.display()
+                    ),
+                ));
             }
         }
         Ok(())
@@ -236,7 +252,10 @@ impl BakeJob {
     fn read(&self, path: &Path) -> Result<Source, InputError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
-            Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, gltf::UriPolicy { allow_external: self.allow_external_uris })?))),
+            Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(
+                path,
+                gltf::UriPolicy { allow_external: self.allow_external_uris },
+            )?))),
             Some("bvh") => {
                 let file = bvh::read(path)?;
                 let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
@@ -248,7 +267,13 @@ impl BakeJob {
     }
 
     /// Reads, bakes and writes one input; the files it wrote come back with the report.
-    fn bake_one(&self, source: &str, stem: &str, read: impl FnOnce() -> Result<Source, InputError>, device: &Device) -> (InputReport, Vec<Written>) {
+    fn bake_one(
+        &self,
+        source: &str,
+        stem: &str,
+        read: impl FnOnce() -> Result<Source, InputError>,
+        device: &Device,
+    ) -> (InputReport, Vec<Written>) {
         let start = Instant::now();
         let mut report = InputReport::new(source);
         let result = read().and_then(|src| {
@@ -286,7 +311,15 @@ impl BakeJob {
     /// Writes the baked file (GLB or BVH), the textures and the sidecar; if any write fails,
     /// removes the ones already written so the job leaves nothing partial. Forward kinematics
     /// (model and skin textures, previews) runs on `fk_device`, the bake's.
-    fn write_outputs(&self, src: &Source, baked: &Baked, source: &str, stem: &str, device: &str, fk_device: &Device) -> Result<Vec<Written>, InputError> {
+    fn write_outputs(
+        &self,
+        src: &Source,
+        baked: &Baked,
+        source: &str,
+        stem: &str,
+        device: &str,
+        fk_device: &Device,
+    ) -> Result<Vec<Written>, InputError> {
         let mut out = Outputs { dir: &self.output, stem, source, written: Vec::new(), atlas: Vec::new(), rows: 0 };
         match self.write_all(&mut out, src, baked, device, fk_device) {
             Ok(()) => Ok(out.written),
@@ -300,16 +333,27 @@ impl BakeJob {
     }
 
     /// [`BakeJob::write_outputs`]'s files, recorded in `out` as they are written.
-    fn write_all(&self, out: &mut Outputs<'_>, src: &Source, baked: &Baked, device: &str, fk_device: &Device) -> Result<(), InputError> {
+    fn write_all(
+        &self,
+        out: &mut Outputs<'_>,
+        src: &Source,
+        baked: &Baked,
+        device: &str,
+        fk_device: &Device,
+    ) -> Result<(), InputError> {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
         let order = animation.parents_first()?;
         if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
-            return Err(InputError::Animation("the file has no skin to bake a skin texture for; bake a model texture instead".into()));
+            return Err(InputError::Animation(
+                "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
+            ));
         }
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
-            Source::Bvh(file, animation) => Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes())),
+            Source::Bvh(file, animation) => {
+                Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes()))
+            }
             Source::Crowd(_) => None,
         };
         if let Some((name, bytes)) = &baked_file {
@@ -323,27 +367,46 @@ impl BakeJob {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
             out.atlas = self.open_textures(animation, rows, |suffix| dir.join(format!("{stem}{suffix}.npy")))?;
         }
-        let clips = (0..animation.clips.len()).map(|index| self.write_clip(out, animation, baked, &order, index, fk_device)).collect::<Result<Vec<_>, _>>()?;
+        let clips = (0..animation.clips.len())
+            .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device))
+            .collect::<Result<Vec<_>, _>>()?;
         for texture in std::mem::take(&mut out.atlas) {
             out.written.push(texture.finish()?);
         }
         let sidecar = self.sidecar(animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
         let path = dir.join(format!("{stem}.json"));
-        write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from)).map_err(|e| InputError::Output(e.to_string()))?;
+        write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
+            .map_err(|e| InputError::Output(e.to_string()))?;
         out.written.push(path.into());
         Ok(())
     }
 
     /// Clip `index`'s textures (or its rows of the atlas) and preview; its sidecar entry.
-    fn write_clip(&self, out: &mut Outputs<'_>, animation: &Animation, baked: &Baked, order: &[usize], index: usize, fk_device: &Device) -> Result<SidecarClip, InputError> {
+    fn write_clip(
+        &self,
+        out: &mut Outputs<'_>,
+        animation: &Animation,
+        baked: &Baked,
+        order: &[usize],
+        index: usize,
+        fk_device: &Device,
+    ) -> Result<SidecarClip, InputError> {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
         let frames = result.times.len();
         let preview = if self.preview {
             // Forward kinematics of the drawn frames alone.
             let picks = texture::preview_frames(frames);
-            let model = texture::sheet_rows(animation, order, baked, index, TextureKind::Model, fk_device, &picks)?.swap_remove(0).data;
+            let model = texture::sheet_rows(animation, order, baked, index, TextureKind::Model, fk_device, &picks)?
+                .swap_remove(0)
+                .data;
             let name = format!("{stem}.{index}.png");
-            draw_preview(&dir.join(&name), &format!("{}: clip '{}'", out.source, clip.name), &model, &picks, animation)?;
+            draw_preview(
+                &dir.join(&name),
+                &format!("{}: clip '{}'", out.source, clip.name),
+                &model,
+                &picks,
+                animation,
+            )?;
             out.written.push(dir.join(&name).into());
             Some(name)
         } else {
@@ -354,7 +417,8 @@ impl BakeJob {
             out.rows += frames;
             (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
         } else {
-            let mut textures = self.open_textures(animation, frames, |suffix| dir.join(format!("{stem}.{index}{suffix}.npy")))?;
+            let mut textures =
+                self.open_textures(animation, frames, |suffix| dir.join(format!("{stem}.{index}{suffix}.npy")))?;
             self.stream_clip(animation, baked, order, index, fk_device, &mut textures)?;
             let names = textures.iter().map(TextureFile::name).collect();
             for texture in textures {
@@ -378,18 +442,33 @@ impl BakeJob {
 
     /// One [`TextureFile`] per sheet of this job's texture kind ([`texture::layout`]), each
     /// `[rows, width, channels]`, at `path(suffix)`.
-    fn open_textures(&self, animation: &Animation, rows: usize, path: impl Fn(&str) -> PathBuf) -> Result<Vec<TextureFile>, InputError> {
+    fn open_textures(
+        &self,
+        animation: &Animation,
+        rows: usize,
+        path: impl Fn(&str) -> PathBuf,
+    ) -> Result<Vec<TextureFile>, InputError> {
         let channels = self.texture.channels();
         texture::layout(animation, self.texture)
             .into_iter()
-            .map(|(suffix, width)| TextureFile::create(path(&suffix), self.precision, &[rows as u64, width as u64, channels as u64]))
+            .map(|(suffix, width)| {
+                TextureFile::create(path(&suffix), self.precision, &[rows as u64, width as u64, channels as u64])
+            })
             .collect()
     }
 
     /// Computes clip `index`'s sheets a block of frames at a time (frames on every core) and
     /// appends each block to `textures` on another thread as the next block is computed: the
     /// texture is never whole in memory, and the disk writes overlap the arithmetic.
-    fn stream_clip(&self, animation: &Animation, baked: &Baked, order: &[usize], index: usize, fk_device: &Device, textures: &mut [TextureFile]) -> Result<(), InputError> {
+    fn stream_clip(
+        &self,
+        animation: &Animation,
+        baked: &Baked,
+        order: &[usize],
+        index: usize,
+        fk_device: &Device,
+        textures: &mut [TextureFile],
+    ) -> Result<(), InputError> {
         let frames = baked.clips[index].times.len();
         let row_bytes = textures.iter().map(|t| t.row_bytes).max().unwrap_or(1).max(1);
         let block = (TEXTURE_BLOCK_BYTES / row_bytes).max(1);
@@ -421,18 +500,32 @@ impl BakeJob {
                 }
             }
             drop(send);
-            let written = writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
+            let written =
+                writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
             computed.and(written)
         })
     }
 
-    fn sidecar<'a>(&'a self, animation: &'a Animation, baked: &Baked, source: &'a str, device: &'a str, baked_file: Option<String>, clips: Vec<SidecarClip>) -> Sidecar<'a> {
+    fn sidecar<'a>(
+        &'a self,
+        animation: &'a Animation,
+        baked: &Baked,
+        source: &'a str,
+        device: &'a str,
+        baked_file: Option<String>,
+        clips: Vec<SidecarClip>,
+    ) -> Sidecar<'a> {
         let channels = self.texture.channels();
         let names = self.texture.channel_names().join(",");
         let layout = match (self.atlas, self.texture) {
-            (false, TextureKind::Skin) if !animation.skins.is_empty() => format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", self.precision),
+            (false, TextureKind::Skin) if !animation.skins.is_empty() => {
+                format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", self.precision)
+            }
             (false, _) => format!("per clip: [frames, joints, {channels}] {}: {names}", self.precision),
-            (true, _) => format!("one atlas: [frames of every clip, joints, {channels}] {}: {names}; clip rows from first_row", self.precision),
+            (true, _) => format!(
+                "one atlas: [frames of every clip, joints, {channels}] {}: {names}; clip rows from first_row",
+                self.precision
+            ),
         };
         Sidecar {
             source,
@@ -447,7 +540,11 @@ impl BakeJob {
             baked_file,
             joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
             parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),
-            rest: animation.joints.iter().map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale }).collect(),
+            rest: animation
+                .joints
+                .iter()
+                .map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale })
+                .collect(),
             skins: animation.skins.iter().map(|s| SidecarSkin { name: &s.name, joints: &s.joints }).collect(),
             clips,
         }
@@ -455,7 +552,13 @@ impl BakeJob {
 }
 
 #[cfg(feature = "plot")]
-fn draw_preview(path: &Path, title: &str, model: &[f32], picks: &[usize], animation: &Animation) -> Result<(), InputError> {
+fn draw_preview(
+    path: &Path,
+    title: &str,
+    model: &[f32],
+    picks: &[usize],
+    animation: &Animation,
+) -> Result<(), InputError> {
     crate::plot::skeleton(path, title, model, picks, animation).map_err(InputError::Output)
 }
 
@@ -536,7 +639,18 @@ pub struct InputReport {
 impl InputReport {
     /// A report with nothing done yet.
     fn new(source: &str) -> Self {
-        Self { source: source.to_string(), clips: 0, channels: 0, keys: 0, samples: 0, seconds: 0.0, max_key_error: None, outcome: Ok(Vec::new()), resumed: false, warnings: Vec::new() }
+        Self {
+            source: source.to_string(),
+            clips: 0,
+            channels: 0,
+            keys: 0,
+            samples: 0,
+            seconds: 0.0,
+            max_key_error: None,
+            outcome: Ok(Vec::new()),
+            resumed: false,
+            warnings: Vec::new(),
+        }
     }
 }
 
@@ -653,7 +767,12 @@ struct SidecarClip {
 /// order whatever finishes first, so nothing written depends on timing. `progress` sees every
 /// slot (finished or not) after each item; it should be cheap unless it acts (the manifest
 /// writer checks the time first).
-fn in_order<I: Sync, R: Send>(items: &[I], jobs: usize, work: impl Fn(&I) -> R + Sync, progress: impl Fn(&[Option<R>]) + Sync) -> Vec<R> {
+fn in_order<I: Sync, R: Send>(
+    items: &[I],
+    jobs: usize,
+    work: impl Fn(&I) -> R + Sync,
+    progress: impl Fn(&[Option<R>]) + Sync,
+) -> Vec<R> {
     let done: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
     let next = AtomicUsize::new(0);
     std::thread::scope(|scope| {
@@ -685,7 +804,12 @@ fn resumed(name: &str, record: &InputRecord, dir: &Path) -> InputReport {
 }
 
 /// The manifest entry of a finished input.
-fn input_record(report: &InputReport, written: &[Written], (size, sha256): (u64, String), kept: Option<&InputRecord>) -> InputRecord {
+fn input_record(
+    report: &InputReport,
+    written: &[Written],
+    (size, sha256): (u64, String),
+    kept: Option<&InputRecord>,
+) -> InputRecord {
     let (status, error, outputs) = match (&report.outcome, kept) {
         (Ok(_), Some(kept)) => ("resumed", None, kept.outputs.clone()),
         (Ok(_), None) => {
@@ -703,7 +827,16 @@ fn input_record(report: &InputReport, written: &[Written], (size, sha256): (u64,
         }
         (Err(e), _) => ("failed", Some(e.to_string()), Vec::new()),
     };
-    InputRecord { path: report.source.clone(), size, sha256, status: status.into(), error, warnings: report.warnings.clone(), seconds: report.seconds, outputs }
+    InputRecord {
+        path: report.source.clone(),
+        size,
+        sha256,
+        status: status.into(),
+        error,
+        warnings: report.warnings.clone(),
+        seconds: report.seconds,
+        outputs,
+    }
 }
 
 /// The output directory, created for the job; if this job created it (and any missing
@@ -718,8 +851,11 @@ impl OutputDir {
     /// Creates `dir` and proves it takes a new file (as every output is first written), so an
     /// output directory that cannot be written is refused before any input is baked.
     fn create(dir: &Path) -> Result<Self, BakeError> {
-        let created: Vec<PathBuf> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
-        let refuse = |what: &str, e: std::io::Error| BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()));
+        let created: Vec<PathBuf> =
+            dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
+        let refuse = |what: &str, e: std::io::Error| {
+            BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()))
+        };
         std::fs::create_dir_all(dir).map_err(|e| refuse("cannot create the directory", e))?;
         let this = Self { created };
         if let Err(e) = AtomicFile::create(&dir.join("probe")) {
@@ -746,14 +882,24 @@ impl OutputDir {
 /// Files given, with directories replaced by their .gltf/.glb/.bvh files, sorted by path. A
 /// directory without one is an error: baking the built-in crowd instead would be a surprise.
 fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
-    let known = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("gltf" | "glb" | "bvh"));
+    let known = |p: &Path| {
+        matches!(
+            p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+            Some("gltf" | "glb" | "bvh")
+        )
+    };
     let mut files = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let entries = std::fs::read_dir(input).map_err(|e| BakeError::option("input", format!("{}: cannot list: {e}", input.display())))?;
-            let found: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
+            let entries = std::fs::read_dir(input)
+                .map_err(|e| BakeError::option("input", format!("{}: cannot list: {e}", input.display())))?;
+            let found: Vec<PathBuf> =
+                entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
             if found.is_empty() {
-                return Err(BakeError::option("input", format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display())));
+                return Err(BakeError::option(
+                    "input",
+                    format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display()),
+                ));
             }
             files.extend(found);
         } else {
@@ -769,7 +915,10 @@ fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
 /// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
 /// replacing the first: refused before anything is baked.
 fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
-    let stems: Vec<String> = inputs.iter().map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned())).collect();
+    let stems: Vec<String> = inputs
+        .iter()
+        .map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned()))
+        .collect();
     let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::new();
     for (stem, path) in stems.iter().zip(inputs) {
         if let Some(first) = seen.insert(stem, path) {
@@ -818,7 +967,8 @@ impl TextureFile {
         let element = precision.element();
         let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
         let row_bytes = (shape[1] * shape[2]) as usize * element.size();
-        let mut texture = Self { file, element, hasher: Sha256::new(), left: shape.iter().product(), size: 0, row_bytes };
+        let mut texture =
+            Self { file, element, hasher: Sha256::new(), left: shape.iter().product(), size: 0, row_bytes };
         texture.write(&npy_header(element.descr(), shape))?;
         Ok(texture)
     }
@@ -830,7 +980,9 @@ impl TextureFile {
 
     /// Appends `values` (whole rows), hashed on another core while written.
     fn append(&mut self, values: &[f32]) -> Result<(), InputError> {
-        self.left = self.left.checked_sub(values.len() as u64).ok_or_else(|| InputError::Internal(format!("{}: more values than its shape holds", self.file.path().display())))?;
+        self.left = self.left.checked_sub(values.len() as u64).ok_or_else(|| {
+            InputError::Internal(format!("{}: more values than its shape holds", self.file.path().display()))
+        })?;
         let bytes = self.element.bytes(values);
         self.write(&bytes)
     }
@@ -864,7 +1016,10 @@ fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputErro
         _ => false,
     };
     if same {
-        return Err(InputError::Output(format!("{} would overwrite the input; choose another output directory", output.display())));
+        return Err(InputError::Output(format!(
+            "{} would overwrite the input; choose another output directory",
+            output.display()
+        )));
     }
     Ok(())
 }

@@ -70,7 +70,8 @@ impl FileRecord {
     /// Whether `dir/file` still has this size and hash.
     pub fn intact(&self, dir: &Path) -> bool {
         let path = dir.join(&self.file);
-        std::fs::metadata(&path).is_ok_and(|m| m.len() == self.size) && hash_file(&path).is_ok_and(|(_, h)| h == self.sha256)
+        std::fs::metadata(&path).is_ok_and(|m| m.len() == self.size)
+            && hash_file(&path).is_ok_and(|(_, h)| h == self.sha256)
     }
 }
 
@@ -124,12 +125,23 @@ impl Manifest {
 
     /// The record of an earlier run that lets `input` be skipped: same options, same input
     /// bytes, success, and every output still as written.
-    pub fn resumable(&self, options: &serde_json::Value, path: &str, size: u64, sha256: &str, dir: &Path) -> Option<&InputRecord> {
+    pub fn resumable(
+        &self,
+        options: &serde_json::Value,
+        path: &str,
+        size: u64,
+        sha256: &str,
+        dir: &Path,
+    ) -> Option<&InputRecord> {
         if &self.options != options {
             return None;
         }
         self.inputs.iter().find(|r| {
-            r.path == path && r.size == size && r.sha256 == sha256 && matches!(r.status.as_str(), "ok" | "resumed") && r.outputs.iter().all(|o| o.intact(dir))
+            r.path == path
+                && r.size == size
+                && r.sha256 == sha256
+                && matches!(r.status.as_str(), "ok" | "resumed")
+                && r.outputs.iter().all(|o| o.intact(dir))
         })
     }
 }

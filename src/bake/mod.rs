@@ -17,8 +17,8 @@ pub mod manifest;
 pub mod shard;
 pub mod texture;
 
-pub use error::{BakeError, InputError};
 use error::InputError as E;
+pub use error::{BakeError, InputError};
 pub use job::{BakeJob, BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
@@ -71,7 +71,11 @@ impl Clip {
     pub fn span(&self) -> [f64; 2] {
         let first = self.channels.iter().filter_map(|c| c.times.first()).copied().fold(f64::INFINITY, f64::min);
         let last = self.channels.iter().filter_map(|c| c.times.last()).copied().fold(f64::NEG_INFINITY, f64::max);
-        if first <= last { [first, last] } else { [0.0, 0.0] }
+        if first <= last {
+            [first, last]
+        } else {
+            [0.0, 0.0]
+        }
     }
 }
 
@@ -137,9 +141,17 @@ impl Animation {
                 chain.push(at);
                 match self.joints[at].parent {
                     None => break,
-                    Some(p) if p >= n => return Err(E::Animation(format!("joint {at} ({}): parent {p} does not exist", self.joints[at].name))),
+                    Some(p) if p >= n => {
+                        return Err(E::Animation(format!(
+                            "joint {at} ({}): parent {p} does not exist",
+                            self.joints[at].name
+                        )))
+                    }
                     Some(_) if chain.len() > n => {
-                        return Err(E::Animation(format!("joint {at} ({}) is its own ancestor: the hierarchy has a cycle", self.joints[at].name)))
+                        return Err(E::Animation(format!(
+                            "joint {at} ({}) is its own ancestor: the hierarchy has a cycle",
+                            self.joints[at].name
+                        )))
                     }
                     Some(p) => at = p,
                 }
@@ -189,7 +201,10 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     let mut warnings = Vec::new();
     for clip in &animation.clips {
         for channel in clip.channels.iter().filter(|c| c.property == Property::Rotation) {
-            let angles = channel.values.windows(2).map(|w| DQuat::from_array(w[0]).normalize().angle_to(DQuat::from_array(w[1]).normalize()));
+            let angles = channel
+                .values
+                .windows(2)
+                .map(|w| DQuat::from_array(w[0]).normalize().angle_to(DQuat::from_array(w[1]).normalize()));
             let steps: Vec<(usize, f64)> = angles.enumerate().filter(|&(_, a)| a > limit).collect();
             let Some(&(first, angle)) = steps.first() else { continue };
             warnings.push(format!(
@@ -316,7 +331,8 @@ pub fn interpolates(spec: &CurveSpec) -> bool {
 /// key is not its first rotation, named.
 pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, InputError> {
     let open = |c: &Channel| {
-        let (first, last) = (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
+        let (first, last) =
+            (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
         let angle = first.angle_to(last);
         (angle.is_nan() || angle > crate::batch::LOOP_TOLERANCE).then_some(angle)
     };
@@ -326,7 +342,10 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
         LoopMode::On => {
             if !spec.can_loop() {
-                return Err(E::Animation(format!("clip '{}': loop mode on needs a curve that loops; {} does not", clip.name, spec.curve)));
+                return Err(E::Animation(format!(
+                    "clip '{}': loop mode on needs a curve that loops; {} does not",
+                    clip.name, spec.curve
+                )));
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
                 return Err(E::Animation(format!(
@@ -432,7 +451,13 @@ fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// [`InputError::Keys`] naming the clip, joint, property and key for bad keys;
 /// [`InputError::Animation`] for a clip that cannot bake as asked; [`InputError::Device`]
 /// when the device refuses or fails.
-pub fn bake(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: LoopMode, device: &Device) -> Result<Baked, InputError> {
+pub fn bake(
+    animation: &Animation,
+    spec: &CurveSpec,
+    rate: ClipRate,
+    loops: LoopMode,
+    device: &Device,
+) -> Result<Baked, InputError> {
     let (mut clips, grids) = plan_clips(animation, spec, rate, loops)?;
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (c, prepared) in prepare_channels(animation, spec, &clips) {
@@ -483,7 +508,12 @@ pub fn bake(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: Loop
 /// Per clip: whether it loops and its frame grid, within the sample budget, which is counted
 /// before anything is allocated for the clip (frames rounded up; the channel samples and the
 /// texture's joint rows).
-fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: LoopMode) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
+fn plan_clips(
+    animation: &Animation,
+    spec: &CurveSpec,
+    rate: ClipRate,
+    loops: LoopMode,
+) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     let mut grids = Vec::with_capacity(animation.clips.len());
     let mut total_samples = 0usize;
@@ -515,8 +545,17 @@ fn plan_clips(animation: &Animation, spec: &CurveSpec, rate: ClipRate, loops: Lo
 /// Every channel, prepared on every core, with its clip's index: rotations with two keys or
 /// more become device tracks, the rest is evaluated here. The results are in channel order, so
 /// that the first error reported is the first channel's.
-fn prepare_channels(animation: &Animation, spec: &CurveSpec, clips: &[BakedClip]) -> Vec<(usize, Result<Prepared, InputError>)> {
-    let channels: Vec<(usize, usize)> = animation.clips.iter().enumerate().flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k))).collect();
+fn prepare_channels(
+    animation: &Animation,
+    spec: &CurveSpec,
+    clips: &[BakedClip],
+) -> Vec<(usize, Result<Prepared, InputError>)> {
+    let channels: Vec<(usize, usize)> = animation
+        .clips
+        .iter()
+        .enumerate()
+        .flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k)))
+        .collect();
     let prepare = |c: usize, k: usize| -> Result<Prepared, InputError> {
         let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
         let spec = CurveSpec { looping: clips[c].looping, ..*spec };
@@ -524,14 +563,25 @@ fn prepare_channels(animation: &Animation, spec: &CurveSpec, clips: &[BakedClip]
         let frames = &clips[c].times;
         Ok(match (channel.property, channel.values.len()) {
             (_, 1) => Prepared::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
-            (Property::Rotation, _) => {
-                Prepared::Track(Track { name: Some(name), times: Some(channel.times.clone()), ..Track::from_rotations(channel.values.clone()) }, spec)
-            }
+            (Property::Rotation, _) => Prepared::Track(
+                Track {
+                    name: Some(name),
+                    times: Some(channel.times.clone()),
+                    ..Track::from_rotations(channel.values.clone())
+                },
+                spec,
+            ),
             _ => {
                 let id = TrackId { index: k, name: Some(name) };
                 let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
                 let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
-                Prepared::Host(frames.iter().map(|&t| curve.evaluate(t).to_array().map(|v| v as f32)).map(|[x, y, z]| [x, y, z, 0.0]).collect())
+                Prepared::Host(
+                    frames
+                        .iter()
+                        .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
+                        .map(|[x, y, z]| [x, y, z, 0.0])
+                        .collect(),
+                )
             }
         })
     };
@@ -580,7 +630,9 @@ fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 
     } else if value.iter().all(|v| v.is_finite()) {
         value
     } else {
-        return Err(crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.into());
+        return Err(
+            crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.into()
+        );
     };
     Ok(vec![value.map(|v| v as f32); frames])
 }

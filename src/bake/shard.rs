@@ -34,7 +34,8 @@ impl Shard {
     pub fn parse(text: &str) -> Result<Self, BakeError> {
         let bad = |reason: String| BakeError::option("shard", format!("{text}: {reason}"));
         let (index, count) = text.split_once('/').ok_or_else(|| bad("expected I/N, e.g. 0/4".into()))?;
-        let number = |what: &str, n: &str| n.trim().parse().map_err(|_| bad(format!("the {what} {n:?} is not a whole number")));
+        let number =
+            |what: &str, n: &str| n.trim().parse().map_err(|_| bad(format!("the {what} {n:?} is not a whole number")));
         let (index, count) = (number("index", index)?, number("count", count)?);
         if count == 0 || index >= count {
             return Err(bad(format!("shard {index} of {count} does not exist (need 0 <= index < count)")));
@@ -64,7 +65,9 @@ impl Shard {
             let mut source = format!("{scheduler}: {index_var}");
             if let Some(min_var) = min_var {
                 let min = env(min_var).map(|m| number(min_var, &m)).transpose()?.unwrap_or(0);
-                index = index.checked_sub(min).ok_or_else(|| bad(format!("{index_var} {index} is below {min_var} {min}")))?;
+                index = index
+                    .checked_sub(min)
+                    .ok_or_else(|| bad(format!("{index_var} {index} is below {min_var} {min}")))?;
                 source = format!("{source} - {min_var}");
             }
             return Self::new(index, number(count_var, &count)?, format!("{source} of {count_var}"));
@@ -119,7 +122,11 @@ mod tests {
 
     #[test]
     fn an_index_without_a_count_and_out_of_range_shards_are_errors() {
-        for pairs in [vec![("JOB_COMPLETION_INDEX", "0")], vec![("BATCH_TASK_INDEX", "0")], vec![("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")]] {
+        for pairs in [
+            vec![("JOB_COMPLETION_INDEX", "0")],
+            vec![("BATCH_TASK_INDEX", "0")],
+            vec![("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")],
+        ] {
             assert!(matches!(Shard::from_env(&env(&pairs)), Err(BakeError::Job(_))), "{pairs:?}");
         }
         for text in ["4/4", "0/0", "1", "a/2"] {

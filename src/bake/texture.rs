@@ -11,8 +11,8 @@
 //! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
 //! value), frames on every core.
 
-use super::{Animation, Baked, Property, Skin};
 use super::InputError;
+use super::{Animation, Baked, Property, Skin};
 use crate::device::Device;
 use rayon::prelude::*;
 
@@ -47,7 +47,9 @@ impl TextureKind {
     pub fn channel_names(self) -> &'static [&'static str] {
         match self {
             TextureKind::Local => &["qx", "qy", "qz", "qw", "tx", "ty", "tz", "sx", "sy", "sz"],
-            TextureKind::Model | TextureKind::Skin => &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"],
+            TextureKind::Model | TextureKind::Skin => {
+                &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"]
+            }
         }
     }
 }
@@ -127,7 +129,20 @@ pub fn trs(row: &[f32]) -> Affine {
         [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
         [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
     ];
-    [r[0][0] * sx, r[0][1] * sy, r[0][2] * sz, tx, r[1][0] * sx, r[1][1] * sy, r[1][2] * sz, ty, r[2][0] * sx, r[2][1] * sy, r[2][2] * sz, tz]
+    [
+        r[0][0] * sx,
+        r[0][1] * sy,
+        r[0][2] * sz,
+        tx,
+        r[1][0] * sx,
+        r[1][1] * sy,
+        r[1][2] * sz,
+        ty,
+        r[2][0] * sx,
+        r[2][1] * sy,
+        r[2][2] * sz,
+        tz,
+    ]
 }
 
 /// `a * b` for affine matrices.
@@ -220,7 +235,14 @@ pub fn layout(animation: &Animation, kind: TextureKind) -> Vec<(String, usize)> 
 ///
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
-pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device) -> Result<Vec<Sheet>, InputError> {
+pub fn sheets(
+    animation: &Animation,
+    order: &[usize],
+    baked: &Baked,
+    clip: usize,
+    kind: TextureKind,
+    device: &Device,
+) -> Result<Vec<Sheet>, InputError> {
     let frames: Vec<usize> = (0..baked.clips[clip].times.len()).collect();
     sheet_rows(animation, order, baked, clip, kind, device, &frames)
 }
@@ -230,7 +252,15 @@ pub fn sheets(animation: &Animation, order: &[usize], baked: &Baked, clip: usize
 ///
 /// # Errors
 /// As [`sheets`].
-pub fn sheet_rows(animation: &Animation, order: &[usize], baked: &Baked, clip: usize, kind: TextureKind, device: &Device, frames: &[usize]) -> Result<Vec<Sheet>, InputError> {
+pub fn sheet_rows(
+    animation: &Animation,
+    order: &[usize],
+    baked: &Baked,
+    clip: usize,
+    kind: TextureKind,
+    device: &Device,
+    frames: &[usize],
+) -> Result<Vec<Sheet>, InputError> {
     let local = local_rows(animation, baked, clip, frames);
     let data = if kind == TextureKind::Local {
         vec![local]
@@ -242,7 +272,11 @@ pub fn sheet_rows(animation: &Animation, order: &[usize], baked: &Baked, clip: u
             animation.skins.iter().map(|s| skin(s, animation.joints.len(), &model)).collect()
         }
     };
-    Ok(layout(animation, kind).into_iter().zip(data).map(|((suffix, width), data)| Sheet { suffix, width, data }).collect())
+    Ok(layout(animation, kind)
+        .into_iter()
+        .zip(data)
+        .map(|((suffix, width), data)| Sheet { suffix, width, data })
+        .collect())
 }
 
 /// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,
@@ -250,12 +284,18 @@ pub fn sheet_rows(animation: &Animation, order: &[usize], baked: &Baked, clip: u
 ///
 /// # Errors
 /// The GPU's (a device failure, a frame larger than a storage binding).
-pub fn model_on(device: &Device, animation: &Animation, order: &[usize], local: &[f32]) -> Result<Vec<f32>, InputError> {
+pub fn model_on(
+    device: &Device,
+    animation: &Animation,
+    order: &[usize],
+    local: &[f32],
+) -> Result<Vec<f32>, InputError> {
     match device {
         #[cfg(feature = "gpu")]
         Device::Gpu(g) | Device::Auto(g, _) => {
             let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-            g.forward_kinematics(&parents, order, local).map_err(|e| InputError::Device(crate::DeviceError::Device(format!("forward kinematics: {e}"))))
+            g.forward_kinematics(&parents, order, local)
+                .map_err(|e| InputError::Device(crate::DeviceError::Device(format!("forward kinematics: {e}"))))
         }
         Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
     }

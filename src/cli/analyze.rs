@@ -1,11 +1,11 @@
 //! `quatcurve analyze`: energy, torque and smoothness of several curves through the same keys
 //! (DESIGN section 8), and `--paper`, the rerun of KKS section 6.1.
 
-use quatcurve::plot::{self, Series};
 use super::{names, print_stdout, read_tracks, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::analysis::paper::{self, PaperSetup, RegimeTable, KKS_CURVES};
 use quatcurve::analysis::{analyze, profile, AnalysisError, AnalysisOptions, Metrics};
+use quatcurve::plot::{self, Series};
 use quatcurve::{Batch, Curve, Device, DeviceChoice, KnotMode, Track};
 use std::io::Write;
 use std::path::PathBuf;
@@ -27,7 +27,14 @@ pub struct AnalyzeArgs {
     #[command(flatten)]
     options: CurveArgs,
     /// Principal moments of inertia of the body, for the torque tau = I alpha + omega x (I omega).
-    #[arg(long, value_name = "IXX,IYY,IZZ", value_delimiter = ',', num_args = 1, default_value = "1,1,1", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "IXX,IYY,IZZ",
+        value_delimiter = ',',
+        num_args = 1,
+        default_value = "1,1,1",
+        allow_negative_numbers = true
+    )]
     inertia: Vec<f64>,
     /// Simpson step in seconds (default: 1/1000 of each track's shortest span).
     #[arg(long, allow_negative_numbers = true)]
@@ -59,11 +66,9 @@ pub struct AnalyzeArgs {
 
 impl AnalyzeArgs {
     fn analysis_options(&self) -> Result<AnalysisOptions, Failure> {
-        let inertia: [f64; 3] = self
-            .inertia
-            .as_slice()
-            .try_into()
-            .map_err(|_| Failure::Input(format!("--inertia takes three moments IXX,IYY,IZZ, got {}", self.inertia.len())))?;
+        let inertia: [f64; 3] = self.inertia.as_slice().try_into().map_err(|_| {
+            Failure::Input(format!("--inertia takes three moments IXX,IYY,IZZ, got {}", self.inertia.len()))
+        })?;
         let options = AnalysisOptions { inertia, step: self.step };
         quatcurve::analysis::validate(&options).map_err(|e| Failure::Input(format!("--inertia/--step: {e}")))?;
         Ok(options)
@@ -92,7 +97,8 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
     for &curve in &curves {
         let batch = Batch::from_tracks(&tracks, &args.options.spec(curve, KnotMode::Phantom, args.looping))
             .map_err(|e| Failure::Input(format!("{source}: {curve}: {e}")))?;
-        let metrics = analyze(&batch, &device, &options).map_err(|e| Failure::from(e).context(&format!("{source}: {curve}")))?;
+        let metrics =
+            analyze(&batch, &device, &options).map_err(|e| Failure::from(e).context(&format!("{source}: {curve}")))?;
         results.push((curve, batch, metrics));
     }
     let squad = results.iter().find(|(c, ..)| *c == Curve::Squad).map(|(_, _, m)| Metrics::total(m));
@@ -102,9 +108,11 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
             .map(|(curve, batch, _)| rates_series(curve.name(), batch, 0, &device))
             .collect::<Result<Vec<_>, _>>()?;
         let name = tracks[0].name.clone().unwrap_or_else(|| "track 0".into());
-        plot::rates(path, &format!("{name}: angular velocity and acceleration"), &series, &key_times(&tracks[0])).map_err(Failure::Input)?;
+        plot::rates(path, &format!("{name}: angular velocity and acceleration"), &series, &key_times(&tracks[0]))
+            .map_err(Failure::Input)?;
     }
-    let names: Vec<String> = tracks.iter().enumerate().map(|(i, t)| t.name.clone().unwrap_or_else(|| format!("track {i}"))).collect();
+    let names: Vec<String> =
+        tracks.iter().enumerate().map(|(i, t)| t.name.clone().unwrap_or_else(|| format!("track {i}"))).collect();
     if args.json {
         let curves: Vec<serde_json::Value> = results
             .iter()
@@ -127,11 +135,28 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
         return print_stdout(|w| writeln!(w, "{doc}"));
     }
     print_stdout(|w| {
-        writeln!(w, "{} tracks from {source}; derivatives on {}; inertia {:?}; Simpson step {}", tracks.len(), device.name(), options.inertia, step_text(options.step))?;
+        writeln!(
+            w,
+            "{} tracks from {source}; derivatives on {}; inertia {:?}; Simpson step {}",
+            tracks.len(),
+            device.name(),
+            options.inertia,
+            step_text(options.step)
+        )?;
         writeln!(
             w,
             "{:<16} {:<12} {:>12} {:>13} {:>10} {:>10} {:>10} {:>10} {:>10} {:>8} {:>8}",
-            "curve", "track", "energy", "torque_energy", "max_omega", "max_alpha", "arc_length", "alpha_jump", "omega_jump", "E/squad", "T/squad"
+            "curve",
+            "track",
+            "energy",
+            "torque_energy",
+            "max_omega",
+            "max_alpha",
+            "arc_length",
+            "alpha_jump",
+            "omega_jump",
+            "E/squad",
+            "T/squad"
         )?;
         let per_track = tracks.len() > 1 && tracks.len() <= 12;
         for (curve, _, metrics) in &results {
@@ -141,13 +166,22 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
                 }
             }
             let total = Metrics::total(metrics);
-            row(w, curve.name(), if tracks.len() == 1 { &names[0] } else { "total" }, &total, squad.map(|s| [total.energy / s.energy, total.torque_energy / s.torque_energy]))?;
+            row(
+                w,
+                curve.name(),
+                if tracks.len() == 1 { &names[0] } else { "total" },
+                &total,
+                squad.map(|s| [total.energy / s.energy, total.torque_energy / s.torque_energy]),
+            )?;
         }
         if tracks.len() > 12 {
             writeln!(w, "(totals over {} tracks; --json gives every track)", tracks.len())?;
         }
         if results.iter().any(|(_, _, m)| Metrics::total(m).omega_jump > 1e-6) {
-            writeln!(w, "(where omega jumps, as slerp's does at every key, alpha holds an impulse that energy does not count)")?;
+            writeln!(
+                w,
+                "(where omega jumps, as slerp's does at every key, alpha holds an impulse that energy does not count)"
+            )?;
         }
         Ok(())
     })
@@ -179,7 +213,10 @@ fn key_times(track: &Track) -> Vec<f64> {
 
 fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> Result<(), Failure> {
     if args.sequences == 0 || args.keys < 3 {
-        return Err(Failure::Input(format!("--paper needs at least 1 sequence and 3 keys, got --sequences {} --keys {}", args.sequences, args.keys)));
+        return Err(Failure::Input(format!(
+            "--paper needs at least 1 sequence and 3 keys, got --sequences {} --keys {}",
+            args.sequences, args.keys
+        )));
     }
     let setup = PaperSetup { seed: args.seed, sequences: args.sequences, keys: args.keys, options };
     let tables = paper::run(&setup, device)?;
@@ -190,11 +227,15 @@ fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> R
             .iter()
             .map(|&(curve, _)| {
                 let spec = args.options.spec(curve, KnotMode::Phantom, false);
-                let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| Failure::Input(format!("--paper plot: {e}")))?;
+                let batch =
+                    Batch::from_tracks(&tracks, &spec).map_err(|e| Failure::Input(format!("--paper plot: {e}")))?;
                 rates_series(curve.name(), &batch, 0, device)
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let title = format!("KKS 6.1 rerun: first large-step sequence (seed {}), {}-{} degrees between keys", setup.seed, large.degrees[0], large.degrees[1]);
+        let title = format!(
+            "KKS 6.1 rerun: first large-step sequence (seed {}), {}-{} degrees between keys",
+            setup.seed, large.degrees[0], large.degrees[1]
+        );
         plot::rates(path, &title, &series, &key_times(&tracks[0])).map_err(Failure::Input)?;
     }
     if args.json {
@@ -220,8 +261,16 @@ fn write_paper(w: &mut dyn Write, setup: &PaperSetup, device: &Device, tables: &
     )?;
     for table in tables {
         let [lo, hi] = table.regime.degrees;
-        writeln!(w, "\n{} steps ({lo}-{hi} degrees between keys): {} sequences, {} left out (a curve could not be built)", table.regime.name, table.sequences, table.left_out)?;
-        writeln!(w, "{:<16} {:>12} {:>12} {:>10} {:>12} {:>12} {:>14}", "curve", "torque/squad", "median ratio", "within 5%", "below squad", "energy/squad", "median jump")?;
+        writeln!(
+            w,
+            "\n{} steps ({lo}-{hi} degrees between keys): {} sequences, {} left out (a curve could not be built)",
+            table.regime.name, table.sequences, table.left_out
+        )?;
+        writeln!(
+            w,
+            "{:<16} {:>12} {:>12} {:>10} {:>12} {:>12} {:>14}",
+            "curve", "torque/squad", "median ratio", "within 5%", "below squad", "energy/squad", "median jump"
+        )?;
         for r in &table.curves {
             writeln!(
                 w,

@@ -140,7 +140,10 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     job.validate()?;
     let device = super::open_device(args.device.device, "--device")?;
     let bar = ProgressBar::new(0);
-    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} files, {per_sec} {elapsed} (eta {eta}) {msg}").expect("valid template"));
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} files, {per_sec} {elapsed} (eta {eta}) {msg}")
+            .expect("valid template"),
+    );
     let progress = Bar { bar, started: Instant::now(), samples: AtomicUsize::new(0) };
     let report = job.run(&device, &progress);
     progress.bar.finish_and_clear();
@@ -162,7 +165,11 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
             eprintln!("error: {}: {e}", input.source);
         }
     }
-    let kinds: Vec<String> = [Fault::Input, Fault::Output, Fault::Device].iter().filter(|&&f| counts[f as usize] > 0).map(|&f| format!("{} {}", counts[f as usize], f.said())).collect();
+    let kinds: Vec<String> = [Fault::Input, Fault::Output, Fault::Device]
+        .iter()
+        .filter(|&&f| counts[f as usize] > 0)
+        .map(|&f| format!("{} {}", counts[f as usize], f.said()))
+        .collect();
     let baked = report.inputs.len() - failed.len();
     let rest = match baked {
         0 => "nothing was baked",
@@ -171,7 +178,11 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
     };
     let summary = format!("{} of {} inputs failed ({}); {rest}", failed.len(), report.inputs.len(), kinds.join(", "));
     // Exit code 1 when the machine is at fault (DESIGN section 5b), else 2.
-    Err(if counts[Fault::Input as usize] == failed.len() { Failure::Input(summary) } else { Failure::Internal(summary) })
+    Err(if counts[Fault::Input as usize] == failed.len() {
+        Failure::Input(summary)
+    } else {
+        Failure::Internal(summary)
+    })
 }
 
 /// Whose fault a failed input is: the file's, the output's (a write that failed: disk full,
@@ -214,12 +225,28 @@ impl Fault {
 
 fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> std::io::Result<()> {
     let (shard, rows) = (&report.shard, &report.inputs);
-    let rate = if args.exact_rate { format!("exactly {} Hz", args.rate) } else { format!("{} Hz (fitted per clip)", args.rate) };
+    let rate = if args.exact_rate {
+        format!("exactly {} Hz", args.rate)
+    } else {
+        format!("{} Hz (fitted per clip)", args.rate)
+    };
     writeln!(w, "baked at {rate} with {} on {} -> {}", args.curve, report.device, args.output.display())?;
     if shard.count > 1 {
-        writeln!(w, "shard {} of {} ({}): {} of {} inputs", shard.index, shard.count, shard.source, rows.len(), report.job_inputs)?;
+        writeln!(
+            w,
+            "shard {} of {} ({}): {} of {} inputs",
+            shard.index,
+            shard.count,
+            shard.source,
+            rows.len(),
+            report.job_inputs
+        )?;
     }
-    writeln!(w, "{:<44} {:>5} {:>8} {:>9} {:>11} {:>8} {:>14}  status", "input", "clips", "channels", "keys in", "samples out", "seconds", "key error rad")?;
+    writeln!(
+        w,
+        "{:<44} {:>5} {:>8} {:>9} {:>11} {:>8} {:>14}  status",
+        "input", "clips", "channels", "keys in", "samples out", "seconds", "key error rad"
+    )?;
     for r in rows {
         let error = r.max_key_error.map_or_else(|| "-".to_string(), |e| format!("{e:.2e}"));
         let status = match &r.outcome {
@@ -228,8 +255,16 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
             Err(e) => format!("FAILED ({})", Fault::of(e).word()),
         };
         let chars = r.source.chars().count();
-        let name = if chars > 44 { format!("...{}", r.source.chars().skip(chars - 41).collect::<String>()) } else { r.source.clone() };
-        writeln!(w, "{name:<44} {:>5} {:>8} {:>9} {:>11} {:>8.2} {:>14}  {status}", r.clips, r.channels, r.keys, r.samples, r.seconds, error)?;
+        let name = if chars > 44 {
+            format!("...{}", r.source.chars().skip(chars - 41).collect::<String>())
+        } else {
+            r.source.clone()
+        };
+        writeln!(
+            w,
+            "{name:<44} {:>5} {:>8} {:>9} {:>11} {:>8.2} {:>14}  {status}",
+            r.clips, r.channels, r.keys, r.samples, r.seconds, error
+        )?;
     }
     Ok(())
 }

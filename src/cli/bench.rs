@@ -4,7 +4,10 @@
 use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::sampling::{PerTrack, TrackTimes};
-use quatcurve::{synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator, KnotMode, SampleTimes, Sampling};
+use quatcurve::{
+    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator,
+    KnotMode, SampleTimes, Sampling,
+};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -127,34 +130,72 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
     let mut total = 1_000;
     while total <= args.sweep_max {
         for (shape, tracks) in [("long", 10), ("short", total / 10)] {
-            let point = BenchArgs { tracks, samples: total / tracks, sweep: false, reference_samples: args.reference_samples.min(total), ..args.clone() };
+            let point = BenchArgs {
+                tracks,
+                samples: total / tracks,
+                sweep: false,
+                reference_samples: args.reference_samples.min(total),
+                ..args.clone()
+            };
             let report = measure(&point)?;
-            points.extend(report.results.into_iter().map(|row| SweepPoint { shape, tracks, samples_per_track: point.samples, row }));
+            points.extend(report.results.into_iter().map(|row| SweepPoint {
+                shape,
+                tracks,
+                samples_per_track: point.samples,
+                row,
+            }));
         }
         total *= 10;
     }
     if let Some(path) = &args.plot {
         let mut lines: Vec<quatcurve::plot::Line> = Vec::new();
         for p in &points {
-            let label = format!("{} {} ({})", p.row.device, p.shape, if p.shape == "long" { "10 tracks" } else { "10 samples each" });
+            let label = format!(
+                "{} {} ({})",
+                p.row.device,
+                p.shape,
+                if p.shape == "long" { "10 tracks" } else { "10 samples each" }
+            );
             let at = ((p.tracks * p.samples_per_track) as f64, p.row.samples_per_s);
             match lines.iter_mut().find(|l| l.label == label) {
                 Some(line) => line.points.push(at),
                 None => lines.push(quatcurve::plot::Line { label, points: vec![at] }),
             }
         }
-        let title = format!("quatcurve bench --sweep: {} {}, end to end", args.curve, if args.derivatives { "with derivatives" } else { "rotation only" });
+        let title = format!(
+            "quatcurve bench --sweep: {} {}, end to end",
+            args.curve,
+            if args.derivatives { "with derivatives" } else { "rotation only" }
+        );
         quatcurve::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines).map_err(Failure::Input)?;
     }
     print_stdout(|w| {
         if args.json {
-            return writeln!(w, "{}", serde_json::json!({ "curve": args.curve.name(), "derivatives": args.derivatives, "sweep": points }));
+            return writeln!(
+                w,
+                "{}",
+                serde_json::json!({ "curve": args.curve.name(), "derivatives": args.derivatives, "sweep": points })
+            );
         }
         writeln!(w, "(the reference times at most --reference-samples of each batch)")?;
-        writeln!(w, "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14} {:>16}", "shape", "tracks", "per track", "batch", "device", "M samples/s", "kernel-only M/s")?;
+        writeln!(
+            w,
+            "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14} {:>16}",
+            "shape", "tracks", "per track", "batch", "device", "M samples/s", "kernel-only M/s"
+        )?;
         for p in &points {
             let kernel = p.row.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
-            writeln!(w, "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14.2} {:>16}", p.shape, p.tracks, p.samples_per_track, p.tracks * p.samples_per_track, p.row.device, p.row.samples_per_s / 1e6, kernel)?;
+            writeln!(
+                w,
+                "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14.2} {:>16}",
+                p.shape,
+                p.tracks,
+                p.samples_per_track,
+                p.tracks * p.samples_per_track,
+                p.row.device,
+                p.row.samples_per_s / 1e6,
+                kernel
+            )?;
         }
         Ok(())
     })
@@ -169,20 +210,25 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
     let mut builds = Vec::with_capacity(args.runs);
     for _ in 0..args.runs {
         drop(batch.take());
-        let (built, seconds) = synthetic::workload_batch(args.tracks, args.keys, &spec).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+        let (built, seconds) = synthetic::workload_batch(args.tracks, args.keys, &spec)
+            .map_err(|e| Failure::Input(format!("bench: {e}")))?;
         builds.push(seconds);
         batch = Some(built);
     }
     let batch = batch.ok_or_else(|| Failure::Input("bench: --runs must be at least 1".into()))?;
     builds.sort_by(f64::total_cmp);
     let build_seconds = builds[builds.len() / 2];
-    let times = SampleTimes::uniform(&batch, Sampling::Count(args.samples)).map_err(|e| Failure::Input(format!("bench: {e}")))?;
+    let times = SampleTimes::uniform(&batch, Sampling::Count(args.samples))
+        .map_err(|e| Failure::Input(format!("bench: {e}")))?;
     let explicit = args.devices.is_some();
-    let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
+    let devices =
+        args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();
     for choice in devices {
         let device = match (choice, super::open_device(choice, "--devices")) {
-            (DeviceChoice::Auto, _) => return Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into())),
+            (DeviceChoice::Auto, _) => {
+                return Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into()))
+            }
             (_, Ok(device)) => device,
             (_, Err(e)) if explicit => return Err(e),
             (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
@@ -232,11 +278,20 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Re
 /// the track index, so the slice is exactly those tracks).
 fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
-    let (slice, slice_times) = synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
+    let (slice, slice_times) =
+        synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob::new(&slice, &slice_times).derivatives(args.derivatives);
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();
-    Ok(Row { device: "reference", adapter: "f64, one thread".into(), samples_per_s: samples as f64 / seconds, seconds, samples, dispatch_samples_per_s: None, roofline_samples_per_s: None })
+    Ok(Row {
+        device: "reference",
+        adapter: "f64, one thread".into(),
+        samples_per_s: samples as f64 / seconds,
+        seconds,
+        samples,
+        dispatch_samples_per_s: None,
+        roofline_samples_per_s: None,
+    })
 }
 
 fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
@@ -285,7 +340,11 @@ fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64
 }
 
 fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
-    let options = EvalOptions { derivatives: args.derivatives, forward_difference: args.forward_difference, ..EvalOptions::default() };
+    let options = EvalOptions {
+        derivatives: args.derivatives,
+        forward_difference: args.forward_difference,
+        ..EvalOptions::default()
+    };
     let job = EvalJob::new(batch, times).with(options);
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
     let seconds = median_seconds(args.runs, || cpu.evaluate(&job).map(drop).map_err(input))?;
@@ -322,11 +381,25 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
         l.runs
     )?;
     writeln!(w, "build: {:.4} s ({:.2} M keys/s)", l.build_seconds, l.build_keys_per_s / 1e6)?;
-    writeln!(w, "{:<10} {:>12} {:>10} {:>14} {:>16} {:>14}  adapter", "device", "samples", "seconds", "M samples/s", "kernel-only M/s", "roofline M/s")?;
+    writeln!(
+        w,
+        "{:<10} {:>12} {:>10} {:>14} {:>16} {:>14}  adapter",
+        "device", "samples", "seconds", "M samples/s", "kernel-only M/s", "roofline M/s"
+    )?;
     let rate = |s: Option<f64>| s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
     for r in &report.results {
         let (dispatch, roofline) = (rate(r.dispatch_samples_per_s), rate(r.roofline_samples_per_s));
-        writeln!(w, "{:<10} {:>12} {:>10.4} {:>14.2} {:>16} {:>14}  {}", r.device, r.samples, r.seconds, r.samples_per_s / 1e6, dispatch, roofline, r.adapter)?;
+        writeln!(
+            w,
+            "{:<10} {:>12} {:>10.4} {:>14.2} {:>16} {:>14}  {}",
+            r.device,
+            r.samples,
+            r.seconds,
+            r.samples_per_s / 1e6,
+            dispatch,
+            roofline,
+            r.adapter
+        )?;
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 use super::{names, print_stdout, read_tracks, CurveArgs, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{write_atomic, write_npy, ResultFile};
-use quatcurve::{Batch, Curve, KnotMode, Device, EvalJob, FloatOutput, Layout, Output, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, Device, EvalJob, FloatOutput, KnotMode, Layout, Output, SampleTimes, Sampling};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]

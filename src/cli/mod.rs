@@ -60,13 +60,23 @@ macro_rules! named {
         })+
     };
 }
-named!(Curve, KnotMode, Tangents, Blend, DeviceChoice, quatcurve::bake::LoopMode, quatcurve::bake::texture::TextureKind, quatcurve::bake::texture::Precision);
+named!(
+    Curve,
+    KnotMode,
+    Tangents,
+    Blend,
+    DeviceChoice,
+    quatcurve::bake::LoopMode,
+    quatcurve::bake::texture::TextureKind,
+    quatcurve::bake::texture::Precision
+);
 
 /// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").
 pub fn names<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
     use clap::builder::TypedValueParser;
     // Only listed names reach the map, and each of them parses.
-    clap::builder::PossibleValuesParser::new(T::NAMES).map(|name| name.parse::<T>().unwrap_or_else(|_| unreachable!("{name} is listed")))
+    clap::builder::PossibleValuesParser::new(T::NAMES)
+        .map(|name| name.parse::<T>().unwrap_or_else(|_| unreachable!("{name} is listed")))
 }
 
 /// The curve options every subcommand shares.
@@ -120,12 +130,17 @@ pub fn read_tracks(input: Option<&Path>, key_rate: Option<f64>) -> Result<(Strin
     let Some(path) = input else {
         return Ok(("built-in demo".to_string(), quatcurve::io::demo_tracks()));
     };
-    let arrays = matches!(path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(), Some("npz" | "npy"));
+    let arrays = matches!(
+        path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+        Some("npz" | "npy")
+    );
     let tracks = if arrays {
         quatcurve::arrays::read_tracks(path, key_rate).map_err(|e| Failure::Input(e.to_string()))?
     } else {
         if key_rate.is_some() {
-            return Err(Failure::Input("--key-rate applies to .npz and .npy input; JSON tracks carry their own times".into()));
+            return Err(Failure::Input(
+                "--key-rate applies to .npz and .npy input; JSON tracks carry their own times".into(),
+            ));
         }
         quatcurve::io::read_track_file(path).map_err(|e| Failure::Input(e.to_string()))?.tracks
     };

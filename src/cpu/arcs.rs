@@ -6,13 +6,13 @@
 //!
 //! Values only: derivatives keep the reference's jets, per sample (see [`super::track`]).
 
-use super::lanes::{write_columns, Q8, LANES};
+use super::lanes::{write_columns, LANES, Q8};
+use super::simd::{Isa, Lanes};
 use crate::batch::TrackView;
 use crate::curve::{Blend, Curve};
 use crate::quat::{DQuat, DVec3};
 use crate::sampling::SampleTimes;
 use crate::segment::locate;
-use super::simd::{Isa, Lanes};
 
 /// The great arc `start * exp(x v)`, written `cos(x theta) start + sin(x theta) lead` with
 /// `lead = start * (axis, 0)`: no quaternion product per sample.
@@ -96,7 +96,10 @@ fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
     let vec = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
     (0..points.len() - 1)
         .map(|i| match view.track.curve {
-            Curve::Squad => [Arc::between(points[i], points[i + 1]), Arc::between(DQuat::from_array(coefs[i]), DQuat::from_array(coefs[i + 1]))],
+            Curve::Squad => [
+                Arc::between(points[i], points[i + 1]),
+                Arc::between(DQuat::from_array(coefs[i]), DQuat::from_array(coefs[i + 1])),
+            ],
             // C_2(s) = q_i+1 exp(b (s - 1)): the second arc is followed at s - 1.
             _ => [Arc::new(points[i], vec(coefs[2 * i])), Arc::new(points[i + 1], vec(coefs[2 * i + 1]))],
         })
@@ -106,7 +109,16 @@ fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
 /// Writes the rotations of samples `from..from + n` of squad or Nam-Kim track `index` into
 /// `out` (rows of `channels` floats, rotation first).
 #[allow(clippy::too_many_arguments)]
-pub fn evaluate(isa: Isa, view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+pub fn evaluate(
+    isa: Isa,
+    view: TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    from: usize,
+    n: usize,
+    channels: usize,
+    out: &mut [f32],
+) {
     match isa {
         // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
         #[cfg(target_arch = "x86_64")]
@@ -118,13 +130,29 @@ pub fn evaluate(isa: Isa, view: TrackView<'_>, times: &SampleTimes, index: usize
 /// [`evaluate_lanes`] on AVX2 registers, compiled for them.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn evaluate_avx2(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+unsafe fn evaluate_avx2(
+    view: TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    from: usize,
+    n: usize,
+    channels: usize,
+    out: &mut [f32],
+) {
     evaluate_lanes::<super::simd::Avx2>(view, times, index, from, n, channels, out);
 }
 
 /// [`evaluate`] on lanes of type `S`.
 #[inline(always)]
-fn evaluate_lanes<S: Lanes>(view: TrackView<'_>, times: &SampleTimes, index: usize, from: usize, n: usize, channels: usize, out: &mut [f32]) {
+fn evaluate_lanes<S: Lanes>(
+    view: TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    from: usize,
+    n: usize,
+    channels: usize,
+    out: &mut [f32],
+) {
     let knots = view.knots;
     let last = knots.len() - 2;
     let arcs = segment_arcs(view);
@@ -181,7 +209,11 @@ mod tests {
         for q in [p, p.mul_scalar(-1.0), DQuat::from_xyzw(0.5, 0.5, -0.5, 0.5)] {
             for g in [0.0, 0.3, 0.5, 0.9] {
                 let want = p.geodesic(q, g).to_array();
-                let got = geodesic(Q8::splat(p.to_array().map(|c| c as f32)), Q8::splat(q.to_array().map(|c| c as f32)), f32x8::splat(g as f32));
+                let got = geodesic(
+                    Q8::splat(p.to_array().map(|c| c as f32)),
+                    Q8::splat(q.to_array().map(|c| c as f32)),
+                    f32x8::splat(g as f32),
+                );
                 let got = [got.x, got.y, got.z, got.w].map(|c| f64::from(c.to_array()[0]));
                 for (w, g) in want.iter().zip(got) {
                     assert!((w - g).abs() < 1e-6, "p={p:?} q={q:?}: want {want:?}, got {got:?}");

@@ -50,7 +50,11 @@ impl SpanKnots {
         let mut derivative = [[0.0; 3]; MAX_FACTORS];
         for (f, d) in derivative.iter_mut().enumerate().take(k - 1) {
             let i = span + 2 + f - k;
-            *d = [inverse(knots[i], knots[i + k - 1]), inverse(knots[i], knots[i + k - 2]), inverse(knots[i + 1], knots[i + k - 1])];
+            *d = [
+                inverse(knots[i], knots[i + k - 1]),
+                inverse(knots[i], knots[i + k - 2]),
+                inverse(knots[i + 1], knots[i + k - 1]),
+            ];
         }
         Self { span, k, origin, left, right, derivative }
     }

@@ -8,9 +8,9 @@
 //! `reseed` steps, and at every segment start, the arcs are seeded again from a direct f64
 //! evaluation. Values only: derivative requests take the direct path.
 
-use crate::job::EvalOptions;
 use crate::batch::TrackView;
 use crate::curve::Curve;
+use crate::job::EvalOptions;
 use crate::quat::{DQuat, DVec3};
 use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
@@ -71,7 +71,14 @@ fn geodesic(a: Quat, b: Quat, h: f32) -> Quat {
 }
 
 /// Samples `range` of track `index` into `out`'s rows.
-pub fn evaluate(view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &EvalOptions, out: &mut [f32]) {
+pub fn evaluate(
+    view: TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    range: Range<usize>,
+    options: &EvalOptions,
+    out: &mut [f32],
+) {
     let layout = options.row();
     let TrackTimes::Uniform { step, count, .. } = times.tracks[index] else { return };
     let reseed = options.forward_difference.unwrap_or(usize::MAX).max(1);

@@ -182,7 +182,13 @@ pub enum AngleRange<S> {
 /// `lead`: `start * (axis_0, 0)` when the caller has it (all lanes on one segment), which
 /// turns the first product into `cos * start + sin * lead`.
 #[inline(always)]
-pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q8<S>>, factors: &[Factor8<S>; F], derivatives: bool, range: AngleRange<S>) -> (Q8<S>, V8<S>, V8<S>) {
+pub fn cumulative_product<S: Lanes, const F: usize>(
+    start: Q8<S>,
+    lead: Option<Q8<S>>,
+    factors: &[Factor8<S>; F],
+    derivatives: bool,
+    range: AngleRange<S>,
+) -> (Q8<S>, V8<S>, V8<S>) {
     #[inline(always)]
     fn sin_cos<S: Lanes>(f: &Factor8<S>, range: AngleRange<S>) -> (S, S) {
         let angle = f.theta * f.b[0];
@@ -204,7 +210,11 @@ pub fn cumulative_product<S: Lanes, const F: usize>(start: Q8<S>, lead: Option<Q
         None => start * Q8 { x: head.axis.x * sin, y: head.axis.y * sin, z: head.axis.z * sin, w: cos },
     };
     // W and W' start at zero: nothing to carry through the first factor.
-    let (mut w, mut w_dot) = if derivatives { (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2])) } else { (V8::ZERO, V8::ZERO) };
+    let (mut w, mut w_dot) = if derivatives {
+        (head.axis.scale(head.theta * head.b[1]), head.axis.scale(head.theta * head.b[2]))
+    } else {
+        (V8::ZERO, V8::ZERO)
+    };
     for f in rest {
         let (sin, cos) = sin_cos(f, range);
         let a = Q8 { x: f.axis.x * sin, y: f.axis.y * sin, z: f.axis.z * sin, w: cos };
@@ -233,7 +243,9 @@ mod sin_cos_tests {
             let x = SMALL_ANGLE * i as f32 / 20_000.0;
             let (s, c) = sin_cos_small(f32x8::splat(x));
             let x = f64::from(x);
-            worst = worst.max((f64::from(s.to_array()[0]) - x.sin()).abs()).max((f64::from(c.to_array()[0]) - x.cos()).abs());
+            worst = worst
+                .max((f64::from(s.to_array()[0]) - x.sin()).abs())
+                .max((f64::from(c.to_array()[0]) - x.cos()).abs());
         }
         assert!(worst < 2.5e-7, "worst error {worst:e}");
     }
@@ -260,7 +272,8 @@ mod axis_angle_tests {
             let scale = [0.0, 1e-30, 1e-6, 1.0, 3.0, 400.0][round % 6];
             let rows: [[f32; 4]; LANES] = std::array::from_fn(|_| [next(scale), next(scale), next(scale), next(1.0)]);
             let lanes = Factor8::<f32x8>::from_rows(&rows, [f32x8::ZERO; 3]);
-            let (x, y, z, theta) = (lanes.axis.x.to_array(), lanes.axis.y.to_array(), lanes.axis.z.to_array(), lanes.theta.to_array());
+            let (x, y, z, theta) =
+                (lanes.axis.x.to_array(), lanes.axis.y.to_array(), lanes.axis.z.to_array(), lanes.theta.to_array());
             for (lane, row) in rows.iter().enumerate() {
                 let got = [x[lane], y[lane], z[lane], theta[lane]].map(f32::to_bits);
                 assert_eq!(got, axis_angle(*row).map(f32::to_bits), "{row:?}");

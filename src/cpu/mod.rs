@@ -28,9 +28,9 @@ pub use simd::Isa;
 use crate::error::Result;
 use crate::job::EvalJob;
 use crate::output::{FloatOutput, Layout};
-use rayon::prelude::*;
 use bases::Bases;
 use piece::Context;
+use rayon::prelude::*;
 
 /// Samples per parallel work item: a run of whole tracks, or a piece of one longer track.
 const PIECE: usize = 4096;
@@ -143,7 +143,9 @@ impl CpuEvaluator {
         let EvalJob { batch, times, options } = *job;
         let channels = options.row().channels();
         if data.len() != times.total() * channels {
-            return Err(crate::error::JobError::BufferSize { floats: data.len(), samples: times.total(), channels }.into());
+            return Err(
+                crate::error::JobError::BufferSize { floats: data.len(), samples: times.total(), channels }.into()
+            );
         }
         let tables = Context::new(batch, &self.bases, self.isa);
         let tasks = tasks(times);
@@ -168,7 +170,15 @@ impl CpuEvaluator {
                 rest = tail;
                 match kind {
                     Some(kind) => runs::evaluate(&tables, batch, kind, times, track..end, &options, head),
-                    None => track::evaluate(&tables, batch.view(track), times, track, task.samples(track, times), &options, head),
+                    None => track::evaluate(
+                        &tables,
+                        batch.view(track),
+                        times,
+                        track,
+                        task.samples(track, times),
+                        &options,
+                        head,
+                    ),
                 }
                 track = end;
             }

@@ -110,7 +110,13 @@ pub(super) struct LaneRows<const F: usize> {
 impl<const F: usize> LaneRows<F> {
     /// Zero rows on unit spans.
     pub(super) fn new() -> Self {
-        Self { t: [0.0; LANES], k0: [0.0; LANES], k1: [1.0; LANES], starts: [[0.0; 4]; LANES], coefs: [[[0.0; 4]; LANES]; F] }
+        Self {
+            t: [0.0; LANES],
+            k0: [0.0; LANES],
+            k1: [1.0; LANES],
+            starts: [[0.0; 4]; LANES],
+            coefs: [[[0.0; 4]; LANES]; F],
+        }
     }
 
     /// Lane `lane`: time `t` in the span `[k0, k1)` whose rows are `rows`.
@@ -167,14 +173,25 @@ pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
 /// knots, else 0.
 pub(super) fn inv_step(view: TrackView<'_>) -> f64 {
     let knots = view.knots;
-    if view.track.uniform_knots && knots.len() > 1 { (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0]) } else { 0.0 }
+    if view.track.uniform_knots && knots.len() > 1 {
+        (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
+    } else {
+        0.0
+    }
 }
 
 /// `locate`, first trying the previous span and the next (sample times usually increase);
 /// on equally spaced knots (`inv_step` their inverse spacing, else 0) by arithmetic, else by
 /// bisection. Short tracks land on a new span at almost every sample.
 #[inline(always)]
-pub(super) fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
+pub(super) fn locate_from(
+    hint: &mut usize,
+    knots: &[f64],
+    first: usize,
+    last: usize,
+    t: f64,
+    inv_step: f64,
+) -> (usize, f64) {
     let h = *hint;
     if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
         return (h, t);
@@ -185,7 +202,8 @@ pub(super) fn locate_from(hint: &mut usize, knots: &[f64], first: usize, last: u
         *hint = h;
         return (h, t);
     }
-    let (span, t) = if inv_step > 0.0 { locate_uniform(knots, first, last, t, inv_step) } else { locate(knots, first, last, t) };
+    let (span, t) =
+        if inv_step > 0.0 { locate_uniform(knots, first, last, t, inv_step) } else { locate(knots, first, last, t) };
     *hint = span;
     (span, t)
 }
@@ -200,7 +218,14 @@ pub(super) fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, i
 /// [`locate_uniform`] with the domain `[lo, hi]` (`knots[first]`, `knots[last + 1]`) given,
 /// for callers that keep it.
 #[inline(always)]
-pub(super) fn locate_uniform_in(knots: &[f64], first: usize, last: usize, [lo, hi]: [f64; 2], t: f64, inv_step: f64) -> (usize, f64) {
+pub(super) fn locate_uniform_in(
+    knots: &[f64],
+    first: usize,
+    last: usize,
+    [lo, hi]: [f64; 2],
+    t: f64,
+    inv_step: f64,
+) -> (usize, f64) {
     let t = if t >= lo { t.min(hi) } else { lo };
     // Clamped before the cast: a tiny domain can make the spacing's inverse infinite.
     let guess = ((t - lo) * inv_step).floor().min((last - first) as f64);
@@ -301,7 +326,9 @@ impl Piece<'_> {
         // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
         // of a `--samples` grid is the exact domain end instead.
         let uniform = match self.times.tracks[self.index] {
-            TrackTimes::Uniform { start, step, count, last } => Some((start, step, if last.is_some() { count - 1 } else { count })),
+            TrackTimes::Uniform { start, step, count, last } => {
+                Some((start, step, if last.is_some() { count - 1 } else { count }))
+            }
             TrackTimes::Explicit { .. } => None,
         };
         // The knot constants of the last span Cox-de Boor needed.
@@ -344,7 +371,9 @@ impl Piece<'_> {
             match self.basis {
                 Basis::Poly(poly) => poly.eval::<S, F>(u, DERIVATIVES, &mut jets),
                 Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(u, &mut jets),
-                Basis::CoxDeBoor => cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut span_knots, &mut jets),
+                Basis::CoxDeBoor => {
+                    cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut span_knots, &mut jets)
+                }
             }
             // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
             if DERIVATIVES && !matches!(self.basis, Basis::CoxDeBoor) {
@@ -357,7 +386,11 @@ impl Piece<'_> {
                 Some((segment, lead)) if shared => {
                     let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
                     for (f, factor) in factors.iter_mut().enumerate() {
-                        *factor = Factor8 { axis: V8::splat(segment.axes[f]), theta: S::splat(segment.axes[f][3]), b: jets[f] };
+                        *factor = Factor8 {
+                            axis: V8::splat(segment.axes[f]),
+                            theta: S::splat(segment.axes[f][3]),
+                            b: jets[f],
+                        };
                     }
                     (Q8::splat(segment.start), Some(Q8::splat(*lead)), factors)
                 }
@@ -365,7 +398,13 @@ impl Piece<'_> {
             };
             let range = if SMALL { AngleRange::Small } else { AngleRange::Any };
             let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, range);
-            write_group::<S, DERIVATIVES>(options.row(), q, [w, a], &mut out[g * channels..(g + valid) * channels], valid);
+            write_group::<S, DERIVATIVES>(
+                options.row(),
+                q,
+                [w, a],
+                &mut out[g * channels..(g + valid) * channels],
+                valid,
+            );
         }
     }
 
@@ -438,7 +477,13 @@ fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
 /// A group's rows (`valid` of them): the [`Row`] columns, rotation then omega and alpha back
 /// to back, then the matrix when the row has one.
 #[inline(always)]
-pub(super) fn write_group<S: Lanes, const DERIVATIVES: bool>(row: Row, q: Q8<S>, [w, a]: [V8<S>; 2], rows: &mut [f32], valid: usize) {
+pub(super) fn write_group<S: Lanes, const DERIVATIVES: bool>(
+    row: Row,
+    q: Q8<S>,
+    [w, a]: [V8<S>; 2],
+    rows: &mut [f32],
+    valid: usize,
+) {
     let channels = row.channels();
     write_columns([q.x, q.y, q.z, q.w], rows, channels, Row::ROTATION.start, 4, valid);
     if DERIVATIVES {
@@ -453,19 +498,28 @@ pub(super) fn write_group<S: Lanes, const DERIVATIVES: bool>(row: Row, q: Q8<S>,
 /// [`Piece::groups`] on AVX2 registers, compiled for them.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn groups_avx2<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(piece: &Piece<'_>, n: usize, out: &mut [f32]) {
+unsafe fn groups_avx2<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(
+    piece: &Piece<'_>,
+    n: usize,
+    out: &mut [f32],
+) {
     piece.groups::<F, DERIVATIVES, SMALL, super::simd::Avx2>(n, out);
 }
 
 /// `p * (a, 0)`: a quaternion times a pure one, `(p.w a + p.v x a, -p.v . a)`.
 fn times_axis(p: [f32; 4], a: [f32; 4]) -> [f32; 4] {
     let [x, y, z, w] = p;
-    [w * a[0] + y * a[2] - z * a[1], w * a[1] + z * a[0] - x * a[2], w * a[2] + x * a[1] - y * a[0], -(x * a[0] + y * a[1] + z * a[2])]
+    [
+        w * a[0] + y * a[2] - z * a[1],
+        w * a[1] + z * a[0] - x * a[2],
+        w * a[2] + x * a[1] - y * a[0],
+        -(x * a[0] + y * a[1] + z * a[2]),
+    ]
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{locate_uniform, locate};
+    use super::{locate, locate_uniform};
 
     /// The arithmetic lookup gives `locate`'s span and clamped time on equally spaced knots,
     /// also where the spacing is only equal to the builder's tolerance, at every knot, just
@@ -473,12 +527,16 @@ mod tests {
     #[test]
     fn uniform_lookup_is_locate() {
         // The last: a domain so short that the spacing's inverse overflows to infinity.
-        for (k, count, t0, dt) in [(4, 37, 0.0, 1.0 / 30.0), (2, 12, -3.5, 0.1), (6, 40, 1e6, 0.013), (4, 8, 0.25, 7.0), (4, 9, 0.0, 1e-310)] {
+        for (k, count, t0, dt) in
+            [(4, 37, 0.0, 1.0 / 30.0), (2, 12, -3.5, 0.1), (6, 40, 1e6, 0.013), (4, 8, 0.25, 7.0), (4, 9, 0.0, 1e-310)]
+        {
             // Knots as the builder would accept them: equal spacing with a 1e-10 wobble.
-            let knots: Vec<f64> = (0..count).map(|i| t0 + dt * i as f64 * (1.0 + 1e-10 * ((i * 7919) % 13) as f64 / 13.0)).collect();
+            let knots: Vec<f64> =
+                (0..count).map(|i| t0 + dt * i as f64 * (1.0 + 1e-10 * ((i * 7919) % 13) as f64 / 13.0)).collect();
             let (first, last) = (k - 1, count - k);
             let inv = (count - 1) as f64 / (knots[count - 1] - knots[0]);
-            let mut times: Vec<f64> = vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY, t0 - 1.0, knots[count - 1] + 1.0];
+            let mut times: Vec<f64> =
+                vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY, t0 - 1.0, knots[count - 1] + 1.0];
             for &knot in &knots {
                 times.extend([knot, knot.next_up(), knot.next_down(), knot + 0.5 * dt]);
             }

@@ -44,13 +44,17 @@ impl Kind {
     /// differences.
     pub(super) fn of(batch: &Batch, times: &SampleTimes, index: usize, options: &EvalOptions) -> Option<Self> {
         let track = &batch.tracks[index];
-        if times.count(index) > SHORT || options.forward_difference.is_some() && super::forward::applies(batch.view(index), times, index, options) {
+        if times.count(index) > SHORT
+            || options.forward_difference.is_some() && super::forward::applies(batch.view(index), times, index, options)
+        {
             return None;
         }
         match track.curve {
             Curve::Slerp | Curve::Hermite => Some(Self { curve: track.curve, order: 0 }),
             // bspline-interp is packed as a cubic B-spline: one kind with the others.
-            Curve::BSpline | Curve::BSplineInterp if track.uniform_knots => Some(Self { curve: Curve::BSpline, order: track.order }),
+            Curve::BSpline | Curve::BSplineInterp if track.uniform_knots => {
+                Some(Self { curve: Curve::BSpline, order: track.order })
+            }
             _ => None,
         }
     }
@@ -76,7 +80,15 @@ impl Kind {
 
 /// Evaluates tracks `tracks` of `batch`, all of kind `kind`, into `out`: their rows back to
 /// back, as [`super::track::evaluate`] writes them one track at a time.
-pub(super) fn evaluate(tables: &Context<'_>, batch: &Batch, kind: Kind, times: &SampleTimes, tracks: Range<usize>, options: &EvalOptions, out: &mut [f32]) {
+pub(super) fn evaluate(
+    tables: &Context<'_>,
+    batch: &Batch,
+    kind: Kind,
+    times: &SampleTimes,
+    tracks: Range<usize>,
+    options: &EvalOptions,
+    out: &mut [f32],
+) {
     let run = Run { tables, batch, basis: kind.basis(tables.bases), times, tracks, options };
     macro_rules! by_factors {
         ($d:literal) => {
@@ -169,7 +181,9 @@ impl Run<'_> {
         let (first, last) = spans(view);
         let grid = self.times.tracks[index];
         let (plain, start, step) = match grid {
-            TrackTimes::Uniform { start, step, count, last } => (if last.is_some() { count - 1 } else { count }, start, step),
+            TrackTimes::Uniform { start, step, count, last } => {
+                (if last.is_some() { count - 1 } else { count }, start, step)
+            }
             TrackTimes::Explicit { .. } => (0, 0.0, 0.0),
         };
         let inv_step = inv_step(view);
@@ -214,7 +228,12 @@ impl Run<'_> {
                     }
                 }
                 let (t, span) = cursor.next(self.times);
-                lanes.set(lane, t, [cursor.knots[span], cursor.knots[span + 1]], cursor.segments.rows::<F>(self.tables, span));
+                lanes.set(
+                    lane,
+                    t,
+                    [cursor.knots[span], cursor.knots[span + 1]],
+                    cursor.segments.rows::<F>(self.tables, span),
+                );
             }
             let (u, inv) = lanes.params::<S>();
             self.basis.eval::<S, F>(u, DERIVATIVES, &mut jets);
@@ -232,7 +251,13 @@ impl Run<'_> {
             }
             let range = if small.all() { AngleRange::Small } else { AngleRange::PerLane(small) };
             let (q, w, a) = cumulative_product(lanes.start(), None, &factors, DERIVATIVES, range);
-            write_group::<S, DERIVATIVES>(self.options.row(), q, [w, a], &mut out[g * channels..(g + valid) * channels], valid);
+            write_group::<S, DERIVATIVES>(
+                self.options.row(),
+                q,
+                [w, a],
+                &mut out[g * channels..(g + valid) * channels],
+                valid,
+            );
         }
     }
 }

@@ -206,8 +206,10 @@ pub const SMALL_ANGLE: f32 = 1.6;
 /// reduce its argument modulo `pi / 2`.
 #[inline(always)]
 pub fn sin_cos_small<S: Lanes>(x: S) -> (S, S) {
-    const SIN: [f32; 7] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
-    const COS: [f32; 7] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
+    const SIN: [f32; 7] =
+        [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
+    const COS: [f32; 7] =
+        [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0, -1.0 / 3_628_800.0, 1.0 / 479_001_600.0];
     let x2 = x * x;
     let (mut s, mut c) = (S::splat(SIN[6]), S::splat(COS[6]));
     for k in (0..6).rev() {
@@ -250,7 +252,10 @@ pub fn reduced_atan2<S: Lanes>(y: S, x: S) -> S {
     let fold = t.cmp_gt(S::splat(0.414_213_57));
     let z = fold.blend((t - S::ONE) / (t + S::ONE), t);
     let z2 = z * z;
-    let p = S::splat(8.053_744_5e-2).mul_add(z2, S::splat(-1.387_768_5e-1)).mul_add(z2, S::splat(1.997_771_1e-1)).mul_add(z2, S::splat(-3.333_295e-1));
+    let p = S::splat(8.053_744_5e-2)
+        .mul_add(z2, S::splat(-1.387_768_5e-1))
+        .mul_add(z2, S::splat(1.997_771_1e-1))
+        .mul_add(z2, S::splat(-3.333_295e-1));
     let a = (p * z2).mul_add(z, z) + (fold & S::splat(std::f32::consts::FRAC_PI_4));
     let a = ay.cmp_gt(ax).blend(S::splat(std::f32::consts::FRAC_PI_2) - a, a);
     let a = x.cmp_lt(S::ZERO).blend(S::splat(std::f32::consts::PI) - a, a);
@@ -264,10 +269,11 @@ pub use avx2::Avx2;
 mod avx2 {
     use super::Lanes;
     use std::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_max_ps, _mm256_min_ps, _mm256_blendv_ps, _mm256_castps256_ps128, _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_ps,
-        _mm256_fmadd_ps, _mm256_loadu2_m128, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_ps,
-        _mm256_sub_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _MM_FROUND_NO_EXC,
-        _MM_FROUND_TO_NEAREST_INT,
+        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castps256_ps128,
+        _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_ps, _mm256_fmadd_ps, _mm256_loadu2_m128, _mm256_loadu_ps,
+        _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_round_ps, _mm256_set1_ps,
+        _mm256_shuffle_ps, _mm256_sqrt_ps, _mm256_sub_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps,
+        _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _MM_FROUND_NO_EXC, _MM_FROUND_TO_NEAREST_INT,
     };
     use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
 
@@ -525,10 +531,20 @@ mod tests {
                     ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 20.0
                 };
                 for _ in 0..2000 {
-                    let (a, b, c): ([f32; 8], [f32; 8], [f32; 8]) = (std::array::from_fn(|_| next()), std::array::from_fn(|_| next()), std::array::from_fn(|_| next()));
+                    let (a, b, c): ([f32; 8], [f32; 8], [f32; 8]) = (
+                        std::array::from_fn(|_| next()),
+                        std::array::from_fn(|_| next()),
+                        std::array::from_fn(|_| next()),
+                    );
                     let (wa, wb, wc) = (f32x8::new(a), f32x8::new(b), f32x8::new(c));
                     let (va, vb, vc) = (Avx2::new(a), Avx2::new(b), Avx2::new(c));
-                    let same = |w: f32x8, v: Avx2, op: &str| assert_eq!(w.to_array().map(f32::to_bits), v.to_array().map(f32::to_bits), "{op} of {a:?}, {b:?}");
+                    let same = |w: f32x8, v: Avx2, op: &str| {
+                        assert_eq!(
+                            w.to_array().map(f32::to_bits),
+                            v.to_array().map(f32::to_bits),
+                            "{op} of {a:?}, {b:?}"
+                        )
+                    };
                     same(wa + wb, va + vb, "+");
                     same(wa - wb, va - vb, "-");
                     same(wa * wb, va * vb, "*");
@@ -542,17 +558,29 @@ mod tests {
                     assert_eq!(Lanes::round(wa).to_array(), va.round().to_array(), "round");
                     same(Lanes::min(wa, wb), va.min(vb), "min");
                     same(Lanes::max(wa, wb), va.max(vb), "max");
-                    for (w, v, op) in [(Lanes::cmp_gt(wa, wb), va.cmp_gt(vb), ">"), (Lanes::cmp_lt(wa, wb), va.cmp_lt(vb), "<"), (Lanes::cmp_le(wa, wa), va.cmp_le(va), "<=")] {
+                    for (w, v, op) in [
+                        (Lanes::cmp_gt(wa, wb), va.cmp_gt(vb), ">"),
+                        (Lanes::cmp_lt(wa, wb), va.cmp_lt(vb), "<"),
+                        (Lanes::cmp_le(wa, wa), va.cmp_le(va), "<="),
+                    ] {
                         same(w, v, op);
                         same(Lanes::blend(w, wa, wb), v.blend(va, vb), "blend");
                         same(w & !Lanes::cmp_gt(wc, wa) & f32x8::ONE, v & !vc.cmp_gt(va) & Avx2::ONE, "mask logic");
                     }
-                    assert_eq!(<f32x8 as Lanes>::transpose([wa, wb, wc, wa]), Avx2::transpose([va, vb, vc, va]), "transpose");
+                    assert_eq!(
+                        <f32x8 as Lanes>::transpose([wa, wb, wc, wa]),
+                        Avx2::transpose([va, vb, vc, va]),
+                        "transpose"
+                    );
                     let rows = Avx2::transpose([va, vb, vc, va]);
                     for (w, v) in <f32x8 as Lanes>::from_rows(&rows).into_iter().zip(Avx2::from_rows(&rows)) {
                         same(w, v, "from_rows");
                     }
-                    assert_eq!(Avx2::from_rows(&rows).map(|v| v.to_array()), [a, b, c, a], "from_rows inverts transpose");
+                    assert_eq!(
+                        Avx2::from_rows(&rows).map(|v| v.to_array()),
+                        [a, b, c, a],
+                        "from_rows inverts transpose"
+                    );
                     assert_eq!(Lanes::all(Lanes::cmp_gt(wa, wb)), va.cmp_gt(vb).all(), "all");
                     assert!(va.cmp_le(va).all() && Lanes::all(Lanes::cmp_le(wa, wa)), "all of a full mask");
                     let ((ws, wc2), (vs, vc2)) = (Lanes::sin_cos(wa), va.sin_cos());

@@ -15,7 +15,15 @@ use crate::sampling::SampleTimes;
 use std::ops::Range;
 
 /// Evaluates samples `range` of track `index` into `out` (`range.len()` [`crate::Row`]s).
-pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, index: usize, range: Range<usize>, options: &EvalOptions, out: &mut [f32]) {
+pub fn evaluate(
+    tables: &Context<'_>,
+    view: TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    range: Range<usize>,
+    options: &EvalOptions,
+    out: &mut [f32],
+) {
     let row = options.row();
     let channels = row.channels();
     if super::forward::applies(view, times, index, options) {
@@ -29,7 +37,8 @@ pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, 
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order;
-            let basis = if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - MIN_ORDER]) } else { Basis::CoxDeBoor };
+            let basis =
+                if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - MIN_ORDER]) } else { Basis::CoxDeBoor };
             (basis, k - 1)
         }
         // One segment; degrees beyond the product's capacity take the reference below.
@@ -45,9 +54,19 @@ pub fn evaluate(tables: &Context<'_>, view: TrackView<'_>, times: &SampleTimes, 
                 if options.derivatives {
                     let s = reference::evaluate(view, t);
                     let f = |v: crate::quat::DVec3| v.to_array().map(|c| c as f32);
-                    row.write(dst, s.rotation.to_array().map(|v| v as f32), f(s.angular_velocity), f(s.angular_acceleration));
+                    row.write(
+                        dst,
+                        s.rotation.to_array().map(|v| v as f32),
+                        f(s.angular_velocity),
+                        f(s.angular_acceleration),
+                    );
                 } else {
-                    row.write(dst, reference::evaluate_rotation(view, t).to_array().map(|v| v as f32), [0.0; 3], [0.0; 3]);
+                    row.write(
+                        dst,
+                        reference::evaluate_rotation(view, t).to_array().map(|v| v as f32),
+                        [0.0; 3],
+                        [0.0; 3],
+                    );
                 }
             }
             return;

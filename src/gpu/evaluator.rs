@@ -123,7 +123,10 @@ pub struct GpuEvaluator {
 
 impl std::fmt::Debug for GpuEvaluator {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GpuEvaluator").field("adapter", &self.adapter_name).field("binding_limit", &self.binding_limit).finish()
+        f.debug_struct("GpuEvaluator")
+            .field("adapter", &self.adapter_name)
+            .field("binding_limit", &self.binding_limit)
+            .finish()
     }
 }
 
@@ -150,7 +153,8 @@ impl GpuEvaluator {
             // buffer first; on a discrete GPU that would make the kernel write over the bus.
             let unified = matches!(info.device_type, wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu);
             let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-            let required_features = if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
+            let required_features =
+                if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
             let (device, queue) = adapter
                 .request_device(&wgpu::DeviceDescriptor {
                     label: Some("quatcurve"),
@@ -176,7 +180,11 @@ impl GpuEvaluator {
     ///
     /// # Errors
     /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
-    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter_name: impl Into<String>) -> Result<Self, GpuError> {
+    pub fn with_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        adapter_name: impl Into<String>,
+    ) -> Result<Self, GpuError> {
         Self::build(device, queue, adapter_name.into())
     }
 
@@ -191,7 +199,10 @@ impl GpuEvaluator {
             source: wgpu::ShaderSource::Wgsl(shader::source().into()),
         });
         let resources = shader::Resources::of(&naga_module).map_err(GpuError::Shader)?;
-        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve eval"), entries: &resources.layout_entries() });
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("quatcurve eval"),
+            entries: &resources.layout_entries(),
+        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("quatcurve eval"),
             bind_group_layouts: &[Some(&bind_group_layout)],
@@ -295,7 +306,11 @@ impl GpuEvaluator {
     /// stream: [`STREAM_CHUNK_BYTES`], or [`SOFTWARE_STREAM_CHUNK_BYTES`] on a software adapter.
     #[must_use]
     pub fn stream_chunk_bytes(&self) -> u64 {
-        if self.software { SOFTWARE_STREAM_CHUNK_BYTES } else { STREAM_CHUNK_BYTES }
+        if self.software {
+            SOFTWARE_STREAM_CHUNK_BYTES
+        } else {
+            STREAM_CHUNK_BYTES
+        }
     }
 
     /// Lowers the binding limit used for chunking, e.g. to exercise chunking in tests.
@@ -322,7 +337,9 @@ impl GpuEvaluator {
             let prepared = self.upload(plan, job, channels, None)?;
             self.submit(&prepared)?;
             // The readback copy is queued behind the dispatch: one wait covers both.
-            self.read_back(&prepared.output, prepared.output_bytes, |local| scatter(local, plan, times, options.layout, channels, &mut data))?;
+            self.read_back(&prepared.output, prepared.output_bytes, |local| {
+                scatter(local, plan, times, options.layout, channels, &mut data)
+            })?;
             *self.spare_output.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.output);
             if self.map_outputs {
                 *self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.inputs);
@@ -370,7 +387,9 @@ impl GpuEvaluator {
         let channels = prepared.channels;
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(prepared.times.total(), channels);
         for (plan, chunk) in prepared.plans.iter().zip(&prepared.chunks) {
-            self.read_back(&chunk.output, chunk.output_bytes, |local| scatter(local, plan, &prepared.times, prepared.layout, channels, &mut data))?;
+            self.read_back(&chunk.output, chunk.output_bytes, |local| {
+                scatter(local, plan, &prepared.times, prepared.layout, channels, &mut data)
+            })?;
         }
         Ok(GpuOutput { channels, data })
     }
@@ -459,7 +478,13 @@ impl GpuEvaluator {
 
     /// Creates a chunk's buffers, packs its tracks straight into them ([`layout::pack`]), and
     /// makes its bind group and pipeline; output into `target` when given.
-    fn upload(&self, plan: &ChunkPlan, job: &EvalJob<'_>, channels: usize, target: Option<&wgpu::Buffer>) -> Result<PreparedChunk, GpuError> {
+    fn upload(
+        &self,
+        plan: &ChunkPlan,
+        job: &EvalJob<'_>,
+        channels: usize,
+        target: Option<&wgpu::Buffer>,
+    ) -> Result<PreparedChunk, GpuError> {
         self.check_lost()?;
         let options = &job.options;
         let groups = (plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
@@ -472,20 +497,38 @@ impl GpuEvaluator {
         // Mapped at creation and written in place; where buffers the kernel reads can be
         // mapped themselves (`MAPPABLE_PRIMARY_BUFFERS`, unified memory), without a staging copy.
         let storage = wgpu::BufferUsages::STORAGE;
-        let writable = storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
+        let writable =
+            storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
         // Bindings may not be empty.
-        let sizes = [plan.points * 16, plan.coefs * 16, plan.knots * 8, plan.times * 8].map(|bytes| (bytes as u64).max(16));
+        let sizes =
+            [plan.points * 16, plan.coefs * 16, plan.knots * 8, plan.times * 8].map(|bytes| (bytes as u64).max(16));
         let packed = match self.reuse_inputs(&sizes)? {
             Some(buffers) => buffers,
             None => {
                 let labels = ["points", "coefs", "knots", "times"];
-                std::array::from_fn(|i| self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(labels[i]), size: sizes[i], usage: writable, mapped_at_creation: true }))
+                std::array::from_fn(|i| {
+                    self.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(labels[i]),
+                        size: sizes[i],
+                        usage: writable,
+                        mapped_at_creation: true,
+                    })
+                })
             }
         };
         let tracks = {
-            let [p, c, k, t] = std::array::from_fn(|i| packed[i].get_mapped_range_mut(..sizes[i]).map_err(|e| GpuError::Device(format!("writing the packed batch: {e}"))));
+            let [p, c, k, t] = std::array::from_fn(|i| {
+                packed[i]
+                    .get_mapped_range_mut(..sizes[i])
+                    .map_err(|e| GpuError::Device(format!("writing the packed batch: {e}")))
+            });
             let (mut p, mut c, mut k, mut t) = (p?, c?, k?, t?);
-            layout::pack(plan, job.batch, job.times, ChunkTargets { points: p.slice(..), coefs: c.slice(..), knots: k.slice(..), times: t.slice(..) })
+            layout::pack(
+                plan,
+                job.batch,
+                job.times,
+                ChunkTargets { points: p.slice(..), coefs: c.slice(..), knots: k.slice(..), times: t.slice(..) },
+            )
         };
         packed.iter().for_each(wgpu::Buffer::unmap);
         let pipeline = self.pipeline(PipelineKey::for_chunk(&tracks, options))?;
@@ -518,14 +561,20 @@ impl GpuEvaluator {
             times,
         ];
         let output_bytes = (plan.samples * channels * 4) as u64;
-        let spare = if target.is_none() { self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take().filter(|b| b.size() >= output_bytes) } else { None };
+        let spare = if target.is_none() {
+            self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take().filter(|b| b.size() >= output_bytes)
+        } else {
+            None
+        };
         let output = match (target, spare) {
             (Some(buffer), _) => buffer.clone(),
             (None, Some(buffer)) => buffer,
             (None, None) => self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("quatcurve output"),
                 size: output_bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
                 mapped_at_creation: false,
             }),
         };
@@ -533,7 +582,12 @@ impl GpuEvaluator {
         let names = ["params", "tracks", "points", "coefs", "knots", "times"];
         let buffers = names.iter().zip(&inputs).chain([(&"out", &output), (&"poly", &self.polynomials)]);
         let entries = buffers
-            .map(|(name, buffer)| Ok(wgpu::BindGroupEntry { binding: self.resources.binding(name).map_err(GpuError::Shader)?, resource: buffer.as_entire_binding() }))
+            .map(|(name, buffer)| {
+                Ok(wgpu::BindGroupEntry {
+                    binding: self.resources.binding(name).map_err(GpuError::Shader)?,
+                    resource: buffer.as_entire_binding(),
+                })
+            })
             .collect::<Result<Vec<_>, GpuError>>()?;
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("quatcurve eval"),
@@ -541,7 +595,14 @@ impl GpuEvaluator {
             entries: &entries,
         });
         scope.pop()?;
-        Ok(PreparedChunk { pipeline, bind_group, inputs: packed, output, output_bytes, groups: [groups_x, groups_y as u32] })
+        Ok(PreparedChunk {
+            pipeline,
+            bind_group,
+            inputs: packed,
+            output,
+            output_bytes,
+            groups: [groups_x, groups_y as u32],
+        })
     }
 
     /// The input buffers the last chunk of [`GpuEvaluator::evaluate`] packed, mapped for
@@ -575,9 +636,13 @@ impl GpuEvaluator {
     /// Records and submits one chunk's dispatch.
     fn submit(&self, chunk: &PreparedChunk) -> Result<(), GpuError> {
         let scope = ErrorScope::push(&self.device);
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
+        let mut encoder =
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve eval"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("quatcurve eval"),
+                timestamp_writes: None,
+            });
             pass.set_pipeline(&chunk.pipeline);
             pass.set_bind_group(0, &chunk.bind_group, &[]);
             pass.dispatch_workgroups(chunk.groups[0], chunk.groups[1], 1);
@@ -588,7 +653,12 @@ impl GpuEvaluator {
 
     /// Maps the first `bytes` of `output` (directly where it is mappable, else through a
     /// staging copy) and hands its floats to `consume`, which copies them into place.
-    pub(super) fn read_back(&self, output: &wgpu::Buffer, bytes: u64, consume: impl FnOnce(&[f32])) -> Result<(), GpuError> {
+    pub(super) fn read_back(
+        &self,
+        output: &wgpu::Buffer,
+        bytes: u64,
+        consume: impl FnOnce(&[f32]),
+    ) -> Result<(), GpuError> {
         if bytes == 0 {
             return Ok(());
         }
@@ -602,7 +672,9 @@ impl GpuEvaluator {
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
             encoder.copy_buffer_to_buffer(output, 0, &staging, 0, bytes);
             self.queue.submit([encoder.finish()]);
             staging
@@ -618,7 +690,8 @@ impl GpuEvaluator {
             Ok(Err(e)) => return Err(GpuError::Device(format!("reading results back: {e}"))),
             Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
         }
-        let view = staging.get_mapped_range(..bytes).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
+        let view =
+            staging.get_mapped_range(..bytes).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
         consume(bytemuck::cast_slice::<u8, f32>(&view));
         drop(view);
         staging.unmap();

@@ -33,9 +33,19 @@ fn compile(device: &wgpu::Device) -> Result<Compiled, GpuError> {
     let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
     let scope = ErrorScope::push(device);
     let resources = shader::Resources::of(&module).map_err(GpuError::Shader)?;
-    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("quatcurve fk"), entries: &resources.layout_entries() });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("quatcurve fk"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("quatcurve fk"), source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()) });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("quatcurve fk"),
+        entries: &resources.layout_entries(),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("quatcurve fk"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("quatcurve fk"),
+        source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()),
+    });
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("quatcurve fk"),
         layout: Some(&pipeline_layout),
@@ -85,7 +95,12 @@ impl GpuEvaluator {
     ///
     /// # Errors
     /// [`GpuError::Job`] for mismatched inputs or a frame larger than a binding; device errors.
-    pub fn forward_kinematics(&self, parents: &[Option<usize>], order: &[usize], local: &[f32]) -> Result<Vec<f32>, GpuError> {
+    pub fn forward_kinematics(
+        &self,
+        parents: &[Option<usize>],
+        order: &[usize],
+        local: &[f32],
+    ) -> Result<Vec<f32>, GpuError> {
         let joints = parents.len();
         if joints == 0 || local.len() % (joints * LOCAL_CHANNELS) != 0 {
             return Err(GpuError::Job(format!("{} local floats are not whole frames of {joints} joints", local.len())));
@@ -93,7 +108,10 @@ impl GpuEvaluator {
         let frames = local.len() / (joints * LOCAL_CHANNELS);
         let frame_bytes = (joints * MATRIX_CHANNELS * 4) as u64;
         if frame_bytes > self.binding_limit {
-            return Err(GpuError::Job(format!("one frame of {joints} joints needs {frame_bytes} bytes, more than a storage binding ({})", self.binding_limit)));
+            return Err(GpuError::Job(format!(
+                "one frame of {joints} joints needs {frame_bytes} bytes, more than a storage binding ({})",
+                self.binding_limit
+            )));
         }
         let (by_level, starts) = levels(parents, order)?;
         let fk = match self.fk.get() {
@@ -124,7 +142,16 @@ impl GpuEvaluator {
 
     /// One chunk of whole frames: upload, one dispatch per level, read back into `out`.
     #[allow(clippy::too_many_arguments)]
-    fn fk_chunk(&self, fk: &Compiled, parents: &wgpu::Buffer, levels: &wgpu::Buffer, starts: &[u32], joints: usize, rows: &[f32], out: &mut [f32]) -> Result<(), GpuError> {
+    fn fk_chunk(
+        &self,
+        fk: &Compiled,
+        parents: &wgpu::Buffer,
+        levels: &wgpu::Buffer,
+        starts: &[u32],
+        joints: usize,
+        rows: &[f32],
+        out: &mut [f32],
+    ) -> Result<(), GpuError> {
         let frames = rows.len() / (joints * LOCAL_CHANNELS);
         let scope = ErrorScope::push(&self.device);
         let local = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -136,10 +163,13 @@ impl GpuEvaluator {
         let model = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("quatcurve fk model"),
             size: bytes.max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
             mapped_at_creation: false,
         });
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve fk") });
+        let mut encoder =
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve fk") });
         // Per level: its uniform, bind group and grid (made before the pass borrows them).
         let dispatches: Vec<(wgpu::BindGroup, [u32; 2])> = starts
             .windows(2)
@@ -148,23 +178,48 @@ impl GpuEvaluator {
                 let groups = invocations.div_ceil(u64::from(fk.workgroup_size)).max(1);
                 let x = groups.min(u64::from(self.max_groups_per_dim)) as u32;
                 let y = groups.div_ceil(u64::from(x)) as u32;
-                let level = FkLevel { first: w[0], count: w[1] - w[0], frames: frames as u32, joints: joints as u32, row: x * fk.workgroup_size, pad: [0; 3] };
+                let level = FkLevel {
+                    first: w[0],
+                    count: w[1] - w[0],
+                    frames: frames as u32,
+                    joints: joints as u32,
+                    row: x * fk.workgroup_size,
+                    pad: [0; 3],
+                };
                 let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("quatcurve fk level"),
                     contents: bytemuck::bytes_of(&level),
                     usage: wgpu::BufferUsages::UNIFORM,
                 });
-                let buffers = [("fk_local", &local), ("fk_parents", parents), ("fk_level_joints", levels), ("fk_model", &model), ("fk_level", &uniform)];
+                let buffers = [
+                    ("fk_local", &local),
+                    ("fk_parents", parents),
+                    ("fk_level_joints", levels),
+                    ("fk_model", &model),
+                    ("fk_level", &uniform),
+                ];
                 let entries = buffers
                     .into_iter()
-                    .map(|(name, buffer)| Ok(wgpu::BindGroupEntry { binding: fk.resources.binding(name).map_err(GpuError::Shader)?, resource: buffer.as_entire_binding() }))
+                    .map(|(name, buffer)| {
+                        Ok(wgpu::BindGroupEntry {
+                            binding: fk.resources.binding(name).map_err(GpuError::Shader)?,
+                            resource: buffer.as_entire_binding(),
+                        })
+                    })
                     .collect::<Result<Vec<_>, GpuError>>()?;
-                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("quatcurve fk"), layout: &fk.layout, entries: &entries });
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("quatcurve fk"),
+                    layout: &fk.layout,
+                    entries: &entries,
+                });
                 Ok((group, [x, y]))
             })
             .collect::<Result<_, GpuError>>()?;
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("quatcurve fk"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("quatcurve fk"),
+                timestamp_writes: None,
+            });
             pass.set_pipeline(&fk.pipeline);
             for (group, [x, y]) in &dispatches {
                 pass.set_bind_group(0, group, &[]);

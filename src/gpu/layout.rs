@@ -132,7 +132,6 @@ pub fn fixed_step(step: f64) -> [u32; 3] {
     [(ticks >> 64) as u32, (ticks >> 32) as u32, ticks as u32]
 }
 
-
 /// A contiguous range of tracks that fits every binding limit, or one piece of a track too
 /// long for one binding (its samples from `sample_base` on): where [`pack`] takes its data
 /// from, and how much. Planning copies nothing, so a batch is packed one chunk at a time.
@@ -174,7 +173,9 @@ pub struct ChunkTargets<'a> {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PackError {
     /// One track's keys alone exceed a binding limit (its samples are cut into pieces).
-    #[error("{track}: its keys need {bytes} bytes in one GPU binding, more than the device's {limit}; use the cpu device")]
+    #[error(
+        "{track}: its keys need {bytes} bytes in one GPU binding, more than the device's {limit}; use the cpu device"
+    )]
     TrackTooLarge { track: String, bytes: u64, limit: u64 },
     /// A Bezier degree beyond the shader's fixed arrays.
     #[error("{track}: Bezier degree {degree} is above the GPU limit of {max}; use the cpu or reference device")]
@@ -187,7 +188,6 @@ pub enum PackError {
     #[error("{track}: knots {knot} and {next} are {gap:e} s apart, closer than the GPU's time resolution of {resolution:e} s; use the cpu device", next = knot + 1)]
     KnotsTooClose { track: String, knot: usize, gap: f64, resolution: f64 },
 }
-
 
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.
 fn collapsed_span(knots: &[f64]) -> Option<usize> {
@@ -224,7 +224,9 @@ pub const POLY_HERMITE: u32 = 28;
 /// memory (half the kernel's time).
 #[must_use]
 pub fn polynomial_table() -> Vec<[f32; 4]> {
-    let functions = (crate::curve::MIN_ORDER..=crate::curve::MAX_ORDER).flat_map(crate::basis::uniform_bspline_polynomials).chain(crate::basis::bernstein_polynomials(3));
+    let functions = (crate::curve::MIN_ORDER..=crate::curve::MAX_ORDER)
+        .flat_map(crate::basis::uniform_bspline_polynomials)
+        .chain(crate::basis::bernstein_polynomials(3));
     functions.flat_map(|c| [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]]].map(|v| v.map(|x| x as f32))).collect()
 }
 
@@ -241,7 +243,12 @@ pub const MAX_SAMPLES_PER_TRACK: usize = u32::MAX as usize;
 /// [`PackError`] naming the track: a Bezier degree the kernel cannot take, more than
 /// [`MAX_SAMPLES_PER_TRACK`] samples, distinct knots closer than [`TIME_RESOLUTION`], or keys
 /// that alone overflow a binding.
-pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_limit: u64) -> Result<Vec<ChunkPlan>, PackError> {
+pub fn plan_chunks(
+    batch: &Batch,
+    times: &SampleTimes,
+    channels: usize,
+    binding_limit: u64,
+) -> Result<Vec<ChunkPlan>, PackError> {
     let mut chunks = vec![ChunkPlan::default()];
     for index in 0..batch.len() {
         let track = &batch.tracks[index];
@@ -257,7 +264,12 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
         if !shares_knots(batch, index) {
             let knots = &batch.knots[track.knot_offset..track.knot_offset + track.knot_count];
             if let Some(knot) = collapsed_span(knots) {
-                return Err(PackError::KnotsTooClose { track: name(), knot, gap: knots[knot + 1] - knots[knot], resolution: TIME_RESOLUTION });
+                return Err(PackError::KnotsTooClose {
+                    track: name(),
+                    knot,
+                    gap: knots[knot + 1] - knots[knot],
+                    resolution: TIME_RESOLUTION,
+                });
             }
         }
         // Chunk `c` with `samples` more samples of this track.
@@ -302,7 +314,10 @@ pub fn plan_chunks(batch: &Batch, times: &SampleTimes, channels: usize, binding_
             return Err(PackError::TrackTooLarge { track: name(), bytes, limit: binding_limit });
         }
         for start in (0..count).step_by(piece) {
-            chunks.push(grown(&ChunkPlan { first_track: index, sample_base: start, ..ChunkPlan::default() }, (start + piece).min(count) - start));
+            chunks.push(grown(
+                &ChunkPlan { first_track: index, sample_base: start, ..ChunkPlan::default() },
+                (start + piece).min(count) - start,
+            ));
         }
         // Later tracks start a chunk of their own (a piece's chunk holds that piece only).
         chunks.push(ChunkPlan { first_track: index + 1, ..ChunkPlan::default() });
@@ -438,7 +453,11 @@ impl Offsets {
 
     /// Where chunk track `i` reads its knots: its own from `knots`, or the previous track's.
     fn knots_of(&self, batch: &Batch, plan: &ChunkPlan, i: usize) -> usize {
-        if Self::owns_knots(batch, plan, i) { self.knots } else { self.previous_knots }
+        if Self::owns_knots(batch, plan, i) {
+            self.knots
+        } else {
+            self.previous_knots
+        }
     }
 
     /// The offsets after chunk track `i`.
@@ -470,7 +489,14 @@ fn piece_range(plan: &ChunkPlan, times: &SampleTimes, index: usize) -> std::ops:
 
 /// The kernel's record of samples `range` of track `index` (the whole track, or one piece),
 /// its entries from `at` in the chunk's arrays and its knots from `knot_offset`.
-fn track_entry(view: &crate::batch::TrackView<'_>, times: &SampleTimes, index: usize, range: std::ops::Range<usize>, at: &Offsets, knot_offset: usize) -> GpuTrack {
+fn track_entry(
+    view: &crate::batch::TrackView<'_>,
+    times: &SampleTimes,
+    index: usize,
+    range: std::ops::Range<usize>,
+    at: &Offsets,
+    knot_offset: usize,
+) -> GpuTrack {
     let mut gpu = GpuTrack {
         curve: curve_code(view.track.curve),
         order: view.track.order as u32,

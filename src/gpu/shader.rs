@@ -124,9 +124,9 @@ impl Resources {
             }
             let ty = match var.space {
                 naga::AddressSpace::Uniform => wgpu::BufferBindingType::Uniform,
-                naga::AddressSpace::Storage { access } => wgpu::BufferBindingType::Storage {
-                    read_only: !access.contains(naga::StorageAccess::STORE),
-                },
+                naga::AddressSpace::Storage { access } => {
+                    wgpu::BufferBindingType::Storage { read_only: !access.contains(naga::StorageAccess::STORE) }
+                }
                 other => return Err(format!("`{name}` is in {other:?}, not a buffer")),
             };
             let entry = wgpu::BindGroupLayoutEntry {

@@ -34,7 +34,9 @@ fn layers(doc: &str) -> HashMap<String, usize> {
     let mut map = HashMap::new();
     for line in doc.lines() {
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
-        let Some(layer) = cells.get(1).and_then(|c| c.split('.').next()).and_then(|n| n.parse::<usize>().ok()) else { continue };
+        let Some(layer) = cells.get(1).and_then(|c| c.split('.').next()).and_then(|n| n.parse::<usize>().ok()) else {
+            continue;
+        };
         for name in quoted(cells[2]) {
             map.insert(name.trim_end_matches('/').to_string(), layer);
         }
@@ -49,14 +51,21 @@ fn code(line: &str) -> &str {
 
 /// Module names that follow `prefix` in `line`'s code (`crate::batch::X` gives `batch`).
 fn after<'a>(line: &'a str, prefix: &str) -> Vec<&'a str> {
-    code(line).split(prefix).skip(1).map(|rest| rest.split(|c: char| !(c.is_alphanumeric() || c == '_')).next().unwrap_or("")).collect()
+    code(line)
+        .split(prefix)
+        .skip(1)
+        .map(|rest| rest.split(|c: char| !(c.is_alphanumeric() || c == '_')).next().unwrap_or(""))
+        .collect()
 }
 
 #[test]
 fn no_module_imports_from_a_higher_layer() {
     let doc = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
     let layers = layers(&doc);
-    assert!(layers.len() >= 20 && layers["quat"] == 0 && layers["bake"] > layers["cpu"], "the layer table did not parse: {layers:?}");
+    assert!(
+        layers.len() >= 20 && layers["quat"] == 0 && layers["bake"] > layers["cpu"],
+        "the layer table did not parse: {layers:?}"
+    );
     let src = root().join("src");
     let mut broken = Vec::new();
     for file in sources(&src) {
@@ -69,7 +78,12 @@ fn no_module_imports_from_a_higher_layer() {
         for (n, line) in std::fs::read_to_string(&file).unwrap().lines().enumerate() {
             for used in after(line, "crate::") {
                 if layers.get(used).is_some_and(|&l| l > own) {
-                    broken.push(format!("src/{}:{}: {top} (layer {own}) uses {used} (layer {})", relative.display(), n + 1, layers[used]));
+                    broken.push(format!(
+                        "src/{}:{}: {top} (layer {own}) uses {used} (layer {})",
+                        relative.display(),
+                        n + 1,
+                        layers[used]
+                    ));
                 }
             }
         }
@@ -91,8 +105,11 @@ fn inside_a_directory_no_file_uses_a_module_listed_after_it() {
             continue;
         }
         let module = |name: &str| path.join(format!("{name}.rs")).is_file() || name == "mod";
-        let rank: HashMap<&str, usize> =
-            order.split(" < ").enumerate().flat_map(|(i, group)| quoted(group).into_iter().filter(|n| module(n)).map(move |n| (n, i))).collect();
+        let rank: HashMap<&str, usize> = order
+            .split(" < ")
+            .enumerate()
+            .flat_map(|(i, group)| quoted(group).into_iter().filter(|n| module(n)).map(move |n| (n, i)))
+            .collect();
         for file in sources(&path) {
             let name = file.file_stem().unwrap().to_str().unwrap();
             // A `mod.rs` the sentence leaves out comes last.

@@ -1,8 +1,8 @@
 //! `quatcurve eval` end to end: files in, files out, values checked; exit codes and messages.
 
+use assert_cmd::Command;
 use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Tangents, Track, TrackFile};
 use std::path::Path;
-use assert_cmd::Command;
 use std::process::Output;
 
 fn quatcurve(args: &[&str]) -> Output {
@@ -46,8 +46,20 @@ fn eval_writes_json_that_matches_the_library() {
     let input = write_tracks(dir.path(), &tracks);
     let output = dir.path().join("out.json");
     let out = quatcurve(&[
-        "eval", "--input", &input, "--output", output.to_str().unwrap(), "--curve", "hermite", "--tangents", "given",
-        "--samples", "7", "--derivatives", "--device", "reference",
+        "eval",
+        "--input",
+        &input,
+        "--output",
+        output.to_str().unwrap(),
+        "--curve",
+        "hermite",
+        "--tangents",
+        "given",
+        "--samples",
+        "7",
+        "--derivatives",
+        "--device",
+        "reference",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
@@ -105,11 +117,23 @@ fn eval_defaults_run_on_the_built_in_demo() {
 #[test]
 fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
     let dir = tempfile::tempdir().unwrap();
-    let closed: Vec<[f64; 4]> = (0..5).map(|i| DQuat::exp(DVec3::new(0.4 * (i as f64 * std::f64::consts::FRAC_PI_2).sin(), 0.1, 0.0)).to_array()).collect();
-    let track = Track { name: Some("tail".into()), sample_times: Some(vec![0.5, 4.5, -3.5]), ..Track::from_rotations(closed) };
+    let closed: Vec<[f64; 4]> = (0..5)
+        .map(|i| DQuat::exp(DVec3::new(0.4 * (i as f64 * std::f64::consts::FRAC_PI_2).sin(), 0.1, 0.0)).to_array())
+        .collect();
+    let track =
+        Track { name: Some("tail".into()), sample_times: Some(vec![0.5, 4.5, -3.5]), ..Track::from_rotations(closed) };
     let input = write_tracks(dir.path(), &[track]);
     let output = dir.path().join("out.json");
-    let out = quatcurve(&["eval", "--input", &input, "--output", output.to_str().unwrap(), "--loop", "--device", "reference"]);
+    let out = quatcurve(&[
+        "eval",
+        "--input",
+        &input,
+        "--output",
+        output.to_str().unwrap(),
+        "--loop",
+        "--device",
+        "reference",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
     let t = &doc["tracks"][0];
@@ -175,7 +199,8 @@ fn usage_errors_exit_2() {
 fn unavailable_device_exits_1_without_fallback() {
     // A backend that does not exist on Linux: no adapter, so --device gpu must fail.
     let no_gpu = |device: &str| {
-        Command::cargo_bin("quatcurve").unwrap()
+        Command::cargo_bin("quatcurve")
+            .unwrap()
             .args(["eval", "--device", device, "--samples", "2"])
             .env("WGPU_BACKEND", "metal")
             .output()
@@ -200,7 +225,18 @@ fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
     let dir = tempfile::tempdir().unwrap();
     let input = write_tracks(dir.path(), &sample_tracks());
     let run = |device: &str| {
-        let out = quatcurve(&["eval", "--input", &input, "--curve", "squad", "--samples", "9", "--derivatives", "--device", device]);
+        let out = quatcurve(&[
+            "eval",
+            "--input",
+            &input,
+            "--curve",
+            "squad",
+            "--samples",
+            "9",
+            "--derivatives",
+            "--device",
+            device,
+        ]);
         assert!(out.status.success(), "{}", stderr(&out));
         serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
     };
@@ -208,7 +244,9 @@ fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
     assert!(gpu["device"].as_str().unwrap().starts_with("gpu: "), "{}", gpu["device"]);
     for t in 0..2 {
         for j in 0..gpu["tracks"][t]["rotations"].as_array().unwrap().len() {
-            let q = |doc: &serde_json::Value| DQuat::from_array(serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap());
+            let q = |doc: &serde_json::Value| {
+                DQuat::from_array(serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap())
+            };
             assert!(q(&gpu).angle_to(q(&reference)) < 1e-5);
         }
     }
@@ -230,8 +268,18 @@ fn eval_npy_in_both_layouts_matches_the_json_output() {
     let input = write_tracks(dir.path(), &tracks);
     let run = |output: &Path, layout: &str| {
         let out = quatcurve(&[
-            "eval", "--input", &input, "--output", output.to_str().unwrap(), "--samples", "6", "--derivatives",
-            "--layout", layout, "--device", "reference",
+            "eval",
+            "--input",
+            &input,
+            "--output",
+            output.to_str().unwrap(),
+            "--samples",
+            "6",
+            "--derivatives",
+            "--layout",
+            layout,
+            "--device",
+            "reference",
         ]);
         assert!(out.status.success(), "{}", stderr(&out));
     };
@@ -327,7 +375,11 @@ fn write_npz(path: &Path, members: &[(&str, Vec<u8>)]) {
     use std::io::Write;
     let mut zip = zip::ZipWriter::new(std::fs::File::create(path).unwrap());
     for (name, bytes) in members {
-        zip.start_file(format!("{name}.npy"), zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated)).unwrap();
+        zip.start_file(
+            format!("{name}.npy"),
+            zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated),
+        )
+        .unwrap();
         zip.write_all(bytes).unwrap();
     }
     zip.finish().unwrap();
@@ -340,25 +392,53 @@ fn write_npz(path: &Path, members: &[(&str, Vec<u8>)]) {
 fn eval_reads_numpy_arrays_like_json() {
     let dir = tempfile::tempdir().unwrap();
     let (tracks, keys) = (3usize, 6usize);
-    let rotation = |t: usize, k: usize| DQuat::exp(DVec3::new(0.1 * k as f64, 0.05 * t as f64, 0.2 * (k * t) as f64 % 0.7)).to_array();
+    let rotation = |t: usize, k: usize| {
+        DQuat::exp(DVec3::new(0.1 * k as f64, 0.05 * t as f64, 0.2 * (k * t) as f64 % 0.7)).to_array()
+    };
     let rotations: Vec<f64> = (0..tracks).flat_map(|t| (0..keys).flat_map(move |k| rotation(t, k))).collect();
     let times: Vec<f64> = (0..keys).map(|k| 0.25 * k as f64 + 0.01 * (k * k) as f64).collect();
     let names = ["hip", "knee", "toe"];
-    let name_bytes: Vec<u8> = names.iter().flat_map(|n| format!("{n:\0<4}").chars().flat_map(|c| (c as u32).to_le_bytes()).collect::<Vec<_>>()).collect();
+    let name_bytes: Vec<u8> = names
+        .iter()
+        .flat_map(|n| format!("{n:\0<4}").chars().flat_map(|c| (c as u32).to_le_bytes()).collect::<Vec<_>>())
+        .collect();
     let npz = dir.path().join("tracks.npz");
-    write_npz(&npz, &[
-        ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
-        ("times", npy_bytes("<f8", &[keys as u64], &f64_bytes(&times))),
-        ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
-    ]);
+    write_npz(
+        &npz,
+        &[
+            ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
+            ("times", npy_bytes("<f8", &[keys as u64], &f64_bytes(&times))),
+            ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
+        ],
+    );
     let json_tracks: Vec<Track> = (0..tracks)
-        .map(|t| Track { name: Some(names[t].into()), times: Some(times.clone()), ..Track::from_rotations((0..keys).map(|k| rotation(t, k)).collect()) })
+        .map(|t| Track {
+            name: Some(names[t].into()),
+            times: Some(times.clone()),
+            ..Track::from_rotations((0..keys).map(|k| rotation(t, k)).collect())
+        })
         .collect();
     let json_in = dir.path().join("tracks.json");
     std::fs::write(&json_in, serde_json::to_string(&TrackFile { tracks: json_tracks }).unwrap()).unwrap();
     let eval = |input: &Path, extra: &[&str]| {
         let out = dir.path().join("out.json");
-        let result = quatcurve(&[&["eval", "--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--samples", "7", "--device", "reference"][..], extra].concat());
+        let result = quatcurve(
+            &[
+                &[
+                    "eval",
+                    "--input",
+                    input.to_str().unwrap(),
+                    "--output",
+                    out.to_str().unwrap(),
+                    "--samples",
+                    "7",
+                    "--device",
+                    "reference",
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
         assert!(result.status.success(), "{}", stderr(&result));
         std::fs::read_to_string(out).unwrap()
     };
@@ -366,11 +446,14 @@ fn eval_reads_numpy_arrays_like_json() {
     // Per-track times [tracks, keys] equal to the shared ones: same result.
     let per_track: Vec<f64> = (0..tracks).flat_map(|_| times.clone()).collect();
     let npz2 = dir.path().join("per_track.npz");
-    write_npz(&npz2, &[
-        ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
-        ("times", npy_bytes("<f8", &[tracks as u64, keys as u64], &f64_bytes(&per_track))),
-        ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
-    ]);
+    write_npz(
+        &npz2,
+        &[
+            ("rotations", npy_bytes("<f8", &[tracks as u64, keys as u64, 4], &f64_bytes(&rotations))),
+            ("times", npy_bytes("<f8", &[tracks as u64, keys as u64], &f64_bytes(&per_track))),
+            ("names", npy_bytes("<U4", &[tracks as u64], &name_bytes)),
+        ],
+    );
     assert_eq!(eval(&npz2, &[]), eval(&json_in, &[]));
     // A bare .npy (float32) with --key-rate: keys at k / rate.
     let npy = dir.path().join("rotations.npy");
@@ -392,11 +475,27 @@ fn eval_reads_numpy_arrays_like_json() {
             assert!(stderr(&result).contains(part), "{name}: lacks {part:?}: {}", stderr(&result));
         }
     };
-    rejected("three.npz", npy_bytes("<f8", &[2, 2, 3], &f64_bytes(&[0.0; 12])), &["rotations: shape [2, 2, 3]; expected [tracks, keys, 4]"]);
-    rejected("ints.npz", npy_bytes("<i4", &[1, 2, 4], &[0; 32]), &["rotations: dtype <i4; expected float32 or float64"]);
+    rejected(
+        "three.npz",
+        npy_bytes("<f8", &[2, 2, 3], &f64_bytes(&[0.0; 12])),
+        &["rotations: shape [2, 2, 3]; expected [tracks, keys, 4]"],
+    );
+    rejected(
+        "ints.npz",
+        npy_bytes("<i4", &[1, 2, 4], &[0; 32]),
+        &["rotations: dtype <i4; expected float32 or float64"],
+    );
     // A header announcing 10^18 values over 64 bytes of data: refused before any allocation.
-    rejected("huge.npy", npy_bytes("<f8", &[1_000_000_000, 1_000_000_000, 4], &f64_bytes(&[0.0; 8])), &["rotations", "needs", "the file holds"]);
-    rejected("short.npy", npy_bytes("<f8", &[1, 3, 4], &f64_bytes(&[0.0; 8])), &["rotations: the data ends after 8 of the 12 values its shape says"]);
+    rejected(
+        "huge.npy",
+        npy_bytes("<f8", &[1_000_000_000, 1_000_000_000, 4], &f64_bytes(&[0.0; 8])),
+        &["rotations", "needs", "the file holds"],
+    );
+    rejected(
+        "short.npy",
+        npy_bytes("<f8", &[1, 3, 4], &f64_bytes(&[0.0; 8])),
+        &["rotations: the data ends after 8 of the 12 values its shape says"],
+    );
     let result = quatcurve(&["eval", "--input", npz.to_str().unwrap(), "--key-rate", "-3"]);
     assert_eq!(result.status.code(), Some(2));
 }
@@ -405,10 +504,15 @@ fn eval_reads_numpy_arrays_like_json() {
 /// f64 noise; the reference's f64 results keep every digit.
 #[test]
 fn f32_results_print_as_f32() {
-    let text = String::from_utf8(quatcurve(&["eval", "--samples", "5", "--derivatives", "--device", "cpu"]).stdout).unwrap();
+    let text =
+        String::from_utf8(quatcurve(&["eval", "--samples", "5", "--derivatives", "--device", "cpu"]).stdout).unwrap();
     let out: serde_json::Value = serde_json::from_str(&text).unwrap();
     let rotations = out["tracks"][1]["rotations"].as_array().unwrap();
-    for v in rotations.iter().flat_map(|r| r.as_array().unwrap()).chain(out["tracks"][1]["angular_velocity"][2].as_array().unwrap()) {
+    for v in rotations
+        .iter()
+        .flat_map(|r| r.as_array().unwrap())
+        .chain(out["tracks"][1]["angular_velocity"][2].as_array().unwrap())
+    {
         // The token is the f32's shortest decimal: printing the f32 gives the same number.
         let v = v.as_f64().unwrap();
         assert_eq!(format!("{}", v as f32).parse::<f64>().unwrap(), v, "{v} is not an f32's shortest decimal");
@@ -424,15 +528,27 @@ fn f32_results_print_as_f32() {
 #[test]
 fn auto_falls_back_to_the_cpu_for_batches_the_gpu_cannot_take() {
     let dir = tempfile::tempdir().unwrap();
-    let keys: Vec<[f64; 4]> = (0..40).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
+    let keys: Vec<[f64; 4]> =
+        (0..40).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
     let input = dir.path().join("long.json");
-    std::fs::write(&input, serde_json::to_string(&TrackFile { tracks: vec![Track::from_rotations(keys)] }).unwrap()).unwrap();
+    std::fs::write(&input, serde_json::to_string(&TrackFile { tracks: vec![Track::from_rotations(keys)] }).unwrap())
+        .unwrap();
     let out = quatcurve(&["eval", "--input", input.to_str().unwrap(), "--curve", "bezier", "--samples", "5"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(doc["device"].as_str().unwrap().starts_with("cpu:"), "{}", doc["device"]);
     if std::env::var_os("QUATCURVE_REQUIRE_GPU").is_some() {
-        let out = quatcurve(&["eval", "--input", input.to_str().unwrap(), "--curve", "bezier", "--samples", "5", "--device", "gpu"]);
+        let out = quatcurve(&[
+            "eval",
+            "--input",
+            input.to_str().unwrap(),
+            "--curve",
+            "bezier",
+            "--samples",
+            "5",
+            "--device",
+            "gpu",
+        ]);
         assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
         assert!(stderr(&out).contains("Bezier degree 39 is above the GPU limit of 32"), "{}", stderr(&out));
     }
@@ -462,7 +578,14 @@ fn analyze_reports_every_curve_and_track_with_ratios_to_squad() {
             assert!(tracks[1][field].as_f64().unwrap() >= 0.0, "{field}");
             let sum: f64 = tracks.iter().map(|t| t[field].as_f64().unwrap()).sum();
             let total = c["total"][field].as_f64().unwrap();
-            assert!(if field.starts_with("max") || field.ends_with("jump") { total <= sum } else { (total - sum).abs() <= 1e-12 * sum }, "{field}");
+            assert!(
+                if field.starts_with("max") || field.ends_with("jump") {
+                    total <= sum
+                } else {
+                    (total - sum).abs() <= 1e-12 * sum
+                },
+                "{field}"
+            );
         }
     }
     let squad = &curves[1];
@@ -478,7 +601,8 @@ fn analyze_reports_every_curve_and_track_with_ratios_to_squad() {
 
 #[test]
 fn analyze_paper_is_deterministic_for_a_seed() {
-    let run = |seed: &str| analyze_json(&["--paper", "--seed", seed, "--sequences", "6", "--keys", "5", "--step", "0.01"]);
+    let run =
+        |seed: &str| analyze_json(&["--paper", "--seed", seed, "--sequences", "6", "--keys", "5", "--step", "0.01"]);
     let (a, b, c) = (run("7"), run("7"), run("8"));
     assert_eq!(a, b);
     assert_ne!(a["regimes"], c["regimes"]);
@@ -493,7 +617,13 @@ fn analyze_paper_is_deterministic_for_a_seed() {
     // The text report states each claim with its verdict.
     let out = quatcurve(&["analyze", "--paper", "--seed", "7", "--sequences", "4", "--keys", "4", "--step", "0.02"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success() && text.contains("small variations") && text.contains("large variations") && text.contains("C2"), "{text}");
+    assert!(
+        out.status.success()
+            && text.contains("small variations")
+            && text.contains("large variations")
+            && text.contains("C2"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -509,13 +639,21 @@ fn analyze_plots_decode_and_are_not_blank() {
     let colored = image.pixels().filter(|p| p.0.iter().max().unwrap() - p.0.iter().min().unwrap() > 60).count();
     assert!(colored > 2000, "only {colored} coloured pixels: the curves are missing");
     let text = std::fs::read_to_string(&svg).unwrap();
-    assert!(text.starts_with("<svg") && text.contains("bspline-interp") && text.matches("<polyline").count() >= 4, "{}", &text[..200.min(text.len())]);
+    assert!(
+        text.starts_with("<svg") && text.contains("bspline-interp") && text.matches("<polyline").count() >= 4,
+        "{}",
+        &text[..200.min(text.len())]
+    );
     // Unknown formats and bad options are usage errors naming the option; nothing is written.
     let gif = dir.path().join("rates.gif");
     let out = quatcurve(&["analyze", "--plot", gif.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains(".png or .svg") && !gif.exists(), "{}", stderr(&out));
-    for (args, needle) in [(&["analyze", "--inertia", "1,2"][..], "--inertia"), (&["analyze", "--step", "0"], "step"), (&["analyze", "--inertia", "1,-2,3"], "inertia")] {
+    for (args, needle) in [
+        (&["analyze", "--inertia", "1,2"][..], "--inertia"),
+        (&["analyze", "--step", "0"], "step"),
+        (&["analyze", "--inertia", "1,-2,3"], "inertia"),
+    ] {
         let out = quatcurve(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
@@ -539,9 +677,18 @@ fn analyze_on_the_gpu_agrees_with_the_reference() {
         for (t, u) in c["tracks"].as_array().unwrap().iter().zip(r["tracks"].as_array().unwrap()) {
             for field in ["energy", "torque_energy", "arc_length", "max_alpha"] {
                 let (a, b) = (t[field].as_f64().unwrap(), u[field].as_f64().unwrap());
-                assert!((a - b).abs() <= 1e-3 * b.abs().max(1.0), "{} {} {field}: gpu {a} vs reference {b}", c["curve"], t["name"]);
+                assert!(
+                    (a - b).abs() <= 1e-3 * b.abs().max(1.0),
+                    "{} {} {field}: gpu {a} vs reference {b}",
+                    c["curve"],
+                    t["name"]
+                );
             }
-            let (ja, jb, scale) = (t["alpha_jump"].as_f64().unwrap(), u["alpha_jump"].as_f64().unwrap(), u["max_alpha"].as_f64().unwrap());
+            let (ja, jb, scale) = (
+                t["alpha_jump"].as_f64().unwrap(),
+                u["alpha_jump"].as_f64().unwrap(),
+                u["max_alpha"].as_f64().unwrap(),
+            );
             assert!((ja - jb).abs() <= 1e-3 * scale.max(1.0), "{} jump: gpu {ja} vs reference {jb}", c["curve"]);
         }
     }
@@ -551,15 +698,34 @@ fn analyze_on_the_gpu_agrees_with_the_reference() {
 fn bench_sweep_covers_long_and_short_batches_of_every_size_and_plots_them() {
     let dir = tempfile::tempdir().unwrap();
     let plot = dir.path().join("sweep.svg");
-    let out = quatcurve(&["bench", "--sweep", "--sweep-max", "10000", "--devices", "cpu", "--runs", "1", "--json", "--plot", plot.to_str().unwrap()]);
+    let out = quatcurve(&[
+        "bench",
+        "--sweep",
+        "--sweep-max",
+        "10000",
+        "--devices",
+        "cpu",
+        "--runs",
+        "1",
+        "--json",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let points = doc["sweep"].as_array().unwrap();
     let shapes: Vec<(String, u64, u64)> = points
         .iter()
-        .map(|p| (p["shape"].as_str().unwrap().to_string(), p["tracks"].as_u64().unwrap(), p["samples_per_track"].as_u64().unwrap()))
+        .map(|p| {
+            (
+                p["shape"].as_str().unwrap().to_string(),
+                p["tracks"].as_u64().unwrap(),
+                p["samples_per_track"].as_u64().unwrap(),
+            )
+        })
         .collect();
-    let expected = [("long", 10, 100), ("short", 100, 10), ("long", 10, 1000), ("short", 1000, 10)].map(|(s, t, n)| (s.to_string(), t, n));
+    let expected = [("long", 10, 100), ("short", 100, 10), ("long", 10, 1000), ("short", 1000, 10)]
+        .map(|(s, t, n)| (s.to_string(), t, n));
     assert_eq!(shapes, expected);
     assert!(points.iter().all(|p| p["device"] == "cpu" && p["samples_per_s"].as_f64().unwrap() > 0.0));
     let svg = std::fs::read_to_string(&plot).unwrap();

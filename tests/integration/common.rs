@@ -107,7 +107,8 @@ pub fn track(g: &mut Gen, spec: &CurveSpec, count: usize, kind: Kind) -> Track {
     use quatcurve::{Curve, KnotMode};
     let uniform = spec.curve == Curve::BSpline && matches!(spec.knots, KnotMode::Phantom | KnotMode::Uniform);
     let times = times(g, count, uniform);
-    let knots = (spec.curve == Curve::BSpline && spec.knots == KnotMode::Explicit).then(|| explicit_knots(g, spec.order, count));
+    let knots = (spec.curve == Curve::BSpline && spec.knots == KnotMode::Explicit)
+        .then(|| explicit_knots(g, spec.order, count));
     Track {
         name: Some(format!("{kind:?}")),
         times: Some(times),

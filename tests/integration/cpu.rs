@@ -4,17 +4,20 @@
 use crate::common::*;
 use crate::fast::*;
 use quatcurve::cpu::{CpuEvaluator, Isa};
-use quatcurve::{EvalJob, EvalOptions};
 use quatcurve::FloatOutput;
 use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
+use quatcurve::{EvalJob, EvalOptions};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
-    CpuEvaluator::new().evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() })).unwrap()
+    CpuEvaluator::new()
+        .evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() }))
+        .unwrap()
 }
 
 fn on_portable_lanes(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
     let cpu = CpuEvaluator::with_isa(Isa::Portable).expect("the baseline runs everywhere");
-    cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() })).unwrap()
+    cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() }))
+        .unwrap()
 }
 
 /// The lane type is chosen at run time (AVX2 where the CPU has it): the suites above run the
@@ -23,12 +26,21 @@ fn on_portable_lanes(batch: &Batch, times: &SampleTimes, layout: Layout, derivat
 #[test]
 fn the_baseline_lanes_meet_the_same_bars() {
     assert_eq!(CpuEvaluator::new().isa(), Isa::detect());
-    every_family_order_and_knot_mode(&on_portable_lanes).assert_within_bars("cpu portable: all families, 4 kinds, both layouts");
+    every_family_order_and_knot_mode(&on_portable_lanes)
+        .assert_within_bars("cpu portable: all families, 4 kinds, both layouts");
     interp_and_loops(&on_portable_lanes).assert_within_bars("cpu portable: bspline-interp and loops");
-    samples_on_knots_and_domain_ends(&on_portable_lanes).assert_within_bars("cpu portable: samples on knots and domain ends");
+    samples_on_knots_and_domain_ends(&on_portable_lanes)
+        .assert_within_bars("cpu portable: samples on knots and domain ends");
     let (batch, times) = mixed_batch_with_repeated_knots();
-    compare_output(&on_portable_lanes(&batch, &times, Layout::Track, true), &batch, &times, Layout::Track, true, "mixed")
-        .assert_within_bars("cpu portable: mixed batch with repeated knots");
+    compare_output(
+        &on_portable_lanes(&batch, &times, Layout::Track, true),
+        &batch,
+        &times,
+        Layout::Track,
+        true,
+        "mixed",
+    )
+    .assert_within_bars("cpu portable: mixed batch with repeated knots");
     odd_sizes(&on_portable_lanes);
 }
 
@@ -65,7 +77,9 @@ fn bezier_curves_of_every_degree() {
     use quatcurve::Curve;
     let spec = CurveSpec { curve: Curve::Bezier, ..CurveSpec::default() };
     let mut all = Worst::default();
-    for (degree, kind) in (1..=9).zip([Kind::Random, Kind::NearIdentical, Kind::NearAntipodal, Kind::SignFlipped].into_iter().cycle()) {
+    for (degree, kind) in
+        (1..=9).zip([Kind::Random, Kind::NearIdentical, Kind::NearAntipodal, Kind::SignFlipped].into_iter().cycle())
+    {
         let mut g = Gen::new(degree as u64);
         let mut builder = quatcurve::BatchBuilder::new();
         for _ in 0..3 {
@@ -75,7 +89,14 @@ fn bezier_curves_of_every_degree() {
         let times = SampleTimes::uniform(&batch, Sampling::Count(101)).unwrap();
         for derivatives in [false, true] {
             let out = on_cpu(&batch, &times, Layout::Track, derivatives);
-            all.merge(compare_output(&out, &batch, &times, Layout::Track, derivatives, &format!("bezier degree {degree} {kind:?}")));
+            all.merge(compare_output(
+                &out,
+                &batch,
+                &times,
+                Layout::Track,
+                derivatives,
+                &format!("bezier degree {degree} {kind:?}"),
+            ));
         }
     }
     all.assert_within_bars("cpu: bezier degrees 1..=9");
@@ -94,8 +115,22 @@ fn tracks_longer_than_one_work_piece_and_matrices() {
     let batch = batch_for(3, &spec, Kind::Random, 3);
     let times = SampleTimes::uniform(&batch, Sampling::Count(10_000)).unwrap();
     let cpu = CpuEvaluator::new();
-    let by_track = cpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { layout: Layout::Track, derivatives: true, matrix: true, ..EvalOptions::default() })).unwrap();
-    let by_frame = cpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { layout: Layout::Frame, derivatives: true, matrix: true, ..EvalOptions::default() })).unwrap();
+    let by_track = cpu
+        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+            layout: Layout::Track,
+            derivatives: true,
+            matrix: true,
+            ..EvalOptions::default()
+        }))
+        .unwrap();
+    let by_frame = cpu
+        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+            layout: Layout::Frame,
+            derivatives: true,
+            matrix: true,
+            ..EvalOptions::default()
+        }))
+        .unwrap();
     assert_eq!(by_track.channels, 19);
     compare_output(&by_track, &batch, &times, Layout::Track, true, "long tracks").assert_within_bars("cpu: 3 x 10,000");
     for track in 0..3 {
@@ -116,11 +151,20 @@ fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
     use quatcurve::{Curve, Track};
     let cpu = CpuEvaluator::new();
     let fd = |batch: &Batch, times: &SampleTimes, layout: Layout, reseed: usize| {
-        cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, forward_difference: Some(reseed), ..EvalOptions::default() })).unwrap()
+        cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions {
+            layout,
+            forward_difference: Some(reseed),
+            ..EvalOptions::default()
+        }))
+        .unwrap()
     };
     // The usual sets, both layouts, both samplings (the exact last sample of --samples).
     let mut all = Worst::default();
-    for spec in [CurveSpec::new(Curve::Slerp), CurveSpec::new(Curve::NamKim), CurveSpec { blend: quatcurve::Blend::Quadratic, ..CurveSpec::new(Curve::NamKim) }] {
+    for spec in [
+        CurveSpec::new(Curve::Slerp),
+        CurveSpec::new(Curve::NamKim),
+        CurveSpec { blend: quatcurve::Blend::Quadratic, ..CurveSpec::new(Curve::NamKim) },
+    ] {
         for (k, kind) in KINDS.into_iter().enumerate() {
             let batch = batch_for(40 + k as u64, &spec, kind, 5);
             for (times, layout) in [
@@ -135,13 +179,27 @@ fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
     all.assert_within_bars("cpu forward differences, reseed every 64");
     // Drift over 100,000 steps of one segment: unbounded without reseeding, bounded with it.
     let mut g = Gen::new(8);
-    let t = Track { times: Some(vec![0.0, 0.4, 1.0]), ..Track::from_rotations(vec![g.rotation().to_array(), g.rotation().to_array(), g.rotation().to_array()]) };
+    let t = Track {
+        times: Some(vec![0.0, 0.4, 1.0]),
+        ..Track::from_rotations(vec![g.rotation().to_array(), g.rotation().to_array(), g.rotation().to_array()])
+    };
     for spec in [CurveSpec::new(Curve::Slerp), CurveSpec::new(Curve::NamKim)] {
         let batch = Batch::from_tracks(std::slice::from_ref(&t), &spec).unwrap();
         let times = SampleTimes::uniform(&batch, Sampling::Count(100_001)).unwrap();
-        let free = compare_output(&fd(&batch, &times, Layout::Track, usize::MAX), &batch, &times, Layout::Track, false, "free");
-        let seeded = compare_output(&fd(&batch, &times, Layout::Track, 16), &batch, &times, Layout::Track, false, "seeded");
-        eprintln!("{}: drift over 60,000 f32 steps {:.2e} rad unseeded, {:.2e} rad reseeded every 16", spec.curve, free.rotation.0, seeded.rotation.0);
+        let free = compare_output(
+            &fd(&batch, &times, Layout::Track, usize::MAX),
+            &batch,
+            &times,
+            Layout::Track,
+            false,
+            "free",
+        );
+        let seeded =
+            compare_output(&fd(&batch, &times, Layout::Track, 16), &batch, &times, Layout::Track, false, "seeded");
+        eprintln!(
+            "{}: drift over 60,000 f32 steps {:.2e} rad unseeded, {:.2e} rad reseeded every 16",
+            spec.curve, free.rotation.0, seeded.rotation.0
+        );
         // f32 rounding of q + d biases every step by up to half an ulp; the recurrence is
         // neutrally stable, so the free-running error stays bounded but several times larger.
         assert!(seeded.rotation.0 <= 2e-6, "{seeded:?}");
@@ -184,7 +242,14 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
         assert!(times.total() > 5000, "{}", times.total());
         for (name, eval) in [("chosen", &on_cpu as Eval<'_>), ("portable", &on_portable_lanes)] {
             for derivatives in [false, true] {
-                all.merge(compare_output(&eval(&batch, &times, layout, derivatives), &batch, &times, layout, derivatives, &format!("{name} {layout:?} {derivatives}")));
+                all.merge(compare_output(
+                    &eval(&batch, &times, layout, derivatives),
+                    &batch,
+                    &times,
+                    layout,
+                    derivatives,
+                    &format!("{name} {layout:?} {derivatives}"),
+                ));
             }
         }
     }
@@ -192,7 +257,9 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
     // Matrices ride along: each row's matrix is its quaternion's.
     let overrides: Vec<Option<&[f64]>> = ragged.iter().map(|l| Some(l.as_slice())).collect();
     let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap();
-    let out = CpuEvaluator::new().evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() })).unwrap();
+    let out = CpuEvaluator::new()
+        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() }))
+        .unwrap();
     for row in out.data.chunks_exact(out.channels) {
         let m = DQuat::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();
         for (r, m) in m.iter().enumerate() {
@@ -237,7 +304,8 @@ fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
     let lists: Vec<Vec<f64>> = (0..batch.len())
         .map(|i| {
             let [a, b] = batch.tracks[i].domain;
-            let mut t: Vec<f64> = (0..g.next_u64() % 71).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
+            let mut t: Vec<f64> =
+                (0..g.next_u64() % 71).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
             t.sort_by(f64::total_cmp);
             t
         })
@@ -258,13 +326,24 @@ fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
         let times = times_of(&batch, None);
         for derivatives in [false, true] {
             let whole = on_cpu(&batch, &times, Layout::Track, derivatives);
-            worst.merge(compare_output(&whole, &batch, &times, Layout::Track, derivatives, &format!("{sampling:?} samples, derivatives {derivatives}")));
+            worst.merge(compare_output(
+                &whole,
+                &batch,
+                &times,
+                Layout::Track,
+                derivatives,
+                &format!("{sampling:?} samples, derivatives {derivatives}"),
+            ));
             let channels = whole.channels;
             for (i, (track, spec)) in tracks.iter().enumerate() {
                 let alone = build(std::slice::from_ref(&(track.clone(), *spec)));
                 let out = on_cpu(&alone, &times_of(&alone, Some(i)), Layout::Track, derivatives);
                 let own = &whole.data[times.offsets[i] * channels..times.offsets[i + 1] * channels];
-                assert!(bits(&out.data) == bits(own), "track {i} ({}, {sampling:?} samples, derivatives {derivatives}) differs alone", describe(spec));
+                assert!(
+                    bits(&out.data) == bits(own),
+                    "track {i} ({}, {sampling:?} samples, derivatives {derivatives}) differs alone",
+                    describe(spec)
+                );
             }
         }
     }

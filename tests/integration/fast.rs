@@ -3,7 +3,9 @@
 
 use crate::common::*;
 use quatcurve::FloatOutput;
-use quatcurve::{Batch, BatchBuilder, Curve, CurveSpec, DQuat, DVec3, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Track};
+use quatcurve::{
+    Batch, BatchBuilder, Curve, CurveSpec, DQuat, DVec3, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Track,
+};
 
 /// DESIGN section 6: rotation error bar (rad) and derivative relative error bar.
 pub const ROTATION_BAR: f64 = 1e-5;
@@ -27,7 +29,10 @@ impl Worst {
     }
 
     pub fn assert_within_bars(&self, what: &str) {
-        eprintln!("{what}: worst rotation {:.2e} rad at {}; worst derivative {:.2e} at {}", self.rotation.0, self.rotation.1, self.derivative.0, self.derivative.1);
+        eprintln!(
+            "{what}: worst rotation {:.2e} rad at {}; worst derivative {:.2e} at {}",
+            self.rotation.0, self.rotation.1, self.derivative.0, self.derivative.1
+        );
         assert!(self.rotation.0 <= ROTATION_BAR, "{what}: rotation {:?}", self.rotation);
         assert!(self.derivative.0 <= DERIVATIVE_BAR, "{what}: derivative {:?}", self.derivative);
     }
@@ -72,7 +77,14 @@ pub static EXCLUDED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicU
 
 /// Compares a fast path's output for `batch` at `times` (in `layout`) with the reference
 /// and returns the worst differences.
-pub fn compare_output(out: &FloatOutput, batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool, label: &str) -> Worst {
+pub fn compare_output(
+    out: &FloatOutput,
+    batch: &Batch,
+    times: &SampleTimes,
+    layout: Layout,
+    derivatives: bool,
+    label: &str,
+) -> Worst {
     let reference = EvalJob::new(batch, times).layout(layout).derivatives(derivatives).run().unwrap();
     let out = out.to_output(derivatives);
     assert_eq!(out.rotations.len(), reference.rotations.len(), "{label}");
@@ -123,7 +135,6 @@ pub fn batch_for(seed: u64, spec: &CurveSpec, kind: Kind, tracks: usize) -> Batc
     builder.build().unwrap()
 }
 
-
 /// A fast path under test: evaluates a batch at its times in a layout, with or without
 /// derivatives.
 pub type Eval<'a> = &'a dyn Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput;
@@ -141,7 +152,14 @@ pub fn every_family_order_and_knot_mode(eval: Eval<'_>) -> Worst {
             for (times, layout) in [(&per_rate, Layout::Track), (&per_count, Layout::Frame)] {
                 for derivatives in [false, true] {
                     let label = format!("{} {kind:?} {layout:?} derivatives={derivatives}", describe(&spec));
-                    all.merge(compare_output(&eval(&batch, times, layout, derivatives), &batch, times, layout, derivatives, &label));
+                    all.merge(compare_output(
+                        &eval(&batch, times, layout, derivatives),
+                        &batch,
+                        times,
+                        layout,
+                        derivatives,
+                        &label,
+                    ));
                 }
             }
         }
@@ -165,7 +183,14 @@ pub fn samples_on_knots_and_domain_ends(eval: Eval<'_>) -> Worst {
             .collect();
         let refs: Vec<Option<&[f64]>> = overrides.iter().map(|t| Some(t.as_slice())).collect();
         let times = SampleTimes::new(&batch, &refs, Sampling::Count(2)).unwrap();
-        all.merge(compare_output(&eval(&batch, &times, Layout::Track, true), &batch, &times, Layout::Track, true, &describe(&spec)));
+        all.merge(compare_output(
+            &eval(&batch, &times, Layout::Track, true),
+            &batch,
+            &times,
+            Layout::Track,
+            true,
+            &describe(&spec),
+        ));
     }
     all
 }
@@ -224,8 +249,15 @@ pub fn odd_sizes(eval: Eval<'_>) {
         let batch = batch_for(tracks as u64, &spec, Kind::Random, tracks);
         let times = SampleTimes::uniform(&batch, Sampling::Count(samples)).unwrap();
         for layout in [Layout::Track, Layout::Frame] {
-            compare_output(&eval(&batch, &times, layout, true), &batch, &times, layout, true, &format!("{tracks}x{samples}"))
-                .assert_within_bars(&format!("{tracks} tracks x {samples}"));
+            compare_output(
+                &eval(&batch, &times, layout, true),
+                &batch,
+                &times,
+                layout,
+                true,
+                &format!("{tracks}x{samples}"),
+            )
+            .assert_within_bars(&format!("{tracks} tracks x {samples}"));
         }
     }
 }
@@ -243,12 +275,26 @@ pub fn long_clip(eval: Eval<'_>) -> Worst {
             q.to_array()
         })
         .collect();
-    let t = Track { times: Some((0..count).map(|i| 1000.0 + i as f64 / 37.5).collect()), ..Track::from_rotations(rotations) };
+    let t = Track {
+        times: Some((0..count).map(|i| 1000.0 + i as f64 / 37.5).collect()),
+        ..Track::from_rotations(rotations)
+    };
     let mut all = Worst::default();
-    for spec in [CurveSpec::new(Curve::Hermite), CurveSpec::new(Curve::Squad), CurveSpec { knots: KnotMode::Uniform, order: 6, ..CurveSpec::default() }] {
+    for spec in [
+        CurveSpec::new(Curve::Hermite),
+        CurveSpec::new(Curve::Squad),
+        CurveSpec { knots: KnotMode::Uniform, order: 6, ..CurveSpec::default() },
+    ] {
         let batch = Batch::from_tracks(std::slice::from_ref(&t), &spec).unwrap();
         let times = SampleTimes::uniform(&batch, Sampling::Rate(119.3)).unwrap();
-        all.merge(compare_output(&eval(&batch, &times, Layout::Track, true), &batch, &times, Layout::Track, true, &describe(&spec)));
+        all.merge(compare_output(
+            &eval(&batch, &times, Layout::Track, true),
+            &batch,
+            &times,
+            Layout::Track,
+            true,
+            &describe(&spec),
+        ));
     }
     all
 }
@@ -309,10 +355,22 @@ pub fn interp_and_loops(eval: Eval<'_>) -> Worst {
                 .collect();
             let refs: Vec<Option<&[f64]>> = overrides.iter().map(|t| Some(t.as_slice())).collect();
             let explicit = SampleTimes::new(&batch, &refs, Sampling::Count(2)).unwrap();
-            for (times, layout) in [(&per_rate, Layout::Track), (&per_count, Layout::Frame), (&explicit, Layout::Track)] {
+            for (times, layout) in [(&per_rate, Layout::Track), (&per_count, Layout::Frame), (&explicit, Layout::Track)]
+            {
                 for derivatives in [false, true] {
-                    let label = format!("{} loop={} {kind:?} {layout:?} derivatives={derivatives}", describe(&spec), spec.looping);
-                    all.merge(compare_output(&eval(&batch, times, layout, derivatives), &batch, times, layout, derivatives, &label));
+                    let label = format!(
+                        "{} loop={} {kind:?} {layout:?} derivatives={derivatives}",
+                        describe(&spec),
+                        spec.looping
+                    );
+                    all.merge(compare_output(
+                        &eval(&batch, times, layout, derivatives),
+                        &batch,
+                        times,
+                        layout,
+                        derivatives,
+                        &label,
+                    ));
                 }
             }
         }

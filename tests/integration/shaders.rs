@@ -40,7 +40,12 @@ fn workgroup_size_is_read_from_the_shader() {
 
 /// (name, offset) of each field of a naga struct.
 fn naga_struct(module: &naga::Module, name: &str) -> (Vec<(String, u32)>, u32) {
-    let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no struct {name}")).1;
+    let ty = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no struct {name}"))
+        .1;
     match &ty.inner {
         naga::TypeInner::Struct { members, span } => {
             (members.iter().map(|m| (m.name.clone().unwrap(), m.offset)).collect(), *span)
@@ -59,8 +64,27 @@ macro_rules! rust_layout {
 fn rust_structs_match_naga_layout_of_their_wgsl_twins() {
     let (module, _) = shader::module().unwrap();
     let track = rust_layout!(
-        GpuTrack, curve, order, blend, flags, point_offset, point_count, coef_offset, knot_offset, knot_count,
-        sample_offset, sample_count, time_offset, start_lo, start_hi, last_lo, last_hi, step_whole, step_frac_hi, step_frac_lo, sample_base,
+        GpuTrack,
+        curve,
+        order,
+        blend,
+        flags,
+        point_offset,
+        point_count,
+        coef_offset,
+        knot_offset,
+        knot_count,
+        sample_offset,
+        sample_count,
+        time_offset,
+        start_lo,
+        start_hi,
+        last_lo,
+        last_hi,
+        step_whole,
+        step_frac_hi,
+        step_frac_lo,
+        sample_base,
     );
     assert_eq!(naga_struct(&module, "GpuTrack"), track);
     let params = rust_layout!(Params, sample_count, track_count, channels, frame_major, groups_x, pad0, pad1, pad2);
@@ -123,14 +147,21 @@ fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
     let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("FkLevel")).expect("FkLevel in fk.wgsl");
     assert_eq!(ty.inner.size(module.to_ctx()) as usize, std::mem::size_of::<quatcurve::gpu::fk::FkLevel>());
     // The channel counts the kernel strides by are the texture's.
-    assert_eq!(shader::constant_u32(&module, "FK_LOCAL_CHANNELS"), Some(quatcurve::bake::texture::LOCAL_CHANNELS as u32));
-    assert_eq!(shader::constant_u32(&module, "FK_MATRIX_CHANNELS"), Some(quatcurve::bake::texture::MATRIX_CHANNELS as u32));
+    assert_eq!(
+        shader::constant_u32(&module, "FK_LOCAL_CHANNELS"),
+        Some(quatcurve::bake::texture::LOCAL_CHANNELS as u32)
+    );
+    assert_eq!(
+        shader::constant_u32(&module, "FK_MATRIX_CHANNELS"),
+        Some(quatcurve::bake::texture::MATRIX_CHANNELS as u32)
+    );
 }
 
 #[test]
 fn series_limit_is_the_rusts() {
     let (module, _) = shader::module().unwrap();
-    let (_, limit) = module.constants.iter().find(|(_, c)| c.name.as_deref() == Some("SERIES_LIMIT")).expect("SERIES_LIMIT");
+    let (_, limit) =
+        module.constants.iter().find(|(_, c)| c.name.as_deref() == Some("SERIES_LIMIT")).expect("SERIES_LIMIT");
     match module.global_expressions[limit.init] {
         naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(f64::from(v), quatcurve::real::SERIES_LIMIT),
         ref other => panic!("SERIES_LIMIT is {other:?}"),
@@ -149,8 +180,29 @@ fn bind_group_layouts_come_from_the_shaders() {
     let (eval, _) = shader::module().unwrap();
     let (fk, _) = shader::fk_module().unwrap();
     for (module, expected) in [
-        (&eval, &[("params", "uniform"), ("tracks", "read"), ("points", "read"), ("coefs", "read"), ("knots", "read"), ("times", "read"), ("out", "read_write"), ("poly", "uniform")][..]),
-        (&fk, &[("fk_local", "read"), ("fk_parents", "read"), ("fk_level_joints", "read"), ("fk_model", "read_write"), ("fk_level", "uniform")][..]),
+        (
+            &eval,
+            &[
+                ("params", "uniform"),
+                ("tracks", "read"),
+                ("points", "read"),
+                ("coefs", "read"),
+                ("knots", "read"),
+                ("times", "read"),
+                ("out", "read_write"),
+                ("poly", "uniform"),
+            ][..],
+        ),
+        (
+            &fk,
+            &[
+                ("fk_local", "read"),
+                ("fk_parents", "read"),
+                ("fk_level_joints", "read"),
+                ("fk_model", "read_write"),
+                ("fk_level", "uniform"),
+            ][..],
+        ),
     ] {
         let resources = shader::Resources::of(module).unwrap();
         let got: Vec<(&str, &str)> = resources.iter().map(|(name, e)| (name, kind(e))).collect();

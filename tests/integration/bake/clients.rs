@@ -79,7 +79,8 @@ type Messages = BTreeMap<(u64, String), Vec<String>>;
 /// does not require it.
 fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gltf-validator");
-    let installed = root.join("node_modules/gltf-validator").is_dir() && std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    let installed = root.join("node_modules/gltf-validator").is_dir()
+        && std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
     if !installed {
         assert!(
             std::env::var("QUATCURVE_REQUIRE_VALIDATOR").as_deref() != Ok("1"),
@@ -90,7 +91,8 @@ fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
     }
     let out = std::process::Command::new("node").arg(root.join("validate.mjs")).args(files).output().unwrap();
     assert!(out.status.success(), "the validator failed: {}", String::from_utf8_lossy(&out.stderr));
-    let reports: Vec<serde_json::Value> = String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let reports: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(reports.len(), files.len());
     Some(
         reports
@@ -126,11 +128,21 @@ fn baked_glbs_pass_the_khronos_validator_as_their_originals_do() {
         for (key, messages) in report {
             let before = original.get(key).map_or(0, Vec::len);
             if messages.len() > before {
-                new.push(format!("{file} ({} at {} Hz): {} x {key:?} where the original has {before}, e.g. {}", bake.curve, bake.rate, messages.len(), messages[0]));
+                new.push(format!(
+                    "{file} ({} at {} Hz): {} x {key:?} where the original has {before}, e.g. {}",
+                    bake.curve,
+                    bake.rate,
+                    messages.len(),
+                    messages[0]
+                ));
             }
         }
     }
-    assert!(new.is_empty(), "the validator reports for baked files what it does not for the originals:\n{}", new.join("\n"));
+    assert!(
+        new.is_empty(),
+        "the validator reports for baked files what it does not for the originals:\n{}",
+        new.join("\n")
+    );
 }
 
 /// Per (clip, node, property): the channel's key times and values as the library reads them.
@@ -159,25 +171,47 @@ fn every_baked_clip_starts_and_ends_on_its_first_and_last_keys() {
         for bake in bakes {
             let path = baked(bake, file);
             let sidecar = super::json(&path.with_extension("json"));
-            let looping: HashMap<&str, bool> = sidecar["clips"].as_array().unwrap().iter().map(|c| (c["name"].as_str().unwrap(), c["loop"].as_bool().unwrap())).collect();
+            let looping: HashMap<&str, bool> = sidecar["clips"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| (c["name"].as_str().unwrap(), c["loop"].as_bool().unwrap()))
+                .collect();
             let (baked_channels, _) = channels(&path);
             assert_eq!(baked_channels.len(), keys.len(), "{file}: every channel baked");
             for ((clip, joint, property), (times, values)) in &baked_channels {
-                let what = format!("{file} ({} at {} Hz) clip '{clip}' node {joint} {property:?}", bake.curve, bake.rate);
+                let what =
+                    format!("{file} ({} at {} Hz) clip '{clip}' node {joint} {property:?}", bake.curve, bake.rate);
                 let (key_times, key_values) = &keys[&(clip.clone(), *joint, *property)];
                 let span = spans[clip];
                 // Frames cover the clip from its first key to its last (f32 times in the file).
-                assert!((times[0] - span[0]).abs() <= 1e-6 * span[1].abs().max(1.0), "{what}: first frame at {} s, clip starts at {} s", times[0], span[0]);
-                assert!((times[times.len() - 1] - span[1]).abs() <= 1e-6 * span[1].abs().max(1.0), "{what}: last frame at {} s, clip ends at {} s", times[times.len() - 1], span[1]);
+                assert!(
+                    (times[0] - span[0]).abs() <= 1e-6 * span[1].abs().max(1.0),
+                    "{what}: first frame at {} s, clip starts at {} s",
+                    times[0],
+                    span[0]
+                );
+                assert!(
+                    (times[times.len() - 1] - span[1]).abs() <= 1e-6 * span[1].abs().max(1.0),
+                    "{what}: last frame at {} s, clip ends at {} s",
+                    times[times.len() - 1],
+                    span[1]
+                );
                 // A looping channel keyed over less than its clip wraps instead of holding.
                 let covers = key_times[0] <= span[0] && span[1] <= key_times[key_times.len() - 1];
                 if looping[clip.as_str()] && !covers {
                     continue;
                 }
-                for (baked_value, key) in [(values[0], key_values[0]), (values[values.len() - 1], key_values[key_values.len() - 1])] {
+                for (baked_value, key) in
+                    [(values[0], key_values[0]), (values[values.len() - 1], key_values[key_values.len() - 1])]
+                {
                     let error = match property {
-                        Property::Rotation => angle(DQuat::from_array(baked_value).normalize(), DQuat::from_array(key).normalize()),
-                        _ => (0..3).map(|i| (baked_value[i] - key[i]).abs() / key[i].abs().max(1.0)).fold(0.0, f64::max),
+                        Property::Rotation => {
+                            angle(DQuat::from_array(baked_value).normalize(), DQuat::from_array(key).normalize())
+                        }
+                        _ => {
+                            (0..3).map(|i| (baked_value[i] - key[i]).abs() / key[i].abs().max(1.0)).fold(0.0, f64::max)
+                        }
                     };
                     if error > worst.0 {
                         worst = (error, what.clone());
@@ -193,9 +227,17 @@ fn every_baked_clip_starts_and_ends_on_its_first_and_last_keys() {
 /// Bytes of the buffer views that the accessors `used` (and nothing else in `doc`) refer to.
 fn view_bytes(doc: &serde_json::Value, used: &[u64]) -> u64 {
     let accessors = doc["accessors"].as_array().unwrap();
-    let views: std::collections::BTreeSet<u64> = used.iter().filter_map(|&a| accessors[a as usize]["bufferView"].as_u64()).collect();
-    let others: std::collections::BTreeSet<u64> = (0..accessors.len() as u64).filter(|a| !used.contains(a)).filter_map(|a| accessors[a as usize]["bufferView"].as_u64()).collect();
-    views.iter().filter(|v| !others.contains(v)).map(|&v| doc["bufferViews"][v as usize]["byteLength"].as_u64().unwrap()).sum()
+    let views: std::collections::BTreeSet<u64> =
+        used.iter().filter_map(|&a| accessors[a as usize]["bufferView"].as_u64()).collect();
+    let others: std::collections::BTreeSet<u64> = (0..accessors.len() as u64)
+        .filter(|a| !used.contains(a))
+        .filter_map(|a| accessors[a as usize]["bufferView"].as_u64())
+        .collect();
+    views
+        .iter()
+        .filter(|v| !others.contains(v))
+        .map(|&v| doc["bufferViews"][v as usize]["byteLength"].as_u64().unwrap())
+        .sum()
 }
 
 /// The accessors of every sampler that bake replaces (rotation, translation, scale).
@@ -229,7 +271,8 @@ fn a_baked_glb_keeps_nothing_that_only_the_replaced_keys_used() {
                 view_bytes(doc, &used) + text as u64
             };
             let (replaced, new) = (sampler_bytes(&before), sampler_bytes(&after));
-            let (size_before, size_after) = (std::fs::metadata(&original).unwrap().len(), std::fs::metadata(&path).unwrap().len());
+            let (size_before, size_after) =
+                (std::fs::metadata(&original).unwrap().len(), std::fs::metadata(&path).unwrap().len());
             // Up to 3 bytes of padding for each of the two chunks, and up to 15 before the keys.
             let bound = size_before - replaced + new + 21;
             assert!(size_after <= bound, "{file} ({} at {} Hz): {size_after} bytes, more than the original's {size_before} - {replaced} replaced + {new} new + 21 padding = {bound}", bake.curve, bake.rate);
@@ -237,7 +280,11 @@ fn a_baked_glb_keeps_nothing_that_only_the_replaced_keys_used() {
             // the replaced ones, plus the new ones.
             let count = |doc: &serde_json::Value, key: &str| doc[key].as_array().map_or(0, Vec::len);
             let (old_samplers, new_samplers) = (sampler_accessors(&before).len(), sampler_accessors(&after).len());
-            assert_eq!(count(&after, "accessors"), count(&before, "accessors") - old_samplers + new_samplers, "{file}: accessors");
+            assert_eq!(
+                count(&after, "accessors"),
+                count(&before, "accessors") - old_samplers + new_samplers,
+                "{file}: accessors"
+            );
             assert_eq!(count(&after, "meshes"), count(&before, "meshes"));
             assert_eq!(count(&after, "images"), count(&before, "images"));
         }

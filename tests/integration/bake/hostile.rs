@@ -22,7 +22,11 @@ fn bvh_counts_are_checked_against_the_text_before_any_allocation() {
     let text = format!("{BVH_HEAD}Frames: 4000000000\nFrame Time: 0.1\n0 0 0\n0 0 10\n");
     assert_rejected("frames.bvh", text.as_bytes(), &["frames.bvh", "Frames: 4000000000 but 2 frame lines follow"]);
     let text = BVH_HEAD.replace("CHANNELS 3", "CHANNELS 99999999999");
-    assert_rejected("channels.bvh", format!("{text}Frames: 1\nFrame Time: 0.1\n0 0 0\n").as_bytes(), &["channels.bvh", "99999999999 channels", "at most 6"]);
+    assert_rejected(
+        "channels.bvh",
+        format!("{text}Frames: 1\nFrame Time: 0.1\n0 0 0\n").as_bytes(),
+        &["channels.bvh", "99999999999 channels", "at most 6"],
+    );
     // A frame time of a century: two frames at 30 Hz would be 3e9 output frames.
     let text = format!("{BVH_HEAD}Frames: 2\nFrame Time: 3e9\n0 0 0\n0 0 10\n");
     assert_rejected("century.bvh", text.as_bytes(), &["century.bvh", "lower rate"]);
@@ -33,15 +37,31 @@ fn gltf_accessors_must_fit_their_bytes() {
     let (mut doc, _) = tiny_gltf_value(&[0.0, 1.0], &[Q, TURN]);
     doc["accessors"][0]["count"] = 4_000_000_000u64.into();
     doc["accessors"][0]["max"] = serde_json::json!([1.0]);
-    assert_rejected("count.gltf", doc.to_string().as_bytes(), &["count.gltf", "clip 'wave', bone rotation", "key times (accessor 0)", "count 4000000000"]);
+    assert_rejected(
+        "count.gltf",
+        doc.to_string().as_bytes(),
+        &["count.gltf", "clip 'wave', bone rotation", "key times (accessor 0)", "count 4000000000"],
+    );
     let (mut doc, _) = tiny_gltf_value(&[0.0, 1.0], &[Q, TURN]);
     doc["bufferViews"][1]["byteStride"] = 252.into();
-    assert_rejected("stride.gltf", doc.to_string().as_bytes(), &["stride.gltf", "key values (accessor 1)", "stride 252"]);
+    assert_rejected(
+        "stride.gltf",
+        doc.to_string().as_bytes(),
+        &["stride.gltf", "key values (accessor 1)", "stride 252"],
+    );
     let (mut doc, _) = tiny_gltf_value(&[0.0, 1.0], &[Q, TURN]);
     doc["bufferViews"][1]["byteLength"] = 1_000_000.into();
-    assert_rejected("view.gltf", doc.to_string().as_bytes(), &["view.gltf", "bufferViews[1]: bytes 8+1000000 lie outside buffer 0"]);
+    assert_rejected(
+        "view.gltf",
+        doc.to_string().as_bytes(),
+        &["view.gltf", "bufferViews[1]: bytes 8+1000000 lie outside buffer 0"],
+    );
     // Two keys a year apart at 30 Hz: a billion frames.
-    assert_rejected("year.gltf", tiny_gltf(&[0.0, 3.2e7], &[Q, TURN]).as_bytes(), &["year.gltf", "clip 'wave'", "lower rate"]);
+    assert_rejected(
+        "year.gltf",
+        tiny_gltf(&[0.0, 3.2e7], &[Q, TURN]).as_bytes(),
+        &["year.gltf", "clip 'wave'", "lower rate"],
+    );
     // A GLB whose JSON chunk claims more bytes than the file has.
     let mut glb = b"glTF".to_vec();
     glb.extend(2u32.to_le_bytes());
@@ -73,7 +93,11 @@ fn gltf_buffer_uris_stay_inside_the_input_directory_unless_allowed() {
         gltf_with_uri(&inner, uri);
         let result = bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--device", "cpu"]);
         assert_eq!(result.status.code(), Some(2), "{uri}: {}", stderr(&result));
-        assert!(stderr(&result).contains(&format!("uri {uri}")) && stderr(&result).contains(why), "{uri}: {}", stderr(&result));
+        assert!(
+            stderr(&result).contains(&format!("uri {uri}")) && stderr(&result).contains(why),
+            "{uri}: {}",
+            stderr(&result)
+        );
         assert!(!out.exists(), "{uri}: output written");
     };
     refused("/etc/passwd", "absolute path");
@@ -94,7 +118,15 @@ fn gltf_buffer_uris_stay_inside_the_input_directory_unless_allowed() {
     // --allow-external-uris reads outside files.
     std::fs::remove_dir_all(&out).unwrap();
     gltf_with_uri(&inner, "../keys.bin");
-    let result = bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--device", "cpu", "--allow-external-uris"]);
+    let result = bake(&[
+        "--input",
+        input.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--device",
+        "cpu",
+        "--allow-external-uris",
+    ]);
     assert!(result.status.success(), "{}", stderr(&result));
 }
 
@@ -108,7 +140,12 @@ fn outputs_get_the_permissions_of_a_plain_file_create() {
     for (umask, mode) in [("022", 0o644), ("027", 0o640), ("002", 0o664)] {
         let out = dir.path().join(format!("out{umask}"));
         let bin = assert_cmd::cargo::cargo_bin("quatcurve");
-        let script = format!("umask {umask} && exec '{}' bake --input '{}' --output '{}' --device cpu", bin.display(), input.display(), out.display());
+        let script = format!(
+            "umask {umask} && exec '{}' bake --input '{}' --output '{}' --device cpu",
+            bin.display(),
+            input.display(),
+            out.display()
+        );
         let result = std::process::Command::new("sh").arg("-c").arg(&script).output().unwrap();
         assert!(result.status.success(), "{}", stderr(&result));
         for entry in std::fs::read_dir(&out).unwrap() {
@@ -123,7 +160,12 @@ fn outputs_get_the_permissions_of_a_plain_file_create() {
 fn no_loader_noise_without_a_runtime_directory() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("demo.json");
-    let result = Command::cargo_bin("quatcurve").unwrap().env_remove("XDG_RUNTIME_DIR").args(["eval", "--output", output.to_str().unwrap()]).output().unwrap();
+    let result = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .env_remove("XDG_RUNTIME_DIR")
+        .args(["eval", "--output", output.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(result.status.success(), "{}", stderr(&result));
     assert!(!stderr(&result).contains("XDG_RUNTIME_DIR"), "{}", stderr(&result));
 }
@@ -135,7 +177,11 @@ fn negative_numbers_reach_our_checks() {
     assert!(stderr(&result).contains("--rate must be a positive number of Hz, not -1"), "{}", stderr(&result));
     let result = quatcurve(&["eval", "--rate", "-1"]);
     assert_eq!(result.status.code(), Some(2));
-    assert!(stderr(&result).contains("--rate: a sample rate must be a positive number of samples per second, got -1"), "{}", stderr(&result));
+    assert!(
+        stderr(&result).contains("--rate: a sample rate must be a positive number of samples per second, got -1"),
+        "{}",
+        stderr(&result)
+    );
 }
 
 #[test]
@@ -216,21 +262,45 @@ fn crashers_found_by_the_mutation_run_are_input_errors() {
     assert_rejected("path.gltf", doc.as_bytes(), &["path.gltf", "target", "path"]);
     // A mesh whose POSITION accessor does not exist (the crate's validation indexes it).
     let doc = crafted(&|d| d["meshes"] = serde_json::json!([{"primitives": [{"attributes": {"POSITION": 9}}]}]));
-    assert_rejected("position.gltf", doc.as_bytes(), &["position.gltf", "attributes.POSITION: accessor 9 does not exist"]);
+    assert_rejected(
+        "position.gltf",
+        doc.as_bytes(),
+        &["position.gltf", "attributes.POSITION: accessor 9 does not exist"],
+    );
     // Key times stored as VEC2 (the crate's reader asserts the element size).
     let doc = crafted(&|d| d["accessors"][0]["type"] = "VEC2".into());
-    assert_rejected("vec2.gltf", doc.as_bytes(), &["vec2.gltf", "key times (accessor 0)", "Vec2 of F32 is not an element type glTF allows here"]);
+    assert_rejected(
+        "vec2.gltf",
+        doc.as_bytes(),
+        &["vec2.gltf", "key times (accessor 0)", "Vec2 of F32 is not an element type glTF allows here"],
+    );
     // A channel targeting a node that does not exist (the crate unwraps the lookup).
     let doc = crafted(&|d| d["animations"][0]["channels"][0]["target"]["node"] = 99.into());
-    assert_rejected("node.gltf", doc.as_bytes(), &["node.gltf", "animations[0].channels[0].target.node: index 99 does not exist"]);
+    assert_rejected(
+        "node.gltf",
+        doc.as_bytes(),
+        &["node.gltf", "animations[0].channels[0].target.node: index 99 does not exist"],
+    );
     // An unused buffer view at byte offset 2^64 - 1 (our GLB writer re-based it with an add).
-    let doc = crafted(&|d| d["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": u64::MAX, "byteLength": 4})));
+    let doc = crafted(&|d| {
+        d["bufferViews"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!({"buffer": 0, "byteOffset": u64::MAX, "byteLength": 4}))
+    });
     assert_rejected("offset.gltf", doc.as_bytes(), &["offset.gltf", "bufferViews[2]", "lie outside buffer 0"]);
     // Found by `cargo fuzz run bvh`: four rotation channels, or one axis twice, crashed the
     // BVH writer (it solves for the angles of 1 or 3 distinct axes).
-    for (channels, found) in [("CHANNELS 4 Zrotation Zrotation Yrotation Xrotation", "4 rotation channels about 3 distinct axes"), ("CHANNELS 3 Zrotation Zrotation Xrotation", "3 rotation channels about 2 distinct axes")] {
-        let text = format!("{}Frames: 2\nFrame Time: 0.1\n0 0 0 0\n0 0 10 0\n", BVH_HEAD.replace("CHANNELS 3 Zrotation Xrotation Yrotation", channels));
-        let text = if channels.starts_with("CHANNELS 3") { text.replace("0 0 0 0\n0 0 10 0", "0 0 0\n0 0 10") } else { text };
+    for (channels, found) in [
+        ("CHANNELS 4 Zrotation Zrotation Yrotation Xrotation", "4 rotation channels about 3 distinct axes"),
+        ("CHANNELS 3 Zrotation Zrotation Xrotation", "3 rotation channels about 2 distinct axes"),
+    ] {
+        let text = format!(
+            "{}Frames: 2\nFrame Time: 0.1\n0 0 0 0\n0 0 10 0\n",
+            BVH_HEAD.replace("CHANNELS 3 Zrotation Xrotation Yrotation", channels)
+        );
+        let text =
+            if channels.starts_with("CHANNELS 3") { text.replace("0 0 0 0\n0 0 10 0", "0 0 0\n0 0 10") } else { text };
         assert_rejected("axes.bvh", text.as_bytes(), &["axes.bvh", found, "0, 1 or 3 distinct axes"]);
     }
 }

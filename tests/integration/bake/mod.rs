@@ -22,7 +22,10 @@ fn data_dir() -> Option<PathBuf> {
         Some(dir)
     } else {
         // CI sets QUATCURVE_REQUIRE_DATA=1, so a green run proves the real files were baked.
-        assert!(std::env::var_os("QUATCURVE_REQUIRE_DATA").is_none(), "../shared/data is absent and QUATCURVE_REQUIRE_DATA is set");
+        assert!(
+            std::env::var_os("QUATCURVE_REQUIRE_DATA").is_none(),
+            "../shared/data is absent and QUATCURVE_REQUIRE_DATA is set"
+        );
         eprintln!("skipped: ../shared/data is absent");
         None
     }
@@ -86,7 +89,15 @@ fn real_files_bake_to_files_that_read_back() {
             Err(_) => gltf::Gltf::from_slice_without_validation(&bytes).unwrap(), // BrainStem: Draco
         };
         let blob = gltf.blob.clone().unwrap();
-        let original = gltf::Gltf::from_slice_without_validation(&std::fs::read(data.join(if name == "SimpleSkin" { "SimpleSkin.gltf".into() } else { format!("{name}.glb") })).unwrap()).unwrap();
+        let original = gltf::Gltf::from_slice_without_validation(
+            &std::fs::read(data.join(if name == "SimpleSkin" {
+                "SimpleSkin.gltf".into()
+            } else {
+                format!("{name}.glb")
+            }))
+            .unwrap(),
+        )
+        .unwrap();
         assert_eq!(gltf.meshes().count(), original.meshes().count(), "{name}: meshes kept");
         assert_eq!(gltf.skins().count(), original.skins().count(), "{name}: skins kept");
         for anim in gltf.animations() {
@@ -98,7 +109,10 @@ fn real_files_bake_to_files_that_read_back() {
                 let step = f64::from(times[times.len() - 1] - times[0]) / (times.len() - 1).max(1) as f64;
                 assert!(times.len() == 1 || (step * 30.0 - 1.0).abs() < 0.02, "{name}: frame step {step}");
                 for (i, t) in times.iter().enumerate() {
-                    assert!((f64::from(*t) - (f64::from(times[0]) + i as f64 * step)).abs() < 1e-4, "{name}: frame {i} at {t}");
+                    assert!(
+                        (f64::from(*t) - (f64::from(times[0]) + i as f64 * step)).abs() < 1e-4,
+                        "{name}: frame {i} at {t}"
+                    );
                 }
                 if let gltf::animation::util::ReadOutputs::Rotations(r) = reader.read_outputs().unwrap() {
                     let values: Vec<[f32; 4]> = r.into_f32().collect();
@@ -117,7 +131,11 @@ fn real_files_bake_to_files_that_read_back() {
         assert_eq!(baked.frames.len(), fitted_frames(0.0, duration, 30.0));
         // The clip's own rate, fitted to its span, as the sidecar records it.
         let rate = json(&out.path().join(format!("{name}.json")))["clips"][0]["rate"].as_f64().unwrap();
-        assert!((baked.frame_time - 1.0 / rate).abs() < 1e-15 && (duration * rate - (baked.frames.len() - 1) as f64).abs() < 1e-9, "{name}: {rate} Hz");
+        assert!(
+            (baked.frame_time - 1.0 / rate).abs() < 1e-15
+                && (duration * rate - (baked.frames.len() - 1) as f64).abs() < 1e-9,
+            "{name}: {rate} Hz"
+        );
     }
 }
 
@@ -178,7 +196,10 @@ fn baking_at_the_source_rate_reproduces_the_keys_in_the_written_files() {
             for joint in &before.joints {
                 let range = column..column + joint.channels.len();
                 column = range.end;
-                let error = angle(bvh::euler_to_quat(&joint.channels, &a[range.clone()]), bvh::euler_to_quat(&joint.channels, &b[range.clone()]));
+                let error = angle(
+                    bvh::euler_to_quat(&joint.channels, &a[range.clone()]),
+                    bvh::euler_to_quat(&joint.channels, &b[range.clone()]),
+                );
                 if error > worst.0 {
                     worst = (error, f, &joint.name);
                 }
@@ -191,7 +212,13 @@ fn baking_at_the_source_rate_reproduces_the_keys_in_the_written_files() {
         }
         eprintln!("{name} with {curve} at 120 Hz: worst frame {:.2e} rad (frame {}, {})", worst.0, worst.1, worst.2);
         // Angles are written with 6 decimals of a degree (1.7e-8 rad).
-        assert!(worst.0 <= 1e-4, "{name} with {curve}: source frames reproduced to {} rad (frame {}, {})", worst.0, worst.1, worst.2);
+        assert!(
+            worst.0 <= 1e-4,
+            "{name} with {curve}: source frames reproduced to {} rad (frame {}, {})",
+            worst.0,
+            worst.1,
+            worst.2
+        );
         assert!(worst_position <= 1e-5, "{name}: positions reproduced to {worst_position}");
     }
 }
@@ -226,17 +253,24 @@ fn bvh_euler_channels_compose_in_file_order_for_every_axis_order() {
     for order in orders {
         let channels: Vec<BvhChannel> = order.iter().map(|&a| BvhChannel::Rotation(a)).collect();
         for a in angles {
-            let expected = mat_mul(mat_mul(axis_matrix(order[0], a[0]), axis_matrix(order[1], a[1])), axis_matrix(order[2], a[2]));
+            let expected =
+                mat_mul(mat_mul(axis_matrix(order[0], a[0]), axis_matrix(order[1], a[1])), axis_matrix(order[2], a[2]));
             let q = bvh::euler_to_quat(&channels, &a);
             let m = q.to_mat3();
             for i in 0..3 {
                 for j in 0..3 {
-                    assert!((m[i][j] - expected[i][j]).abs() < 1e-12, "order {order:?} angles {a:?}: {m:?} vs {expected:?}");
+                    assert!(
+                        (m[i][j] - expected[i][j]).abs() < 1e-12,
+                        "order {order:?} angles {a:?}: {m:?} vs {expected:?}"
+                    );
                 }
             }
             // Back to angles in the same order: the same rotation, near the previous frame.
             let back = bvh::quat_to_euler(&order, q, &a);
-            assert!(bvh::euler_to_quat(&channels, &back).angle_to(q) < 1e-9, "order {order:?} angles {a:?} -> {back:?}");
+            assert!(
+                bvh::euler_to_quat(&channels, &back).angle_to(q) < 1e-9,
+                "order {order:?} angles {a:?} -> {back:?}"
+            );
             if a[1].abs() < 85.0 {
                 assert!(back.iter().zip(a).all(|(b, a)| (b - a).abs() < 1e-9), "order {order:?}: {a:?} -> {back:?}");
             }
@@ -257,7 +291,8 @@ fn tiny_gltf_value(times: &[f32], rotations: &[[f32; 4]]) -> (serde_json::Value,
     let mut bytes: Vec<u8> = times.iter().flat_map(|t| t.to_le_bytes()).collect();
     let offset = bytes.len();
     bytes.extend(rotations.iter().flatten().flat_map(|v| v.to_le_bytes()));
-    let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
     let document = serde_json::json!({
         "asset": {"version": "2.0"},
         "nodes": [{"name": "bone"}],
@@ -284,7 +319,8 @@ fn assert_rejected(name: &str, contents: &[u8], expected: &[&str]) {
     let input = dir.path().join(name);
     std::fs::write(&input, contents).unwrap();
     let out_dir = dir.path().join("out");
-    let result = bake(&["--input", input.to_str().unwrap(), "--output", out_dir.to_str().unwrap(), "--device", "reference"]);
+    let result =
+        bake(&["--input", input.to_str().unwrap(), "--output", out_dir.to_str().unwrap(), "--device", "reference"]);
     assert_eq!(result.status.code(), Some(2), "{name}: {}", stderr(&result));
     let msg = stderr(&result);
     for part in expected {
@@ -297,16 +333,40 @@ fn assert_rejected(name: &str, contents: &[u8], expected: &[&str]) {
 fn bad_inputs_exit_2_naming_file_clip_channel_and_key_and_leave_nothing() {
     let q = [0.0, 0.0, 0.0, 1.0];
     let turn = [0.0, 0.38268343, 0.0, 0.9238795];
-    assert_rejected("stuck.gltf", tiny_gltf(&[0.0, 1.0, 1.0], &[q, turn, q]).as_bytes(), &["stuck.gltf", "clip 'wave', bone rotation", "key 2"]);
-    assert_rejected("zero.gltf", tiny_gltf(&[0.0, 1.0, 2.0], &[q, [0.0; 4], q]).as_bytes(), &["zero.gltf", "bone rotation", "key 1", "norm"]);
-    assert_rejected("nan.gltf", tiny_gltf(&[0.0, 1.0, 2.0], &[q, q, [f32::NAN, 0.0, 0.0, 1.0]]).as_bytes(), &["nan.gltf", "key 2", "not finite"]);
+    assert_rejected(
+        "stuck.gltf",
+        tiny_gltf(&[0.0, 1.0, 1.0], &[q, turn, q]).as_bytes(),
+        &["stuck.gltf", "clip 'wave', bone rotation", "key 2"],
+    );
+    assert_rejected(
+        "zero.gltf",
+        tiny_gltf(&[0.0, 1.0, 2.0], &[q, [0.0; 4], q]).as_bytes(),
+        &["zero.gltf", "bone rotation", "key 1", "norm"],
+    );
+    assert_rejected(
+        "nan.gltf",
+        tiny_gltf(&[0.0, 1.0, 2.0], &[q, q, [f32::NAN, 0.0, 0.0, 1.0]]).as_bytes(),
+        &["nan.gltf", "key 2", "not finite"],
+    );
     assert_rejected("broken.glb", b"glTF\x02\x00\x00\x00garbage", &["broken.glb", "not a valid glTF"]);
     assert_rejected("broken.gltf", b"{\"asset\": ", &["broken.gltf", "not a valid glTF"]);
     let bvh_text = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n";
     let good = "0 0 0 0 0 0\n0 0 0 10 0 0\n";
-    assert_rejected("nan.bvh", format!("{bvh_text}{good}0 0 0 nan 0 0\n").as_bytes(), &["nan.bvh", "Hips rotation", "key 2"]);
-    assert_rejected("short.bvh", format!("{bvh_text}{good}0 0 0\n").as_bytes(), &["short.bvh", "line 16", "frame 2 has 3 values"]);
-    assert_rejected("word.bvh", format!("{bvh_text}{good}0 0 0 x 0 0\n").as_bytes(), &["word.bvh", "line 16", "x is not a number"]);
+    assert_rejected(
+        "nan.bvh",
+        format!("{bvh_text}{good}0 0 0 nan 0 0\n").as_bytes(),
+        &["nan.bvh", "Hips rotation", "key 2"],
+    );
+    assert_rejected(
+        "short.bvh",
+        format!("{bvh_text}{good}0 0 0\n").as_bytes(),
+        &["short.bvh", "line 16", "frame 2 has 3 values"],
+    );
+    assert_rejected(
+        "word.bvh",
+        format!("{bvh_text}{good}0 0 0 x 0 0\n").as_bytes(),
+        &["word.bvh", "line 16", "x is not a number"],
+    );
     assert_rejected("notes.txt", b"hello", &["notes.txt", "unknown format"]);
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("absent.glb");
@@ -328,7 +388,8 @@ fn a_job_over_many_files_finishes_the_good_ones_and_reports_the_bad() {
     let summary = String::from_utf8_lossy(&result.stdout);
     assert!(summary.contains("bad.gltf") && summary.contains("FAILED (input)"), "{summary}");
     assert!(stderr(&result).contains("1 of 2 inputs failed"), "{}", stderr(&result));
-    let mut written: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut written: Vec<String> =
+        std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     written.sort();
     assert_eq!(written, ["good.0.npy", "good.glb", "good.json", "manifest.0-of-1.json"]);
     let (shape, _) = read_npy(&out.join("good.0.npy"));
@@ -347,7 +408,18 @@ fn the_built_in_crowd_bakes_with_every_curve() {
         let out = dir.path().join(curve);
         // Bezier's degree is the key count less one (100 here), above the GPU's 32: auto
         // bakes it on the CPU path and says so.
-        let result = bake(&["--characters", "3", "--curve", curve, "--output", out.to_str().unwrap(), "--rate", "24", "--device", "auto"]);
+        let result = bake(&[
+            "--characters",
+            "3",
+            "--curve",
+            curve,
+            "--output",
+            out.to_str().unwrap(),
+            "--rate",
+            "24",
+            "--device",
+            "auto",
+        ]);
         assert!(result.status.success(), "{curve}: {}", stderr(&result));
         if curve == "bezier" {
             assert!(json(&out.join("crowd.json"))["device"].as_str().unwrap().starts_with("cpu:"));
@@ -383,7 +455,16 @@ fn looping_clips_close_on_their_first_frame_without_a_velocity_jump() {
     let mut seam_ratios = Vec::new();
     for mode in ["auto", "off"] {
         let out = tempfile::tempdir().unwrap();
-        let result = bake(&["--input", fox.to_str().unwrap(), "--rate", "120", "--loop", mode, "--output", out.path().to_str().unwrap()]);
+        let result = bake(&[
+            "--input",
+            fox.to_str().unwrap(),
+            "--rate",
+            "120",
+            "--loop",
+            mode,
+            "--output",
+            out.path().to_str().unwrap(),
+        ]);
         assert!(result.status.success(), "{}", stderr(&result));
         let sidecar = json(&out.path().join("Fox.json"));
         let joints = sidecar["joints"].as_array().unwrap().len();
@@ -391,12 +472,16 @@ fn looping_clips_close_on_their_first_frame_without_a_velocity_jump() {
         for clip in sidecar["clips"].as_array().unwrap() {
             let name = clip["name"].as_str().unwrap();
             assert_eq!(clip["loop"].as_bool().unwrap(), mode == "auto", "{name}");
-            let (start, end, rate) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap(), clip["rate"].as_f64().unwrap());
+            let (start, end, rate) =
+                (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap(), clip["rate"].as_f64().unwrap());
             let (shape, texture) = read_npy(&out.path().join(clip["file"].as_str().unwrap()));
             let frames = shape[0] as usize;
             if mode == "auto" {
                 let periods = (end - start) * rate;
-                assert!((periods - periods.round()).abs() < 1e-9 && frames == periods.round() as usize + 1, "{name}: {frames} frames at {rate} Hz");
+                assert!(
+                    (periods - periods.round()).abs() < 1e-9 && frames == periods.round() as usize + 1,
+                    "{name}: {frames} frames at {rate} Hz"
+                );
                 assert!((rate - 120.0).abs() < 120.0 / (frames - 1) as f64, "{name}: rate {rate}");
             }
             let (mut seam, mut inside) = (0.0f64, 0.0f64);
@@ -411,7 +496,9 @@ fn looping_clips_close_on_their_first_frame_without_a_velocity_jump() {
                     assert!(angle(q[0], q[frames - 1]) < 1e-6, "{name} joint {joint}: last frame is not the first");
                 }
                 let w = frame_velocities(&q, 1.0 / rate);
-                let jump = |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+                let jump = |a: [f64; 3], b: [f64; 3]| {
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+                };
                 seam = seam.max(jump(w[0], w[w.len() - 1]));
                 inside = w.windows(2).map(|p| jump(p[0], p[1])).fold(inside, f64::max);
             }

@@ -80,16 +80,48 @@ fn seeds() -> &'static [Seed] {
 /// One edit of a seed's bytes.
 #[derive(Clone, Debug)]
 enum Mutation {
-    FlipBit { at: usize, bit: u8 },
-    SetByte { at: usize, value: u8 },
-    Delete { at: usize, len: usize },
-    Insert { at: usize, token: &'static str },
+    FlipBit {
+        at: usize,
+        bit: u8,
+    },
+    SetByte {
+        at: usize,
+        value: u8,
+    },
+    Delete {
+        at: usize,
+        len: usize,
+    },
+    Insert {
+        at: usize,
+        token: &'static str,
+    },
     /// Replace the `nth` run of ASCII digits (counts, offsets, indices, key values) by `token`.
-    ReplaceNumber { nth: usize, token: &'static str },
+    ReplaceNumber {
+        nth: usize,
+        token: &'static str,
+    },
 }
 
 const BYTES: &[u8] = b"\x00\xff\x7f\x80-.e\"{}[],: 09";
-const TOKENS: &[&str] = &["-1", "0", "4294967295", "18446744073709551615", "1e308", "-1e308", "NaN", "inf", "1e-320", "99999999999", "2", "\"", ",", "}", "]", "null"];
+const TOKENS: &[&str] = &[
+    "-1",
+    "0",
+    "4294967295",
+    "18446744073709551615",
+    "1e308",
+    "-1e308",
+    "NaN",
+    "inf",
+    "1e-320",
+    "99999999999",
+    "2",
+    "\"",
+    ",",
+    "}",
+    "]",
+    "null",
+];
 
 fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
@@ -170,7 +202,8 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                     bytes
                 };
                 // An empty directory: relative URIs find nothing (the URI tests cover them).
-                let file = gltf::from_bytes(bytes, Path::new("/nonexistent-quatcurve-dir"), gltf::UriPolicy::default())?;
+                let file =
+                    gltf::from_bytes(bytes, Path::new("/nonexistent-quatcurve-dir"), gltf::UriPolicy::default())?;
                 if file.animation.clips.is_empty() {
                     return Ok(());
                 }
@@ -178,7 +211,14 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 file.to_glb(&baked)?;
                 let order = file.animation.parents_first()?;
                 for clip in 0..baked.clips.len() {
-                    let _ = bake::texture::sheets(&file.animation, &order, &baked, clip, bake::texture::TextureKind::Skin, device());
+                    let _ = bake::texture::sheets(
+                        &file.animation,
+                        &order,
+                        &baked,
+                        clip,
+                        bake::texture::TextureKind::Skin,
+                        device(),
+                    );
                 }
             }
             Kind::Bvh => {
@@ -191,7 +231,8 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
                 let _ = file.to_text(&animation.clips[0], &baked);
                 let order = animation.parents_first()?;
-                let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
+                let _ =
+                    bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
             }
             Kind::Npy => {
                 let dir = tempfile::tempdir().unwrap();
@@ -200,16 +241,21 @@ fn run(seed: &Seed, bytes: &[u8]) -> Result<(), String> {
                 let Ok(tracks) = quatcurve::arrays::read_tracks(&path, Some(30.0)) else { return Ok(()) };
                 if let Ok(batch) = Batch::from_tracks(&tracks, &spec) {
                     let times = SampleTimes::uniform(&batch, Sampling::Count(5))?;
-                    device().evaluate(&quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true))?;
+                    device().evaluate(
+                        &quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true),
+                    )?;
                 }
             }
             Kind::Tracks => {
                 let Ok(file) = serde_json::from_slice::<TrackFile>(bytes) else { return Ok(()) };
                 for curve in [Curve::BSplineInterp, Curve::Squad, Curve::Hermite] {
                     let Ok(batch) = Batch::from_tracks(&file.tracks, &CurveSpec::new(curve)) else { continue };
-                    let overrides: Vec<Option<&[f64]>> = file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();
+                    let overrides: Vec<Option<&[f64]>> =
+                        file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();
                     let Ok(times) = SampleTimes::new(&batch, &overrides, Sampling::Count(5)) else { continue };
-                    device().evaluate(&quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true))?;
+                    device().evaluate(
+                        &quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true),
+                    )?;
                 }
             }
         }

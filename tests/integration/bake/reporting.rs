@@ -24,7 +24,10 @@ fn an_output_directory_that_cannot_be_written_fails_before_any_input_is_baked() 
     // and one where a baked file's name is a directory.
     let in_the_way = dir.path().join("in-the-way");
     std::fs::create_dir_all(in_the_way.join("wave.glb")).unwrap();
-    let mut cases = vec![(in_the_way.clone(), "a directory is where a baked file goes"), (dir.path().join("walk.gltf").join("out"), "cannot create the directory")];
+    let mut cases = vec![
+        (in_the_way.clone(), "a directory is where a baked file goes"),
+        (dir.path().join("walk.gltf").join("out"), "cannot create the directory"),
+    ];
     if cfg!(target_os = "linux") {
         cases.push(("/proc".into(), "cannot write into the directory"));
     }
@@ -32,7 +35,11 @@ fn an_output_directory_that_cannot_be_written_fails_before_any_input_is_baked() 
         let result = bake(&["--input", &a, &b, "--output", output.to_str().unwrap()]);
         let message = stderr(&result);
         assert_eq!(result.status.code(), Some(2), "{}: {message}", output.display());
-        assert!(message.contains("--output") && message.contains(why) && message.contains("nothing was baked"), "{}: {message}", output.display());
+        assert!(
+            message.contains("--output") && message.contains(why) && message.contains("nothing was baked"),
+            "{}: {message}",
+            output.display()
+        );
         // No input was baked: no summary, nothing written.
         assert!(result.stdout.is_empty(), "{}: {}", output.display(), String::from_utf8_lossy(&result.stdout));
     }
@@ -52,16 +59,25 @@ fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
     assert!(walk.contains("FAILED (output)"), "{summary}");
     assert!(summary.lines().find(|l| l.contains("wave.gltf")).unwrap().contains("ok"), "{summary}");
     assert!(message.contains("1 of 2 inputs failed (1 output not written); the other was baked"), "{message}");
-    let mut left: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut left: Vec<String> =
+        std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     left.sort();
-    assert_eq!(left, ["manifest.0-of-1.json", "walk.0.npy", "wave.0.npy", "wave.glb", "wave.json"], "the failed input's other outputs are removed");
+    assert_eq!(
+        left,
+        ["manifest.0-of-1.json", "walk.0.npy", "wave.0.npy", "wave.glb", "wave.json"],
+        "the failed input's other outputs are removed"
+    );
     // Both inputs failing say so, not "the others were baked".
     let out = dir.path().join("out2");
     for texture in ["walk.0.npy", "wave.0.npy"] {
         std::fs::create_dir_all(out.join(texture)).unwrap();
     }
     let result = bake(&["--input", &a, &b, "--output", out.to_str().unwrap()]);
-    assert!(stderr(&result).contains("2 of 2 inputs failed (2 output not written); nothing was baked"), "{}", stderr(&result));
+    assert!(
+        stderr(&result).contains("2 of 2 inputs failed (2 output not written); nothing was baked"),
+        "{}",
+        stderr(&result)
+    );
 }
 
 #[test]
@@ -75,7 +91,13 @@ fn probably_broken_source_keys_are_warned_per_channel_without_failing() {
     let result = bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap()]);
     let message = stderr(&result);
     assert!(result.status.success(), "{message}");
-    let expected = ["warning:", "flip.gltf", "clip 'wave', bone rotation", "2 steps between consecutive keys turn more than 90 degrees", "key 1 to key 2 at 1 s, 170 degrees"];
+    let expected = [
+        "warning:",
+        "flip.gltf",
+        "clip 'wave', bone rotation",
+        "2 steps between consecutive keys turn more than 90 degrees",
+        "key 1 to key 2 at 1 s, 170 degrees",
+    ];
     for part in expected {
         assert!(message.contains(part), "lacks {part:?}: {message}");
     }
@@ -101,7 +123,16 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
     std::fs::write(&input, tiny_gltf(&[0.0, 0.5, 1.07], &[Q, TURN, Q])).unwrap();
     let out = dir.path().join("out");
     for (exact, frames, end, rate) in [(false, 12, 1.07, 11.0 / 1.07), (true, 11, 1.0, 10.0)] {
-        let mut args = vec!["--input", input.to_str().unwrap(), "--rate", "10", "--loop", "off", "--output", out.to_str().unwrap()];
+        let mut args = vec![
+            "--input",
+            input.to_str().unwrap(),
+            "--rate",
+            "10",
+            "--loop",
+            "off",
+            "--output",
+            out.to_str().unwrap(),
+        ];
         if exact {
             args.push("--exact-rate");
         }
@@ -119,7 +150,14 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
     }
     // CesiumMan's walk (2 s) at 30 Hz ends on its last key.
     let Some(data) = data_dir() else { return };
-    let result = bake(&["--input", data.join("CesiumMan.glb").to_str().unwrap(), "--rate", "30", "--output", out.to_str().unwrap()]);
+    let result = bake(&[
+        "--input",
+        data.join("CesiumMan.glb").to_str().unwrap(),
+        "--rate",
+        "30",
+        "--output",
+        out.to_str().unwrap(),
+    ]);
     assert!(result.status.success(), "{}", stderr(&result));
     let clip = &json(&out.join("CesiumMan.json"))["clips"][0];
     let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());

@@ -29,7 +29,12 @@ pub(super) fn sha256(bytes: &[u8]) -> String {
 
 /// Statuses by input path in a manifest.
 fn statuses(manifest: &serde_json::Value) -> BTreeMap<String, String> {
-    manifest["inputs"].as_array().unwrap().iter().map(|i| (i["path"].as_str().unwrap().to_string(), i["status"].as_str().unwrap().to_string())).collect()
+    manifest["inputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| (i["path"].as_str().unwrap().to_string(), i["status"].as_str().unwrap().to_string()))
+        .collect()
 }
 
 #[test]
@@ -51,8 +56,15 @@ fn three_shards_equal_one_run_and_resume_redoes_only_damage() {
     run(&whole, &[], &[]);
     // Two shards by flag, one from Slurm's variables (task IDs 10..12: index = ID - MIN).
     run(&sharded, &["--shard", "0/3"], &[]);
-    let summary = run(&sharded, &[], &[("SLURM_ARRAY_TASK_ID", "11"), ("SLURM_ARRAY_TASK_MIN", "10"), ("SLURM_ARRAY_TASK_COUNT", "3")]);
-    assert!(summary.contains("shard 1 of 3 (Slurm: SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT)"), "{summary}");
+    let summary = run(
+        &sharded,
+        &[],
+        &[("SLURM_ARRAY_TASK_ID", "11"), ("SLURM_ARRAY_TASK_MIN", "10"), ("SLURM_ARRAY_TASK_COUNT", "3")],
+    );
+    assert!(
+        summary.contains("shard 1 of 3 (Slurm: SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT)"),
+        "{summary}"
+    );
     // --jobs bakes several inputs at once; nothing it writes may depend on that.
     run(&sharded, &["--shard", "2/3", "--jobs", "3"], &[]);
     let expected = outputs(&whole);
@@ -66,11 +78,15 @@ fn three_shards_equal_one_run_and_resume_redoes_only_damage() {
             let bytes = std::fs::read(input["path"].as_str().unwrap()).unwrap();
             assert_eq!(input["sha256"].as_str().unwrap(), sha256(&bytes));
             for output in input["outputs"].as_array().unwrap() {
-                recorded.insert(output["file"].as_str().unwrap().to_string(), (output["size"].as_u64().unwrap(), output["sha256"].as_str().unwrap().to_string()));
+                recorded.insert(
+                    output["file"].as_str().unwrap().to_string(),
+                    (output["size"].as_u64().unwrap(), output["sha256"].as_str().unwrap().to_string()),
+                );
             }
         }
     }
-    let actual: BTreeMap<String, (u64, String)> = expected.iter().map(|(n, b)| (n.clone(), (b.len() as u64, sha256(b)))).collect();
+    let actual: BTreeMap<String, (u64, String)> =
+        expected.iter().map(|(n, b)| (n.clone(), (b.len() as u64, sha256(b)))).collect();
     assert_eq!(recorded, actual, "manifests do not list every output with its hash");
     // Resume after success: nothing redone.
     let before = json(&sharded.join("manifest.0-of-3.json"));
@@ -82,7 +98,12 @@ fn three_shards_equal_one_run_and_resume_redoes_only_damage() {
         .as_array()
         .unwrap()
         .iter()
-        .map(|i| (i["path"].as_str().unwrap().to_string(), i["outputs"].as_array().unwrap().iter().map(|o| o["file"].as_str().unwrap().to_string()).collect()))
+        .map(|i| {
+            (
+                i["path"].as_str().unwrap().to_string(),
+                i["outputs"].as_array().unwrap().iter().map(|o| o["file"].as_str().unwrap().to_string()).collect(),
+            )
+        })
         .collect();
     assert!(shard0.len() >= 2, "{before}");
     let truncated = sharded.join(&shard0[0].1[0]);
@@ -102,9 +123,18 @@ fn three_shards_equal_one_run_and_resume_redoes_only_damage() {
 
 #[test]
 fn a_scheduler_index_without_a_count_is_exit_2() {
-    let result = quatcurve().args(["bake", "--characters", "1"]).env("JOB_COMPLETION_INDEX", "1").env_remove("QUATCURVE_SHARD_COUNT").output().unwrap();
+    let result = quatcurve()
+        .args(["bake", "--characters", "1"])
+        .env("JOB_COMPLETION_INDEX", "1")
+        .env_remove("QUATCURVE_SHARD_COUNT")
+        .output()
+        .unwrap();
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
-    assert!(stderr(&result).contains("JOB_COMPLETION_INDEX is set but QUATCURVE_SHARD_COUNT is not"), "{}", stderr(&result));
+    assert!(
+        stderr(&result).contains("JOB_COMPLETION_INDEX is set but QUATCURVE_SHARD_COUNT is not"),
+        "{}",
+        stderr(&result)
+    );
 }
 
 /// The repository root's `examples/` file `name`.
@@ -121,7 +151,20 @@ fn the_scheduler_examples_run_as_their_schedulers_run_them() {
     let dir = tempfile::tempdir().unwrap();
     let bin = assert_cmd::cargo::cargo_bin("quatcurve");
     let whole = dir.path().join("whole");
-    let result = quatcurve().args(["bake", "--input", data.to_str().unwrap(), "--output", whole.to_str().unwrap(), "--rate", "30", "--device", "cpu"]).output().unwrap();
+    let result = quatcurve()
+        .args([
+            "bake",
+            "--input",
+            data.to_str().unwrap(),
+            "--output",
+            whole.to_str().unwrap(),
+            "--rate",
+            "30",
+            "--device",
+            "cpu",
+        ])
+        .output()
+        .unwrap();
     assert!(result.status.success(), "{}", stderr(&result));
     let expected = outputs(&whole);
 
@@ -144,16 +187,33 @@ fn the_scheduler_examples_run_as_their_schedulers_run_them() {
 
     // The Job's command line, its completions and QUATCURVE_SHARD_COUNT, from the YAML.
     let yaml = std::fs::read_to_string(example("k8s-indexed-job.yaml")).unwrap();
-    let field = |key: &str| yaml.lines().find_map(|l| l.trim().strip_prefix(key).map(str::trim)).unwrap_or_else(|| panic!("{key} missing"));
+    let field = |key: &str| {
+        yaml.lines().find_map(|l| l.trim().strip_prefix(key).map(str::trim)).unwrap_or_else(|| panic!("{key} missing"))
+    };
     let completions: usize = field("completions:").parse().unwrap();
-    let count = yaml.lines().skip_while(|l| l.trim() != "- name: QUATCURVE_SHARD_COUNT").nth(1).and_then(|l| l.trim().strip_prefix("value:")).unwrap().trim().trim_matches('"');
+    let count = yaml
+        .lines()
+        .skip_while(|l| l.trim() != "- name: QUATCURVE_SHARD_COUNT")
+        .nth(1)
+        .and_then(|l| l.trim().strip_prefix("value:"))
+        .unwrap()
+        .trim()
+        .trim_matches('"');
     assert_eq!(count, completions.to_string(), "QUATCURVE_SHARD_COUNT must equal completions");
     assert_eq!(field("command:"), "[\"quatcurve\"]");
     let args: Vec<String> = serde_json::from_str(field("args:")).unwrap();
     let k8s = dir.path().join("k8s");
-    let args: Vec<String> = args.iter().map(|a| a.replace("/data", data.to_str().unwrap()).replace("/baked", k8s.to_str().unwrap())).collect();
+    let args: Vec<String> = args
+        .iter()
+        .map(|a| a.replace("/data", data.to_str().unwrap()).replace("/baked", k8s.to_str().unwrap()))
+        .collect();
     for index in 0..completions {
-        let result = quatcurve().args(&args).env("JOB_COMPLETION_INDEX", index.to_string()).env("QUATCURVE_SHARD_COUNT", count).output().unwrap();
+        let result = quatcurve()
+            .args(&args)
+            .env("JOB_COMPLETION_INDEX", index.to_string())
+            .env("QUATCURVE_SHARD_COUNT", count)
+            .output()
+            .unwrap();
         assert!(result.status.success(), "pod {index}: {}", stderr(&result));
     }
     assert_eq!(outputs(&k8s), expected, "Kubernetes Indexed Job");

@@ -91,7 +91,10 @@ fn gltf_fk(gltf: &gltf::Gltf, clip: &str) -> Vec<Vec<M4>> {
             (t.map(f64::from), r.map(f64::from), s.map(f64::from))
         })
         .collect();
-    let anim = gltf.animations().find(|a| a.name().map_or_else(|| format!("animation{}", a.index()), str::to_string) == clip).expect("clip in the GLB");
+    let anim = gltf
+        .animations()
+        .find(|a| a.name().map_or_else(|| format!("animation{}", a.index()), str::to_string) == clip)
+        .expect("clip in the GLB");
     // (node, path) -> values per frame.
     let mut tracks: HashMap<(usize, &str), Vec<[f64; 4]>> = HashMap::new();
     let mut frames = 0;
@@ -99,9 +102,15 @@ fn gltf_fk(gltf: &gltf::Gltf, clip: &str) -> Vec<Vec<M4>> {
         let reader = channel.reader(|_| Some(&blob[..]));
         frames = reader.read_inputs().unwrap().count();
         let (path, values): (&str, Vec<[f64; 4]>) = match reader.read_outputs().unwrap() {
-            gltf::animation::util::ReadOutputs::Rotations(r) => ("rotation", r.into_f32().map(|v| v.map(f64::from)).collect()),
-            gltf::animation::util::ReadOutputs::Translations(v) => ("translation", v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()),
-            gltf::animation::util::ReadOutputs::Scales(v) => ("scale", v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect()),
+            gltf::animation::util::ReadOutputs::Rotations(r) => {
+                ("rotation", r.into_f32().map(|v| v.map(f64::from)).collect())
+            }
+            gltf::animation::util::ReadOutputs::Translations(v) => {
+                ("translation", v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect())
+            }
+            gltf::animation::util::ReadOutputs::Scales(v) => {
+                ("scale", v.map(|[x, y, z]| [x, y, z, 0.0].map(f64::from)).collect())
+            }
             gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
         };
         tracks.insert((channel.target().node().index(), path), values);
@@ -156,7 +165,11 @@ fn model_textures_match_forward_kinematics_of_the_baked_files() {
             let expected = gltf_fk(&gltf, clip["name"].as_str().unwrap());
             assert_eq!(shape, [expected.len() as u64, joints as u64, 12], "{name}");
             let frame = joints * 12;
-            let err = expected.iter().enumerate().map(|(f, m)| worst(&texture[f * frame..(f + 1) * frame], m)).fold(0.0, f64::max);
+            let err = expected
+                .iter()
+                .enumerate()
+                .map(|(f, m)| worst(&texture[f * frame..(f + 1) * frame], m))
+                .fold(0.0, f64::max);
             assert!(err <= 1e-5, "{name} clip {}: model texture off by {err} (relative)", clip["name"]);
         }
     }
@@ -170,11 +183,18 @@ fn model_textures_match_forward_kinematics_of_the_baked_files() {
         for clip in sidecar["clips"].as_array().unwrap() {
             let (_, texture) = read_npy(&out.join(clip["file"].as_str().unwrap()));
             let expected = gltf_fk(&gltf, clip["name"].as_str().unwrap());
-            let err = expected.iter().enumerate().map(|(f, m)| worst(&texture[f * joints..(f + 1) * joints], m)).fold(0.0, f64::max);
+            let err = expected
+                .iter()
+                .enumerate()
+                .map(|(f, m)| worst(&texture[f * joints..(f + 1) * joints], m))
+                .fold(0.0, f64::max);
             assert!(err <= 1e-5, "Fox on the GPU, clip {}: model texture off by {err} (relative)", clip["name"]);
         }
     } else {
-        assert!(std::env::var_os("QUATCURVE_REQUIRE_GPU").is_none(), "QUATCURVE_REQUIRE_GPU is set but there is no adapter");
+        assert!(
+            std::env::var_os("QUATCURVE_REQUIRE_GPU").is_none(),
+            "QUATCURVE_REQUIRE_GPU is set but there is no adapter"
+        );
     }
     // BVH: the baked text's OFFSETs, positions and Euler angles, composed here.
     let out = dir.path().join("bvh");
@@ -221,7 +241,17 @@ fn axis_rotation(axis: usize, degrees: f64) -> M4 {
         1 => [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
         _ => [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
     };
-    std::array::from_fn(|i| std::array::from_fn(|j| if i < 3 && j < 3 { r[i][j] } else if i == j { 1.0 } else { 0.0 }))
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            if i < 3 && j < 3 {
+                r[i][j]
+            } else if i == j {
+                1.0
+            } else {
+                0.0
+            }
+        })
+    })
 }
 
 /// Inverse bind matrices of every skin of a GLB, row-major.
@@ -262,7 +292,17 @@ fn assert_skins(out: &Path, model_dir: &Path, stem: &str, sidecar: &serde_json::
                     .zip(ibm)
                     .map(|(&j, ibm)| {
                         let row = &model[(f * joints + j) * 12..(f * joints + j + 1) * 12];
-                        let m: M4 = std::array::from_fn(|i| std::array::from_fn(|jj| if i < 3 { f64::from(row[i * 4 + jj]) } else if jj == 3 { 1.0 } else { 0.0 }));
+                        let m: M4 = std::array::from_fn(|i| {
+                            std::array::from_fn(|jj| {
+                                if i < 3 {
+                                    f64::from(row[i * 4 + jj])
+                                } else if jj == 3 {
+                                    1.0
+                                } else {
+                                    0.0
+                                }
+                            })
+                        });
                         mul(&m, ibm)
                     })
                     .collect();
@@ -293,13 +333,23 @@ fn rig() -> String {
         vec![0.0, s[0], 0.0, 0.0, -s[1], 0.0, 0.0, 0.0, 0.0, 0.0, s[2], 0.0, t[0], t[1], t[2], 1.0]
     };
     let ibm_offset = bytes.len();
-    let ibms: Vec<f32> = [m4([0.1, -0.2, 0.3], [1.0, 1.0, 1.0]), m4([0.0, 0.0, -1.0], [0.5, 0.5, 0.5]), m4([1.0, 2.0, 3.0], [1.0, 1.0, 1.0])].concat();
+    let ibms: Vec<f32> = [
+        m4([0.1, -0.2, 0.3], [1.0, 1.0, 1.0]),
+        m4([0.0, 0.0, -1.0], [0.5, 0.5, 0.5]),
+        m4([1.0, 2.0, 3.0], [1.0, 1.0, 1.0]),
+    ]
+    .concat();
     bytes.extend(ibms.iter().flat_map(|v| v.to_le_bytes()));
     doc["buffers"][0] = serde_json::json!({"byteLength": bytes.len(), "uri": format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes))});
-    doc["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": ibm_offset, "byteLength": 3 * 64}));
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"buffer": 0, "byteOffset": ibm_offset, "byteLength": 3 * 64}));
     let accessors = doc["accessors"].as_array_mut().unwrap();
     accessors.push(serde_json::json!({"bufferView": 2, "componentType": 5126, "count": 2, "type": "MAT4"}));
-    accessors.push(serde_json::json!({"bufferView": 2, "byteOffset": 128, "componentType": 5126, "count": 1, "type": "MAT4"}));
+    accessors.push(
+        serde_json::json!({"bufferView": 2, "byteOffset": 128, "componentType": 5126, "count": 1, "type": "MAT4"}),
+    );
     doc["nodes"] = serde_json::json!([
         {"name": "root", "matrix": m4([1.0, 0.0, 2.0], [2.0, 1.0, 1.0]), "children": [1]},
         {"name": "bone", "translation": [0.0, 1.0, 0.0], "scale": [1.0, 2.0, 0.5], "children": [2]},
@@ -323,7 +373,11 @@ fn matrix_nodes_scales_rest_joints_and_two_skins() {
     assert_eq!(sidecar["rest"][1]["scale"], serde_json::json!([1.0, 2.0, 0.5]));
     // The matrix node's decomposition: scale 2, 1, 1 and a quarter turn about z.
     let rest0 = &sidecar["rest"][0];
-    assert!((rest0["scale"][0].as_f64().unwrap() - 2.0).abs() < 1e-6 && (rest0["rotation"][2].as_f64().unwrap() - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-6, "{rest0}");
+    assert!(
+        (rest0["scale"][0].as_f64().unwrap() - 2.0).abs() < 1e-6
+            && (rest0["rotation"][2].as_f64().unwrap() - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-6,
+        "{rest0}"
+    );
     let (shape, local) = read_npy(&local_dir.join("rig.0.npy"));
     assert_eq!(shape, [5, 4, 10]);
     // Scale columns: rest values, for every frame.
@@ -381,13 +435,24 @@ fn the_crowd_bakes_a_model_texture_of_its_hierarchy_and_previews() {
     let dir = tempfile::tempdir().unwrap();
     let [local_dir, model_dir] = ["local", "model"].map(|k| dir.path().join(k));
     let run = |out: &Path, texture: &str| {
-        let result = bake(&["--characters", "200", "--texture", texture, "--rate", "30", "--preview", "--output", out.to_str().unwrap()]);
+        let result = bake(&[
+            "--characters",
+            "200",
+            "--texture",
+            texture,
+            "--rate",
+            "30",
+            "--preview",
+            "--output",
+            out.to_str().unwrap(),
+        ]);
         assert!(result.status.success(), "{}", stderr(&result));
         json(&out.join("crowd.json"))
     };
     let sidecar = run(&local_dir, "local");
     run(&model_dir, "model");
-    let parents: Vec<Option<usize>> = sidecar["parents"].as_array().unwrap().iter().map(|p| usize::try_from(p.as_i64().unwrap()).ok()).collect();
+    let parents: Vec<Option<usize>> =
+        sidecar["parents"].as_array().unwrap().iter().map(|p| usize::try_from(p.as_i64().unwrap()).ok()).collect();
     assert_eq!(parents.iter().filter(|p| p.is_none()).count(), 200, "one root per character");
     let (shape, local) = read_npy(&local_dir.join("crowd.0.npy"));
     let (_, model) = read_npy(&model_dir.join("crowd.0.npy"));
@@ -398,14 +463,22 @@ fn the_crowd_bakes_a_model_texture_of_its_hierarchy_and_previews() {
         let manifest = json(&out.join("manifest.0-of-1.json"));
         let outputs = manifest["inputs"][0]["outputs"].as_array().unwrap();
         let recorded = outputs.iter().find(|o| o["file"] == "crowd.0.npy").unwrap();
-        assert_eq!((recorded["size"].as_u64().unwrap(), recorded["sha256"].as_str().unwrap()), (bytes.len() as u64, super::shards::sha256(&bytes).as_str()));
+        assert_eq!(
+            (recorded["size"].as_u64().unwrap(), recorded["sha256"].as_str().unwrap()),
+            (bytes.len() as u64, super::shards::sha256(&bytes).as_str())
+        );
     }
     // Every character's hips move forward (z) from frame to frame, in both textures.
     for c in 0..200 {
         let hips = c * 24;
         let z = |f: usize| (local[(f * joints + hips) * 10 + 6], model[(f * joints + hips) * 12 + 11]);
         for f in 1..shape[0] as usize {
-            assert!(z(f).0 > z(f - 1).0 && z(f).1 > z(f - 1).1, "character {c}, frame {f}: hips z {:?} after {:?}", z(f), z(f - 1));
+            assert!(
+                z(f).0 > z(f - 1).0 && z(f).1 > z(f - 1).1,
+                "character {c}, frame {f}: hips z {:?} after {:?}",
+                z(f),
+                z(f - 1)
+            );
         }
     }
     for f in 0..shape[0] as usize {
@@ -435,7 +508,18 @@ fn hierarchies_with_two_parents_or_a_cycle_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("plain.gltf");
     std::fs::write(&input, tiny_gltf_value(&[0.0, 1.0], &[[0.0, 0.0, 0.0, 1.0]; 2]).0.to_string()).unwrap();
-    let result = bake(&["--input", input.to_str().unwrap(), "--output", dir.path().join("out").to_str().unwrap(), "--texture", "skin"]);
+    let result = bake(&[
+        "--input",
+        input.to_str().unwrap(),
+        "--output",
+        dir.path().join("out").to_str().unwrap(),
+        "--texture",
+        "skin",
+    ]);
     assert_eq!(result.status.code(), Some(2));
-    assert!(stderr(&result).contains("has no skin to bake a skin texture for; bake a model texture instead"), "{}", stderr(&result));
+    assert!(
+        stderr(&result).contains("has no skin to bake a skin texture for; bake a model texture instead"),
+        "{}",
+        stderr(&result)
+    );
 }

@@ -5,10 +5,9 @@ use crate::common::*;
 use crate::fast::*;
 use crate::shared_gpu as gpu;
 use quatcurve::gpu::GpuEvaluator;
-use quatcurve::{EvalJob, EvalOptions};
 use quatcurve::FloatOutput;
 use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
-
+use quatcurve::{EvalJob, EvalOptions};
 
 /// Evaluates `batch` on the GPU and compares with the reference.
 pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: EvalOptions, label: &str) -> Worst {
@@ -18,14 +17,25 @@ pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: 
 
 /// The GPU as a fast path under test.
 fn on_gpu(gpu: &GpuEvaluator, generic_kernel: bool) -> impl Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput + '_ {
-    move |batch, times, layout, derivatives| gpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, generic_kernel, ..EvalOptions::default() })).unwrap()
+    move |batch, times, layout, derivatives| {
+        gpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions {
+            layout,
+            derivatives,
+            generic_kernel,
+            ..EvalOptions::default()
+        }))
+        .unwrap()
+    }
 }
 
 #[test]
 fn every_family_order_and_knot_mode_matches_the_reference() {
     let Some(gpu) = gpu() else { return };
     every_family_order_and_knot_mode(&on_gpu(gpu, false)).assert_within_bars("all families, 4 kinds, both layouts");
-    eprintln!("samples excluded by the Nam-Kim blend antipode margin so far: {}", EXCLUDED.load(std::sync::atomic::Ordering::Relaxed));
+    eprintln!(
+        "samples excluded by the Nam-Kim blend antipode margin so far: {}",
+        EXCLUDED.load(std::sync::atomic::Ordering::Relaxed)
+    );
 }
 
 #[test]
@@ -47,7 +57,14 @@ fn repeated_knots_and_mixed_families_in_one_batch() {
     let mut all = Worst::default();
     for generic_kernel in [false, true] {
         let out = on_gpu(gpu, generic_kernel)(&batch, &times, Layout::Track, true);
-        all.merge(compare_output(&out, &batch, &times, Layout::Track, true, &format!("mixed generic={generic_kernel}")));
+        all.merge(compare_output(
+            &out,
+            &batch,
+            &times,
+            Layout::Track,
+            true,
+            &format!("mixed generic={generic_kernel}"),
+        ));
     }
     all.assert_within_bars("mixed batch with repeated knots");
 }
@@ -57,14 +74,19 @@ fn bspline_batches_mixing_orders_and_knot_spacings() {
     let Some(gpu) = gpu() else { return };
     let uniform = [KnotMode::Uniform, KnotMode::Phantom];
     for (orders, modes, what) in [
-        (&[4, 2, 4, 5, 3, 8][..], &[KnotMode::Uniform, KnotMode::Phantom, KnotMode::Clamped][..], "mixed orders and spacings"),
+        (
+            &[4, 2, 4, 5, 3, 8][..],
+            &[KnotMode::Uniform, KnotMode::Phantom, KnotMode::Clamped][..],
+            "mixed orders and spacings",
+        ),
         (&[3, 4, 7][..], &uniform[..], "mixed orders, equally spaced"),
         (&[5][..], &[KnotMode::Clamped, KnotMode::Uniform][..], "one order, mixed spacings"),
         (&[4][..], &uniform[..], "one order, equally spaced (both specializations)"),
     ] {
         let (batch, times) = bspline_batch(orders, modes);
         for layout in [Layout::Track, Layout::Frame] {
-            compare_output(&on_gpu(gpu, false)(&batch, &times, layout, true), &batch, &times, layout, true, what).assert_within_bars(what);
+            compare_output(&on_gpu(gpu, false)(&batch, &times, layout, true), &batch, &times, layout, true, what)
+                .assert_within_bars(what);
         }
     }
 }
@@ -79,7 +101,11 @@ fn sizes_that_are_not_multiples_of_the_workgroup() {
 fn batches_forced_through_many_chunks_match_one_chunk() {
     let Some(full) = gpu() else { return };
     let small = gpu().unwrap().share_device().with_binding_limit(32 * 1024);
-    for spec in [CurveSpec::default(), CurveSpec { knots: KnotMode::Explicit, order: 5, ..CurveSpec::default() }, CurveSpec::new(Curve::NamKim)] {
+    for spec in [
+        CurveSpec::default(),
+        CurveSpec { knots: KnotMode::Explicit, order: 5, ..CurveSpec::default() },
+        CurveSpec::new(Curve::NamKim),
+    ] {
         let batch = batch_for(3, &spec, Kind::Random, 40);
         for (times, layout) in [
             (SampleTimes::uniform(&batch, Sampling::Rate(40.0)).unwrap(), Layout::Track),
@@ -106,8 +132,15 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
         (SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap(), Layout::Track),
     ] {
         let options = EvalOptions { layout, derivatives: true, ..EvalOptions::default() };
-        assert!(pieces.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 3 * 5, "{layout:?}: tracks were not cut");
-        assert_eq!(pieces.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), "{layout:?}: pieces differ");
+        assert!(
+            pieces.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 3 * 5,
+            "{layout:?}: tracks were not cut"
+        );
+        assert_eq!(
+            pieces.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(),
+            full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(),
+            "{layout:?}: pieces differ"
+        );
     }
     // A track whose keys alone overflow a binding is an error naming it, not a crash.
     let tiny = gpu().unwrap().share_device().with_binding_limit(64);
@@ -135,7 +168,10 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
         for &(tracks, keys, start, step) in &runs {
             let times: Vec<f64> = (0..keys).map(|j| start + step * j as f64).collect();
             for _ in 0..tracks {
-                let track = quatcurve::Track { times: Some(times.clone()), ..accurate_track(&mut g, &spec, keys, Kind::Random) };
+                let track = quatcurve::Track {
+                    times: Some(times.clone()),
+                    ..accurate_track(&mut g, &spec, keys, Kind::Random)
+                };
                 builder.add(&track, &spec).unwrap();
             }
         }
@@ -144,10 +180,19 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
         assert_eq!(vectors.len(), runs.len(), "{}: one knot vector per run", describe(&spec));
         let times = SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap();
         let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
-        assert!(small.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 10, "the small limit cuts the runs");
+        assert!(
+            small.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 10,
+            "the small limit cuts the runs"
+        );
         let one = full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
-        assert_eq!(one, small.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(), "{}: chunked result differs", describe(&spec));
-        compare(full, &batch, &times, options, "shared knots").assert_within_bars(&format!("{}: shared knots", describe(&spec)));
+        assert_eq!(
+            one,
+            small.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap(),
+            "{}: chunked result differs",
+            describe(&spec)
+        );
+        compare(full, &batch, &times, options, "shared knots")
+            .assert_within_bars(&format!("{}: shared knots", describe(&spec)));
     }
 }
 
@@ -187,19 +232,27 @@ fn a_track_longer_than_a_binding_is_evaluated_in_pieces() {
     }
     let gpu = gpu().unwrap().share_device().with_binding_limit(100 << 20);
     // A 6.3 s walk keyed at 10 Hz, sampled at 3.2 MHz.
-    let batch = Batch::from_tracks(&quatcurve::synthetic::walk_tracks(1, 64, 10.0), &CurveSpec::new(Curve::BSplineInterp)).unwrap();
+    let batch =
+        Batch::from_tracks(&quatcurve::synthetic::walk_tracks(1, 64, 10.0), &CurveSpec::new(Curve::BSplineInterp))
+            .unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(20_000_000)).unwrap();
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
     let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
     assert!(out.data.len() * 4 > 7 * (100 << 20), "the output must overflow seven bindings");
     drop(gpu);
-    let cpu = quatcurve::cpu::CpuEvaluator::new().evaluate(&quatcurve::EvalJob::new(&batch, &times).with(quatcurve::EvalOptions { derivatives: true, ..Default::default() })).unwrap();
+    let cpu = quatcurve::cpu::CpuEvaluator::new()
+        .evaluate(
+            &quatcurve::EvalJob::new(&batch, &times)
+                .with(quatcurve::EvalOptions { derivatives: true, ..Default::default() }),
+        )
+        .unwrap();
     let (mut rotation, mut omega) = (0.0f32, 0.0f32);
     for slot in (0..20_000_000).step_by(997).chain([19_999_999]) {
         let (g, c) = (&out.data[slot * 10..slot * 10 + 10], &cpu.data[slot * 10..slot * 10 + 10]);
         let sign = if g[..4].iter().zip(&c[..4]).map(|(a, b)| a * b).sum::<f32>() < 0.0 { -1.0 } else { 1.0 };
         rotation = rotation.max(g[..4].iter().zip(&c[..4]).map(|(a, b)| (a - sign * b).abs()).fold(0.0, f32::max));
-        omega = omega.max(g[4..].iter().zip(&c[4..]).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0, f32::max));
+        omega =
+            omega.max(g[4..].iter().zip(&c[4..]).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0, f32::max));
     }
     assert!(rotation < 1e-5 && omega < 1e-3, "GPU pieces vs CPU: rotation {rotation}, derivatives {omega}");
 }

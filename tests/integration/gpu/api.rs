@@ -1,11 +1,11 @@
 //! The evaluator's API: embedding in an existing device, writing into a caller's buffer,
 //! specialized and generic kernels, and errors as values.
 
-use crate::shared_gpu as gpu;
 use crate::common::*;
+use crate::shared_gpu as gpu;
 use quatcurve::gpu::{GpuError, GpuEvaluator};
-use quatcurve::{EvalJob, EvalOptions};
 use quatcurve::{Batch, Curve, CurveSpec, Layout, SampleTimes, Sampling};
+use quatcurve::{EvalJob, EvalOptions};
 
 fn small_batch(spec: &CurveSpec) -> Batch {
     let mut g = Gen::new(2);
@@ -74,7 +74,10 @@ fn with_device_embeds_in_an_existing_application() {
     let evaluator = evaluator.with_binding_limit(1024);
     let frame = EvalOptions { layout: Layout::Frame, derivatives: true, ..EvalOptions::default() };
     assert!(evaluator.prepare(&EvalJob::new(&batch, &times).with(frame)).unwrap().chunk_count() > 1);
-    assert_eq!(evaluator.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data, gpu.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data);
+    assert_eq!(
+        evaluator.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data,
+        gpu.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data
+    );
 }
 
 #[test]
@@ -83,10 +86,23 @@ fn specialized_and_generic_kernels_agree() {
     for spec in all_specs() {
         let batch = small_batch(&spec);
         let times = SampleTimes::uniform(&batch, Sampling::Rate(17.0)).unwrap();
-        let special = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, ..EvalOptions::default() })).unwrap();
-        let generic = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, generic_kernel: true, ..EvalOptions::default() })).unwrap();
+        let special = gpu
+            .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, ..EvalOptions::default() }))
+            .unwrap();
+        let generic = gpu
+            .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+                derivatives: true,
+                generic_kernel: true,
+                ..EvalOptions::default()
+            }))
+            .unwrap();
         // Same code, different specialization: allow only f32 rounding differences.
-        let diff = special.data.iter().zip(&generic.data).map(|(a, b)| (a - b).abs() / b.abs().max(1.0)).fold(0.0f32, f32::max);
+        let diff = special
+            .data
+            .iter()
+            .zip(&generic.data)
+            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
+            .fold(0.0f32, f32::max);
         assert!(diff < 1e-5, "{}: {diff}", describe(&spec));
     }
 }
@@ -96,7 +112,9 @@ fn matrix_output_matches_the_rotation() {
     let Some(gpu) = gpu() else { return };
     let batch = small_batch(&CurveSpec::new(Curve::Hermite));
     let times = SampleTimes::uniform(&batch, Sampling::Count(11)).unwrap();
-    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() })).unwrap();
+    let out = gpu
+        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() }))
+        .unwrap();
     assert_eq!(out.channels, 13);
     for row in out.data.chunks_exact(13) {
         let q = quatcurve::DQuat::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
@@ -127,7 +145,8 @@ fn unsupported_batches_are_errors_naming_the_track() {
 #[test]
 fn knots_closer_than_the_gpu_time_resolution_are_refused() {
     let Some(gpu) = gpu() else { return };
-    let keys: Vec<[f64; 4]> = (0..5).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.1 * f64::from(i), 0.0, 0.0)).to_array()).collect();
+    let keys: Vec<[f64; 4]> =
+        (0..5).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.1 * f64::from(i), 0.0, 0.0)).to_array()).collect();
     let times: Vec<f64> = (0..5).map(|i| 1e-11 * f64::from(i)).collect();
     let mut tiny = quatcurve::Track::from_rotations(keys.clone());
     tiny.times = Some(times);
@@ -150,7 +169,10 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
     // An evaluator of its own: the shared one is used by other tests in parallel.
     let evaluator = gpu().unwrap().share_device();
     let batch = small_batch(&CurveSpec::new(Curve::Hermite));
-    let (big, small) = (SampleTimes::uniform(&batch, Sampling::Count(500)).unwrap(), SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap());
+    let (big, small) = (
+        SampleTimes::uniform(&batch, Sampling::Count(500)).unwrap(),
+        SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap(),
+    );
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
     let fresh = evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap();
     evaluator.evaluate(&EvalJob::new(&batch, &big).with(options)).unwrap();
@@ -173,7 +195,12 @@ fn reused_input_buffers_give_the_same_samples_as_fresh_ones() {
     let times = |batch: &Batch| SampleTimes::uniform(batch, Sampling::Count(33)).unwrap();
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
     for limit in [u64::MAX, 8 * 1024] {
-        let fresh = gpu().unwrap().share_device().with_binding_limit(limit).evaluate(&EvalJob::new(&small, &times(&small)).with(options)).unwrap();
+        let fresh = gpu()
+            .unwrap()
+            .share_device()
+            .with_binding_limit(limit)
+            .evaluate(&EvalJob::new(&small, &times(&small)).with(options))
+            .unwrap();
         // An evaluator of its own: the shared one is used by other tests in parallel.
         let evaluator = gpu().unwrap().share_device().with_binding_limit(limit);
         evaluator.evaluate(&EvalJob::new(&large, &times(&large)).with(options)).unwrap();
@@ -218,7 +245,9 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     let evaluator = gpu().unwrap().share_device();
     let software = evaluator.is_software();
     let device = quatcurve::Device::Auto(Box::new(evaluator), quatcurve::cpu::CpuEvaluator::new());
-    let keys: Vec<[f64; 4]> = (0..40).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
+    let keys: Vec<[f64; 4]> = (0..40)
+        .map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array())
+        .collect();
     let batch = Batch::from_tracks(&[quatcurve::Track::from_rotations(keys)], &CurveSpec::new(Curve::Bezier)).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(5)).unwrap();
     let job = quatcurve::EvalJob::new(&batch, &times).layout(Layout::Track).derivatives(false);
@@ -226,7 +255,9 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     assert!(name.starts_with("cpu:"), "{name}");
     let small = small_batch(&CurveSpec::default());
     let times = SampleTimes::uniform(&small, Sampling::Count(5)).unwrap();
-    let (_, name) = device.evaluate_named(&quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false)).unwrap();
+    let (_, name) = device
+        .evaluate_named(&quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false))
+        .unwrap();
     assert!(name.starts_with("gpu:"), "{name}");
     // lavapipe is a software adapter: plain `auto` opens the CPU path there.
     if software {
@@ -250,7 +281,14 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
         animation.joints.push(joint);
     }
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
-    let baked = quatcurve::bake::bake(&animation, &CurveSpec::new(Curve::BSplineInterp), quatcurve::bake::ClipRate::Fit(30.0), quatcurve::bake::LoopMode::Auto, &device).unwrap();
+    let baked = quatcurve::bake::bake(
+        &animation,
+        &CurveSpec::new(Curve::BSplineInterp),
+        quatcurve::bake::ClipRate::Fit(30.0),
+        quatcurve::bake::LoopMode::Auto,
+        &device,
+    )
+    .unwrap();
     let order = animation.parents_first().unwrap();
     let local = texture::local(&animation, &baked, 0);
     let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();

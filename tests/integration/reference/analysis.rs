@@ -18,7 +18,11 @@ fn random_track(seed: u64, curve: Curve, count: usize) -> Track {
     let mut g = Gen::new(seed);
     let uniform = matches!(curve, Curve::BSpline | Curve::Squad);
     let times = times(&mut g, count, uniform);
-    Track { name: Some(format!("seed{seed}")), times: Some(times), ..Track::from_rotations(keys(&mut g, count, Kind::Random)) }
+    Track {
+        name: Some(format!("seed{seed}")),
+        times: Some(times),
+        ..Track::from_rotations(keys(&mut g, count, Kind::Random))
+    }
 }
 
 fn one(track: &Track, spec: &CurveSpec, options: &AnalysisOptions) -> Metrics {
@@ -33,8 +37,15 @@ fn relative(a: f64, b: f64) -> f64 {
 /// Energy, torque energy and arc length by 5-point Gauss-Legendre on 64 pieces of every key
 /// interval (nodes never on a key, so the side of a jump never matters).
 fn gauss_legendre(track: &Track, spec: &CurveSpec, inertia: [f64; 3]) -> [f64; 3] {
-    const X: [f64; 5] = [0.0, -0.538_469_310_105_683, 0.538_469_310_105_683, -0.906_179_845_938_664, 0.906_179_845_938_664];
-    const W: [f64; 5] = [0.568_888_888_888_889, 0.478_628_670_499_366, 0.478_628_670_499_366, 0.236_926_885_056_189, 0.236_926_885_056_189];
+    const X: [f64; 5] =
+        [0.0, -0.538_469_310_105_683, 0.538_469_310_105_683, -0.906_179_845_938_664, 0.906_179_845_938_664];
+    const W: [f64; 5] = [
+        0.568_888_888_888_889,
+        0.478_628_670_499_366,
+        0.478_628_670_499_366,
+        0.236_926_885_056_189,
+        0.236_926_885_056_189,
+    ];
     let batch = Batch::from_tracks(std::slice::from_ref(track), spec).unwrap();
     let view = batch.view(0);
     let key_times = track.times.clone().unwrap();
@@ -63,12 +74,20 @@ fn gauss_legendre(track: &Track, spec: &CurveSpec, inertia: [f64; 3]) -> [f64; 3
 #[test]
 fn integrals_match_gauss_legendre_for_every_family() {
     let options = AnalysisOptions { inertia: INERTIA, step: None };
-    for (seed, curve) in [Curve::BSplineInterp, Curve::Hermite, Curve::Squad, Curve::NamKim, Curve::BSpline, Curve::Bezier, Curve::Slerp].into_iter().enumerate() {
+    for (seed, curve) in
+        [Curve::BSplineInterp, Curve::Hermite, Curve::Squad, Curve::NamKim, Curve::BSpline, Curve::Bezier, Curve::Slerp]
+            .into_iter()
+            .enumerate()
+    {
         let count = if curve == Curve::Bezier { 5 } else { 7 };
         let track = random_track(seed as u64 + 10, curve, count);
         let m = one(&track, &spec(curve), &options);
         let [energy, torque, arc] = gauss_legendre(&track, &spec(curve), INERTIA);
-        for (what, got, want) in [("energy", m.energy, energy), ("torque_energy", m.torque_energy, torque), ("arc_length", m.arc_length, arc)] {
+        for (what, got, want) in [
+            ("energy", m.energy, energy),
+            ("torque_energy", m.torque_energy, torque),
+            ("arc_length", m.arc_length, arc),
+        ] {
             if curve == Curve::Slerp && what != "arc_length" {
                 // No acceleration inside a slerp segment; the torque is the gyroscopic term alone.
                 assert!(m.energy < 1e-18, "{curve}: energy {}", m.energy);
@@ -94,8 +113,16 @@ fn maxima_bound_dense_samples() {
             w = w.max(s.angular_velocity.length());
             a = a.max(s.angular_acceleration.length());
         }
-        assert!(m.max_omega >= w * (1.0 - 1e-3) && m.max_omega <= w * (1.0 + 1e-2), "{curve}: max_omega {} vs sampled {w}", m.max_omega);
-        assert!(m.max_alpha >= a * (1.0 - 1e-3) && m.max_alpha <= a * (1.0 + 1e-2), "{curve}: max_alpha {} vs sampled {a}", m.max_alpha);
+        assert!(
+            m.max_omega >= w * (1.0 - 1e-3) && m.max_omega <= w * (1.0 + 1e-2),
+            "{curve}: max_omega {} vs sampled {w}",
+            m.max_omega
+        );
+        assert!(
+            m.max_alpha >= a * (1.0 - 1e-3) && m.max_alpha <= a * (1.0 + 1e-2),
+            "{curve}: max_alpha {} vs sampled {a}",
+            m.max_alpha
+        );
     }
 }
 
@@ -143,7 +170,10 @@ fn natural_spline_moments(t: &[f64], y: &[f64]) -> Vec<f64> {
 /// `integral theta''^2` of the natural spline: theta'' is linear on each interval.
 fn natural_spline_energy(t: &[f64], y: &[f64]) -> f64 {
     let m = natural_spline_moments(t, y);
-    t.windows(2).enumerate().map(|(i, w)| (w[1] - w[0]) / 3.0 * (m[i] * m[i] + m[i] * m[i + 1] + m[i + 1] * m[i + 1])).sum()
+    t.windows(2)
+        .enumerate()
+        .map(|(i, w)| (w[1] - w[0]) / 3.0 * (m[i] * m[i] + m[i] * m[i + 1] + m[i + 1] * m[i + 1]))
+        .sum()
 }
 
 fn about(axis: DVec3, angles: &[f64], key_times: &[f64]) -> Track {
@@ -155,7 +185,11 @@ fn about(axis: DVec3, angles: &[f64], key_times: &[f64]) -> Track {
 fn one_axis_bspline_interp_energy_is_the_natural_spline_integral() {
     // By hand: angles 0, a, 0 at 0, 1, 2 s give M_1 = -3a, so the energy is 2 * (9 a^2 / 3) = 6 a^2.
     let a = 0.8;
-    let m = one(&about(DVec3::new(0.0, 0.0, 1.0), &[0.0, a, 0.0], &[0.0, 1.0, 2.0]), &spec(Curve::BSplineInterp), &AnalysisOptions::default());
+    let m = one(
+        &about(DVec3::new(0.0, 0.0, 1.0), &[0.0, a, 0.0], &[0.0, 1.0, 2.0]),
+        &spec(Curve::BSplineInterp),
+        &AnalysisOptions::default(),
+    );
     assert!(relative(m.energy, 6.0 * a * a) < 1e-7, "{} vs {}", m.energy, 6.0 * a * a);
     assert!(relative(natural_spline_energy(&[0.0, 1.0, 2.0], &[0.0, a, 0.0]), 6.0 * a * a) < 1e-12);
     for seed in 0..8 {
@@ -181,7 +215,14 @@ fn one_axis_bspline_interp_energy_is_the_natural_spline_integral() {
 fn alpha_jumps_only_where_the_family_is_c1() {
     let options = AnalysisOptions::default();
     for seed in 0..6 {
-        for (curve, looping) in [(Curve::BSplineInterp, false), (Curve::BSpline, false), (Curve::Hermite, false), (Curve::Squad, false), (Curve::BSplineInterp, true), (Curve::Hermite, true)] {
+        for (curve, looping) in [
+            (Curve::BSplineInterp, false),
+            (Curve::BSpline, false),
+            (Curve::Hermite, false),
+            (Curve::Squad, false),
+            (Curve::BSplineInterp, true),
+            (Curve::Hermite, true),
+        ] {
             let mut track = random_track(200 + seed, curve, 6);
             if looping {
                 let first = track.rotations[0];
@@ -193,11 +234,25 @@ fn alpha_jumps_only_where_the_family_is_c1() {
             let m = one(&track, &spec, &options);
             let c2 = matches!(curve, Curve::BSplineInterp | Curve::BSpline);
             if c2 {
-                assert!(m.alpha_jump <= 1e-6 * m.max_alpha, "{curve} loop {looping} seed {seed}: jump {} of {}", m.alpha_jump, m.max_alpha);
+                assert!(
+                    m.alpha_jump <= 1e-6 * m.max_alpha,
+                    "{curve} loop {looping} seed {seed}: jump {} of {}",
+                    m.alpha_jump,
+                    m.max_alpha
+                );
             } else {
-                assert!(m.alpha_jump >= 1e-2 * m.max_alpha, "{curve} loop {looping} seed {seed}: jump {} of {}", m.alpha_jump, m.max_alpha);
+                assert!(
+                    m.alpha_jump >= 1e-2 * m.max_alpha,
+                    "{curve} loop {looping} seed {seed}: jump {} of {}",
+                    m.alpha_jump,
+                    m.max_alpha
+                );
             }
-            assert!(m.omega_jump <= 1e-6 * m.max_omega, "{curve} loop {looping} seed {seed}: omega jump {}", m.omega_jump);
+            assert!(
+                m.omega_jump <= 1e-6 * m.max_omega,
+                "{curve} loop {looping} seed {seed}: omega jump {}",
+                m.omega_jump
+            );
         }
         let slerp = one(&random_track(200 + seed, Curve::Slerp, 6), &spec(Curve::Slerp), &options);
         assert!(slerp.omega_jump >= 1e-2 * slerp.max_omega, "slerp seed {seed}: {slerp:?}");
@@ -214,12 +269,23 @@ fn the_fast_cpu_path_gives_the_same_figures() {
     for curve in [Curve::BSplineInterp, Curve::Hermite, Curve::Squad, Curve::NamKim] {
         let tracks: Vec<Track> = (0..3).map(|s| random_track(300 + s, curve, 6)).collect();
         let batch = Batch::from_tracks(&tracks, &spec(curve)).unwrap();
-        let (want, got) = (analyze(&batch, &Device::Reference, &options).unwrap(), analyze(&batch, &cpu, &options).unwrap());
+        let (want, got) =
+            (analyze(&batch, &Device::Reference, &options).unwrap(), analyze(&batch, &cpu, &options).unwrap());
         for (w, g) in want.iter().zip(&got) {
-            for (what, a, b) in [("energy", g.energy, w.energy), ("torque", g.torque_energy, w.torque_energy), ("arc", g.arc_length, w.arc_length), ("max_alpha", g.max_alpha, w.max_alpha)] {
+            for (what, a, b) in [
+                ("energy", g.energy, w.energy),
+                ("torque", g.torque_energy, w.torque_energy),
+                ("arc", g.arc_length, w.arc_length),
+                ("max_alpha", g.max_alpha, w.max_alpha),
+            ] {
                 assert!(relative(a, b) <= 1e-3, "{curve} {what}: cpu {a} vs reference {b}");
             }
-            assert!(g.alpha_jump <= w.alpha_jump + 1e-3 * w.max_alpha && g.alpha_jump >= w.alpha_jump - 1e-3 * w.max_alpha, "{curve}: jump {} vs {}", g.alpha_jump, w.alpha_jump);
+            assert!(
+                g.alpha_jump <= w.alpha_jump + 1e-3 * w.max_alpha && g.alpha_jump >= w.alpha_jump - 1e-3 * w.max_alpha,
+                "{curve}: jump {} vs {}",
+                g.alpha_jump,
+                w.alpha_jump
+            );
         }
     }
 }
@@ -234,7 +300,10 @@ fn bad_options_are_errors() {
     let e = run(AnalysisOptions { inertia: [1.0; 3], step: Some(1e-12) });
     assert!(matches!(e, AnalysisError::TooManyNodes { .. }) && e.to_string().contains("seed1"), "{e}");
     // A step so small that the node count overflows any integer is the same error.
-    assert!(matches!(run(AnalysisOptions { inertia: [1.0; 3], step: Some(1e-300) }), AnalysisError::TooManyNodes { .. }));
+    assert!(matches!(
+        run(AnalysisOptions { inertia: [1.0; 3], step: Some(1e-300) }),
+        AnalysisError::TooManyNodes { .. }
+    ));
     // Every span gets an even number of steps, at least 2, and nodes stay inside the domain.
     let n = nodes(batch.view(0), "t", Some(10.0)).unwrap();
     assert!(n.spans.iter().all(|s| s.steps == 2), "{:?}", n.spans);

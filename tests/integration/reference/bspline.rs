@@ -23,7 +23,8 @@ fn jumps(batch: &Batch, t: f64, h: f64) -> [f64; 4] {
     let alpha = (extrapolate(l0.angular_acceleration, l1.angular_acceleration) - r0.angular_acceleration).max_abs();
     // Third derivative from each side: second-order one-sided differences of alpha.
     let one_sided = |f: &dyn Fn(f64) -> quatcurve::Sample, sign: f64| {
-        let (a0, a1, a2) = (f(1e-9 * h).angular_acceleration, f(h).angular_acceleration, f(2.0 * h).angular_acceleration);
+        let (a0, a1, a2) =
+            (f(1e-9 * h).angular_acceleration, f(h).angular_acceleration, f(2.0 * h).angular_acceleration);
         (a1.scale(4.0) - a0.scale(3.0) - a2).scale(sign / (2.0 * h))
     };
     let third = (one_sided(&left, -1.0) - one_sided(&right, 1.0)).max_abs();
@@ -45,7 +46,14 @@ fn continuity_is_c_k_minus_2_across_every_knot() {
                 if knots == KnotMode::Explicit {
                     // Simple interior knots here: repeated knots lower continuity by design.
                     let mut t = 0.0;
-                    track.knots = Some((0..count + order).map(|_| { t += g.range(0.3, 1.0); t }).collect());
+                    track.knots = Some(
+                        (0..count + order)
+                            .map(|_| {
+                                t += g.range(0.3, 1.0);
+                                t
+                            })
+                            .collect(),
+                    );
                 }
                 let batch = Batch::from_tracks(&[track], &s).unwrap();
                 let view = batch.view(0);
@@ -58,7 +66,11 @@ fn continuity_is_c_k_minus_2_across_every_knot() {
                     let limits = [1e-9, 1e-6 * scale, 1e-5 * scale, 1e-3 * scale * 10.0];
                     for d in 0..4 {
                         if d + 2 <= order {
-                            assert!(j[d] < limits[d], "order {order} {knots:?} seed {seed}: derivative {d} jumps by {} at knot {t}", j[d]);
+                            assert!(
+                                j[d] < limits[d],
+                                "order {order} {knots:?} seed {seed}: derivative {d} jumps by {} at knot {t}",
+                                j[d]
+                            );
                             worst[d] = worst[d].max(j[d] / limits[d]);
                         }
                     }
@@ -67,7 +79,11 @@ fn continuity_is_c_k_minus_2_across_every_knot() {
                     }
                 }
                 if order <= 4 && !interior.is_empty() {
-                    assert!(saw_jump, "order {order} {knots:?}: derivative {} never jumps; the measurement is blind", order - 1);
+                    assert!(
+                        saw_jump,
+                        "order {order} {knots:?}: derivative {} never jumps; the measurement is blind",
+                        order - 1
+                    );
                 }
             }
         }

@@ -39,7 +39,11 @@ fn check(seed: u64) -> Result<(), TestCaseError> {
                 let angle = quatcurve::evaluate(batch.view(0), t).rotation.log().to_array()[axis];
                 let value = curve.evaluate(t).to_array()[axis];
                 let err = (angle - value).abs();
-                prop_assert!(err < 1e-12, "{}: axis {axis}, t={t}: vector {value} vs rotation angle {angle} ({err:e})", describe(&spec));
+                prop_assert!(
+                    err < 1e-12,
+                    "{}: axis {axis}, t={t}: vector {value} vs rotation angle {angle} ({err:e})",
+                    describe(&spec)
+                );
             }
         }
     }
@@ -65,6 +69,8 @@ fn vector_channels_reject_bad_values_and_given_tangents_by_name() {
     let spec = quatcurve::CurveSpec { tangents: Tangents::Given, ..quatcurve::CurveSpec::new(Curve::NamKim) };
     let err = VectorCurve::new(&id, None, &[[0.0; 3], [1.0; 3]], None, &spec).unwrap_err();
     assert!(matches!(err, Error::VectorTangents { .. }), "{err}");
-    let err = VectorCurve::new(&id, Some(&[0.0, 0.0]), &[[0.0; 3], [1.0; 3]], None, &quatcurve::CurveSpec::new(Curve::Slerp)).unwrap_err();
+    let err =
+        VectorCurve::new(&id, Some(&[0.0, 0.0]), &[[0.0; 3], [1.0; 3]], None, &quatcurve::CurveSpec::new(Curve::Slerp))
+            .unwrap_err();
     assert!(matches!(err, Error::TimesNotIncreasing { key: 1, .. }), "{err}");
 }

@@ -41,7 +41,10 @@ fn derivative_errors(batch: &Batch, index: usize) -> ([f64; 3], String) {
             rel_err(s.angular_acceleration, alpha),
         ];
         if e[0].max(e[1]) > worst.0[0].max(worst.0[1]) {
-            worst.1 = format!("t={t} omega={:?} fd={omega:?} alpha={:?} fd={alpha_from_omega:?}", s.angular_velocity, s.angular_acceleration);
+            worst.1 = format!(
+                "t={t} omega={:?} fd={omega:?} alpha={:?} fd={alpha_from_omega:?}",
+                s.angular_velocity, s.angular_acceleration
+            );
         }
         for (w, e) in worst.0.iter_mut().zip(e) {
             *w = w.max(e);
@@ -82,7 +85,11 @@ fn check_track(seed: u64, kind: Kind) -> Result<(), TestCaseError> {
 
         // Exact derivatives against finite differences.
         let ([omega, alpha, alpha_q], place) = derivative_errors(&batch, 0);
-        prop_assert!(omega.max(alpha) < 1e-6, "{} {kind:?}: derivative relative errors {omega:e} {alpha:e} at {place}", describe(&spec));
+        prop_assert!(
+            omega.max(alpha) < 1e-6,
+            "{} {kind:?}: derivative relative errors {omega:e} {alpha:e} at {place}",
+            describe(&spec)
+        );
         // Rounding-limited (see derivative_errors): a sanity bound, measured worst 7e-5 over
         // 480 cases per kind (Nam-Kim at 20 rad/s over near-identical keys).
         prop_assert!(alpha_q < 1e-3, "{} {kind:?}: alpha vs second differences of q {alpha_q:e}", describe(&spec));

@@ -24,7 +24,11 @@ fn reproduces_key_rotations_and_angular_velocities_from_both_sides() {
             let omega = DVec3::from_array(omegas[i]);
             let at = eval(&batch, 0, times[i]);
             assert!(at.rotation.angle_to(key) < 1e-12, "seed {seed} key {i}");
-            assert!(rel_err(at.angular_velocity, omega) < 1e-12, "seed {seed} key {i}: {:?} vs {omega:?}", at.angular_velocity);
+            assert!(
+                rel_err(at.angular_velocity, omega) < 1e-12,
+                "seed {seed} key {i}: {:?} vs {omega:?}",
+                at.angular_velocity
+            );
             worst = worst.max(rel_err(at.angular_velocity, omega));
             if i > 0 {
                 // The segment ending at key i, evaluated at its end (left limit).

@@ -162,8 +162,16 @@ fn one_axis_equals_the_scalar_natural_and_periodic_splines() {
             let [y, dy, ddy] = scalar.eval(t);
             let err = s.rotation.angle_to(DQuat::exp(axis.scale(y / 2.0)));
             assert!(err < 1e-9, "seed {seed} loop {looping}: rotation off the scalar spline by {err:e} at t={t}");
-            assert!(rel_err(s.angular_velocity, axis.scale(dy)) < 1e-8, "seed {seed}: omega {:?} vs {dy}", s.angular_velocity);
-            assert!(rel_err(s.angular_acceleration, axis.scale(ddy)) < 1e-7, "seed {seed}: alpha {:?} vs {ddy}", s.angular_acceleration);
+            assert!(
+                rel_err(s.angular_velocity, axis.scale(dy)) < 1e-8,
+                "seed {seed}: omega {:?} vs {dy}",
+                s.angular_velocity
+            );
+            assert!(
+                rel_err(s.angular_acceleration, axis.scale(ddy)) < 1e-7,
+                "seed {seed}: alpha {:?} vs {ddy}",
+                s.angular_acceleration
+            );
         }
     }
 }
@@ -206,7 +214,9 @@ fn through_every_key_c2_natural_or_periodic_on_hard_inputs() {
         };
         let n = count - 1;
         let scale = times[n] - times[0];
-        let alpha_max = (0..=400).map(|i| eval(&batch, 0, times[0] + scale * i as f64 / 400.0).angular_acceleration.length()).fold(1.0, f64::max);
+        let alpha_max = (0..=400)
+            .map(|i| eval(&batch, 0, times[0] + scale * i as f64 / 400.0).angular_acceleration.length())
+            .fold(1.0, f64::max);
         for (i, &key) in keys.iter().enumerate() {
             let err = eval(&batch, 0, times[i]).rotation.angle_to(key);
             worst_key = worst_key.max(err);
@@ -214,21 +224,39 @@ fn through_every_key_c2_natural_or_periodic_on_hard_inputs() {
         }
         for &t in &times[1..n] {
             let (left, right) = alpha_sides(&batch, t, scale);
-            assert!((left - right).length() <= 1e-4 * alpha_max, "seed {seed}: alpha jumps by {:e} at key time {t} (max |alpha| {alpha_max:e})", (left - right).length());
+            assert!(
+                (left - right).length() <= 1e-4 * alpha_max,
+                "seed {seed}: alpha jumps by {:e} at key time {t} (max |alpha| {alpha_max:e})",
+                (left - right).length()
+            );
         }
         let (first, last) = (eval(&batch, 0, times[0]), eval(&batch, 0, times[n]));
         if looping {
             assert!(first.rotation.angle_to(last.rotation) < 1e-12, "seed {seed}: seam rotation");
-            assert!((first.angular_velocity - last.angular_velocity).length() <= 1e-9 * alpha_max.max(1.0) * scale, "seed {seed}: seam omega");
-            assert!((first.angular_acceleration - last.angular_acceleration).length() <= 1e-8 * alpha_max, "seed {seed}: seam alpha");
+            assert!(
+                (first.angular_velocity - last.angular_velocity).length() <= 1e-9 * alpha_max.max(1.0) * scale,
+                "seed {seed}: seam omega"
+            );
+            assert!(
+                (first.angular_acceleration - last.angular_acceleration).length() <= 1e-8 * alpha_max,
+                "seed {seed}: seam alpha"
+            );
             let t = times[0] + 0.37 * scale;
             let (a, b) = (eval(&batch, 0, t), eval(&batch, 0, t + 3.0 * scale));
-            assert!(a.rotation.angle_to(b.rotation) < 1e-12 && (a.angular_velocity - b.angular_velocity).length() < 1e-9 * alpha_max, "seed {seed}: wrap");
+            assert!(
+                a.rotation.angle_to(b.rotation) < 1e-12
+                    && (a.angular_velocity - b.angular_velocity).length() < 1e-9 * alpha_max,
+                "seed {seed}: wrap"
+            );
             let c = eval(&batch, 0, t - 2.0 * scale);
             assert!(a.rotation.angle_to(c.rotation) < 1e-12, "seed {seed}: wrap backwards");
         } else {
             for end in [first, last] {
-                assert!(end.angular_acceleration.length() <= 1e-9 * alpha_max, "seed {seed}: natural end alpha {:?}", end.angular_acceleration);
+                assert!(
+                    end.angular_acceleration.length() <= 1e-9 * alpha_max,
+                    "seed {seed}: natural end alpha {:?}",
+                    end.angular_acceleration
+                );
             }
         }
     }
@@ -257,22 +285,37 @@ fn looping_families_are_continuous_across_the_seam() {
             keys[count - 1] = keys[0].mul_scalar(if g.coin() { 1.0 } else { -1.0 });
             // Squad is C1 in time only on uniform times, phantom needs them.
             let uniform = matches!(spec.curve, Curve::Squad | Curve::BSpline);
-            let times = if uniform { (0..count).map(|i| 0.5 + 0.3 * i as f64).collect() } else { spread_times(&mut g, count, 4.0) };
+            let times = if uniform {
+                (0..count).map(|i| 0.5 + 0.3 * i as f64).collect()
+            } else {
+                spread_times(&mut g, count, 4.0)
+            };
             let batch = build(&track_of(&keys, &times), &spec);
             let (first, last) = (eval(&batch, 0, times[0]), eval(&batch, 0, times[count - 1]));
             let label = describe(&spec);
             assert!(first.rotation.angle_to(last.rotation) < 1e-12, "{label} seed {seed}: seam rotation");
             let scale = first.angular_velocity.length().max(last.angular_velocity.length()).max(1.0);
             if spec.curve != Curve::Slerp {
-                assert!((first.angular_velocity - last.angular_velocity).length() < 1e-9 * scale, "{label} seed {seed}: seam omega {:?} vs {:?}", first.angular_velocity, last.angular_velocity);
+                assert!(
+                    (first.angular_velocity - last.angular_velocity).length() < 1e-9 * scale,
+                    "{label} seed {seed}: seam omega {:?} vs {:?}",
+                    first.angular_velocity,
+                    last.angular_velocity
+                );
             }
             if matches!(spec.curve, Curve::BSpline | Curve::BSplineInterp) {
                 let a = first.angular_acceleration.length().max(1.0);
-                assert!((first.angular_acceleration - last.angular_acceleration).length() < 1e-8 * a, "{label} seed {seed}: seam alpha");
+                assert!(
+                    (first.angular_acceleration - last.angular_acceleration).length() < 1e-8 * a,
+                    "{label} seed {seed}: seam alpha"
+                );
             }
             let period = times[count - 1] - times[0];
             let t = times[0] + 0.61 * period;
-            assert!(eval(&batch, 0, t).rotation.angle_to(eval(&batch, 0, t + 2.0 * period).rotation) < 1e-12, "{label}: wrap");
+            assert!(
+                eval(&batch, 0, t).rotation.angle_to(eval(&batch, 0, t + 2.0 * period).rotation) < 1e-12,
+                "{label}: wrap"
+            );
         }
     }
 }
@@ -300,7 +343,8 @@ fn one_axis_loops_equal_their_euclidean_twins() {
             let uniform = matches!(spec.curve, Curve::BSpline);
             // Key spacing within 2x: Nam-Kim's arcs stay within a turn of each other, where
             // the rotation blend is the scalar one.
-            let times = if uniform { (0..count).map(|i| 0.25 * i as f64).collect() } else { spread_times(&mut g, count, 2.0) };
+            let times =
+                if uniform { (0..count).map(|i| 0.25 * i as f64).collect() } else { spread_times(&mut g, count, 2.0) };
             let keys: Vec<DQuat> = angles.iter().map(|&a| DQuat::exp(axis.scale(a / 2.0))).collect();
             let batch = build(&track_of(&keys, &times), &spec);
             let values: Vec<[f64; 3]> = angles.iter().map(|&a| [a, 0.0, 0.0]).collect();
@@ -309,7 +353,11 @@ fn one_axis_loops_equal_their_euclidean_twins() {
                 let t = times[0] + (times[count - 1] - times[0]) * (i as f64 / 100.0 * 1.3 - 0.15);
                 let angle = twin.evaluate(t).x;
                 let err = eval(&batch, 0, t).rotation.angle_to(DQuat::exp(axis.scale(angle / 2.0)));
-                assert!(err < 1e-9, "{} seed {seed}: {err:e} from the Euclidean twin at t={t} times {times:?} angles {angles:?}", describe(&spec));
+                assert!(
+                    err < 1e-9,
+                    "{} seed {seed}: {err:e} from the Euclidean twin at t={t} times {times:?} angles {angles:?}",
+                    describe(&spec)
+                );
             }
         }
     }
@@ -324,7 +372,8 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
         let mut g = Gen::new(seed);
         let count = 2 + (g.next_u64() % 9) as usize;
         let times = spread_times(&mut g, count, 10.0);
-        let values: Vec<[f64; 3]> = (0..count).map(|_| [g.range(-2.0, 2.0), g.range(-2.0, 2.0), g.range(-2.0, 2.0)]).collect();
+        let values: Vec<[f64; 3]> =
+            (0..count).map(|_| [g.range(-2.0, 2.0), g.range(-2.0, 2.0), g.range(-2.0, 2.0)]).collect();
         let open = VectorCurve::new(&id, Some(&times), &values, None, &interp(false)).unwrap();
         let looped = VectorCurve::new(&id, Some(&times), &values, None, &interp(true)).unwrap();
         let n = count - 1;
@@ -337,8 +386,14 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
             for i in 0..=50 {
                 let t = times[0] + period * i as f64 / 50.0;
                 let get = |v: DVec3| v.to_array()[axis];
-                assert!((get(open.evaluate(t)) - natural.eval(t)[0]).abs() < 1e-9, "seed {seed}: natural spline at {t}");
-                assert!((get(looped.evaluate(t)) - periodic.eval(t)[0]).abs() < 1e-9, "seed {seed}: periodic spline with offset at {t}");
+                assert!(
+                    (get(open.evaluate(t)) - natural.eval(t)[0]).abs() < 1e-9,
+                    "seed {seed}: natural spline at {t}"
+                );
+                assert!(
+                    (get(looped.evaluate(t)) - periodic.eval(t)[0]).abs() < 1e-9,
+                    "seed {seed}: periodic spline with offset at {t}"
+                );
             }
         }
         let t = times[0] + 0.3 * period;
@@ -352,7 +407,10 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
             for axis in 0..3 {
                 let ys: Vec<f64> = values.iter().map(|v| v[axis]).collect();
                 let dy = ScalarSpline::new(&times, &ys, true).eval(t)[1];
-                assert!((v.to_array()[axis] - dy).abs() < 1e-6 * dy.abs().max(1.0), "seed {seed}: velocity {v:?} vs periodic spline {dy} at {t}");
+                assert!(
+                    (v.to_array()[axis] - dy).abs() < 1e-6 * dy.abs().max(1.0),
+                    "seed {seed}: velocity {v:?} vs periodic spline {dy} at {t}"
+                );
             }
         }
     }
@@ -368,14 +426,19 @@ fn loop_errors_name_the_track() {
     assert!(msg.contains("\"spine\"") && msg.contains("key 2") && msg.contains("first rotation"), "{msg}");
 
     let closed = track_of(&[keys[0], keys[1], keys[2], keys[1], keys[0]], &[0.0, 1.0, 2.0, 3.0, 4.0]);
-    for spec in [CurveSpec::new(Curve::Bezier), CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) }, CurveSpec { knots: KnotMode::Clamped, ..CurveSpec::new(Curve::BSpline) }] {
+    for spec in [
+        CurveSpec::new(Curve::Bezier),
+        CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) },
+        CurveSpec { knots: KnotMode::Clamped, ..CurveSpec::new(Curve::BSpline) },
+    ] {
         let spec = CurveSpec { looping: true, ..spec };
         let err = Batch::from_tracks(std::slice::from_ref(&closed), &spec).unwrap_err();
         assert!(matches!(err, Error::LoopUnsupported { .. }), "{}: {err:?}", describe(&spec));
         assert!(err.to_string().contains("track 0") && err.to_string().contains("cannot loop"), "{err}");
     }
     // A whole turn closes: q_n = -q_0 is the same rotation.
-    let wheel: Vec<DQuat> = (0..=4).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_4 * i as f64))).collect();
+    let wheel: Vec<DQuat> =
+        (0..=4).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_4 * i as f64))).collect();
     assert!(wheel[4].dot(wheel[0]) < -0.99);
     Batch::from_tracks(&[track_of(&wheel, &[0.0, 1.0, 2.0, 3.0, 4.0])], &interp(true)).unwrap();
 }
@@ -396,5 +459,8 @@ fn non_convergence_is_an_error_naming_the_track_and_key() {
     let Error::NoConvergence { key, error, .. } = &err else { panic!("expected NoConvergence, got {err:?}") };
     assert!(*key < 8 && *error > 1e-12, "{err:?}");
     let msg = err.to_string();
-    assert!(msg.contains("\"jitter\"") && msg.contains(&format!("key {key}")) && msg.contains("did not converge"), "{msg}");
+    assert!(
+        msg.contains("\"jitter\"") && msg.contains(&format!("key {key}")) && msg.contains("did not converge"),
+        "{msg}"
+    );
 }

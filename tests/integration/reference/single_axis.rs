@@ -40,7 +40,10 @@ fn de_boor(points: &[f64], knots: &[f64], k: usize, t: f64) -> f64 {
 
 fn hermite(p0: f64, p1: f64, m0: f64, m1: f64, len: f64, u: f64) -> f64 {
     let (u2, u3) = (u * u, u * u * u);
-    (2.0 * u3 - 3.0 * u2 + 1.0) * p0 + (u3 - 2.0 * u2 + u) * len * m0 + (-2.0 * u3 + 3.0 * u2) * p1 + (u3 - u2) * len * m1
+    (2.0 * u3 - 3.0 * u2 + 1.0) * p0
+        + (u3 - 2.0 * u2 + u) * len * m0
+        + (-2.0 * u3 + 3.0 * u2) * p1
+        + (u3 - u2) * len * m1
 }
 
 /// The scalar spline of `phi` for `spec`, as DESIGN section 3 defines the time parameterization.
@@ -117,7 +120,10 @@ fn check(seed: u64, spec: CurveSpec) -> Result<(), TestCaseError> {
         name: Some("axis".into()),
         times: Some(times.clone()),
         // Some keys given with the opposite sign: alignment must undo it.
-        rotations: phi.iter().map(|&p| DQuat::exp(axis.scale(p)).mul_scalar(if g.coin() { -1.0 } else { 1.0 }).to_array()).collect(),
+        rotations: phi
+            .iter()
+            .map(|&p| DQuat::exp(axis.scale(p)).mul_scalar(if g.coin() { -1.0 } else { 1.0 }).to_array())
+            .collect(),
         angular_velocities: Some(rates.iter().map(|&r| axis.scale(2.0 * r).to_array()).collect()),
         knots: knots.clone(),
         ..Track::default()

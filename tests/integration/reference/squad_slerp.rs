@@ -62,13 +62,16 @@ fn squad_matches_its_definition_by_hand() {
             for f in [0.0, 0.1, 0.35, 0.5, 0.8, 0.99] {
                 let t = times[i] + f * (times[i + 1] - times[i]);
                 let h = f;
-                let by_hand = geodesic(geodesic(keys[i], keys[i + 1], h), geodesic(aux[i], aux[i + 1], h), 2.0 * h * (1.0 - h));
+                let by_hand =
+                    geodesic(geodesic(keys[i], keys[i + 1], h), geodesic(aux[i], aux[i + 1], h), 2.0 * h * (1.0 - h));
                 // Where the blend's endpoints stay in one hemisphere this is also the folded
                 // (shortest-path) slerp of DESIGN; glam's slerp must agree there.
                 let (path, aux_h) = (keys[i].slerp(keys[i + 1], h), aux[i].slerp(aux[i + 1], h));
                 if aux[i].dot(aux[i + 1]) > 0.0 && path.dot(aux_h) > 0.0 {
                     let folded = path.slerp(aux_h, 2.0 * h * (1.0 - h));
-                    assert!(DQuat::from_array(folded.to_array()).angle_to(DQuat::from_array(by_hand.to_array())) < 1e-9);
+                    assert!(
+                        DQuat::from_array(folded.to_array()).angle_to(DQuat::from_array(by_hand.to_array())) < 1e-9
+                    );
                 }
                 let ours = eval(&batch, 0, t).rotation;
                 let err = ours.angle_to(DQuat::from_xyzw(by_hand.x, by_hand.y, by_hand.z, by_hand.w));

@@ -158,7 +158,8 @@ fn empty_batch() {
 
 #[test]
 fn non_finite_sample_time() {
-    let batch = Batch::from_tracks(&[Track::from_rotations(keys(3)), named(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
+    let batch =
+        Batch::from_tracks(&[Track::from_rotations(keys(3)), named(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
     let own = [0.0, f64::NAN];
     let err = SampleTimes::new(&batch, &[None, Some(&own)], Sampling::Count(3)).unwrap_err();
     let msg = err.to_string();
@@ -167,7 +168,8 @@ fn non_finite_sample_time() {
 
 #[test]
 fn frame_layout_needs_equal_counts() {
-    let batch = Batch::from_tracks(&[Track::from_rotations(keys(3)), named(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
+    let batch =
+        Batch::from_tracks(&[Track::from_rotations(keys(3)), named(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
     let own = [0.5];
     let times = SampleTimes::new(&batch, &[None, Some(&own)], Sampling::Count(3)).unwrap();
     let job = EvalJob::new(&batch, &times).layout(Layout::Frame).derivatives(false);
@@ -179,7 +181,9 @@ fn frame_layout_needs_equal_counts() {
 #[test]
 fn bad_sampling_requests() {
     let batch = Batch::from_tracks(&[Track::from_rotations(keys(3))], &CurveSpec::new(Curve::Slerp)).unwrap();
-    for bad in [Sampling::Count(0), Sampling::Rate(0.0), Sampling::Rate(-1.0), Sampling::Rate(f64::NAN), Sampling::Rate(1e12)] {
+    for bad in
+        [Sampling::Count(0), Sampling::Rate(0.0), Sampling::Rate(-1.0), Sampling::Rate(f64::NAN), Sampling::Rate(1e12)]
+    {
         assert!(matches!(SampleTimes::uniform(&batch, bad), Err(Error::BadSampling(_))), "{bad:?}");
     }
 }
@@ -187,8 +191,12 @@ fn bad_sampling_requests() {
 #[test]
 fn a_batch_extended_in_slices_is_the_batch_built_at_once_and_a_bad_slice_changes_nothing() {
     // More tracks than one prepared chunk, mixed curves, so slices cross chunk boundaries.
-    let spec = |i: usize| CurveSpec { looping: false, ..CurveSpec::new(if i % 3 == 0 { Curve::Hermite } else { Curve::BSplineInterp }) };
-    let tracks: Vec<Track> = (0..20_000).map(|i| Track { name: Some(format!("t{i}")), ..Track::from_rotations(keys(4 + i % 5)) }).collect();
+    let spec = |i: usize| CurveSpec {
+        looping: false,
+        ..CurveSpec::new(if i % 3 == 0 { Curve::Hermite } else { Curve::BSplineInterp })
+    };
+    let tracks: Vec<Track> =
+        (0..20_000).map(|i| Track { name: Some(format!("t{i}")), ..Track::from_rotations(keys(4 + i % 5)) }).collect();
     let whole = Batch::from_tracks_each(&tracks, spec).unwrap();
     let mut builder = quatcurve::BatchBuilder::new();
     assert_eq!(builder.extend(&tracks[..7], spec).unwrap(), 0..7);
@@ -208,7 +216,11 @@ fn a_batch_extended_in_slices_is_the_batch_built_at_once_and_a_bad_slice_changes
 fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
     let at = |times: &[f64], turn: f64| Track {
         times: Some(times.to_vec()),
-        ..Track::from_rotations((0..times.len()).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(turn * i as f64, 0.2, 0.0)).to_array()).collect())
+        ..Track::from_rotations(
+            (0..times.len())
+                .map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(turn * i as f64, 0.2, 0.0)).to_array())
+                .collect(),
+        )
     };
     let (same, other) = ([0.0, 0.4, 1.0, 1.7, 2.0], [0.0, 0.5, 1.0, 1.5, 2.5]);
     let tracks = [at(&same, 0.1), at(&same, 0.3), at(&same, -0.2), at(&other, 0.1)];
@@ -216,12 +228,21 @@ fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
         let spec = CurveSpec::new(curve);
         let batch = Batch::from_tracks(&tracks, &spec).unwrap();
         let offsets: Vec<usize> = batch.tracks.iter().map(|t| t.knot_offset).collect();
-        assert!(offsets[0] == offsets[1] && offsets[1] == offsets[2] && offsets[3] != offsets[0], "{curve}: {offsets:?}");
+        assert!(
+            offsets[0] == offsets[1] && offsets[1] == offsets[2] && offsets[3] != offsets[0],
+            "{curve}: {offsets:?}"
+        );
         assert_eq!(batch.knots.len(), batch.tracks[0].knot_count + batch.tracks[3].knot_count, "{curve}");
         for (i, track) in tracks.iter().enumerate() {
             let alone = Batch::from_tracks(std::slice::from_ref(track), &spec).unwrap();
             let (a, b) = (batch.view(i), alone.view(0));
-            assert!(a.knots == b.knots && a.points == b.points && a.coefs == b.coefs && a.track.uniform_knots == b.track.uniform_knots, "{curve} track {i}");
+            assert!(
+                a.knots == b.knots
+                    && a.points == b.points
+                    && a.coefs == b.coefs
+                    && a.track.uniform_knots == b.track.uniform_knots,
+                "{curve} track {i}"
+            );
         }
     }
 }
