@@ -9,7 +9,9 @@ const PI: f32 = 3.14159265358979;
 const HALF_PI: f32 = 1.57079632679490;
 const QUARTER_PI: f32 = 0.785398163397448;
 const TAN_EIGHTH_PI: f32 = 0.414213562373095;
-// pi/2 split for Cody-Waite reduction: k * HALF_PI_1 is exact for |k| < 2^16.
+// pi/2 split for Cody-Waite reduction: k * HALF_PI_1 is exact for |k| < 2^16 (HALF_PI_PARTS
+// in src/cpu/simd.rs, tied by a test).
+const TWO_OVER_PI: f32 = 0.636619772367581;
 const HALF_PI_1: f32 = 1.5703125;
 const HALF_PI_2: f32 = 4.837512969970703125e-4;
 const HALF_PI_3: f32 = 7.54978995489188216e-8;
@@ -18,7 +20,7 @@ const SERIES_LIMIT: f32 = 0.25;
 
 /// (sin x, cos x) with absolute error ~1e-7 for |x| < 1e4.
 fn sin_cos(x: f32) -> vec2f {
-    let k = round(x * 0.636619772367581);
+    let k = round(x * TWO_OVER_PI);
     let r = ((x - k * HALF_PI_1) - k * HALF_PI_2) - k * HALF_PI_3;
     let r2 = r * r;
     // Taylor series on [-pi/4, pi/4]: truncation below 1e-11. Written with the reciprocals of

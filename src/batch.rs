@@ -436,9 +436,14 @@ fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
         }
         Curve::BSpline => bspline(id, track, spec, keys, &times)?,
         Curve::BSplineInterp => {
-            let solved = crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| {
-                Error::NoConvergence { track: id.clone(), key: e.worst_key, error: e.error, iterations: e.iterations }
-            })?;
+            let solved =
+                crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| Error::NoConvergence {
+                    track: id.clone(),
+                    key: e.worst_key,
+                    error: e.error,
+                    iterations: e.iterations,
+                    tolerance: crate::interp::KEY_TOLERANCE,
+                })?;
             let coefs = solved.coefs.into_iter().map(vec_coef).collect();
             Prepared {
                 curve: Curve::BSpline,
@@ -458,11 +463,15 @@ pub const LOOP_TOLERANCE: f64 = 1e-3;
 /// A looping spec must be a family that loops, and the keys must close.
 fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
     if !spec.can_loop() {
-        return Err(Error::LoopUnsupported { track: id.clone(), curve: curve_label(spec) });
+        return Err(Error::LoopUnsupported {
+            track: id.clone(),
+            curve: curve_label(spec),
+            looping: CurveSpec::looping_curves(),
+        });
     }
     let angle = keys[0].angle_to(keys[keys.len() - 1]);
     if angle.is_nan() || angle > LOOP_TOLERANCE {
-        return Err(Error::LoopNotClosed { track: id.clone(), last: keys.len() - 1, angle });
+        return Err(Error::LoopNotClosed { track: id.clone(), last: keys.len() - 1, angle, tolerance: LOOP_TOLERANCE });
     }
     Ok(())
 }
@@ -501,7 +510,7 @@ pub(crate) fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Resul
     }
     let norm = q.length();
     if norm < MIN_KEY_NORM {
-        return Err(Error::ZeroKey { track: id.clone(), key, norm });
+        return Err(Error::ZeroKey { track: id.clone(), key, norm, min: MIN_KEY_NORM });
     }
     Ok(q.mul_scalar(1.0 / norm))
 }
@@ -641,7 +650,14 @@ fn check_uniform(id: &TrackId, times: &[f64], mode: KnotMode) -> Result<()> {
     for (key, &value) in times.iter().enumerate() {
         let expected = times[0] + key as f64 * dt;
         if (value - expected).abs() > UNIFORM_TIME_TOLERANCE * dt {
-            return Err(Error::NonUniformTimes { track: id.clone(), key, value, expected, mode: mode.to_string() });
+            return Err(Error::NonUniformTimes {
+                track: id.clone(),
+                key,
+                value,
+                expected,
+                mode: mode.to_string(),
+                tolerance: UNIFORM_TIME_TOLERANCE,
+            });
         }
     }
     Ok(())

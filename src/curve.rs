@@ -60,6 +60,11 @@ pub const MIN_ORDER: usize = 2;
 /// tables are sized for it; the shader's `MAX_ORDER` is checked against it by a test.
 pub const MAX_ORDER: usize = 8;
 
+/// The curve every front end uses when none is named (`eval`, `bake`, Python's `evaluate`,
+/// `Curve` and `bake`): C2 and through every key, on any key times. The library's
+/// [`CurveSpec::default`] is the phantom B-spline of KKS's appendix.
+pub const DEFAULT_CURVE: Curve = Curve::BSplineInterp;
+
 /// Everything that selects and shapes a curve, besides the track data itself.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CurveSpec {
@@ -75,14 +80,13 @@ pub struct CurveSpec {
     pub blend: Blend,
     /// A periodic curve (`--loop`): the last key closes onto the first, the curve keeps its
     /// continuity class across that seam and sample times wrap by the period (DESIGN
-    /// section 3, "Loops"). Only slerp, squad, hermite, nam-kim, phantom B-splines and
-    /// bspline-interp loop.
+    /// section 3, "Loops"). Which curves loop: [`CurveSpec::can_loop`].
     pub looping: bool,
 }
 
 impl Default for CurveSpec {
     /// The library defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend, open.
-    /// (The CLI's default curve is `bspline-interp`, DESIGN section 5.)
+    /// (The front ends' default curve is [`DEFAULT_CURVE`].)
     fn default() -> Self {
         Self {
             curve: Curve::BSpline,
@@ -111,6 +115,27 @@ impl CurveSpec {
             Curve::BSpline => self.knots == KnotMode::Phantom,
             _ => true,
         }
+    }
+
+    /// The curves that loop, as messages and help texts list them (from [`Self::can_loop`]):
+    /// `slerp, squad, hermite, nam-kim, bspline with phantom knots, bspline-interp`.
+    #[must_use]
+    pub fn looping_curves() -> String {
+        let mut names = Vec::new();
+        for curve in Curve::NAMES.iter().filter_map(|n| n.parse::<Curve>().ok()) {
+            let knots: Vec<KnotMode> = KnotMode::NAMES.iter().filter_map(|n| n.parse().ok()).collect();
+            let looping: Vec<&str> = knots
+                .iter()
+                .filter(|&&k| Self { curve, knots: k, ..Self::default() }.can_loop())
+                .map(|k| k.name())
+                .collect();
+            match (curve, looping.len()) {
+                (_, 0) => {}
+                (Curve::BSpline, _) => names.push(format!("{curve} with {} knots", looping.join(" or "))),
+                _ => names.push(curve.to_string()),
+            }
+        }
+        names.join(", ")
     }
 
     /// Minimum key count for this spec (DESIGN section 3).

@@ -37,7 +37,12 @@ impl fmt::Display for Number {
             let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
             f.write_str(text)
         } else {
-            write!(f, "{x:.3e}")
+            // Four significant digits, trailing zeros of the mantissa dropped (1e-6, 3.172e-7).
+            let text = format!("{x:.3e}");
+            let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+            let mantissa =
+                if mantissa.contains('.') { mantissa.trim_end_matches('0').trim_end_matches('.') } else { mantissa };
+            write!(f, "{mantissa}e{exponent}")
         }
     }
 }
@@ -53,8 +58,8 @@ pub enum Error {
     #[error("{track}: key {key} is not finite ({value:?}); rotations must be finite numbers")]
     NonFiniteKey { track: TrackId, key: usize, value: [f64; 4] },
     /// A key quaternion is (nearly) zero and has no direction.
-    #[error("{track}: key {key} has norm {}, below 1e-6; a rotation key must be a non-zero quaternion", Number(*.norm))]
-    ZeroKey { track: TrackId, key: usize, norm: f64 },
+    #[error("{track}: key {key} has norm {}, below {}; a rotation key must be a non-zero quaternion", Number(*.norm), Number(*.min))]
+    ZeroKey { track: TrackId, key: usize, norm: f64, min: f64 },
     /// Fewer keys than the curve needs.
     #[error("{track}: {curve} needs at least {min} keys, got {found}")]
     TooFewKeys { track: TrackId, curve: String, min: usize, found: usize },
@@ -68,8 +73,8 @@ pub enum Error {
     #[error("{track}: time of key {key} ({value}) is not greater than the time of key {} ({previous}); key times must strictly increase", key - 1)]
     TimesNotIncreasing { track: TrackId, key: usize, value: f64, previous: f64 },
     /// The knot mode needs uniformly spaced key times and they are not.
-    #[error("{track}: key {key} is at time {value} but {mode} knots need uniform times (expected {expected} within 1e-3 of the step)")]
-    NonUniformTimes { track: TrackId, key: usize, value: f64, expected: f64, mode: String },
+    #[error("{track}: key {key} is at time {value} but {mode} knots need uniform times (expected {expected} within {} of the step)", Number(*.tolerance))]
+    NonUniformTimes { track: TrackId, key: usize, value: f64, expected: f64, mode: String, tolerance: f64 },
     /// An order outside 2..=8, or phantom knots with an order other than 4.
     #[error("{track}: {reason}")]
     BadOrder { track: TrackId, reason: String },
@@ -119,14 +124,14 @@ pub enum Error {
     #[error("{track}: tangents = given needs per-key velocities, which translation and scale channels do not carry; use catmull-rom or zero")]
     VectorTangents { track: TrackId },
     /// `--loop` with a family that cannot loop.
-    #[error("{track}: {curve} cannot loop; looping curves are slerp, squad, hermite, nam-kim, bspline-interp and bspline with phantom knots")]
-    LoopUnsupported { track: TrackId, curve: String },
+    #[error("{track}: {curve} cannot loop; the curves that loop are {looping}")]
+    LoopUnsupported { track: TrackId, curve: String, looping: String },
     /// A looping track whose last key is not its first rotation.
-    #[error("{track}: a looping track must end on its first rotation, but key {last} is {} rad from key 0 (at most 1e-3 allowed)", Number(*.angle))]
-    LoopNotClosed { track: TrackId, last: usize, angle: f64 },
+    #[error("{track}: a looping track must end on its first rotation, but key {last} is {} rad from key 0 (at most {} allowed)", Number(*.angle), Number(*.tolerance))]
+    LoopNotClosed { track: TrackId, last: usize, angle: f64, tolerance: f64 },
     /// The `bspline-interp` solve did not reach its key tolerance.
-    #[error("{track}: bspline-interp did not converge after {iterations} Newton iterations: the curve misses key {key} by {} (at most 1e-12 rad allowed); keys this far apart have no stable C2 interpolant, try hermite", Number(*.error))]
-    NoConvergence { track: TrackId, key: usize, error: f64, iterations: usize },
+    #[error("{track}: bspline-interp did not converge after {iterations} Newton iterations: the curve misses key {key} by {} (at most {} rad allowed); keys this far apart have no stable C2 interpolant, try hermite", Number(*.error), Number(*.tolerance))]
+    NoConvergence { track: TrackId, key: usize, error: f64, iterations: usize, tolerance: f64 },
     /// A sample time is NaN or infinite.
     #[error("{track}: sample time {sample} is not finite ({value})")]
     NonFiniteSampleTime { track: TrackId, sample: usize, value: f64 },
@@ -169,11 +174,10 @@ pub enum JobError {
     /// A track's explicit times point outside the list.
     #[error("{track}: explicit sample times out of range")]
     ExplicitOutOfRange { track: TrackId },
-    /// A frame-major layout over tracks with different sample counts.
-    #[error(
-        "frame-major layout needs the same sample count in every track: {first} has {count}, {other} has {other_count}"
-    )]
-    UnequalCounts { first: TrackId, count: usize, other: TrackId, other_count: usize },
+    /// Tracks with different sample counts where one array holds them all (a frame-major
+    /// layout, an `.npy` file, a numpy array): `needed_by` says which.
+    #[error("{needed_by} needs the same sample count in every track: {first} has {count}, {other} has {other_count}")]
+    UnequalCounts { first: TrackId, count: usize, other: TrackId, other_count: usize, needed_by: &'static str },
     /// A grid given as a list (`SampleTimes::per_track`).
     #[error("{track}: a sample grid must be uniform")]
     GridNotUniform { track: TrackId },
@@ -199,7 +203,9 @@ mod tests {
             (12.345678, "12.35"),
             (-0.0123456, "-0.01235"),
             (3.1717e-7, "3.172e-7"),
-            (2.5e9, "2.500e9"),
+            (1e-6, "1e-6"),
+            (1.5e-12, "1.5e-12"),
+            (2.5e9, "2.5e9"),
             (f64::NAN, "NaN"),
         ];
         for (x, text) in cases {

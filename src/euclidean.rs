@@ -115,7 +115,13 @@ impl VectorCurve {
                 // The natural (or periodic) cubic spline, as a cubic B-spline on the same
                 // knots as the rotation curve.
                 let (points, knots) = crate::interp::solve_vectors(&curve.points, times, looping).ok_or_else(|| {
-                    Error::NoConvergence { track: id.clone(), key: 0, error: f64::NAN, iterations: 1 }
+                    Error::NoConvergence {
+                        track: id.clone(),
+                        key: 0,
+                        error: f64::NAN,
+                        iterations: 1,
+                        tolerance: crate::interp::KEY_TOLERANCE,
+                    }
                 })?;
                 curve.curve = Curve::BSpline;
                 curve.order = 4;
@@ -247,7 +253,11 @@ fn detrended_keys(
     let mut drift = None;
     if spec.looping {
         if !spec.can_loop() {
-            return Err(Error::LoopUnsupported { track: id.clone(), curve: spec.curve.to_string() });
+            return Err(Error::LoopUnsupported {
+                track: id.clone(),
+                curve: spec.curve.to_string(),
+                looping: CurveSpec::looping_curves(),
+            });
         }
         // Remove the per-cycle offset; p~_n = p~_0 exactly.
         let rate = (keys[n] - keys[0]).scale(1.0 / (tn - t0));

@@ -113,18 +113,8 @@ impl<'a> EvalJob<'a> {
                 }
             }
         }
-        let first = self.times.count(0);
         if self.options.layout == Layout::Frame {
-            if let Some(index) = (0..self.batch.len()).find(|&i| self.times.count(i) != first) {
-                let (first_id, other) = (self.batch.id(0), self.batch.id(index));
-                return Err(JobError::UnequalCounts {
-                    first: first_id,
-                    count: first,
-                    other,
-                    other_count: self.times.count(index),
-                }
-                .into());
-            }
+            self.times.equal_counts(self.batch, "a frame-major layout")?;
         }
         Ok(())
     }

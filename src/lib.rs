@@ -62,7 +62,7 @@ pub mod track;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;
-pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
 pub use device::{Device, DeviceChoice, DeviceError};
 pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
@@ -71,5 +71,5 @@ pub use job::{EvalJob, EvalOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
 pub use quat::{DQuat, DVec3, Quat, Vec3};
 pub use reference::{evaluate, Sample};
-pub use sampling::{SampleTimes, Sampling};
+pub use sampling::{SampleTimes, Sampling, DEFAULT_RATE};
 pub use track::{Track, TrackFile};

@@ -30,7 +30,6 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let _runtime_dir = quiet_runtime_dir();
     let result = match cli.command {
         Command::Eval(args) => cli::eval::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
@@ -48,24 +47,4 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
-}
-
-/// Mesa's Vulkan drivers look for a Wayland display when wgpu creates its instance and print
-/// "XDG_RUNTIME_DIR is invalid or not set in the environment" (twice) when the variable is
-/// missing, as on servers and in containers. Where it is missing or not a directory, point it
-/// at a private directory of ours for this process (removed at exit). Runs first in `main`,
-/// before any thread exists.
-fn quiet_runtime_dir() -> Option<tempfile::TempDir> {
-    if !cfg!(target_os = "linux")
-        || std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir())
-    {
-        return None;
-    }
-    let mut builder = tempfile::Builder::new();
-    builder.prefix("quatcurve-runtime-");
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o700));
-    let dir = builder.tempdir().ok()?;
-    std::env::set_var("XDG_RUNTIME_DIR", dir.path());
-    Some(dir)
 }

@@ -60,9 +60,9 @@ impl Output {
 
 /// Where each quantity sits in a float32 output row (DESIGN section 5): the rotation `x, y,
 /// z, w`; with derivatives the body angular velocity, then the acceleration; with a matrix its
-/// nine entries, row-major. The CPU kernels, the GPU's output (`write_sample` in
-/// `shaders/eval.wgsl`, checked against this by the GPU tests), the `.npy` files and Python
-/// all read it from here.
+/// nine entries, row-major. The CPU kernels, the GPU's output (the stores at the end of
+/// `evaluate` in `shaders/eval.wgsl`, checked against this by the GPU tests), the `.npy`
+/// files and Python all read it from here.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Row {
     /// Omega and alpha follow the rotation.

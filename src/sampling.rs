@@ -11,6 +11,10 @@ use crate::error::{Error, JobError, Result, SamplingError};
 /// turning into an out-of-memory crash instead of an error.
 pub const MAX_SAMPLES_PER_TRACK: usize = 100_000_000;
 
+/// Samples (frames) per second that the front ends use when no rate is given (`eval`,
+/// `bake`, Python's `bake`).
+pub const DEFAULT_RATE: f64 = 30.0;
+
 /// How to sample a track that has no `sample_times` of its own.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Sampling {
@@ -193,6 +197,26 @@ impl SampleTimes {
     #[must_use]
     pub fn count(&self, index: usize) -> usize {
         self.tracks[index].count()
+    }
+
+    /// The one sample count of every track of `batch` (0 for none), for outputs that hold
+    /// all tracks in one array.
+    ///
+    /// # Errors
+    /// [`JobError::UnequalCounts`] naming the first track and the first that differs, and
+    /// `needed_by` (what needs one count: "a frame-major layout", ".npy output").
+    pub fn equal_counts(&self, batch: &Batch, needed_by: &'static str) -> std::result::Result<usize, JobError> {
+        let first = if self.tracks.is_empty() { 0 } else { self.count(0) };
+        match (0..self.tracks.len()).find(|&i| self.count(i) != first) {
+            None => Ok(first),
+            Some(index) => Err(JobError::UnequalCounts {
+                first: batch.id(0),
+                count: first,
+                other: batch.id(index),
+                other_count: self.count(index),
+                needed_by,
+            }),
+        }
     }
 
     /// Number of tracks covered.

@@ -1,5 +1,6 @@
 //! Deterministic synthetic tracks for benchmarks and demos: smooth, walk-like rotations with
-//! a little per-track variation, no randomness crate needed.
+//! a little per-track variation, and [`SplitMix`], the one random generator of the crate and
+//! its tests (no randomness crate needed).
 
 use crate::batch::{Batch, BatchBuilder};
 use crate::curve::CurveSpec;
@@ -96,4 +97,46 @@ pub fn workload(tracks: usize, samples: usize, keys: usize, spec: &CurveSpec) ->
     let (batch, _) = workload_batch(tracks, keys, spec)?;
     let times = SampleTimes::uniform(&batch, Sampling::Count(samples))?;
     Ok((batch, times))
+}
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a small, well-mixed generator, so that a seed means
+/// the same sequences on every machine and version of the dependencies.
+#[derive(Clone, Debug)]
+pub struct SplitMix(u64);
+
+impl SplitMix {
+    /// The generator started from `seed`.
+    #[must_use]
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform on the unit sphere.
+    pub fn direction(&mut self) -> DVec3 {
+        let z = 2.0 * self.unit() - 1.0;
+        let phi = std::f64::consts::TAU * self.unit();
+        let r = (1.0 - z * z).sqrt();
+        DVec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+
+    /// Uniform on SO(3) (Shoemake, Graphics Gems III: uniform random rotations).
+    pub fn rotation(&mut self) -> DQuat {
+        let (u1, u2, u3) = (self.unit(), std::f64::consts::TAU * self.unit(), std::f64::consts::TAU * self.unit());
+        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+        DQuat::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos())
+    }
 }

@@ -16,28 +16,11 @@ body frame (``omega = 2 vec(q^-1 q')``), rad/s and rad/s^2.
 
 from __future__ import annotations
 
-import atexit
 import os
-import shutil
-import sys
-import tempfile
 
 import numpy as np
 
-
-def _quiet_runtime_dir():
-    """Mesa's Vulkan drivers print "XDG_RUNTIME_DIR is invalid or not set" when a GPU device
-    opens without it (servers, containers): point it at a private directory first, as the
-    CLI does, removed at exit."""
-    if sys.platform.startswith("linux") and not os.path.isdir(os.environ.get("XDG_RUNTIME_DIR", "")):
-        path = tempfile.mkdtemp(prefix="quatcurve-runtime-")
-        os.environ["XDG_RUNTIME_DIR"] = path
-        atexit.register(shutil.rmtree, path, ignore_errors=True)
-
-
-_quiet_runtime_dir()
-
-from ._quatcurve import __version__, bake_files, evaluate_batch  # noqa: E402
+from ._quatcurve import DEFAULT_CHARACTERS, DEFAULT_CURVE, DEFAULT_RATE, __version__, bake_files, evaluate_batch
 
 __all__ = ["evaluate", "bake", "Curve", "__version__"]
 
@@ -63,7 +46,7 @@ def evaluate(
     *,
     rate=None,
     samples=None,
-    curve="bspline",
+    curve=DEFAULT_CURVE,
     order=4,
     knots="phantom",
     tangents="catmull-rom",
@@ -85,10 +68,11 @@ def evaluate(
     sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, optional
         Where to evaluate. Otherwise ``samples`` (N per track from domain start to end) or
         ``rate`` (Hz from the domain start); one of the three is required.
-    curve : str
-        ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim``, ``bspline`` (KKS order-k
-        B-spline, ``knots`` phantom/uniform/clamped) or ``bspline-interp`` (C2 through every
-        key, any key times).
+    curve : str, default ``"bspline-interp"``
+        ``bspline-interp`` (the default of every front end: C2 and through every key, on any
+        key times), ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim`` or ``bspline``
+        (KKS order-k B-spline with the keys as control points, ``knots``
+        phantom/uniform/clamped: it approximates the keys, passing only through the ends).
     order, knots, tangents, blend
         B-spline order, knot mode, tangent source of hermite/nam-kim (``catmull-rom``,
         ``zero``, ``given`` with ``angular_velocities`` ``(…, keys, 3)`` body rad/s), Nam-Kim
@@ -164,12 +148,13 @@ class Curve:
 
     ``curve(t, order=0)`` returns quaternions ``x, y, z, w`` (``(4,)`` for a scalar ``t``,
     ``(m, 4)`` otherwise; wrap with ``Rotation.from_quat`` for a Rotation); ``order=1`` the
-    angular velocity and ``order=2`` the angular acceleration, rad/s and rad/s^2. Unlike
-    ``RotationSpline`` (world frame), quatcurve's derivatives are in the body frame: rotate
-    them by the orientation (``Rotation.from_quat(q).apply(omega)``) for the world frame.
+    angular velocity and ``order=2`` the angular acceleration, rad/s and rad/s^2, in the
+    body frame, as ``RotationSpline``'s are (for the world frame, rotate them by the
+    orientation: ``Rotation.from_quat(q).apply(omega)``). ``order`` may be an int or a
+    float with an integer value, as scipy takes it.
     """
 
-    def __init__(self, times, rotations, curve="bspline-interp", **options):
+    def __init__(self, times, rotations, curve=DEFAULT_CURVE, **options):
         if hasattr(rotations, "as_quat"):
             rotations = rotations.as_quat()
         self.rotations = _float64("rotations", rotations, (2,))
@@ -180,8 +165,9 @@ class Curve:
         evaluate(self.rotations, self.times, self.times[:1], curve=curve, **options)
 
     def __call__(self, t, order=0):
-        if order not in (0, 1, 2):
-            raise ValueError(f"order must be 0, 1 or 2, got {order}")
+        if isinstance(order, bool) or order not in (0, 1, 2):
+            raise ValueError(f"order must be 0, 1 or 2, got {order!r}")
+        order = int(order)
         scalar = np.ndim(t) == 0
         samples = np.atleast_1d(np.asarray(t, dtype=np.float64))
         result = evaluate(self.rotations, self.times, samples, curve=self.curve, derivatives=order > 0, **self.options)
@@ -193,9 +179,9 @@ def bake(
     inputs=None,
     output="baked",
     *,
-    rate=30.0,
+    rate=DEFAULT_RATE,
     exact_rate=False,
-    curve="bspline-interp",
+    curve=DEFAULT_CURVE,
     order=4,
     knots="phantom",
     tangents="catmull-rom",
@@ -205,7 +191,7 @@ def bake(
     precision="f32",
     atlas=False,
     preview=False,
-    characters=1000,
+    characters=DEFAULT_CHARACTERS,
     shard=None,
     resume=False,
     jobs=1,

@@ -4,6 +4,9 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+DEFAULT_CURVE: str
+DEFAULT_RATE: float
+DEFAULT_CHARACTERS: int
 
 def evaluate_batch(
     rotations: npt.NDArray[np.float64],

@@ -101,28 +101,25 @@ fn evaluate_batch<'py>(
         (None, None) => Sampling::Count(0),
     };
     let channels = Row { derivatives, matrix: false }.channels();
-    let out = py.detach(|| -> Result<Samples, String> {
-        let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
-        let overrides: Vec<Option<&[f64]>> = match sampled {
-            Some((m, s)) => (0..count).map(|i| Some(&s[i * m..(i + 1) * m])).collect(),
-            None => Vec::new(),
-        };
-        let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| e.to_string())?;
-        if let Some(i) = (1..count).find(|&i| times.count(i) != times.count(0)) {
-            return Err(format!(
-                "track 0 gets {} samples but track {i} gets {} (their domains differ): pass samples=N or sample_times for one count",
-                times.count(0),
-                times.count(i)
-            ));
-        }
-        let job = EvalJob::new(&batch, &times).derivatives(derivatives);
-        if choice == DeviceChoice::Reference {
-            return Ok(Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows()));
-        }
-        let (rows, _) = device.evaluate_f32(&job).map_err(|e| e.to_string())?;
-        Ok(Samples::F32(rows.data))
-    })
-    .map_err(value_error)?;
+    let out = py
+        .detach(|| -> Result<Samples, String> {
+            let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
+            let overrides: Vec<Option<&[f64]>> = match sampled {
+                Some((m, s)) => (0..count).map(|i| Some(&s[i * m..(i + 1) * m])).collect(),
+                None => Vec::new(),
+            };
+            let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| e.to_string())?;
+            times
+                .equal_counts(&batch, "a numpy array of every track")
+                .map_err(|e| format!("{e} (their domains differ): pass samples=N or sample_times for one count"))?;
+            let job = EvalJob::new(&batch, &times).derivatives(derivatives);
+            if choice == DeviceChoice::Reference {
+                return Ok(Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows()));
+            }
+            let (rows, _) = device.evaluate_f32(&job).map_err(|e| e.to_string())?;
+            Ok(Samples::F32(rows.data))
+        })
+        .map_err(value_error)?;
     let per_track = |len: usize| len / channels / count.max(1);
     // The arrays take over the evaluator's buffers.
     match out {
@@ -233,5 +230,9 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(bake_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The front ends' defaults, from the library (the Python signatures use these).
+    m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;
+    m.add("DEFAULT_RATE", quatcurve::DEFAULT_RATE)?;
+    m.add("DEFAULT_CHARACTERS", quatcurve::bake::crowd::CHARACTERS)?;
     Ok(())
 }

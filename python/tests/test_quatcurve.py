@@ -8,7 +8,7 @@ import subprocess
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 import quatcurve
 
@@ -136,8 +136,8 @@ def test_curve_mirrors_rotation_spline_and_takes_rotations():
     q = curve(t)
     assert q.shape == (50, 4) and curve(times[2]).shape == (4,)
     assert angle(curve(times), keys).max() < 1e-12
-    # Body rates rotated by the orientation are the world-frame rates (what RotationSpline
-    # returns), here by central differences of the curve itself.
+    # Body rates rotated by the orientation are the world-frame rates, here by central
+    # differences of the curve itself.
     inner = t[1:-1]
     omega = curve(inner, 1)
     world = Rotation.from_quat(curve(inner)).apply(omega)
@@ -147,6 +147,43 @@ def test_curve_mirrors_rotation_spline_and_takes_rotations():
     assert curve(t, 2).shape == (50, 3)
     with pytest.raises(ValueError, match="order"):
         curve(t, 3)
+    # Orders as floats, as scipy takes them.
+    np.testing.assert_array_equal(curve(t, 1.0), curve(t, 1))
+    with pytest.raises(ValueError, match="order"):
+        curve(t, 1.5)
+
+
+def test_rates_are_in_the_body_frame_as_rotation_splines_are():
+    # Through two keys both curves are the geodesic at constant speed, so their rates must be
+    # equal in the frame they are given in; a tilted first key tells body from world.
+    keys = Rotation.from_rotvec([[0.7, 0.2, 0.1], [0.3, -0.9, 0.4]])
+    times, t = [0.0, 1.0], np.array([0.1, 0.5, 0.9])
+    ours = quatcurve.Curve(times, keys, device="reference")
+    theirs = RotationSpline(times, keys)
+    np.testing.assert_allclose(ours(t, 1), theirs(t, 1), atol=1e-12)
+    world = Rotation.from_quat(ours(t)).apply(ours(t, 1))
+    assert np.abs(world - theirs(t, 1)).max() > 0.1
+
+
+def test_every_front_end_defaults_to_the_curve_through_every_key():
+    import ast
+    import inspect
+    # evaluate passes through its keys without naming a curve (the phantom B-spline would not).
+    rng = np.random.default_rng(3)
+    keys = random_keys(rng, 1, 7, max_step=0.6)[0]
+    times = np.arange(7.0)
+    assert angle(quatcurve.evaluate(keys, times, times, device="reference"), keys).max() < 1e-12
+    assert quatcurve.DEFAULT_CURVE == "bspline-interp"
+    # The stubs show the defaults the functions have.
+    stubs = ast.parse((pathlib.Path(quatcurve.__file__).parent / "__init__.pyi").read_text())
+    for function, name in [(quatcurve.evaluate, "evaluate"), (quatcurve.bake, "bake"), (quatcurve.Curve.__init__, "__init__")]:
+        stub = next(n for n in ast.walk(stubs) if isinstance(n, ast.FunctionDef) and n.name == name)
+        arguments = stub.args.posonlyargs + stub.args.args
+        shown = dict(zip([a.arg for a in arguments][::-1], stub.args.defaults[::-1]))
+        shown.update({a.arg: d for a, d in zip(stub.args.kwonlyargs, stub.args.kw_defaults) if d is not None})
+        for parameter in inspect.signature(function).parameters.values():
+            if parameter.default is not inspect.Parameter.empty:
+                assert ast.literal_eval(shown[parameter.name]) == parameter.default, (name, parameter.name)
 
 
 def test_errors_are_value_errors_naming_track_and_key():

@@ -15,7 +15,8 @@ use super::{analyze, AnalysisError, AnalysisOptions, Metrics};
 use crate::batch::Batch;
 use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::device::Device;
-use crate::quat::{DQuat, DVec3};
+use crate::quat::DQuat;
+use crate::synthetic::SplitMix;
 use crate::track::Track;
 
 /// The curves compared, Shoemake's squad first (the baseline).
@@ -103,7 +104,7 @@ pub struct RegimeTable {
 /// The random key sequences of one regime, reproducible from `seed`.
 #[must_use]
 pub fn sequences(regime: &Regime, seed: u64, count: usize, keys: usize) -> Vec<Track> {
-    let mut rng = SplitMix(seed ^ regime.degrees[1].to_bits());
+    let mut rng = SplitMix::new(seed ^ regime.degrees[1].to_bits());
     (0..count)
         .map(|s| {
             let mut q = rng.rotation();
@@ -264,39 +265,5 @@ fn median(mut values: Vec<f64>) -> f64 {
         values[n / 2]
     } else {
         0.5 * (values[n / 2 - 1] + values[n / 2])
-    }
-}
-
-/// SplitMix64 (Steele, Lea & Flood 2014): a small, well-mixed generator, so that a seed means
-/// the same sequences on every machine and version of the dependencies.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform on the unit sphere.
-    fn direction(&mut self) -> DVec3 {
-        let z = 2.0 * self.unit() - 1.0;
-        let phi = std::f64::consts::TAU * self.unit();
-        let r = (1.0 - z * z).sqrt();
-        DVec3::new(r * phi.cos(), r * phi.sin(), z)
-    }
-
-    /// Uniform on SO(3) (Shoemake, Graphics Gems III: uniform random rotations).
-    fn rotation(&mut self) -> DQuat {
-        let (u1, u2, u3) = (self.unit(), std::f64::consts::TAU * self.unit(), std::f64::consts::TAU * self.unit());
-        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-        DQuat::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos())
     }
 }

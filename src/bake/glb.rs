@@ -337,7 +337,7 @@ pub(super) fn write(
     }
     let text = serde_json::to_vec(&json).map_err(|e| InputError::Internal(e.to_string()))?;
     let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+        header: gltf::binary::Header { magic: *super::gltf::GLB_MAGIC, version: 2, length: 0 },
         json: text.into(),
         bin: Some(bin.into()),
     };

@@ -57,10 +57,11 @@ pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
 /// # Errors
 /// As [`read`].
 pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
+    check_magic(bytes)?;
     let gltf =
         gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
     validate(gltf.document.as_json())?;
-    let json: Value = if bytes.starts_with(b"glTF") {
+    let json: Value = if bytes.starts_with(GLB_MAGIC) {
         let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| input(format!("not a valid GLB file: {e}")))?;
         serde_json::from_slice(&glb.json)
     } else {
@@ -90,6 +91,34 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
         }
     }
     Ok(GltfFile { animation, json, buffers, samplers })
+}
+
+/// The first bytes of a GLB file.
+pub(super) const GLB_MAGIC: &[u8; 4] = b"glTF";
+
+/// A GLB starts with [`GLB_MAGIC`], glTF JSON with `{`: anything else (an image or archive
+/// renamed `.glb`) is named as what it looks like, not reported as a JSON syntax error.
+fn check_magic(bytes: &[u8]) -> Result<(), InputError> {
+    let json =
+        bytes.iter().find(|b| !b.is_ascii_whitespace() && **b != 0xEF && **b != 0xBB && **b != 0xBF) == Some(&b'{');
+    if bytes.starts_with(GLB_MAGIC) || json {
+        return Ok(());
+    }
+    let head: Vec<String> = bytes.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    let looks = [
+        (&b"\x89PNG"[..], " (a PNG image)"),
+        (b"\xff\xd8\xff", " (a JPEG image)"),
+        (b"PK\x03\x04", " (a zip archive)"),
+        (b"HIERARCHY", " (a BVH file)"),
+    ]
+    .iter()
+    .find(|(magic, _)| bytes.starts_with(magic))
+    .map_or("", |(_, what)| what);
+    Err(input(format!(
+        "not a glTF file: a GLB starts with the bytes '{}' and glTF JSON with '{{', but this file starts with {}{looks}",
+        String::from_utf8_lossy(GLB_MAGIC),
+        if head.is_empty() { "nothing (it is empty)".to_string() } else { head.join(" ") }
+    )))
 }
 
 /// Every buffer's bytes (the BIN chunk, data URIs, files the policy allows), each at least its

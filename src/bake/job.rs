@@ -11,7 +11,7 @@ use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, 
 use super::shard::Shard;
 use super::texture::{self, Precision, TextureKind};
 use super::{bvh, crowd, gltf, Animation, Baked, ClipRate, LoopMode};
-use crate::curve::{Curve, CurveSpec};
+use crate::curve::CurveSpec;
 use crate::device::{Device, DeviceChoice};
 use crate::io::{npy_header, write_atomic, AtomicFile, NpyElement};
 use serde::Serialize;
@@ -68,16 +68,16 @@ pub struct BakeJob {
 }
 
 impl BakeJob {
-    /// The defaults of `quatcurve bake`: 30 Hz, C2 through every key (`bspline-interp`),
-    /// loops detected, local f32 textures, one job.
+    /// The defaults of `quatcurve bake`: [`crate::sampling::DEFAULT_RATE`],
+    /// [`crate::curve::DEFAULT_CURVE`], loops detected, local f32 textures, one job.
     #[must_use]
     pub fn new(inputs: Vec<PathBuf>, output: impl Into<PathBuf>) -> Self {
         Self {
             inputs,
             output: output.into(),
-            rate: 30.0,
+            rate: crate::sampling::DEFAULT_RATE,
             exact_rate: false,
-            spec: CurveSpec::new(Curve::BSplineInterp),
+            spec: CurveSpec::new(crate::curve::DEFAULT_CURVE),
             looping: LoopMode::Auto,
             device: DeviceChoice::Auto,
             allow_external_uris: false,

@@ -343,15 +343,18 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         LoopMode::On => {
             if !spec.can_loop() {
                 return Err(E::Animation(format!(
-                    "clip '{}': loop mode on needs a curve that loops; {} does not",
-                    clip.name, spec.curve
+                    "clip '{}': loop mode on needs a curve that loops; {} does not (the curves that loop are {})",
+                    clip.name,
+                    spec.curve,
+                    CurveSpec::looping_curves()
                 )));
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
                 return Err(E::Animation(format!(
-                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most 1e-3)",
+                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most {})",
                     animation.label(clip, c),
-                    crate::error::Number(angle)
+                    crate::error::Number(angle),
+                    crate::error::Number(crate::batch::LOOP_TOLERANCE)
                 )));
             }
             Ok(true)

@@ -22,14 +22,14 @@ pub struct BakeArgs {
     input: Vec<PathBuf>,
     /// Output rate in Hz, fitted per clip so that its first and last frames are its first and
     /// last keys (the clip's own rate is in the sidecar).
-    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = quatcurve::DEFAULT_RATE, allow_negative_numbers = true)]
     rate: f64,
     /// Bake open clips at exactly --rate: frames start + i / rate while not past the last
     /// key, so a clip's end off that grid is not baked (the summary warns how much).
     #[arg(long)]
     exact_rate: bool,
     /// Curve family; the default, bspline-interp, is C2 and passes through every key.
-    #[arg(long, default_value = "bspline-interp", value_parser = names::<Curve>())]
+    #[arg(long, default_value = quatcurve::DEFAULT_CURVE.name(), value_parser = names::<Curve>())]
     curve: Curve,
     /// Which clips loop: auto (those whose rotation channels end on their first rotation),
     /// on (every clip; one that does not close is an error), off.

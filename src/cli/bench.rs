@@ -329,14 +329,16 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
     })
 }
 
-/// Ranges of tracks whose packed f32 data and output come to about one streamed chunk
-/// (`chunk` bytes) each.
+/// Ranges of tracks that the GPU packs as one streamed chunk (`chunk` bytes per binding) each,
+/// as its own planning counts them (a track cut into pieces is one range).
 fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64) -> Vec<std::ops::Range<usize>> {
-    let knots: usize = batch.tracks.iter().map(|t| t.knot_count).sum();
-    let bytes = 16 * (batch.points.len() + batch.coefs.len()) + 4 * knots + 4 * channels * times.total();
-    let per_track = (bytes / batch.len().max(1)).max(1);
-    let piece = (chunk as usize / per_track).clamp(1, batch.len().max(1));
-    (0..batch.len()).step_by(piece).map(|start| start..(start + piece).min(batch.len())).collect()
+    let Ok(plans) = quatcurve::gpu::layout::plan_chunks(batch, times, channels, chunk) else {
+        return vec![0..batch.len()];
+    };
+    let mut ranges: Vec<std::ops::Range<usize>> =
+        plans.iter().map(|p| p.first_track..p.first_track + p.tracks).collect();
+    ranges.dedup();
+    ranges
 }
 
 fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {

@@ -22,12 +22,9 @@ pub struct EvalArgs {
     #[arg(long)]
     output: Option<PathBuf>,
     /// Curve family (bspline-interp: C2 and through every key).
-    #[arg(long, default_value = "bspline-interp", value_parser = names::<Curve>())]
+    #[arg(long, default_value = quatcurve::DEFAULT_CURVE.name(), value_parser = names::<Curve>())]
     curve: Curve,
-    /// Periodic curves: each track's last key closes onto its first, the curve keeps its
-    /// continuity across that seam and sample times wrap by the period (slerp, squad,
-    /// hermite, nam-kim, bspline-interp, bspline with phantom knots).
-    #[arg(long = "loop")]
+    #[arg(long = "loop", help = super::loop_help())]
     looping: bool,
     #[command(flatten)]
     options: CurveArgs,
@@ -77,7 +74,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
     let sampling = match (args.samples, args.rate) {
         (Some(n), _) => Sampling::Count(n),
-        (None, rate) => Sampling::Rate(rate.unwrap_or(30.0)),
+        (None, rate) => Sampling::Rate(rate.unwrap_or(quatcurve::DEFAULT_RATE)),
     };
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.sample_times.as_deref()).collect();
     // The library's sampling errors name no flag; say which one.
@@ -92,15 +89,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         _ => Layout::Track,
     };
     if format == Format::Npy {
-        let first = times.count(0);
-        if let Some(i) = (0..batch.len()).find(|&i| times.count(i) != first) {
-            return Err(Failure::Input(format!(
-                "{source}: .npy output needs the same sample count in every track: {} has {first}, {} has {}",
-                batch.id(0),
-                batch.id(i),
-                times.count(i)
-            )));
-        }
+        times.equal_counts(&batch, ".npy output").map_err(|e| input_err(e.into()))?;
     }
     let job = EvalJob::new(&batch, &times).layout(layout).derivatives(args.derivatives);
     job.validate().map_err(input_err)?;

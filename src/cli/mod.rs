@@ -38,6 +38,15 @@ impl Failure {
     }
 }
 
+/// `--loop`'s help: what looping means and which curves do (from the library's rule).
+pub fn loop_help() -> String {
+    format!(
+        "Periodic curves: each track's last key closes onto its first, the curve keeps its continuity across that \
+         seam and sample times wrap by the period ({})",
+        quatcurve::CurveSpec::looping_curves()
+    )
+}
+
 /// Opens the device `choice`; the library's message (`gpu: no adapter ...`) gets the flag
 /// that chose it in front (`--device gpu: no adapter ...`).
 pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> {

@@ -21,6 +21,7 @@ mod lanes;
 mod piece;
 mod runs;
 mod simd;
+pub use simd::HALF_PI_PARTS;
 mod track;
 
 pub use simd::Isa;

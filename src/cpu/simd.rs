@@ -219,17 +219,20 @@ pub fn sin_cos_small<S: Lanes>(x: S) -> (S, S) {
     (s * x, c)
 }
 
+/// `pi / 2` in three parts for Cody-Waite reduction, the first with few enough bits that
+/// `k * part` is exact for `|k| < 2^16`: the shader's `HALF_PI_1..3` (`shaders/real.wgsl`),
+/// tied by the test `sin_cos_reduction_is_the_rusts`.
+pub const HALF_PI_PARTS: [f32; 3] = [1.570_312_5, 4.837_513e-4, 7.549_79e-8];
+
 /// `(sin x, cos x)` from [`Lanes`] arithmetic alone: Cody-Waite reduction by `pi / 2` in three
 /// parts (as `shaders/real.wgsl`: `k * HALF_PI_1` is exact for `|k| < 2^16`), the Taylor
 /// polynomials of [`sin_cos_small`] on `[-pi/4, pi/4]`, then the quadrant by
 /// masks. Absolute error about 1e-7 for `|x| < 1e4`, as the shader's.
 #[inline(always)]
 pub fn reduced_sin_cos<S: Lanes>(x: S) -> (S, S) {
-    const HALF_PI_1: f32 = 1.570_312_5;
-    const HALF_PI_2: f32 = 4.837_513e-4;
-    const HALF_PI_3: f32 = 7.549_79e-8;
+    let [p1, p2, p3] = HALF_PI_PARTS.map(S::splat);
     let k = (x * S::splat(std::f32::consts::FRAC_2_PI)).round();
-    let r = (-k).mul_add(S::splat(HALF_PI_3), (-k).mul_add(S::splat(HALF_PI_2), (-k).mul_add(S::splat(HALF_PI_1), x)));
+    let r = (-k).mul_add(p3, (-k).mul_add(p2, (-k).mul_add(p1, x)));
     let (s, c) = sin_cos_small(r);
     // The quadrant k mod 4 in 0..=3, from exact float integers: k / 4 has a fractional part
     // of 0, 1/4, 1/2 or 3/4, which the -3/8 makes round down.

@@ -138,38 +138,40 @@ impl GpuEvaluator {
     /// [`GpuError::NoAdapter`] when there is none, [`GpuError::Device`] when the device
     /// cannot be created.
     pub fn new() -> Result<Self, GpuError> {
-        pollster::block_on(async {
-            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-            let adapter = instance
-                .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::HighPerformance,
-                    ..wgpu::RequestAdapterOptions::default()
-                })
-                .await
-                .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-            let info = adapter.get_info();
-            // Where the GPU shares the host's memory (a CPU adapter such as lavapipe, or an
-            // integrated GPU), outputs are mapped directly instead of copied to a staging
-            // buffer first; on a discrete GPU that would make the kernel write over the bus.
-            let unified = matches!(info.device_type, wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu);
-            let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-            let required_features =
-                if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
-            let (device, queue) = adapter
-                .request_device(&wgpu::DeviceDescriptor {
-                    label: Some("quatcurve"),
-                    required_features,
-                    required_limits: adapter.limits(),
-                    ..wgpu::DeviceDescriptor::default()
-                })
-                .await
-                .map_err(|e| GpuError::Device(e.to_string()))?;
-            // Errors outside our error scopes must not abort the process (wgpu's default).
-            device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
-            let name = format!("{} ({:?})", info.name, info.backend);
-            let mut evaluator = Self::build(device, queue, name)?;
-            evaluator.software = info.device_type == wgpu::DeviceType::Cpu;
-            Ok(evaluator)
+        super::quietly(|| {
+            pollster::block_on(async {
+                let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+                let adapter = instance
+                    .request_adapter(&wgpu::RequestAdapterOptions {
+                        power_preference: wgpu::PowerPreference::HighPerformance,
+                        ..wgpu::RequestAdapterOptions::default()
+                    })
+                    .await
+                    .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+                let info = adapter.get_info();
+                // Where the GPU shares the host's memory (a CPU adapter such as lavapipe, or an
+                // integrated GPU), outputs are mapped directly instead of copied to a staging
+                // buffer first; on a discrete GPU that would make the kernel write over the bus.
+                let unified = matches!(info.device_type, wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu);
+                let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+                let required_features =
+                    if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
+                let (device, queue) = adapter
+                    .request_device(&wgpu::DeviceDescriptor {
+                        label: Some("quatcurve"),
+                        required_features,
+                        required_limits: adapter.limits(),
+                        ..wgpu::DeviceDescriptor::default()
+                    })
+                    .await
+                    .map_err(|e| GpuError::Device(e.to_string()))?;
+                // Errors outside our error scopes must not abort the process (wgpu's default).
+                device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
+                let name = format!("{} ({:?})", info.name, info.backend);
+                let mut evaluator = Self::build(device, queue, name)?;
+                evaluator.software = info.device_type == wgpu::DeviceType::Cpu;
+                Ok(evaluator)
+            })
         })
     }
 
@@ -500,8 +502,8 @@ impl GpuEvaluator {
         let writable =
             storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
         // Bindings may not be empty.
-        let sizes =
-            [plan.points * 16, plan.coefs * 16, plan.knots * 8, plan.times * 8].map(|bytes| (bytes as u64).max(16));
+        let bytes = plan.binding_bytes(channels);
+        let sizes = [bytes[1], bytes[2], bytes[3], bytes[4]].map(|b| b.max(16));
         let packed = match self.reuse_inputs(&sizes)? {
             Some(buffers) => buffers,
             None => {
@@ -560,7 +562,7 @@ impl GpuEvaluator {
             knots,
             times,
         ];
-        let output_bytes = (plan.samples * channels * 4) as u64;
+        let output_bytes = bytes[5];
         let spare = if target.is_none() {
             self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take().filter(|b| b.size() >= output_bytes)
         } else {

@@ -19,7 +19,7 @@ pub struct GpuTrack {
     pub order: u32,
     /// Blend code (`BLEND_*`).
     pub blend: u32,
-    /// `FLAG_EXPLICIT_TIMES | FLAG_HAS_LAST`.
+    /// [`FLAG_EXPLICIT_TIMES`], [`FLAG_HAS_LAST`] and [`FLAG_UNIFORM_KNOTS`], or'd.
     pub flags: u32,
     /// First entry in the chunk's points.
     pub point_offset: u32,
@@ -155,6 +155,36 @@ pub struct ChunkPlan {
     pub times: usize,
 }
 
+/// Bytes of one entry of each binding but `tracks`: points and coefficients are `vec4<f32>`,
+/// knots and explicit sample times 32.32 fixed point (two `u32`), each output channel an `f32`.
+pub const POINT_BYTES: usize = 16;
+/// See [`POINT_BYTES`].
+pub const COEF_BYTES: usize = 16;
+/// See [`POINT_BYTES`].
+pub const KNOT_BYTES: usize = 8;
+/// See [`POINT_BYTES`].
+pub const TIME_BYTES: usize = 8;
+/// See [`POINT_BYTES`].
+pub const CHANNEL_BYTES: usize = 4;
+
+impl ChunkPlan {
+    /// Bytes each binding of the chunk holds, in binding order: tracks, points, coefficients,
+    /// knots, explicit times, output (of `channels` per sample). The one count of device bytes
+    /// that planning, buffer creation and `bench` use.
+    #[must_use]
+    pub fn binding_bytes(&self, channels: usize) -> [u64; 6] {
+        [
+            self.tracks * std::mem::size_of::<GpuTrack>(),
+            self.points * POINT_BYTES,
+            self.coefs * COEF_BYTES,
+            self.knots * KNOT_BYTES,
+            self.times * TIME_BYTES,
+            self.samples * channels * CHANNEL_BYTES,
+        ]
+        .map(|b| b as u64)
+    }
+}
+
 /// Where [`pack`] writes a chunk's arrays, as bytes: on the device path, its buffers mapped at
 /// creation, so that the packed data is written once, straight into memory the kernel reads
 /// (no host copy of the chunk beside them). Each view holds at least the plan's entries.
@@ -282,17 +312,7 @@ pub fn plan_chunks(
             times: c.times + if explicit { samples } else { 0 },
             ..c.clone()
         };
-        // Bytes each binding of the chunk holds.
-        let needs = |c: &ChunkPlan| -> [u64; 6] {
-            [
-                (c.tracks * std::mem::size_of::<GpuTrack>()) as u64,
-                (c.points * 16) as u64,
-                (c.coefs * 16) as u64,
-                (c.knots * 8) as u64,
-                (c.times * 8) as u64,
-                (c.samples * channels * 4) as u64,
-            ]
-        };
+        let needs = |c: &ChunkPlan| c.binding_bytes(channels);
         let fits = |c: &ChunkPlan| needs(c).iter().all(|&b| b <= binding_limit) && c.samples < u32::MAX as usize;
         let last = chunks.last_mut().expect("one chunk at least");
         let with = grown(last, count);
@@ -306,7 +326,7 @@ pub fn plan_chunks(
             continue;
         }
         // Too long for one binding: pieces as large as a fresh chunk takes.
-        let per_sample = (channels * 4 + if explicit { 8 } else { 0 }) as u64;
+        let per_sample = (channels * CHANNEL_BYTES + if explicit { TIME_BYTES } else { 0 }) as u64;
         let piece = (binding_limit / per_sample).min(u32::MAX as u64 / 2) as usize;
         let one = grown(&ChunkPlan { first_track: index, ..ChunkPlan::default() }, piece.min(count));
         if piece == 0 || !fits(&one) {

@@ -12,6 +12,29 @@ pub mod shader;
 
 pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 
+/// Runs `f` (which creates a wgpu instance, adapter or device) without the display-server
+/// noise it would print on a server. wgpu's Vulkan instance enables the Wayland surface
+/// extension, and Mesa's drivers then ask libwayland for a display, which prints "error:
+/// XDG_RUNTIME_DIR is invalid or not set in the environment." (twice) where the variable is
+/// missing or not absolute. For the duration of `f` such a variable is the system's temporary
+/// directory (absolute: libwayland then finds no display there, silently), and it is put back
+/// after. The CLI and the Python package open their devices through this too.
+pub(crate) fn quietly<T>(f: impl FnOnce() -> T) -> T {
+    const NAME: &str = "XDG_RUNTIME_DIR";
+    let given = std::env::var_os(NAME);
+    let usable = given.as_ref().is_some_and(|d| std::path::Path::new(d).is_absolute());
+    if !cfg!(target_os = "linux") || usable {
+        return f();
+    }
+    std::env::set_var(NAME, std::env::temp_dir());
+    let result = f();
+    match given {
+        Some(value) => std::env::set_var(NAME, value),
+        None => std::env::remove_var(NAME),
+    }
+    result
+}
+
 /// Why the GPU path failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GpuError {

@@ -1,25 +1,22 @@
 //! Shared generators and oracles for the reference tests.
 
+use quatcurve::synthetic::SplitMix;
 use quatcurve::{Batch, CurveSpec, DQuat, DVec3, Sample, Track};
 
-/// SplitMix64: a tiny deterministic generator, so each proptest case is one `u64` seed and
-/// adversarial track shapes are plain functions.
-pub struct Gen(u64);
+/// The crate's SplitMix64 ([`SplitMix`]) with the shapes the tests draw from, so each
+/// proptest case is one `u64` seed and adversarial track shapes are plain functions.
+pub struct Gen(SplitMix);
 
 impl Gen {
     pub fn new(seed: u64) -> Self {
-        Self(seed)
+        Self(SplitMix::new(seed))
     }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [0, 1).
     pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        self.0.unit()
     }
     pub fn range(&mut self, a: f64, b: f64) -> f64 {
         a + (b - a) * self.unit()

@@ -35,7 +35,15 @@ fn shader_program_uses_no_f64() {
 fn workgroup_size_is_read_from_the_shader() {
     let (module, _) = shader::module().unwrap();
     let size = shader::workgroup_size(&module).unwrap();
-    assert!(size.is_power_of_two() && size >= 32, "{size}");
+    // What eval.wgsl declares, read from its text independently of naga.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/eval.wgsl")).unwrap();
+    let declared: u32 = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("const WORKGROUP_SIZE: u32 = "))
+        .and_then(|v| v.trim_end_matches(';').trim_end_matches('u').parse().ok())
+        .expect("eval.wgsl declares `const WORKGROUP_SIZE: u32 = N;`");
+    assert_eq!(size, declared);
+    assert!(text.contains("@workgroup_size(WORKGROUP_SIZE)"), "the entry points take their size from the constant");
 }
 
 /// (name, offset) of each field of a naga struct.
@@ -157,15 +165,32 @@ fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
     );
 }
 
+/// The value of the shader's `f32` constant `name`.
+fn constant_f32(module: &naga::Module, name: &str) -> f32 {
+    let (_, constant) =
+        module.constants.iter().find(|(_, c)| c.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no {name}"));
+    match module.global_expressions[constant.init] {
+        naga::Expression::Literal(naga::Literal::F32(v)) => v,
+        ref other => panic!("{name} is {other:?}"),
+    }
+}
+
 #[test]
 fn series_limit_is_the_rusts() {
     let (module, _) = shader::module().unwrap();
-    let (_, limit) =
-        module.constants.iter().find(|(_, c)| c.name.as_deref() == Some("SERIES_LIMIT")).expect("SERIES_LIMIT");
-    match module.global_expressions[limit.init] {
-        naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(f64::from(v), quatcurve::real::SERIES_LIMIT),
-        ref other => panic!("SERIES_LIMIT is {other:?}"),
-    }
+    assert_eq!(f64::from(constant_f32(&module, "SERIES_LIMIT")), quatcurve::real::SERIES_LIMIT);
+}
+
+#[test]
+fn sin_cos_reduction_is_the_rusts() {
+    let (module, _) = shader::module().unwrap();
+    let shader = ["HALF_PI_1", "HALF_PI_2", "HALF_PI_3"].map(|name| constant_f32(&module, name));
+    assert_eq!(shader, quatcurve::cpu::HALF_PI_PARTS, "pi/2 in three parts");
+    assert_eq!(constant_f32(&module, "TWO_OVER_PI"), std::f32::consts::FRAC_2_PI);
+    // The parts add up to pi/2 beyond f32 precision, and the first takes k exactly.
+    let sum: f64 = shader.iter().map(|&p| f64::from(p)).sum();
+    assert!((sum - std::f64::consts::FRAC_PI_2).abs() < 1e-14, "{sum}");
+    assert!(shader[0].to_bits().trailing_zeros() >= 16, "k * HALF_PI_1 must be exact for |k| < 2^16");
 }
 
 #[test]

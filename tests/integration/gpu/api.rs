@@ -303,3 +303,27 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     bad.reverse();
     assert!(gpu.forward_kinematics(&parents, &bad, &local).is_err());
 }
+
+/// The child of [`opening_a_gpu_prints_nothing_without_a_runtime_directory`]: opens a device.
+#[test]
+#[ignore = "run by opening_a_gpu_prints_nothing_without_a_runtime_directory, in a process of its own"]
+fn open_a_gpu_device() {
+    GpuEvaluator::new().unwrap();
+}
+
+#[test]
+fn opening_a_gpu_prints_nothing_without_a_runtime_directory() {
+    if crate::shared_gpu().is_none() {
+        return;
+    }
+    // A library user's process on a server: no XDG_RUNTIME_DIR (Mesa's drivers would print
+    // "XDG_RUNTIME_DIR is invalid or not set" twice per device).
+    let child = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "gpu::api::open_a_gpu_device", "--ignored", "--nocapture", "--test-threads", "1"])
+        .env_remove("XDG_RUNTIME_DIR")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&child.stderr);
+    assert!(child.status.success() && String::from_utf8_lossy(&child.stdout).contains("1 passed"), "{stderr}");
+    assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+}
