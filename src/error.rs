@@ -171,9 +171,6 @@ pub enum JobError {
     /// A looping track's uniform grid leaves its period (fast paths do not wrap grids).
     #[error("{track}: a looping track's uniform sample times must stay within its period [{lo}, {hi}]; give other times as an explicit list (SampleTimes::new wraps them)")]
     GridOutsidePeriod { track: TrackId, lo: f64, hi: f64 },
-    /// A track's explicit times point outside the list.
-    #[error("{track}: explicit sample times out of range")]
-    ExplicitOutOfRange { track: TrackId },
     /// Tracks with different sample counts where one array holds them all (a frame-major
     /// layout, an `.npy` file, a numpy array): `needed_by` says which.
     #[error("{needed_by} needs the same sample count in every track: {first} has {count}, {other} has {other_count}")]

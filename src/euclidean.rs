@@ -14,7 +14,7 @@
 //! `p(t + T) = p(t) + D`.
 
 use crate::basis::{bernstein_cumulative, bspline_cumulative};
-use crate::batch::{bspline_knots, key_times};
+use crate::batch::{bspline_knots, catmull_rom_velocities, key_times, squad_points};
 use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::DVec3;
@@ -194,40 +194,13 @@ impl VectorCurve {
     }
 }
 
-/// Squad's auxiliary points, Euclidean: `s_i = p_i - ((p_{i+1} - p_i) + (p_{i-1} - p_i)) / 4`;
-/// at the ends `p_i`, or looping (`p_n = p_0`) the same rule with `p_{n-1}` and `p_1` across the
-/// seam.
-fn squad_points(keys: &[DVec3], looping: bool) -> Vec<DVec3> {
-    let n = keys.len() - 1;
-    let aux = |i: usize, prev: DVec3, next: DVec3| keys[i] - ((next - keys[i]) + (prev - keys[i])).scale(0.25);
-    (0..=n)
-        .map(|i| match (i == 0 || i == n, looping) {
-            (true, true) => aux(i, keys[n - 1], keys[1]),
-            (true, false) => keys[i],
-            (false, _) => aux(i, keys[i - 1], keys[i + 1]),
-        })
-        .collect()
-}
-
-/// Per-key velocities: Catmull-Rom (the time-weighted mean of the neighbouring difference
-/// quotients, one-sided at the ends) or zero, as for rotations.
-/// Looping (`p_n = p_0`), keys 0 and n use the neighbours across the seam.
+/// Per-key velocities: Catmull-Rom ([`catmull_rom_velocities`], as for rotations) or zero;
+/// vector channels carry no given velocities.
 fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64], looping: bool) -> Result<Vec<DVec3>> {
-    let n = keys.len() - 1;
-    let quotient = |a: usize| (keys[a + 1] - keys[a]).scale(1.0 / (times[a + 1] - times[a]));
-    let mean = |back: DVec3, ahead: DVec3, d0: f64, d1: f64| (back.scale(d1) + ahead.scale(d0)).scale(1.0 / (d0 + d1));
     match tangents {
-        Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
+        Tangents::Zero => Ok(vec![DVec3::zero(); keys.len()]),
         Tangents::Given => Err(Error::VectorTangents { track: id.clone() }),
-        Tangents::CatmullRom => Ok((0..=n)
-            .map(|i| match (i, looping) {
-                (0, true) => mean(quotient(n - 1), quotient(0), times[n] - times[n - 1], times[1] - times[0]),
-                (i, true) if i == n => mean(quotient(n - 1), quotient(0), times[n] - times[n - 1], times[1] - times[0]),
-                (0, false) => quotient(0),
-                (i, false) if i == n => quotient(n - 1),
-                (i, _) => mean(quotient(i - 1), quotient(i), times[i] - times[i - 1], times[i + 1] - times[i]),
-            })
-            .collect()),
+        Tangents::CatmullRom => Ok(catmull_rom_velocities(keys, times, looping)),
     }
 }
 

@@ -336,7 +336,7 @@ impl<'a> ResultFile<'a> {
             .iter()
             .enumerate()
             .map(|(i, track)| {
-                let range = times.offsets[i]..times.offsets[i + 1];
+                let range = times.offsets()[i]..times.offsets()[i + 1];
                 TrackResult {
                     name: track.name.as_deref(),
                     // As requested: a looping track's own times were wrapped for evaluation.

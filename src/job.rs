@@ -82,34 +82,26 @@ impl<'a> EvalJob<'a> {
     /// Checks that the inputs fit together, before any work.
     ///
     /// # Errors
-    /// [`Error::EmptyBatch`], [`Error::BadJob`] when the sample lists do not match the batch or
-    /// a frame-major layout meets unequal sample counts, [`Error::NonFiniteSampleTime`].
+    /// [`Error::EmptyBatch`], [`Error::BadJob`] when the sample times were made for a batch
+    /// of another size, a looping track's grid leaves its period, or a frame-major layout meets
+    /// unequal sample counts.
     pub fn validate(&self) -> Result<()> {
         if self.batch.is_empty() {
             return Err(Error::EmptyBatch);
         }
-        if self.times.track_count() != self.batch.len() || self.times.offsets.len() != self.batch.len() + 1 {
+        // Made from a batch, times hold finite lists and offsets that add up; they must be
+        // this batch's size.
+        if self.times.track_count() != self.batch.len() {
             return Err(JobError::TrackCount { times: self.times.track_count(), batch: self.batch.len() }.into());
         }
-        for (index, times) in self.times.tracks.iter().enumerate() {
-            let track = &self.batch.tracks[index];
+        for (index, times) in self.times.tracks().iter().enumerate() {
+            let track = &self.batch.tracks()[index];
             if let TrackTimes::Uniform { start, step, count, last } = *times {
                 // The fast paths generate uniform times themselves and do not wrap them.
                 let end = last.unwrap_or(start + step * count.saturating_sub(1) as f64);
-                let [lo, hi] = track.domain;
-                if track.looping && count > 0 && (start < lo || end > hi + 1e-9 * (hi - lo)) {
+                let [lo, hi] = track.domain();
+                if track.looping() && count > 0 && (start < lo || end > hi + 1e-9 * (hi - lo)) {
                     return Err(JobError::GridOutsidePeriod { track: self.batch.id(index), lo, hi }.into());
-                }
-            }
-            if let TrackTimes::Explicit { offset, count } = *times {
-                let own = self
-                    .times
-                    .explicit
-                    .get(offset..offset + count)
-                    .ok_or_else(|| JobError::ExplicitOutOfRange { track: self.batch.id(index) })?;
-                if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
-                    let track = self.batch.id(index);
-                    return Err(Error::NonFiniteSampleTime { track, sample, value: own[sample] });
                 }
             }
         }
@@ -137,9 +129,9 @@ impl<'a> EvalJob<'a> {
         }
         let evaluate = |index: usize, j: usize| reference::evaluate(self.batch.view(index), self.times.time(index, j));
         if layout == Layout::Track {
-            let rotations = split_at_offsets(&mut out.rotations, &self.times.offsets);
-            let omega = split_at_offsets(&mut out.angular_velocity, &self.times.offsets);
-            let alpha = split_at_offsets(&mut out.angular_acceleration, &self.times.offsets);
+            let rotations = split_at_offsets(&mut out.rotations, &self.times.offsets());
+            let omega = split_at_offsets(&mut out.angular_velocity, &self.times.offsets());
+            let alpha = split_at_offsets(&mut out.angular_acceleration, &self.times.offsets());
             rotations.into_par_iter().zip(omega).zip(alpha).enumerate().for_each(
                 |(index, ((rotations, omega), alpha))| {
                     for (j, q) in rotations.iter_mut().enumerate() {

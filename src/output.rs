@@ -23,7 +23,7 @@ impl Layout {
     #[must_use]
     pub fn slot(self, times: &SampleTimes, track: usize, j: usize) -> usize {
         match self {
-            Layout::Track => times.offsets[track] + j,
+            Layout::Track => times.offsets()[track] + j,
             Layout::Frame => j * times.track_count() + track,
         }
     }

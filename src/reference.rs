@@ -94,8 +94,8 @@ pub(crate) fn per_time(b: BasisJet, len: f64) -> BasisJet {
 #[must_use]
 pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
     let TrackView { track, points, coefs, knots } = view;
-    let t = if track.looping { wrap(t, track.domain) } else { t };
-    match track.curve {
+    let t = if track.looping() { wrap(t, track.domain()) } else { t };
+    match track.curve() {
         Curve::Slerp => {
             let (i, t, len) = key_segment(knots, t);
             let u = (t - knots[i]) / len;
@@ -104,7 +104,7 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
         Curve::Bezier => {
             let (_, t, len) = key_segment(knots, t);
             let u = (t - knots[0]) / len;
-            let basis = bernstein_cumulative(track.order, u);
+            let basis = bernstein_cumulative(track.bezier_degree(), u);
             let factors = coefs.iter().zip(basis).map(|(&c, b)| Factor { v: coef_vec(c), b: per_time(b, len) });
             cumulative_product(points[0], factors)
         }
@@ -119,7 +119,7 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
         }
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
-            let k = track.order;
+            let k = track.order();
             let m = points.len() - 1;
             let (l, t) = locate(knots, k - 1, m, t);
             let basis = bspline_cumulative(knots, k, l, t);
@@ -142,12 +142,12 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
 /// (a third of the work) when no derivative is wanted.
 #[must_use]
 pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> DQuat {
-    match view.track.curve {
+    match view.track.curve() {
         Curve::Squad | Curve::NamKim => {
-            let t = if view.track.looping { wrap(t, view.track.domain) } else { t };
+            let t = if view.track.looping() { wrap(t, view.track.domain()) } else { t };
             let (i, t, len) = key_segment(view.knots, t);
             let h = (t - view.knots[i]) * (1.0 / len);
-            if view.track.curve == Curve::Squad {
+            if view.track.curve() == Curve::Squad {
                 squad(view, i, h)
             } else {
                 nam_kim(view, i, h)
@@ -171,7 +171,7 @@ fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quat<R> {
     let (a, b) = (coef_vec(view.coefs[2 * i]), coef_vec(view.coefs[2 * i + 1]));
     let c1 = Quat::from_f64(view.points[i]) * Quat::exp(Vec3::from_f64(a).mul_scalar(s));
     let c2 = Quat::from_f64(view.points[i + 1]) * Quat::exp(Vec3::from_f64(b).mul_scalar(s - R::cst(1.0)));
-    c1.geodesic(c2, view.track.blend.ratio(s))
+    c1.geodesic(c2, view.track.blend().ratio(s))
 }
 
 /// NK's forward-difference generator (NK section 3, appendix B) for a Nam-Kim segment sampled
@@ -187,7 +187,7 @@ fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quat<R> {
 /// If the track is not Nam-Kim, `segment` is out of range, or `steps` is 0.
 #[must_use]
 pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: usize) -> Vec<DQuat> {
-    assert_eq!(view.track.curve, Curve::NamKim, "forward differences apply to nam-kim tracks");
+    assert_eq!(view.track.curve(), Curve::NamKim, "forward differences apply to nam-kim tracks");
     assert!(steps > 0, "at least one step");
     let i = segment;
     let (a, b) = (coef_vec(view.coefs[2 * i]), coef_vec(view.coefs[2 * i + 1]));
@@ -196,7 +196,7 @@ pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: us
     backward.reverse();
     (0..=steps)
         .map(|j| {
-            let f = view.track.blend.ratio(j as f64 / steps as f64);
+            let f = view.track.blend().ratio(j as f64 / steps as f64);
             forward[j].geodesic(backward[j], f)
         })
         .collect()

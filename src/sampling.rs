@@ -68,15 +68,13 @@ impl TrackTimes {
     }
 }
 
-/// Sample times of every track of a batch.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// Sample times of every track of a batch, made by [`SampleTimes::new`] and its siblings
+/// from the batch (so there is one entry per track and the offsets add up); read-only.
+#[derive(Clone, Debug, PartialEq)]
 pub struct SampleTimes {
-    /// Per-track description, in batch order.
-    pub tracks: Vec<TrackTimes>,
-    /// `offsets[i]..offsets[i + 1]` is track `i`'s range in track-major output; `len = tracks + 1`.
-    pub offsets: Vec<usize>,
-    /// Times of tracks with their own lists.
-    pub explicit: Vec<f64>,
+    tracks: Vec<TrackTimes>,
+    offsets: Vec<usize>,
+    explicit: Vec<f64>,
 }
 
 impl Sampling {
@@ -141,19 +139,19 @@ impl SampleTimes {
     /// `each`'s errors; [`Error::NonFiniteSampleTime`] for a NaN or infinite listed time;
     /// [`Error::BadJob`] for a grid given as `TrackTimes::Explicit`.
     pub fn per_track<'a>(batch: &Batch, mut each: impl FnMut(usize, [f64; 2]) -> Result<PerTrack<'a>>) -> Result<Self> {
-        let mut out = SampleTimes { offsets: vec![0], ..Self::default() };
-        for (index, track) in batch.tracks.iter().enumerate() {
-            let times = match each(index, track.domain)? {
+        let mut out = SampleTimes { tracks: Vec::new(), offsets: vec![0], explicit: Vec::new() };
+        for (index, track) in batch.tracks().iter().enumerate() {
+            let times = match each(index, track.domain())? {
                 PerTrack::List(own) => {
                     if let Some(sample) = own.iter().position(|t| !t.is_finite()) {
                         let (track, value) = (batch.id(index), own[sample]);
                         return Err(Error::NonFiniteSampleTime { track, sample, value });
                     }
                     let offset = out.explicit.len();
-                    if track.looping {
+                    if track.looping() {
                         // Evaluators see times inside the period (DESIGN section 3, "Loops");
                         // outputs echo the track's own list.
-                        out.explicit.extend(own.iter().map(|&t| crate::segment::wrap(t, track.domain)));
+                        out.explicit.extend(own.iter().map(|&t| crate::segment::wrap(t, track.domain())));
                     } else {
                         out.explicit.extend_from_slice(own);
                     }
@@ -176,6 +174,47 @@ impl SampleTimes {
     /// As [`Sampling::over`].
     pub fn uniform(batch: &Batch, sampling: Sampling) -> Result<Self> {
         Self::new(batch, &[], sampling)
+    }
+
+    /// Per-track description, in batch order.
+    #[must_use]
+    pub fn tracks(&self) -> &[TrackTimes] {
+        &self.tracks
+    }
+
+    /// `offsets()[i]..offsets()[i + 1]` is track `i`'s range in track-major output (one more
+    /// entry than tracks).
+    #[must_use]
+    pub fn offsets(&self) -> &[usize] {
+        &self.offsets
+    }
+
+    /// Times of tracks with their own lists ([`TrackTimes::Explicit`] indexes them).
+    #[must_use]
+    pub fn explicit(&self) -> &[f64] {
+        &self.explicit
+    }
+
+    /// The times of the tracks in `range` alone, for the batch's [`Batch::subset`] of the same
+    /// range (grids kept as they are, lists copied).
+    ///
+    /// # Panics
+    /// When `range` reaches past the end, like slice indexing.
+    #[must_use]
+    pub fn subset(&self, range: std::ops::Range<usize>) -> SampleTimes {
+        let mut out = SampleTimes { tracks: Vec::with_capacity(range.len()), offsets: vec![0], explicit: Vec::new() };
+        for times in &self.tracks[range] {
+            out.tracks.push(match *times {
+                grid @ TrackTimes::Uniform { .. } => grid,
+                TrackTimes::Explicit { offset, count } => {
+                    let start = out.explicit.len();
+                    out.explicit.extend_from_slice(&self.explicit[offset..offset + count]);
+                    TrackTimes::Explicit { offset: start, count }
+                }
+            });
+            out.offsets.push(out.offsets[out.offsets.len() - 1] + times.count());
+        }
+        out
     }
 
     /// Sample `j` of track `index`.

@@ -138,7 +138,7 @@ pub struct Nodes {
 /// continuity may break (the key times for every family through keys).
 #[must_use]
 pub fn joints(view: TrackView<'_>) -> Vec<f64> {
-    let [lo, hi] = view.track.domain;
+    let [lo, hi] = view.track.domain();
     let mut out: Vec<f64> = vec![lo];
     out.extend(view.knots.iter().copied().filter(|&k| k > lo && k < hi));
     out.push(hi);
@@ -152,7 +152,7 @@ pub fn joints(view: TrackView<'_>) -> Vec<f64> {
 /// [`AnalysisError::BadStep`], [`AnalysisError::TooManyNodes`].
 pub fn nodes(view: TrackView<'_>, name: &str, step: Option<f64>) -> Result<Nodes, AnalysisError> {
     let joints = joints(view);
-    let [lo, hi] = view.track.domain;
+    let [lo, hi] = view.track.domain();
     let step = match step {
         Some(s) if !(s.is_finite() && s > 0.0) => return Err(AnalysisError::BadStep(s)),
         Some(s) => s,
@@ -175,7 +175,7 @@ pub fn nodes(view: TrackView<'_>, name: &str, step: Option<f64>) -> Result<Nodes
     let mut out = Nodes {
         times: Vec::with_capacity(total as usize),
         spans: Vec::with_capacity(joints.len()),
-        looping: view.track.looping,
+        looping: view.track.looping(),
     };
     for w in joints.windows(2) {
         let (a, b) = (w[0], w[1]);
@@ -290,7 +290,7 @@ pub fn analyze(batch: &Batch, device: &Device, options: &AnalysisOptions) -> Res
 /// The device's.
 pub fn profile(batch: &Batch, index: usize, device: &Device, points: usize) -> Result<[Vec<f64>; 3], AnalysisError> {
     let view = batch.view(index);
-    let [lo, hi] = view.track.domain;
+    let [lo, hi] = view.track.domain();
     let nodes = nodes(view, &batch.id(index).to_string(), Some((hi - lo) / points.max(2) as f64))?;
     let sampled = derivatives_at(&batch.subset(index..index + 1), std::slice::from_ref(&nodes), device)?;
     let norm = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();

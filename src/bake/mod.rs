@@ -496,7 +496,7 @@ pub fn bake(
     let mut next = 0;
     for clip in &mut baked.clips {
         for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
-            *frames = Frames::Device(times.offsets[next], times.offsets[next + 1]);
+            *frames = Frames::Device(times.offsets()[next], times.offsets()[next + 1]);
             next += 1;
         }
     }
@@ -614,7 +614,7 @@ fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<
         .par_iter()
         .enumerate()
         .flat_map_iter(|(i, track)| {
-            let got = &rows[times.offsets[i]..times.offsets[i + 1]];
+            let got = &rows[times.offsets()[i]..times.offsets()[i + 1]];
             track.rotations.iter().zip(got).map(|(&key, q)| {
                 let (key, q) = (DQuat::from_array(key).normalize(), DQuat::from_array(q.map(f64::from)));
                 (chord(key, q.normalize()), key, q)

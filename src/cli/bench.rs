@@ -3,7 +3,6 @@
 
 use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
-use quatcurve::sampling::{PerTrack, TrackTimes};
 use quatcurve::{
     synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator,
     KnotMode, SampleTimes, Sampling,
@@ -304,15 +303,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
     // host memory: a million short tracks held 3 GB more).
     let (mut dispatch, mut roofline) = (0.0, 0.0);
     for range in device_pieces(batch, times, job.options.row().channels(), gpu.stream_chunk_bytes()) {
-        let piece = batch.subset(range.clone());
-        let piece_times = SampleTimes::per_track(&piece, |i, _| {
-            let at = range.start + i;
-            Ok(match times.tracks[at] {
-                grid @ TrackTimes::Uniform { .. } => PerTrack::Grid(grid),
-                TrackTimes::Explicit { offset, count } => PerTrack::List(&times.explicit[offset..offset + count]),
-            })
-        })
-        .map_err(|e| Failure::Input(format!("bench: {e}")))?;
+        let (piece, piece_times) = (batch.subset(range.clone()), times.subset(range));
         let prepared = gpu.prepare(&EvalJob::new(&piece, &piece_times).with(job.options)).map_err(device_err)?;
         dispatch += median_seconds(args.runs, || gpu.dispatch(&prepared).map_err(device_err))?;
         roofline += median_seconds(args.runs, || gpu.roofline(&prepared).map_err(device_err))?;
@@ -332,9 +323,8 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
 /// Ranges of tracks that the GPU packs as one streamed chunk (`chunk` bytes per binding) each,
 /// as its own planning counts them (a track cut into pieces is one range).
 fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64) -> Vec<std::ops::Range<usize>> {
-    let Ok(plans) = quatcurve::gpu::layout::plan_chunks(batch, times, channels, chunk) else {
-        return vec![0..batch.len()];
-    };
+    // A batch the GPU cannot plan fails in `prepare` with its message.
+    let plans = quatcurve::gpu::layout::plan_chunks(batch, times, channels, chunk).unwrap_or_default();
     let mut ranges: Vec<std::ops::Range<usize>> =
         plans.iter().map(|p| p.first_track..p.first_track + p.tracks).collect();
     ranges.dedup();

@@ -95,7 +95,7 @@ fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
     let (points, coefs) = (view.points, view.coefs);
     let vec = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
     (0..points.len() - 1)
-        .map(|i| match view.track.curve {
+        .map(|i| match view.track.curve() {
             Curve::Squad => [
                 Arc::between(points[i], points[i + 1]),
                 Arc::between(DQuat::from_array(coefs[i]), DQuat::from_array(coefs[i + 1])),
@@ -156,7 +156,7 @@ fn evaluate_lanes<S: Lanes>(
     let knots = view.knots;
     let last = knots.len() - 2;
     let arcs = segment_arcs(view);
-    let (squad, blend) = (view.track.curve == Curve::Squad, view.track.blend);
+    let (squad, blend) = (view.track.curve() == Curve::Squad, view.track.blend());
     let second_offset = S::splat(if squad { 0.0 } else { 1.0 });
     let mut hint = 0;
     for g in (0..n).step_by(LANES) {

@@ -21,8 +21,8 @@ use std::ops::Range;
 /// derivatives.
 #[must_use]
 pub fn applies(view: TrackView<'_>, times: &SampleTimes, index: usize, options: &EvalOptions) -> bool {
-    matches!(view.track.curve, Curve::Slerp | Curve::NamKim)
-        && matches!(times.tracks[index], TrackTimes::Uniform { .. })
+    matches!(view.track.curve(), Curve::Slerp | Curve::NamKim)
+        && matches!(times.tracks()[index], TrackTimes::Uniform { .. })
         && !options.derivatives
         && options.forward_difference.is_some()
 }
@@ -80,7 +80,7 @@ pub fn evaluate(
     out: &mut [f32],
 ) {
     let layout = options.row();
-    let TrackTimes::Uniform { step, count, .. } = times.tracks[index] else { return };
+    let TrackTimes::Uniform { step, count, .. } = times.tracks()[index] else { return };
     let reseed = options.forward_difference.unwrap_or(usize::MAX).max(1);
     let knots = view.knots;
     let coef = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
@@ -95,7 +95,7 @@ pub fn evaluate(
             let len = knots[i + 1] - knots[i];
             (segment, since, s, h) = (i, 0, (clamped - knots[i]) / len, step / len);
             arcs.clear();
-            match view.track.curve {
+            match view.track.curve() {
                 Curve::Slerp => {
                     let w = coef(view.coefs[i]);
                     arcs.push(Arc::seed(view.points[i] * DQuat::exp(w.scale(s)), w.scale(h)));
@@ -111,9 +111,9 @@ pub fn evaluate(
             since += 1;
             s += h;
         }
-        let q = match view.track.curve {
+        let q = match view.track.curve() {
             Curve::Slerp => arcs[0].value(),
-            _ => geodesic(arcs[0].value(), arcs[1].value(), view.track.blend.ratio(s) as f32),
+            _ => geodesic(arcs[0].value(), arcs[1].value(), view.track.blend().ratio(s) as f32),
         };
         layout.write(row, q.to_array(), [0.0; 3], [0.0; 3]);
     }

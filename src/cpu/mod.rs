@@ -57,7 +57,7 @@ impl Task {
 /// [`PIECE`] samples, not one per track: a million 10-sample tracks are not a million tasks,
 /// nor 40 MB of task list and output slices.
 fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
-    let tracks = times.tracks.len();
+    let tracks = times.tracks().len();
     let mut tasks = Vec::with_capacity(times.total() / PIECE + 1);
     let mut i = 0;
     while i < tracks {
@@ -163,7 +163,7 @@ impl CpuEvaluator {
                         while end < task.tracks.end && runs::Kind::of(batch, times, end, &options) == Some(kind) {
                             end += 1;
                         }
-                        (end, times.offsets[end] - times.offsets[track])
+                        (end, times.offsets()[end] - times.offsets()[track])
                     }
                     None => (track + 1, task.samples(track, times).len()),
                 };

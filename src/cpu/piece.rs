@@ -32,13 +32,13 @@ impl<'a> Context<'a> {
     /// Point `i` `[x, y, z, w]` in f32.
     #[inline(always)]
     fn point(&self, i: usize) -> [f32; 4] {
-        self.batch.points[i].to_array().map(|v| v as f32)
+        self.batch.points()[i].to_array().map(|v| v as f32)
     }
 
     /// Coefficient `c` as stored, `[x, y, z, w]`, in f32.
     #[inline(always)]
     fn coef(&self, c: usize) -> [f32; 4] {
-        self.batch.coefs[c].map(|v| v as f32)
+        self.batch.coefs()[c].map(|v| v as f32)
     }
 }
 
@@ -58,12 +58,12 @@ pub(super) struct Segments {
 impl Segments {
     /// The segments of `track`.
     pub(super) fn of(track: &PackedTrack) -> Self {
-        let (point, coef) = (track.point_offset, track.coef_offset);
-        match track.curve {
+        let (point, coef) = (track.point_offset(), track.coef_offset());
+        match track.curve() {
             Curve::Slerp => Self { point, coef, stride: 1, shift: 0, hermite: false },
             Curve::Bezier => Self { point, coef, stride: 0, shift: 0, hermite: false },
             Curve::Hermite => Self { point, coef, stride: 3, shift: 0, hermite: true },
-            _ => Self { point, coef, stride: 1, shift: track.order - 1, hermite: false },
+            _ => Self { point, coef, stride: 1, shift: track.order() - 1, hermite: false },
         }
     }
 
@@ -75,7 +75,7 @@ impl Segments {
         let coef = self.coef + self.stride * span - self.shift;
         let mut start = tables.point(self.point + span - self.shift);
         if self.hermite {
-            let sign = tables.batch.coefs[coef + 1][3] as f32;
+            let sign = tables.batch.coefs()[coef + 1][3] as f32;
             start = start.map(|v| v * sign);
         }
         // Loops, not `array::from_fn`, here and below: its closures do not inherit the AVX2
@@ -162,9 +162,9 @@ impl<const F: usize> LaneRows<F> {
 /// The spans a vectorized track's domain covers, first and last: its key segments (slerp,
 /// Hermite), a B-spline's spans from `k - 1` to its last control point, a Bezier curve's one.
 pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
-    match view.track.curve {
+    match view.track.curve() {
         Curve::Slerp | Curve::Hermite => (0, view.knots.len() - 2),
-        Curve::BSpline | Curve::BSplineInterp => (view.track.order - 1, view.points.len() - 1),
+        Curve::BSpline | Curve::BSplineInterp => (view.track.order() - 1, view.points.len() - 1),
         _ => (0, 0),
     }
 }
@@ -173,7 +173,7 @@ pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
 /// knots, else 0.
 pub(super) fn inv_step(view: TrackView<'_>) -> f64 {
     let knots = view.knots;
-    if view.track.uniform_knots && knots.len() > 1 {
+    if view.track.uniform_knots() && knots.len() > 1 {
         (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
     } else {
         0.0
@@ -325,7 +325,7 @@ impl Piece<'_> {
         let mut jets = [[S::ZERO; 3]; F];
         // `start + j step` for samples `j < plain` (as `SampleTimes::time`): the final sample
         // of a `--samples` grid is the exact domain end instead.
-        let uniform = match self.times.tracks[self.index] {
+        let uniform = match self.times.tracks()[self.index] {
             TrackTimes::Uniform { start, step, count, last } => {
                 Some((start, step, if last.is_some() { count - 1 } else { count }))
             }

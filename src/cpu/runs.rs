@@ -43,17 +43,17 @@ impl Kind {
     /// more than [`SHORT`] samples, a basis other than a fitted polynomial, or forward
     /// differences.
     pub(super) fn of(batch: &Batch, times: &SampleTimes, index: usize, options: &EvalOptions) -> Option<Self> {
-        let track = &batch.tracks[index];
+        let track = &batch.tracks()[index];
         if times.count(index) > SHORT
             || options.forward_difference.is_some() && super::forward::applies(batch.view(index), times, index, options)
         {
             return None;
         }
-        match track.curve {
-            Curve::Slerp | Curve::Hermite => Some(Self { curve: track.curve, order: 0 }),
+        match track.curve() {
+            Curve::Slerp | Curve::Hermite => Some(Self { curve: track.curve(), order: 0 }),
             // bspline-interp is packed as a cubic B-spline: one kind with the others.
-            Curve::BSpline | Curve::BSplineInterp if track.uniform_knots => {
-                Some(Self { curve: Curve::BSpline, order: track.order })
+            Curve::BSpline | Curve::BSplineInterp if track.uniform_knots() => {
+                Some(Self { curve: Curve::BSpline, order: track.order() })
             }
             _ => None,
         }
@@ -179,7 +179,7 @@ impl Run<'_> {
     fn cursor(&self, index: usize) -> Cursor<'_> {
         let view = self.batch.view(index);
         let (first, last) = spans(view);
-        let grid = self.times.tracks[index];
+        let grid = self.times.tracks()[index];
         let (plain, start, step) = match grid {
             TrackTimes::Uniform { start, step, count, last } => {
                 (if last.is_some() { count - 1 } else { count }, start, step)

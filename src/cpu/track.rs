@@ -31,18 +31,23 @@ pub fn evaluate(
         return;
     }
     let track = view.track;
-    let (basis, factors) = match track.curve {
+    let (basis, factors) = match track.curve() {
         Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1),
         Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3),
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
-            let k = track.order;
-            let basis =
-                if track.uniform_knots { Basis::Poly(&tables.bases.bspline[k - MIN_ORDER]) } else { Basis::CoxDeBoor };
+            let k = track.order();
+            let basis = if track.uniform_knots() {
+                Basis::Poly(&tables.bases.bspline[k - MIN_ORDER])
+            } else {
+                Basis::CoxDeBoor
+            };
             (basis, k - 1)
         }
         // One segment; degrees beyond the product's capacity take the reference below.
-        Curve::Bezier if (1..=MAX_FACTORS).contains(&track.order) => (Basis::Bernstein, track.order),
+        Curve::Bezier if (1..=MAX_FACTORS).contains(&track.bezier_degree()) => {
+            (Basis::Bernstein, track.bezier_degree())
+        }
         Curve::Squad | Curve::NamKim if !options.derivatives => {
             super::arcs::evaluate(tables.isa, view, times, index, range.start, range.len(), channels, out);
             out.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));

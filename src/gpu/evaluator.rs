@@ -721,7 +721,7 @@ fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout
             // time for a large output on lavapipe.
             use rayon::prelude::*;
             const PIECE: usize = 1 << 20;
-            let start = (times.offsets[chunk.first_track] + chunk.sample_base) * channels;
+            let start = (times.offsets()[chunk.first_track] + chunk.sample_base) * channels;
             let (to, from) = (&mut data[start..start + chunk.samples * channels], &local[..chunk.samples * channels]);
             to.par_chunks_mut(PIECE).zip(from.par_chunks(PIECE)).for_each(|(to, from)| to.copy_from_slice(from));
         }

@@ -229,8 +229,8 @@ fn collapsed_span(knots: &[f64]) -> Option<usize> {
 /// reads the same packed knots too: a million tracks sharing 36 knots pack 0.3 GB less.
 fn shares_knots(batch: &Batch, index: usize) -> bool {
     index > 0 && {
-        let (previous, track) = (&batch.tracks[index - 1], &batch.tracks[index]);
-        previous.knot_offset == track.knot_offset && previous.knot_count == track.knot_count
+        let (previous, track) = (&batch.tracks()[index - 1], &batch.tracks()[index]);
+        previous.knot_offset() == track.knot_offset() && previous.knot_count() == track.knot_count()
     }
 }
 
@@ -281,18 +281,22 @@ pub fn plan_chunks(
 ) -> Result<Vec<ChunkPlan>, PackError> {
     let mut chunks = vec![ChunkPlan::default()];
     for index in 0..batch.len() {
-        let track = &batch.tracks[index];
+        let track = &batch.tracks()[index];
         let count = times.count(index);
-        let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
+        let explicit = matches!(times.tracks()[index], TrackTimes::Explicit { .. });
         let name = || batch.id(index).to_string();
-        if track.curve == Curve::Bezier && track.order > MAX_BEZIER_DEGREE {
-            return Err(PackError::BezierTooLong { track: name(), degree: track.order, max: MAX_BEZIER_DEGREE });
+        if track.curve() == Curve::Bezier && track.bezier_degree() > MAX_BEZIER_DEGREE {
+            return Err(PackError::BezierTooLong {
+                track: name(),
+                degree: track.bezier_degree(),
+                max: MAX_BEZIER_DEGREE,
+            });
         }
         if count >= MAX_SAMPLES_PER_TRACK {
             return Err(PackError::TooManySamples { track: name(), count, max: MAX_SAMPLES_PER_TRACK - 1 });
         }
         if !shares_knots(batch, index) {
-            let knots = &batch.knots[track.knot_offset..track.knot_offset + track.knot_count];
+            let knots = &batch.knots()[track.knot_offset()..track.knot_offset() + track.knot_count()];
             if let Some(knot) = collapsed_span(knots) {
                 return Err(PackError::KnotsTooClose {
                     track: name(),
@@ -306,9 +310,9 @@ pub fn plan_chunks(
         let grown = |c: &ChunkPlan, samples: usize| ChunkPlan {
             tracks: c.tracks + 1,
             samples: c.samples + samples,
-            points: c.points + track.point_count,
-            coefs: c.coefs + track.coef_count,
-            knots: c.knots + if packs_own_knots(batch, index, c.tracks == 0) { track.knot_count } else { 0 },
+            points: c.points + track.point_count(),
+            coefs: c.coefs + track.coef_count(),
+            knots: c.knots + if packs_own_knots(batch, index, c.tracks == 0) { track.knot_count() } else { 0 },
             times: c.times + if explicit { samples } else { 0 },
             ..c.clone()
         };
@@ -396,8 +400,10 @@ pub fn pack(plan: &ChunkPlan, batch: &Batch, times: &SampleTimes, targets: Chunk
             if Offsets::owns_knots(batch, plan, i) {
                 k.extend(view.knots.iter().map(|&knot| fixed_time(knot)));
             }
-            if let TrackTimes::Explicit { offset, .. } = times.tracks[index] {
-                s.extend(times.explicit[offset + range.start..offset + range.end].iter().map(|&time| fixed_time(time)));
+            if let TrackTimes::Explicit { offset, .. } = times.tracks()[index] {
+                s.extend(
+                    times.explicit()[offset + range.start..offset + range.end].iter().map(|&time| fixed_time(time)),
+                );
             }
             at = at.after(batch, times, plan, i);
         }
@@ -483,13 +489,13 @@ impl Offsets {
     /// The offsets after chunk track `i`.
     fn after(self, batch: &Batch, times: &SampleTimes, plan: &ChunkPlan, i: usize) -> Self {
         let index = plan.first_track + i;
-        let track = &batch.tracks[index];
+        let track = &batch.tracks()[index];
         let samples = piece_range(plan, times, index).len();
-        let explicit = matches!(times.tracks[index], TrackTimes::Explicit { .. });
+        let explicit = matches!(times.tracks()[index], TrackTimes::Explicit { .. });
         Self {
-            points: self.points + track.point_count,
-            coefs: self.coefs + track.coef_count,
-            knots: self.knots + if Self::owns_knots(batch, plan, i) { track.knot_count } else { 0 },
+            points: self.points + track.point_count(),
+            coefs: self.coefs + track.coef_count(),
+            knots: self.knots + if Self::owns_knots(batch, plan, i) { track.knot_count() } else { 0 },
             times: self.times + if explicit { samples } else { 0 },
             samples: self.samples + samples,
             previous_knots: self.knots_of(batch, plan, i),
@@ -518,9 +524,10 @@ fn track_entry(
     knot_offset: usize,
 ) -> GpuTrack {
     let mut gpu = GpuTrack {
-        curve: curve_code(view.track.curve),
-        order: view.track.order as u32,
-        blend: blend_code(view.track.blend),
+        curve: curve_code(view.track.curve()),
+        // The kernel's one field: a B-spline's order or a Bezier curve's degree.
+        order: (view.track.order() + view.track.bezier_degree()) as u32,
+        blend: blend_code(view.track.blend()),
         point_offset: at.points as u32,
         point_count: view.points.len() as u32,
         coef_offset: at.coefs as u32,
@@ -532,10 +539,10 @@ fn track_entry(
         sample_base: range.start as u32,
         ..GpuTrack::default()
     };
-    if view.track.uniform_knots {
+    if view.track.uniform_knots() {
         gpu.flags |= FLAG_UNIFORM_KNOTS;
     }
-    match times.tracks[index] {
+    match times.tracks()[index] {
         TrackTimes::Explicit { .. } => gpu.flags |= FLAG_EXPLICIT_TIMES,
         TrackTimes::Uniform { start, step, last, count: total } => {
             [gpu.start_lo, gpu.start_hi] = fixed_time(start);

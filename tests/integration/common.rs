@@ -159,7 +159,7 @@ pub fn interior_times(bounds: &[f64]) -> Vec<f64> {
 /// The segment boundaries inside a track's domain: key times, or distinct knots in the domain.
 pub fn segment_bounds(batch: &Batch, index: usize) -> Vec<f64> {
     let view = batch.view(index);
-    let [lo, hi] = view.track.domain;
+    let [lo, hi] = view.track.domain();
     let mut b: Vec<f64> = view.knots.iter().copied().filter(|&t| t >= lo && t <= hi).collect();
     b.dedup();
     b

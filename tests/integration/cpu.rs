@@ -226,7 +226,7 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
     let mut lists = |fixed: Option<usize>| -> Vec<Vec<f64>> {
         (0..batch.len())
             .map(|i| {
-                let [a, b] = batch.tracks[i].domain;
+                let [a, b] = batch.tracks()[i].domain();
                 let n = fixed.unwrap_or((g.next_u64() % 21) as usize);
                 let mut t: Vec<f64> = (0..n).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
                 t.sort_by(f64::total_cmp);
@@ -303,7 +303,7 @@ fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
     let batch = build(&tracks);
     let lists: Vec<Vec<f64>> = (0..batch.len())
         .map(|i| {
-            let [a, b] = batch.tracks[i].domain;
+            let [a, b] = batch.tracks()[i].domain();
             let mut t: Vec<f64> =
                 (0..g.next_u64() % 71).map(|_| g.range(a - 0.1 * (b - a), b + 0.1 * (b - a))).collect();
             t.sort_by(f64::total_cmp);
@@ -338,7 +338,7 @@ fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
             for (i, (track, spec)) in tracks.iter().enumerate() {
                 let alone = build(std::slice::from_ref(&(track.clone(), *spec)));
                 let out = on_cpu(&alone, &times_of(&alone, Some(i)), Layout::Track, derivatives);
-                let own = &whole.data[times.offsets[i] * channels..times.offsets[i + 1] * channels];
+                let own = &whole.data[times.offsets()[i] * channels..times.offsets()[i + 1] * channels];
                 assert!(
                     bits(&out.data) == bits(own),
                     "track {i} ({}, {sampling:?} samples, derivatives {derivatives}) differs alone",

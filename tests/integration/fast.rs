@@ -48,7 +48,7 @@ pub const BLEND_ANTIPODE_MARGIN: f64 = 1.25e-3;
 /// `1 + dot(C1(s), C2(s))` at time `t` of a Nam-Kim track (f64), or infinity for others.
 fn blend_margin(batch: &Batch, track: usize, t: f64) -> f64 {
     let view = batch.view(track);
-    if view.track.curve != Curve::NamKim {
+    if view.track.curve() != Curve::NamKim {
         return f64::INFINITY;
     }
     let k = view.knots;
@@ -65,8 +65,8 @@ fn blend_margin(batch: &Batch, track: usize, t: f64) -> f64 {
 fn slot_sample(times: &SampleTimes, layout: Layout, slot: usize) -> (usize, usize) {
     match layout {
         Layout::Track => {
-            let track = times.offsets.partition_point(|&o| o <= slot) - 1;
-            (track, slot - times.offsets[track])
+            let track = times.offsets().partition_point(|&o| o <= slot) - 1;
+            (track, slot - times.offsets()[track])
         }
         Layout::Frame => (slot % times.track_count(), slot / times.track_count()),
     }
@@ -175,7 +175,7 @@ pub fn samples_on_knots_and_domain_ends(eval: Eval<'_>) -> Worst {
         let overrides: Vec<Vec<f64>> = (0..batch.len())
             .map(|i| {
                 let view = batch.view(i);
-                let [lo, hi] = view.track.domain;
+                let [lo, hi] = view.track.domain();
                 let mut t: Vec<f64> = view.knots.to_vec();
                 t.extend([lo, hi, lo - 1.0, hi + 2.5]);
                 t
@@ -346,7 +346,7 @@ pub fn interp_and_loops(eval: Eval<'_>) -> Worst {
             let overrides: Vec<Vec<f64>> = (0..batch.len())
                 .map(|i| {
                     let view = batch.view(i);
-                    let [lo, hi] = view.track.domain;
+                    let [lo, hi] = view.track.domain();
                     let mut t: Vec<f64> = view.knots.iter().copied().filter(|&t| t >= lo && t <= hi).collect();
                     let period = hi - lo;
                     t.extend([lo, hi, lo - 0.3 * period, hi + 1.7 * period, lo + 0.41 * period]);

@@ -176,7 +176,7 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
             }
         }
         let batch = builder.build().unwrap();
-        let vectors: std::collections::BTreeSet<usize> = batch.tracks.iter().map(|t| t.knot_offset).collect();
+        let vectors: std::collections::BTreeSet<usize> = batch.tracks().iter().map(|t| t.knot_offset()).collect();
         assert_eq!(vectors.len(), runs.len(), "{}: one knot vector per run", describe(&spec));
         let times = SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap();
         let options = EvalOptions { derivatives: true, ..EvalOptions::default() };

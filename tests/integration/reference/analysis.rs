@@ -106,7 +106,7 @@ fn maxima_bound_dense_samples() {
         let track = random_track(3, curve, 6);
         let m = one(&track, &spec(curve), &options);
         let batch = Batch::from_tracks(std::slice::from_ref(&track), &spec(curve)).unwrap();
-        let [lo, hi] = batch.tracks[0].domain;
+        let [lo, hi] = batch.tracks()[0].domain();
         let (mut w, mut a) = (0.0f64, 0.0f64);
         for j in 0..=7919 {
             let s = evaluate(batch.view(0), lo + (hi - lo) * j as f64 / 7919.0);
@@ -307,6 +307,6 @@ fn bad_options_are_errors() {
     // Every span gets an even number of steps, at least 2, and nodes stay inside the domain.
     let n = nodes(batch.view(0), "t", Some(10.0)).unwrap();
     assert!(n.spans.iter().all(|s| s.steps == 2), "{:?}", n.spans);
-    let [lo, hi] = batch.tracks[0].domain;
+    let [lo, hi] = batch.tracks()[0].domain();
     assert!(n.times.iter().all(|&t| t >= lo && t < hi), "{:?}", n.times);
 }

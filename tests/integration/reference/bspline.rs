@@ -57,7 +57,7 @@ fn continuity_is_c_k_minus_2_across_every_knot() {
                 }
                 let batch = Batch::from_tracks(&[track], &s).unwrap();
                 let view = batch.view(0);
-                let [lo, hi] = view.track.domain;
+                let [lo, hi] = view.track.domain();
                 let interior: Vec<f64> = view.knots.iter().copied().filter(|&t| t > lo && t < hi).collect();
                 let mut saw_jump = false;
                 for &t in &interior {
@@ -113,7 +113,7 @@ fn moving_one_control_point_changes_only_its_support() {
                 let l = if knots == KnotMode::Phantom { key + 1 } else { key };
                 let kv = base.view(0).knots;
                 let (support_lo, support_hi) = (kv[l], kv[l + order]);
-                let [lo, hi] = base.tracks[0].domain;
+                let [lo, hi] = base.tracks()[0].domain();
                 let mut changed_inside = false;
                 for i in 0..=400 {
                     let t = lo + (hi - lo) * i as f64 / 400.0;

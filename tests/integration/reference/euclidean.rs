@@ -32,7 +32,7 @@ fn check(seed: u64) -> Result<(), TestCaseError> {
                 ..Track::default()
             };
             let batch = Batch::from_tracks(&[track], &spec).unwrap();
-            let [lo, hi] = batch.tracks[0].domain;
+            let [lo, hi] = batch.tracks()[0].domain();
             prop_assert_eq!(curve.domain(), [lo, hi]);
             for i in 0..=100 {
                 let t = lo + (hi - lo) * (i as f64 / 100.0) + if i == 0 { -0.5 } else { 0.0 };

@@ -60,7 +60,7 @@ fn check_track(seed: u64, kind: Kind) -> Result<(), TestCaseError> {
         let track = track(&mut g, &spec, count, kind);
         let batch = Batch::from_tracks(std::slice::from_ref(&track), &spec).expect("valid track");
         let view = batch.view(0);
-        let [lo, hi] = view.track.domain;
+        let [lo, hi] = view.track.domain();
 
         // Unit norm everywhere, including outside the domain (clamped).
         for i in 0..=64 {
@@ -136,7 +136,7 @@ fn outputs_are_sign_continuous_within_a_track() {
             let count = key_count(&mut g, &spec);
             let track = track(&mut g, &spec, count, Kind::SignFlipped);
             let batch = Batch::from_tracks(&[track], &spec).unwrap();
-            let [lo, hi] = batch.tracks[0].domain;
+            let [lo, hi] = batch.tracks()[0].domain();
             let mut prev = eval(&batch, 0, lo).rotation;
             for i in 1..=2000 {
                 let q = eval(&batch, 0, lo + (hi - lo) * i as f64 / 2000.0).rotation;
@@ -154,7 +154,7 @@ fn clamped_samples_report_one_sided_derivatives() {
         let count = key_count(&mut g, &spec);
         let track = track(&mut g, &spec, count, Kind::Random);
         let batch = Batch::from_tracks(&[track], &spec).unwrap();
-        let [lo, hi] = batch.tracks[0].domain;
+        let [lo, hi] = batch.tracks()[0].domain();
         for (end, outside, inside) in [(lo, lo - 1.0, lo + 1e-9), (hi, hi + 1.0, hi - 1e-9)] {
             let at_end = eval(&batch, 0, end);
             let beyond = eval(&batch, 0, outside);

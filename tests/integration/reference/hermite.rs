@@ -54,9 +54,9 @@ fn end_coefficients_are_used_as_given_even_beyond_a_quarter_turn() {
         ..Track::default()
     };
     let batch = Batch::from_tracks(&[track], &given()).unwrap();
-    let w1 = batch.coefs[0];
+    let w1 = batch.coefs()[0];
     assert_eq!(w1, [3.0, 0.0, 0.0, 0.0], "w1 = T omega_a / 6 exactly");
-    assert_eq!(batch.coefs[2], [0.0, -3.0, 0.0, 0.0]);
+    assert_eq!(batch.coefs()[2], [0.0, -3.0, 0.0, 0.0]);
     assert!(rel_err(eval(&batch, 0, 0.0).angular_velocity, omega_a) < 1e-12);
     assert!(rel_err(eval(&batch, 0, 1.0).angular_velocity, omega_b) < 1e-12);
     assert!(eval(&batch, 0, 1.0).rotation.angle_to(q1) < 1e-12);
@@ -84,7 +84,7 @@ fn extra_turns_change_the_path_but_not_the_ends() {
         assert_eq!(eval(&base, 0, other), eval(&turned, 0, other));
         // Each turn adds pi along w2's own axis (a full physical turn).
         let w = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
-        let (w_base, w_turn) = (w(base.coefs[4]), w(turned.coefs[4]));
+        let (w_base, w_turn) = (w(base.coefs()[4]), w(turned.coefs()[4]));
         let expected = w_base + w_base.scale(std::f64::consts::PI * turns as f64 / w_base.length());
         assert!((w_turn - expected).length() < 1e-12);
     }

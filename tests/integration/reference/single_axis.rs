@@ -144,7 +144,7 @@ fn check(seed: u64, spec: CurveSpec) -> Result<(), TestCaseError> {
         track
     };
     let batch = Batch::from_tracks(&[track], &spec).unwrap();
-    let [lo, hi] = batch.tracks[0].domain;
+    let [lo, hi] = batch.tracks()[0].domain();
     for i in 0..=200 {
         let t = lo + (hi - lo) * i as f64 / 200.0;
         let q = quatcurve::evaluate(batch.view(0), t).rotation;

@@ -89,7 +89,7 @@ fn squad_with_two_keys_is_slerp() {
     let track = track(&mut gen, &CurveSpec::new(Curve::Squad), 2, Kind::Random);
     let squad = Batch::from_tracks(std::slice::from_ref(&track), &CurveSpec::new(Curve::Squad)).unwrap();
     let slerp = Batch::from_tracks(&[track], &CurveSpec::new(Curve::Slerp)).unwrap();
-    let [lo, hi] = squad.tracks[0].domain;
+    let [lo, hi] = squad.tracks()[0].domain();
     for i in 0..=50 {
         let t = lo + (hi - lo) * i as f64 / 50.0;
         assert!(eval(&squad, 0, t).rotation.angle_to(eval(&slerp, 0, t).rotation) < 1e-14);
@@ -123,7 +123,7 @@ fn the_rotation_alone_equals_the_full_evaluation() {
         for kind in crate::common::KINDS {
             let track = crate::common::track(&mut g, &spec, spec.min_keys().max(2) + 3, kind);
             let batch = quatcurve::Batch::from_tracks(&[track], &spec).unwrap();
-            let [lo, hi] = batch.tracks[0].domain;
+            let [lo, hi] = batch.tracks()[0].domain();
             for i in 0..=50 {
                 let t = lo + (hi - lo) * i as f64 / 50.0;
                 let full = quatcurve::evaluate(batch.view(0), t).rotation;

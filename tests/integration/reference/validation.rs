@@ -227,12 +227,12 @@ fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
     for curve in [Curve::BSplineInterp, Curve::Hermite, Curve::Slerp] {
         let spec = CurveSpec::new(curve);
         let batch = Batch::from_tracks(&tracks, &spec).unwrap();
-        let offsets: Vec<usize> = batch.tracks.iter().map(|t| t.knot_offset).collect();
+        let offsets: Vec<usize> = batch.tracks().iter().map(|t| t.knot_offset()).collect();
         assert!(
             offsets[0] == offsets[1] && offsets[1] == offsets[2] && offsets[3] != offsets[0],
             "{curve}: {offsets:?}"
         );
-        assert_eq!(batch.knots.len(), batch.tracks[0].knot_count + batch.tracks[3].knot_count, "{curve}");
+        assert_eq!(batch.knots().len(), batch.tracks()[0].knot_count() + batch.tracks()[3].knot_count(), "{curve}");
         for (i, track) in tracks.iter().enumerate() {
             let alone = Batch::from_tracks(std::slice::from_ref(track), &spec).unwrap();
             let (a, b) = (batch.view(i), alone.view(0));
@@ -240,7 +240,7 @@ fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
                 a.knots == b.knots
                     && a.points == b.points
                     && a.coefs == b.coefs
-                    && a.track.uniform_knots == b.track.uniform_knots,
+                    && a.track.uniform_knots() == b.track.uniform_knots(),
                 "{curve} track {i}"
             );
         }
