@@ -129,9 +129,9 @@ impl<'a> EvalJob<'a> {
         }
         let evaluate = |index: usize, j: usize| reference::evaluate(self.batch.view(index), self.times.time(index, j));
         if layout == Layout::Track {
-            let rotations = split_at_offsets(&mut out.rotations, &self.times.offsets());
-            let omega = split_at_offsets(&mut out.angular_velocity, &self.times.offsets());
-            let alpha = split_at_offsets(&mut out.angular_acceleration, &self.times.offsets());
+            let rotations = split_at_offsets(&mut out.rotations, self.times.offsets());
+            let omega = split_at_offsets(&mut out.angular_velocity, self.times.offsets());
+            let alpha = split_at_offsets(&mut out.angular_acceleration, self.times.offsets());
             rotations.into_par_iter().zip(omega).zip(alpha).enumerate().for_each(
                 |(index, ((rotations, omega), alpha))| {
                     for (j, q) in rotations.iter_mut().enumerate() {
