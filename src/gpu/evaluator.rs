@@ -1,5 +1,9 @@
-//! [`GpuEvaluator`]: device and pipelines made once, then any number of batch evaluations.
+//! [`GpuEvaluator`]: the evaluation program made once on a [`GpuContext`], then any number of
+//! batch evaluations (chunks planned, packed straight into their buffers, dispatched, read
+//! back and scattered into place).
 
+use super::context::{ErrorScope, GpuContext};
+use super::fk::ForwardKinematics;
 use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
 use super::shader;
 use super::GpuError;
@@ -87,115 +91,27 @@ impl PipelineKey {
     }
 }
 
-/// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch.
-pub struct GpuEvaluator {
-    pub(super) device: wgpu::Device,
-    pub(super) queue: wgpu::Queue,
-    adapter_name: String,
-    /// The adapter rasterizes on the host's CPU (lavapipe, SwiftShader, WARP).
-    software: bool,
+/// The evaluation program on one device: the WGSL module, its layouts, the pipelines
+/// compiled so far (one per [`PipelineKey`], shared by every evaluator on the device) and the
+/// polynomial table. Clones share everything.
+#[derive(Clone)]
+struct Program {
     module: wgpu::ShaderModule,
     bind_group_layout: wgpu::BindGroupLayout,
     /// The program's buffers by name (binding numbers read from the shader).
     resources: shader::Resources,
     pipeline_layout: wgpu::PipelineLayout,
-    pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
+    pipelines: Arc<Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>>,
     workgroup_size: u32,
-    pub(super) binding_limit: u64,
-    pub(super) max_groups_per_dim: u32,
-    /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
-    pub(super) map_outputs: bool,
-    /// The forward-kinematics pipeline, built on first use ([`super::fk`]).
-    pub(super) fk: std::sync::OnceLock<shader::Compiled>,
     /// [`layout::polynomial_table`], the same for every batch.
     polynomials: wgpu::Buffer,
-    /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
-    /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
-    /// of the kernel's time).
-    spare_output: Mutex<Option<wgpu::Buffer>>,
-    /// The last input buffers `evaluate` packed, where they are mappable
-    /// ([`GpuEvaluator::map_outputs`]): mapped again for the next chunk instead of created
-    /// mapped, which wgpu zero-fills on one thread, page fault by page fault, before the
-    /// packing overwrites every byte.
-    spare_inputs: Mutex<Option<[wgpu::Buffer; 4]>>,
-    lost: Arc<Mutex<Option<String>>>,
 }
 
-impl std::fmt::Debug for GpuEvaluator {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GpuEvaluator")
-            .field("adapter", &self.adapter_name)
-            .field("binding_limit", &self.binding_limit)
-            .finish()
-    }
-}
-
-impl GpuEvaluator {
-    /// Picks the best adapter (high performance first; software adapters such as lavapipe
-    /// count) and creates a device of its own.
-    ///
-    /// # Errors
-    /// [`GpuError::NoAdapter`] when there is none, [`GpuError::Device`] when the device
-    /// cannot be created.
-    pub fn new() -> Result<Self, GpuError> {
-        super::quietly(|| {
-            pollster::block_on(async {
-                let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-                let adapter = instance
-                    .request_adapter(&wgpu::RequestAdapterOptions {
-                        power_preference: wgpu::PowerPreference::HighPerformance,
-                        ..wgpu::RequestAdapterOptions::default()
-                    })
-                    .await
-                    .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-                let info = adapter.get_info();
-                // Where the GPU shares the host's memory (a CPU adapter such as lavapipe, or an
-                // integrated GPU), outputs are mapped directly instead of copied to a staging
-                // buffer first; on a discrete GPU that would make the kernel write over the bus.
-                let unified = matches!(info.device_type, wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu);
-                let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-                let required_features =
-                    if unified && adapter.features().contains(mappable) { mappable } else { wgpu::Features::empty() };
-                let (device, queue) = adapter
-                    .request_device(&wgpu::DeviceDescriptor {
-                        label: Some("quatcurve"),
-                        required_features,
-                        required_limits: adapter.limits(),
-                        ..wgpu::DeviceDescriptor::default()
-                    })
-                    .await
-                    .map_err(|e| GpuError::Device(e.to_string()))?;
-                // Errors outside our error scopes must not abort the process (wgpu's default).
-                device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
-                let name = format!("{} ({:?})", info.name, info.backend);
-                let mut evaluator = Self::build(device, queue, name)?;
-                evaluator.software = info.device_type == wgpu::DeviceType::Cpu;
-                Ok(evaluator)
-            })
-        })
-    }
-
-    /// Embeds in an existing wgpu application: uses its device and queue (and leaves its
-    /// uncaptured-error handler alone; this evaluator reports through error scopes). If the
-    /// device has `MAPPABLE_PRIMARY_BUFFERS` (meant for unified memory only), outputs are
-    /// mapped directly for reading back.
-    ///
-    /// # Errors
-    /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
-    pub fn with_device(
-        device: wgpu::Device,
-        queue: wgpu::Queue,
-        adapter_name: impl Into<String>,
-    ) -> Result<Self, GpuError> {
-        Self::build(device, queue, adapter_name.into())
-    }
-
-    fn build(device: wgpu::Device, queue: wgpu::Queue, adapter_name: String) -> Result<Self, GpuError> {
+impl Program {
+    fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
         let (naga_module, _) = shader::module().map_err(GpuError::Shader)?;
         let workgroup_size = shader::workgroup_size(&naga_module).map_err(GpuError::Shader)?;
-        let limits = device.limits();
-        let map_outputs = device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        let scope = ErrorScope::push(&device);
+        let scope = ErrorScope::push(device);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("quatcurve eval"),
             source: wgpu::ShaderSource::Wgsl(shader::source().into()),
@@ -217,37 +133,91 @@ impl GpuEvaluator {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         scope.pop()?;
-        let lost = Arc::new(Mutex::new(None));
-        let flag = lost.clone();
-        device.set_device_lost_callback(move |reason, message| {
-            *flag.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!("{reason:?}: {message}"));
-        });
         Ok(Self {
-            device,
-            queue,
-            adapter_name,
-            software: false,
             module,
             bind_group_layout,
             resources,
             pipeline_layout,
-            pipelines: Mutex::new(HashMap::new()),
+            pipelines: Arc::default(),
             workgroup_size,
-            binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
-            max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
-            map_outputs,
-            fk: std::sync::OnceLock::new(),
             polynomials,
+        })
+    }
+}
+
+/// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch: it
+/// holds its device ([`GpuContext`]), its program and the buffers it reuses.
+pub struct GpuEvaluator {
+    context: GpuContext,
+    program: Program,
+    /// Forward kinematics on the same device, built on first use.
+    fk: std::sync::OnceLock<ForwardKinematics>,
+    /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
+    /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
+    /// of the kernel's time).
+    spare_output: Mutex<Option<wgpu::Buffer>>,
+    /// The last input buffers `evaluate` packed, where they are mappable
+    /// ([`GpuContext::map_outputs`]): mapped again for the next chunk instead of created
+    /// mapped, which wgpu zero-fills on one thread, page fault by page fault, before the
+    /// packing overwrites every byte.
+    spare_inputs: Mutex<Option<[wgpu::Buffer; 4]>>,
+}
+
+impl std::fmt::Debug for GpuEvaluator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuEvaluator").field("context", &self.context).finish_non_exhaustive()
+    }
+}
+
+impl GpuEvaluator {
+    /// An evaluator on a device of its own ([`GpuContext::new`]: the best adapter, high
+    /// performance first; software adapters such as lavapipe count).
+    ///
+    /// # Errors
+    /// [`GpuError::NoAdapter`] when there is none, [`GpuError::Device`] when the device
+    /// cannot be created.
+    pub fn new() -> Result<Self, GpuError> {
+        Self::on(GpuContext::new()?)
+    }
+
+    /// Embeds in an existing wgpu application: uses its device and queue
+    /// ([`GpuContext::with_device`]).
+    ///
+    /// # Errors
+    /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
+    pub fn with_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        adapter_name: impl Into<String>,
+    ) -> Result<Self, GpuError> {
+        Self::on(GpuContext::with_device(device, queue, adapter_name))
+    }
+
+    /// An evaluator on `context`'s device.
+    ///
+    /// # Errors
+    /// [`GpuError::Device`] when the shader or pipelines cannot be created on that device.
+    pub fn on(context: GpuContext) -> Result<Self, GpuError> {
+        let program = Program::new(context.device())?;
+        Ok(Self {
+            context,
+            program,
+            fk: std::sync::OnceLock::new(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
-            lost,
         })
+    }
+
+    /// The device this evaluator runs on.
+    #[must_use]
+    pub fn context(&self) -> &GpuContext {
+        &self.context
     }
 
     /// The adapter's name, as the CLI reports it (`gpu: <name>`).
     #[must_use]
     pub fn adapter_name(&self) -> &str {
-        &self.adapter_name
+        self.context.adapter_name()
     }
 
     /// Whether the adapter is a software rasterizer running on the host's CPU (lavapipe):
@@ -255,60 +225,68 @@ impl GpuEvaluator {
     /// cores. Unknown (false) for a device given to [`GpuEvaluator::with_device`].
     #[must_use]
     pub fn is_software(&self) -> bool {
-        self.software
+        self.context.is_software()
     }
 
     /// The device, for creating buffers that [`GpuEvaluator::evaluate_into`] fills.
     #[must_use]
     pub fn device(&self) -> &wgpu::Device {
-        &self.device
+        self.context.device()
     }
 
     /// The queue the evaluator submits to.
     #[must_use]
     pub fn queue(&self) -> &wgpu::Queue {
-        &self.queue
+        self.context.queue()
     }
 
     /// The largest buffer binding used (bytes); batches above it are split into chunks.
     #[must_use]
     pub fn binding_limit(&self) -> u64 {
-        self.binding_limit
+        self.context.binding_limit()
     }
 
     /// Another evaluator on this one's device: the device, queue, program and compiled
-    /// pipelines are shared (no second device), the reused output buffer and the binding
-    /// limit are its own. For a host that wants evaluators with different limits, and for
-    /// tests that run beside each other on one device.
+    /// pipelines are shared (no second device), the reused buffers and the binding limit are
+    /// its own. For a host that wants evaluators with different limits, and for tests that run
+    /// beside each other on one device.
     #[must_use]
     pub fn share_device(&self) -> Self {
         Self {
-            device: self.device.clone(),
-            queue: self.queue.clone(),
-            adapter_name: self.adapter_name.clone(),
-            software: self.software,
-            module: self.module.clone(),
-            bind_group_layout: self.bind_group_layout.clone(),
-            resources: self.resources.clone(),
-            pipeline_layout: self.pipeline_layout.clone(),
-            pipelines: Mutex::new(self.pipelines.lock().unwrap_or_else(|e| e.into_inner()).clone()),
-            workgroup_size: self.workgroup_size,
-            binding_limit: self.binding_limit,
-            max_groups_per_dim: self.max_groups_per_dim,
-            map_outputs: self.map_outputs,
+            context: self.context.clone(),
+            program: self.program.clone(),
             fk: std::sync::OnceLock::new(),
-            polynomials: self.polynomials.clone(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
-            lost: Arc::clone(&self.lost),
         }
+    }
+
+    /// Model matrices by forward kinematics on this evaluator's device
+    /// ([`ForwardKinematics::run`]; its program is built on first use).
+    ///
+    /// # Errors
+    /// As [`ForwardKinematics::run`], and [`GpuError::Device`] when the program cannot be built.
+    pub fn forward_kinematics(
+        &self,
+        parents: &[Option<usize>],
+        order: &[usize],
+        local: &[f32],
+    ) -> Result<Vec<f32>, GpuError> {
+        let fk = match self.fk.get() {
+            Some(fk) => fk,
+            None => {
+                let built = ForwardKinematics::new(&self.context)?;
+                self.fk.get_or_init(|| built)
+            }
+        };
+        fk.run(parents, order, local)
     }
 
     /// Largest binding of one chunk [`GpuEvaluator::evaluate`] and [`GpuEvaluator::prepare`]
     /// stream: [`STREAM_CHUNK_BYTES`], or [`SOFTWARE_STREAM_CHUNK_BYTES`] on a software adapter.
     #[must_use]
     pub fn stream_chunk_bytes(&self) -> u64 {
-        if self.software {
+        if self.context.is_software() {
             SOFTWARE_STREAM_CHUNK_BYTES
         } else {
             STREAM_CHUNK_BYTES
@@ -318,7 +296,7 @@ impl GpuEvaluator {
     /// Lowers the binding limit used for chunking, e.g. to exercise chunking in tests.
     #[must_use]
     pub fn with_binding_limit(mut self, bytes: u64) -> Self {
-        self.binding_limit = self.binding_limit.min(bytes);
+        self.context = self.context.with_binding_limit(bytes);
         self
     }
 
@@ -335,15 +313,15 @@ impl GpuEvaluator {
         let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(times.total(), channels);
-        for plan in &self.plan(job, channels, self.binding_limit.min(self.stream_chunk_bytes()))? {
+        for plan in &self.plan(job, channels, self.context.binding_limit().min(self.stream_chunk_bytes()))? {
             let prepared = self.upload(plan, job, channels, None)?;
             self.submit(&prepared)?;
             // The readback copy is queued behind the dispatch: one wait covers both.
-            self.read_back(&prepared.output, prepared.output_bytes, |local| {
+            self.context.read_back(&prepared.output, prepared.output_bytes, |local| {
                 scatter(local, plan, times, options.layout, channels, &mut data)
             })?;
             *self.spare_output.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.output);
-            if self.map_outputs {
+            if self.context.map_outputs() {
                 *self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()) = Some(prepared.inputs);
             }
         }
@@ -365,7 +343,7 @@ impl GpuEvaluator {
         let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
         // The chunks `evaluate` streams, so a dispatch-only figure times the same dispatches.
-        let plans = self.plan(job, channels, self.binding_limit.min(self.stream_chunk_bytes()))?;
+        let plans = self.plan(job, channels, self.context.binding_limit().min(self.stream_chunk_bytes()))?;
         let chunks = plans.iter().map(|plan| self.upload(plan, job, channels, None)).collect::<Result<_, _>>()?;
         Ok(PreparedBatch { plans, chunks, channels, layout: options.layout, times: times.clone() })
     }
@@ -378,7 +356,7 @@ impl GpuEvaluator {
         for chunk in &prepared.chunks {
             self.submit(chunk)?;
         }
-        self.wait()
+        self.context.wait()
     }
 
     /// Reads a prepared batch's outputs back, in the requested layout.
@@ -389,7 +367,7 @@ impl GpuEvaluator {
         let channels = prepared.channels;
         let FloatOutput { mut data, .. } = FloatOutput::zeroed(prepared.times.total(), channels);
         for (plan, chunk) in prepared.plans.iter().zip(&prepared.chunks) {
-            self.read_back(&chunk.output, chunk.output_bytes, |local| {
+            self.context.read_back(&chunk.output, chunk.output_bytes, |local| {
                 scatter(local, plan, &prepared.times, prepared.layout, channels, &mut data)
             })?;
         }
@@ -410,17 +388,17 @@ impl GpuEvaluator {
         if target.size() < needed {
             return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));
         }
-        let chunks = self.plan(job, channels, self.binding_limit)?;
+        let chunks = self.plan(job, channels, self.context.binding_limit())?;
         if chunks.len() != 1 {
             return Err(GpuError::Job(format!(
                 "the batch needs {} bindings of at most {} bytes; evaluate_into takes one",
                 chunks.len(),
-                self.binding_limit
+                self.context.binding_limit()
             )));
         }
         let prepared = self.upload(&chunks[0], job, channels, Some(target))?;
         self.submit(&prepared)?;
-        self.wait()
+        self.context.wait()
     }
 
     /// Validates the job and plans its chunks, every binding within `limit` bytes.
@@ -436,11 +414,11 @@ impl GpuEvaluator {
     /// # Errors
     /// Device errors.
     pub fn roofline(&self, prepared: &PreparedBatch) -> Result<(), GpuError> {
-        let scope = ErrorScope::push(&self.device);
-        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        let scope = ErrorScope::push(self.context.device());
+        let pipeline = self.context.device().create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("quatcurve roofline"),
-            layout: Some(&self.pipeline_layout),
-            module: &self.module,
+            layout: Some(&self.program.pipeline_layout),
+            module: &self.program.module,
             entry_point: Some(shader::ROOFLINE_ENTRY_POINT),
             compilation_options: wgpu::PipelineCompilationOptions::default(),
             cache: None,
@@ -449,15 +427,15 @@ impl GpuEvaluator {
         for chunk in &prepared.chunks {
             self.submit(&PreparedChunk { pipeline: pipeline.clone(), ..chunk.clone() })?;
         }
-        self.wait()
+        self.context.wait()
     }
 
     fn pipeline(&self, key: PipelineKey) -> Result<wgpu::ComputePipeline, GpuError> {
-        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        let mut cache = self.program.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = cache.get(&key) {
             return Ok(p.clone());
         }
-        let scope = ErrorScope::push(&self.device);
+        let scope = ErrorScope::push(self.context.device());
         let constants = [
             ("ONLY_CURVE", f64::from(key.only_curve)),
             ("DERIVATIVES", f64::from(u8::from(key.derivatives))),
@@ -465,10 +443,10 @@ impl GpuEvaluator {
             ("ONLY_ORDER", f64::from(key.only_order)),
             ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(key.uniform_knots_only))),
         ];
-        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        let pipeline = self.context.device().create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("quatcurve eval"),
-            layout: Some(&self.pipeline_layout),
-            module: &self.module,
+            layout: Some(&self.program.pipeline_layout),
+            module: &self.program.module,
             entry_point: Some(shader::ENTRY_POINT),
             compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
             cache: None,
@@ -487,20 +465,16 @@ impl GpuEvaluator {
         channels: usize,
         target: Option<&wgpu::Buffer>,
     ) -> Result<PreparedChunk, GpuError> {
-        self.check_lost()?;
+        self.context.check_lost()?;
         let options = &job.options;
-        let groups = (plan.samples as u64).div_ceil(u64::from(self.workgroup_size));
-        let groups_x = groups.min(u64::from(self.max_groups_per_dim)).max(1) as u32;
-        let groups_y = groups.div_ceil(u64::from(groups_x)).max(1);
-        if groups_y > u64::from(self.max_groups_per_dim) {
-            return Err(GpuError::Job(format!("{} samples exceed one 2D dispatch", plan.samples)));
-        }
-        let scope = ErrorScope::push(&self.device);
+        let [groups_x, groups_y] =
+            self.context.grid((plan.samples as u64).div_ceil(u64::from(self.program.workgroup_size)))?;
+        let scope = ErrorScope::push(self.context.device());
         // Mapped at creation and written in place; where buffers the kernel reads can be
         // mapped themselves (`MAPPABLE_PRIMARY_BUFFERS`, unified memory), without a staging copy.
         let storage = wgpu::BufferUsages::STORAGE;
-        let writable =
-            storage | if self.map_outputs { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
+        let writable = storage
+            | if self.context.map_outputs() { wgpu::BufferUsages::MAP_WRITE } else { wgpu::BufferUsages::empty() };
         // Bindings may not be empty.
         let bytes = plan.binding_bytes(channels);
         let sizes = [bytes[1], bytes[2], bytes[3], bytes[4]].map(|b| b.max(16));
@@ -509,7 +483,7 @@ impl GpuEvaluator {
             None => {
                 let labels = ["points", "coefs", "knots", "times"];
                 std::array::from_fn(|i| {
-                    self.device.create_buffer(&wgpu::BufferDescriptor {
+                    self.context.device().create_buffer(&wgpu::BufferDescriptor {
                         label: Some(labels[i]),
                         size: sizes[i],
                         usage: writable,
@@ -551,7 +525,11 @@ impl GpuEvaluator {
                 padded = [contents, &[0u8; 16][contents.len()..]].concat();
                 &padded
             };
-            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+            self.context.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
         };
         let [points, coefs, knots, times] = packed.clone();
         let inputs = [
@@ -571,40 +549,31 @@ impl GpuEvaluator {
         let output = match (target, spare) {
             (Some(buffer), _) => buffer.clone(),
             (None, Some(buffer)) => buffer,
-            (None, None) => self.device.create_buffer(&wgpu::BufferDescriptor {
+            (None, None) => self.context.device().create_buffer(&wgpu::BufferDescriptor {
                 label: Some("quatcurve output"),
                 size: output_bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
+                usage: self.context.output_usage(),
                 mapped_at_creation: false,
             }),
         };
         // Bound by the shader's variable names, which are also the buffers' labels.
         let names = ["params", "tracks", "points", "coefs", "knots", "times"];
-        let buffers = names.iter().zip(&inputs).chain([(&"out", &output), (&"poly", &self.polynomials)]);
+        let buffers = names.iter().zip(&inputs).chain([(&"out", &output), (&"poly", &self.program.polynomials)]);
         let entries = buffers
             .map(|(name, buffer)| {
                 Ok(wgpu::BindGroupEntry {
-                    binding: self.resources.binding(name).map_err(GpuError::Shader)?,
+                    binding: self.program.resources.binding(name).map_err(GpuError::Shader)?,
                     resource: buffer.as_entire_binding(),
                 })
             })
             .collect::<Result<Vec<_>, GpuError>>()?;
-        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let bind_group = self.context.device().create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("quatcurve eval"),
-            layout: &self.bind_group_layout,
+            layout: &self.program.bind_group_layout,
             entries: &entries,
         });
         scope.pop()?;
-        Ok(PreparedChunk {
-            pipeline,
-            bind_group,
-            inputs: packed,
-            output,
-            output_bytes,
-            groups: [groups_x, groups_y as u32],
-        })
+        Ok(PreparedChunk { pipeline, bind_group, inputs: packed, output, output_bytes, groups: [groups_x, groups_y] })
     }
 
     /// The input buffers the last chunk of [`GpuEvaluator::evaluate`] packed, mapped for
@@ -622,7 +591,7 @@ impl GpuEvaluator {
             });
         }
         drop(sender);
-        self.wait()?;
+        self.context.wait()?;
         // Another thread's poll may run the callbacks: wait for each (a callback dropped
         // unrun drops its sender, which ends the wait).
         for _ in &buffers {
@@ -637,9 +606,11 @@ impl GpuEvaluator {
 
     /// Records and submits one chunk's dispatch.
     fn submit(&self, chunk: &PreparedChunk) -> Result<(), GpuError> {
-        let scope = ErrorScope::push(&self.device);
-        let mut encoder =
-            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
+        let scope = ErrorScope::push(self.context.device());
+        let mut encoder = self
+            .context
+            .device()
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve eval") });
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("quatcurve eval"),
@@ -649,67 +620,8 @@ impl GpuEvaluator {
             pass.set_bind_group(0, &chunk.bind_group, &[]);
             pass.dispatch_workgroups(chunk.groups[0], chunk.groups[1], 1);
         }
-        self.queue.submit([encoder.finish()]);
+        self.context.queue().submit([encoder.finish()]);
         scope.pop()
-    }
-
-    /// Maps the first `bytes` of `output` (directly where it is mappable, else through a
-    /// staging copy) and hands its floats to `consume`, which copies them into place.
-    pub(super) fn read_back(
-        &self,
-        output: &wgpu::Buffer,
-        bytes: u64,
-        consume: impl FnOnce(&[f32]),
-    ) -> Result<(), GpuError> {
-        if bytes == 0 {
-            return Ok(());
-        }
-        let scope = ErrorScope::push(&self.device);
-        let staging = if output.usage().contains(wgpu::BufferUsages::MAP_READ) {
-            output.clone()
-        } else {
-            let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("quatcurve readback"),
-                size: bytes,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut encoder = self
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve readback") });
-            encoder.copy_buffer_to_buffer(output, 0, &staging, 0, bytes);
-            self.queue.submit([encoder.finish()]);
-            staging
-        };
-        let (sender, receiver) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, ..bytes, move |r| {
-            let _ = sender.send(r);
-        });
-        self.wait()?;
-        scope.pop()?;
-        match receiver.recv() {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(GpuError::Device(format!("reading results back: {e}"))),
-            Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
-        }
-        let view =
-            staging.get_mapped_range(..bytes).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
-        consume(bytemuck::cast_slice::<u8, f32>(&view));
-        drop(view);
-        staging.unmap();
-        Ok(())
-    }
-
-    fn wait(&self) -> Result<(), GpuError> {
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
-        self.check_lost()
-    }
-
-    fn check_lost(&self) -> Result<(), GpuError> {
-        match self.lost.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
-            Some(reason) => Err(GpuError::DeviceLost(reason.clone())),
-            None => Ok(()),
-        }
     }
 }
 
@@ -734,32 +646,6 @@ fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout
                 let dst = layout.slot(times, chunk.first_track, chunk.sample_base + j) * channels;
                 data[dst..dst + n * channels].copy_from_slice(&local[src..src + n * channels]);
             }
-        }
-    }
-}
-
-/// Validation and out-of-memory scopes around a group of device calls.
-pub(super) struct ErrorScope {
-    // Declared in popping order: an early return drops the fields in this order, and wgpu
-    // wants scopes popped in reverse order of pushing.
-    memory: wgpu::ErrorScopeGuard,
-    validation: wgpu::ErrorScopeGuard,
-}
-
-impl ErrorScope {
-    pub(super) fn push(device: &wgpu::Device) -> Self {
-        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        Self { validation, memory }
-    }
-
-    pub(super) fn pop(self) -> Result<(), GpuError> {
-        // Scopes pop in reverse order of pushing.
-        let memory = pollster::block_on(self.memory.pop());
-        let validation = pollster::block_on(self.validation.pop());
-        match memory.or(validation) {
-            Some(e) => Err(GpuError::Device(e.to_string())),
-            None => Ok(()),
         }
     }
 }

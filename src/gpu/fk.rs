@@ -3,7 +3,7 @@
 //! `[frames, joints, 12]` out. One dispatch per level of the hierarchy, all levels of a chunk
 //! of frames in one pass; frames are split into chunks that fit a storage binding.
 
-use super::evaluator::{ErrorScope, GpuEvaluator};
+use super::context::{ErrorScope, GpuContext};
 use super::shader::{self, Compiled};
 use super::GpuError;
 use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
@@ -27,7 +27,7 @@ pub struct FkLevel {
     pub pad: [u32; 3],
 }
 
-/// Compiles the forward-kinematics program (on first use: most evaluators never run it).
+/// Compiles the forward-kinematics program.
 fn compile(device: &wgpu::Device) -> Result<Compiled, GpuError> {
     let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
     let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
@@ -87,7 +87,27 @@ pub fn levels(parents: &[Option<usize>], order: &[usize]) -> Result<(Vec<u32>, V
     Ok((joints, starts))
 }
 
-impl GpuEvaluator {
+/// The forward-kinematics program on one device.
+pub struct ForwardKinematics {
+    context: GpuContext,
+    program: Compiled,
+}
+
+impl std::fmt::Debug for ForwardKinematics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ForwardKinematics").field("context", &self.context).finish_non_exhaustive()
+    }
+}
+
+impl ForwardKinematics {
+    /// The program compiled on `context`'s device.
+    ///
+    /// # Errors
+    /// [`GpuError::Shader`] or [`GpuError::Device`] when it cannot be built.
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self { context: context.clone(), program: compile(context.device())? })
+    }
+
     /// Model matrices of every joint and frame from local rows (see the module docs):
     /// `parents[j]` is joint `j`'s parent, `order` lists parents before children
     /// ([`crate::bake::Animation::parents_first`]). Computed in f32 (the CPU twin composes
@@ -95,56 +115,47 @@ impl GpuEvaluator {
     ///
     /// # Errors
     /// [`GpuError::Job`] for mismatched inputs or a frame larger than a binding; device errors.
-    pub fn forward_kinematics(
-        &self,
-        parents: &[Option<usize>],
-        order: &[usize],
-        local: &[f32],
-    ) -> Result<Vec<f32>, GpuError> {
+    pub fn run(&self, parents: &[Option<usize>], order: &[usize], local: &[f32]) -> Result<Vec<f32>, GpuError> {
         let joints = parents.len();
         if joints == 0 || local.len() % (joints * LOCAL_CHANNELS) != 0 {
             return Err(GpuError::Job(format!("{} local floats are not whole frames of {joints} joints", local.len())));
         }
         let frames = local.len() / (joints * LOCAL_CHANNELS);
         let frame_bytes = (joints * MATRIX_CHANNELS * 4) as u64;
-        if frame_bytes > self.binding_limit {
+        if frame_bytes > self.context.binding_limit() {
             return Err(GpuError::Job(format!(
                 "one frame of {joints} joints needs {frame_bytes} bytes, more than a storage binding ({})",
-                self.binding_limit
+                self.context.binding_limit()
             )));
         }
         let (by_level, starts) = levels(parents, order)?;
-        let fk = match self.fk.get() {
-            Some(fk) => fk,
-            None => {
-                let built = compile(&self.device)?;
-                self.fk.get_or_init(|| built)
-            }
-        };
         let parents: Vec<i32> = parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();
-        let scope = ErrorScope::push(&self.device);
+        let scope = ErrorScope::push(self.context.device());
         let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+            self.context.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
         };
         let parents_buffer = init("quatcurve fk parents", bytemuck::cast_slice(&parents), wgpu::BufferUsages::STORAGE);
         let levels_buffer = init("quatcurve fk levels", bytemuck::cast_slice(&by_level), wgpu::BufferUsages::STORAGE);
         scope.pop()?;
         let mut model = vec![0.0f32; frames * joints * MATRIX_CHANNELS];
-        let per_chunk = ((self.binding_limit / frame_bytes) as usize).clamp(1, frames);
+        let per_chunk = ((self.context.binding_limit() / frame_bytes) as usize).clamp(1, frames);
         for first in (0..frames).step_by(per_chunk) {
             let count = per_chunk.min(frames - first);
             let rows = &local[first * joints * LOCAL_CHANNELS..(first + count) * joints * LOCAL_CHANNELS];
             let out = &mut model[first * joints * MATRIX_CHANNELS..(first + count) * joints * MATRIX_CHANNELS];
-            self.fk_chunk(fk, &parents_buffer, &levels_buffer, &starts, joints, rows, out)?;
+            self.chunk(&parents_buffer, &levels_buffer, &starts, joints, rows, out)?;
         }
         Ok(model)
     }
 
     /// One chunk of whole frames: upload, one dispatch per level, read back into `out`.
     #[allow(clippy::too_many_arguments)]
-    fn fk_chunk(
+    fn chunk(
         &self,
-        fk: &Compiled,
         parents: &wgpu::Buffer,
         levels: &wgpu::Buffer,
         starts: &[u32],
@@ -152,32 +163,31 @@ impl GpuEvaluator {
         rows: &[f32],
         out: &mut [f32],
     ) -> Result<(), GpuError> {
+        let fk = &self.program;
         let frames = rows.len() / (joints * LOCAL_CHANNELS);
-        let scope = ErrorScope::push(&self.device);
-        let local = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let scope = ErrorScope::push(self.context.device());
+        let local = self.context.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("quatcurve fk local"),
             contents: bytemuck::cast_slice(rows),
             usage: wgpu::BufferUsages::STORAGE,
         });
         let bytes = (out.len() * 4) as u64;
-        let model = self.device.create_buffer(&wgpu::BufferDescriptor {
+        let model = self.context.device().create_buffer(&wgpu::BufferDescriptor {
             label: Some("quatcurve fk model"),
             size: bytes.max(16),
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() },
+            usage: self.context.output_usage(),
             mapped_at_creation: false,
         });
-        let mut encoder =
-            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve fk") });
+        let mut encoder = self
+            .context
+            .device()
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve fk") });
         // Per level: its uniform, bind group and grid (made before the pass borrows them).
         let dispatches: Vec<(wgpu::BindGroup, [u32; 2])> = starts
             .windows(2)
             .map(|w| {
                 let invocations = u64::from(w[1] - w[0]) * frames as u64;
-                let groups = invocations.div_ceil(u64::from(fk.workgroup_size)).max(1);
-                let x = groups.min(u64::from(self.max_groups_per_dim)) as u32;
-                let y = groups.div_ceil(u64::from(x)) as u32;
+                let [x, y] = self.context.grid(invocations.div_ceil(u64::from(fk.workgroup_size)))?;
                 let level = FkLevel {
                     first: w[0],
                     count: w[1] - w[0],
@@ -186,7 +196,7 @@ impl GpuEvaluator {
                     row: x * fk.workgroup_size,
                     pad: [0; 3],
                 };
-                let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                let uniform = self.context.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("quatcurve fk level"),
                     contents: bytemuck::bytes_of(&level),
                     usage: wgpu::BufferUsages::UNIFORM,
@@ -207,7 +217,7 @@ impl GpuEvaluator {
                         })
                     })
                     .collect::<Result<Vec<_>, GpuError>>()?;
-                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                let group = self.context.device().create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("quatcurve fk"),
                     layout: &fk.layout,
                     entries: &entries,
@@ -226,8 +236,8 @@ impl GpuEvaluator {
                 pass.dispatch_workgroups(*x, *y, 1);
             }
         }
-        self.queue.submit([encoder.finish()]);
+        self.context.queue().submit([encoder.finish()]);
         scope.pop()?;
-        self.read_back(&model, bytes, |floats| out.copy_from_slice(&floats[..out.len()]))
+        self.context.read_back(&model, bytes, |floats| out.copy_from_slice(&floats[..out.len()]))
     }
 }
