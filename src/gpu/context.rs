@@ -91,7 +91,7 @@ impl GpuContext {
         });
         Self {
             map_outputs: device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
-            binding_limit: u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size),
+            binding_limit: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
             max_groups_per_dim: limits.max_compute_workgroups_per_dimension,
             device,
             queue,
