@@ -7,18 +7,20 @@
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
 use super::error::{BakeError, InputError};
-use super::manifest::{hash_bytes, hash_file, FileRecord, InputRecord, Manifest, ShardRecord};
+use super::inputs::{expand, output_stems, Source};
+use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
+use super::outputs::{refuse_overwriting_input, OutputDir, Outputs};
+use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::shard::Shard;
+use super::sidecar::{Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
-use super::{bvh, crowd, gltf, Animation, Baked, ClipRate, LoopMode};
+use super::texture_file::{self, TextureFile, Written};
+use super::workers::in_order;
+use super::{crowd, gltf, Animation, Baked, ClipRate, LoopMode};
 use crate::curve::CurveSpec;
 use crate::device::{Device, DeviceChoice};
-use crate::io::{npy_header, write_atomic, AtomicFile, NpyElement};
-use serde::Serialize;
-use sha2::{Digest, Sha256};
-use std::io::Write;
+use crate::io::write_atomic;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -184,7 +186,10 @@ impl BakeJob {
                 .and_then(|m| m.resumable(&options, name, fingerprint.0, &fingerprint.1, &self.output));
             let (report, written) = match (kept, path) {
                 (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
-                (None, Some(path)) => self.bake_one(name, stem, || self.read(path), device),
+                (None, Some(path)) => {
+                    let uris = gltf::UriPolicy { allow_external: self.allow_external_uris };
+                    self.bake_one(name, stem, || Source::read(path, uris), device)
+                }
                 (None, None) => self.bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(self.characters))), device),
             };
             let record = input_record(&report, &written, fingerprint, kept);
@@ -247,23 +252,6 @@ impl BakeJob {
             }
         }
         Ok(())
-    }
-
-    fn read(&self, path: &Path) -> Result<Source, InputError> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        match ext.as_deref() {
-            Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(
-                path,
-                gltf::UriPolicy { allow_external: self.allow_external_uris },
-            )?))),
-            Some("bvh") => {
-                let file = bvh::read(path)?;
-                let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
-                let animation = file.animation(&name);
-                Ok(Source::Bvh(file, animation))
-            }
-            _ => Err(InputError::UnknownFormat),
-        }
     }
 
     /// Reads, bakes and writes one input; the files it wrote come back with the report.
@@ -365,7 +353,9 @@ impl BakeJob {
         // An atlas stacks every clip's frames in one file per sheet, opened with its whole shape.
         if self.atlas {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
-            out.atlas = self.open_textures(animation, rows, |suffix| dir.join(format!("{stem}{suffix}.npy")))?;
+            out.atlas = texture_file::open(animation, self.texture, self.precision, rows, |suffix| {
+                dir.join(format!("{stem}{suffix}.npy"))
+            })?;
         }
         let clips = (0..animation.clips.len())
             .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device))
@@ -373,7 +363,15 @@ impl BakeJob {
         for texture in std::mem::take(&mut out.atlas) {
             out.written.push(texture.finish()?);
         }
-        let sidecar = self.sidecar(animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
+        let options = SidecarOptions {
+            curve: self.spec.curve.name(),
+            rate: self.rate,
+            texture: self.texture,
+            precision: self.precision,
+            atlas: self.atlas,
+        };
+        let sidecar =
+            Sidecar::new(&options, animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;
@@ -413,13 +411,14 @@ impl BakeJob {
             None
         };
         let (files, first_row) = if self.atlas {
-            self.stream_clip(animation, baked, order, index, fk_device, &mut out.atlas)?;
+            texture_file::stream(self.texture, animation, baked, order, index, fk_device, &mut out.atlas)?;
             out.rows += frames;
             (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
         } else {
-            let mut textures =
-                self.open_textures(animation, frames, |suffix| dir.join(format!("{stem}.{index}{suffix}.npy")))?;
-            self.stream_clip(animation, baked, order, index, fk_device, &mut textures)?;
+            let mut textures = texture_file::open(animation, self.texture, self.precision, frames, |suffix| {
+                dir.join(format!("{stem}.{index}{suffix}.npy"))
+            })?;
+            texture_file::stream(self.texture, animation, baked, order, index, fk_device, &mut textures)?;
             let names = textures.iter().map(TextureFile::name).collect();
             for texture in textures {
                 out.written.push(texture.finish()?);
@@ -438,116 +437,6 @@ impl BakeJob {
             looping: result.looping,
             preview,
         })
-    }
-
-    /// One [`TextureFile`] per sheet of this job's texture kind ([`texture::layout`]), each
-    /// `[rows, width, channels]`, at `path(suffix)`.
-    fn open_textures(
-        &self,
-        animation: &Animation,
-        rows: usize,
-        path: impl Fn(&str) -> PathBuf,
-    ) -> Result<Vec<TextureFile>, InputError> {
-        let channels = self.texture.channels();
-        texture::layout(animation, self.texture)
-            .into_iter()
-            .map(|(suffix, width)| {
-                TextureFile::create(path(&suffix), self.precision, &[rows as u64, width as u64, channels as u64])
-            })
-            .collect()
-    }
-
-    /// Computes clip `index`'s sheets a block of frames at a time (frames on every core) and
-    /// appends each block to `textures` on another thread as the next block is computed: the
-    /// texture is never whole in memory, and the disk writes overlap the arithmetic.
-    fn stream_clip(
-        &self,
-        animation: &Animation,
-        baked: &Baked,
-        order: &[usize],
-        index: usize,
-        fk_device: &Device,
-        textures: &mut [TextureFile],
-    ) -> Result<(), InputError> {
-        let frames = baked.clips[index].times.len();
-        let row_bytes = textures.iter().map(|t| t.row_bytes).max().unwrap_or(1).max(1);
-        let block = (TEXTURE_BLOCK_BYTES / row_bytes).max(1);
-        std::thread::scope(|s| {
-            // One block in flight beside the one being computed.
-            let (send, receive) = std::sync::mpsc::sync_channel::<Vec<texture::Sheet>>(1);
-            let writer = s.spawn(move || -> Result<(), InputError> {
-                for sheets in receive {
-                    for (texture, sheet) in textures.iter_mut().zip(&sheets) {
-                        texture.append(&sheet.data)?;
-                    }
-                }
-                Ok(())
-            });
-            let mut computed = Ok(());
-            for start in (0..frames).step_by(block) {
-                let picks: Vec<usize> = (start..frames.min(start + block)).collect();
-                match texture::sheet_rows(animation, order, baked, index, self.texture, fk_device, &picks) {
-                    Ok(sheets) => {
-                        // A closed channel: the writer failed, and says why below.
-                        if send.send(sheets).is_err() {
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        computed = Err(e);
-                        break;
-                    }
-                }
-            }
-            drop(send);
-            let written =
-                writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
-            computed.and(written)
-        })
-    }
-
-    fn sidecar<'a>(
-        &'a self,
-        animation: &'a Animation,
-        baked: &Baked,
-        source: &'a str,
-        device: &'a str,
-        baked_file: Option<String>,
-        clips: Vec<SidecarClip>,
-    ) -> Sidecar<'a> {
-        let channels = self.texture.channels();
-        let names = self.texture.channel_names().join(",");
-        let layout = match (self.atlas, self.texture) {
-            (false, TextureKind::Skin) if !animation.skins.is_empty() => {
-                format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", self.precision)
-            }
-            (false, _) => format!("per clip: [frames, joints, {channels}] {}: {names}", self.precision),
-            (true, _) => format!(
-                "one atlas: [frames of every clip, joints, {channels}] {}: {names}; clip rows from first_row",
-                self.precision
-            ),
-        };
-        Sidecar {
-            source,
-            curve: self.spec.curve.name(),
-            rate: self.rate,
-            device,
-            texture: self.texture.name(),
-            channels: self.texture.channel_names(),
-            precision: self.precision.name(),
-            layout,
-            max_key_error_rad: baked.max_key_error,
-            baked_file,
-            joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
-            parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),
-            rest: animation
-                .joints
-                .iter()
-                .map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale })
-                .collect(),
-            skins: animation.skins.iter().map(|s| SidecarSkin { name: &s.name, joints: &s.joints }).collect(),
-            clips,
-        }
     }
 }
 
@@ -568,458 +457,8 @@ fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Res
     Err(InputError::Output("previews need the `plot` cargo feature".into()))
 }
 
-/// What a running job tells its caller (a progress bar, a log); every method has a default
-/// that does nothing, and `()` is the silent observer. Called from the job's worker threads.
-pub trait Progress: Sync {
-    /// The job starts `inputs` inputs (this shard's).
-    fn start(&self, inputs: usize) {
-        let _ = inputs;
-    }
-    /// An input is being read (or verified, when resuming).
-    fn begin(&self, source: &str) {
-        let _ = source;
-    }
-    /// An input is done, baked, resumed or failed.
-    fn finish(&self, input: &InputReport) {
-        let _ = input;
-    }
-}
-
-impl Progress for () {}
-
-/// What a job did: its device and shard, and one report per input of this shard, in job order.
-#[derive(Debug)]
-pub struct BakeReport {
-    /// The device's name (with its adapter or instruction set).
-    pub device: String,
-    /// The share of the job that ran.
-    pub shard: Shard,
-    /// Inputs in the whole job (every shard's).
-    pub job_inputs: usize,
-    /// This shard's inputs.
-    pub inputs: Vec<InputReport>,
-}
-
-impl BakeReport {
-    /// The inputs that failed.
-    pub fn failed(&self) -> impl Iterator<Item = &InputReport> {
-        self.inputs.iter().filter(|r| r.outcome.is_err())
-    }
-}
-
-/// What one input became.
-#[derive(Debug)]
-pub struct InputReport {
-    /// The input's path as given or found, or the built-in crowd's description.
-    pub source: String,
-    /// Clips, keyed channels and keys read.
-    pub clips: usize,
-    /// Keyed channels over every clip.
-    pub channels: usize,
-    /// Keys over every channel.
-    pub keys: usize,
-    /// Samples baked (frames times channels).
-    pub samples: usize,
-    /// Wall time of reading, baking and writing.
-    pub seconds: f64,
-    /// The largest angle between a rotation key and the baked curve at its time, where the
-    /// curve is meant to pass through keys.
-    pub max_key_error: Option<f64>,
-    /// The files written (or kept, when resumed), or why the input failed: `Input` for the
-    /// file's own faults, `Device` for the machine's.
-    pub outcome: Result<Vec<PathBuf>, InputError>,
-    /// Skipped by `resume`: the earlier run's outputs were verified and kept.
-    pub resumed: bool,
-    /// What the bake did that a user should know but that did not fail it: source keys that
-    /// are probably broken ([`super::source_step_warnings`]), clip ends an exact rate did not
-    /// bake. Each names the clip and channel.
-    pub warnings: Vec<String>,
-}
-
-impl InputReport {
-    /// A report with nothing done yet.
-    fn new(source: &str) -> Self {
-        Self {
-            source: source.to_string(),
-            clips: 0,
-            channels: 0,
-            keys: 0,
-            samples: 0,
-            seconds: 0.0,
-            max_key_error: None,
-            outcome: Ok(Vec::new()),
-            resumed: false,
-            warnings: Vec::new(),
-        }
-    }
-}
-
-/// A warning per clip whose end an exact rate left unbaked ([`super::BakedClip::unbaked_end`]).
-fn unbaked_ends(animation: &Animation, baked: &Baked) -> Vec<String> {
-    let number = crate::error::Number;
-    animation
-        .clips
-        .iter()
-        .zip(&baked.clips)
-        .filter(|(_, b)| b.unbaked_end() * b.rate > 1e-6)
-        .map(|(clip, b)| {
-            let last = b.times[b.times.len() - 1];
-            format!(
-                "clip '{}': at exactly {} Hz the last frame is at {} s, so the last {} s before its last key at {} s are not baked (fit the rate to keep them)",
-                clip.name,
-                number(b.rate),
-                number(last),
-                number(b.unbaked_end()),
-                number(b.end)
-            )
-        })
-        .collect()
-}
-
-/// A file an input wrote, with its size and SHA-256 when they were taken as it was written
-/// (the textures: hashed from memory while the bytes go to disk, not read back).
-struct Written {
-    path: PathBuf,
-    hash: Option<(u64, String)>,
-}
-
-impl From<PathBuf> for Written {
-    fn from(path: PathBuf) -> Self {
-        Self { path, hash: None }
-    }
-}
-
-/// A source read into the common model, with what it needs to write itself back.
-enum Source {
-    Gltf(Box<gltf::GltfFile>),
-    Bvh(bvh::BvhFile, Animation),
-    Crowd(Animation),
-}
-
-impl Source {
-    fn animation(&self) -> &Animation {
-        match self {
-            Source::Gltf(f) => &f.animation,
-            Source::Bvh(_, a) | Source::Crowd(a) => a,
-        }
-    }
-}
-
-/// The sidecar JSON next to the animation textures (DESIGN section 5b).
-#[derive(Serialize)]
-struct Sidecar<'a> {
-    source: &'a str,
-    curve: &'a str,
-    rate: f64,
-    device: &'a str,
-    texture: &'a str,
-    channels: &'static [&'static str],
-    precision: &'a str,
-    layout: String,
-    max_key_error_rad: Option<f64>,
-    baked_file: Option<String>,
-    joints: Vec<&'a str>,
-    /// Parent joint index, -1 for a root.
-    parents: Vec<i64>,
-    rest: Vec<Rest>,
-    skins: Vec<SidecarSkin<'a>>,
-    clips: Vec<SidecarClip>,
-}
-
-/// A joint's rest pose, parent-relative.
-#[derive(Serialize)]
-struct Rest {
-    translation: [f64; 3],
-    rotation: [f64; 4],
-    scale: [f64; 3],
-}
-
-#[derive(Serialize)]
-struct SidecarSkin<'a> {
-    name: &'a str,
-    /// Joint indices in the skin's order (the rows of its skin texture).
-    joints: &'a [usize],
-}
-
-#[derive(Serialize)]
-struct SidecarClip {
-    name: String,
-    /// The texture (for `skin`, skin 0's).
-    file: String,
-    /// Every texture of the clip: one, or for `skin` one per glTF skin.
-    files: Vec<String>,
-    /// First row (frame) of the clip in `file`: 0, or its place in the atlas texture.
-    first_row: usize,
-    frames: usize,
-    start: f64,
-    end: f64,
-    /// Frames per second: the job's rate fitted to the clip's span (its first and last frames
-    /// are its first and last keys), or with an exact rate the job's rate (open clips).
-    rate: f64,
-    /// Baked as a loop: periodic curves, continuous across the seam.
-    #[serde(rename = "loop")]
-    looping: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    preview: Option<String>,
-}
-
-/// `work` over `items` on `jobs` threads, taking items in order; the results come back in item
-/// order whatever finishes first, so nothing written depends on timing. `progress` sees every
-/// slot (finished or not) after each item; it should be cheap unless it acts (the manifest
-/// writer checks the time first).
-fn in_order<I: Sync, R: Send>(
-    items: &[I],
-    jobs: usize,
-    work: impl Fn(&I) -> R + Sync,
-    progress: impl Fn(&[Option<R>]) + Sync,
-) -> Vec<R> {
-    let done: Mutex<Vec<Option<R>>> = Mutex::new(items.iter().map(|_| None).collect());
-    let next = AtomicUsize::new(0);
-    std::thread::scope(|scope| {
-        for _ in 0..jobs.clamp(1, items.len().max(1)) {
-            scope.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(item) = items.get(k) else { break };
-                let result = work(item);
-                let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
-                done[k] = Some(result);
-                progress(&done);
-            });
-        }
-    });
-    done.into_inner().unwrap_or_else(|e| e.into_inner()).into_iter().flatten().collect()
-}
-
 fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), BakeError> {
     manifest.updated = super::manifest::now();
     write_atomic(path, |w| serde_json::to_writer_pretty(&mut *w, manifest).map_err(std::io::Error::from))
         .map_err(BakeError::Manifest)
-}
-
-/// An input `resume` skips: the earlier run's record, its outputs verified intact.
-fn resumed(name: &str, record: &InputRecord, dir: &Path) -> InputReport {
-    let files = record.outputs.iter().map(|o| dir.join(&o.file)).collect();
-    let warnings = record.warnings.clone();
-    InputReport { outcome: Ok(files), resumed: true, warnings, ..InputReport::new(name) }
-}
-
-/// The manifest entry of a finished input.
-fn input_record(
-    report: &InputReport,
-    written: &[Written],
-    (size, sha256): (u64, String),
-    kept: Option<&InputRecord>,
-) -> InputRecord {
-    let (status, error, outputs) = match (&report.outcome, kept) {
-        (Ok(_), Some(kept)) => ("resumed", None, kept.outputs.clone()),
-        (Ok(_), None) => {
-            let record = |w: &Written| {
-                let file = w.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-                match &w.hash {
-                    Some((size, sha256)) => Ok(FileRecord { file, size: *size, sha256: sha256.clone() }),
-                    None => FileRecord::of(&w.path, file),
-                }
-            };
-            match written.iter().map(record).collect::<std::io::Result<Vec<_>>>() {
-                Ok(outputs) => ("ok", None, outputs),
-                Err(e) => ("failed", Some(format!("cannot hash an output: {e}")), Vec::new()),
-            }
-        }
-        (Err(e), _) => ("failed", Some(e.to_string()), Vec::new()),
-    };
-    InputRecord {
-        path: report.source.clone(),
-        size,
-        sha256,
-        status: status.into(),
-        error,
-        warnings: report.warnings.clone(),
-        seconds: report.seconds,
-        outputs,
-    }
-}
-
-/// The output directory, created for the job; if this job created it (and any missing
-/// parents) and wrote nothing into it, [`Self::remove_if_unused`] takes them away again, so a
-/// failed job leaves nothing behind.
-struct OutputDir {
-    /// Directories this job created, deepest first.
-    created: Vec<PathBuf>,
-}
-
-impl OutputDir {
-    /// Creates `dir` and proves it takes a new file (as every output is first written), so an
-    /// output directory that cannot be written is refused before any input is baked.
-    fn create(dir: &Path) -> Result<Self, BakeError> {
-        let created: Vec<PathBuf> =
-            dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
-        let refuse = |what: &str, e: std::io::Error| {
-            BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()))
-        };
-        std::fs::create_dir_all(dir).map_err(|e| refuse("cannot create the directory", e))?;
-        let this = Self { created };
-        if let Err(e) = AtomicFile::create(&dir.join("probe")) {
-            this.remove_if_unused();
-            let e = match e {
-                crate::io::IoError::Write { source, .. } => source,
-                other => std::io::Error::other(other.to_string()),
-            };
-            return Err(refuse("cannot write into the directory", e));
-        }
-        Ok(this)
-    }
-
-    fn remove_if_unused(&self) {
-        // remove_dir only removes empty directories.
-        for dir in &self.created {
-            if std::fs::remove_dir(dir).is_err() {
-                break;
-            }
-        }
-    }
-}
-
-/// Files given, with directories replaced by their .gltf/.glb/.bvh files, sorted by path. A
-/// directory without one is an error: baking the built-in crowd instead would be a surprise.
-fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
-    let known = |p: &Path| {
-        matches!(
-            p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
-            Some("gltf" | "glb" | "bvh")
-        )
-    };
-    let mut files = Vec::new();
-    for input in inputs {
-        if input.is_dir() {
-            let entries = std::fs::read_dir(input)
-                .map_err(|e| BakeError::option("input", format!("{}: cannot list: {e}", input.display())))?;
-            let found: Vec<PathBuf> =
-                entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
-            if found.is_empty() {
-                return Err(BakeError::option(
-                    "input",
-                    format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display()),
-                ));
-            }
-            files.extend(found);
-        } else {
-            files.push(input.clone());
-        }
-    }
-    // One order for every shard (DESIGN section 7): by path, bytewise.
-    files.sort_by(|a, b| a.as_os_str().as_encoded_bytes().cmp(b.as_os_str().as_encoded_bytes()));
-    Ok(files)
-}
-
-/// Each input's output stem (its file name without extension). Two inputs with one stem
-/// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
-/// replacing the first: refused before anything is baked.
-fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
-    let stems: Vec<String> = inputs
-        .iter()
-        .map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned()))
-        .collect();
-    let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::new();
-    for (stem, path) in stems.iter().zip(inputs) {
-        if let Some(first) = seen.insert(stem, path) {
-            return Err(BakeError::Job(format!(
-                "{} and {} would both write {stem}.*; bake them into separate output directories",
-                first.display(),
-                path.display(),
-            )));
-        }
-    }
-    Ok(stems)
-}
-
-/// Where one input's outputs go and what is written so far (taken away again if the input
-/// fails), with the atlas being gathered and its row count.
-struct Outputs<'a> {
-    dir: &'a Path,
-    stem: &'a str,
-    source: &'a str,
-    written: Vec<Written>,
-    /// `--atlas`: the open files every clip appends to, and their rows so far.
-    atlas: Vec<TextureFile>,
-    rows: usize,
-}
-
-/// Bytes of texture rows computed and written at a time ([`BakeJob::stream_clip`]): large
-/// enough that a block is many frames of a small skeleton and a few of a crowd.
-const TEXTURE_BLOCK_BYTES: usize = 32 << 20;
-
-/// A `.npy` texture being written atomically a block of rows at a time, hashed on the way (the
-/// manifest's SHA-256 without reading the file back).
-struct TextureFile {
-    file: AtomicFile,
-    element: NpyElement,
-    hasher: Sha256,
-    /// Values still to come, and bytes written so far.
-    left: u64,
-    size: u64,
-    /// Bytes of one row (a frame of the sheet), as stored.
-    row_bytes: usize,
-}
-
-impl TextureFile {
-    /// The file at `path` with its header for `shape` written.
-    fn create(path: PathBuf, precision: Precision, shape: &[u64; 3]) -> Result<Self, InputError> {
-        let element = precision.element();
-        let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
-        let row_bytes = (shape[1] * shape[2]) as usize * element.size();
-        let mut texture =
-            Self { file, element, hasher: Sha256::new(), left: shape.iter().product(), size: 0, row_bytes };
-        texture.write(&npy_header(element.descr(), shape))?;
-        Ok(texture)
-    }
-
-    /// The file's name (as the sidecar lists it).
-    fn name(&self) -> String {
-        self.file.path().file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-    }
-
-    /// Appends `values` (whole rows), hashed on another core while written.
-    fn append(&mut self, values: &[f32]) -> Result<(), InputError> {
-        self.left = self.left.checked_sub(values.len() as u64).ok_or_else(|| {
-            InputError::Internal(format!("{}: more values than its shape holds", self.file.path().display()))
-        })?;
-        let bytes = self.element.bytes(values);
-        self.write(&bytes)
-    }
-
-    fn write(&mut self, bytes: &[u8]) -> Result<(), InputError> {
-        let Self { file, hasher, .. } = self;
-        let written = std::thread::scope(|s| {
-            s.spawn(|| hasher.update(bytes));
-            file.write_all(bytes)
-        });
-        written.map_err(|e| InputError::Output(self.file.error(e).to_string()))?;
-        self.size += bytes.len() as u64;
-        Ok(())
-    }
-
-    /// Commits the file once its shape is filled; what the manifest records of it.
-    fn finish(self) -> Result<Written, InputError> {
-        let path = self.file.path().to_path_buf();
-        if self.left != 0 {
-            return Err(InputError::Internal(format!("{}: {} values short of its shape", path.display(), self.left)));
-        }
-        self.file.commit().map_err(|e| InputError::Output(e.to_string()))?;
-        Ok(Written { path, hash: Some((self.size, super::manifest::hex(&self.hasher.finalize()))) })
-    }
-}
-
-/// Baking into the input's own directory must not replace the input.
-fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputError> {
-    let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if same {
-        return Err(InputError::Output(format!(
-            "{} would overwrite the input; choose another output directory",
-            output.display()
-        )));
-    }
-    Ok(())
 }

@@ -12,14 +12,21 @@ pub mod crowd;
 pub mod error;
 mod glb;
 pub mod gltf;
+mod inputs;
 pub mod job;
 pub mod manifest;
+mod outputs;
+mod report;
 pub mod shard;
+mod sidecar;
 pub mod texture;
+mod texture_file;
+mod workers;
 
 use error::InputError as E;
 pub use error::{BakeError, InputError};
-pub use job::{BakeJob, BakeReport, InputReport, Progress};
+pub use job::BakeJob;
+pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
 use crate::curve::{Curve, CurveSpec};

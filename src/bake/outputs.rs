@@ -1,0 +1,75 @@
+//! Where a bake writes: the output directory (proven writable before the work, removed again
+//! if the job left it empty), one input's files so far (taken away if it fails), and the rule
+//! that a baked file never replaces its input.
+
+use super::error::{BakeError, InputError};
+use super::texture_file::{TextureFile, Written};
+use crate::io::AtomicFile;
+use std::path::{Path, PathBuf};
+
+/// The output directory, created for the job; if this job created it (and any missing
+/// parents) and wrote nothing into it, [`Self::remove_if_unused`] takes them away again, so a
+/// failed job leaves nothing behind.
+pub(super) struct OutputDir {
+    /// Directories this job created, deepest first.
+    created: Vec<PathBuf>,
+}
+
+impl OutputDir {
+    /// Creates `dir` and proves it takes a new file (as every output is first written), so an
+    /// output directory that cannot be written is refused before any input is baked.
+    pub(super) fn create(dir: &Path) -> Result<Self, BakeError> {
+        let created: Vec<PathBuf> =
+            dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
+        let refuse = |what: &str, e: std::io::Error| {
+            BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()))
+        };
+        std::fs::create_dir_all(dir).map_err(|e| refuse("cannot create the directory", e))?;
+        let this = Self { created };
+        if let Err(e) = AtomicFile::create(&dir.join("probe")) {
+            this.remove_if_unused();
+            let e = match e {
+                crate::io::IoError::Write { source, .. } => source,
+                other => std::io::Error::other(other.to_string()),
+            };
+            return Err(refuse("cannot write into the directory", e));
+        }
+        Ok(this)
+    }
+
+    pub(super) fn remove_if_unused(&self) {
+        // remove_dir only removes empty directories.
+        for dir in &self.created {
+            if std::fs::remove_dir(dir).is_err() {
+                break;
+            }
+        }
+    }
+}
+
+/// Where one input's outputs go and what is written so far (taken away again if the input
+/// fails), with the atlas being gathered and its row count.
+pub(super) struct Outputs<'a> {
+    pub(super) dir: &'a Path,
+    pub(super) stem: &'a str,
+    pub(super) source: &'a str,
+    pub(super) written: Vec<Written>,
+    /// `--atlas`: the open files every clip appends to, and their rows so far.
+    pub(super) atlas: Vec<TextureFile>,
+    pub(super) rows: usize,
+}
+
+/// Baking into the input's own directory must not replace the input.
+pub(super) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputError> {
+    let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(InputError::Output(format!(
+            "{} would overwrite the input; choose another output directory",
+            output.display()
+        )));
+    }
+    Ok(())
+}
