@@ -98,8 +98,8 @@ impl<'a> Sidecar<'a> {
         };
         Sidecar {
             source,
-            curve: curve,
-            rate: rate,
+            curve,
+            rate,
             device,
             texture: texture.name(),
             channels: texture.channel_names(),
