@@ -22,12 +22,17 @@
 //! (natural or periodic cubic spline of translations and scales) is the same system with scalar
 //! blocks, solved once.
 
+mod jacobian;
+mod tridiagonal;
+
 use crate::basis::bspline_cumulative;
 use crate::quat::{relative_log, DQuat, DVec3};
 use glam::{DMat3, DVec3 as V3};
+use jacobian::{d, exp_jr, g, log_coef, skew, step_log_coef, AxisPoly};
 use std::cell::RefCell;
 use std::f64::consts::PI;
 use std::rc::Rc;
+use tridiagonal::{solve, Scratch};
 
 /// Largest angle (rad) a solved curve may miss a key by (DESIGN section 3).
 pub const KEY_TOLERANCE: f64 = 1e-12;
@@ -202,109 +207,6 @@ impl System {
     }
 }
 
-/// `[v]x`: `skew(v) u = v x u`.
-fn skew(v: V3) -> DMat3 {
-    DMat3::from_cols(V3::new(0.0, v.z, -v.y), V3::new(-v.z, 0.0, v.x), V3::new(v.y, -v.x, 0.0))
-}
-
-/// `c[0] I + c[1] [v]x + c[2] [v]x^2`. Every Jacobian of the half-angle exp and log about one
-/// rotation vector `v` has this form, and two of them about the same `v` multiply as
-/// polynomials in `[v]x` (`[v]x^3 = -|v|^2 [v]x`): a few scalars instead of a 3x3 product,
-/// and a vector is moved by two cross products.
-#[derive(Clone, Copy, Debug)]
-struct AxisPoly {
-    v: V3,
-    c: [f64; 3],
-}
-
-impl AxisPoly {
-    /// Right Jacobian of the half-angle exp at `s v`, times `s`: `exp(s (v + d)) = exp(s v)
-    /// exp(s jr(s v) d)` to first order. `jr(u)` is SO(3)'s `J_r(2 u)`, `I - (sin^2 h / h^2)
-    /// [u]x + ((2h - sin 2h) / 2h^3) [u]x^2` with `h = |u|`; `c` holds those two coefficients
-    /// for `u = s v` ([`exp_jr`]).
-    fn exp_jacobian(v: V3, s: f64, c: [f64; 2]) -> Self {
-        Self { v, c: [s, -s * s * c[0], s * s * s * c[1]] }
-    }
-
-    /// Inverse right and left Jacobians of the half-angle log at `v`, `I +- [v]x + c [v]x^2`:
-    /// `log(exp(v) exp(d)) = v + jr_inv d` and `log(exp(d) exp(v)) = v + jl_inv d` to first
-    /// order, with `c = (1 - h cot h) / h^2`, `h = |v| < pi` ([`log_coef`], [`step_log_coef`]).
-    fn log_jacobians(v: V3, c: f64) -> (Self, Self) {
-        (Self { v, c: [1.0, 1.0, c] }, Self { v, c: [1.0, -1.0, c] })
-    }
-
-    /// The product `self * o` of two polynomials about the same vector.
-    fn times(self, o: Self) -> Self {
-        let ([a0, a1, a2], [b0, b1, b2]) = (self.c, o.c);
-        let h2 = self.v.length_squared();
-        let c = [a0 * b0, a0 * b1 + a1 * b0 - h2 * (a1 * b2 + a2 * b1), a0 * b2 + a1 * b1 + a2 * b0 - h2 * a2 * b2];
-        Self { v: self.v, c }
-    }
-
-    /// `self x`.
-    fn apply(self, x: V3) -> V3 {
-        let vx = self.v.cross(x);
-        x * self.c[0] + vx * self.c[1] + self.v.cross(vx) * self.c[2]
-    }
-
-    /// The matrix, with `[v]x^2 = v v^T - |v|^2 I`.
-    fn matrix(self) -> DMat3 {
-        let ([c0, c1, c2], v) = (self.c, self.v);
-        let diagonal = c0 - c2 * v.length_squared();
-        let column = |j: usize, e: V3| v * (c2 * v[j]) + v.cross(e) * c1 + e * diagonal;
-        DMat3::from_cols(column(0, V3::X), column(1, V3::Y), column(2, V3::Z))
-    }
-}
-
-/// `exp(v)` and the coefficients of its Jacobian ([`AxisPoly::exp_jacobian`]), from one
-/// `sin_cos` (the row evaluation needs the one, its Jacobian the other, and they share the
-/// angle).
-fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
-    let h2 = v.length_squared();
-    let h = h2.sqrt();
-    if h < 1e-4 {
-        return (DQuat::exp(d(v)), [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]);
-    }
-    // One sin_cos: sin 2h = 2 sin h cos h.
-    let (s, c) = h.sin_cos();
-    let jr = [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)];
-    // Below h = 1e-2 `DQuat::exp` takes its value-only series; kept, so that the rotation is
-    // exactly `DQuat::exp`'s.
-    let e =
-        if h2 >= 1e-4 { DQuat::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c) } else { DQuat::exp(d(v)) };
-    (e, jr)
-}
-
-/// The coefficient of [`AxisPoly::log_jacobians`] at `v`.
-fn log_coef(v: V3) -> f64 {
-    let h = v.length();
-    if h < 1e-4 {
-        1.0 / 3.0 + h * h / 45.0
-    } else {
-        let (s, c) = h.sin_cos();
-        (1.0 - h * c / s) / (h * h)
-    }
-}
-
-/// The coefficient of [`AxisPoly::log_jacobians`] for a step `v` whose rotation `rel` is at
-/// hand (`exp v = +-rel`, so `rel = +-(cos h, sin h v / h)`): `cot h` read off `rel` instead
-/// of a `sin_cos`. Components of `rel` carry rounding of order 1e-16, so `c h^2` does of order
-/// 1e-16 / h: the series covers `h < 1e-3`.
-fn step_log_coef(v: V3, rel: DQuat) -> f64 {
-    let h2 = v.length_squared();
-    if h2 < 1e-6 {
-        1.0 / 3.0 + h2 / 45.0
-    } else {
-        // h cot h = h^2 cos h / (sin h h) = h^2 rel.w / (rel.vec . v).
-        let along = rel.x * v.x + rel.y * v.y + rel.z * v.z;
-        (1.0 - h2 * rel.w / along) / h2
-    }
-}
-
-fn g(v: DVec3) -> V3 {
-    V3::new(v.x, v.y, v.z)
-}
-
 /// The rotation matrix of `q^-1`: `rot_inv(q) v = q^-1 v q`.
 fn rot_inv(q: DQuat) -> DMat3 {
     DMat3::from_quat(glam::DQuat::from(q.conjugate()))
@@ -383,136 +285,6 @@ fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jc: [f64; 2]) -> [DMa
             [-(f1 * l1), f1 * r1 - f2 * l2, f2 * r2]
         }
     }
-}
-
-/// What a linear solve carries per block: a vector, or a vector and a 3x3 block column (the
-/// border of a cyclic system).
-trait Block: Copy {
-    fn lmul(m: &DMat3, x: Self) -> Self;
-    fn minus(self, o: Self) -> Self;
-}
-
-impl Block for V3 {
-    fn lmul(m: &DMat3, x: Self) -> Self {
-        *m * x
-    }
-    fn minus(self, o: Self) -> Self {
-        self - o
-    }
-}
-
-impl Block for (V3, DMat3) {
-    fn lmul(m: &DMat3, x: Self) -> Self {
-        (*m * x.0, *m * x.1)
-    }
-    fn minus(self, o: Self) -> Self {
-        (self.0 - o.0, self.1 - o.1)
-    }
-}
-
-/// Block tridiagonal solve (block Thomas) of `lower_r x_{r-1} + diag_r x_r + upper_r x_{r+1}
-/// = rhs_r` in place; `None` when a pivot block is singular.
-/// `carry` is scratch space.
-fn solve_tridiagonal<T: Block>(
-    lower: &[DMat3],
-    diag: &[DMat3],
-    upper: &[DMat3],
-    rhs: &mut [T],
-    carry: &mut Vec<DMat3>,
-) -> Option<()> {
-    let n = rhs.len();
-    carry.clear();
-    for r in 0..n {
-        let mut d = diag[r];
-        if r > 0 {
-            d -= lower[r] * carry[r - 1];
-            rhs[r] = rhs[r].minus(T::lmul(&lower[r], rhs[r - 1]));
-        }
-        let det = d.determinant();
-        if !det.is_finite() || det.abs() < 1e-300 {
-            return None;
-        }
-        let inv = d.inverse();
-        carry.push(inv * upper[r]);
-        rhs[r] = T::lmul(&inv, rhs[r]);
-    }
-    for r in (0..n.saturating_sub(1)).rev() {
-        rhs[r] = rhs[r].minus(T::lmul(&carry[r], rhs[r + 1]));
-    }
-    Some(())
-}
-
-/// The arrays a linear solve fills, kept across Newton iterations (allocating and zeroing
-/// them per solve was a measured cost).
-#[derive(Default)]
-struct Scratch {
-    lower: Vec<DMat3>,
-    diag: Vec<DMat3>,
-    upper: Vec<DMat3>,
-    /// Row 0: column n-1; row n-1: column 0 (cyclic systems, n >= 3).
-    corner: Vec<DMat3>,
-    carry: Vec<DMat3>,
-    aug: Vec<(V3, DMat3)>,
-}
-
-/// Solves the (possibly cyclic) block tridiagonal system whose row `r` has blocks `blocks[r]`
-/// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add) into `x`.
-fn solve(
-    columns: &[[Option<usize>; 3]],
-    blocks: &[[DMat3; 3]],
-    rhs: &[V3],
-    periodic: bool,
-    scratch: &mut Scratch,
-    x: &mut Vec<V3>,
-) -> Option<()> {
-    let n = rhs.len();
-    let zero = DMat3::ZERO;
-    // Sort each row's blocks into lower / diagonal / upper / corner (cyclic wrap).
-    let Scratch { lower, diag, upper, corner, carry, aug } = scratch;
-    for v in [&mut *lower, &mut *diag, &mut *upper, &mut *corner] {
-        v.clear();
-        v.resize(n, zero);
-    }
-    for r in 0..n {
-        for (col, block) in columns[r].iter().zip(&blocks[r]) {
-            let Some(c) = *col else { continue };
-            let slot = if c == r {
-                &mut diag[r]
-            } else if c + 1 == r {
-                &mut lower[r]
-            } else if c == r + 1 {
-                &mut upper[r]
-            } else {
-                &mut corner[r]
-            };
-            *slot += *block;
-        }
-    }
-    x.clear();
-    if !periodic || n < 3 {
-        x.extend_from_slice(rhs);
-        return solve_tridiagonal(lower, diag, upper, x, carry);
-    }
-    // Border the last unknown: rows 0..n-2 solve T [y | Z] = [rhs | border], then the last
-    // row gives x_{n-1}, and x' = y - Z x_{n-1}.
-    let m = n - 1;
-    aug.clear();
-    aug.extend((0..m).map(|r| (rhs[r], zero)));
-    aug[0].1 = corner[0];
-    aug[m - 1].1 += upper[m - 1];
-    // Row m - 1's upper block went into the border: the tridiagonal part ends there.
-    upper[m - 1] = zero;
-    solve_tridiagonal(&lower[..m], &diag[..m], &upper[..m], aug, carry)?;
-    let (first, last) = (corner[m], lower[m]);
-    let s = diag[m] - last * aug[m - 1].1 - first * aug[0].1;
-    let det = s.determinant();
-    if !det.is_finite() || det.abs() < 1e-300 {
-        return None;
-    }
-    let xm = s.inverse() * (rhs[m] - last * aug[m - 1].0 - first * aug[0].0);
-    x.extend(aug.iter().map(|(y, z)| *y - *z * xm));
-    x.push(xm);
-    Some(())
 }
 
 /// How far a set of control points is from solving the system.
@@ -763,10 +535,6 @@ fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: 
     Ok(Solved { points: out_points, coefs, knots: system.knots.clone(), iterations, key_error: health.key.0 })
 }
 
-fn d(v: V3) -> DVec3 {
-    DVec3::new(v.x, v.y, v.z)
-}
-
 /// The log of `r` (up to sign) nearest to `predicted`: among `(th + pi m) u` (every `v` with
 /// `exp v = +-r`, `th u` the short log), the one whose length along `u` is nearest
 /// `predicted`'s.
@@ -885,21 +653,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    /// Polynomials in `[v]x`: matrix, product and action against plain 3x3 arithmetic.
-    #[test]
-    fn axis_polynomials_multiply_as_their_matrices() {
-        let v = V3::new(0.7, -1.3, 0.4);
-        let (a, b) = (AxisPoly { v, c: [0.9, -0.35, 0.6] }, AxisPoly { v, c: [1.1, 0.8, -0.25] });
-        let k = skew(v);
-        let plain = |p: AxisPoly| DMat3::IDENTITY * p.c[0] + k * p.c[1] + k * k * p.c[2];
-        let close = |x: DMat3, y: DMat3| (0..3).all(|j| (x.col(j) - y.col(j)).length() < 1e-14);
-        assert!(close(a.matrix(), plain(a)), "{:?} against {:?}", a.matrix(), plain(a));
-        assert!(close(a.times(b).matrix(), plain(a) * plain(b)));
-        assert!(close(b.times(a).matrix(), plain(a) * plain(b)), "they commute");
-        let x = V3::new(-0.2, 0.5, 2.0);
-        assert!((a.apply(x) - plain(a) * x).length() < 1e-14);
     }
 
     #[test]
