@@ -6,7 +6,7 @@
 //! Run: `cargo run --release --example interp_convergence [-- MAX_DEGREES]`.
 
 use quatcurve::interp;
-use quatcurve::quat::{DQuat, DVec3};
+use quatcurve::quat::{QuatF64, Vec3F64};
 use std::collections::BTreeMap;
 
 fn main() {
@@ -24,14 +24,14 @@ fn main() {
         let mut failures = Vec::new();
         for track in 0..3_000 {
             let n = 12;
-            let mut keys = vec![DQuat::from_xyzw(0.0, 0.0, 0.0, 1.0)];
+            let mut keys = vec![QuatF64::from_xyzw(0.0, 0.0, 0.0, 1.0)];
             let mut times = vec![0.0];
             for _ in 0..n {
-                let axis = DVec3::new(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
+                let axis = Vec3F64::new(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
                 let half = 0.5 * uniform() * max_degrees.to_radians();
                 let step = axis.scale(half / axis.length());
                 let last = *keys.last().unwrap();
-                keys.push(last * DQuat::exp(step));
+                keys.push(last * QuatF64::exp(step));
                 times.push(times.last().unwrap() + 0.1 + 0.9 * uniform());
             }
             if periodic {

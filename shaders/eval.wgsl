@@ -181,13 +181,13 @@ fn sample_from_jets(q: JetQuat) -> Sample {
 }
 
 /// Segment of a piecewise track: index, local parameter u, 1 / segment length.
-struct Piece {
+struct KeySegment {
     i: u32,
     u: f32,
     inv_len: f32,
 }
 
-fn key_segment(tr: GpuTrack, t: vec2u) -> Piece {
+fn key_segment(tr: GpuTrack, t: vec2u) -> KeySegment {
     var loc: Located;
     // The per-track flag is not consulted: on a SIMD host both searches would then run.
     if UNIFORM_KNOTS_ONLY {
@@ -197,7 +197,7 @@ fn key_segment(tr: GpuTrack, t: vec2u) -> Piece {
     }
     let k0 = knot(tr.knot_offset, loc.span);
     let len = time_sub(knot(tr.knot_offset, loc.span + 1u), k0);
-    return Piece(loc.span, time_sub(loc.t, k0) / len, 1.0 / len);
+    return KeySegment(loc.span, time_sub(loc.t, k0) / len, 1.0 / len);
 }
 
 fn eval_slerp(tr: GpuTrack, t: vec2u) -> Sample {

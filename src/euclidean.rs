@@ -17,7 +17,7 @@ use crate::basis::{bernstein_cumulative, bspline_cumulative};
 use crate::batch::{bspline_knots, catmull_rom_velocities, key_times, squad_points};
 use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::DVec3;
+use crate::quat::Vec3F64;
 use crate::segment::key_segment;
 use crate::segment::{locate, wrap};
 
@@ -28,12 +28,12 @@ pub struct VectorCurve {
     curve: Curve,
     order: usize,
     blend: Blend,
-    points: Vec<DVec3>,
-    coefs: Vec<DVec3>,
+    points: Vec<Vec3F64>,
+    coefs: Vec<Vec3F64>,
     knots: Vec<f64>,
     domain: [f64; 2],
     /// Looping: the per-cycle offset per unit time, `D / T`.
-    drift: Option<DVec3>,
+    drift: Option<Vec3F64>,
 }
 
 impl VectorCurve {
@@ -51,7 +51,7 @@ impl VectorCurve {
         spec: &CurveSpec,
     ) -> Result<Self> {
         let (keys, times, drift) = detrended_keys(id, times, values, spec)?;
-        let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
+        let steps = |points: &[Vec3F64]| -> Vec<Vec3F64> { points.windows(2).map(|w| w[1] - w[0]).collect() };
         let n = keys.len() - 1;
         let mut curve = VectorCurve {
             curve: spec.curve,
@@ -71,7 +71,7 @@ impl VectorCurve {
     /// them) from the keys in `points` at `times`.
     fn fit(&mut self, id: &TrackId, spec: &CurveSpec, explicit_knots: Option<&[f64]>, times: &[f64]) -> Result<()> {
         let curve = self;
-        let steps = |points: &[DVec3]| -> Vec<DVec3> { points.windows(2).map(|w| w[1] - w[0]).collect() };
+        let steps = |points: &[Vec3F64]| -> Vec<Vec3F64> { points.windows(2).map(|w| w[1] - w[0]).collect() };
         let (n, looping) = (curve.points.len() - 1, spec.looping);
         let [t0, tn] = curve.domain;
         match spec.curve {
@@ -142,7 +142,7 @@ impl VectorCurve {
     /// The value at time `t` (clamped to the domain; looping, wrapped and advanced by the
     /// per-cycle offset).
     #[must_use]
-    pub fn evaluate(&self, t: f64) -> DVec3 {
+    pub fn evaluate(&self, t: f64) -> Vec3F64 {
         match self.drift {
             Some(rate) => self.periodic(wrap(t, self.domain)) + rate.scale(t - self.domain[0]),
             None => self.periodic(t),
@@ -150,10 +150,11 @@ impl VectorCurve {
     }
 
     /// The curve without the looping offset.
-    fn periodic(&self, t: f64) -> DVec3 {
+    fn periodic(&self, t: f64) -> Vec3F64 {
         let Self { points, coefs, knots, .. } = self;
-        let sum =
-            |start: DVec3, terms: &mut dyn Iterator<Item = (DVec3, f64)>| terms.fold(start, |p, (c, b)| p + c.scale(b));
+        let sum = |start: Vec3F64, terms: &mut dyn Iterator<Item = (Vec3F64, f64)>| {
+            terms.fold(start, |p, (c, b)| p + c.scale(b))
+        };
         match self.curve {
             Curve::Slerp => {
                 let (i, t, len) = key_segment(knots, t);
@@ -180,7 +181,7 @@ impl VectorCurve {
             Curve::Squad => {
                 let (i, t, len) = key_segment(knots, t);
                 let h = (t - knots[i]) / len;
-                let lerp = |a: DVec3, b: DVec3, s: f64| a + (b - a).scale(s);
+                let lerp = |a: Vec3F64, b: Vec3F64, s: f64| a + (b - a).scale(s);
                 lerp(lerp(points[i], points[i + 1], h), lerp(coefs[i], coefs[i + 1], h), 2.0 * h * (1.0 - h))
             }
             Curve::NamKim => {
@@ -196,9 +197,15 @@ impl VectorCurve {
 
 /// Per-key velocities: Catmull-Rom ([`catmull_rom_velocities`], as for rotations) or zero;
 /// vector channels carry no given velocities.
-fn velocities(id: &TrackId, tangents: Tangents, keys: &[DVec3], times: &[f64], looping: bool) -> Result<Vec<DVec3>> {
+fn velocities(
+    id: &TrackId,
+    tangents: Tangents,
+    keys: &[Vec3F64],
+    times: &[f64],
+    looping: bool,
+) -> Result<Vec<Vec3F64>> {
     match tangents {
-        Tangents::Zero => Ok(vec![DVec3::zero(); keys.len()]),
+        Tangents::Zero => Ok(vec![Vec3F64::zero(); keys.len()]),
         Tangents::Given => Err(Error::VectorTangents { track: id.clone() }),
         Tangents::CatmullRom => Ok(catmull_rom_velocities(keys, times, looping)),
     }
@@ -211,7 +218,7 @@ fn detrended_keys(
     times: Option<&[f64]>,
     values: &[[f64; 3]],
     spec: &CurveSpec,
-) -> Result<(Vec<DVec3>, Vec<f64>, Option<DVec3>)> {
+) -> Result<(Vec<Vec3F64>, Vec<f64>, Option<Vec3F64>)> {
     let min = spec.min_keys();
     if values.len() < min {
         return Err(Error::TooFewKeys { track: id.clone(), curve: spec.curve.to_string(), min, found: values.len() });
@@ -220,7 +227,7 @@ fn detrended_keys(
         return Err(Error::NonFiniteValue { track: id.clone(), key, value: values[key] });
     }
     let times = key_times(id, times, values.len())?;
-    let mut keys: Vec<DVec3> = values.iter().map(|&v| DVec3::from_array(v)).collect();
+    let mut keys: Vec<Vec3F64> = values.iter().map(|&v| Vec3F64::from_array(v)).collect();
     let n = keys.len() - 1;
     let (t0, tn) = (times[0], times[n]);
     let mut drift = None;

@@ -2,7 +2,7 @@
 //! and the built-in demo input.
 
 use crate::output::Output;
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::SampleTimes;
 use crate::track::{Track, TrackFile};
 use serde::Serialize;
@@ -364,8 +364,8 @@ pub fn demo_tracks() -> Vec<Track> {
                 .iter()
                 .map(|&t| {
                     let a = (std::f64::consts::PI * t + phase).sin();
-                    let v = DVec3::new(amplitude * a, 0.2 * amplitude * (2.0 * a).cos(), 0.1 * phase);
-                    DQuat::exp(v).to_array()
+                    let v = Vec3F64::new(amplitude * a, 0.2 * amplitude * (2.0 * a).cos(), 0.1 * phase);
+                    QuatF64::exp(v).to_array()
                 })
                 .collect();
             Track { name: Some(name.to_string()), times: Some(times), ..Track::from_rotations(rotations) }

@@ -69,7 +69,7 @@ pub use error::{Error, Result, TrackId};
 pub use gpu::GpuEvaluator;
 pub use job::{EvalJob, EvalOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
-pub use quat::{DQuat, DVec3, Quat, Vec3};
+pub use quat::{QuatF64, Quaternion, Vec3F64, Vector3};
 pub use reference::{evaluate, Sample};
 pub use sampling::{SampleTimes, Sampling, DEFAULT_RATE};
 pub use track::{Track, TrackFile};

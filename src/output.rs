@@ -3,7 +3,7 @@
 //! One definition of the row, read by the CPU kernels, the GPU's host side, the CLI's files
 //! and Python.
 
-use crate::quat::DQuat;
+use crate::quat::QuatF64;
 use crate::sampling::SampleTimes;
 use std::ops::Range;
 
@@ -116,7 +116,7 @@ impl Row {
     pub fn fill_matrix(self, row: &mut [f32]) {
         if self.matrix {
             let q = &row[Self::ROTATION];
-            let m = DQuat::from_array([q[0], q[1], q[2], q[3]].map(f64::from)).to_mat3();
+            let m = QuatF64::from_array([q[0], q[1], q[2], q[3]].map(f64::from)).to_mat3();
             for (o, v) in row[self.matrix()].iter_mut().zip(m.iter().flatten()) {
                 *o = *v as f32;
             }

@@ -16,7 +16,7 @@ use std::ops::{Add, Mul, Neg, Sub};
 
 /// A 3-vector: angular velocities, log-coefficients `w_i`, pure quaternion parts.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Vec3<R> {
+pub struct Vector3<R> {
     /// x component.
     pub x: R,
     /// y component.
@@ -27,7 +27,7 @@ pub struct Vec3<R> {
 
 /// A quaternion `w + x i + y j + z k`, stored `x, y, z, w`.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Quat<R> {
+pub struct Quaternion<R> {
     /// i component.
     pub x: R,
     /// j component.
@@ -39,11 +39,11 @@ pub struct Quat<R> {
 }
 
 /// An `f64` vector.
-pub type DVec3 = Vec3<f64>;
+pub type Vec3F64 = Vector3<f64>;
 /// An `f64` quaternion.
-pub type DQuat = Quat<f64>;
+pub type QuatF64 = Quaternion<f64>;
 
-impl<R: Real> Vec3<R> {
+impl<R: Real> Vector3<R> {
     /// Builds a vector from components.
     #[must_use]
     pub fn new(x: R, y: R, z: R) -> Self {
@@ -88,18 +88,18 @@ impl<R: Real> Vec3<R> {
 
     /// Lifts a plain vector (zero derivatives).
     #[must_use]
-    pub fn from_f64(v: DVec3) -> Self {
+    pub fn from_f64(v: Vec3F64) -> Self {
         Self::new(R::cst(v.x), R::cst(v.y), R::cst(v.z))
     }
 
     /// Drops derivatives.
     #[must_use]
-    pub fn value(self) -> DVec3 {
-        Vec3::new(self.x.value(), self.y.value(), self.z.value())
+    pub fn value(self) -> Vec3F64 {
+        Vector3::new(self.x.value(), self.y.value(), self.z.value())
     }
 }
 
-impl DVec3 {
+impl Vec3F64 {
     /// Builds from an array `[x, y, z]`.
     #[must_use]
     pub fn from_array(a: [f64; 3]) -> Self {
@@ -125,28 +125,28 @@ impl DVec3 {
     }
 }
 
-impl<R: Real> Add for Vec3<R> {
+impl<R: Real> Add for Vector3<R> {
     type Output = Self;
     fn add(self, o: Self) -> Self {
         Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
     }
 }
 
-impl<R: Real> Sub for Vec3<R> {
+impl<R: Real> Sub for Vector3<R> {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
     }
 }
 
-impl<R: Real> Neg for Vec3<R> {
+impl<R: Real> Neg for Vector3<R> {
     type Output = Self;
     fn neg(self) -> Self {
         Self::new(-self.x, -self.y, -self.z)
     }
 }
 
-impl<R: Real> Quat<R> {
+impl<R: Real> Quaternion<R> {
     /// Builds a quaternion from `x, y, z, w`.
     #[must_use]
     pub fn from_xyzw(x: R, y: R, z: R, w: R) -> Self {
@@ -161,14 +161,14 @@ impl<R: Real> Quat<R> {
 
     /// The pure quaternion `(0, v)`.
     #[must_use]
-    pub fn pure(v: Vec3<R>) -> Self {
+    pub fn pure(v: Vector3<R>) -> Self {
         Self::from_xyzw(v.x, v.y, v.z, R::cst(0.0))
     }
 
     /// The vector part `(x, y, z)`.
     #[must_use]
-    pub fn vec(self) -> Vec3<R> {
-        Vec3::new(self.x, self.y, self.z)
+    pub fn vec(self) -> Vector3<R> {
+        Vector3::new(self.x, self.y, self.z)
     }
 
     /// 4D dot product.
@@ -191,14 +191,14 @@ impl<R: Real> Quat<R> {
 
     /// Lifts a plain quaternion (zero derivatives).
     #[must_use]
-    pub fn from_f64(q: DQuat) -> Self {
+    pub fn from_f64(q: QuatF64) -> Self {
         Self::from_xyzw(R::cst(q.x), R::cst(q.y), R::cst(q.z), R::cst(q.w))
     }
 
     /// Drops derivatives.
     #[must_use]
-    pub fn value(self) -> DQuat {
-        Quat::from_xyzw(self.x.value(), self.y.value(), self.z.value(), self.w.value())
+    pub fn value(self) -> QuatF64 {
+        Quaternion::from_xyzw(self.x.value(), self.y.value(), self.z.value(), self.w.value())
     }
 
     /// The representative of the same rotation in the hemisphere of `reference`
@@ -214,7 +214,7 @@ impl<R: Real> Quat<R> {
 
     /// Half-angle exponential: `exp v = (cos|v|, sin|v| / |v| * v)`.
     #[must_use]
-    pub fn exp(v: Vec3<R>) -> Self {
+    pub fn exp(v: Vector3<R>) -> Self {
         let th2 = v.length_squared();
         let (c, sinc) = th2.cos_sinc_sqrt();
         Self::from_xyzw(v.x * sinc, v.y * sinc, v.z * sinc, c)
@@ -227,7 +227,7 @@ impl<R: Real> Quat<R> {
     /// above, `atan2(|vec|, w) / |vec|`. At `th = pi` with a zero vector part
     /// (`q = (-1, 0, 0, 0)`) the axis is undefined; the result is `(pi, 0, 0)`.
     #[must_use]
-    pub fn log(self) -> Vec3<R> {
+    pub fn log(self) -> Vector3<R> {
         let v = self.vec();
         let s2 = v.length_squared();
         let w = self.w;
@@ -236,7 +236,7 @@ impl<R: Real> Quat<R> {
             let x = s2 / (w * w);
             x.atanc_sqrt() / w
         } else if s2v == 0.0 {
-            return Vec3::new(R::cst(std::f64::consts::PI), R::cst(0.0), R::cst(0.0));
+            return Vector3::new(R::cst(std::f64::consts::PI), R::cst(0.0), R::cst(0.0));
         } else {
             let s = s2.sqrt();
             s.atan2(w) / s
@@ -276,12 +276,12 @@ impl<R: Real> Quat<R> {
 
     /// Rotates a vector: `self v self^-1` (for unit `self`).
     #[must_use]
-    pub fn rotate(self, v: Vec3<R>) -> Vec3<R> {
+    pub fn rotate(self, v: Vector3<R>) -> Vector3<R> {
         (self * Self::pure(v) * self.conjugate()).vec()
     }
 }
 
-impl DQuat {
+impl QuatF64 {
     /// Builds from `[x, y, z, w]`.
     #[must_use]
     pub fn from_array(a: [f64; 4]) -> Self {
@@ -362,31 +362,31 @@ impl DQuat {
     }
 }
 
-impl From<glam::DQuat> for DQuat {
+impl From<glam::DQuat> for QuatF64 {
     fn from(q: glam::DQuat) -> Self {
         Self::from_xyzw(q.x, q.y, q.z, q.w)
     }
 }
 
-impl From<DQuat> for glam::DQuat {
-    fn from(q: DQuat) -> Self {
+impl From<QuatF64> for glam::DQuat {
+    fn from(q: QuatF64) -> Self {
         glam::DQuat::from_xyzw(q.x, q.y, q.z, q.w)
     }
 }
 
-impl From<glam::DVec3> for DVec3 {
+impl From<glam::DVec3> for Vec3F64 {
     fn from(v: glam::DVec3) -> Self {
         Self::new(v.x, v.y, v.z)
     }
 }
 
-impl From<DVec3> for glam::DVec3 {
-    fn from(v: DVec3) -> Self {
+impl From<Vec3F64> for glam::DVec3 {
+    fn from(v: Vec3F64) -> Self {
         glam::DVec3::new(v.x, v.y, v.z)
     }
 }
 
-impl<R: Real> Mul for Quat<R> {
+impl<R: Real> Mul for Quaternion<R> {
     type Output = Self;
     /// Hamilton product.
     fn mul(self, o: Self) -> Self {
@@ -399,21 +399,21 @@ impl<R: Real> Mul for Quat<R> {
     }
 }
 
-impl<R: Real> Add for Quat<R> {
+impl<R: Real> Add for Quaternion<R> {
     type Output = Self;
     fn add(self, o: Self) -> Self {
         Self::from_xyzw(self.x + o.x, self.y + o.y, self.z + o.z, self.w + o.w)
     }
 }
 
-impl<R: Real> Sub for Quat<R> {
+impl<R: Real> Sub for Quaternion<R> {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
         Self::from_xyzw(self.x - o.x, self.y - o.y, self.z - o.z, self.w - o.w)
     }
 }
 
-impl<R: Real> Neg for Quat<R> {
+impl<R: Real> Neg for Quaternion<R> {
     type Output = Self;
     fn neg(self) -> Self {
         Self::from_xyzw(-self.x, -self.y, -self.z, -self.w)
@@ -423,7 +423,7 @@ impl<R: Real> Neg for Quat<R> {
 /// `log(a^-1 b)` with `b` folded into `a`'s hemisphere: the shortest relative rotation (the
 /// step `w_i` of the cumulative form between consecutive keys).
 #[must_use]
-pub fn relative_log(a: DQuat, b: DQuat) -> DVec3 {
+pub fn relative_log(a: QuatF64, b: QuatF64) -> Vec3F64 {
     (a.conjugate() * b.aligned_with(a)).log()
 }
 
@@ -432,8 +432,8 @@ mod tests {
     use super::*;
     use std::f64::consts::{FRAC_PI_4, PI};
 
-    fn q(x: f64, y: f64, z: f64, w: f64) -> DQuat {
-        DQuat::from_xyzw(x, y, z, w).normalize()
+    fn q(x: f64, y: f64, z: f64, w: f64) -> QuatF64 {
+        QuatF64::from_xyzw(x, y, z, w).normalize()
     }
 
     #[test]
@@ -450,9 +450,9 @@ mod tests {
     #[test]
     fn exp_is_half_angle_and_matches_glam_full_angle() {
         // exp(th u) is the rotation by 2 th about u, which glam writes from_axis_angle(u, 2 th).
-        let u = DVec3::new(1.0, 2.0, -2.0).scale(1.0 / 3.0);
+        let u = Vec3F64::new(1.0, 2.0, -2.0).scale(1.0 / 3.0);
         for &th in &[0.0, 1e-9, 1e-3, 0.499_999, 0.5, 0.7, 3.0, PI] {
-            let ours = DQuat::exp(u.scale(th));
+            let ours = QuatF64::exp(u.scale(th));
             let theirs = glam::DQuat::from_axis_angle(glam::DVec3::from(u), 2.0 * th);
             assert!(ours.angle_to(theirs.into()) < 1e-15, "th {th}");
         }
@@ -460,11 +460,11 @@ mod tests {
 
     #[test]
     fn log_inverts_exp_across_the_branch_thresholds() {
-        let u = DVec3::new(0.6, 0.0, 0.8);
+        let u = Vec3F64::new(0.6, 0.0, 0.8);
         for &th in
             &[0.0, 1e-12, 1e-6, 0.463, 0.4637, FRAC_PI_4 - 1e-9, FRAC_PI_4, FRAC_PI_4 + 1e-9, 1.0, 2.5, PI - 1e-9]
         {
-            let back = DQuat::exp(u.scale(th)).log();
+            let back = QuatF64::exp(u.scale(th)).log();
             let err = (back - u.scale(th)).length();
             assert!(err <= 4e-16 * th.max(1.0), "th {th}: err {err}");
         }
@@ -472,18 +472,18 @@ mod tests {
 
     #[test]
     fn log_at_pi_is_defined() {
-        assert_eq!(q(0.0, 0.0, 0.0, -1.0).log(), DVec3::new(PI, 0.0, 0.0));
-        assert_eq!(q(0.0, 0.0, 0.0, 1.0).log(), DVec3::zero());
+        assert_eq!(q(0.0, 0.0, 0.0, -1.0).log(), Vec3F64::new(PI, 0.0, 0.0));
+        assert_eq!(q(0.0, 0.0, 0.0, 1.0).log(), Vec3F64::zero());
     }
 
     #[test]
     fn slerp_takes_the_short_way_through_near_antipodal_keys() {
-        let a = DQuat::identity();
+        let a = QuatF64::identity();
         // 179.9 degrees about z, given in the far hemisphere (w < 0).
         let half = (179.9f64).to_radians() / 2.0;
-        let b = -DQuat::exp(DVec3::new(0.0, 0.0, half));
+        let b = -QuatF64::exp(Vec3F64::new(0.0, 0.0, half));
         let mid = a.slerp(b, 0.5);
-        let expected = DQuat::exp(DVec3::new(0.0, 0.0, half / 2.0));
+        let expected = QuatF64::exp(Vec3F64::new(0.0, 0.0, half / 2.0));
         assert!(mid.angle_to(expected) < 1e-14);
         assert!(a.slerp(b, 1.0).angle_to(b) < 1e-14);
     }
@@ -492,19 +492,19 @@ mod tests {
     fn matrix_round_trip_all_shoemake_branches() {
         // Rotations by ~pi about each axis exercise each diagonal pivot branch.
         for v in [
-            DVec3::new(0.1, 0.2, 0.3),
-            DVec3::new(1.55, 0.01, 0.02),
-            DVec3::new(0.01, 1.55, 0.02),
-            DVec3::new(0.02, 0.01, 1.55),
-            DVec3::new(PI / 2.0, 0.0, 0.0),
+            Vec3F64::new(0.1, 0.2, 0.3),
+            Vec3F64::new(1.55, 0.01, 0.02),
+            Vec3F64::new(0.01, 1.55, 0.02),
+            Vec3F64::new(0.02, 0.01, 1.55),
+            Vec3F64::new(PI / 2.0, 0.0, 0.0),
         ] {
-            let a = DQuat::exp(v);
+            let a = QuatF64::exp(v);
             let m = a.to_mat3();
-            let b = DQuat::from_mat3(m);
+            let b = QuatF64::from_mat3(m);
             assert!(a.angle_to(b) < 1e-14, "{v:?}");
             // The matrix rotates like q p q^-1.
-            let p = DVec3::new(0.3, -1.0, 2.0);
-            let mp = DVec3::new(
+            let p = Vec3F64::new(0.3, -1.0, 2.0);
+            let mp = Vec3F64::new(
                 m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z,
                 m[1][0] * p.x + m[1][1] * p.y + m[1][2] * p.z,
                 m[2][0] * p.x + m[2][1] * p.y + m[2][2] * p.z,
@@ -515,15 +515,15 @@ mod tests {
 
     #[test]
     fn angle_to_resolves_tiny_angles_and_ignores_sign() {
-        let a = DQuat::identity();
-        let b = DQuat::exp(DVec3::new(0.0, 5e-10, 0.0));
+        let a = QuatF64::identity();
+        let b = QuatF64::exp(Vec3F64::new(0.0, 5e-10, 0.0));
         assert!((a.angle_to(b) - 1e-9).abs() < 1e-22);
         assert!((a.angle_to(-b) - 1e-9).abs() < 1e-22);
     }
 
     #[test]
     fn powf_is_fractional_rotation() {
-        let a = DQuat::exp(DVec3::new(0.3, -0.2, 0.5));
+        let a = QuatF64::exp(Vec3F64::new(0.3, -0.2, 0.5));
         let half = a.powf(0.5);
         assert!((half * half).angle_to(a) < 1e-15);
     }

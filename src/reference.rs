@@ -8,7 +8,7 @@
 //! the chain rule, see [`crate::real`]).
 //!
 //! Squad's three slerps and Nam-Kim's blend use the *unfolded* geodesic
-//! ([`Quat::geodesic`]), as Shoemake and NK eq. 3 write them (`log` with `th = arccos w in
+//! ([`Quaternion::geodesic`]), as Shoemake and NK eq. 3 write them (`log` with `th = arccos w in
 //! [0, pi]`), on keys already made sign-continuous and squad points `s_i` in `q_i`'s
 //! hemisphere. A shortest-path fold inside a blend flips wherever its two moving endpoints
 //! drift more than a quarter turn apart (near-antipodal keys, large velocities), tearing the
@@ -19,7 +19,7 @@
 use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
 use crate::batch::TrackView;
 use crate::curve::Curve;
-use crate::quat::{DQuat, DVec3, Quat, Vec3};
+use crate::quat::{QuatF64, Quaternion, Vec3F64, Vector3};
 use crate::real::{Jet, Real};
 use crate::segment::{key_segment, locate, wrap};
 
@@ -27,18 +27,18 @@ use crate::segment::{key_segment, locate, wrap};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sample {
     /// The unit rotation `q(t)`.
-    pub rotation: DQuat,
+    pub rotation: QuatF64,
     /// Body angular velocity `2 vec(q^-1 q')`, rad per unit time.
-    pub angular_velocity: DVec3,
+    pub angular_velocity: Vec3F64,
     /// Body angular acceleration, the time derivative of `angular_velocity`.
-    pub angular_acceleration: DVec3,
+    pub angular_acceleration: Vec3F64,
 }
 
 /// One factor `exp(v b(t))` of a cumulative product, with `b`, `b'`, `b''` in time units.
 #[derive(Clone, Copy, Debug)]
 pub struct Factor {
     /// The coefficient (half-angle rotation vector).
-    pub v: DVec3,
+    pub v: Vec3F64,
     /// `[b(t), b'(t), b''(t)]`.
     pub b: BasisJet,
 }
@@ -48,12 +48,12 @@ pub struct Factor {
 /// `W_j' = A_j^-1 W_{j-1}' A_j + 2 (A_j^-1 W_{j-1} A_j) x (v_j b_j') + v_j b_j''`,
 /// with `W = q^-1 q'`, so `omega = 2 W` and `alpha = 2 W'` (DESIGN section 2).
 #[must_use]
-pub fn cumulative_product(start: DQuat, factors: impl IntoIterator<Item = Factor>) -> Sample {
+pub fn cumulative_product(start: QuatF64, factors: impl IntoIterator<Item = Factor>) -> Sample {
     let mut q = start;
-    let mut w = DVec3::zero();
-    let mut w_dot = DVec3::zero();
+    let mut w = Vec3F64::zero();
+    let mut w_dot = Vec3F64::zero();
     for Factor { v, b } in factors {
-        let a = DQuat::exp(v.scale(b[0]));
+        let a = QuatF64::exp(v.scale(b[0]));
         let a_inv = a.conjugate();
         let carried = a_inv.rotate(w);
         let spin = v.scale(b[1]);
@@ -67,22 +67,22 @@ pub fn cumulative_product(start: DQuat, factors: impl IntoIterator<Item = Factor
 /// Rotation and body derivatives from a quaternion carried on jets:
 /// `W = q^-1 q'`, `W' = q^-1 q'' - W^2`.
 #[must_use]
-pub fn sample_from_jets(q: Quat<Jet>) -> Sample {
+pub fn sample_from_jets(q: Quaternion<Jet>) -> Sample {
     let value = q.value();
-    let d1 = DQuat::from_xyzw(q.x.d, q.y.d, q.z.d, q.w.d);
-    let d2 = DQuat::from_xyzw(q.x.dd, q.y.dd, q.z.dd, q.w.dd);
+    let d1 = QuatF64::from_xyzw(q.x.d, q.y.d, q.z.d, q.w.d);
+    let d2 = QuatF64::from_xyzw(q.x.dd, q.y.dd, q.z.dd, q.w.dd);
     let inv = value.conjugate();
     let w = inv * d1;
     let w_dot = inv * d2 - w * w;
     Sample { rotation: value, angular_velocity: w.vec().scale(2.0), angular_acceleration: w_dot.vec().scale(2.0) }
 }
 
-fn coef_vec(c: [f64; 4]) -> DVec3 {
-    DVec3::new(c[0], c[1], c[2])
+fn coef_vec(c: [f64; 4]) -> Vec3F64 {
+    Vec3F64::new(c[0], c[1], c[2])
 }
 
-fn coef_quat(c: [f64; 4]) -> DQuat {
-    DQuat::from_array(c)
+fn coef_quat(c: [f64; 4]) -> QuatF64 {
+    QuatF64::from_array(c)
 }
 
 /// Scales a basis jet in the segment parameter `u` to time units for a segment of length `len`.
@@ -141,7 +141,7 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
 /// The rotation alone at time `t`: as [`evaluate`], but squad and Nam-Kim skip the jets
 /// (a third of the work) when no derivative is wanted.
 #[must_use]
-pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> DQuat {
+pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> QuatF64 {
     match view.track.curve() {
         Curve::Squad | Curve::NamKim => {
             let t = if view.track.looping() { wrap(t, view.track.domain()) } else { t };
@@ -158,19 +158,20 @@ pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> DQuat {
 }
 
 /// Squad on segment `i` at segment parameter `h` (any [`Real`]): three unfolded geodesics.
-fn squad<R: Real>(view: TrackView<'_>, i: usize, h: R) -> Quat<R> {
+fn squad<R: Real>(view: TrackView<'_>, i: usize, h: R) -> Quaternion<R> {
     let (points, coefs) = (view.points, view.coefs);
-    let lift = Quat::<R>::from_f64;
+    let lift = Quaternion::<R>::from_f64;
     let path = lift(points[i]).geodesic(lift(points[i + 1]), h);
     let aux = lift(coef_quat(coefs[i])).geodesic(lift(coef_quat(coefs[i + 1])), h);
     path.geodesic(aux, (h - h * h).scale(2.0))
 }
 
 /// Nam-Kim on segment `i` at segment parameter `s` (any [`Real`]): the blend of two arcs.
-fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quat<R> {
+fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quaternion<R> {
     let (a, b) = (coef_vec(view.coefs[2 * i]), coef_vec(view.coefs[2 * i + 1]));
-    let c1 = Quat::from_f64(view.points[i]) * Quat::exp(Vec3::from_f64(a).mul_scalar(s));
-    let c2 = Quat::from_f64(view.points[i + 1]) * Quat::exp(Vec3::from_f64(b).mul_scalar(s - R::cst(1.0)));
+    let c1 = Quaternion::from_f64(view.points[i]) * Quaternion::exp(Vector3::from_f64(a).mul_scalar(s));
+    let c2 =
+        Quaternion::from_f64(view.points[i + 1]) * Quaternion::exp(Vector3::from_f64(b).mul_scalar(s - R::cst(1.0)));
     c1.geodesic(c2, view.track.blend().ratio(s))
 }
 
@@ -186,7 +187,7 @@ fn nam_kim<R: Real>(view: TrackView<'_>, i: usize, s: R) -> Quat<R> {
 /// # Panics
 /// If the track is not Nam-Kim, `segment` is out of range, or `steps` is 0.
 #[must_use]
-pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: usize) -> Vec<DQuat> {
+pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: usize) -> Vec<QuatF64> {
     assert_eq!(view.track.curve(), Curve::NamKim, "forward differences apply to nam-kim tracks");
     assert!(steps > 0, "at least one step");
     let i = segment;
@@ -203,10 +204,10 @@ pub fn nam_kim_forward_difference(view: TrackView<'_>, segment: usize, steps: us
 }
 
 /// `steps + 1` points `q exp(j v)`, `j = 0..=steps`, by NK's forward differences.
-fn great_arc(q: DQuat, v: DVec3, steps: usize) -> Vec<DQuat> {
+fn great_arc(q: QuatF64, v: Vec3F64, steps: usize) -> Vec<QuatF64> {
     let mut out = Vec::with_capacity(steps + 1);
     out.push(q);
-    let first = q * DQuat::exp(v);
+    let first = q * QuatF64::exp(v);
     // NK's 2 (1 - cos phi), written 4 sin^2(phi / 2) to avoid cancellation at small steps.
     let half = 0.5 * v.length();
     let sigma = 4.0 * half.sin() * half.sin();

@@ -5,7 +5,7 @@
 use crate::batch::{Batch, BatchBuilder};
 use crate::curve::CurveSpec;
 use crate::error::Result;
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
 use std::ops::Range;
@@ -39,7 +39,7 @@ fn swings(tracks: Range<usize>, keys: usize, rate: f64, frequency: impl Fn(f64) 
                 .iter()
                 .map(|&t| {
                     let a = (std::f64::consts::TAU * frequency * t + phase).sin();
-                    DQuat::exp(DVec3::new(amplitude * a, 0.3 * amplitude * (2.0 * a).cos(), twist)).to_array()
+                    QuatF64::exp(Vec3F64::new(amplitude * a, 0.3 * amplitude * (2.0 * a).cos(), twist)).to_array()
                 })
                 .collect();
             Track { name: Some(format!("joint{i}")), times: Some(times), ..Track::from_rotations(rotations) }
@@ -126,17 +126,17 @@ impl SplitMix {
     }
 
     /// Uniform on the unit sphere.
-    pub fn direction(&mut self) -> DVec3 {
+    pub fn direction(&mut self) -> Vec3F64 {
         let z = 2.0 * self.unit() - 1.0;
         let phi = std::f64::consts::TAU * self.unit();
         let r = (1.0 - z * z).sqrt();
-        DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        Vec3F64::new(r * phi.cos(), r * phi.sin(), z)
     }
 
     /// Uniform on SO(3) (Shoemake, Graphics Gems III: uniform random rotations).
-    pub fn rotation(&mut self) -> DQuat {
+    pub fn rotation(&mut self) -> QuatF64 {
         let (u1, u2, u3) = (self.unit(), std::f64::consts::TAU * self.unit(), std::f64::consts::TAU * self.unit());
         let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-        DQuat::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos())
+        QuatF64::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos())
     }
 }

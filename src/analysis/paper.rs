@@ -15,7 +15,7 @@ use super::{analyze, AnalysisError, AnalysisOptions, Metrics};
 use crate::batch::Batch;
 use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::device::Device;
-use crate::quat::DQuat;
+use crate::quat::QuatF64;
 use crate::synthetic::SplitMix;
 use crate::track::Track;
 
@@ -112,7 +112,7 @@ pub fn sequences(regime: &Regime, seed: u64, count: usize, keys: usize) -> Vec<T
             for _ in 1..keys {
                 let [lo, hi] = regime.degrees;
                 let angle = (lo + (hi - lo) * rng.unit()).to_radians();
-                q = q * DQuat::exp(rng.direction().scale(0.5 * angle));
+                q = q * QuatF64::exp(rng.direction().scale(0.5 * angle));
                 rotations.push(q.to_array());
             }
             Track { name: Some(format!("{}{s}", regime.name)), ..Track::from_rotations(rotations) }

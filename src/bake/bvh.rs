@@ -9,7 +9,7 @@
 
 use super::InputError;
 use super::{Animation, Baked, Channel, Clip, Joint, Property};
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -242,24 +242,24 @@ pub fn exact_frame_time(frame_time: f64) -> f64 {
 
 /// The rotation `R_1(a_1) R_2(a_2) ...` of a joint's rotation channels (degrees).
 #[must_use]
-pub fn euler_to_quat(channels: &[BvhChannel], values: &[f64]) -> DQuat {
-    channels.iter().zip(values).fold(DQuat::identity(), |q, (&c, &degrees)| match c {
+pub fn euler_to_quat(channels: &[BvhChannel], values: &[f64]) -> QuatF64 {
+    channels.iter().zip(values).fold(QuatF64::identity(), |q, (&c, &degrees)| match c {
         BvhChannel::Rotation(axis) => q * axis_rotation(axis, degrees.to_radians()),
         BvhChannel::Position(_) => q,
     })
 }
 
-fn axis_rotation(axis: usize, radians: f64) -> DQuat {
+fn axis_rotation(axis: usize, radians: f64) -> QuatF64 {
     let mut v = [0.0; 3];
     v[axis] = 0.5 * radians;
-    DQuat::exp(DVec3::from_array(v))
+    QuatF64::exp(Vec3F64::from_array(v))
 }
 
 /// Angles (degrees) of rotation `q` about `axes` (one axis, or three distinct ones) such that
 /// `R_{axes[0]}(a_0) R_{axes[1]}(a_1) R_{axes[2]}(a_2) = q`, each within 180 degrees of
 /// `near` (the previous frame's angles) so angle curves do not jump by whole turns.
 #[must_use]
-pub fn quat_to_euler(axes: &[usize], q: DQuat, near: &[f64]) -> Vec<f64> {
+pub fn quat_to_euler(axes: &[usize], q: QuatF64, near: &[f64]) -> Vec<f64> {
     let raw = match *axes {
         [a] => {
             let v = [q.x, q.y, q.z];
@@ -344,7 +344,7 @@ impl BvhFile {
                     .filter_map(|c| if let BvhChannel::Rotation(a) = c { Some(*a) } else { None })
                     .collect();
                 let angles = series(index, Property::Rotation).map(|s| {
-                    let q = DQuat::from_array(s[frame].map(f64::from));
+                    let q = QuatF64::from_array(s[frame].map(f64::from));
                     quat_to_euler(&axes, q, &previous[index])
                 });
                 if let Some(angles) = &angles {

@@ -3,7 +3,7 @@
 //! Deterministic (a hash of the indices, no random numbers), so runs are comparable.
 
 use super::{Animation, Channel, Clip, Joint, Property};
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
 use std::f64::consts::TAU;
 
@@ -86,7 +86,7 @@ fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>)
             .map(|&t| {
                 let a = (TAU * cycles * t / SECONDS + phase + offset).sin();
                 let swing = 0.5 * vigour * amplitude * a;
-                DQuat::exp(DVec3::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
+                QuatF64::exp(Vec3F64::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
             })
             .collect();
         channels.push(Channel { joint, property: Property::Rotation, times: times.to_vec(), values });

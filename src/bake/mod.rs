@@ -34,7 +34,7 @@ use crate::device::Device;
 use crate::error::TrackId;
 use crate::euclidean::VectorCurve;
 use crate::job::EvalJob;
-use crate::quat::DQuat;
+use crate::quat::QuatF64;
 use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use crate::track::Track;
 use rayon::prelude::*;
@@ -211,7 +211,7 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
             let angles = channel
                 .values
                 .windows(2)
-                .map(|w| DQuat::from_array(w[0]).normalize().angle_to(DQuat::from_array(w[1]).normalize()));
+                .map(|w| QuatF64::from_array(w[0]).normalize().angle_to(QuatF64::from_array(w[1]).normalize()));
             let steps: Vec<(usize, f64)> = angles.enumerate().filter(|&(_, a)| a > limit).collect();
             let Some(&(first, angle)) = steps.first() else { continue };
             warnings.push(format!(
@@ -338,8 +338,10 @@ pub fn interpolates(spec: &CurveSpec) -> bool {
 /// key is not its first rotation, named.
 pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, InputError> {
     let open = |c: &Channel| {
-        let (first, last) =
-            (DQuat::from_array(c.values[0]).normalize(), DQuat::from_array(c.values[c.values.len() - 1]).normalize());
+        let (first, last) = (
+            QuatF64::from_array(c.values[0]).normalize(),
+            QuatF64::from_array(c.values[c.values.len() - 1]).normalize(),
+        );
         let angle = first.angle_to(last);
         (angle.is_nan() || angle > crate::batch::LOOP_TOLERANCE).then_some(angle)
     };
@@ -472,11 +474,11 @@ pub fn bake(
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (c, prepared) in prepare_channels(animation, spec, &clips) {
         clips[c].frames.push(match prepared? {
-            Prepared::Host(values) => {
+            ChannelWork::Host(values) => {
                 host.push(values);
                 Frames::Host(host.len() - 1)
             }
-            Prepared::Track(track, spec) => {
+            ChannelWork::Track(track, spec) => {
                 tracks.push(track);
                 specs.push(spec);
                 track_clips.push(c);
@@ -488,7 +490,7 @@ pub fn bake(
     if tracks.is_empty() {
         return Ok(baked);
     }
-    // Prepared on every core (bspline-interp solves a system per track).
+    // ChannelWork on every core (bspline-interp solves a system per track).
     let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i])?;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
@@ -559,21 +561,21 @@ fn prepare_channels(
     animation: &Animation,
     spec: &CurveSpec,
     clips: &[BakedClip],
-) -> Vec<(usize, Result<Prepared, InputError>)> {
+) -> Vec<(usize, Result<ChannelWork, InputError>)> {
     let channels: Vec<(usize, usize)> = animation
         .clips
         .iter()
         .enumerate()
         .flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k)))
         .collect();
-    let prepare = |c: usize, k: usize| -> Result<Prepared, InputError> {
+    let prepare = |c: usize, k: usize| -> Result<ChannelWork, InputError> {
         let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
         let spec = CurveSpec { looping: clips[c].looping, ..*spec };
         let name = animation.label(clip, channel);
         let frames = &clips[c].times;
         Ok(match (channel.property, channel.values.len()) {
-            (_, 1) => Prepared::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
-            (Property::Rotation, _) => Prepared::Track(
+            (_, 1) => ChannelWork::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
+            (Property::Rotation, _) => ChannelWork::Track(
                 Track {
                     name: Some(name),
                     times: Some(channel.times.clone()),
@@ -585,7 +587,7 @@ fn prepare_channels(
                 let id = TrackId { index: k, name: Some(name) };
                 let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
                 let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
-                Prepared::Host(
+                ChannelWork::Host(
                     frames
                         .iter()
                         .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
@@ -599,7 +601,7 @@ fn prepare_channels(
 }
 
 /// A channel ready to evaluate: a device track, or its frames computed here.
-enum Prepared {
+enum ChannelWork {
     Track(Track, CurveSpec),
     Host(Vec<[f32; 4]>),
 }
@@ -613,7 +615,7 @@ fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<
     let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
     let (out, _) = device.evaluate_f32(&EvalJob::new(batch, &times))?;
     let rows: &[[f32; 4]] = bytemuck::cast_slice(&out.data);
-    let chord = |key: DQuat, q: DQuat| {
+    let chord = |key: QuatF64, q: QuatF64| {
         let s = if key.dot(q) < 0.0 { -1.0 } else { 1.0 };
         (key - q.mul_scalar(s)).length()
     };
@@ -623,12 +625,15 @@ fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<
         .flat_map_iter(|(i, track)| {
             let got = &rows[times.offsets()[i]..times.offsets()[i + 1]];
             track.rotations.iter().zip(got).map(|(&key, q)| {
-                let (key, q) = (DQuat::from_array(key).normalize(), DQuat::from_array(q.map(f64::from)));
+                let (key, q) = (QuatF64::from_array(key).normalize(), QuatF64::from_array(q.map(f64::from)));
                 (chord(key, q.normalize()), key, q)
             })
         })
         // A NaN (a non-finite sample) wins: it must not pass for a small error.
-        .reduce(|| (0.0, DQuat::identity(), DQuat::identity()), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a });
+        .reduce(
+            || (0.0, QuatF64::identity(), QuatF64::identity()),
+            |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a },
+        );
     Ok(if worst.0.is_nan() { f64::NAN } else { worst.1.angle_to(worst.2) })
 }
 

@@ -2,7 +2,7 @@
 //! (`families`) on every core, a slice at a time, and appended to the packed arrays, sharing
 //! a knot vector between consecutive tracks keyed at the same times.
 
-use super::families::{prepare, Prepared};
+use super::families::{prepare, PackedData};
 use super::knots::knots_are_uniform;
 use super::{Batch, PackedTrack};
 use crate::curve::CurveSpec;
@@ -57,11 +57,11 @@ impl BatchBuilder {
         use rayon::prelude::*;
         let b = &self.batch;
         let (first, lengths) = (b.tracks.len(), [b.points.len(), b.coefs.len(), b.knots.len()]);
-        // Prepared a chunk at a time (bspline-interp solves a Newton system per track), so the
+        // PackedData a chunk at a time (bspline-interp solves a Newton system per track), so the
         // per-track vectors of only one chunk are alive beside the packed arrays.
         for (c, chunk) in tracks.chunks(EXTEND_CHUNK).enumerate() {
             let offset = c * EXTEND_CHUNK;
-            let prepared: Result<Vec<Prepared>> = chunk
+            let prepared: Result<Vec<PackedData>> = chunk
                 .par_iter()
                 .enumerate()
                 .with_min_len(64)
@@ -103,7 +103,7 @@ impl BatchBuilder {
     }
 
     /// Appends a prepared track; returns its index.
-    fn append(&mut self, track: &Track, spec: &CurveSpec, packed: Prepared) -> usize {
+    fn append(&mut self, track: &Track, spec: &CurveSpec, packed: PackedData) -> usize {
         let index = self.batch.tracks.len();
         let b = &mut self.batch;
         // Tracks keyed at the same times (the channels of a clip, a synthetic batch) share one

@@ -9,7 +9,7 @@ use super::keys::{aligned_keys, check_loop, key_times};
 use super::knots::bspline_knots;
 use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::{relative_log, DQuat, DVec3};
+use crate::quat::{relative_log, QuatF64, Vec3F64};
 use crate::track::Track;
 use std::f64::consts::PI;
 
@@ -17,21 +17,21 @@ use std::f64::consts::PI;
 pub const MIN_TURN_AXIS: f64 = 1e-12;
 
 /// One track's packed data before it is appended.
-pub(super) struct Prepared {
+pub(super) struct PackedData {
     /// The family evaluators run (`bspline` for `bspline-interp`).
     pub(super) curve: Curve,
     /// B-spline order (0 for other families).
     pub(super) order: usize,
     /// Bezier degree (0 for other families).
     pub(super) bezier_degree: usize,
-    pub(super) points: Vec<DQuat>,
+    pub(super) points: Vec<QuatF64>,
     pub(super) coefs: Vec<[f64; 4]>,
     pub(super) knots: Vec<f64>,
     pub(super) domain: [f64; 2],
 }
 
 /// Validates `track` for `spec` and computes its packed data (DESIGN section 3), in f64.
-pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<Prepared> {
+pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<PackedData> {
     let keys = aligned_keys(id, &track.rotations, spec)?;
     let times = key_times(id, track.times.as_deref(), keys.len())?;
     let n = keys.len() - 1;
@@ -39,9 +39,9 @@ pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<P
         check_loop(id, spec, &keys)?;
     }
     let (t0, tn) = (times[0], times[n]);
-    let vec_coef = |v: DVec3| [v.x, v.y, v.z, 0.0];
+    let vec_coef = |v: Vec3F64| [v.x, v.y, v.z, 0.0];
     let steps = || (1..=n).map(|i| vec_coef(relative_log(keys[i - 1], keys[i])));
-    let piecewise = |coefs: Vec<[f64; 4]>, points: Vec<DQuat>| Prepared {
+    let piecewise = |coefs: Vec<[f64; 4]>, points: Vec<QuatF64>| PackedData {
         curve: spec.curve,
         order: 0,
         bezier_degree: 0,
@@ -52,7 +52,7 @@ pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<P
     };
     Ok(match spec.curve {
         Curve::Slerp => piecewise(steps().collect(), keys),
-        Curve::Bezier => Prepared {
+        Curve::Bezier => PackedData {
             curve: spec.curve,
             order: 0,
             bezier_degree: n,
@@ -61,7 +61,7 @@ pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<P
             knots: vec![t0, tn],
             domain: [t0, tn],
         },
-        Curve::Squad => piecewise(squad_points(&keys, spec.looping).into_iter().map(DQuat::to_array).collect(), keys),
+        Curve::Squad => piecewise(squad_points(&keys, spec.looping).into_iter().map(QuatF64::to_array).collect(), keys),
         Curve::Hermite => {
             let omega = key_velocities(id, track, spec, &keys, &times)?;
             let coefs = hermite_coefs(id, track, &keys, &times, &omega)?;
@@ -88,7 +88,7 @@ pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<P
                     tolerance: crate::interp::KEY_TOLERANCE,
                 })?;
             let coefs = solved.coefs.into_iter().map(vec_coef).collect();
-            Prepared {
+            PackedData {
                 curve: Curve::BSpline,
                 order: 4,
                 bezier_degree: 0,
@@ -109,27 +109,27 @@ pub(crate) trait Space: Copy {
     /// half angles (DESIGN section 1), 1 for vectors.
     const RATE: f64;
     /// The step from `a` to `b`: `log(a^-1 b)` the short way, or `b - a`.
-    fn step(a: Self, b: Self) -> DVec3;
+    fn step(a: Self, b: Self) -> Vec3F64;
     /// `a` moved by `v`: `a exp(v)`, or `a + v`.
-    fn moved(a: Self, v: DVec3) -> Self;
+    fn moved(a: Self, v: Vec3F64) -> Self;
 }
 
-impl Space for DQuat {
+impl Space for QuatF64 {
     const RATE: f64 = 2.0;
-    fn step(a: Self, b: Self) -> DVec3 {
+    fn step(a: Self, b: Self) -> Vec3F64 {
         relative_log(a, b)
     }
-    fn moved(a: Self, v: DVec3) -> Self {
-        a * DQuat::exp(v)
+    fn moved(a: Self, v: Vec3F64) -> Self {
+        a * QuatF64::exp(v)
     }
 }
 
-impl Space for DVec3 {
+impl Space for Vec3F64 {
     const RATE: f64 = 1.0;
-    fn step(a: Self, b: Self) -> DVec3 {
+    fn step(a: Self, b: Self) -> Vec3F64 {
         b - a
     }
-    fn moved(a: Self, v: DVec3) -> Self {
+    fn moved(a: Self, v: Vec3F64) -> Self {
         a + v
     }
 }
@@ -154,7 +154,7 @@ pub(crate) fn squad_points<S: Space>(keys: &[S], looping: bool) -> Vec<S> {
 
 /// The non-uniform Catmull-Rom velocity at `key` from its neighbours `prev` (`d0` before) and
 /// `next` (`d1` after), DESIGN section 3 (for rotations the body angular velocity).
-fn catmull_rom<S: Space>(key: S, prev: S, next: S, d0: f64, d1: f64) -> DVec3 {
+fn catmull_rom<S: Space>(key: S, prev: S, next: S, d0: f64, d1: f64) -> Vec3F64 {
     let back = -S::step(key, prev).scale(1.0 / d0);
     let ahead = S::step(key, next).scale(1.0 / d1);
     (back.scale(d1 / (d0 + d1)) + ahead.scale(d0 / (d0 + d1))).scale(S::RATE)
@@ -163,7 +163,7 @@ fn catmull_rom<S: Space>(key: S, prev: S, next: S, d0: f64, d1: f64) -> DVec3 {
 /// Catmull-Rom velocities at every key, one-sided at the ends; across a loop's seam key 0
 /// sees key n-1 before it (`d_{-1} = d_{n-1}`) and key n takes the same velocity, so both
 /// sides of the seam agree.
-pub(crate) fn catmull_rom_velocities<S: Space>(keys: &[S], times: &[f64], looping: bool) -> Vec<DVec3> {
+pub(crate) fn catmull_rom_velocities<S: Space>(keys: &[S], times: &[f64], looping: bool) -> Vec<Vec3F64> {
     let n = keys.len() - 1;
     let seam =
         looping.then(|| catmull_rom(keys[0], keys[n - 1], keys[1], times[n] - times[n - 1], times[1] - times[0]));
@@ -178,10 +178,16 @@ pub(crate) fn catmull_rom_velocities<S: Space>(keys: &[S], times: &[f64], loopin
 }
 
 /// Body angular velocity (rad/s) at each key, from the chosen source (DESIGN section 3).
-fn key_velocities(id: &TrackId, track: &Track, spec: &CurveSpec, keys: &[DQuat], times: &[f64]) -> Result<Vec<DVec3>> {
+fn key_velocities(
+    id: &TrackId,
+    track: &Track,
+    spec: &CurveSpec,
+    keys: &[QuatF64],
+    times: &[f64],
+) -> Result<Vec<Vec3F64>> {
     let n = keys.len() - 1;
     match spec.tangents {
-        Tangents::Zero => Ok(vec![DVec3::zero(); n + 1]),
+        Tangents::Zero => Ok(vec![Vec3F64::zero(); n + 1]),
         Tangents::Given => {
             let given = track.angular_velocities.as_deref().unwrap_or(&[]);
             if given.len() != n + 1 {
@@ -192,7 +198,7 @@ fn key_velocities(id: &TrackId, track: &Track, spec: &CurveSpec, keys: &[DQuat],
                 .enumerate()
                 .map(|(key, &value)| {
                     if value.iter().all(|c| c.is_finite()) {
-                        Ok(DVec3::from_array(value))
+                        Ok(Vec3F64::from_array(value))
                     } else {
                         Err(Error::NonFiniteVelocity { track: id.clone(), key, value })
                     }
@@ -210,7 +216,13 @@ fn key_velocities(id: &TrackId, track: &Track, spec: &CurveSpec, keys: &[DQuat],
 /// When the fold negates `q_2`, the segment's product runs from `q_a` to `-q_b`. To keep the
 /// output sign-continuous, segment `i` starts from `sigma_i q_i` where `sigma_i` is the product
 /// of the fold signs of segments `0..i`, stored in `w2`'s fourth slot. Rotations are unchanged.
-fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], omega: &[DVec3]) -> Result<Vec<[f64; 4]>> {
+fn hermite_coefs(
+    id: &TrackId,
+    track: &Track,
+    keys: &[QuatF64],
+    times: &[f64],
+    omega: &[Vec3F64],
+) -> Result<Vec<[f64; 4]>> {
     let n = keys.len() - 1;
     let turns = match &track.extra_turns {
         Some(turns) if turns.len() != n => {
@@ -225,8 +237,8 @@ fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], ome
         let half_t = 0.5 * (times[i + 1] - times[i]);
         let w1 = omega[i].scale(half_t / 3.0);
         let w3 = omega[i + 1].scale(half_t / 3.0);
-        let q1 = keys[i] * DQuat::exp(w1);
-        let q2 = keys[i + 1] * DQuat::exp(-w3);
+        let q1 = keys[i] * QuatF64::exp(w1);
+        let q2 = keys[i + 1] * QuatF64::exp(-w3);
         let sign = if q1.dot(q2) < 0.0 { -1.0 } else { 1.0 };
         let mut w2 = (q1.conjugate() * q2.mul_scalar(sign)).log();
         if turns[i] != 0 {
@@ -245,7 +257,7 @@ fn hermite_coefs(id: &TrackId, track: &Track, keys: &[DQuat], times: &[f64], ome
 }
 
 /// Control points, knot vector and coefficients of a B-spline track (DESIGN section 3).
-fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, times: &[f64]) -> Result<Prepared> {
+fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<QuatF64>, times: &[f64]) -> Result<PackedData> {
     let k = spec.order;
     let knots = bspline_knots(id, track.knots.as_deref(), spec, times)?;
     let points = if spec.knots == KnotMode::Phantom {
@@ -280,5 +292,5 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<DQuat>, time
         coefs[m - 1] = coefs[m - 2];
     }
     let domain = [knots[k - 1], knots[m + 1]];
-    Ok(Prepared { curve: Curve::BSpline, order: k, bezier_degree: 0, points, coefs, knots, domain })
+    Ok(PackedData { curve: Curve::BSpline, order: k, bezier_degree: 0, points, coefs, knots, domain })
 }

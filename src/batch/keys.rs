@@ -3,7 +3,7 @@
 
 use crate::curve::{Curve, CurveSpec};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::DQuat;
+use crate::quat::QuatF64;
 
 /// Keys with a norm below this are errors (they carry no direction).
 pub const MIN_KEY_NORM: f64 = 1e-6;
@@ -12,7 +12,7 @@ pub const MIN_KEY_NORM: f64 = 1e-6;
 pub const LOOP_TOLERANCE: f64 = 1e-3;
 
 /// A looping spec must be a family that loops, and the keys must close.
-pub(super) fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[DQuat]) -> Result<()> {
+pub(super) fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[QuatF64]) -> Result<()> {
     if !spec.can_loop() {
         return Err(Error::LoopUnsupported {
             track: id.clone(),
@@ -36,12 +36,12 @@ pub(super) fn curve_label(spec: &CurveSpec) -> String {
 }
 
 /// Normalizes keys and makes them sign-continuous (DESIGN section 1).
-pub(super) fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<DQuat>> {
+pub(super) fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<QuatF64>> {
     let min = spec.min_keys();
     if rotations.len() < min {
         return Err(Error::TooFewKeys { track: id.clone(), curve: curve_label(spec), min, found: rotations.len() });
     }
-    let mut keys: Vec<DQuat> = Vec::with_capacity(rotations.len());
+    let mut keys: Vec<QuatF64> = Vec::with_capacity(rotations.len());
     for (key, &value) in rotations.iter().enumerate() {
         let q = normalized_key(id, key, value)?;
         keys.push(match keys.last() {
@@ -54,8 +54,8 @@ pub(super) fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpe
 
 /// Key `key` of track `id` as a unit quaternion: finite and not (near) zero. The one check of
 /// a rotation key, also for the keys bake holds constant.
-pub(crate) fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<DQuat> {
-    let q = DQuat::from_array(value);
+pub(crate) fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<QuatF64> {
+    let q = QuatF64::from_array(value);
     if !q.is_finite() {
         return Err(Error::NonFiniteKey { track: id.clone(), key, value });
     }

@@ -40,7 +40,7 @@ pub use knots::{knots_are_uniform, UNIFORM_KNOT_TOLERANCE, UNIFORM_TIME_TOLERANC
 
 use crate::curve::{Blend, Curve, CurveSpec};
 use crate::error::{Result, TrackId};
-use crate::quat::DQuat;
+use crate::quat::QuatF64;
 use crate::track::Track;
 
 /// One track's slice of the packed arrays and its parameters, as [`BatchBuilder`] made it
@@ -195,7 +195,7 @@ pub struct Batch {
     /// The index messages give the first track: 0, or where a [`Batch::subset`] starts in the
     /// batch it was taken from.
     first_index: usize,
-    points: Vec<DQuat>,
+    points: Vec<QuatF64>,
     coefs: Vec<[f64; 4]>,
     knots: Vec<f64>,
 }
@@ -228,7 +228,7 @@ impl Batch {
 
     /// Unit quaternions: keys or control points, sign-continuous within each track.
     #[must_use]
-    pub fn points(&self) -> &[DQuat] {
+    pub fn points(&self) -> &[QuatF64] {
         &self.points
     }
 
@@ -336,7 +336,7 @@ pub struct TrackView<'a> {
     /// Parameters.
     pub track: &'a PackedTrack,
     /// Keys or control points.
-    pub points: &'a [DQuat],
+    pub points: &'a [QuatF64],
     /// Derived coefficients.
     pub coefs: &'a [[f64; 4]],
     /// Segment boundaries or knot vector.

@@ -67,7 +67,7 @@ pub struct BenchArgs {
 #[derive(Serialize)]
 struct Report {
     workload: Workload,
-    results: Vec<Row>,
+    results: Vec<Timing>,
 }
 
 #[derive(Serialize)]
@@ -89,7 +89,7 @@ struct Workload {
 }
 
 #[derive(Serialize)]
-struct Row {
+struct Timing {
     device: &'static str,
     adapter: String,
     samples_per_s: f64,
@@ -121,7 +121,7 @@ struct SweepPoint {
     tracks: usize,
     samples_per_track: usize,
     #[serde(flatten)]
-    row: Row,
+    row: Timing,
 }
 
 fn sweep(args: &BenchArgs) -> Result<(), Failure> {
@@ -275,14 +275,14 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Re
 
 /// The reference times the batch's first tracks (the synthetic batch is a pure function of
 /// the track index, so the slice is exactly those tracks).
-fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
+fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure> {
     let tracks = args.reference_samples.div_ceil(args.samples).clamp(1, args.tracks);
     let (slice, slice_times) =
         synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob::new(&slice, &slice_times).derivatives(args.derivatives);
     let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();
-    Ok(Row {
+    Ok(Timing {
         device: "reference",
         adapter: "f64, one thread".into(),
         samples_per_s: samples as f64 / seconds,
@@ -293,7 +293,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Row, Failure> {
     })
 }
 
-fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
+fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
     let job = EvalJob::new(batch, times).derivatives(args.derivatives);
     let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
     let seconds = median_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;
@@ -309,7 +309,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
         roofline += median_seconds(args.runs, || gpu.roofline(&prepared).map_err(device_err))?;
     }
     let samples = times.total();
-    Ok(Row {
+    Ok(Timing {
         device: "gpu",
         adapter: gpu.adapter_name().to_string(),
         samples_per_s: samples as f64 / seconds,
@@ -331,7 +331,7 @@ fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64
     ranges
 }
 
-fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Row, Failure> {
+fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
     let options = EvalOptions {
         derivatives: args.derivatives,
         forward_difference: args.forward_difference,
@@ -344,7 +344,7 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
     let mut buffer = vec![0.0f32; times.total() * options.row().channels()];
     let compute = median_seconds(args.runs, || cpu.evaluate_into(&job, &mut buffer).map_err(input))?;
     let samples = times.total();
-    Ok(Row {
+    Ok(Timing {
         device: "cpu",
         adapter: match args.forward_difference {
             Some(n) => format!("{}, forward differences every {n}", cpu.name()),

@@ -10,7 +10,7 @@ use super::lanes::{write_columns, LANES, Q8};
 use super::simd::{Isa, Lanes};
 use crate::batch::TrackView;
 use crate::curve::{Blend, Curve};
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::SampleTimes;
 use crate::segment::locate;
 
@@ -25,16 +25,16 @@ struct Arc {
 
 impl Arc {
     /// The arc from `start` along the half-angle vector `v`.
-    fn new(start: DQuat, v: DVec3) -> Self {
+    fn new(start: QuatF64, v: Vec3F64) -> Self {
         let theta = v.length();
-        let axis = if theta > 0.0 { v.scale(1.0 / theta) } else { DVec3::new(0.0, 0.0, 0.0) };
-        let lead = start * DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.0);
-        let f = |q: DQuat| q.to_array().map(|c| c as f32);
+        let axis = if theta > 0.0 { v.scale(1.0 / theta) } else { Vec3F64::new(0.0, 0.0, 0.0) };
+        let lead = start * QuatF64::from_xyzw(axis.x, axis.y, axis.z, 0.0);
+        let f = |q: QuatF64| q.to_array().map(|c| c as f32);
         Self { start: f(start), lead: f(lead), theta: theta as f32 }
     }
 
     /// The unfolded geodesic from `a` to `b` (parameter 0 to 1), as the reference's.
-    fn between(a: DQuat, b: DQuat) -> Self {
+    fn between(a: QuatF64, b: QuatF64) -> Self {
         Self::new(a, (a.conjugate() * b).log())
     }
 }
@@ -93,12 +93,12 @@ fn geodesic<S: Lanes>(p: Q8<S>, q: Q8<S>, g: S) -> Q8<S> {
 /// Each segment's two arcs, for one track.
 fn segment_arcs(view: TrackView<'_>) -> Vec<[Arc; 2]> {
     let (points, coefs) = (view.points, view.coefs);
-    let vec = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
+    let vec = |c: [f64; 4]| Vec3F64::new(c[0], c[1], c[2]);
     (0..points.len() - 1)
         .map(|i| match view.track.curve() {
             Curve::Squad => [
                 Arc::between(points[i], points[i + 1]),
-                Arc::between(DQuat::from_array(coefs[i]), DQuat::from_array(coefs[i + 1])),
+                Arc::between(QuatF64::from_array(coefs[i]), QuatF64::from_array(coefs[i + 1])),
             ],
             // C_2(s) = q_i+1 exp(b (s - 1)): the second arc is followed at s - 1.
             _ => [Arc::new(points[i], vec(coefs[2 * i])), Arc::new(points[i + 1], vec(coefs[2 * i + 1]))],
@@ -198,15 +198,15 @@ fn blend_weight<S: Lanes>(kind: Blend, s: S) -> S {
 #[cfg(test)]
 mod tests {
     use super::{geodesic, Q8};
-    use crate::quat::DQuat;
+    use crate::quat::QuatF64;
     use wide::f32x8;
 
     /// Where the log has no axis, the SIMD geodesic does what the reference's does: stays
     /// put between equal points, turns about x between exact opposites.
     #[test]
     fn geodesic_between_equal_and_opposite_points_follows_the_reference() {
-        let p = DQuat::from_xyzw(0.5, -0.5, 0.5, 0.5);
-        for q in [p, p.mul_scalar(-1.0), DQuat::from_xyzw(0.5, 0.5, -0.5, 0.5)] {
+        let p = QuatF64::from_xyzw(0.5, -0.5, 0.5, 0.5);
+        for q in [p, p.mul_scalar(-1.0), QuatF64::from_xyzw(0.5, 0.5, -0.5, 0.5)] {
             for g in [0.0, 0.3, 0.5, 0.9] {
                 let want = p.geodesic(q, g).to_array();
                 let got = geodesic(

@@ -11,7 +11,7 @@
 use crate::batch::TrackView;
 use crate::curve::Curve;
 use crate::job::EvalOptions;
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::{SampleTimes, TrackTimes};
 use crate::segment::locate;
 use glam::{Quat, Vec4};
@@ -36,14 +36,14 @@ struct Arc {
 
 impl Arc {
     /// Starts at `q` with step `v` (half-angle vector per sample), seeded in f64.
-    fn seed(q: DQuat, v: DVec3) -> Self {
-        let next = q * DQuat::exp(v);
+    fn seed(q: QuatF64, v: Vec3F64) -> Self {
+        let next = q * QuatF64::exp(v);
         let half = 0.5 * v.length();
         // 2 (1 - cos |v|) written 4 sin^2(|v| / 2): no cancellation for small steps.
         let sigma = (4.0 * half.sin() * half.sin()) as f32;
         // The difference is taken in f64: rounding both ends to f32 first would leave d with
         // the absolute error of a unit quaternion, a large relative error for small steps.
-        let f = |q: DQuat| Vec4::from_array(q.to_array().map(|c| c as f32));
+        let f = |q: QuatF64| Vec4::from_array(q.to_array().map(|c| c as f32));
         Self { q: f(q), d: f(next - q), sigma }
     }
 
@@ -83,7 +83,7 @@ pub fn evaluate(
     let TrackTimes::Uniform { step, count, .. } = times.tracks()[index] else { return };
     let reseed = options.forward_difference.unwrap_or(usize::MAX).max(1);
     let knots = view.knots;
-    let coef = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
+    let coef = |c: [f64; 4]| Vec3F64::new(c[0], c[1], c[2]);
     let (mut segment, mut since, mut s, mut h) = (usize::MAX, 0, 0.0f64, 0.0f64);
     let mut arcs: Vec<Arc> = Vec::with_capacity(2);
     for (row, j) in out.chunks_exact_mut(layout.channels()).zip(range) {
@@ -98,12 +98,12 @@ pub fn evaluate(
             match view.track.curve() {
                 Curve::Slerp => {
                     let w = coef(view.coefs[i]);
-                    arcs.push(Arc::seed(view.points[i] * DQuat::exp(w.scale(s)), w.scale(h)));
+                    arcs.push(Arc::seed(view.points[i] * QuatF64::exp(w.scale(s)), w.scale(h)));
                 }
                 _ => {
                     let (a, b) = (coef(view.coefs[2 * i]), coef(view.coefs[2 * i + 1]));
-                    arcs.push(Arc::seed(view.points[i] * DQuat::exp(a.scale(s)), a.scale(h)));
-                    arcs.push(Arc::seed(view.points[i + 1] * DQuat::exp(b.scale(s - 1.0)), b.scale(h)));
+                    arcs.push(Arc::seed(view.points[i] * QuatF64::exp(a.scale(s)), a.scale(h)));
+                    arcs.push(Arc::seed(view.points[i + 1] * QuatF64::exp(b.scale(s - 1.0)), b.scale(h)));
                 }
             }
         } else {

@@ -30,14 +30,14 @@ use crate::error::Result;
 use crate::job::EvalJob;
 use crate::output::{FloatOutput, Layout};
 use bases::Bases;
-use piece::Context;
+use piece::Shared;
 use rayon::prelude::*;
 
 /// Samples per parallel work item: a run of whole tracks, or a piece of one longer track.
-const PIECE: usize = 4096;
+const TASK_SAMPLES: usize = 4096;
 
 /// One parallel work item of [`CpuEvaluator::evaluate_into`]: tracks `tracks`, all their
-/// samples, or one piece of a single track longer than [`PIECE`].
+/// samples, or one piece of a single track longer than [`TASK_SAMPLES`].
 struct Task {
     tracks: std::ops::Range<usize>,
     /// The piece's samples, for a piece.
@@ -53,25 +53,25 @@ impl Task {
     }
 }
 
-/// The batch's samples in tasks of about [`PIECE`] samples, in output order. A few per
-/// [`PIECE`] samples, not one per track: a million 10-sample tracks are not a million tasks,
+/// The batch's samples in tasks of about [`TASK_SAMPLES`] samples, in output order. A few per
+/// [`TASK_SAMPLES`] samples, not one per track: a million 10-sample tracks are not a million tasks,
 /// nor 40 MB of task list and output slices.
 fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
     let tracks = times.tracks().len();
-    let mut tasks = Vec::with_capacity(times.total() / PIECE + 1);
+    let mut tasks = Vec::with_capacity(times.total() / TASK_SAMPLES + 1);
     let mut i = 0;
     while i < tracks {
         let n = times.count(i);
-        if n > PIECE {
-            tasks.extend((0..n.div_ceil(PIECE)).map(|p| {
-                let piece = p * PIECE..((p + 1) * PIECE).min(n);
+        if n > TASK_SAMPLES {
+            tasks.extend((0..n.div_ceil(TASK_SAMPLES)).map(|p| {
+                let piece = p * TASK_SAMPLES..((p + 1) * TASK_SAMPLES).min(n);
                 Task { tracks: i..i + 1, len: piece.len(), piece: Some(piece) }
             }));
             i += 1;
             continue;
         }
         let (first, mut len) = (i, 0);
-        while i < tracks && times.count(i) <= PIECE && len + times.count(i) <= PIECE {
+        while i < tracks && times.count(i) <= TASK_SAMPLES && len + times.count(i) <= TASK_SAMPLES {
             len += times.count(i);
             i += 1;
         }
@@ -148,7 +148,7 @@ impl CpuEvaluator {
                 crate::error::JobError::BufferSize { floats: data.len(), samples: times.total(), channels }.into()
             );
         }
-        let tables = Context::new(batch, &self.bases, self.isa);
+        let shared = Shared::new(batch, &self.bases, self.isa);
         let tasks = tasks(times);
         // A task's samples into `out` (its own rows, track-major): a run of short tracks of
         // one kind at a time, or one track or piece.
@@ -170,9 +170,9 @@ impl CpuEvaluator {
                 let (head, tail) = std::mem::take(&mut rest).split_at_mut(samples * channels);
                 rest = tail;
                 match kind {
-                    Some(kind) => runs::evaluate(&tables, batch, kind, times, track..end, &options, head),
+                    Some(kind) => runs::evaluate(&shared, batch, kind, times, track..end, &options, head),
                     None => track::evaluate(
-                        &tables,
+                        &shared,
                         batch.view(track),
                         times,
                         track,

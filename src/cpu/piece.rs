@@ -16,14 +16,14 @@ use crate::segment::locate;
 /// batch, whose f64 points and coefficients the kernels convert to f32 where they read them.
 /// No batch-wide f32 copy: for a million short tracks it doubled the batch's memory and its
 /// conversion took as long as the evaluation.
-pub struct Context<'a> {
+pub struct Shared<'a> {
     /// The lane type the kernels run.
     pub(super) isa: Isa,
     pub(super) bases: &'a Bases,
     batch: &'a Batch,
 }
 
-impl<'a> Context<'a> {
+impl<'a> Shared<'a> {
     /// The context of evaluating `batch` with `bases` on `isa`.
     pub fn new(batch: &'a Batch, bases: &'a Bases, isa: Isa) -> Self {
         Self { isa, bases, batch }
@@ -71,18 +71,18 @@ impl Segments {
     /// f32 as stored: loads and conversions only, per lane; axes and angles come later,
     /// eight lanes at once ([`Factor8::from_rows`]).
     #[inline(always)]
-    pub(super) fn rows<const F: usize>(self, tables: &Context<'_>, span: usize) -> ([f32; 4], [[f32; 4]; F]) {
+    pub(super) fn rows<const F: usize>(self, shared: &Shared<'_>, span: usize) -> ([f32; 4], [[f32; 4]; F]) {
         let coef = self.coef + self.stride * span - self.shift;
-        let mut start = tables.point(self.point + span - self.shift);
+        let mut start = shared.point(self.point + span - self.shift);
         if self.hermite {
-            let sign = tables.batch.coefs()[coef + 1][3] as f32;
+            let sign = shared.batch.coefs()[coef + 1][3] as f32;
             start = start.map(|v| v * sign);
         }
         // Loops, not `array::from_fn`, here and below: its closures do not inherit the AVX2
         // entry point's target features, so they stay calls.
         let mut coefs = [[0.0f32; 4]; F];
         for (f, row) in coefs.iter_mut().enumerate() {
-            *row = tables.coef(coef + f);
+            *row = shared.coef(coef + f);
         }
         (start, coefs)
     }
@@ -90,8 +90,8 @@ impl Segments {
     /// Segment `span` as the shared groups broadcast it: its rows, with each factor's axis
     /// and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane).
     #[inline(always)]
-    fn broadcast<const F: usize>(self, tables: &Context<'_>, span: usize) -> Segment<F> {
-        let (start, coefs) = self.rows::<F>(tables, span);
+    fn broadcast<const F: usize>(self, shared: &Shared<'_>, span: usize) -> Segment<F> {
+        let (start, coefs) = self.rows::<F>(shared, span);
         Segment { span, start, axes: coefs.map(axis_angle) }
     }
 }
@@ -251,7 +251,7 @@ struct Segment<const F: usize> {
 
 /// One piece of a vectorized track, and what it needs.
 pub(super) struct Piece<'a> {
-    pub(super) tables: &'a Context<'a>,
+    pub(super) shared: &'a Shared<'a>,
     pub(super) view: TrackView<'a>,
     pub(super) times: &'a SampleTimes,
     pub(super) index: usize,
@@ -300,7 +300,7 @@ impl Piece<'_> {
 
     /// [`Piece::groups`] on the evaluator's lane type.
     fn run<const F: usize, const DERIVATIVES: bool, const SMALL: bool>(&self, n: usize, out: &mut [f32]) {
-        match self.tables.isa {
+        match self.shared.isa {
             // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => unsafe { groups_avx2::<F, DERIVATIVES, SMALL>(self, n, out) },
@@ -356,7 +356,7 @@ impl Piece<'_> {
                     *u = ((t - knots[h]) * inv_len) as f32;
                 }
                 if shared_segment.as_ref().map(|s| s.0.span) != Some(h) {
-                    let segment = segments.broadcast::<F>(self.tables, h);
+                    let segment = segments.broadcast::<F>(self.shared, h);
                     shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
                 }
                 (S::new(u), S::splat(inv_len as f32))
@@ -364,7 +364,7 @@ impl Piece<'_> {
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane], inv_step);
                     (spans[lane], t[lane]) = (span, tl);
-                    lanes.set(lane, tl, [knots[span], knots[span + 1]], segments.rows::<F>(self.tables, span));
+                    lanes.set(lane, tl, [knots[span], knots[span + 1]], segments.rows::<F>(self.shared, span));
                 }
                 lanes.params::<S>()
             };

@@ -14,7 +14,7 @@
 
 use super::bases::{Bases, PolyBasis};
 use super::lanes::{cumulative_product, AngleRange, LANES};
-use super::piece::{inv_step, locate_from, locate_uniform_in, spans, write_group, Context, LaneRows, Segments};
+use super::piece::{inv_step, locate_from, locate_uniform_in, spans, write_group, LaneRows, Segments, Shared};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::Batch;
 use crate::curve::{Curve, MIN_ORDER};
@@ -81,7 +81,7 @@ impl Kind {
 /// Evaluates tracks `tracks` of `batch`, all of kind `kind`, into `out`: their rows back to
 /// back, as [`super::track::evaluate`] writes them one track at a time.
 pub(super) fn evaluate(
-    tables: &Context<'_>,
+    shared: &Shared<'_>,
     batch: &Batch,
     kind: Kind,
     times: &SampleTimes,
@@ -89,7 +89,7 @@ pub(super) fn evaluate(
     options: &EvalOptions,
     out: &mut [f32],
 ) {
-    let run = Run { tables, batch, basis: kind.basis(tables.bases), times, tracks, options };
+    let run = Run { shared, batch, basis: kind.basis(shared.bases), times, tracks, options };
     macro_rules! by_factors {
         ($d:literal) => {
             match kind.factors() {
@@ -112,7 +112,7 @@ pub(super) fn evaluate(
 
 /// One run and what it needs.
 struct Run<'a> {
-    tables: &'a Context<'a>,
+    shared: &'a Shared<'a>,
     batch: &'a Batch,
     basis: &'a PolyBasis,
     times: &'a SampleTimes,
@@ -167,7 +167,7 @@ impl Cursor<'_> {
 impl Run<'_> {
     /// [`Run::stream`] on the evaluator's lane type.
     fn lanes<const F: usize, const DERIVATIVES: bool>(&self, out: &mut [f32]) {
-        match self.tables.isa {
+        match self.shared.isa {
             // SAFETY: `Isa::Avx2` is only chosen where the CPU has AVX2 and FMA.
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => unsafe { stream_avx2::<F, DERIVATIVES>(self, out) },
@@ -232,7 +232,7 @@ impl Run<'_> {
                     lane,
                     t,
                     [cursor.knots[span], cursor.knots[span + 1]],
-                    cursor.segments.rows::<F>(self.tables, span),
+                    cursor.segments.rows::<F>(self.shared, span),
                 );
             }
             let (u, inv) = lanes.params::<S>();

@@ -6,7 +6,7 @@
 
 use super::bases::Basis;
 use super::lanes::MAX_FACTORS;
-use super::piece::{spans, Context, Piece};
+use super::piece::{spans, Piece, Shared};
 use crate::batch::TrackView;
 use crate::curve::{Curve, MIN_ORDER};
 use crate::job::EvalOptions;
@@ -16,7 +16,7 @@ use std::ops::Range;
 
 /// Evaluates samples `range` of track `index` into `out` (`range.len()` [`crate::Row`]s).
 pub fn evaluate(
-    tables: &Context<'_>,
+    shared: &Shared<'_>,
     view: TrackView<'_>,
     times: &SampleTimes,
     index: usize,
@@ -32,13 +32,13 @@ pub fn evaluate(
     }
     let track = view.track;
     let (basis, factors) = match track.curve() {
-        Curve::Slerp => (Basis::Poly(&tables.bases.slerp), 1),
-        Curve::Hermite => (Basis::Poly(&tables.bases.hermite), 3),
+        Curve::Slerp => (Basis::Poly(&shared.bases.slerp), 1),
+        Curve::Hermite => (Basis::Poly(&shared.bases.hermite), 3),
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order();
             let basis = if track.uniform_knots() {
-                Basis::Poly(&tables.bases.bspline[k - MIN_ORDER])
+                Basis::Poly(&shared.bases.bspline[k - MIN_ORDER])
             } else {
                 Basis::CoxDeBoor
             };
@@ -49,7 +49,7 @@ pub fn evaluate(
             (Basis::Bernstein, track.bezier_degree())
         }
         Curve::Squad | Curve::NamKim if !options.derivatives => {
-            super::arcs::evaluate(tables.isa, view, times, index, range.start, range.len(), channels, out);
+            super::arcs::evaluate(shared.isa, view, times, index, range.start, range.len(), channels, out);
             out.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));
             return;
         }
@@ -58,7 +58,7 @@ pub fn evaluate(
                 let t = times.time(index, j);
                 if options.derivatives {
                     let s = reference::evaluate(view, t);
-                    let f = |v: crate::quat::DVec3| v.to_array().map(|c| c as f32);
+                    let f = |v: crate::quat::Vec3F64| v.to_array().map(|c| c as f32);
                     row.write(
                         dst,
                         s.rotation.to_array().map(|v| v as f32),
@@ -78,6 +78,6 @@ pub fn evaluate(
         }
     };
     let (first, last) = spans(view);
-    let piece = Piece { tables, view, times, index, from: range.start, options, basis, factors, first, last };
+    let piece = Piece { shared, view, times, index, from: range.start, options, basis, factors, first, last };
     piece.evaluate(range.len(), out);
 }

@@ -629,13 +629,15 @@ impl GpuEvaluator {
 fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout, channels: usize, data: &mut [f32]) {
     match layout {
         Layout::Track => {
-            // In parallel pieces: one thread alone copies a few GB/s, a third of the kernel's
+            // In parallel blocks: one thread alone copies a few GB/s, a third of the kernel's
             // time for a large output on lavapipe.
             use rayon::prelude::*;
-            const PIECE: usize = 1 << 20;
+            const COPY_BLOCK: usize = 1 << 20;
             let start = (times.offsets()[chunk.first_track] + chunk.sample_base) * channels;
             let (to, from) = (&mut data[start..start + chunk.samples * channels], &local[..chunk.samples * channels]);
-            to.par_chunks_mut(PIECE).zip(from.par_chunks(PIECE)).for_each(|(to, from)| to.copy_from_slice(from));
+            to.par_chunks_mut(COPY_BLOCK)
+                .zip(from.par_chunks(COPY_BLOCK))
+                .for_each(|(to, from)| to.copy_from_slice(from));
         }
         Layout::Frame => {
             // Local rows are [frame][chunk track]; global rows are [frame][track].

@@ -1,17 +1,17 @@
 //! The Jacobians of the half-angle exp and log about one rotation vector, as polynomials in its
 //! cross-product matrix ([`AxisPoly`]): the algebra of the Newton blocks.
 
-use crate::quat::{DQuat, DVec3};
+use crate::quat::{QuatF64, Vec3F64};
 use glam::{DMat3, DVec3 as V3};
 
 /// The crate's vector as glam's (the solve's 3x3 algebra is glam's).
-pub(super) fn g(v: DVec3) -> V3 {
+pub(super) fn g(v: Vec3F64) -> V3 {
     V3::new(v.x, v.y, v.z)
 }
 
 /// Glam's vector as the crate's.
-pub(super) fn d(v: V3) -> DVec3 {
-    DVec3::new(v.x, v.y, v.z)
+pub(super) fn d(v: V3) -> Vec3F64 {
+    Vec3F64::new(v.x, v.y, v.z)
 }
 
 /// `[v]x`: `skew(v) u = v x u`.
@@ -71,19 +71,22 @@ impl AxisPoly {
 /// `exp(v)` and the coefficients of its Jacobian ([`AxisPoly::exp_jacobian`]), from one
 /// `sin_cos` (the row evaluation needs the one, its Jacobian the other, and they share the
 /// angle).
-pub(super) fn exp_jr(v: V3) -> (DQuat, [f64; 2]) {
+pub(super) fn exp_jr(v: V3) -> (QuatF64, [f64; 2]) {
     let h2 = v.length_squared();
     let h = h2.sqrt();
     if h < 1e-4 {
-        return (DQuat::exp(d(v)), [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]);
+        return (QuatF64::exp(d(v)), [1.0 - h2 / 3.0, 2.0 / 3.0 - 2.0 * h2 / 15.0]);
     }
     // One sin_cos: sin 2h = 2 sin h cos h.
     let (s, c) = h.sin_cos();
     let jr = [s * s / h2, (2.0 * h - 2.0 * s * c) / (2.0 * h2 * h)];
-    // Below h = 1e-2 `DQuat::exp` takes its value-only series; kept, so that the rotation is
-    // exactly `DQuat::exp`'s.
-    let e =
-        if h2 >= 1e-4 { DQuat::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c) } else { DQuat::exp(d(v)) };
+    // Below h = 1e-2 `QuatF64::exp` takes its value-only series; kept, so that the rotation is
+    // exactly `QuatF64::exp`'s.
+    let e = if h2 >= 1e-4 {
+        QuatF64::from_xyzw(v.x * (s / h), v.y * (s / h), v.z * (s / h), c)
+    } else {
+        QuatF64::exp(d(v))
+    };
     (e, jr)
 }
 
@@ -102,7 +105,7 @@ pub(super) fn log_coef(v: V3) -> f64 {
 /// hand (`exp v = +-rel`, so `rel = +-(cos h, sin h v / h)`): `cot h` read off `rel` instead
 /// of a `sin_cos`. Components of `rel` carry rounding of order 1e-16, so `c h^2` does of order
 /// 1e-16 / h: the series covers `h < 1e-3`.
-pub(super) fn step_log_coef(v: V3, rel: DQuat) -> f64 {
+pub(super) fn step_log_coef(v: V3, rel: QuatF64) -> f64 {
     let h2 = v.length_squared();
     if h2 < 1e-6 {
         1.0 / 3.0 + h2 / 45.0

@@ -26,7 +26,7 @@ mod jacobian;
 mod tridiagonal;
 
 use crate::basis::bspline_cumulative;
-use crate::quat::{relative_log, DQuat, DVec3};
+use crate::quat::{relative_log, QuatF64, Vec3F64};
 use glam::{DMat3, DVec3 as V3};
 use jacobian::{d, exp_jr, g, log_coef, skew, step_log_coef, AxisPoly};
 use std::cell::RefCell;
@@ -65,10 +65,10 @@ pub struct NoConvergence {
 pub struct Solved {
     /// Sign-continuous control points: `P_0..P_{n+2}` (open) or `P_{n-1}, P_0, ..., P_{n-1},
     /// P_0, P_1` (loop: one period of the repeating sequence, ready for [`Self::knots`]).
-    pub points: Vec<DQuat>,
+    pub points: Vec<QuatF64>,
     /// The step into each point after the first, `w_j` with `P_j = P_{j-1} exp(w_j)`: the
     /// curve's coefficients, not folded (they may exceed a half turn).
-    pub coefs: Vec<DVec3>,
+    pub coefs: Vec<Vec3F64>,
     /// The knot vector the points belong to (`n + 7` entries either way).
     pub knots: Vec<f64>,
     /// Newton iterations used.
@@ -108,9 +108,10 @@ pub fn periodic_knots(times: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// Basis constants of one row, from the knot vector (computed once per track).
+/// What one row of the system asks (a key hit, or a natural end), with its basis constants
+/// from the knot vector (computed once per track).
 #[derive(Clone, Copy, Debug)]
-enum Row {
+enum Condition {
     /// `q(tau) = P_a exp(a w) exp(b w')`, to equal key `key`.
     Key { a: f64, b: f64, key: usize },
     /// Natural end: `c1 w + c2 w' + k (w x w') = 0` (times the squared end segment length).
@@ -118,11 +119,11 @@ enum Row {
 }
 
 /// The rows of a system: open (`n + 1` rows over unknowns `P_1..P_{n+1}`) or periodic (`n`
-/// rows over `P_0..P_{n-1}`). Row `r` reads three consecutive control points; see
+/// rows over `P_0..P_{n-1}`), one [`Condition`] each. Row `r` reads three consecutive control points; see
 /// [`System::triple`].
 struct System {
     periodic: bool,
-    rows: Vec<Row>,
+    rows: Vec<Condition>,
     knots: Vec<f64>,
     /// The unknown each row's three points are ([`System::triple`], [`System::unknown`]).
     columns: Vec<[Option<usize>; 3]>,
@@ -152,7 +153,7 @@ impl System {
         let n = times.len() - 1;
         let key_row = |knots: &[f64], i: usize| {
             let b = bspline_cumulative(knots, 4, 3 + i, knots[3 + i]);
-            Row::Key { a: b[0][0], b: b[1][0], key: i }
+            Condition::Key { a: b[0][0], b: b[1][0], key: i }
         };
         if periodic {
             let knots = periodic_knots(times);
@@ -160,7 +161,7 @@ impl System {
             return Self { periodic, rows, knots, columns: Vec::new() }.with_columns();
         }
         let knots = open_knots(times);
-        let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Row::End {
+        let end = |b1: [f64; 3], b2: [f64; 3], d: f64| Condition::End {
             c1: b1[2] * d * d,
             c2: b2[2] * d * d,
             k: 2.0 * b1[1] * b2[1] * d * d,
@@ -208,7 +209,7 @@ impl System {
 }
 
 /// The rotation matrix of `q^-1`: `rot_inv(q) v = q^-1 v q`.
-fn rot_inv(q: DQuat) -> DMat3 {
+fn rot_inv(q: QuatF64) -> DMat3 {
     DMat3::from_quat(glam::DQuat::from(q.conjugate()))
 }
 
@@ -217,20 +218,20 @@ fn rot_inv(q: DQuat) -> DMat3 {
 /// ([`AxisPoly::exp_jacobian`]).
 #[derive(Clone, Copy, Debug)]
 struct KeyPoint {
-    q: DQuat,
-    e2: DQuat,
-    c: DQuat,
+    q: QuatF64,
+    e2: QuatF64,
+    c: QuatF64,
     jr: [[f64; 2]; 2],
 }
 
 impl KeyPoint {
     /// What end rows carry (nothing reads it).
     const NONE: Self = {
-        let one = DQuat { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };
+        let one = QuatF64 { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };
         Self { q: one, e2: one, c: one, jr: [[0.0; 2]; 2] }
     };
 
-    fn new(p0: DQuat, w: [DVec3; 2], a: f64, b: f64) -> Self {
+    fn new(p0: QuatF64, w: [Vec3F64; 2], a: f64, b: f64) -> Self {
         let (e1, j1) = exp_jr(g(w[0]) * a);
         let (e2, j2) = exp_jr(g(w[1]) * b);
         let c = e1 * e2;
@@ -241,13 +242,13 @@ impl KeyPoint {
 /// One row's residual at control points `p` whose steps are `w` (`p[1] = p[0] exp(w[0])`,
 /// `p[2] = p[1] exp(w[1])`, not folded): the key error as a body rotation vector, or the
 /// natural-end condition; with the key row's point for [`row_jacobian`].
-fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, KeyPoint) {
+fn residual(row: Condition, p: [QuatF64; 3], w: [Vec3F64; 2], keys: &[QuatF64]) -> (V3, KeyPoint) {
     match row {
-        Row::Key { a, b, key } => {
+        Condition::Key { a, b, key } => {
             let point = KeyPoint::new(p[0], w, a, b);
             (g(relative_log(keys[key], point.q)), point)
         }
-        Row::End { c1, c2, k } => {
+        Condition::End { c1, c2, k } => {
             let (v1, v2) = (g(w[0]), g(w[1]));
             (v1 * c1 + v2 * c2 + v1.cross(v2) * k, KeyPoint::NONE)
         }
@@ -263,11 +264,11 @@ fn residual(row: Row, p: [DQuat; 3], w: [DVec3; 2], keys: &[DQuat]) -> (V3, KeyP
 /// `jr_inv(r) r = r` (`[r]x r = 0`), so the Newton step `J^-1 (-R)` with `J = diag(jr_inv(r_k))
 /// B` equals `B^-1 (-R)` exactly, and the factor would cost a `sin_cos` and three products per
 /// row.
-fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jc: [f64; 2]) -> [DMat3; 3] {
+fn row_jacobian(row: Condition, point: &KeyPoint, w: [Vec3F64; 2], jc: [f64; 2]) -> [DMat3; 3] {
     let (v1, v2) = (g(w[0]), g(w[1]));
     let [(r1, l1), (r2, l2)] = [AxisPoly::log_jacobians(v1, jc[0]), AxisPoly::log_jacobians(v2, jc[1])];
     match row {
-        Row::Key { a, b, .. } => {
+        Condition::Key { a, b, .. } => {
             let KeyPoint { e2, c, jr: [j1, j2], .. } = *point;
             // q exp(eps): eps from P_0 carried through c, from w1 through exp(b w2), from w2.
             let (k1, k2) = (AxisPoly::exp_jacobian(v1, a, j1), AxisPoly::exp_jacobian(v2, b, j2));
@@ -278,7 +279,7 @@ fn row_jacobian(row: Row, point: &KeyPoint, w: [DVec3; 2], jc: [f64; 2]) -> [DMa
                 k2.times(r2).matrix(),
             ]
         }
-        Row::End { c1, c2, k } => {
+        Condition::End { c1, c2, k } => {
             let f1 = DMat3::from_diagonal(V3::splat(c1)) - skew(v2) * k;
             let f2 = DMat3::from_diagonal(V3::splat(c2)) + skew(v1) * k;
             let [r1, l1, r2, l2] = [r1, l1, r2, l2].map(AxisPoly::matrix);
@@ -312,8 +313,8 @@ impl Health {
 /// steps' inverse Jacobians, and every row's Jacobian blocks and negated residual.
 #[derive(Clone, Default)]
 struct State {
-    points: Vec<DQuat>,
-    steps: Vec<DVec3>,
+    points: Vec<QuatF64>,
+    steps: Vec<Vec3F64>,
     /// Each step's [`AxisPoly::log_jacobians`] coefficient.
     step_coefs: Vec<f64>,
     key_points: Vec<KeyPoint>,
@@ -322,7 +323,7 @@ struct State {
 }
 
 /// Fills `state`'s right-hand sides (negated residuals) from its points and steps.
-fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
+fn assess(system: &System, state: &mut State, keys: &[QuatF64]) -> Health {
     let mut health = Health { key: (0.0, 0), end: (0.0, 0), norm: 0.0 };
     let last = keys.len() - 1;
     for (r, &row) in system.rows.iter().enumerate() {
@@ -332,8 +333,8 @@ fn assess(system: &System, state: &mut State, keys: &[DQuat]) -> Health {
         state.key_points[r] = point;
         let size = res.length();
         match row {
-            Row::Key { key, .. } if 2.0 * size > health.key.0 => health.key = (2.0 * size, key),
-            Row::End { .. } if size > health.end.0 => health.end = (size, if r == 0 { 0 } else { last }),
+            Condition::Key { key, .. } if 2.0 * size > health.key.0 => health.key = (2.0 * size, key),
+            Condition::End { .. } if size > health.end.0 => health.end = (size, if r == 0 { 0 } else { last }),
             _ => {}
         }
         // A NaN anywhere must not pass for convergence.
@@ -367,7 +368,13 @@ fn linearize(system: &System, state: &mut State) {
 /// chord that solves the natural-end rows' linear part (`c1 w + c2 w' = 0`). Starting from the
 /// keys themselves cost most tracks one more iteration. The steps follow the moves to first
 /// order and take the nearest branch, as in a Newton update.
-fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: &mut Vec<DVec3>, moves: &mut Vec<V3>) {
+fn first_guess(
+    system: &System,
+    keys: &[QuatF64],
+    points: &mut Vec<QuatF64>,
+    steps: &mut Vec<Vec3F64>,
+    moves: &mut Vec<V3>,
+) {
     let n = keys.len() - 1;
     points.clear();
     if system.periodic {
@@ -385,7 +392,7 @@ fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: 
     moves.clear();
     moves.resize(count, V3::ZERO);
     for (r, &row) in system.rows.iter().enumerate() {
-        if let Row::Key { a, b, .. } = row {
+        if let Condition::Key { a, b, .. } = row {
             // Residual at the keys: (1 - a) back along the step in, b along the step out.
             let j = system.triple(r)[1];
             moves[j] = g(steps[j]) * (1.0 - a) - g(steps[(j + 1) % count]) * b;
@@ -393,7 +400,7 @@ fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: 
     }
     if !system.periodic {
         for (row, j) in [(0, 1), (n, n + 1)] {
-            if let Row::End { c1, c2, .. } = system.rows[row] {
+            if let Condition::End { c1, c2, .. } = system.rows[row] {
                 let s = -c2 / (c1 - c2);
                 let s = if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 };
                 let chord = g(steps[j]) + g(steps[j + 1]) + moves[j + 1] - moves[j - 1];
@@ -402,7 +409,7 @@ fn first_guess(system: &System, keys: &[DQuat], points: &mut Vec<DQuat>, steps: 
         }
     }
     for (p, m) in points.iter_mut().zip(moves.iter()) {
-        *p = *p * DQuat::exp(d(*m));
+        *p = *p * QuatF64::exp(d(*m));
     }
     // Each step from its own value before the moves (read before it is overwritten).
     for j in 0..count {
@@ -442,8 +449,8 @@ impl Workspace {
 impl State {
     /// Room for `count` control points and `unknowns` rows (values are filled before read).
     fn resize(&mut self, count: usize, unknowns: usize) {
-        self.points.resize(count, DQuat::identity());
-        self.steps.resize(count, DVec3::zero());
+        self.points.resize(count, QuatF64::identity());
+        self.steps.resize(count, Vec3F64::zero());
         self.step_coefs.resize(count, 0.0);
         self.key_points.resize(unknowns, KeyPoint::NONE);
         self.blocks.resize(unknowns, [DMat3::ZERO; 3]);
@@ -458,12 +465,17 @@ impl State {
 /// # Errors
 /// [`NoConvergence`] when Newton does not bring every key within [`KEY_TOLERANCE`] in
 /// [`MAX_ITERATIONS`] (or meets a singular system), naming the worst key.
-pub fn solve_rotations(keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
+pub fn solve_rotations(keys: &[QuatF64], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
     Workspace::with(|workspace| solve_in(workspace, keys, times, periodic))
 }
 
 /// [`solve_rotations`] in `workspace`'s arrays.
-fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: bool) -> Result<Solved, NoConvergence> {
+fn solve_in(
+    workspace: &mut Workspace,
+    keys: &[QuatF64],
+    times: &[f64],
+    periodic: bool,
+) -> Result<Solved, NoConvergence> {
     let n = keys.len() - 1;
     let system = System::shared(times, periodic);
     let Workspace { state, trial, scratch, delta, step_change } = workspace;
@@ -497,7 +509,7 @@ fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: 
         let mut accepted = None;
         for _ in 0..30 {
             for (p, q) in trial.points.iter_mut().enumerate() {
-                *q = state.points[p] * DQuat::exp(d(moved(p, scale)));
+                *q = state.points[p] * QuatF64::exp(d(moved(p, scale)));
             }
             // Each new step is the log of the new relative rotation on the branch nearest
             // its first-order prediction.
@@ -525,11 +537,11 @@ fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: 
     // Open: P_0..P_{n+2}. Periodic: one period of the repeating sequence, P_{n-1}, P_0, ...,
     // P_{n-1}, P_0, P_1, with the step into each.
     let order: Vec<usize> = if periodic { (0..n + 3).map(|j| (j + n - 1) % n).collect() } else { (0..count).collect() };
-    let mut out_points: Vec<DQuat> = order.iter().map(|&j| points[j]).collect();
-    let coefs: Vec<DVec3> = order[1..].iter().map(|&j| steps[j]).collect();
+    let mut out_points: Vec<QuatF64> = order.iter().map(|&j| points[j]).collect();
+    let coefs: Vec<Vec3F64> = order[1..].iter().map(|&j| steps[j]).collect();
     // Signs follow the product chain, so that P_j = P_{j-1} exp(w_j) exactly as evaluated.
     for j in 1..out_points.len() {
-        let chained = out_points[j - 1] * DQuat::exp(coefs[j - 1]);
+        let chained = out_points[j - 1] * QuatF64::exp(coefs[j - 1]);
         out_points[j] = out_points[j].aligned_with(chained);
     }
     Ok(Solved { points: out_points, coefs, knots: system.knots.clone(), iterations, key_error: health.key.0 })
@@ -538,8 +550,8 @@ fn solve_in(workspace: &mut Workspace, keys: &[DQuat], times: &[f64], periodic: 
 /// The log of `r` (up to sign) nearest to `predicted`: among `(th + pi m) u` (every `v` with
 /// `exp v = +-r`, `th u` the short log), the one whose length along `u` is nearest
 /// `predicted`'s.
-fn nearest_log(r: DQuat, predicted: DVec3) -> DVec3 {
-    let short = r.aligned_with(DQuat::identity()).log();
+fn nearest_log(r: QuatF64, predicted: Vec3F64) -> Vec3F64 {
+    let short = r.aligned_with(QuatF64::identity()).log();
     let th = short.length();
     let axis = if th > 0.0 {
         short.scale(1.0 / th)
@@ -561,7 +573,7 @@ fn nearest_log(r: DQuat, predicted: DVec3) -> DVec3 {
 /// Returns `(points, knots)`, or `None` for a singular system (not reached for strictly
 /// increasing times).
 #[must_use]
-pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<(Vec<DVec3>, Vec<f64>)> {
+pub fn solve_vectors(values: &[Vec3F64], times: &[f64], periodic: bool) -> Option<(Vec<Vec3F64>, Vec<f64>)> {
     let n = values.len() - 1;
     let system = System::new(times, periodic);
     let unknowns = system.unknowns();
@@ -579,8 +591,8 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
         // Linear rows: key `(1 - a) p0 + (a - b) p1 + b p2 = value`; end
         // `c1 (p1 - p0) + c2 (p2 - p1) = 0`.
         let (weights, target) = match row {
-            Row::Key { a, b, key } => ([1.0 - a, a - b, b], g(values[key])),
-            Row::End { c1, c2, .. } => ([-c1, c1 - c2, c2], V3::ZERO),
+            Condition::Key { a, b, key } => ([1.0 - a, a - b, b], g(values[key])),
+            Condition::End { c1, c2, .. } => ([-c1, c1 - c2, c2], V3::ZERO),
         };
         let mut target = target;
         for ((&p, column), &w) in system.triple(r).iter().zip(&system.columns[r]).zip(&weights) {
@@ -593,7 +605,7 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
     }
     let mut x = Vec::with_capacity(unknowns);
     solve(&system.columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x)?;
-    let d = |v: V3| DVec3::new(v.x, v.y, v.z);
+    let d = |v: V3| Vec3F64::new(v.x, v.y, v.z);
     let points = if periodic {
         (0..n + 3).map(|j| d(x[(j + n - 1) % n])).collect()
     } else {
@@ -610,8 +622,8 @@ pub fn solve_vectors(values: &[DVec3], times: &[f64], periodic: bool) -> Option<
 mod tests {
     use super::*;
 
-    fn q(v: [f64; 3]) -> DQuat {
-        DQuat::exp(DVec3::from_array(v))
+    fn q(v: [f64; 3]) -> QuatF64 {
+        QuatF64::exp(Vec3F64::from_array(v))
     }
 
     /// Every row's Jacobian blocks against central differences of its residual (a key row's
@@ -620,14 +632,14 @@ mod tests {
     fn row_jacobians_match_finite_differences() {
         let keys = [q([0.3, -0.2, 0.5]), q([0.9, 0.4, -0.3]), q([-0.2, 1.1, 0.2])];
         let p = [q([0.1, 0.2, 0.3]), q([0.7, -0.5, 0.2]), q([-0.4, 0.9, 1.0])];
-        let rows = [Row::Key { a: 0.8, b: 0.15, key: 1 }, Row::End { c1: 1.7, c2: -0.6, k: 0.9 }];
+        let rows = [Condition::Key { a: 0.8, b: 0.15, key: 1 }, Condition::End { c1: 1.7, c2: -0.6, k: 0.9 }];
         for row in rows {
-            let w = |p: [DQuat; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
+            let w = |p: [QuatF64; 3]| [relative_log(p[0], p[1]), relative_log(p[1], p[2])];
             let jc = w(p).map(|v| log_coef(g(v)));
             let (r, point) = residual(row, p, w(p), &keys);
             let outer = match row {
-                Row::Key { .. } => AxisPoly::log_jacobians(r, log_coef(r)).0.matrix(),
-                Row::End { .. } => DMat3::IDENTITY,
+                Condition::Key { .. } => AxisPoly::log_jacobians(r, log_coef(r)).0.matrix(),
+                Condition::End { .. } => DMat3::IDENTITY,
             };
             // What makes leaving the factor out exact: it does not move the residual itself.
             assert!(
@@ -644,7 +656,7 @@ mod tests {
                     let moved = |s: f64| {
                         let mut p = p;
                         let d = e * s;
-                        p[which] = p[which] * DQuat::exp(DVec3::new(d.x, d.y, d.z));
+                        p[which] = p[which] * QuatF64::exp(Vec3F64::new(d.x, d.y, d.z));
                         residual(row, p, w(p), &keys).0
                     };
                     let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);

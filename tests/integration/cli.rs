@@ -1,7 +1,7 @@
 //! `quatcurve eval` end to end: files in, files out, values checked; exit codes and messages.
 
 use assert_cmd::Command;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Tangents, Track, TrackFile};
+use quatcurve::{Batch, Curve, CurveSpec, QuatF64, Tangents, Track, TrackFile, Vec3F64};
 use std::path::Path;
 use std::process::Output;
 
@@ -17,7 +17,9 @@ fn write_tracks(dir: &Path, tracks: &[Track]) -> String {
 
 fn sample_tracks() -> Vec<Track> {
     let keys = |phase: f64| -> Vec<[f64; 4]> {
-        (0..5).map(|i| DQuat::exp(DVec3::new(0.3 * (i as f64 + phase).sin(), 0.2 * i as f64, 0.1)).to_array()).collect()
+        (0..5)
+            .map(|i| QuatF64::exp(Vec3F64::new(0.3 * (i as f64 + phase).sin(), 0.2 * i as f64, 0.1)).to_array())
+            .collect()
     };
     vec![
         Track {
@@ -118,7 +120,7 @@ fn eval_defaults_run_on_the_built_in_demo() {
 fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
     let dir = tempfile::tempdir().unwrap();
     let closed: Vec<[f64; 4]> = (0..5)
-        .map(|i| DQuat::exp(DVec3::new(0.4 * (i as f64 * std::f64::consts::FRAC_PI_2).sin(), 0.1, 0.0)).to_array())
+        .map(|i| QuatF64::exp(Vec3F64::new(0.4 * (i as f64 * std::f64::consts::FRAC_PI_2).sin(), 0.1, 0.0)).to_array())
         .collect();
     let track =
         Track { name: Some("tail".into()), sample_times: Some(vec![0.5, 4.5, -3.5]), ..Track::from_rotations(closed) };
@@ -138,7 +140,7 @@ fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
     let t = &doc["tracks"][0];
     assert_eq!(t["times"], serde_json::json!([0.5, 4.5, -3.5]));
-    let q = |i: usize| DQuat::from_array(serde_json::from_value(t["rotations"][i].clone()).unwrap());
+    let q = |i: usize| QuatF64::from_array(serde_json::from_value(t["rotations"][i].clone()).unwrap());
     assert!(q(0).angle_to(q(1)) < 1e-12 && q(0).angle_to(q(2)) < 1e-12, "4.5 and -3.5 wrap to 0.5 over a period of 4");
 
     let open = write_tracks(dir.path(), &sample_tracks());
@@ -245,7 +247,7 @@ fn eval_on_the_gpu_names_the_adapter_and_agrees_with_the_reference() {
     for t in 0..2 {
         for j in 0..gpu["tracks"][t]["rotations"].as_array().unwrap().len() {
             let q = |doc: &serde_json::Value| {
-                DQuat::from_array(serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap())
+                QuatF64::from_array(serde_json::from_value(doc["tracks"][t]["rotations"][j].clone()).unwrap())
             };
             assert!(q(&gpu).angle_to(q(&reference)) < 1e-5);
         }
@@ -393,7 +395,7 @@ fn eval_reads_numpy_arrays_like_json() {
     let dir = tempfile::tempdir().unwrap();
     let (tracks, keys) = (3usize, 6usize);
     let rotation = |t: usize, k: usize| {
-        DQuat::exp(DVec3::new(0.1 * k as f64, 0.05 * t as f64, 0.2 * (k * t) as f64 % 0.7)).to_array()
+        QuatF64::exp(Vec3F64::new(0.1 * k as f64, 0.05 * t as f64, 0.2 * (k * t) as f64 % 0.7)).to_array()
     };
     let rotations: Vec<f64> = (0..tracks).flat_map(|t| (0..keys).flat_map(move |k| rotation(t, k))).collect();
     let times: Vec<f64> = (0..keys).map(|k| 0.25 * k as f64 + 0.01 * (k * k) as f64).collect();
@@ -529,7 +531,7 @@ fn f32_results_print_as_f32() {
 fn auto_falls_back_to_the_cpu_for_batches_the_gpu_cannot_take() {
     let dir = tempfile::tempdir().unwrap();
     let keys: Vec<[f64; 4]> =
-        (0..40).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
+        (0..40).map(|i| QuatF64::exp(Vec3F64::new(0.0, 0.0, 0.05 * f64::from(i))).to_array()).collect();
     let input = dir.path().join("long.json");
     std::fs::write(&input, serde_json::to_string(&TrackFile { tracks: vec![Track::from_rotations(keys)] }).unwrap())
         .unwrap();

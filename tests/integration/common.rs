@@ -1,7 +1,7 @@
 //! Shared generators and oracles for the reference tests.
 
 use quatcurve::synthetic::SplitMix;
-use quatcurve::{Batch, CurveSpec, DQuat, DVec3, Sample, Track};
+use quatcurve::{Batch, CurveSpec, QuatF64, Sample, Track, Vec3F64};
 
 /// The crate's SplitMix64 ([`SplitMix`]) with the shapes the tests draw from, so each
 /// proptest case is one `u64` seed and adversarial track shapes are plain functions.
@@ -21,18 +21,18 @@ impl Gen {
     pub fn range(&mut self, a: f64, b: f64) -> f64 {
         a + (b - a) * self.unit()
     }
-    pub fn direction(&mut self) -> DVec3 {
+    pub fn direction(&mut self) -> Vec3F64 {
         loop {
-            let v = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+            let v = Vec3F64::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
             let len = v.length();
             if len > 0.1 && len <= 1.0 {
                 return v.scale(1.0 / len);
             }
         }
     }
-    pub fn rotation(&mut self) -> DQuat {
+    pub fn rotation(&mut self) -> QuatF64 {
         let d = self.direction();
-        DQuat::exp(d.scale(self.range(0.0, std::f64::consts::PI)))
+        QuatF64::exp(d.scale(self.range(0.0, std::f64::consts::PI)))
     }
     pub fn coin(&mut self) -> bool {
         self.next_u64() & 1 == 1
@@ -64,12 +64,12 @@ pub fn keys(g: &mut Gen, count: usize, kind: Kind) -> Vec<[f64; 4]> {
             Kind::NearIdentical => 10f64.powf(g.range(-9.0, -6.0)),
             Kind::NearAntipodal => g.range(170f64.to_radians(), 179.9f64.to_radians()),
         };
-        q = q * DQuat::exp(g.direction().scale(angle / 2.0));
+        q = q * QuatF64::exp(g.direction().scale(angle / 2.0));
         let sign = if kind == Kind::SignFlipped && g.coin() { -1.0 } else { 1.0 };
         out.push(q.mul_scalar(sign).to_array());
     }
     if kind == Kind::SignFlipped && g.coin() {
-        out[0] = DQuat::from_array(out[0]).mul_scalar(-1.0).to_array();
+        out[0] = QuatF64::from_array(out[0]).mul_scalar(-1.0).to_array();
     }
     out
 }
@@ -169,7 +169,7 @@ pub fn segment_bounds(batch: &Batch, index: usize) -> Vec<f64> {
 /// quaternion (stencil aligned with q(t)): five-point central differences at `h` and `h/2`
 /// combined by Richardson extrapolation (error O(h^6)), then `W = q^-1 q'`,
 /// `W' = q^-1 q'' - W^2`.
-pub fn finite_difference(curve: impl Fn(f64) -> DQuat, t: f64, h: f64) -> (DVec3, DVec3) {
+pub fn finite_difference(curve: impl Fn(f64) -> QuatF64, t: f64, h: f64) -> (Vec3F64, Vec3F64) {
     let q0 = curve(t);
     let at = |dt: f64| curve(t + dt).aligned_with(q0);
     let stencil = |h: f64| {
@@ -179,7 +179,7 @@ pub fn finite_difference(curve: impl Fn(f64) -> DQuat, t: f64, h: f64) -> (DVec3
         (d1, d2)
     };
     let ((a1, a2), (b1, b2)) = (stencil(h), stencil(h / 2.0));
-    let richardson = |coarse: DQuat, fine: DQuat| (fine.mul_scalar(16.0) - coarse).mul_scalar(1.0 / 15.0);
+    let richardson = |coarse: QuatF64, fine: QuatF64| (fine.mul_scalar(16.0) - coarse).mul_scalar(1.0 / 15.0);
     let (d1, d2) = (richardson(a1, b1), richardson(a2, b2));
     let w = q0.conjugate() * d1;
     let w_dot = q0.conjugate() * d2 - w * w;
@@ -187,13 +187,13 @@ pub fn finite_difference(curve: impl Fn(f64) -> DQuat, t: f64, h: f64) -> (DVec3
 }
 
 /// Derivative of a vector function by Richardson-extrapolated five-point central differences.
-pub fn derivative(f: impl Fn(f64) -> DVec3, t: f64, h: f64) -> DVec3 {
+pub fn derivative(f: impl Fn(f64) -> Vec3F64, t: f64, h: f64) -> Vec3F64 {
     let stencil = |h: f64| (f(t - 2.0 * h) - f(t + 2.0 * h) + (f(t + h) - f(t - h)).scale(8.0)).scale(1.0 / (12.0 * h));
     (stencil(h / 2.0).scale(16.0) - stencil(h)).scale(1.0 / 15.0)
 }
 
 /// DESIGN section 6 relative error: `max|a - b| / max(1, max|b|)`.
-pub fn rel_err(a: DVec3, b: DVec3) -> f64 {
+pub fn rel_err(a: Vec3F64, b: Vec3F64) -> f64 {
     (a - b).max_abs() / b.max_abs().max(1.0)
 }
 

@@ -5,7 +5,7 @@ use crate::common::*;
 use crate::fast::*;
 use quatcurve::cpu::{CpuEvaluator, Isa};
 use quatcurve::FloatOutput;
-use quatcurve::{Batch, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
+use quatcurve::{Batch, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
 use quatcurve::{EvalJob, EvalOptions};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
@@ -138,7 +138,7 @@ fn tracks_longer_than_one_work_piece_and_matrices() {
             let a = &by_track.data[(track * 10_000 + j) * 19..][..19];
             let b = &by_frame.data[(j * 3 + track) * 19..][..19];
             assert_eq!(a, b, "track {track} sample {j}");
-            let m = DQuat::from_array([a[0], a[1], a[2], a[3]].map(f64::from)).to_mat3();
+            let m = QuatF64::from_array([a[0], a[1], a[2], a[3]].map(f64::from)).to_mat3();
             for (got, want) in a[10..].iter().zip(m.iter().flatten()) {
                 assert!((f64::from(*got) - want).abs() < 1e-6, "matrix entry {got} vs {want}");
             }
@@ -261,7 +261,7 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
         .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() }))
         .unwrap();
     for row in out.data.chunks_exact(out.channels) {
-        let m = DQuat::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();
+        let m = QuatF64::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();
         for (r, m) in m.iter().enumerate() {
             for (c, m) in m.iter().enumerate() {
                 assert!((f64::from(row[4 + 3 * r + c]) - m).abs() < 1e-5, "{row:?}");

@@ -4,7 +4,7 @@
 use crate::common::*;
 use quatcurve::FloatOutput;
 use quatcurve::{
-    Batch, BatchBuilder, Curve, CurveSpec, DQuat, DVec3, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Track,
+    Batch, BatchBuilder, Curve, CurveSpec, EvalJob, KnotMode, Layout, QuatF64, SampleTimes, Sampling, Track, Vec3F64,
 };
 
 /// DESIGN section 6: rotation error bar (rad) and derivative relative error bar.
@@ -55,9 +55,9 @@ fn blend_margin(batch: &Batch, track: usize, t: f64) -> f64 {
     let t = t.clamp(k[0], k[k.len() - 1]);
     let i = (0..k.len() - 1).rev().find(|&i| k[i] <= t).unwrap_or(0).min(k.len() - 2);
     let u = (t - k[i]) / (k[i + 1] - k[i]);
-    let v = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
-    let c1 = view.points[i] * DQuat::exp(v(view.coefs[2 * i]).scale(u));
-    let c2 = view.points[i + 1] * DQuat::exp(v(view.coefs[2 * i + 1]).scale(u - 1.0));
+    let v = |c: [f64; 4]| Vec3F64::new(c[0], c[1], c[2]);
+    let c1 = view.points[i] * QuatF64::exp(v(view.coefs[2 * i]).scale(u));
+    let c2 = view.points[i + 1] * QuatF64::exp(v(view.coefs[2 * i + 1]).scale(u - 1.0));
     1.0 + c1.dot(c2)
 }
 
@@ -95,12 +95,12 @@ pub fn compare_output(
             EXCLUDED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             continue;
         }
-        let rot = DQuat::from_array(out.rotations[i]).angle_to(DQuat::from_array(reference.rotations[i]));
+        let rot = QuatF64::from_array(out.rotations[i]).angle_to(QuatF64::from_array(reference.rotations[i]));
         if rot > worst.rotation.0 || rot.is_nan() {
             worst.rotation = (if rot.is_nan() { f64::INFINITY } else { rot }, format!("{label} slot {i}"));
         }
         if derivatives {
-            let a = DVec3::from_array;
+            let a = Vec3F64::from_array;
             let der = rel_err(a(out.angular_velocity[i]), a(reference.angular_velocity[i]))
                 .max(rel_err(a(out.angular_acceleration[i]), a(reference.angular_acceleration[i])));
             if der > worst.derivative.0 || der.is_nan() {
@@ -116,7 +116,7 @@ pub fn compare_output(
 pub fn accurate_track(g: &mut Gen, spec: &CurveSpec, count: usize, kind: Kind) -> Track {
     loop {
         let t = track(g, spec, count, kind);
-        let keys: Vec<DQuat> = t.rotations.iter().map(|&k| DQuat::from_array(k).normalize()).collect();
+        let keys: Vec<QuatF64> = t.rotations.iter().map(|&k| QuatF64::from_array(k).normalize()).collect();
         if keys.windows(2).all(|w| w[0].dot(w[1]).abs() >= 1e-3) {
             return t;
         }
@@ -271,7 +271,7 @@ pub fn long_clip(eval: Eval<'_>) -> Worst {
     let mut q = g.rotation();
     let rotations = (0..count)
         .map(|_| {
-            q = q * DQuat::exp(g.direction().scale(g.range(0.0, 30f64.to_radians()) / 2.0));
+            q = q * QuatF64::exp(g.direction().scale(g.range(0.0, 30f64.to_radians()) / 2.0));
             q.to_array()
         })
         .collect();
@@ -331,9 +331,9 @@ pub fn interp_and_loops(eval: Eval<'_>) -> Worst {
                     let mut t = accurate_track(&mut g, &spec, count, kind);
                     if spec.looping {
                         let sign = if g.coin() { 1.0 } else { -1.0 };
-                        t.rotations[count - 1] = DQuat::from_array(t.rotations[0]).mul_scalar(sign).to_array();
+                        t.rotations[count - 1] = QuatF64::from_array(t.rotations[0]).mul_scalar(sign).to_array();
                     }
-                    let keys: Vec<DQuat> = t.rotations.iter().map(|&k| DQuat::from_array(k).normalize()).collect();
+                    let keys: Vec<QuatF64> = t.rotations.iter().map(|&k| QuatF64::from_array(k).normalize()).collect();
                     if keys.windows(2).all(|w| w[0].dot(w[1]).abs() >= 1e-3) {
                         break t;
                     }

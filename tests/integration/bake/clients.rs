@@ -10,7 +10,7 @@
 use super::{angle, data_dir, stderr};
 use quatcurve::bake::gltf::{self as source, UriPolicy};
 use quatcurve::bake::Property;
-use quatcurve::DQuat;
+use quatcurve::QuatF64;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -207,7 +207,7 @@ fn every_baked_clip_starts_and_ends_on_its_first_and_last_keys() {
                 {
                     let error = match property {
                         Property::Rotation => {
-                            angle(DQuat::from_array(baked_value).normalize(), DQuat::from_array(key).normalize())
+                            angle(QuatF64::from_array(baked_value).normalize(), QuatF64::from_array(key).normalize())
                         }
                         _ => {
                             (0..3).map(|i| (baked_value[i] - key[i]).abs() / key[i].abs().max(1.0)).fold(0.0, f64::max)

@@ -13,7 +13,7 @@ mod textures;
 use assert_cmd::Command;
 use base64::Engine;
 use quatcurve::bake::bvh::{self, BvhChannel};
-use quatcurve::DQuat;
+use quatcurve::QuatF64;
 use std::path::{Path, PathBuf};
 
 fn data_dir() -> Option<PathBuf> {
@@ -140,7 +140,7 @@ fn real_files_bake_to_files_that_read_back() {
 }
 
 /// Angle between two rotations, sign-blind.
-fn angle(a: DQuat, b: DQuat) -> f64 {
+fn angle(a: QuatF64, b: QuatF64) -> f64 {
     a.angle_to(b)
 }
 
@@ -173,7 +173,7 @@ fn baking_at_the_source_rate_reproduces_the_keys_in_the_written_files() {
         assert_eq!(node, node1);
         assert_eq!(t0.len(), t1.len(), "24 Hz keys baked at 24 Hz");
         for (k, b) in keys.iter().zip(baked) {
-            worst = worst.max(angle(DQuat::from_array(k.map(f64::from)), DQuat::from_array(b.map(f64::from))));
+            worst = worst.max(angle(QuatF64::from_array(k.map(f64::from)), QuatF64::from_array(b.map(f64::from))));
         }
     }
     assert!(worst <= 1e-5, "CesiumMan keys reproduced to {worst} rad");
@@ -242,8 +242,8 @@ fn bvh_euler_channels_compose_in_file_order_for_every_axis_order() {
     // (Rx(90) takes y to z, then Rz(90) leaves z alone; x is kept by Rx, then Rz takes it to y).
     let zxy = [BvhChannel::Rotation(2), BvhChannel::Rotation(0), BvhChannel::Rotation(1)];
     let q = bvh::euler_to_quat(&zxy, &[90.0, 90.0, 0.0]);
-    let x = q.rotate(quatcurve::DVec3::new(1.0, 0.0, 0.0)).to_array();
-    let y = q.rotate(quatcurve::DVec3::new(0.0, 1.0, 0.0)).to_array();
+    let x = q.rotate(quatcurve::Vec3F64::new(1.0, 0.0, 0.0)).to_array();
+    let y = q.rotate(quatcurve::Vec3F64::new(0.0, 1.0, 0.0)).to_array();
     for (got, want) in [(x, [0.0, 1.0, 0.0]), (y, [0.0, 0.0, 1.0])] {
         assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-12), "{got:?} vs {want:?}");
     }
@@ -439,7 +439,7 @@ fn the_built_in_crowd_bakes_with_every_curve() {
 }
 
 /// Body angular velocity (rad/s, physical) between consecutive frames of one joint's rotations.
-fn frame_velocities(rotations: &[DQuat], dt: f64) -> Vec<[f64; 3]> {
+fn frame_velocities(rotations: &[QuatF64], dt: f64) -> Vec<[f64; 3]> {
     rotations
         .windows(2)
         .map(|w| {
@@ -492,10 +492,10 @@ fn looping_clips_close_on_their_first_frame_without_a_velocity_jump() {
             }
             let (mut seam, mut inside) = (0.0f64, 0.0f64);
             for joint in 0..joints {
-                let q: Vec<DQuat> = (0..frames)
+                let q: Vec<QuatF64> = (0..frames)
                     .map(|f| {
                         let v = &texture[(f * joints + joint) * 10..][..4];
-                        DQuat::from_xyzw(v[0].into(), v[1].into(), v[2].into(), v[3].into())
+                        QuatF64::from_xyzw(v[0].into(), v[1].into(), v[2].into(), v[3].into())
                     })
                     .collect();
                 if mode == "auto" {

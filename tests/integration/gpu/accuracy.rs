@@ -6,7 +6,7 @@ use crate::fast::*;
 use crate::shared_gpu as gpu;
 use quatcurve::gpu::GpuEvaluator;
 use quatcurve::FloatOutput;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode, Layout, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
 use quatcurve::{EvalJob, EvalOptions};
 
 /// Evaluates `batch` on the GPU and compares with the reference.
@@ -210,7 +210,7 @@ fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
         let (track, j) = if slot < 2_150_000 { (0, slot) } else { (1, slot - 2_150_000) };
         let reference = quatcurve::evaluate(batch.view(track), times.time(track, j)).rotation;
         let q = &out.data[slot * 4..slot * 4 + 4];
-        let got = DQuat::from_xyzw(f64::from(q[0]), f64::from(q[1]), f64::from(q[2]), f64::from(q[3]));
+        let got = QuatF64::from_xyzw(f64::from(q[0]), f64::from(q[1]), f64::from(q[2]), f64::from(q[3]));
         worst = worst.max(got.angle_to(reference));
     }
     assert!(worst <= ROTATION_BAR, "{worst}");

@@ -117,7 +117,7 @@ fn matrix_output_matches_the_rotation() {
         .unwrap();
     assert_eq!(out.channels, 13);
     for row in out.data.chunks_exact(13) {
-        let q = quatcurve::DQuat::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
+        let q = quatcurve::QuatF64::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
         let m = q.to_mat3();
         for r in 0..3 {
             for c in 0..3 {
@@ -145,8 +145,9 @@ fn unsupported_batches_are_errors_naming_the_track() {
 #[test]
 fn knots_closer_than_the_gpu_time_resolution_are_refused() {
     let Some(gpu) = gpu() else { return };
-    let keys: Vec<[f64; 4]> =
-        (0..5).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.1 * f64::from(i), 0.0, 0.0)).to_array()).collect();
+    let keys: Vec<[f64; 4]> = (0..5)
+        .map(|i| quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(0.1 * f64::from(i), 0.0, 0.0)).to_array())
+        .collect();
     let times: Vec<f64> = (0..5).map(|i| 1e-11 * f64::from(i)).collect();
     let mut tiny = quatcurve::Track::from_rotations(keys.clone());
     tiny.times = Some(times);
@@ -246,7 +247,7 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     let software = evaluator.is_software();
     let device = quatcurve::Device::Auto(Box::new(evaluator), quatcurve::cpu::CpuEvaluator::new());
     let keys: Vec<[f64; 4]> = (0..40)
-        .map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.0, 0.0, 0.05 * f64::from(i))).to_array())
+        .map(|i| quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(0.0, 0.0, 0.05 * f64::from(i))).to_array())
         .collect();
     let batch = Batch::from_tracks(&[quatcurve::Track::from_rotations(keys)], &CurveSpec::new(Curve::Bezier)).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(5)).unwrap();
@@ -276,7 +277,7 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     for k in 0..40 {
         let parent = if k == 0 { 0 } else { animation.joints.len() - 1 };
         let mut joint = Joint::at(format!("chain{k}"), Some(parent), [0.05, 0.1, -0.02]);
-        joint.rotation = quatcurve::DQuat::exp(quatcurve::DVec3::new(0.05, -0.1, 0.2)).to_array();
+        joint.rotation = quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(0.05, -0.1, 0.2)).to_array();
         joint.scale = [1.01, 0.99, 1.02];
         animation.joints.push(joint);
     }

@@ -4,7 +4,7 @@
 
 use crate::common::{keys, times, Gen, Kind};
 use quatcurve::analysis::{analyze, nodes, AnalysisError, AnalysisOptions, Metrics};
-use quatcurve::{evaluate, Batch, Curve, CurveSpec, DQuat, DVec3, Device, DeviceChoice, KnotMode, Track};
+use quatcurve::{evaluate, Batch, Curve, CurveSpec, Device, DeviceChoice, KnotMode, QuatF64, Track, Vec3F64};
 
 const INERTIA: [f64; 3] = [1.0, 2.5, 0.7];
 
@@ -49,8 +49,8 @@ fn gauss_legendre(track: &Track, spec: &CurveSpec, inertia: [f64; 3]) -> [f64; 3
     let batch = Batch::from_tracks(std::slice::from_ref(track), spec).unwrap();
     let view = batch.view(0);
     let key_times = track.times.clone().unwrap();
-    let i = DVec3::new(inertia[0], inertia[1], inertia[2]);
-    let mul = |a: DVec3, b: DVec3| DVec3::new(a.x * b.x, a.y * b.y, a.z * b.z);
+    let i = Vec3F64::new(inertia[0], inertia[1], inertia[2]);
+    let mul = |a: Vec3F64, b: Vec3F64| Vec3F64::new(a.x * b.x, a.y * b.y, a.z * b.z);
     let mut sums = [0.0; 3];
     for w in key_times.windows(2) {
         let pieces = 64;
@@ -129,12 +129,12 @@ fn maxima_bound_dense_samples() {
 #[test]
 fn a_constant_speed_slerp_has_no_acceleration_and_a_gyroscopic_torque_only() {
     // Keys 0.4 rad apart about one tilted axis, 0.5 s apart: omega = 0.8 rad/s about the axis.
-    let axis = DVec3::new(1.0, 2.0, 2.0).scale(1.0 / 3.0);
-    let rotations = (0..6).map(|i| DQuat::exp(axis.scale(0.2 * i as f64)).to_array()).collect();
+    let axis = Vec3F64::new(1.0, 2.0, 2.0).scale(1.0 / 3.0);
+    let rotations = (0..6).map(|i| QuatF64::exp(axis.scale(0.2 * i as f64)).to_array()).collect();
     let track = Track { times: Some((0..6).map(|i| 0.5 * i as f64).collect()), ..Track::from_rotations(rotations) };
     let m = one(&track, &spec(Curve::Slerp), &AnalysisOptions { inertia: INERTIA, step: None });
     let omega = axis.scale(0.8);
-    let gyro = omega.cross(DVec3::new(INERTIA[0] * omega.x, INERTIA[1] * omega.y, INERTIA[2] * omega.z));
+    let gyro = omega.cross(Vec3F64::new(INERTIA[0] * omega.x, INERTIA[1] * omega.y, INERTIA[2] * omega.z));
     assert!(m.energy < 1e-20 && m.max_alpha < 1e-9, "{m:?}");
     assert!(relative(m.torque_energy, gyro.dot(gyro) * 2.5) < 1e-9, "{} vs {}", m.torque_energy, gyro.dot(gyro) * 2.5);
     assert!(relative(m.arc_length, 2.0) < 1e-9 && relative(m.max_omega, 0.8) < 1e-9, "{m:?}");
@@ -176,8 +176,8 @@ fn natural_spline_energy(t: &[f64], y: &[f64]) -> f64 {
         .sum()
 }
 
-fn about(axis: DVec3, angles: &[f64], key_times: &[f64]) -> Track {
-    let rotations = angles.iter().map(|&a| DQuat::exp(axis.scale(0.5 * a)).to_array()).collect();
+fn about(axis: Vec3F64, angles: &[f64], key_times: &[f64]) -> Track {
+    let rotations = angles.iter().map(|&a| QuatF64::exp(axis.scale(0.5 * a)).to_array()).collect();
     Track { times: Some(key_times.to_vec()), ..Track::from_rotations(rotations) }
 }
 
@@ -186,7 +186,7 @@ fn one_axis_bspline_interp_energy_is_the_natural_spline_integral() {
     // By hand: angles 0, a, 0 at 0, 1, 2 s give M_1 = -3a, so the energy is 2 * (9 a^2 / 3) = 6 a^2.
     let a = 0.8;
     let m = one(
-        &about(DVec3::new(0.0, 0.0, 1.0), &[0.0, a, 0.0], &[0.0, 1.0, 2.0]),
+        &about(Vec3F64::new(0.0, 0.0, 1.0), &[0.0, a, 0.0], &[0.0, 1.0, 2.0]),
         &spec(Curve::BSplineInterp),
         &AnalysisOptions::default(),
     );
@@ -206,7 +206,7 @@ fn one_axis_bspline_interp_energy_is_the_natural_spline_integral() {
         assert!(relative(m.energy, want) < 1e-7, "seed {seed}: {} vs {want}", m.energy);
         // About a principal axis omega x (I omega) = 0, so tau = Izz theta''.
         let inertia = AnalysisOptions { inertia: [2.0, 3.0, 5.0], step: None };
-        let z = one(&about(DVec3::new(0.0, 0.0, 1.0), &angles, &key_times), &spec(Curve::BSplineInterp), &inertia);
+        let z = one(&about(Vec3F64::new(0.0, 0.0, 1.0), &angles, &key_times), &spec(Curve::BSplineInterp), &inertia);
         assert!(relative(z.torque_energy, 25.0 * want) < 1e-7, "seed {seed}: {} vs {}", z.torque_energy, 25.0 * want);
     }
 }

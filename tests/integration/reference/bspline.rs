@@ -1,7 +1,7 @@
 //! B-spline structure: C^(k-2) continuity across knots, local control, phantom end points.
 
 use crate::common::*;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, KnotMode, Track};
+use quatcurve::{Batch, Curve, CurveSpec, KnotMode, QuatF64, Track, Vec3F64};
 
 fn spec(order: usize, knots: KnotMode) -> CurveSpec {
     CurveSpec { order, knots, ..CurveSpec::new(Curve::BSpline) }
@@ -18,7 +18,7 @@ fn jumps(batch: &Batch, t: f64, h: f64) -> [f64; 4] {
     let r0 = eval(batch, 0, t);
     // Continuous: the angle across the knot equals the angle over the previous step of eps.
     let rot = (l0.rotation.angle_to(r0.rotation) - l1.rotation.angle_to(l0.rotation)).abs();
-    let extrapolate = |a: DVec3, b: DVec3| a.scale(2.0) - b;
+    let extrapolate = |a: Vec3F64, b: Vec3F64| a.scale(2.0) - b;
     let omega = (extrapolate(l0.angular_velocity, l1.angular_velocity) - r0.angular_velocity).max_abs();
     let alpha = (extrapolate(l0.angular_acceleration, l1.angular_acceleration) - r0.angular_acceleration).max_abs();
     // Third derivative from each side: second-order one-sided differences of alpha.
@@ -106,8 +106,8 @@ fn moving_one_control_point_changes_only_its_support() {
                 let base = Batch::from_tracks(std::slice::from_ref(&track), &s).unwrap();
                 let key = 1 + (g.next_u64() as usize) % (count - 2);
                 let mut moved = track.clone();
-                let nudge = DQuat::exp(g.direction().scale(0.05));
-                moved.rotations[key] = (DQuat::from_array(track.rotations[key]) * nudge).to_array();
+                let nudge = QuatF64::exp(g.direction().scale(0.05));
+                moved.rotations[key] = (QuatF64::from_array(track.rotations[key]) * nudge).to_array();
                 let other = Batch::from_tracks(&[moved], &s).unwrap();
                 // Control point index of the key: phantom mode prepends one point.
                 let l = if knots == KnotMode::Phantom { key + 1 } else { key };
@@ -143,7 +143,7 @@ fn phantom_mode_passes_through_the_end_keys_and_approximates_the_rest() {
             let track = track(&mut g, &s, count, kind);
             let batch = Batch::from_tracks(std::slice::from_ref(&track), &s).unwrap();
             let times = track.times.as_ref().unwrap();
-            let keys: Vec<DQuat> = track.rotations.iter().map(|&k| DQuat::from_array(k).normalize()).collect();
+            let keys: Vec<QuatF64> = track.rotations.iter().map(|&k| QuatF64::from_array(k).normalize()).collect();
             let n = count - 1;
             assert!(eval(&batch, 0, times[0]).rotation.angle_to(keys[0]) < 1e-14);
             assert!(eval(&batch, 0, times[n]).rotation.angle_to(keys[n]) < 1e-14);

@@ -5,7 +5,7 @@
 use crate::common::{all_specs, describe, explicit_knots, times, Gen};
 use proptest::prelude::*;
 use quatcurve::euclidean::VectorCurve;
-use quatcurve::{Batch, Curve, DQuat, DVec3, Error, KnotMode, Tangents, Track, TrackId};
+use quatcurve::{Batch, Curve, Error, KnotMode, QuatF64, Tangents, Track, TrackId, Vec3F64};
 
 fn check(seed: u64) -> Result<(), TestCaseError> {
     let mut g = Gen::new(seed);
@@ -24,10 +24,10 @@ fn check(seed: u64) -> Result<(), TestCaseError> {
         let id = TrackId { index: 0, name: None };
         let curve = VectorCurve::new(&id, Some(&times), &values, knots.as_deref(), &spec).unwrap();
         for axis in 0..3 {
-            let unit = DVec3::from_array(std::array::from_fn(|c| if c == axis { 1.0 } else { 0.0 }));
+            let unit = Vec3F64::from_array(std::array::from_fn(|c| if c == axis { 1.0 } else { 0.0 }));
             let track = Track {
                 times: Some(times.clone()),
-                rotations: values.iter().map(|v| DQuat::exp(unit.scale(v[axis])).to_array()).collect(),
+                rotations: values.iter().map(|v| QuatF64::exp(unit.scale(v[axis])).to_array()).collect(),
                 knots: knots.clone(),
                 ..Track::default()
             };

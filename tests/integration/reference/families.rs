@@ -3,7 +3,7 @@
 
 use crate::common::*;
 use proptest::prelude::*;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode};
+use quatcurve::{Batch, Curve, CurveSpec, KnotMode, QuatF64};
 
 /// Key count for a spec: enough for the order, and a small Bezier degree.
 fn key_count(g: &mut Gen, spec: &CurveSpec) -> usize {
@@ -70,7 +70,7 @@ fn check_track(seed: u64, kind: Kind) -> Result<(), TestCaseError> {
         }
 
         // Interpolation where the family promises it.
-        let keys: Vec<DQuat> = track.rotations.iter().map(|&k| DQuat::from_array(k).normalize()).collect();
+        let keys: Vec<QuatF64> = track.rotations.iter().map(|&k| QuatF64::from_array(k).normalize()).collect();
         let times = track.times.clone().unwrap();
         let n = keys.len() - 1;
         let promised: Vec<usize> = match (spec.curve, spec.knots) {

@@ -2,7 +2,7 @@
 //! and end coefficients used as given however large.
 
 use crate::common::*;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Tangents, Track};
+use quatcurve::{Batch, Curve, CurveSpec, QuatF64, Tangents, Track, Vec3F64};
 
 fn given() -> CurveSpec {
     CurveSpec { tangents: Tangents::Given, ..CurveSpec::new(Curve::Hermite) }
@@ -20,8 +20,8 @@ fn reproduces_key_rotations_and_angular_velocities_from_both_sides() {
         let times = track.times.as_ref().unwrap();
         let omegas = track.angular_velocities.as_ref().unwrap();
         for i in 0..count {
-            let key = DQuat::from_array(track.rotations[i]).normalize();
-            let omega = DVec3::from_array(omegas[i]);
+            let key = QuatF64::from_array(track.rotations[i]).normalize();
+            let omega = Vec3F64::from_array(omegas[i]);
             let at = eval(&batch, 0, times[i]);
             assert!(at.rotation.angle_to(key) < 1e-12, "seed {seed} key {i}");
             assert!(
@@ -43,10 +43,10 @@ fn reproduces_key_rotations_and_angular_velocities_from_both_sides() {
 #[test]
 fn end_coefficients_are_used_as_given_even_beyond_a_quarter_turn() {
     // |w_a / 3| = T |omega| / 6 = 3 rad > pi/2: a fold would change the end velocity.
-    let q0 = DQuat::identity();
-    let q1 = DQuat::exp(DVec3::new(0.0, 0.0, 0.4));
-    let omega_a = DVec3::new(18.0, 0.0, 0.0);
-    let omega_b = DVec3::new(0.0, -18.0, 0.0);
+    let q0 = QuatF64::identity();
+    let q1 = QuatF64::exp(Vec3F64::new(0.0, 0.0, 0.4));
+    let omega_a = Vec3F64::new(18.0, 0.0, 0.0);
+    let omega_b = Vec3F64::new(0.0, -18.0, 0.0);
     let track = Track {
         times: Some(vec![0.0, 1.0]),
         rotations: vec![q0.to_array(), q1.to_array()],
@@ -83,7 +83,7 @@ fn extra_turns_change_the_path_but_not_the_ends() {
         let other = 0.5 * (times[0] + times[1]);
         assert_eq!(eval(&base, 0, other), eval(&turned, 0, other));
         // Each turn adds pi along w2's own axis (a full physical turn).
-        let w = |c: [f64; 4]| DVec3::new(c[0], c[1], c[2]);
+        let w = |c: [f64; 4]| Vec3F64::new(c[0], c[1], c[2]);
         let (w_base, w_turn) = (w(base.coefs()[4]), w(turned.coefs()[4]));
         let expected = w_base + w_base.scale(std::f64::consts::PI * turns as f64 / w_base.length());
         assert!((w_turn - expected).length() < 1e-12);

@@ -4,7 +4,7 @@
 
 use crate::common::*;
 use quatcurve::euclidean::VectorCurve;
-use quatcurve::{Batch, Blend, Curve, CurveSpec, DQuat, DVec3, Error, KnotMode, Tangents, Track, TrackId};
+use quatcurve::{Batch, Blend, Curve, CurveSpec, Error, KnotMode, QuatF64, Tangents, Track, TrackId, Vec3F64};
 
 fn interp(looping: bool) -> CurveSpec {
     CurveSpec { looping, ..CurveSpec::new(Curve::BSplineInterp) }
@@ -106,17 +106,17 @@ fn spread_times(g: &mut Gen, count: usize, ratio: f64) -> Vec<f64> {
 }
 
 /// 3D keys: steps of up to `max_deg` degrees about random axes.
-fn steps(g: &mut Gen, count: usize, max_deg: f64) -> Vec<DQuat> {
+fn steps(g: &mut Gen, count: usize, max_deg: f64) -> Vec<QuatF64> {
     let mut q = g.rotation();
     let mut out = vec![q];
     for _ in 1..count {
-        q = q * DQuat::exp(g.direction().scale(g.range(0.0, max_deg.to_radians()) / 2.0));
+        q = q * QuatF64::exp(g.direction().scale(g.range(0.0, max_deg.to_radians()) / 2.0));
         out.push(q);
     }
     out
 }
 
-fn track_of(keys: &[DQuat], times: &[f64]) -> Track {
+fn track_of(keys: &[QuatF64], times: &[f64]) -> Track {
     Track { times: Some(times.to_vec()), ..Track::from_rotations(keys.iter().map(|q| q.to_array()).collect()) }
 }
 
@@ -149,7 +149,7 @@ fn one_axis_equals_the_scalar_natural_and_periodic_splines() {
                 angles[n - 1] = angles[n] - 0.5 * (angles[n] - angles[n - 2]).signum();
             }
         }
-        let keys: Vec<DQuat> = angles.iter().map(|&a| DQuat::exp(axis.scale(a / 2.0))).collect();
+        let keys: Vec<QuatF64> = angles.iter().map(|&a| QuatF64::exp(axis.scale(a / 2.0))).collect();
         if angles.windows(2).any(|w| (w[1] - w[0]).abs() > 175f64.to_radians()) {
             continue;
         }
@@ -160,7 +160,7 @@ fn one_axis_equals_the_scalar_natural_and_periodic_splines() {
             let t = lo + (hi - lo) * i as f64 / 200.0;
             let s = eval(&batch, 0, t);
             let [y, dy, ddy] = scalar.eval(t);
-            let err = s.rotation.angle_to(DQuat::exp(axis.scale(y / 2.0)));
+            let err = s.rotation.angle_to(QuatF64::exp(axis.scale(y / 2.0)));
             assert!(err < 1e-9, "seed {seed} loop {looping}: rotation off the scalar spline by {err:e} at t={t}");
             assert!(
                 rel_err(s.angular_velocity, axis.scale(dy)) < 1e-8,
@@ -177,7 +177,7 @@ fn one_axis_equals_the_scalar_natural_and_periodic_splines() {
 }
 
 /// Body acceleration just left of `t` (the span before) and at `t` (the span after).
-fn alpha_sides(batch: &Batch, t: f64, scale: f64) -> (DVec3, DVec3) {
+fn alpha_sides(batch: &Batch, t: f64, scale: f64) -> (Vec3F64, Vec3F64) {
     (eval(batch, 0, t - 1e-9 * scale).angular_acceleration, eval(batch, 0, t).angular_acceleration)
 }
 
@@ -345,14 +345,14 @@ fn one_axis_loops_equal_their_euclidean_twins() {
             // the rotation blend is the scalar one.
             let times =
                 if uniform { (0..count).map(|i| 0.25 * i as f64).collect() } else { spread_times(&mut g, count, 2.0) };
-            let keys: Vec<DQuat> = angles.iter().map(|&a| DQuat::exp(axis.scale(a / 2.0))).collect();
+            let keys: Vec<QuatF64> = angles.iter().map(|&a| QuatF64::exp(axis.scale(a / 2.0))).collect();
             let batch = build(&track_of(&keys, &times), &spec);
             let values: Vec<[f64; 3]> = angles.iter().map(|&a| [a, 0.0, 0.0]).collect();
             let twin = VectorCurve::new(&TrackId { index: 0, name: None }, Some(&times), &values, None, &spec).unwrap();
             for i in 0..=100 {
                 let t = times[0] + (times[count - 1] - times[0]) * (i as f64 / 100.0 * 1.3 - 0.15);
                 let angle = twin.evaluate(t).x;
-                let err = eval(&batch, 0, t).rotation.angle_to(DQuat::exp(axis.scale(angle / 2.0)));
+                let err = eval(&batch, 0, t).rotation.angle_to(QuatF64::exp(axis.scale(angle / 2.0)));
                 assert!(
                     err < 1e-9,
                     "{} seed {seed}: {err:e} from the Euclidean twin at t={t} times {times:?} angles {angles:?}",
@@ -377,7 +377,7 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
         let open = VectorCurve::new(&id, Some(&times), &values, None, &interp(false)).unwrap();
         let looped = VectorCurve::new(&id, Some(&times), &values, None, &interp(true)).unwrap();
         let n = count - 1;
-        let offset = DVec3::from_array(values[n]) - DVec3::from_array(values[0]);
+        let offset = Vec3F64::from_array(values[n]) - Vec3F64::from_array(values[0]);
         let period = times[n] - times[0];
         for axis in 0..3 {
             let ys: Vec<f64> = values.iter().map(|v| v[axis]).collect();
@@ -385,7 +385,7 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
             let periodic = ScalarSpline::new(&times, &ys, true);
             for i in 0..=50 {
                 let t = times[0] + period * i as f64 / 50.0;
-                let get = |v: DVec3| v.to_array()[axis];
+                let get = |v: Vec3F64| v.to_array()[axis];
                 assert!(
                     (get(open.evaluate(t)) - natural.eval(t)[0]).abs() < 1e-9,
                     "seed {seed}: natural spline at {t}"
@@ -418,7 +418,8 @@ fn vector_interp_is_the_natural_spline_and_loops_keep_their_offset() {
 
 #[test]
 fn loop_errors_name_the_track() {
-    let keys = [DQuat::identity(), DQuat::exp(DVec3::new(0.3, 0.0, 0.0)), DQuat::exp(DVec3::new(0.3, 0.2, 0.0))];
+    let keys =
+        [QuatF64::identity(), QuatF64::exp(Vec3F64::new(0.3, 0.0, 0.0)), QuatF64::exp(Vec3F64::new(0.3, 0.2, 0.0))];
     let track = Track { name: Some("spine".into()), ..track_of(&keys, &[0.0, 1.0, 2.0]) };
     let err = Batch::from_tracks(std::slice::from_ref(&track), &interp(true)).unwrap_err();
     assert!(matches!(err, Error::LoopNotClosed { last: 2, .. }), "{err:?}");
@@ -437,8 +438,8 @@ fn loop_errors_name_the_track() {
         assert!(err.to_string().contains("track 0") && err.to_string().contains("cannot loop"), "{err}");
     }
     // A whole turn closes: q_n = -q_0 is the same rotation.
-    let wheel: Vec<DQuat> =
-        (0..=4).map(|i| DQuat::exp(DVec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_4 * i as f64))).collect();
+    let wheel: Vec<QuatF64> =
+        (0..=4).map(|i| QuatF64::exp(Vec3F64::new(0.0, 0.0, std::f64::consts::FRAC_PI_4 * i as f64))).collect();
     assert!(wheel[4].dot(wheel[0]) < -0.99);
     Batch::from_tracks(&[track_of(&wheel, &[0.0, 1.0, 2.0, 3.0, 4.0])], &interp(true)).unwrap();
 }
@@ -448,10 +449,10 @@ fn loop_errors_name_the_track() {
 /// express, so Newton cannot converge. The error names the track, the worst key and the rule.
 #[test]
 fn non_convergence_is_an_error_naming_the_track_and_key() {
-    let mut keys = vec![DQuat::identity()];
+    let mut keys = vec![QuatF64::identity()];
     for i in 1..8 {
-        let axis = if i % 2 == 0 { DVec3::new(1.0, 0.0, 0.0) } else { DVec3::new(0.0, 1.0, 0.0) };
-        keys.push(*keys.last().unwrap() * DQuat::exp(axis.scale(179f64.to_radians() / 2.0)));
+        let axis = if i % 2 == 0 { Vec3F64::new(1.0, 0.0, 0.0) } else { Vec3F64::new(0.0, 1.0, 0.0) };
+        keys.push(*keys.last().unwrap() * QuatF64::exp(axis.scale(179f64.to_radians() / 2.0)));
     }
     let times = [0.0, 1.0, 1.001, 2.0, 2.001, 3.0, 3.001, 4.0];
     let track = Track { name: Some("jitter".into()), ..track_of(&keys, &times) };

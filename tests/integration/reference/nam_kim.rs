@@ -3,7 +3,7 @@
 
 use crate::common::*;
 use quatcurve::reference::nam_kim_forward_difference;
-use quatcurve::{Batch, Blend, Curve, CurveSpec, DQuat, DVec3, Tangents};
+use quatcurve::{Batch, Blend, Curve, CurveSpec, QuatF64, Tangents, Vec3F64};
 
 #[test]
 fn reproduces_key_rotations_and_angular_velocities() {
@@ -16,8 +16,8 @@ fn reproduces_key_rotations_and_angular_velocities() {
             let times = track.times.as_ref().unwrap();
             for (i, &t) in times.iter().enumerate() {
                 let s = eval(&batch, 0, t);
-                let omega = DVec3::from_array(track.angular_velocities.as_ref().unwrap()[i]);
-                assert!(s.rotation.angle_to(DQuat::from_array(track.rotations[i])) < 1e-12);
+                let omega = Vec3F64::from_array(track.angular_velocities.as_ref().unwrap()[i]);
+                assert!(s.rotation.angle_to(QuatF64::from_array(track.rotations[i])) < 1e-12);
                 assert!(rel_err(s.angular_velocity, omega) < 1e-11, "{blend:?} seed {seed} key {i}");
             }
         }

@@ -5,7 +5,7 @@
 
 use crate::common::Gen;
 use proptest::prelude::*;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, KnotMode, Tangents, Track};
+use quatcurve::{Batch, Curve, CurveSpec, KnotMode, QuatF64, Tangents, Track};
 
 fn de_casteljau(points: &[f64], u: f64) -> f64 {
     let mut p = points.to_vec();
@@ -122,7 +122,7 @@ fn check(seed: u64, spec: CurveSpec) -> Result<(), TestCaseError> {
         // Some keys given with the opposite sign: alignment must undo it.
         rotations: phi
             .iter()
-            .map(|&p| DQuat::exp(axis.scale(p)).mul_scalar(if g.coin() { -1.0 } else { 1.0 }).to_array())
+            .map(|&p| QuatF64::exp(axis.scale(p)).mul_scalar(if g.coin() { -1.0 } else { 1.0 }).to_array())
             .collect(),
         angular_velocities: Some(rates.iter().map(|&r| axis.scale(2.0 * r).to_array()).collect()),
         knots: knots.clone(),
@@ -149,7 +149,7 @@ fn check(seed: u64, spec: CurveSpec) -> Result<(), TestCaseError> {
         let t = lo + (hi - lo) * i as f64 / 200.0;
         let q = quatcurve::evaluate(batch.view(0), t).rotation;
         let scalar = scalar_curve(&spec, &phi, &times, &rates, knots.as_deref(), t);
-        let expected = DQuat::exp(axis.scale(scalar));
+        let expected = QuatF64::exp(axis.scale(scalar));
         let err = q.angle_to(expected);
         prop_assert!(err < 1e-12, "{spec:?}: t={t} off the scalar spline by {err:e} rad");
     }

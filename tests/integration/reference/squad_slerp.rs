@@ -3,7 +3,7 @@
 
 use crate::common::*;
 use glam::DQuat as G;
-use quatcurve::{Batch, Curve, CurveSpec, DQuat, DVec3, Track};
+use quatcurve::{Batch, Curve, CurveSpec, QuatF64, Track, Vec3F64};
 
 /// Half-angle log with glam's full-angle axis-angle: log q = axis * angle / 2.
 fn glam_log(q: G) -> glam::DVec3 {
@@ -70,11 +70,11 @@ fn squad_matches_its_definition_by_hand() {
                 if aux[i].dot(aux[i + 1]) > 0.0 && path.dot(aux_h) > 0.0 {
                     let folded = path.slerp(aux_h, 2.0 * h * (1.0 - h));
                     assert!(
-                        DQuat::from_array(folded.to_array()).angle_to(DQuat::from_array(by_hand.to_array())) < 1e-9
+                        QuatF64::from_array(folded.to_array()).angle_to(QuatF64::from_array(by_hand.to_array())) < 1e-9
                     );
                 }
                 let ours = eval(&batch, 0, t).rotation;
-                let err = ours.angle_to(DQuat::from_xyzw(by_hand.x, by_hand.y, by_hand.z, by_hand.w));
+                let err = ours.angle_to(QuatF64::from_xyzw(by_hand.x, by_hand.y, by_hand.z, by_hand.w));
                 worst = worst.max(err);
                 assert!(err < 1e-9, "seed {seed} segment {i} h {h}: {err:e} rad");
             }
@@ -100,8 +100,8 @@ fn squad_with_two_keys_is_slerp() {
 fn slerp_goes_the_short_way_between_near_antipodal_keys() {
     let spec = CurveSpec::new(Curve::Slerp);
     for degrees in [170.0f64, 179.0, 179.9, 179.999] {
-        let a = DQuat::exp(DVec3::new(0.1, 0.2, 0.3));
-        let step = DQuat::exp(DVec3::new(0.0, 0.0, degrees.to_radians() / 2.0));
+        let a = QuatF64::exp(Vec3F64::new(0.1, 0.2, 0.3));
+        let step = QuatF64::exp(Vec3F64::new(0.0, 0.0, degrees.to_radians() / 2.0));
         // The second key given in the far hemisphere.
         let b = -(a * step);
         let track = Track { rotations: vec![a.to_array(), b.to_array()], ..Track::default() };
@@ -111,7 +111,7 @@ fn slerp_goes_the_short_way_between_near_antipodal_keys() {
         assert!((mid.angle_to(a) - half).abs() < 1e-12, "{degrees}: {}", mid.angle_to(a));
         assert!((mid.angle_to(b) - half).abs() < 1e-12);
         let s = eval(&batch, 0, 0.25);
-        assert!(rel_err(s.angular_velocity, DVec3::new(0.0, 0.0, degrees.to_radians())) < 1e-12);
+        assert!(rel_err(s.angular_velocity, Vec3F64::new(0.0, 0.0, degrees.to_radians())) < 1e-12);
     }
 }
 

@@ -3,7 +3,7 @@
 use quatcurve::{Batch, Curve, CurveSpec, Error, EvalJob, KnotMode, Layout, SampleTimes, Sampling, Tangents, Track};
 
 fn keys(n: usize) -> Vec<[f64; 4]> {
-    (0..n).map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(0.1 * i as f64, 0.0, 0.0)).to_array()).collect()
+    (0..n).map(|i| quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(0.1 * i as f64, 0.0, 0.0)).to_array()).collect()
 }
 
 fn named(rotations: Vec<[f64; 4]>) -> Track {
@@ -218,7 +218,7 @@ fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
         times: Some(times.to_vec()),
         ..Track::from_rotations(
             (0..times.len())
-                .map(|i| quatcurve::DQuat::exp(quatcurve::DVec3::new(turn * i as f64, 0.2, 0.0)).to_array())
+                .map(|i| quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(turn * i as f64, 0.2, 0.0)).to_array())
                 .collect(),
         )
     };
