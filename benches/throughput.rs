@@ -10,6 +10,9 @@
 //!
 //! Run: `cargo bench --bench throughput` (filter with e.g. `-- cpu`).
 
+// criterion_group! generates an undocumented public function.
+#![allow(missing_docs)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use quatcurve::cpu::CpuEvaluator;
 use quatcurve::gpu::GpuEvaluator;

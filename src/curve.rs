@@ -180,7 +180,9 @@ macro_rules! names {
 }
 pub(crate) use names;
 
-names!(Curve, "curve", Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim", BSpline => "bspline", BSplineInterp => "bspline-interp");
+names!(Curve, "curve",
+    Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim",
+    BSpline => "bspline", BSplineInterp => "bspline-interp");
 names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");
 names!(Tangents, "tangent source", CatmullRom => "catmull-rom", Zero => "zero", Given => "given");
 names!(Blend, "blend", Cubic => "cubic", Quadratic => "quadratic");

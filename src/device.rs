@@ -33,7 +33,7 @@ pub enum DeviceError {
     /// The job breaks a rule ([`EvalJob::validate`]: sample lists that do not match the batch,
     /// non-finite sample times, a frame-major layout with unequal sample counts).
     #[error(transparent)]
-    Job(#[from] crate::Error),
+    Job(#[from] crate::error::Error),
     /// The GPU kernel cannot take this batch (a Bezier curve above its degree limit, one
     /// track's keys larger than a storage binding): `auto` hands such a batch to the CPU path.
     #[error("{0}")]

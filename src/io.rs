@@ -14,13 +14,28 @@ use std::path::Path;
 pub enum IoError {
     /// The file could not be opened or read.
     #[error("{path}: cannot read: {source}")]
-    Read { path: String, source: std::io::Error },
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
     /// The file is not valid track JSON.
     #[error("{path}: not a valid track file: {source}")]
-    Parse { path: String, source: serde_json::Error },
+    Parse {
+        /// The file.
+        path: String,
+        /// Why.
+        source: serde_json::Error,
+    },
     /// The output could not be written (nothing is left behind).
     #[error("{path}: cannot write: {source}")]
-    Write { path: String, source: std::io::Error },
+    Write {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
 }
 
 /// Reads a `{"tracks": [...]}` file.
@@ -310,6 +325,7 @@ pub struct TrackResult<'a> {
 
 /// The output JSON document (always track-major).
 #[derive(Debug, Serialize)]
+#[doc(hidden)]
 pub struct ResultFile<'a> {
     /// Curve family name.
     pub curve: &'a str,
@@ -354,6 +370,7 @@ impl<'a> ResultFile<'a> {
 /// A small built-in input so the main command runs with no file: three joints of a
 /// walk-like loop, 9 keys at 4 Hz, swinging up to 70 degrees with a twist.
 #[must_use]
+#[doc(hidden)]
 pub fn demo_tracks() -> Vec<Track> {
     let joints = [("hips", 0.35, 0.0), ("knee", 0.6, 1.1), ("head", 0.15, 2.3)];
     joints

@@ -50,13 +50,17 @@ pub mod interp;
 pub mod io;
 pub mod job;
 pub mod output;
+// Charts, synthetic tracks and the demo input serve the CLI, benches and tests; they are not
+// part of the library's API.
 #[cfg(feature = "plot")]
+#[doc(hidden)]
 pub mod plot;
 pub mod quat;
 pub mod real;
 pub mod reference;
 pub mod sampling;
 pub(crate) mod segment;
+#[doc(hidden)]
 pub mod synthetic;
 pub mod track;
 

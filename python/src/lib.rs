@@ -51,7 +51,10 @@ fn rows<'a, const N: usize>(data: &'a [f64], per_track: usize, track: usize) -> 
 /// `[tracks, m, 4]`, or `[tracks, m, 10]` with derivatives (rotation, body omega, alpha):
 /// float64 from the reference, float32 from the fast paths. See `quatcurve.evaluate`.
 #[pyfunction]
-#[pyo3(signature = (rotations, times, sample_times, rate, samples, curve, order, knots, tangents, blend, looping, angular_velocities, derivatives, device))]
+#[pyo3(signature = (
+    rotations, times, sample_times, rate, samples, curve, order, knots, tangents, blend, looping,
+    angular_velocities, derivatives, device
+))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate_batch<'py>(
     py: Python<'py>,
@@ -145,7 +148,10 @@ enum Samples {
 /// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
 /// `resumed`, `failed`), `error`, `files` and `warnings`. See `quatcurve.bake`.
 #[pyfunction]
-#[pyo3(signature = (inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device))]
+#[pyo3(signature = (
+    inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas,
+    preview, characters, shard, resume, jobs, allow_external_uris, device
+))]
 #[allow(clippy::too_many_arguments)]
 fn bake_files<'py>(
     py: Python<'py>,

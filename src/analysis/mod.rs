@@ -58,7 +58,8 @@ pub enum AnalysisError {
     #[error("the integration step must be a finite positive time, got {0}")]
     BadStep(f64),
     /// The step asks for more than [`MAX_NODES_PER_TRACK`] samples of one track.
-    #[error("{track}: a step of {} s needs {nodes} samples over its domain, more than {MAX_NODES_PER_TRACK}; give a larger step", Number(*.step))]
+    #[error("{track}: a step of {} s needs {nodes} samples over its domain, more than {MAX_NODES_PER_TRACK}; give a \
+        larger step", Number(*.step))]
     TooManyNodes {
         /// The track, as messages name it.
         track: String,
@@ -69,7 +70,7 @@ pub enum AnalysisError {
     },
     /// The tracks or sample times break a rule of the builder (named track and key).
     #[error(transparent)]
-    Keys(#[from] crate::Error),
+    Keys(#[from] crate::error::Error),
     /// The device rejected the job or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),

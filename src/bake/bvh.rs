@@ -177,7 +177,14 @@ fn parse_joint<'a>(
     axes.sort_unstable();
     axes.dedup();
     if !matches!(listed, 0 | 1 | 3) || axes.len() != listed {
-        return Err(bad(line, format!("joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 distinct axes are supported", axes.len())));
+        return Err(bad(
+            line,
+            format!(
+                "joint {name} has {listed} rotation channels about {} distinct axes; 0, 1 or 3 \
+            distinct axes are supported",
+                axes.len()
+            ),
+        ));
     }
     Ok(BvhJoint { name: name.to_string(), parent, offset, channels })
 }

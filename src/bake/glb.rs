@@ -297,7 +297,10 @@ pub(super) fn write(
     pad(&mut bin, 4);
     let (keys_view, keys_start) = (views.len(), bin.len());
     let mut push = |bin: &mut Vec<u8>, data: &[f32], kind: &str, count: usize, bounds: Option<(f32, f32)>| -> usize {
-        let mut accessor = json!({"bufferView": keys_view, "byteOffset": bin.len() - keys_start, "componentType": 5126, "count": count, "type": kind});
+        let mut accessor = json!({
+            "bufferView": keys_view, "byteOffset": bin.len() - keys_start,
+            "componentType": 5126, "count": count, "type": kind,
+        });
         bin.extend(data.iter().flat_map(|v| v.to_le_bytes()));
         if let Some((min, max)) = bounds {
             accessor["min"] = json!([min]);

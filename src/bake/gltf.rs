@@ -115,7 +115,8 @@ fn check_magic(bytes: &[u8]) -> Result<(), InputError> {
     .find(|(magic, _)| bytes.starts_with(magic))
     .map_or("", |(_, what)| what);
     Err(input(format!(
-        "not a glTF file: a GLB starts with the bytes '{}' and glTF JSON with '{{', but this file starts with {}{looks}",
+        "not a glTF file: a GLB starts with the bytes '{}' and glTF JSON with '{{', but this file starts with \
+            {}{looks}",
         String::from_utf8_lossy(GLB_MAGIC),
         if head.is_empty() { "nothing (it is empty)".to_string() } else { head.join(" ") }
     )))
@@ -296,7 +297,11 @@ fn validate(root: &gltf::json::Root) -> Result<(), InputError> {
                         Checked::Valid(semantic) => semantic.to_string(),
                         Checked::Invalid => "?".into(),
                     };
-                    return Err(input(format!("not a valid glTF file: meshes[{m}].primitives[{p}].attributes.{name}: accessor {} does not exist", index.value())));
+                    return Err(input(format!(
+                        "not a valid glTF file: meshes[{m}].primitives[{p}].attributes.{name}: \
+                        accessor {} does not exist",
+                        index.value()
+                    )));
                 }
             }
         }
@@ -419,7 +424,10 @@ fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String>
         return base64::engine::general_purpose::STANDARD.decode(data).map_err(|e| format!("bad base64: {e}"));
     }
     let refuse = |why: &str| {
-        format!("{why}; only data URIs and relative paths inside the file's directory are read (the bake option to allow external URIs reads it anyway)")
+        format!(
+            "{why}; only data URIs and relative paths inside the file's directory are read (the bake option to \
+            allow external URIs reads it anyway)"
+        )
     };
     let (path, external) = match uri.strip_prefix("file://") {
         Some(rest) => (percent_decode(rest)?, true),
@@ -479,7 +487,7 @@ fn percent_decode(uri: &str) -> Result<String, String> {
 
 impl GltfFile {
     /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames, and
-    /// nothing left that only the replaced keys used ([`super::glb`]).
+    /// nothing left that only the replaced keys used (DESIGN section 5b, "Baked glTF").
     ///
     /// # Errors
     /// [`InputError::Animation`] if the GLB would exceed 4 GiB.

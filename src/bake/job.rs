@@ -123,9 +123,10 @@ impl BakeJob {
         let s = &self.spec;
         serde_json::json!({
             "curve": s.curve.name(), "order": s.order, "knots": s.knots.name(), "tangents": s.tangents.name(),
-            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "exact_rate": self.exact_rate, "device": self.device.name(),
-            "allow_external_uris": self.allow_external_uris, "characters": self.characters,
-            "texture": self.texture.name(), "precision": self.precision.name(), "atlas": self.atlas, "preview": self.preview,
+            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "exact_rate": self.exact_rate,
+            "device": self.device.name(), "allow_external_uris": self.allow_external_uris,
+            "characters": self.characters, "texture": self.texture.name(), "precision": self.precision.name(),
+            "atlas": self.atlas, "preview": self.preview,
         })
     }
 

@@ -20,17 +20,22 @@ pub struct Manifest {
     pub options: serde_json::Value,
     /// The machine's host name, where known.
     pub host: Option<String>,
-    /// Seconds since the Unix epoch when the run started and when this was written.
+    /// Seconds since the Unix epoch when the run started.
     pub started: u64,
+    /// Seconds since the Unix epoch when this was written.
     pub updated: u64,
     /// This shard's inputs, in job order.
     pub inputs: Vec<InputRecord>,
 }
 
+/// Which share of the job ran ([`crate::bake::Shard`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ShardRecord {
+    /// This shard's index, from 0.
     pub index: usize,
+    /// Shards in the job.
     pub count: usize,
+    /// Where the numbers came from (`--shard`, a scheduler's variables).
     pub source: String,
 }
 
@@ -39,24 +44,32 @@ pub struct ShardRecord {
 pub struct InputRecord {
     /// As given or found (the built-in crowd: `built-in crowd`).
     pub path: String,
+    /// The input's size in bytes.
     pub size: u64,
+    /// The input's SHA-256, lowercase hex.
     pub sha256: String,
     /// `ok`, `resumed` (outputs of an earlier run verified and kept) or `failed`.
     pub status: String,
+    /// Why it failed.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub error: Option<String>,
     /// The report's warnings (probably broken source keys, unbaked clip ends).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub warnings: Vec<String>,
+    /// Wall time of reading, baking and writing it.
     pub seconds: f64,
+    /// The files it wrote (or kept, resumed).
     pub outputs: Vec<FileRecord>,
 }
 
 /// A file by name (inside the output directory), size and SHA-256.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FileRecord {
+    /// Its name in the output directory.
     pub file: String,
+    /// Its size in bytes.
     pub size: u64,
+    /// Its SHA-256, lowercase hex.
     pub sha256: String,
 }
 

@@ -215,7 +215,9 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
             let steps: Vec<(usize, f64)> = angles.enumerate().filter(|&(_, a)| a > limit).collect();
             let Some(&(first, angle)) = steps.first() else { continue };
             warnings.push(format!(
-                "{}: {} step{} between consecutive keys turn{} more than {SOURCE_STEP_WARNING_DEGREES} degrees (probably broken source data, smoothed by the curve); the first is key {first} to key {} at {} s, {} degrees",
+                "{}: {} step{} between consecutive keys turn{} more than {SOURCE_STEP_WARNING_DEGREES} degrees \
+                    (probably broken source data, smoothed by the curve); the first is key {first} to key {} at {} \
+                    s, {} degrees",
                 animation.label(clip, channel),
                 steps.len(),
                 if steps.len() == 1 { "" } else { "s" },
@@ -360,7 +362,8 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
             }
             if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
                 return Err(E::Animation(format!(
-                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key is {} rad from its first (at most {})",
+                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
+                        is {} rad from its first (at most {})",
                     animation.label(clip, c),
                     crate::error::Number(angle),
                     crate::error::Number(crate::batch::LOOP_TOLERANCE)
@@ -372,8 +375,8 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
 }
 
 /// Most samples (frames times channels plus frames times joints for the texture, over all
-/// clips) one input may bake: 2 GiB as f32 rotations. Key times come from the file, so a crafted clip could otherwise ask for any
-/// amount of memory (two keys a year apart at 30 Hz are a billion frames per channel).
+/// clips) one input may bake: 2 GiB as f32 rotations. Key times come from the file, so a
+/// crafted clip could otherwise ask for any amount of memory (two keys a year apart at 30 Hz are a billion frames per channel).
 pub const MAX_BAKE_SAMPLES: usize = 1 << 27;
 
 /// How far past the clip's end (in frames) a last frame is still kept at an exact rate
@@ -491,7 +494,7 @@ pub fn bake(
         return Ok(baked);
     }
     // ChannelWork on every core (bspline-interp solves a system per track).
-    let batch = crate::Batch::from_tracks_each(&tracks, |i| specs[i])?;
+    let batch = crate::batch::Batch::from_tracks_each(&tracks, |i| specs[i])?;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
     let clips = &baked.clips;
@@ -537,7 +540,8 @@ fn plan_clips(
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
             return Err(E::Animation(format!(
-                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
+                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input \
+                    past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
                 clip.name,
                 crate::error::Number(end - start),
                 crate::error::Number(frames - 1.0),
@@ -610,7 +614,7 @@ enum ChannelWork {
 /// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
 /// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
 /// per key.
-fn key_error(tracks: &[Track], batch: &crate::Batch, device: &Device) -> Result<f64, InputError> {
+fn key_error(tracks: &[Track], batch: &crate::batch::Batch, device: &Device) -> Result<f64, InputError> {
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
     let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
     let (out, _) = device.evaluate_f32(&EvalJob::new(batch, &times))?;
@@ -645,9 +649,12 @@ fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 
     } else if value.iter().all(|v| v.is_finite()) {
         value
     } else {
-        return Err(
-            crate::Error::NonFiniteValue { track: id.clone(), key: 0, value: [value[0], value[1], value[2]] }.into()
-        );
+        return Err(crate::error::Error::NonFiniteValue {
+            track: id.clone(),
+            key: 0,
+            value: [value[0], value[1], value[2]],
+        }
+        .into());
     };
     Ok(vec![value.map(|v| v as f32); frames])
 }

@@ -105,7 +105,8 @@ pub(super) fn unbaked_ends(animation: &Animation, baked: &Baked) -> Vec<String> 
         .map(|(clip, b)| {
             let last = b.times[b.times.len() - 1];
             format!(
-                "clip '{}': at exactly {} Hz the last frame is at {} s, so the last {} s before its last key at {} s are not baked (fit the rate to keep them)",
+                "clip '{}': at exactly {} Hz the last frame is at {} s, so the last {} s before its last key at {} \
+                    s are not baked (fit the rate to keep them)",
                 clip.name,
                 number(b.rate),
                 number(last),

@@ -59,7 +59,10 @@ impl Shard {
         for (scheduler, index_var, min_var, count_var) in schedulers {
             let Some(index) = env(index_var) else { continue };
             let count = env(count_var).ok_or_else(|| {
-                bad(format!("{scheduler}: {index_var} is set but {count_var} is not; set it to the number of array tasks (or give the shard as I/N)"))
+                bad(format!(
+                    "{scheduler}: {index_var} is set but {count_var} is not; set it to the number of array \
+                    tasks (or give the shard as I/N)"
+                ))
             })?;
             let mut index = number(index_var, &index)?;
             let mut source = format!("{scheduler}: {index_var}");

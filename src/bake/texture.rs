@@ -295,7 +295,7 @@ pub fn model_on(
         Device::Gpu(g) | Device::Auto(g, _) => {
             let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
             g.forward_kinematics(&parents, order, local)
-                .map_err(|e| InputError::Device(crate::DeviceError::Device(format!("forward kinematics: {e}"))))
+                .map_err(|e| InputError::Device(crate::device::DeviceError::Device(format!("forward kinematics: {e}"))))
         }
         Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
     }

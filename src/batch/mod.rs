@@ -204,7 +204,7 @@ impl Batch {
     /// Builds a batch of `tracks`, all with the same curve `spec`.
     ///
     /// # Errors
-    /// The first rule broken, naming the track and key ([`Error`]).
+    /// The first rule broken, naming the track and key ([`crate::error::Error`]).
     pub fn from_tracks(tracks: &[Track], spec: &CurveSpec) -> Result<Self> {
         Self::from_tracks_each(tracks, |_| *spec)
     }
@@ -213,7 +213,7 @@ impl Batch {
     /// open clips).
     ///
     /// # Errors
-    /// The first rule broken, naming the track and key ([`Error`]).
+    /// The first rule broken, naming the track and key ([`crate::error::Error`]).
     pub fn from_tracks_each(tracks: &[Track], spec: impl Fn(usize) -> CurveSpec + Sync) -> Result<Self> {
         let mut builder = BatchBuilder::new();
         builder.extend(tracks, spec)?;

@@ -19,7 +19,13 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     key_rate: Option<f64>,
     /// Curves to compare, comma-separated; ratios are to squad (Shoemake's curve) when listed.
-    #[arg(long, value_delimiter = ',', default_value = "bspline-interp,hermite,squad,nam-kim,slerp", value_parser = names::<Curve>(), conflicts_with = "paper")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "bspline-interp,hermite,squad,nam-kim,slerp",
+        value_parser = names::<Curve>(),
+        conflicts_with = "paper"
+    )]
     curves: Vec<Curve>,
     /// Periodic curves (as eval --loop): the seam counts as a joint.
     #[arg(long = "loop", conflicts_with = "paper")]
@@ -251,7 +257,8 @@ fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> R
 fn write_paper(w: &mut dyn Write, setup: &PaperSetup, device: &Device, tables: &[RegimeTable]) -> std::io::Result<()> {
     writeln!(
         w,
-        "KKS section 6.1 rerun: {} random sequences per regime, {} keys 1 s apart, seed {}, inertia {:?}, derivatives on {}, Simpson step {}",
+        "KKS section 6.1 rerun: {} random sequences per regime, {} keys 1 s apart, seed {}, inertia {:?}, \
+            derivatives on {}, Simpson step {}",
         setup.sequences,
         setup.keys,
         setup.seed,

@@ -1,7 +1,7 @@
 //! The fast CPU path: f32, eight samples per SIMD group (module `lanes`, on the lane type
 //! [`Isa`] names, chosen at run time), tracks spread over all cores with rayon; runs of short
 //! tracks share groups across track ends (module `runs`). It evaluates the same packed
-//! [`crate::Batch`] as the reference and the GPU and returns the same [`FloatOutput`] as the
+//! [`crate::batch::Batch`] as the reference and the GPU and returns the same [`FloatOutput`] as the
 //! GPU.
 //!
 //! What is vectorized: every family's rotation, eight samples per group. Slerp, cubic
@@ -48,7 +48,7 @@ struct Task {
 
 impl Task {
     /// The samples of `track` (one of the task's) that the task evaluates.
-    fn samples(&self, track: usize, times: &crate::SampleTimes) -> std::ops::Range<usize> {
+    fn samples(&self, track: usize, times: &crate::sampling::SampleTimes) -> std::ops::Range<usize> {
         self.piece.clone().unwrap_or(0..times.count(track))
     }
 }
@@ -56,7 +56,7 @@ impl Task {
 /// The batch's samples in tasks of about [`TASK_SAMPLES`] samples, in output order. A few per
 /// [`TASK_SAMPLES`] samples, not one per track: a million 10-sample tracks are not a million tasks,
 /// nor 40 MB of task list and output slices.
-fn tasks(times: &crate::SampleTimes) -> Vec<Task> {
+fn tasks(times: &crate::sampling::SampleTimes) -> Vec<Task> {
     let tracks = times.tracks().len();
     let mut tasks = Vec::with_capacity(times.total() / TASK_SAMPLES + 1);
     let mut i = 0;
@@ -123,7 +123,7 @@ impl CpuEvaluator {
     }
 
     /// Evaluates every track of `job` at its sample times: `samples x channels` floats, each
-    /// sample a [`crate::Row`] (the GPU's layout).
+    /// sample a [`crate::output::Row`] (the GPU's layout).
     ///
     /// # Errors
     /// As [`EvalJob::validate`].
@@ -138,7 +138,7 @@ impl CpuEvaluator {
     /// which cost as much as the arithmetic for large batches.
     ///
     /// # Errors
-    /// As [`EvalJob::validate`], and [`crate::Error::BadJob`] for a buffer of the wrong size.
+    /// As [`EvalJob::validate`], and [`crate::error::Error::BadJob`] for a buffer of the wrong size.
     pub fn evaluate_into(&self, job: &EvalJob<'_>, data: &mut [f32]) -> Result<()> {
         job.validate()?;
         let EvalJob { batch, times, options } = *job;

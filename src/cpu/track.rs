@@ -14,7 +14,7 @@ use crate::reference;
 use crate::sampling::SampleTimes;
 use std::ops::Range;
 
-/// Evaluates samples `range` of track `index` into `out` (`range.len()` [`crate::Row`]s).
+/// Evaluates samples `range` of track `index` into `out` (`range.len()` [`crate::output::Row`]s).
 pub fn evaluate(
     shared: &Shared<'_>,
     view: TrackView<'_>,

@@ -206,17 +206,48 @@ pub enum PackError {
     #[error(
         "{track}: its keys need {bytes} bytes in one GPU binding, more than the device's {limit}; use the cpu device"
     )]
-    TrackTooLarge { track: String, bytes: u64, limit: u64 },
+    TrackTooLarge {
+        /// The track, by index and name.
+        track: String,
+        /// Bytes it would take.
+        bytes: u64,
+        /// The binding limit (bytes).
+        limit: u64,
+    },
     /// A Bezier degree beyond the shader's fixed arrays.
     #[error("{track}: Bezier degree {degree} is above the GPU limit of {max}; use the cpu or reference device")]
-    BezierTooLong { track: String, degree: usize, max: usize },
+    BezierTooLong {
+        /// The track, by index and name.
+        track: String,
+        /// The track's degree.
+        degree: usize,
+        /// The most allowed.
+        max: usize,
+    },
     /// Too many samples in one track for exact in-shader time generation.
     #[error("{track}: {count} samples is more than the GPU limit of {max} per track")]
-    TooManySamples { track: String, count: usize, max: usize },
+    TooManySamples {
+        /// The track, by index and name.
+        track: String,
+        /// Its samples.
+        count: usize,
+        /// The most allowed.
+        max: usize,
+    },
     /// Two distinct knots (key times) that the kernel's 32.32 fixed-point times cannot tell
     /// apart: the span between them would have zero length there (NaN samples).
-    #[error("{track}: knots {knot} and {next} are {gap:e} s apart, closer than the GPU's time resolution of {resolution:e} s; use the cpu device", next = knot + 1)]
-    KnotsTooClose { track: String, knot: usize, gap: f64, resolution: f64 },
+    #[error("{track}: knots {knot} and {next} are {gap:e} s apart, closer than the GPU's time resolution of \
+        {resolution:e} s; use the cpu device", next = knot + 1)]
+    KnotsTooClose {
+        /// The track, by index and name.
+        track: String,
+        /// The knot's index.
+        knot: usize,
+        /// The distance between the two knots (s).
+        gap: f64,
+        /// The smallest distance the kernel resolves (s).
+        resolution: f64,
+    },
 }
 
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.

@@ -131,3 +131,25 @@ fn inside_a_directory_no_file_uses_a_module_listed_after_it() {
     }
     assert_eq!(checked, 5, "expected the orders of cpu/, gpu/, batch/, interp/ and bake/");
 }
+
+#[test]
+fn modules_import_from_the_module_that_defines_an_item_not_the_crate_root() {
+    let src = root().join("src");
+    let mut through_root = Vec::new();
+    for file in sources(&src) {
+        let relative = file.strip_prefix(&src).unwrap();
+        let top = relative.components().next().unwrap().as_os_str().to_str().unwrap().trim_end_matches(".rs");
+        if matches!(top, "lib" | "main" | "cli") {
+            continue; // the root re-exports, and the front end uses the re-exports
+        }
+        for (n, line) in std::fs::read_to_string(&file).unwrap().lines().enumerate() {
+            // `crate::Batch` (a re-export), not `crate::batch::Batch`.
+            let root_item =
+                after(line, "crate::").iter().any(|name| name.starts_with(|c: char| c.is_ascii_uppercase()));
+            if root_item || code(line).contains("crate::{") {
+                through_root.push(format!("src/{}:{}: {}", relative.display(), n + 1, line.trim()));
+            }
+        }
+    }
+    assert!(through_root.is_empty(), "imports through the crate root's re-exports:\n{}", through_root.join("\n"));
+}

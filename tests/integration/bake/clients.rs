@@ -84,7 +84,8 @@ fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
     if !installed {
         assert!(
             std::env::var("QUATCURVE_REQUIRE_VALIDATOR").as_deref() != Ok("1"),
-            "QUATCURVE_REQUIRE_VALIDATOR=1 but the glTF validator is not installed: npm ci --prefix tests/gltf-validator (needs node)"
+            "QUATCURVE_REQUIRE_VALIDATOR=1 but the glTF validator is not installed: npm ci --prefix \
+                tests/gltf-validator (needs node)"
         );
         eprintln!("skipped: the glTF validator is not installed (npm ci --prefix tests/gltf-validator)");
         return None;
@@ -275,7 +276,13 @@ fn a_baked_glb_keeps_nothing_that_only_the_replaced_keys_used() {
                 (std::fs::metadata(&original).unwrap().len(), std::fs::metadata(&path).unwrap().len());
             // Up to 3 bytes of padding for each of the two chunks, and up to 15 before the keys.
             let bound = size_before - replaced + new + 21;
-            assert!(size_after <= bound, "{file} ({} at {} Hz): {size_after} bytes, more than the original's {size_before} - {replaced} replaced + {new} new + 21 padding = {bound}", bake.curve, bake.rate);
+            assert!(
+                size_after <= bound,
+                "{file} ({} at {} Hz): {size_after} bytes, more than the original's \
+                {size_before} - {replaced} replaced + {new} new + 21 padding = {bound}",
+                bake.curve,
+                bake.rate
+            );
             // Everything else is kept: as many accessors and views as the original has, less
             // the replaced ones, plus the new ones.
             let count = |doc: &serde_json::Value, key: &str| doc[key].as_array().map_or(0, Vec::len);

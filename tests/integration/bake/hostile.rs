@@ -14,7 +14,8 @@ fn quatcurve(args: &[&str]) -> std::process::Output {
     Command::cargo_bin("quatcurve").unwrap().args(args).output().unwrap()
 }
 
-const BVH_HEAD: &str = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\n";
+const BVH_HEAD: &str = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n End \
+    Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\n";
 
 #[test]
 fn bvh_counts_are_checked_against_the_text_before_any_allocation() {

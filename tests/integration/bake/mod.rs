@@ -356,7 +356,8 @@ fn bad_inputs_exit_2_naming_file_clip_channel_and_key_and_leave_nothing() {
         png,
         &["picture.glb", "not a glTF file", "starts with 89 50 4e 47 0d 0a 1a 0a (a PNG image)"],
     );
-    let bvh_text = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n";
+    let bvh_text = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation \
+        Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n";
     let good = "0 0 0 0 0 0\n0 0 0 10 0 0\n";
     assert_rejected(
         "nan.bvh",

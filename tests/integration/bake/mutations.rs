@@ -46,24 +46,41 @@ fn seeds() -> &'static [Seed] {
             seed(
                 "tiny.bvh",
                 Kind::Bvh,
-                b"HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n JOINT Leg\n {\n  OFFSET 0 -1 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 -1 0\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n0 1 0 0 0 0 0 0 0\n0 1 0 10 5 0 20 0 0\n0 1 0 0 0 0 0 0 0\n"
+                b"HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation \
+                    Xrotation Yrotation\n JOINT Leg\n {\n  OFFSET 0 -1 0\n  CHANNELS 3 Zrotation Xrotation \
+                    Yrotation\n  End Site\n  {\n   OFFSET 0 -1 0\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n0 \
+                    1 0 0 0 0 0 0 0\n0 1 0 10 5 0 20 0 0\n0 1 0 0 0 0 0 0 0\n"
                     .to_vec(),
             ),
-            seed("demo.json", Kind::Tracks, serde_json::to_vec(&TrackFile { tracks: quatcurve::io::demo_tracks() }).unwrap()),
+            seed(
+                "demo.json",
+                Kind::Tracks,
+                serde_json::to_vec(&TrackFile { tracks: quatcurve::io::demo_tracks() }).unwrap(),
+            ),
             seed("walk.npy", Kind::Npy, {
                 let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3, 4), }";
                 let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
                 bytes.extend(((header.len() + 1) as u16).to_le_bytes());
                 bytes.extend(header.as_bytes());
                 bytes.push(b'\n');
-                bytes.extend([0.0f32, 0.0, 0.0, 1.0, 0.1, 0.0, 0.0, 0.995, 0.2, 0.0, 0.0, 0.98].repeat(2).iter().flat_map(|v| v.to_le_bytes()));
+                bytes.extend(
+                    [0.0f32, 0.0, 0.0, 1.0, 0.1, 0.0, 0.0, 0.995, 0.2, 0.0, 0.0, 0.98]
+                        .repeat(2)
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes()),
+                );
                 bytes
             }),
         ];
         if let Some(data) = data_dir() {
             let fox = std::fs::read(data.join("Fox.glb")).unwrap();
             let glb = ::gltf::binary::Glb::from_slice(&fox).unwrap();
-            seeds.push(Seed { name: "Fox.glb json", kind: Kind::GlbJson, bytes: glb.json.to_vec(), bin: glb.bin.unwrap().to_vec() });
+            seeds.push(Seed {
+                name: "Fox.glb json",
+                kind: Kind::GlbJson,
+                bytes: glb.json.to_vec(),
+                bin: glb.bin.unwrap().to_vec(),
+            });
             seeds.push(seed("Fox.glb", Kind::Gltf, fox));
             seeds.push(seed("SimpleSkin.gltf", Kind::Gltf, std::fs::read(data.join("SimpleSkin.gltf")).unwrap()));
             // The first 40 frames of a CMU clip (all 31 joints), for speed.
@@ -71,7 +88,11 @@ fn seeds() -> &'static [Seed] {
             let (head, motion) = text.split_at(text.find("MOTION").unwrap());
             let lines: Vec<&str> = motion.lines().collect();
             let frames = lines[3..43].join("\n");
-            seeds.push(seed("cmu_131_01.bvh head", Kind::Bvh, format!("{head}MOTION\nFrames: 40\n{}\n{frames}\n", lines[2]).into_bytes()));
+            seeds.push(seed(
+                "cmu_131_01.bvh head",
+                Kind::Bvh,
+                format!("{head}MOTION\nFrames: 40\n{}\n{frames}\n", lines[2]).into_bytes(),
+            ));
         }
         seeds
     })

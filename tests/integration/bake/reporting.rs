@@ -145,7 +145,10 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
         assert!((clip["rate"].as_f64().unwrap() - rate).abs() < 1e-5, "exact rate {exact}: {clip}");
         let (shape, _) = read_npy(&out.join("walk.0.npy"));
         assert_eq!(shape[0], frames as u64);
-        let warned = message.contains("clip 'wave': at exactly 10 Hz the last frame is at 1 s, so the last 0.07 s before its last key at 1.07 s are not baked");
+        let warned = message.contains(
+            "clip 'wave': at exactly 10 Hz the last frame is at 1 s, so the last 0.07 s \
+            before its last key at 1.07 s are not baked",
+        );
         assert_eq!(warned, exact, "{message}");
     }
     // CesiumMan's walk (2 s) at 30 Hz ends on its last key.

@@ -119,7 +119,11 @@ fn moving_one_control_point_changes_only_its_support() {
                     let t = lo + (hi - lo) * i as f64 / 400.0;
                     let diff = eval(&base, 0, t).rotation.angle_to(eval(&other, 0, t).rotation);
                     if t < support_lo - 1e-9 || t > support_hi + 1e-9 {
-                        assert_eq!(diff, 0.0, "order {order} {knots:?}: key {key} moved the curve at t={t}, outside [{support_lo}, {support_hi}]");
+                        assert_eq!(
+                            diff, 0.0,
+                            "order {order} {knots:?}: key {key} moved the curve at t={t}, outside \
+                            [{support_lo}, {support_hi}]"
+                        );
                     } else if diff > 1e-6 {
                         changed_inside = true;
                     }
