@@ -67,7 +67,7 @@ pub struct BakeArgs {
     characters: usize,
     /// Bake only this share of the inputs, I/N (0-based): inputs sorted by path, file k
     /// belongs to shard k mod N. Without it, the array index Slurm, Kubernetes, AWS Batch or
-    /// Google Batch sets (README "Large jobs"); else the whole job.
+    /// Google Batch sets (docs/SCALE-OUT.md); else the whole job.
     #[arg(long, value_name = "I/N")]
     shard: Option<String>,
     /// Skip inputs that this shard's manifest records as baked with the same options from
