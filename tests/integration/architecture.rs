@@ -58,6 +58,26 @@ fn after<'a>(line: &'a str, prefix: &str) -> Vec<&'a str> {
         .collect()
 }
 
+/// Every line of every library file under `src/` outside the crate root and the front end
+/// (which may use everything): (the file relative to `src/`, its top-level module, line
+/// number from 1, the line).
+fn library_lines() -> Vec<(PathBuf, String, usize, String)> {
+    let src = root().join("src");
+    let mut lines = Vec::new();
+    for file in sources(&src) {
+        let relative = file.strip_prefix(&src).unwrap().to_path_buf();
+        let top =
+            relative.components().next().unwrap().as_os_str().to_str().unwrap().trim_end_matches(".rs").to_string();
+        if matches!(top.as_str(), "lib" | "main" | "cli") {
+            continue;
+        }
+        for (n, line) in std::fs::read_to_string(&file).unwrap().lines().enumerate() {
+            lines.push((relative.clone(), top.clone(), n + 1, line.to_string()));
+        }
+    }
+    lines
+}
+
 #[test]
 fn no_module_imports_from_a_higher_layer() {
     let doc = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
@@ -66,25 +86,16 @@ fn no_module_imports_from_a_higher_layer() {
         layers.len() >= 20 && layers["quat"] == 0 && layers["bake"] > layers["cpu"],
         "the layer table did not parse: {layers:?}"
     );
-    let src = root().join("src");
     let mut broken = Vec::new();
-    for file in sources(&src) {
-        let relative = file.strip_prefix(&src).unwrap();
-        let top = relative.components().next().unwrap().as_os_str().to_str().unwrap().trim_end_matches(".rs");
-        if matches!(top, "lib" | "main" | "cli") {
-            continue; // the crate root and the front end may use everything
-        }
-        let own = *layers.get(top).unwrap_or_else(|| panic!("src/{top} is in no layer of ARCHITECTURE.md"));
-        for (n, line) in std::fs::read_to_string(&file).unwrap().lines().enumerate() {
-            for used in after(line, "crate::") {
-                if layers.get(used).is_some_and(|&l| l > own) {
-                    broken.push(format!(
-                        "src/{}:{}: {top} (layer {own}) uses {used} (layer {})",
-                        relative.display(),
-                        n + 1,
-                        layers[used]
-                    ));
-                }
+    for (relative, top, n, line) in library_lines() {
+        let own = *layers.get(&top).unwrap_or_else(|| panic!("src/{top} is in no layer of ARCHITECTURE.md"));
+        for used in after(&line, "crate::") {
+            if layers.get(used).is_some_and(|&l| l > own) {
+                broken.push(format!(
+                    "src/{}:{n}: {top} (layer {own}) uses {used} (layer {})",
+                    relative.display(),
+                    layers[used]
+                ));
             }
         }
     }
@@ -134,21 +145,12 @@ fn inside_a_directory_no_file_uses_a_module_listed_after_it() {
 
 #[test]
 fn modules_import_from_the_module_that_defines_an_item_not_the_crate_root() {
-    let src = root().join("src");
     let mut through_root = Vec::new();
-    for file in sources(&src) {
-        let relative = file.strip_prefix(&src).unwrap();
-        let top = relative.components().next().unwrap().as_os_str().to_str().unwrap().trim_end_matches(".rs");
-        if matches!(top, "lib" | "main" | "cli") {
-            continue; // the root re-exports, and the front end uses the re-exports
-        }
-        for (n, line) in std::fs::read_to_string(&file).unwrap().lines().enumerate() {
-            // `crate::Batch` (a re-export), not `crate::batch::Batch`.
-            let root_item =
-                after(line, "crate::").iter().any(|name| name.starts_with(|c: char| c.is_ascii_uppercase()));
-            if root_item || code(line).contains("crate::{") {
-                through_root.push(format!("src/{}:{}: {}", relative.display(), n + 1, line.trim()));
-            }
+    for (relative, _, n, line) in library_lines() {
+        // `crate::Batch` (a re-export), not `crate::batch::Batch`.
+        let root_item = after(&line, "crate::").iter().any(|name| name.starts_with(|c: char| c.is_ascii_uppercase()));
+        if root_item || code(&line).contains("crate::{") {
+            through_root.push(format!("src/{}:{n}: {}", relative.display(), line.trim()));
         }
     }
     assert!(through_root.is_empty(), "imports through the crate root's re-exports:\n{}", through_root.join("\n"));
