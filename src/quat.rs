@@ -324,6 +324,20 @@ impl QuatF64 {
         4.0 * (a - b).length().atan2((a + b).length())
     }
 
+    /// The unit quaternion of a rotation vector: its axis times its angle in radians (scipy's
+    /// `from_rotvec`, datasets' axis-angle), `exp(v / 2)` in the papers' half angle.
+    #[must_use]
+    pub fn from_rotation_vector(v: Vec3F64) -> Self {
+        Self::exp(v.scale(0.5))
+    }
+
+    /// The rotation vector of a unit quaternion, its angle in `[0, pi]` (scipy's `as_rotvec`):
+    /// twice the log of the hemisphere with `w >= 0`.
+    #[must_use]
+    pub fn to_rotation_vector(self) -> Vec3F64 {
+        self.aligned_with(Self::identity()).log().scale(2.0)
+    }
+
     /// Row-major 3x3 rotation matrix of a unit quaternion (`R p = q p q^-1`).
     #[must_use]
     pub fn to_mat3(self) -> [[f64; 3]; 3] {
@@ -444,6 +458,19 @@ mod tests {
         let theirs = glam::DQuat::from(a) * glam::DQuat::from(b);
         for (o, t) in ours.iter().zip(theirs.to_array()) {
             assert!((o - t).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn rotation_vectors_round_trip_through_the_half_angle_exp() {
+        for v in [[0.0, 0.0, 0.0], [1e-9, -2e-9, 3e-9], [0.3, -1.2, 0.5], [0.0, 3.0, 0.0], [-1.0, 2.0, 2.0]] {
+            let v = Vec3F64::from_array(v);
+            let q = QuatF64::from_rotation_vector(v);
+            // The angle is |v|: the rotation by it about v's axis.
+            assert!((q.angle_to(QuatF64::identity()) - v.length()).abs() < 1e-15, "{v:?}");
+            assert!((q.to_rotation_vector() - v).length() < 1e-15 * (1.0 + v.length()), "{v:?}");
+            // Either sign of the quaternion gives the same vector.
+            assert!((q.mul_scalar(-1.0).to_rotation_vector() - v).length() < 1e-15 * (1.0 + v.length()));
         }
     }
 

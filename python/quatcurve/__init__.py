@@ -20,7 +20,7 @@ import os
 
 import numpy as np
 
-from ._quatcurve import DEFAULT_CHARACTERS, DEFAULT_CURVE, DEFAULT_RATE, __version__, bake_files, evaluate_batch
+from ._quatcurve import DEFAULT_CHARACTERS, DEFAULT_CURVE, DEFAULT_RATE, __version__, bake_files, evaluate_tracks
 
 __all__ = ["evaluate", "bake", "Curve", "__version__"]
 
@@ -39,6 +39,38 @@ def _float64(name, value, ndims):
     return np.ascontiguousarray(array, dtype=np.float64)
 
 
+# Floats per rotation, and the trailing shape of one, for each way of writing rotations.
+_WIDTHS = {"quat": (4, (4,)), "rotvec": (3, (3,)), "matrix": (9, (3, 3))}
+
+
+def _rotations(name, value, rotation_type, ranks):
+    """`value` (a scipy Rotation, or an array of quaternions, rotation vectors or matrices) as
+    float64 rows of one rotation each, with its leading shape and its type. `ranks` are the
+    leading ranks allowed (1 for one track, 2 for a batch)."""
+    if hasattr(value, "as_quat"):
+        value, rotation_type = value.as_quat(), "quat"
+    array = _float64(name, value, range(1, 6))
+    if rotation_type == "auto":
+        # Trailing (3, 3) are matrices, a last axis of 4 quaternions, of 3 rotation vectors.
+        if array.ndim >= 3 and array.shape[-2:] == (3, 3):
+            rotation_type = "matrix"
+        elif array.shape[-1] in (3, 4):
+            rotation_type = "rotvec" if array.shape[-1] == 3 else "quat"
+        else:
+            raise ValueError(
+                f"{name} must end in 4 (quaternions x, y, z, w), 3 (rotation vectors) or 3 x 3 (matrices), "
+                f"got shape {array.shape}"
+            )
+    if rotation_type not in _WIDTHS:
+        raise ValueError(f"rotation_type must be auto, quat, rotvec or matrix, got {rotation_type!r}")
+    width, trailing = _WIDTHS[rotation_type]
+    lead = array.shape[: array.ndim - len(trailing)]
+    if array.shape[len(lead):] != trailing or len(lead) not in ranks:
+        want = " or ".join(f"({', '.join(['n'] * r + [str(t) for t in trailing])})" for r in ranks)
+        raise ValueError(f"{name} as {rotation_type} must have shape {want}, got {array.shape}")
+    return np.ascontiguousarray(array.reshape(-1, width)), lead, rotation_type
+
+
 def evaluate(
     rotations,
     times=None,
@@ -54,18 +86,24 @@ def evaluate(
     loop=False,
     angular_velocities=None,
     derivatives=False,
+    rotation_type="auto",
+    output="quat",
     device="auto",
 ):
     """Evaluates rotation curves through keys (DESIGN section 9).
 
     Parameters
     ----------
-    rotations : array_like, ``(keys, 4)`` for one track or ``(tracks, keys, 4)``
-        Key quaternions ``x, y, z, w`` (normalized and made sign-continuous here), or a
-        ``scipy.spatial.transform.Rotation`` (its ``as_quat()``).
-    times : array_like, ``(keys,)`` shared or ``(tracks, keys)``, optional
-        Strictly increasing key times in seconds; default ``0, 1, 2, ...``.
-    sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, optional
+    rotations : array_like, a scipy ``Rotation``, or a list of them
+        One track ``(keys, R)``, a batch ``(tracks, keys, R)`` whose tracks have one key count,
+        or a **list of tracks** ``[(keys_0, R), (keys_1, R), ...]`` of their own key counts
+        (a ragged batch, built and evaluated as one). ``R`` is ``4`` for quaternions ``x, y, z,
+        w``, ``3`` for rotation vectors (axis times angle, radians) or ``3, 3`` for rotation
+        matrices (see ``rotation_type``). Keys are normalized and made sign-continuous here.
+    times : array_like, ``(keys,)`` shared or ``(tracks, keys)``, or a list, optional
+        Strictly increasing key times in seconds; default ``0, 1, 2, ...``. For a list of
+        tracks, a list of arrays (one per track).
+    sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, or a list, optional
         Where to evaluate. Otherwise ``samples`` (N per track from domain start to end) or
         ``rate`` (Hz from the domain start); one of the three is required.
     curve : str, default ``"bspline-interp"``
@@ -81,15 +119,25 @@ def evaluate(
         Periodic curves; the last key must be the first rotation.
     derivatives : bool
         Also return body angular velocity and acceleration.
+    rotation_type : str, default ``"auto"``
+        How ``rotations`` are written: ``quat``, ``rotvec`` or ``matrix``. ``auto`` reads it
+        from the shape: trailing ``(3, 3)`` are matrices, a last axis of 4 quaternions, of 3
+        rotation vectors (so a batch of rotation vectors with 3 keys per track needs
+        ``rotation_type="rotvec"``).
+    output : str, default ``"quat"``
+        ``quat`` (``x, y, z, w``), ``rotvec`` (angle in ``[0, pi]``, as scipy's
+        ``as_rotvec``) or ``matrix`` (``(..., 3, 3)``).
     device : str
         ``auto`` (a hardware GPU if any, else the CPU path), ``gpu``, ``cpu`` or
         ``reference`` (f64).
 
     Returns
     -------
-    numpy.ndarray ``(..., m, 4)``, or with ``derivatives`` a tuple ``(q, omega, alpha)`` of
-    ``(..., m, 4)``, ``(..., m, 3)``, ``(..., m, 3)`` (views of one array). float64 from
-    ``device="reference"``, float32 otherwise. One track in, no track axis out.
+    numpy.ndarray ``(..., m, R)``, or with ``derivatives`` a tuple ``(q, omega, alpha)`` of
+    ``(..., m, R)``, ``(..., m, 3)``, ``(..., m, 3)`` (views of one array). float64 from
+    ``device="reference"``, float32 otherwise. One track in, no track axis out. For a list of
+    tracks, a list of per-track arrays (views of one array; with ``derivatives``, a tuple of
+    three such lists).
 
     Raises
     ------
@@ -97,44 +145,91 @@ def evaluate(
         Bad shapes or dtypes, and every rule the library checks, with its message naming
         the track and key (``track 3: key 7 has norm 0, ...``).
     """
-    if hasattr(rotations, "as_quat"):
-        rotations = rotations.as_quat()
-    q = _float64("rotations", rotations, (2, 3))
-    single = q.ndim == 2
-    if single:
-        q = q[np.newaxis]
-    if q.shape[2] != 4:
-        raise ValueError(f"rotations must end in 4 components (x, y, z, w), got shape {np.shape(rotations)}")
-    tracks, keys = q.shape[0], q.shape[1]
+    if output not in _WIDTHS:
+        raise ValueError(f"output must be quat, rotvec or matrix, got {output!r}")
+    ragged = isinstance(rotations, (list, tuple)) and len(rotations) > 0 and all(
+        isinstance(r, np.ndarray) or hasattr(r, "as_quat") for r in rotations
+    )
+    if ragged:
+        parts = [_rotations(f"rotations[{i}]", r, rotation_type, (1,)) for i, r in enumerate(rotations)]
+        if len({p[2] for p in parts}) > 1:
+            raise ValueError("every track of a list must write its rotations the same way")
+        counts = [p[1][0] for p in parts]
+        flat, kind, single = np.concatenate([p[0] for p in parts]), parts[0][2], False
+    else:
+        flat, lead, kind = _rotations("rotations", rotations, rotation_type, (1, 2))
+        single = len(lead) == 1
+        tracks, keys = (1, lead[0]) if single else lead
+        counts = [keys] * tracks
+    tracks = len(counts)
+    key_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 
-    def per_track(name, value, width, last=None):
-        a = _float64(name, value, (1, 2) if last is None else (2, 3))
-        if a.ndim == (1 if last is None else 2):
+    def per_key(name, value, width):
+        """Per-key values of every track, flat: shared, per track, or (ragged) a list."""
+        if value is None:
+            return None
+        if ragged:
+            if not isinstance(value, (list, tuple)) or len(value) != tracks:
+                raise ValueError(f"{name} for a list of {tracks} tracks must be a list of {tracks} arrays")
+            arrays = [_float64(f"{name}[{i}]", v, (1,) if width is None else (2,)) for i, v in enumerate(value)]
+            for i, (a, n) in enumerate(zip(arrays, counts)):
+                if a.shape[0] != n or (width is not None and a.shape[1] != width):
+                    raise ValueError(f"{name}[{i}] must have {n} entries of track {i}'s {n} keys, got shape {a.shape}")
+            return np.ascontiguousarray(np.concatenate(arrays))
+        ndim = 1 if width is None else 2
+        a = _float64(name, value, (ndim, ndim + 1))
+        if a.ndim == ndim:
             a = np.broadcast_to(a, (tracks,) + a.shape)
-        if a.shape[0] != tracks or (width is not None and a.shape[1] != width) or (last is not None and a.shape[2] != last):
-            want = f"({width}{', ' + str(last) if last else ''}) or ({tracks}, {width}{', ' + str(last) if last else ''})"
-            raise ValueError(f"{name} must have shape {want} for {tracks} track(s) of {keys} keys, got {np.shape(value)}")
-        return np.ascontiguousarray(a)
+        keys = counts[0]
+        if a.shape[0] != tracks or a.shape[1] != keys or (width is not None and a.shape[2] != width):
+            tail = "" if width is None else f", {width}"
+            raise ValueError(
+                f"{name} must have shape ({keys}{tail}) or ({tracks}, {keys}{tail}) for {tracks} track(s) of "
+                f"{keys} keys, got {np.shape(value)}"
+            )
+        return np.ascontiguousarray(a.reshape((-1,) if width is None else (-1, width)))
 
-    t = None if times is None else per_track("times", times, keys)
-    w = None if angular_velocities is None else per_track("angular_velocities", angular_velocities, keys, 3)
-    s = None
+    t = per_key("times", times, None)
+    w = per_key("angular_velocities", angular_velocities, 3)
+    s = s_offsets = None
     if sample_times is not None:
-        s = _float64("sample_times", sample_times, (1, 2))
-        s = per_track("sample_times", s, s.shape[-1])
+        if ragged and isinstance(sample_times, (list, tuple)) and len(sample_times) == tracks and all(
+            np.ndim(v) == 1 for v in sample_times
+        ):
+            lists = [_float64(f"sample_times[{i}]", v, (1,)) for i, v in enumerate(sample_times)]
+        else:
+            shared = _float64("sample_times", sample_times, (1,) if ragged else (1, 2))
+            if shared.ndim == 2 and shared.shape[0] != tracks:
+                raise ValueError(f"sample_times must have shape (m,) or ({tracks}, m), got {shared.shape}")
+            lists = list(shared) if shared.ndim == 2 else [shared] * tracks
+        s = np.ascontiguousarray(np.concatenate(lists)) if lists else np.zeros(0)
+        s_offsets = np.concatenate([[0], np.cumsum([len(v) for v in lists])]).astype(np.int64)
     elif rate is None and samples is None:
         raise ValueError("give sample_times, samples=N or rate=HZ")
     if samples is not None and (int(samples) != samples or samples < 1):
         raise ValueError(f"samples must be a positive integer, got {samples}")
-    out = evaluate_batch(
-        q, t, s, None if rate is None else float(rate), None if samples is None else int(samples),
-        str(curve), int(order), str(knots), str(tangents), str(blend), bool(loop), w, bool(derivatives), str(device),
+    data, offsets = evaluate_tracks(
+        flat, kind, key_offsets, t, s, s_offsets, None if rate is None else float(rate),
+        None if samples is None else int(samples), str(curve), int(order), str(knots), str(tangents), str(blend),
+        bool(loop), w, bool(derivatives), str(output), not ragged, str(device),
     )
-    if single:
-        out = out[0]
-    if not derivatives:
-        return out
-    return out[..., :4], out[..., 4:7], out[..., 7:10]
+    width, trailing = _WIDTHS[output]
+
+    def shaped(block):
+        """`block` rows `[n, width + 6?]` split into the rotation (in its trailing shape) and derivatives."""
+        q = block[..., :width].reshape(block.shape[:-1] + trailing)
+        return (q, block[..., width:width + 3], block[..., width + 3:]) if derivatives else q
+
+    if ragged:
+        per_track = [shaped(data[offsets[i]:offsets[i + 1]]) for i in range(tracks)]
+        return tuple(map(list, zip(*per_track))) if derivatives else per_track
+    block = data.reshape((tracks, -1, data.shape[-1]))
+    return shaped(block[0] if single else block)
+
+
+def _rebuild_curve(times, rotations, curve, options):
+    """`Curve` as pickled (`Curve.__reduce__`): built again from its keys and options."""
+    return Curve(times, rotations, curve, **options)
 
 
 class Curve:
@@ -143,26 +238,32 @@ class Curve:
     ``Curve(times, rotations)`` builds the C2 cubic B-spline through every key
     (``curve="bspline-interp"``, KKS section 6.2; natural ends, or periodic with
     ``loop=True``) — the same conditions as ``RotationSpline`` but in the KKS cumulative
-    form. Any other curve and option of :func:`evaluate` can be given by keyword.
-    ``rotations`` may be a ``scipy.spatial.transform.Rotation``.
+    form. Any other curve and option of :func:`evaluate` can be given by keyword
+    (``rotation_type``, ``output``, ``device``, ...). ``rotations`` may be a
+    ``scipy.spatial.transform.Rotation``, quaternions, rotation vectors or matrices.
 
-    ``curve(t, order=0)`` returns quaternions ``x, y, z, w`` (``(4,)`` for a scalar ``t``,
-    ``(m, 4)`` otherwise; wrap with ``Rotation.from_quat`` for a Rotation); ``order=1`` the
-    angular velocity and ``order=2`` the angular acceleration, rad/s and rad/s^2, in the
-    body frame, as ``RotationSpline``'s are (for the world frame, rotate them by the
-    orientation: ``Rotation.from_quat(q).apply(omega)``). ``order`` may be an int or a
-    float with an integer value, as scipy takes it.
+    ``curve(t, order=0)`` returns rotations (quaternions ``x, y, z, w`` unless ``output``
+    says otherwise; ``(4,)`` for a scalar ``t``, ``(m, 4)`` otherwise; wrap with
+    ``Rotation.from_quat`` for a Rotation); ``order=1`` the angular velocity and ``order=2``
+    the angular acceleration, rad/s and rad/s^2, in the body frame, as ``RotationSpline``'s
+    are (for the world frame, rotate them by the orientation:
+    ``Rotation.from_quat(q).apply(omega)``). ``order`` may be an int or a float with an
+    integer value, as scipy takes it. A ``Curve`` pickles (its keys, times and options; it is
+    built again on load), so it crosses process boundaries (multiprocessing, Ray, Dask).
     """
 
     def __init__(self, times, rotations, curve=DEFAULT_CURVE, **options):
         if hasattr(rotations, "as_quat"):
             rotations = rotations.as_quat()
-        self.rotations = _float64("rotations", rotations, (2,))
+        self.rotations = _float64("rotations", rotations, (2, 3))
         self.times = _float64("times", times, (1,))
         self.curve = curve
         self.options = options
         # Build once: errors in the keys surface here, as in scipy.
         evaluate(self.rotations, self.times, self.times[:1], curve=curve, **options)
+
+    def __reduce__(self):
+        return (_rebuild_curve, (self.times, self.rotations, self.curve, dict(self.options)))
 
     def __call__(self, t, order=0):
         if isinstance(order, bool) or order not in (0, 1, 2):

@@ -9,12 +9,13 @@ __version__: str
 
 CurveName = Literal["slerp", "squad", "bezier", "hermite", "nam-kim", "bspline", "bspline-interp"]
 DeviceName = Literal["auto", "gpu", "cpu", "reference"]
+RotationType = Literal["auto", "quat", "rotvec", "matrix"]
 
 @overload
 def evaluate(
-    rotations: npt.ArrayLike,
-    times: npt.ArrayLike | None = None,
-    sample_times: npt.ArrayLike | None = None,
+    rotations: Any,
+    times: Any = None,
+    sample_times: Any = None,
     *,
     rate: float | None = None,
     samples: int | None = None,
@@ -26,13 +27,15 @@ def evaluate(
     loop: bool = False,
     angular_velocities: npt.ArrayLike | None = None,
     derivatives: Literal[False] = False,
+    rotation_type: RotationType = "auto",
+    output: Literal["quat", "rotvec", "matrix"] = "quat",
     device: DeviceName = "auto",
-) -> npt.NDArray[np.floating[Any]]: ...
+) -> npt.NDArray[np.floating[Any]] | list[npt.NDArray[np.floating[Any]]]: ...
 @overload
 def evaluate(
-    rotations: npt.ArrayLike,
-    times: npt.ArrayLike | None = None,
-    sample_times: npt.ArrayLike | None = None,
+    rotations: Any,
+    times: Any = None,
+    sample_times: Any = None,
     *,
     rate: float | None = None,
     samples: int | None = None,
@@ -44,8 +47,10 @@ def evaluate(
     loop: bool = False,
     angular_velocities: npt.ArrayLike | None = None,
     derivatives: Literal[True],
+    rotation_type: RotationType = "auto",
+    output: Literal["quat", "rotvec", "matrix"] = "quat",
     device: DeviceName = "auto",
-) -> tuple[npt.NDArray[np.floating[Any]], npt.NDArray[np.floating[Any]], npt.NDArray[np.floating[Any]]]: ...
+) -> tuple[Any, Any, Any]: ...
 
 class BakeRow(TypedDict):
     source: str
@@ -91,3 +96,4 @@ class Curve:
     curve: CurveName
     def __init__(self, times: npt.ArrayLike, rotations: Any, curve: CurveName = "bspline-interp", **options: Any) -> None: ...
     def __call__(self, t: float | npt.ArrayLike, order: float = 0) -> npt.NDArray[np.floating[Any]]: ...
+    def __reduce__(self) -> tuple[Any, ...]: ...

@@ -8,10 +8,13 @@ DEFAULT_CURVE: str
 DEFAULT_RATE: float
 DEFAULT_CHARACTERS: int
 
-def evaluate_batch(
+def evaluate_tracks(
     rotations: npt.NDArray[np.float64],
+    rotation_type: str,
+    key_offsets: npt.NDArray[np.int64],
     times: npt.NDArray[np.float64] | None,
     sample_times: npt.NDArray[np.float64] | None,
+    sample_offsets: npt.NDArray[np.int64] | None,
     rate: float | None,
     samples: int | None,
     curve: str,
@@ -22,8 +25,10 @@ def evaluate_batch(
     looping: bool,
     angular_velocities: npt.NDArray[np.float64] | None,
     derivatives: bool,
+    output: str,
+    equal_counts: bool,
     device: str,
-) -> npt.NDArray[np.floating[Any]]: ...
+) -> tuple[npt.NDArray[np.floating[Any]], npt.NDArray[np.int64]]: ...
 
 def bake_files(
     inputs: list[str],

@@ -1,17 +1,19 @@
 //! The compiled half of the Python package (DESIGN section 9). `quatcurve/__init__.py` checks
-//! and shapes the user's arrays (one track or a batch, shared or per-track times) and calls
-//! [`evaluate_batch`] with C-contiguous float64 arrays of fixed rank; this file builds the
+//! and shapes the user's arrays (one track, a rectangular batch or a list of tracks of their
+//! own lengths; quaternions, rotation vectors or matrices) and calls [`evaluate_tracks`] with
+//! them flat: C-contiguous float64 rows and each track's offsets. This file builds the
 //! library's batch from them, evaluates with the GIL released, and hands the samples back as
-//! one numpy array `[tracks, samples, channels]` that owns the evaluator's buffer (no copy).
+//! one numpy array `[samples, channels]` (owning the evaluator's buffer when the output is
+//! quaternions) with each track's offsets.
 //! [`bake_files`] fills the library's [`BakeJob`] (the same job `quatcurve bake` runs) and
 //! returns its per-input report as dictionaries.
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use quatcurve::bake::{BakeJob, Shard};
-use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, Row, SampleTimes, Sampling, Track};
+use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64};
 use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::OnceLock;
@@ -41,26 +43,128 @@ fn device(choice: DeviceChoice) -> PyResult<&'static Device> {
     Ok(slot.get_or_init(|| opened))
 }
 
-/// Rows of a C-contiguous array.
-fn rows<'a, const N: usize>(data: &'a [f64], per_track: usize, track: usize) -> impl Iterator<Item = [f64; N]> + 'a {
-    data[track * per_track * N..(track + 1) * per_track * N].chunks_exact(N).map(|c| std::array::from_fn(|i| c[i]))
+/// `offsets` as ranges `offsets[i]..offsets[i + 1]` of an array of `len` rows: from 0 to
+/// `len`, never decreasing (the Python side builds them; a caller of the compiled module
+/// directly gets an error, not a panic).
+fn ranges(what: &str, offsets: &[i64], len: usize) -> PyResult<Vec<std::ops::Range<usize>>> {
+    let ok = offsets.first() == Some(&0)
+        && offsets.last().is_some_and(|&l| usize::try_from(l).ok() == Some(len))
+        && offsets.windows(2).all(|w| w[0] <= w[1]);
+    if !ok {
+        return Err(value_error(format!("{what} offsets must rise from 0 to {len}")));
+    }
+    Ok(offsets.windows(2).map(|w| w[0] as usize..w[1] as usize).collect())
 }
 
-/// Evaluates `rotations` `[tracks, keys, 4]` (x, y, z, w) at `sample_times` `[tracks, m]`, or
-/// on a uniform grid (`rate` Hz or `samples` per track) when it is `None`. Returns
-/// `[tracks, m, 4]`, or `[tracks, m, 10]` with derivatives (rotation, body omega, alpha):
-/// float64 from the reference, float32 from the fast paths. See `quatcurve.evaluate`.
+/// How far a matrix given as a rotation may be from orthonormal with determinant 1 (float32
+/// matrices written by other tools are a few 1e-7 off).
+const MATRIX_TOLERANCE: f64 = 1e-4;
+
+/// How rotations are written: quaternions `x, y, z, w`, rotation vectors (axis times angle,
+/// radians), or row-major 3x3 matrices (scipy's `as_quat`, `as_rotvec`, `as_matrix`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Form {
+    Quat,
+    Rotvec,
+    Matrix,
+}
+
+impl Form {
+    fn parse(what: &str, name: &str) -> PyResult<Self> {
+        match name {
+            "quat" => Ok(Form::Quat),
+            "rotvec" => Ok(Form::Rotvec),
+            "matrix" => Ok(Form::Matrix),
+            _ => Err(value_error(format!("{what} must be quat, rotvec or matrix, not {name}"))),
+        }
+    }
+
+    /// Floats per rotation.
+    fn width(self) -> usize {
+        match self {
+            Form::Quat => 4,
+            Form::Rotvec => 3,
+            Form::Matrix => 9,
+        }
+    }
+
+    /// A rotation written this way as a quaternion `x, y, z, w` (quaternions as given: the
+    /// library checks and normalizes keys); a matrix must be a rotation, orthonormal with
+    /// determinant 1 within [`MATRIX_TOLERANCE`].
+    fn to_quat(self, v: &[f64]) -> Result<[f64; 4], String> {
+        Ok(match self {
+            Form::Quat => [v[0], v[1], v[2], v[3]],
+            Form::Rotvec => QuatF64::from_rotation_vector(Vec3F64::new(v[0], v[1], v[2])).to_array(),
+            Form::Matrix => {
+                let m = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
+                // |M^T M - I| (largest entry) and the determinant.
+                let off = (0..9)
+                    .map(|k| {
+                        let (i, j) = (k / 3, k % 3);
+                        let dot: f64 = (0..3).map(|r| m[r][i] * m[r][j]).sum();
+                        (dot - if i == j { 1.0 } else { 0.0 }).abs()
+                    })
+                    .fold(0.0, f64::max);
+                let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                    - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                    + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+                if !(off <= MATRIX_TOLERANCE && (det - 1.0).abs() <= MATRIX_TOLERANCE) {
+                    return Err(format!(
+                        "is not a rotation matrix: |M^T M - I| = {off:.3e} and det = {det:.6}, where a rotation has 0 and 1 \
+                         (within {MATRIX_TOLERANCE})"
+                    ));
+                }
+                QuatF64::from_mat3(m).to_array()
+            }
+        })
+    }
+
+    /// A unit quaternion written this way into `out` (`width` floats).
+    fn write(self, q: QuatF64, out: &mut [f64]) {
+        match self {
+            Form::Quat => out.copy_from_slice(&q.to_array()),
+            Form::Rotvec => out.copy_from_slice(&q.to_rotation_vector().to_array()),
+            Form::Matrix => out.copy_from_slice(&q.to_mat3().concat()),
+        }
+    }
+}
+
+/// Output rows `[x, y, z, w, (omega, alpha)]` rewritten with the rotation in `form`.
+fn rewrite<T: Copy + Into<f64>>(rows: &[T], channels: usize, form: Form, from: impl Fn(f64) -> T) -> Vec<T> {
+    let width = form.width() + channels - 4;
+    let mut out = Vec::with_capacity(rows.len() / channels * width);
+    let mut rotation = [0.0; 9];
+    for row in rows.chunks_exact(channels) {
+        let q = QuatF64::from_array(std::array::from_fn(|i| row[i].into())).normalize();
+        form.write(q, &mut rotation[..form.width()]);
+        out.extend(rotation[..form.width()].iter().map(|&v| from(v)));
+        out.extend_from_slice(&row[4..]);
+    }
+    out
+}
+
+/// Evaluates tracks given flat: track `i`'s keys are rows `key_offsets[i]..key_offsets[i + 1]`
+/// of `rotations` (written as `rotation_type`), its key times the same entries of `times`
+/// (default `0, 1, ...`), its samples the entries `sample_offsets[i]..` of `sample_times`, or
+/// a uniform grid (`rate` Hz or `samples` per track). Returns the samples `[total, C]`, rows
+/// of the rotation in `output` form (4, 3 or 9 floats) then with derivatives body omega and
+/// alpha (float64 from the reference, float32 from the fast paths), and each track's rows as
+/// offsets. With `equal_counts`, tracks whose sample counts differ are an error (a rectangular
+/// array). See `quatcurve.evaluate`.
 #[pyfunction]
 #[pyo3(signature = (
-    rotations, times, sample_times, rate, samples, curve, order, knots, tangents, blend, looping,
-    angular_velocities, derivatives, device
+    rotations, rotation_type, key_offsets, times, sample_times, sample_offsets, rate, samples, curve, order,
+    knots, tangents, blend, looping, angular_velocities, derivatives, output, equal_counts, device
 ))]
 #[allow(clippy::too_many_arguments)]
-fn evaluate_batch<'py>(
+fn evaluate_tracks<'py>(
     py: Python<'py>,
-    rotations: PyReadonlyArray3<'py, f64>,
-    times: Option<PyReadonlyArray2<'py, f64>>,
-    sample_times: Option<PyReadonlyArray2<'py, f64>>,
+    rotations: PyReadonlyArray2<'py, f64>,
+    rotation_type: &str,
+    key_offsets: PyReadonlyArray1<'py, i64>,
+    times: Option<PyReadonlyArray1<'py, f64>>,
+    sample_times: Option<PyReadonlyArray1<'py, f64>>,
+    sample_offsets: Option<PyReadonlyArray1<'py, i64>>,
     rate: Option<f64>,
     samples: Option<usize>,
     curve: &str,
@@ -69,10 +173,12 @@ fn evaluate_batch<'py>(
     tangents: &str,
     blend: &str,
     looping: bool,
-    angular_velocities: Option<PyReadonlyArray3<'py, f64>>,
+    angular_velocities: Option<PyReadonlyArray2<'py, f64>>,
     derivatives: bool,
+    output: &str,
+    equal_counts: bool,
     device: &str,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let spec = CurveSpec {
         curve: parse("curve", curve)?,
         order,
@@ -81,60 +187,99 @@ fn evaluate_batch<'py>(
         blend: parse("blend", blend)?,
         looping,
     };
+    let (form, out_form) = (Form::parse("rotation_type", rotation_type)?, Form::parse("output", output)?);
     let choice: DeviceChoice = parse("device", device)?;
     let device = self::device(choice)?;
-    let [count, keys, _] = [rotations.shape()[0], rotations.shape()[1], rotations.shape()[2]];
-    let quats = rotations.as_slice().map_err(value_error)?;
+    let width = rotations.shape()[1];
+    if width != form.width() {
+        return Err(value_error(format!("{rotation_type} rotations have {} floats each, not {width}", form.width())));
+    }
+    let values = rotations.as_slice().map_err(value_error)?;
+    let key_ranges = ranges("key", key_offsets.as_slice().map_err(value_error)?, rotations.shape()[0])?;
     let key_times = times.as_ref().map(|t| t.as_slice()).transpose().map_err(value_error)?;
     let velocities = angular_velocities.as_ref().map(|v| v.as_slice()).transpose().map_err(value_error)?;
-    let tracks: Vec<Track> = (0..count)
-        .map(|i| Track {
-            times: key_times.map(|t| t[i * keys..(i + 1) * keys].to_vec()),
-            angular_velocities: velocities.map(|v| rows::<3>(v, keys, i).collect()),
-            ..Track::from_rotations(rows::<4>(quats, keys, i).collect())
-        })
-        .collect();
-    let sampled = match &sample_times {
-        Some(s) => Some((s.shape()[1], s.as_slice().map_err(value_error)?)),
-        None => None,
+    if key_times.is_some_and(|t| t.len() != rotations.shape()[0])
+        || velocities.is_some_and(|v| v.len() != 3 * rotations.shape()[0])
+    {
+        return Err(value_error("times and angular_velocities need one entry per key"));
+    }
+    let mut tracks = Vec::with_capacity(key_ranges.len());
+    for (index, keys) in key_ranges.iter().enumerate() {
+        let rows = values[width * keys.start..width * keys.end].chunks_exact(width);
+        let rotations = rows
+            .enumerate()
+            .map(|(key, r)| form.to_quat(r).map_err(|e| value_error(format!("track {index}: key {key} {e}"))))
+            .collect::<PyResult<Vec<_>>>()?;
+        tracks.push(Track {
+            times: key_times.map(|t| t[keys.clone()].to_vec()),
+            angular_velocities: velocities
+                .map(|v| v[3 * keys.start..3 * keys.end].chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()),
+            ..Track::from_rotations(rotations)
+        });
+    }
+    let sampled = match (&sample_times, &sample_offsets) {
+        (Some(s), Some(o)) => {
+            let s = s.as_slice().map_err(value_error)?;
+            Some((s, ranges("sample", o.as_slice().map_err(value_error)?, s.len())?))
+        }
+        _ => None,
     };
+    if sampled.as_ref().is_some_and(|(_, r)| r.len() != tracks.len()) {
+        return Err(value_error("sample_times need one list per track"));
+    }
     let sampling = match (rate, samples) {
         (_, Some(n)) => Sampling::Count(n),
         (Some(hz), None) => Sampling::Rate(hz),
         (None, None) => Sampling::Count(0),
     };
     let channels = Row { derivatives, matrix: false }.channels();
-    let out = py
-        .detach(|| -> Result<Samples, String> {
+    let (out, offsets) = py
+        .detach(|| -> Result<(Samples, Vec<i64>), String> {
             let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
-            let overrides: Vec<Option<&[f64]>> = match sampled {
-                Some((m, s)) => (0..count).map(|i| Some(&s[i * m..(i + 1) * m])).collect(),
+            let overrides: Vec<Option<&[f64]>> = match &sampled {
+                Some((s, r)) => r.iter().map(|r| Some(&s[r.clone()])).collect(),
                 None => Vec::new(),
             };
             let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| e.to_string())?;
-            times
-                .equal_counts(&batch, "a numpy array of every track")
-                .map_err(|e| format!("{e} (their domains differ): pass samples=N or sample_times for one count"))?;
-            let job = EvalJob::new(&batch, &times).derivatives(derivatives);
-            if choice == DeviceChoice::Reference {
-                return Ok(Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows()));
+            if equal_counts {
+                times.equal_counts(&batch, "a numpy array of every track").map_err(|e| {
+                    format!(
+                        "{e} (their domains differ): pass samples=N or sample_times for one count, or a list of tracks"
+                    )
+                })?;
             }
-            let (rows, _) = device.evaluate_f32(&job).map_err(|e| e.to_string())?;
-            Ok(Samples::F32(rows.data))
+            let offsets = times.offsets().iter().map(|&o| o as i64).collect();
+            let job = EvalJob::new(&batch, &times).derivatives(derivatives);
+            let samples = if choice == DeviceChoice::Reference {
+                Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows())
+            } else {
+                Samples::F32(device.evaluate_f32(&job).map_err(|e| e.to_string())?.0.data)
+            };
+            // Quaternions stay in the evaluator's buffer; other forms are written anew.
+            Ok((
+                match (samples, out_form) {
+                    (samples, Form::Quat) => samples,
+                    (Samples::F64(rows), _) => Samples::F64(rewrite(&rows, channels, out_form, |v| v)),
+                    (Samples::F32(rows), _) => Samples::F32(rewrite(&rows, channels, out_form, |v| v as f32)),
+                },
+                offsets,
+            ))
         })
         .map_err(value_error)?;
-    let per_track = |len: usize| len / channels / count.max(1);
-    // The arrays take over the evaluator's buffers.
-    match out {
+    let width = out_form.width() + channels - 4;
+    let offsets = PyArray1::from_vec(py, offsets).into_any();
+    // The arrays take over the buffers.
+    let data = match out {
         Samples::F64(data) => {
-            let shape = [count, per_track(data.len()), channels];
-            Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+            let rows = data.len() / width;
+            PyArray1::from_vec(py, data).reshape([rows, width])?.into_any()
         }
         Samples::F32(data) => {
-            let shape = [count, per_track(data.len()), channels];
-            Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+            let rows = data.len() / width;
+            PyArray1::from_vec(py, data).reshape([rows, width])?.into_any()
         }
-    }
+    };
+    Ok((data, offsets))
 }
 
 /// Samples in the precision the device computed them in.
@@ -233,7 +378,7 @@ fn bake_files<'py>(
 /// The compiled module, `quatcurve._quatcurve`.
 #[pymodule]
 fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(evaluate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(bake_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // The front ends' defaults, from the library (the Python signatures use these).

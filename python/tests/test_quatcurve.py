@@ -200,8 +200,8 @@ def test_errors_are_value_errors_naming_track_and_key():
         quatcurve.evaluate([[[0, 0, 0, 1]], [[0, 0, 0, 1], [0, 0, 0, 1]]], samples=3)
     with pytest.raises(ValueError, match="dtype"):
         quatcurve.evaluate(np.array([["a", "b", "c", "d"]] * 2), samples=3)
-    with pytest.raises(ValueError, match="4 components"):
-        quatcurve.evaluate(np.zeros((3, 3)), samples=3)
+    with pytest.raises(ValueError, match="must end in 4"):
+        quatcurve.evaluate(np.zeros((3, 5)), samples=3)
     with pytest.raises(ValueError, match="times must have shape"):
         quatcurve.evaluate(good, np.arange(5.0), samples=3)
     with pytest.raises(ValueError, match="key 2 .* not greater"):
