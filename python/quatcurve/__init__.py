@@ -20,7 +20,15 @@ import os
 
 import numpy as np
 
-from ._quatcurve import DEFAULT_CHARACTERS, DEFAULT_CURVE, DEFAULT_RATE, __version__, bake_files, evaluate_tracks
+from ._quatcurve import (
+    DEFAULT_CHARACTERS,
+    DEFAULT_CURVE,
+    DEFAULT_MAX_TEXTURE_SIZE,
+    DEFAULT_RATE,
+    __version__,
+    bake_files,
+    evaluate_tracks,
+)
 
 __all__ = ["evaluate", "bake", "Curve", "__version__"]
 
@@ -290,6 +298,8 @@ def bake(
     loop="auto",
     texture="local",
     precision="f32",
+    format="npy",
+    max_texture_size=DEFAULT_MAX_TEXTURE_SIZE,
     atlas=False,
     preview=False,
     characters=DEFAULT_CHARACTERS,
@@ -329,7 +339,12 @@ def bake(
         ``[frames, joints, 12]`` (3x4 matrices by forward kinematics) or ``skin`` (model
         times inverse bind matrix, per glTF skin).
     precision : str
-        ``f32`` or ``f16``.
+        ``f32`` or ``f16`` (``npy`` and ``exr``).
+    format : str
+        ``npy`` arrays, or 2D RGBA images engines import: ``exr`` (float or half) or
+        ``png16`` (each channel remapped to its range, recorded in the sidecar).
+    max_texture_size : int
+        Largest side of an image texture, in texels.
     atlas, preview : bool
         Stack every clip of an input in one texture; draw a skeleton PNG per clip.
     shard : str, optional
@@ -370,7 +385,7 @@ def bake(
             raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
     rows = bake_files(
         paths, os.fspath(output), float(rate), bool(exact_rate), str(curve), int(order), str(knots), str(tangents), str(blend),
-        str(loop), str(texture), str(precision), bool(atlas), bool(preview), int(characters),
+        str(loop), str(texture), str(precision), str(format), int(max_texture_size), bool(atlas), bool(preview), int(characters),
         None if shard is None else str(shard), bool(resume), int(jobs), bool(allow_external_uris), str(device),
     )
     failed = [row for row in rows if row["status"] == "failed"]

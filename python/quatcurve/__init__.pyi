@@ -79,6 +79,8 @@ def bake(
     loop: Literal["auto", "on", "off"] = "auto",
     texture: Literal["local", "model", "skin"] = "local",
     precision: Literal["f32", "f16"] = "f32",
+    format: Literal["npy", "exr", "png16"] = "npy",
+    max_texture_size: int = 4096,
     atlas: bool = False,
     preview: bool = False,
     characters: int = 1000,

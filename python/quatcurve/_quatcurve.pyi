@@ -7,6 +7,7 @@ __version__: str
 DEFAULT_CURVE: str
 DEFAULT_RATE: float
 DEFAULT_CHARACTERS: int
+DEFAULT_MAX_TEXTURE_SIZE: int
 
 def evaluate_tracks(
     rotations: npt.NDArray[np.float64],
@@ -43,6 +44,8 @@ def bake_files(
     looping: str,
     texture: str,
     precision: str,
+    format: str,
+    max_texture_size: int,
     atlas: bool,
     preview: bool,
     characters: int,

@@ -294,8 +294,8 @@ enum Samples {
 /// `resumed`, `failed`), `error`, `files` and `warnings`. See `quatcurve.bake`.
 #[pyfunction]
 #[pyo3(signature = (
-    inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, atlas,
-    preview, characters, shard, resume, jobs, allow_external_uris, device
+    inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, format,
+    max_texture_size, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device
 ))]
 #[allow(clippy::too_many_arguments)]
 fn bake_files<'py>(
@@ -312,6 +312,8 @@ fn bake_files<'py>(
     looping: &str,
     texture: &str,
     precision: &str,
+    format: &str,
+    max_texture_size: usize,
     atlas: bool,
     preview: bool,
     characters: usize,
@@ -338,6 +340,8 @@ fn bake_files<'py>(
         allow_external_uris,
         texture: parse("texture", texture)?,
         precision: parse("precision", precision)?,
+        format: parse("format", format)?,
+        max_texture_size,
         atlas,
         preview,
         characters,
@@ -385,5 +389,6 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;
     m.add("DEFAULT_RATE", quatcurve::DEFAULT_RATE)?;
     m.add("DEFAULT_CHARACTERS", quatcurve::bake::crowd::CHARACTERS)?;
+    m.add("DEFAULT_MAX_TEXTURE_SIZE", quatcurve::bake::image::DEFAULT_MAX_TEXTURE_SIZE)?;
     Ok(())
 }

@@ -7,14 +7,16 @@
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
 use super::error::{BakeError, InputError};
+use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::inputs::{expand, output_stems, Source};
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
+use super::outputs::clip_file_names;
 use super::outputs::{refuse_overwriting_input, OutputDir, Outputs};
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::shard::Shard;
 use super::sidecar::{Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
-use super::texture_file::{self, TextureFile, Written};
+use super::texture_file::{self, TextureFile, TextureOptions, Written};
 use super::workers::in_order;
 use super::{crowd, gltf, Animation, Baked, ClipRate, LoopMode};
 use crate::curve::CurveSpec;
@@ -51,8 +53,12 @@ pub struct BakeJob {
     pub allow_external_uris: bool,
     /// Texture per clip: local, model or skin (DESIGN 5b).
     pub texture: TextureKind,
-    /// Texture element type.
+    /// Texture element type (`.npy` and EXR; PNG16 is 16-bit integers).
     pub precision: Precision,
+    /// Texture file format: `.npy` arrays, or 2D RGBA images engines import (EXR, PNG16).
+    pub format: Format,
+    /// Largest side of an image texture, in texels (EXR and PNG16).
+    pub max_texture_size: usize,
     /// One texture per input with every clip stacked along frames.
     pub atlas: bool,
     /// Also draw each clip's skeleton to `<stem>.<clip>.png` (cargo feature `plot`).
@@ -85,6 +91,8 @@ impl BakeJob {
             allow_external_uris: false,
             texture: TextureKind::Local,
             precision: Precision::F32,
+            format: Format::Npy,
+            max_texture_size: DEFAULT_MAX_TEXTURE_SIZE,
             atlas: false,
             preview: false,
             characters: crowd::CHARACTERS,
@@ -108,6 +116,18 @@ impl BakeJob {
         if self.inputs.is_empty() && self.characters == 0 {
             return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
         }
+        if self.format == Format::Png16 && self.precision == Precision::F16 {
+            return Err(BakeError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
+        }
+        if self.format == Format::Png16 && !cfg!(feature = "plot") {
+            return Err(BakeError::option(
+                "format",
+                "png16 needs the `plot` cargo feature, which this build leaves out",
+            ));
+        }
+        if self.max_texture_size == 0 {
+            return Err(BakeError::option("max-texture-size", "must be at least 1 texel"));
+        }
         if self.preview && !cfg!(feature = "plot") {
             return Err(BakeError::option(
                 "preview",
@@ -115,6 +135,16 @@ impl BakeJob {
             ));
         }
         Ok(())
+    }
+
+    /// How this job writes its textures.
+    fn texture_options(&self) -> TextureOptions {
+        TextureOptions {
+            format: self.format,
+            precision: self.precision,
+            kind: self.texture,
+            max_size: self.max_texture_size,
+        }
     }
 
     /// The options that decide the outputs (the manifest's `options`; `resume` redoes every
@@ -125,7 +155,8 @@ impl BakeJob {
             "curve": s.curve.name(), "order": s.order, "knots": s.knots.name(), "tangents": s.tangents.name(),
             "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "exact_rate": self.exact_rate,
             "device": self.device.name(), "allow_external_uris": self.allow_external_uris,
-            "characters": self.characters, "texture": self.texture.name(), "precision": self.precision.name(),
+            "characters": self.characters, "texture": self.texture.name(), "precision": self.precision.name(), "format": self.format.name(),
+            "max_texture_size": self.max_texture_size,
             "atlas": self.atlas, "preview": self.preview,
         })
     }
@@ -309,7 +340,15 @@ impl BakeJob {
         device: &str,
         fk_device: &Device,
     ) -> Result<Vec<Written>, InputError> {
-        let mut out = Outputs { dir: &self.output, stem, source, written: Vec::new(), atlas: Vec::new(), rows: 0 };
+        let mut out = Outputs {
+            dir: &self.output,
+            stem,
+            source,
+            written: Vec::new(),
+            atlas: Vec::new(),
+            rows: 0,
+            clip_names: Vec::new(),
+        };
         match self.write_all(&mut out, src, baked, device, fk_device) {
             Ok(()) => Ok(out.written),
             Err(e) => {
@@ -352,12 +391,15 @@ impl BakeJob {
             out.written.push(path.into());
         }
         // An atlas stacks every clip's frames in one file per sheet, opened with its whole shape.
+        let extension = self.format.extension();
         if self.atlas {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
-            out.atlas = texture_file::open(animation, self.texture, self.precision, rows, |suffix| {
-                dir.join(format!("{stem}{suffix}.npy"))
-            })?;
+            out.atlas =
+                texture_file::open(animation, &self.texture_options(), rows, "the atlas of every clip", |suffix| {
+                    dir.join(format!("{stem}{suffix}.{extension}"))
+                })?;
         }
+        out.clip_names = clip_file_names(animation);
         let clips = (0..animation.clips.len())
             .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device))
             .collect::<Result<Vec<_>, _>>()?;
@@ -365,14 +407,16 @@ impl BakeJob {
             out.written.push(texture.finish()?);
         }
         let options = SidecarOptions {
+            device,
             curve: self.spec.curve.name(),
             rate: self.rate,
             texture: self.texture,
             precision: self.precision,
+            format: self.format,
             atlas: self.atlas,
         };
-        let sidecar =
-            Sidecar::new(&options, animation, baked, out.source, device, baked_file.map(|(name, _)| name), clips);
+        let baked_file = baked_file.map(|(name, _)| name);
+        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written);
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;
@@ -391,6 +435,7 @@ impl BakeJob {
         fk_device: &Device,
     ) -> Result<SidecarClip, InputError> {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
+        let file_name = out.clip_names[index].clone();
         let frames = result.times.len();
         let preview = if self.preview {
             // Forward kinematics of the drawn frames alone.
@@ -398,7 +443,7 @@ impl BakeJob {
             let model = texture::sheet_rows(animation, order, baked, index, TextureKind::Model, fk_device, &picks)?
                 .swap_remove(0)
                 .data;
-            let name = format!("{stem}.{index}.png");
+            let name = format!("{stem}.{file_name}.preview.png");
             draw_preview(
                 &dir.join(&name),
                 &format!("{}: clip '{}'", out.source, clip.name),
@@ -416,8 +461,10 @@ impl BakeJob {
             out.rows += frames;
             (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
         } else {
-            let mut textures = texture_file::open(animation, self.texture, self.precision, frames, |suffix| {
-                dir.join(format!("{stem}.{index}{suffix}.npy"))
+            let what = format!("clip '{}'", clip.name);
+            let extension = self.format.extension();
+            let mut textures = texture_file::open(animation, &self.texture_options(), frames, &what, |suffix| {
+                dir.join(format!("{stem}.{file_name}{suffix}.{extension}"))
             })?;
             texture_file::stream(self.texture, animation, baked, order, index, fk_device, &mut textures)?;
             let names = textures.iter().map(TextureFile::name).collect();

@@ -12,6 +12,7 @@ pub mod crowd;
 pub mod error;
 mod glb;
 pub mod gltf;
+pub mod image;
 mod inputs;
 pub mod job;
 pub mod manifest;

@@ -57,6 +57,8 @@ pub(super) struct Outputs<'a> {
     /// `--atlas`: the open files every clip appends to, and their rows so far.
     pub(super) atlas: Vec<TextureFile>,
     pub(super) rows: usize,
+    /// Each clip's name in its files' names ([`clip_file_names`]).
+    pub(super) clip_names: Vec<String>,
 }
 
 /// Baking into the input's own directory must not replace the input.
@@ -72,4 +74,38 @@ pub(super) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<()
         )));
     }
     Ok(())
+}
+
+/// Each clip's name as it appears in its files' names (`Fox.Walk.npy`): letters, digits, `-`
+/// and `_` kept, any other character `_`; an empty name is `clip<index>`, and a name that
+/// two clips would share (ignoring case, as some file systems do) gets `-<index>`.
+pub(super) fn clip_file_names(animation: &super::Animation) -> Vec<String> {
+    let safe: Vec<String> = animation
+        .clips
+        .iter()
+        .enumerate()
+        .map(|(index, clip)| {
+            let name: String = clip
+                .name
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+                .collect();
+            if name.is_empty() {
+                format!("clip{index}")
+            } else {
+                name
+            }
+        })
+        .collect();
+    let lower: Vec<String> = safe.iter().map(|n| n.to_ascii_lowercase()).collect();
+    safe.iter()
+        .enumerate()
+        .map(|(index, name)| {
+            if lower.iter().filter(|n| **n == lower[index]).count() > 1 {
+                format!("{name}-{index}")
+            } else {
+                name.clone()
+            }
+        })
+        .collect()
 }

@@ -1,16 +1,21 @@
 //! The sidecar JSON beside an input's textures (DESIGN section 5b): what a renderer needs to
-//! read them (joints, parents, rest pose, skins, per-clip files, rows, rates and loops).
+//! read them alone (joints, parents, rest pose, skins with their inverse bind matrices,
+//! per-clip files, rows, rates and loops, and for image textures where each texel is).
 
+use super::image::{Format, Grid};
 use super::texture::{Precision, TextureKind};
+use super::texture_file::Written;
 use super::{Animation, Baked};
 use serde::Serialize;
 
-/// The job's options a sidecar records.
+/// The job's options a sidecar records, and the device that ran the input.
 pub(super) struct SidecarOptions<'a> {
+    pub(super) device: &'a str,
     pub(super) curve: &'a str,
     pub(super) rate: f64,
     pub(super) texture: TextureKind,
     pub(super) precision: Precision,
+    pub(super) format: Format,
     pub(super) atlas: bool,
 }
 
@@ -19,12 +24,23 @@ pub(super) struct SidecarOptions<'a> {
 pub(super) struct Sidecar<'a> {
     source: &'a str,
     curve: &'a str,
-    rate: f64,
+    /// The rate asked for; each clip's own rate is its `rate` (fitted to its span).
+    requested_rate: f64,
     device: &'a str,
     texture: &'a str,
     channels: &'static [&'static str],
     precision: &'a str,
+    format: &'a str,
     layout: String,
+    /// Image textures (EXR, PNG16): how a joint's floats fill its texels (`channels` names per
+    /// texel, empty where a texel channel is unused), and where texel `t` of joint `j` in row
+    /// `r` of a file is (`address`, with each file's numbers in `textures`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    texels: Option<Vec<Vec<&'static str>>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    address: Option<&'static str>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    textures: Vec<ImageRecord>,
     max_key_error_rad: Option<f64>,
     baked_file: Option<String>,
     joints: Vec<&'a str>,
@@ -48,6 +64,22 @@ pub(super) struct SidecarSkin<'a> {
     name: &'a str,
     /// Joint indices in the skin's order (the rows of its skin texture).
     joints: &'a [usize],
+    /// Per joint, its inverse bind matrix, 3x4 row-major (the last row `0 0 0 1`): what a
+    /// `local` or `model` texture is multiplied by for skinning.
+    inverse_bind: &'a [[f64; 12]],
+}
+
+/// One image texture file and where its texels are ([`Grid`]).
+#[derive(Serialize)]
+pub(super) struct ImageRecord {
+    file: String,
+    /// Joints per frame.
+    joints: usize,
+    #[serde(flatten)]
+    grid: Grid,
+    /// PNG16: per texel slot and channel, the `[min, max]` that 0 and 65535 stand for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    remap: Option<Vec<[[f32; 2]; 4]>>,
 }
 
 #[derive(Serialize)]
@@ -65,7 +97,8 @@ pub(super) struct SidecarClip {
     /// Frames per second: the job's rate fitted to the clip's span (its first and last frames
     /// are its first and last keys), or with an exact rate the job's rate (open clips).
     pub(super) rate: f64,
-    /// Baked as a loop: periodic curves, continuous across the seam.
+    /// Baked as a loop: periodic curves, continuous across the seam. A loop's last row is the
+    /// seam and equals its first: its period is `frames - 1` rows.
     #[serde(rename = "loop")]
     pub(super) looping: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -79,13 +112,14 @@ impl<'a> Sidecar<'a> {
         animation: &'a Animation,
         baked: &Baked,
         source: &'a str,
-        device: &'a str,
         baked_file: Option<String>,
         clips: Vec<SidecarClip>,
+        written: &[Written],
     ) -> Self {
-        let &SidecarOptions { curve, rate, texture, precision, atlas } = options;
+        let &SidecarOptions { device, curve, rate, texture, precision, format, atlas } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
+        let precision = if format == Format::Png16 { "u16" } else { precision.name() };
         let layout = match (atlas, texture) {
             (false, TextureKind::Skin) if !animation.skins.is_empty() => {
                 format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", precision)
@@ -96,15 +130,40 @@ impl<'a> Sidecar<'a> {
                 precision
             ),
         };
+        let image = format != Format::Npy;
+        let names_of = |range: &std::ops::Range<usize>| {
+            let mut slot: Vec<&'static str> = texture.channel_names()[range.clone()].to_vec();
+            slot.resize(4, "");
+            slot
+        };
+        let textures = written
+            .iter()
+            .filter_map(|w| {
+                let file = w.path.file_name()?.to_string_lossy().into_owned();
+                w.image.as_ref().map(|i| ImageRecord { file, joints: i.joints, grid: i.grid, remap: i.remap.clone() })
+            })
+            .collect();
+        let layout = if image {
+            format!("{layout}; as {format} RGBA images of texels: see texels, address and textures")
+        } else {
+            layout
+        };
         Sidecar {
             source,
             curve,
-            rate,
+            requested_rate: rate,
             device,
             texture: texture.name(),
             channels: texture.channel_names(),
-            precision: precision.name(),
+            precision,
+            format: format.name(),
             layout,
+            texels: image.then(|| texture.texels().iter().map(names_of).collect()),
+            address: image.then_some(
+                "x = (j * texels_per_joint + t) % width, y = r * rows_per_frame + (j * texels_per_joint + t) / width, \
+                 r = first_row + frame",
+            ),
+            textures,
             max_key_error_rad: baked.max_key_error,
             baked_file,
             joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
@@ -114,7 +173,11 @@ impl<'a> Sidecar<'a> {
                 .iter()
                 .map(|j| Rest { translation: j.translation, rotation: j.rotation, scale: j.scale })
                 .collect(),
-            skins: animation.skins.iter().map(|s| SidecarSkin { name: &s.name, joints: &s.joints }).collect(),
+            skins: animation
+                .skins
+                .iter()
+                .map(|s| SidecarSkin { name: &s.name, joints: &s.joints, inverse_bind: &s.inverse_bind })
+                .collect(),
             clips,
         }
     }

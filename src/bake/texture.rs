@@ -42,6 +42,17 @@ impl TextureKind {
         }
     }
 
+    /// How a joint's floats fill RGBA texels of a 2D texture ([`super::image`]): each range
+    /// of floats one texel, the rest of it zero. Rotation, translation, scale for `local`;
+    /// the matrix's three rows for `model` and `skin`.
+    #[must_use]
+    pub fn texels(self) -> &'static [std::ops::Range<usize>] {
+        match self {
+            TextureKind::Local => &[0..4, 4..7, 7..10],
+            TextureKind::Model | TextureKind::Skin => &[0..4, 4..8, 8..12],
+        }
+    }
+
     /// What each float is, in order (the sidecar's `channels`).
     #[must_use]
     pub fn channel_names(self) -> &'static [&'static str] {

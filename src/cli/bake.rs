@@ -7,6 +7,7 @@
 use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use quatcurve::bake::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use quatcurve::bake::texture::{Precision, TextureKind};
 use quatcurve::bake::{crowd, BakeError, BakeJob, BakeReport, InputReport, LoopMode, Progress, Shard};
 use quatcurve::{Curve, KnotMode};
@@ -51,6 +52,13 @@ pub struct BakeArgs {
     /// Texture element type: f32, or f16 (half the bytes, about 3 significant digits).
     #[arg(long, default_value = "f32", value_parser = names::<Precision>())]
     precision: Precision,
+    /// Texture file format: npy arrays, or 2D RGBA images engines import: exr (float, or half
+    /// with --precision f16) or png16 (16-bit, each channel remapped to its range in the sidecar).
+    #[arg(long, default_value = "npy", value_parser = names::<Format>())]
+    format: Format,
+    /// Largest side of an image texture in texels (exr, png16); frames that do not fit are an error.
+    #[arg(long, default_value_t = DEFAULT_MAX_TEXTURE_SIZE, value_name = "TEXELS")]
+    max_texture_size: usize,
     /// One texture per input with every clip stacked along frames (`<stem>.npy`; each clip's
     /// rows from `first_row` in the sidecar), instead of one per clip.
     #[arg(long)]
@@ -101,6 +109,8 @@ impl BakeArgs {
             allow_external_uris: self.allow_external_uris,
             texture: self.texture,
             precision: self.precision,
+            format: self.format,
+            max_texture_size: self.max_texture_size,
             atlas: self.atlas,
             preview: self.preview,
             characters: self.characters,

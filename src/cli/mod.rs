@@ -77,7 +77,8 @@ named!(
     DeviceChoice,
     quatcurve::bake::LoopMode,
     quatcurve::bake::texture::TextureKind,
-    quatcurve::bake::texture::Precision
+    quatcurve::bake::texture::Precision,
+    quatcurve::bake::image::Format
 );
 
 /// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").

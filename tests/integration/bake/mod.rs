@@ -5,6 +5,7 @@
 
 mod clients;
 mod hostile;
+mod images;
 mod mutations;
 mod reporting;
 mod shards;
@@ -398,8 +399,8 @@ fn a_job_over_many_files_finishes_the_good_ones_and_reports_the_bad() {
     let mut written: Vec<String> =
         std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     written.sort();
-    assert_eq!(written, ["good.0.npy", "good.glb", "good.json", "manifest.0-of-1.json"]);
-    let (shape, _) = read_npy(&out.join("good.0.npy"));
+    assert_eq!(written, ["good.glb", "good.json", "good.wave.npy", "manifest.0-of-1.json"]);
+    let (shape, _) = read_npy(&out.join("good.wave.npy"));
     assert_eq!(shape, [11, 1, 10]);
     // The manifest records both: the bad one failed, with its message.
     let manifest = json(&out.join("manifest.0-of-1.json"));
@@ -431,7 +432,7 @@ fn the_built_in_crowd_bakes_with_every_curve() {
         if curve == "bezier" {
             assert!(json(&out.join("crowd.json"))["device"].as_str().unwrap().starts_with("cpu:"));
         }
-        let (shape, data) = read_npy(&out.join("crowd.0.npy"));
+        let (shape, data) = read_npy(&out.join("crowd.walk.npy"));
         assert_eq!(shape, [241, 72, 10], "{curve}");
         assert!(data.iter().all(|v| v.is_finite()));
         let sidecar = json(&out.join("crowd.json"));

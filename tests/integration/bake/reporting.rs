@@ -51,7 +51,7 @@ fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
     let (dir, a, b) = two_inputs();
     let out = dir.path().join("out");
     // A texture's name (known only once the clips are read) taken by a directory.
-    std::fs::create_dir_all(out.join("walk.0.npy")).unwrap();
+    std::fs::create_dir_all(out.join("walk.wave.npy")).unwrap();
     let result = bake(&["--input", &a, &b, "--output", out.to_str().unwrap()]);
     let (summary, message) = (String::from_utf8_lossy(&result.stdout).into_owned(), stderr(&result));
     assert_eq!(result.status.code(), Some(1), "an output fault is the machine's (exit 1): {message}");
@@ -64,12 +64,12 @@ fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
     left.sort();
     assert_eq!(
         left,
-        ["manifest.0-of-1.json", "walk.0.npy", "wave.0.npy", "wave.glb", "wave.json"],
+        ["manifest.0-of-1.json", "walk.wave.npy", "wave.glb", "wave.json", "wave.wave.npy"],
         "the failed input's other outputs are removed"
     );
     // Both inputs failing say so, not "the others were baked".
     let out = dir.path().join("out2");
-    for texture in ["walk.0.npy", "wave.0.npy"] {
+    for texture in ["walk.wave.npy", "wave.wave.npy"] {
         std::fs::create_dir_all(out.join(texture)).unwrap();
     }
     let result = bake(&["--input", &a, &b, "--output", out.to_str().unwrap()]);
@@ -143,7 +143,7 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
         assert_eq!(clip["frames"], frames, "exact rate {exact}: {clip}");
         assert!((clip["end"].as_f64().unwrap() - end).abs() < 1e-6, "exact rate {exact}: {clip}");
         assert!((clip["rate"].as_f64().unwrap() - rate).abs() < 1e-5, "exact rate {exact}: {clip}");
-        let (shape, _) = read_npy(&out.join("walk.0.npy"));
+        let (shape, _) = read_npy(&out.join("walk.wave.npy"));
         assert_eq!(shape[0], frames as u64);
         let warned = message.contains(
             "clip 'wave': at exactly 10 Hz the last frame is at 1 s, so the last 0.07 s \

@@ -279,9 +279,23 @@ fn assert_skins(out: &Path, model_dir: &Path, stem: &str, sidecar: &serde_json::
     for (c, clip) in sidecar["clips"].as_array().unwrap().iter().enumerate() {
         let files = clip["files"].as_array().unwrap();
         assert_eq!(files.len(), skins.len());
-        let (_, model) = read_npy(&model_dir.join(format!("{stem}.{c}.npy")));
+        let model_file =
+            json(&model_dir.join(format!("{stem}.json")))["clips"][c]["file"].as_str().unwrap().to_string();
+        let (_, model) = read_npy(&model_dir.join(&model_file));
         for (k, (file, (skin_joints, ibm))) in files.iter().zip(&skins).enumerate() {
-            assert_eq!(file.as_str().unwrap(), format!("{stem}.{c}.skin{k}.npy"));
+            // The model texture's name with the skin's suffix: `<stem>.<clip>.skin<k>.npy`.
+            assert_eq!(file.as_str().unwrap(), model_file.replace(".npy", &format!(".skin{k}.npy")));
+            // The sidecar carries the inverse bind matrices (3x4 rows), so a renderer needs no glTF.
+            let recorded: Vec<f64> = sidecar["skins"][k]["inverse_bind"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .flat_map(|m| m.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+                .collect();
+            let expected: Vec<f64> =
+                ibm.iter().flat_map(|m| (0..3).flat_map(move |i| (0..4).map(move |j| m[i][j]))).collect();
+            assert_eq!(recorded.len(), expected.len());
+            assert!(recorded.iter().zip(&expected).all(|(a, b)| (a - b).abs() < 1e-6), "{stem}: inverse bind matrices");
             let (shape, texture) = read_npy(&out.join(file.as_str().unwrap()));
             let frames = shape[0] as usize;
             assert_eq!(shape, [frames as u64, skin_joints.len() as u64, 12]);
@@ -378,7 +392,7 @@ fn matrix_nodes_scales_rest_joints_and_two_skins() {
             && (rest0["rotation"][2].as_f64().unwrap() - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-6,
         "{rest0}"
     );
-    let (shape, local) = read_npy(&local_dir.join("rig.0.npy"));
+    let (shape, local) = read_npy(&local_dir.join("rig.wave.npy"));
     assert_eq!(shape, [5, 4, 10]);
     // Scale columns: rest values, for every frame.
     for f in 0..5 {
@@ -386,7 +400,7 @@ fn matrix_nodes_scales_rest_joints_and_two_skins() {
         assert_eq!(&local[(f * 4 + 3) * 10 + 7..(f * 4 + 4) * 10], &[0.5, 0.5, 0.5]);
     }
     bake_into(&model_dir, &input, &["--rate", "4", "--texture", "model"]);
-    let (_, model) = read_npy(&model_dir.join("rig.0.npy"));
+    let (_, model) = read_npy(&model_dir.join("rig.wave.npy"));
     let gltf = read_glb(&model_dir.join("rig.glb"));
     for (f, expected) in gltf_fk(&gltf, "wave").iter().enumerate() {
         let err = worst(&model[f * 48..(f + 1) * 48], expected);
@@ -454,15 +468,15 @@ fn the_crowd_bakes_a_model_texture_of_its_hierarchy_and_previews() {
     let parents: Vec<Option<usize>> =
         sidecar["parents"].as_array().unwrap().iter().map(|p| usize::try_from(p.as_i64().unwrap()).ok()).collect();
     assert_eq!(parents.iter().filter(|p| p.is_none()).count(), 200, "one root per character");
-    let (shape, local) = read_npy(&local_dir.join("crowd.0.npy"));
-    let (_, model) = read_npy(&model_dir.join("crowd.0.npy"));
+    let (shape, local) = read_npy(&local_dir.join("crowd.walk.npy"));
+    let (_, model) = read_npy(&model_dir.join("crowd.walk.npy"));
     let joints = shape[1] as usize;
     assert_eq!(shape, [301, 200 * 24, 10]);
     for out in [&local_dir, &model_dir] {
-        let bytes = std::fs::read(out.join("crowd.0.npy")).unwrap();
+        let bytes = std::fs::read(out.join("crowd.walk.npy")).unwrap();
         let manifest = json(&out.join("manifest.0-of-1.json"));
         let outputs = manifest["inputs"][0]["outputs"].as_array().unwrap();
-        let recorded = outputs.iter().find(|o| o["file"] == "crowd.0.npy").unwrap();
+        let recorded = outputs.iter().find(|o| o["file"] == "crowd.walk.npy").unwrap();
         assert_eq!(
             (recorded["size"].as_u64().unwrap(), recorded["sha256"].as_str().unwrap()),
             (bytes.len() as u64, super::shards::sha256(&bytes).as_str())
@@ -491,10 +505,10 @@ fn the_crowd_bakes_a_model_texture_of_its_hierarchy_and_previews() {
         let err = worst(&model[f * joints * 12..(f + 1) * joints * 12], &world_matrices(&parents, &rows));
         assert!(err <= 1e-6, "frame {f}: {err}");
     }
-    let png = image::open(model_dir.join("crowd.0.png")).unwrap().to_rgb8();
+    let png = image::open(model_dir.join("crowd.walk.preview.png")).unwrap().to_rgb8();
     let coloured = png.pixels().filter(|p| p.0.iter().max().unwrap() - p.0.iter().min().unwrap() > 60).count();
     assert!(coloured > 1000, "the preview shows no skeleton ({coloured} coloured pixels)");
-    assert_eq!(json(&model_dir.join("crowd.json"))["clips"][0]["preview"], "crowd.0.png");
+    assert_eq!(json(&model_dir.join("crowd.json"))["clips"][0]["preview"], "crowd.walk.preview.png");
 }
 
 #[test]

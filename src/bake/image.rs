@@ -1,0 +1,172 @@
+//! Animation textures as images an engine imports (DESIGN section 5b, `--format`): a 2D RGBA
+//! texture with each joint's floats in a fixed number of texels, frames along rows, wrapped so
+//! that neither side exceeds the largest texture size asked for ([`Grid`]), written as
+//! OpenEXR (half or float) or 16-bit PNG (each channel remapped to its own range, recorded
+//! in the sidecar as OpenVAT does).
+
+use super::texture::TextureKind;
+use serde::Serialize;
+
+/// How a bake writes its textures (`bake --format`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Format {
+    /// numpy `.npy` arrays `[frames, joints, channels]`, little-endian f32 or f16.
+    #[default]
+    Npy,
+    /// OpenEXR RGBA, float or (`--precision f16`) half, ZIP-compressed scan lines.
+    Exr,
+    /// 16-bit PNG RGBA, each channel of each texel slot remapped from its own `[min, max]`.
+    Png16,
+}
+
+crate::curve::names!(Format, "format", Npy => "npy", Exr => "exr", Png16 => "png16");
+
+impl Format {
+    /// The file-name extension.
+    #[must_use]
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Npy => "npy",
+            Format::Exr => "exr",
+            Format::Png16 => "png",
+        }
+    }
+}
+
+/// The largest texture side written by default (`--max-texture-size`): what every desktop and
+/// mobile GPU of the last decade samples (WebGL2 guarantees 2048, most offer 4096 or more).
+pub const DEFAULT_MAX_TEXTURE_SIZE: usize = 4096;
+
+/// Largest value of a 16-bit channel.
+#[cfg(feature = "plot")]
+const PNG16_MAX: f64 = 65535.0;
+
+/// Where each joint's texels sit in a 2D texture of `frames` frames: a frame's texels are
+/// joint after joint, `texels_per_joint` each, in rows of `width` texels (a whole number of
+/// joints), `rows_per_frame` rows per frame. Texel `t` of joint `j` in row `r` (frame `f` of a
+/// clip that starts at row `first_row` of the file, so `r = first_row + f`) is at
+/// `x = (j * texels_per_joint + t) % width`,
+/// `y = r * rows_per_frame + (j * texels_per_joint + t) / width` ([`Grid::texel`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Grid {
+    /// Texels per row of the image.
+    pub width: usize,
+    /// Rows of the image.
+    pub height: usize,
+    /// Texels each joint takes ([`TextureKind::texels`]).
+    pub texels_per_joint: usize,
+    /// Image rows each frame takes (1 unless a frame's joints are wider than `width`).
+    pub rows_per_frame: usize,
+}
+
+impl Grid {
+    /// The grid of `frames` frames of `joints` joints of `kind` within `max` texels a side.
+    ///
+    /// # Errors
+    /// The reason in words, naming the limit, when the frames cannot fit.
+    pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, String> {
+        let texels_per_joint = kind.texels().len();
+        let per_frame = (joints * texels_per_joint).max(1);
+        let width = per_frame.min(max / texels_per_joint * texels_per_joint);
+        if width == 0 {
+            return Err(format!("a joint takes {texels_per_joint} texels, more than a texture side of {max}"));
+        }
+        let rows_per_frame = per_frame.div_ceil(width);
+        let height = frames * rows_per_frame;
+        if height > max {
+            return Err(format!(
+                "{frames} frames of {joints} joints take {height} rows of {width} texels ({rows_per_frame} per frame), more than a \
+                 texture side of {max}; bake at a lower rate, clip by clip rather than as one atlas, or raise the maximum texture size"
+            ));
+        }
+        Ok(Self { width, height, texels_per_joint, rows_per_frame })
+    }
+
+    /// `(x, y)` of texel `texel` of joint `joint` in row `row` (a frame of the file).
+    #[must_use]
+    pub fn texel(&self, row: usize, joint: usize, texel: usize) -> (usize, usize) {
+        let at = joint * self.texels_per_joint + texel;
+        (at % self.width, row * self.rows_per_frame + at / self.width)
+    }
+}
+
+/// Texels of `rows` (frame-major rows of `joints` joints of `kind`'s channels) laid on `grid`,
+/// `[x, y, z, w]` per texel, row after row of the image; texels no joint fills are zero.
+#[must_use]
+pub fn texels(kind: TextureKind, grid: &Grid, joints: usize, rows: &[f32]) -> Vec<[f32; 4]> {
+    let channels = kind.channels();
+    let mut image = vec![[0.0f32; 4]; grid.width * grid.height];
+    for (row, values) in rows.chunks_exact(joints * channels).enumerate() {
+        for joint in 0..joints {
+            let floats = &values[joint * channels..(joint + 1) * channels];
+            for (t, range) in kind.texels().iter().enumerate() {
+                let (x, y) = grid.texel(row, joint, t);
+                let texel = &mut image[y * grid.width + x];
+                texel[..range.len()].copy_from_slice(&floats[range.clone()]);
+            }
+        }
+    }
+    image
+}
+
+/// Per texel slot and channel, the `[min, max]` of `rows`' values (frame-major rows of joints
+/// of `kind`'s channels): what PNG16 maps to `0..=65535`; `[0, 0]` for a channel no float
+/// fills.
+#[must_use]
+pub fn ranges(kind: TextureKind, rows: &[f32]) -> Vec<[[f32; 2]; 4]> {
+    let slots = kind.texels();
+    let mut out = vec![[[0.0f32; 2]; 4]; slots.len()];
+    for (slot, range) in out.iter_mut().zip(slots) {
+        for (c, pair) in range.clone().zip(slot.iter_mut()) {
+            let values = rows.chunks_exact(kind.channels()).map(|floats| floats[c]);
+            let (lo, hi) = values.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+            if lo <= hi {
+                *pair = [lo, hi];
+            }
+        }
+    }
+    out
+}
+
+/// The OpenEXR bytes of `image` (`grid.width x grid.height` RGBA), half or float.
+///
+/// # Errors
+/// The encoder's, in words.
+pub fn exr(grid: &Grid, image: &[[f32; 4]], half: bool) -> Result<Vec<u8>, String> {
+    use exr::prelude::*;
+    let size = (grid.width, grid.height);
+    let at = |Vec2(x, y): Vec2<usize>| image[y * grid.width + x];
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    let written = if half {
+        let channels = SpecificChannels::rgba(|p| at(p).map(f16::from_f32).into());
+        Image::from_encoded_channels(size, Encoding::SMALL_LOSSLESS, channels).write().to_buffered(&mut bytes)
+    } else {
+        let channels = SpecificChannels::rgba(|p| at(p).into());
+        Image::from_encoded_channels(size, Encoding::SMALL_LOSSLESS, channels).write().to_buffered(&mut bytes)
+    };
+    written.map_err(|e| e.to_string())?;
+    Ok(bytes.into_inner())
+}
+
+/// The 16-bit PNG bytes of `image`, each channel of texel slot `t` mapped from `ranges[t]` to
+/// `0..=65535` (rounded to the nearest).
+///
+/// # Errors
+/// The encoder's, in words.
+#[cfg(feature = "plot")]
+pub fn png16(grid: &Grid, image: &[[f32; 4]], ranges: &[[[f32; 2]; 4]]) -> Result<Vec<u8>, String> {
+    let mut samples = Vec::with_capacity(image.len() * 4);
+    for (i, texel) in image.iter().enumerate() {
+        let slot = &ranges[(i % grid.width) % grid.texels_per_joint];
+        for (c, &v) in texel.iter().enumerate() {
+            let [lo, hi] = slot[c].map(f64::from);
+            let unit = if hi > lo { (f64::from(v) - lo) / (hi - lo) } else { 0.0 };
+            samples.push((unit.clamp(0.0, 1.0) * PNG16_MAX).round() as u16);
+        }
+    }
+    let buffer = image::ImageBuffer::<image::Rgba<u16>, _>::from_raw(grid.width as u32, grid.height as u32, samples)
+        .ok_or("the texels do not fill the image")?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    buffer.write_to(&mut bytes, image::ImageOutputFormat::Png).map_err(|e| e.to_string())?;
+    Ok(bytes.into_inner())
+}
