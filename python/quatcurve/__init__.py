@@ -336,8 +336,9 @@ def bake(
         ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
     texture : str
         ``local`` ``[frames, joints, 10]`` (rotation, translation, scale), ``model``
-        ``[frames, joints, 12]`` (3x4 matrices by forward kinematics) or ``skin`` (model
-        times inverse bind matrix, per glTF skin).
+        ``[frames, joints, 12]`` (3x4 matrices by forward kinematics), ``skin`` (model
+        times inverse bind matrix, per glTF skin), or ``model-trs`` and ``skin-trs`` (those
+        transforms as rotation, translation, scale, which a shader interpolates rigidly).
     precision : str
         ``f32`` or ``f16`` (``npy`` and ``exr``).
     format : str

@@ -77,7 +77,7 @@ def bake(
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
     blend: Literal["cubic", "quadratic"] = "cubic",
     loop: Literal["auto", "on", "off"] = "auto",
-    texture: Literal["local", "model", "skin"] = "local",
+    texture: Literal["local", "model", "skin", "model-trs", "skin-trs"] = "local",
     precision: Literal["f32", "f16"] = "f32",
     format: Literal["npy", "exr", "png16"] = "npy",
     max_texture_size: int = 4096,

@@ -61,7 +61,7 @@ pub struct BakeJob {
     pub max_texture_size: usize,
     /// One texture per input with every clip stacked along frames.
     pub atlas: bool,
-    /// Also draw each clip's skeleton to `<stem>.<clip>.png` (cargo feature `plot`).
+    /// Also draw each clip's skeleton to `<stem>.<clip>.preview.png` (cargo feature `plot`).
     pub preview: bool,
     /// Characters in the built-in crowd.
     pub characters: usize,
@@ -372,7 +372,7 @@ impl BakeJob {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
         let order = animation.parents_first()?;
-        if self.texture == TextureKind::Skin && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+        if self.texture.is_skin() && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
             return Err(InputError::Animation(
                 "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
             ));

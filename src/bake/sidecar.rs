@@ -121,7 +121,7 @@ impl<'a> Sidecar<'a> {
         let names = texture.channel_names().join(",");
         let precision = if format == Format::Png16 { "u16" } else { precision.name() };
         let layout = match (atlas, texture) {
-            (false, TextureKind::Skin) if !animation.skins.is_empty() => {
+            (false, kind) if kind.is_skin() && !animation.skins.is_empty() => {
                 format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", precision)
             }
             (false, _) => format!("per clip: [frames, joints, {channels}] {}: {names}", precision),

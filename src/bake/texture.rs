@@ -5,7 +5,10 @@
 //! - [`model`]: forward kinematics over the hierarchy, each joint's transform relative to the
 //!   scene root as a 3x4 matrix (glTF node semantics: `parent * T * R * S`);
 //! - [`skin`]: `model(joint) * inverseBindMatrix(joint)` in a glTF skin's joint order, the
-//!   matrices a vertex shader multiplies skinned vertices by.
+//!   matrices a vertex shader multiplies skinned vertices by;
+//! - `model-trs` and `skin-trs`: the same transforms as rotation, translation and scale
+//!   ([`rigid`]), quaternions sign-continuous along frames ([`Signs`]): what a shader can
+//!   interpolate between frames without shearing a joint, which lerped matrices do.
 //!
 //! Forward kinematics runs where the curves ran ([`model_on`]): on the GPU in f32
 //! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
@@ -26,9 +29,15 @@ pub enum TextureKind {
     Model,
     /// `[frames, skin joints, 12]` per glTF skin: model matrix times inverse bind matrix.
     Skin,
+    /// `[frames, joints, 10]`: the model matrices as rotation, translation, scale.
+    ModelTrs,
+    /// `[frames, skin joints, 10]` per glTF skin: the skin matrices as rotation, translation,
+    /// scale.
+    SkinTrs,
 }
 
-crate::curve::names!(TextureKind, "texture", Local => "local", Model => "model", Skin => "skin");
+crate::curve::names!(TextureKind, "texture",
+    Local => "local", Model => "model", Skin => "skin", ModelTrs => "model-trs", SkinTrs => "skin-trs");
 
 pub use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 
@@ -36,10 +45,23 @@ impl TextureKind {
     /// Floats per joint and frame.
     #[must_use]
     pub fn channels(self) -> usize {
-        match self {
-            TextureKind::Local => LOCAL_CHANNELS,
-            TextureKind::Model | TextureKind::Skin => MATRIX_CHANNELS,
+        if self.is_matrix() {
+            MATRIX_CHANNELS
+        } else {
+            LOCAL_CHANNELS
         }
+    }
+
+    /// Stored as 3x4 matrices (`model`, `skin`), not as rotation, translation and scale.
+    #[must_use]
+    pub fn is_matrix(self) -> bool {
+        matches!(self, TextureKind::Model | TextureKind::Skin)
+    }
+
+    /// One texture per glTF skin (`skin`, `skin-trs`).
+    #[must_use]
+    pub fn is_skin(self) -> bool {
+        matches!(self, TextureKind::Skin | TextureKind::SkinTrs)
     }
 
     /// How a joint's floats fill RGBA texels of a 2D texture ([`super::image`]): each range
@@ -47,20 +69,20 @@ impl TextureKind {
     /// the matrix's three rows for `model` and `skin`.
     #[must_use]
     pub fn texels(self) -> &'static [std::ops::Range<usize>] {
-        match self {
-            TextureKind::Local => &[0..4, 4..7, 7..10],
-            TextureKind::Model | TextureKind::Skin => &[0..4, 4..8, 8..12],
+        if self.is_matrix() {
+            &[0..4, 4..8, 8..12]
+        } else {
+            &[0..4, 4..7, 7..10]
         }
     }
 
     /// What each float is, in order (the sidecar's `channels`).
     #[must_use]
     pub fn channel_names(self) -> &'static [&'static str] {
-        match self {
-            TextureKind::Local => &["qx", "qy", "qz", "qw", "tx", "ty", "tz", "sx", "sy", "sz"],
-            TextureKind::Model | TextureKind::Skin => {
-                &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"]
-            }
+        if self.is_matrix() {
+            &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"]
+        } else {
+            &["qx", "qy", "qz", "qw", "tx", "ty", "tz", "sx", "sy", "sz"]
         }
     }
 }
@@ -230,11 +252,11 @@ pub struct Sheet {
 }
 
 /// The sheets a clip's texture of `kind` has, as `(suffix, width)`: one, or for
-/// [`TextureKind::Skin`] one per skin (one model sheet when the animation has no skin, as for
+/// the skin kinds one per skin (one model sheet when the animation has no skin, as for
 /// BVH). Known before anything is computed, so that files can be opened with their shapes.
 #[must_use]
 pub fn layout(animation: &Animation, kind: TextureKind) -> Vec<(String, usize)> {
-    if kind == TextureKind::Skin && !animation.skins.is_empty() {
+    if kind.is_skin() && !animation.skins.is_empty() {
         animation.skins.iter().enumerate().map(|(k, s)| (format!(".skin{k}"), s.joints.len())).collect()
     } else {
         vec![(String::new(), animation.joints.len())]
@@ -255,11 +277,14 @@ pub fn sheets(
     device: &Device,
 ) -> Result<Vec<Sheet>, InputError> {
     let frames: Vec<usize> = (0..baked.clips[clip].times.len()).collect();
-    sheet_rows(animation, order, baked, clip, kind, device, &frames)
+    let mut sheets = sheet_rows(animation, order, baked, clip, kind, device, &frames)?;
+    Signs::default().follow(kind, &mut sheets);
+    Ok(sheets)
 }
 
 /// The rows of [`sheets`] for the clip's `frames` only, in that order: every frame's rows
 /// depend on that frame alone, so a texture can be computed and written a block at a time.
+/// The rigid kinds' quaternions come with `w >= 0`; [`Signs::follow`] makes them continuous.
 ///
 /// # Errors
 /// As [`sheets`].
@@ -273,21 +298,141 @@ pub fn sheet_rows(
     frames: &[usize],
 ) -> Result<Vec<Sheet>, InputError> {
     let local = local_rows(animation, baked, clip, frames);
-    let data = if kind == TextureKind::Local {
-        vec![local]
+    if kind == TextureKind::Local {
+        return Ok(vec![Sheet { suffix: String::new(), width: animation.joints.len(), data: local }]);
+    }
+    let model = model_on(device, animation, order, &local)?;
+    let (matrices, joints): (Vec<Vec<f32>>, Vec<Vec<usize>>) = if !kind.is_skin() || animation.skins.is_empty() {
+        (vec![model], vec![(0..animation.joints.len()).collect()])
     } else {
-        let model = model_on(device, animation, order, &local)?;
-        if kind == TextureKind::Model || animation.skins.is_empty() {
-            vec![model]
-        } else {
-            animation.skins.iter().map(|s| skin(s, animation.joints.len(), &model)).collect()
-        }
+        animation.skins.iter().map(|s| (skin(s, animation.joints.len(), &model), s.joints.clone())).unzip()
     };
-    Ok(layout(animation, kind)
-        .into_iter()
-        .zip(data)
-        .map(|((suffix, width), data)| Sheet { suffix, width, data })
-        .collect())
+    let mut sheets = Vec::with_capacity(matrices.len());
+    for (((suffix, width), data), joints) in layout(animation, kind).into_iter().zip(matrices).zip(joints) {
+        let data = if kind.is_matrix() {
+            data
+        } else {
+            rigid_rows(&data, width).map_err(|(row, k, residual)| {
+                InputError::Animation(format!(
+                    "clip '{}', frame {}: joint '{}' is sheared (a {kind} texture's rotation and scale would be off by \
+                     {residual:.1e}, over SHEAR_TOLERANCE = {SHEAR_TOLERANCE:e}), which rotation, translation and scale \
+                     cannot hold; bake --texture {} (matrices) instead",
+                    animation.clips[clip].name,
+                    frames[row],
+                    animation.joints[joints[k]].name,
+                    if kind.is_skin() { TextureKind::Skin } else { TextureKind::Model },
+                ))
+            })?
+        };
+        sheets.push(Sheet { suffix, width, data });
+    }
+    Ok(sheets)
+}
+
+/// Largest difference, relative to the largest scale, between a matrix and the rotation,
+/// translation and scale [`rigid`] makes of it: beyond it the matrix is sheared (a child
+/// rotated under a non-uniform scale), and only a matrix texture holds it. f32 matrices of
+/// rigid transforms come within about 1e-6.
+pub const SHEAR_TOLERANCE: f64 = 1e-4;
+
+/// A 3x4 matrix as rotation `x, y, z, w` (`w >= 0`), translation and scale (`T * R * S`, as
+/// glTF nodes), with the difference between the matrix and that transform's relative to the
+/// largest scale. A mirroring matrix (negative determinant) takes a negative uniform sign on
+/// the scale.
+#[must_use]
+pub fn rigid(m: &Affine) -> ([f64; 10], f64) {
+    let column = |c: usize| [m[c], m[4 + c], m[8 + c]];
+    let [c0, c1, c2] = [column(0), column(1), column(2)];
+    let det = c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c0[1] * (c1[0] * c2[2] - c1[2] * c2[0])
+        + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0]);
+    let sign = if det < 0.0 { -1.0 } else { 1.0 };
+    let scale = [c0, c1, c2].map(|c| sign * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
+    let largest = scale.iter().fold(0.0f64, |a, s| a.max(s.abs()));
+    if scale.iter().any(|s| !s.is_normal()) {
+        return ([0.0, 0.0, 0.0, 1.0, m[3], m[7], m[11], scale[0], scale[1], scale[2]], f64::INFINITY);
+    }
+    // The rotation's entries r[row][col] = m[row][col] / scale[col].
+    let r = |i: usize, j: usize| m[4 * i + j] / scale[j];
+    let trace = r(0, 0) + r(1, 1) + r(2, 2);
+    // Shepperd's method: divide by the largest of the four candidates.
+    let q = if trace > 0.0 {
+        let s = 2.0 * (1.0 + trace).sqrt();
+        [(r(2, 1) - r(1, 2)) / s, (r(0, 2) - r(2, 0)) / s, (r(1, 0) - r(0, 1)) / s, s / 4.0]
+    } else if r(0, 0) > r(1, 1) && r(0, 0) > r(2, 2) {
+        let s = 2.0 * (1.0 + r(0, 0) - r(1, 1) - r(2, 2)).sqrt();
+        [s / 4.0, (r(0, 1) + r(1, 0)) / s, (r(0, 2) + r(2, 0)) / s, (r(2, 1) - r(1, 2)) / s]
+    } else if r(1, 1) > r(2, 2) {
+        let s = 2.0 * (1.0 + r(1, 1) - r(0, 0) - r(2, 2)).sqrt();
+        [(r(0, 1) + r(1, 0)) / s, s / 4.0, (r(1, 2) + r(2, 1)) / s, (r(0, 2) - r(2, 0)) / s]
+    } else {
+        let s = 2.0 * (1.0 + r(2, 2) - r(0, 0) - r(1, 1)).sqrt();
+        [(r(0, 2) + r(2, 0)) / s, (r(1, 2) + r(2, 1)) / s, s / 4.0, (r(1, 0) - r(0, 1)) / s]
+    };
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let flip = if q[3] < 0.0 { -1.0 } else { 1.0 };
+    let q = q.map(|v| flip * v / n);
+    let out = [q[0], q[1], q[2], q[3], m[3], m[7], m[11], scale[0], scale[1], scale[2]];
+    let back = trs(&out.map(|v| v as f32));
+    let residual = (0..12).filter(|i| i % 4 != 3).map(|i| (back[i] - m[i]).abs()).fold(0.0, f64::max) / largest;
+    (out, residual)
+}
+
+/// [`rigid`] over matrix rows `[frames, joints, 12]`, to `[frames, joints, 10]`.
+///
+/// # Errors
+/// `(frame of the rows, joint, residual)` of the first matrix over [`SHEAR_TOLERANCE`].
+fn rigid_rows(matrices: &[f32], joints: usize) -> Result<Vec<f32>, (usize, usize, f64)> {
+    let rows: Vec<Result<Vec<f32>, (usize, usize, f64)>> = matrices
+        .par_chunks(joints.max(1) * MATRIX_CHANNELS)
+        .enumerate()
+        .map(|(row, frame)| {
+            let mut out = Vec::with_capacity(joints * LOCAL_CHANNELS);
+            for (k, m) in frame.chunks_exact(MATRIX_CHANNELS).enumerate() {
+                let (values, residual) = rigid(&std::array::from_fn(|i| f64::from(m[i])));
+                if residual.is_nan() || residual > SHEAR_TOLERANCE {
+                    return Err((row, k, residual));
+                }
+                out.extend(values.map(|v| v as f32));
+            }
+            Ok(out)
+        })
+        .collect();
+    rows.into_iter().collect::<Result<Vec<_>, _>>().map(|rows| rows.concat())
+}
+
+/// The last quaternion of every joint of every sheet: what [`Signs::follow`] keeps the next
+/// frame's on the same side of, across the blocks a texture is computed in.
+#[derive(Clone, Debug, Default)]
+pub struct Signs {
+    last: Vec<Vec<[f32; 4]>>,
+}
+
+impl Signs {
+    /// Flips each rigid-kind quaternion whose dot product with the joint's previous one is
+    /// negative, frame after frame, so that the two neighbours a shader blends (or a texture
+    /// unit filters) lie on the same side; `q` and `-q` are the same rotation. `local` keeps
+    /// the curve's own quaternions, continuous already; matrices have none.
+    pub fn follow(&mut self, kind: TextureKind, sheets: &mut [Sheet]) {
+        if !matches!(kind, TextureKind::ModelTrs | TextureKind::SkinTrs) {
+            return;
+        }
+        self.last.resize(sheets.len(), Vec::new());
+        for (sheet, last) in sheets.iter_mut().zip(&mut self.last) {
+            for row in sheet.data.chunks_exact_mut(sheet.width.max(1) * LOCAL_CHANNELS) {
+                if last.is_empty() {
+                    last.extend(row.chunks_exact(LOCAL_CHANNELS).map(|j| [j[0], j[1], j[2], j[3]]));
+                    continue;
+                }
+                for (j, previous) in row.chunks_exact_mut(LOCAL_CHANNELS).zip(last.iter_mut()) {
+                    let dot: f32 = (0..4).map(|i| j[i] * previous[i]).sum();
+                    if dot < 0.0 {
+                        j[..4].iter_mut().for_each(|v| *v = -*v);
+                    }
+                    *previous = [j[0], j[1], j[2], j[3]];
+                }
+            }
+        }
+    }
 }
 
 /// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,
@@ -328,4 +473,87 @@ pub fn preview_frames(frames: usize) -> Vec<usize> {
 pub fn position(model: &[f32], joints: usize, frame: usize, j: usize) -> [f32; 3] {
     let at = (frame * joints + j) * MATRIX_CHANNELS;
     [model[at + 3], model[at + 7], model[at + 11]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rotation `x, y, z, w` from a seed, not normalized.
+    fn rotation(seed: u64) -> [f32; 4] {
+        let mut rng = crate::synthetic::SplitMix::new(seed);
+        std::array::from_fn(|_| (rng.unit() * 2.0 - 1.0) as f32)
+    }
+
+    #[test]
+    fn rigid_gives_back_the_rotation_translation_and_scale_of_a_matrix() {
+        for seed in 0..2000u64 {
+            let q = rotation(seed);
+            let n = q.iter().map(|v| v * v).sum::<f32>().sqrt();
+            let sign = if seed % 7 == 0 { -1.0 } else { 1.0 };
+            let s = [0.5 + (seed % 5) as f32 * 0.3, 1.0, 2.0].map(|v| v * sign);
+            let row = [q[0], q[1], q[2], q[3], 1.0, -2.0, 3.0, s[0], s[1], s[2]];
+            let (back, residual) = rigid(&trs(&row));
+            assert!(residual < 1e-6, "seed {seed}: residual {residual}");
+            // The same rotation up to sign, w >= 0; the scale's sign is uniform.
+            let side = if q[3] < 0.0 { -1.0 } else { 1.0 };
+            for i in 0..4 {
+                assert!((back[i] - f64::from(side * q[i] / n)).abs() < 1e-6, "seed {seed}: {back:?} vs {q:?}");
+            }
+            for i in 0..3 {
+                assert!((back[7 + i] - f64::from(s[i])).abs() < 1e-6, "seed {seed}: scale {back:?}");
+            }
+            assert_eq!(&back[4..7], &[1.0, -2.0, 3.0]);
+        }
+    }
+
+    #[test]
+    fn a_sheared_or_flat_matrix_is_not_rigid() {
+        let mut m = trs(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        m[1] = 0.3;
+        assert!(rigid(&m).1 > SHEAR_TOLERANCE);
+        let flat = trs(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0]);
+        assert!(rigid(&flat).1 > SHEAR_TOLERANCE);
+    }
+
+    #[test]
+    fn signs_follow_across_blocks_as_over_the_whole() {
+        // One joint turning about z through 720 degrees, each frame's quaternion with w >= 0.
+        let frames = 50;
+        let data: Vec<f32> = (0..frames)
+            .flat_map(|f| {
+                let half = f as f64 * 4.0 * std::f64::consts::PI / frames as f64 / 2.0;
+                let q = [0.0, 0.0, half.sin(), half.cos()];
+                let side = if q[3] < 0.0 { -1.0 } else { 1.0 };
+                let mut row = vec![0.0f32; LOCAL_CHANNELS];
+                for i in 0..4 {
+                    row[i] = (side * q[i]) as f32;
+                }
+                row
+            })
+            .collect();
+        let sheet = |rows: std::ops::Range<usize>| Sheet {
+            suffix: String::new(),
+            width: 1,
+            data: data[rows.start * LOCAL_CHANNELS..rows.end * LOCAL_CHANNELS].to_vec(),
+        };
+        let mut whole = vec![sheet(0..frames)];
+        Signs::default().follow(TextureKind::ModelTrs, &mut whole);
+        let mut signs = Signs::default();
+        let mut blocks = Vec::new();
+        for range in [0..7, 7..31, 31..frames] {
+            let mut block = vec![sheet(range)];
+            signs.follow(TextureKind::ModelTrs, &mut block);
+            blocks.extend(block.remove(0).data);
+        }
+        assert_eq!(blocks, whole[0].data);
+        let flips = whole[0].data.chunks_exact(LOCAL_CHANNELS).collect::<Vec<_>>();
+        assert!(flips.windows(2).all(|w| (0..4).map(|i| w[0][i] * w[1][i]).sum::<f32>() > 0.0));
+        // The canonical input did flip (w >= 0 each frame), so following changed something.
+        assert_ne!(whole[0].data, data);
+        // Matrices and local rows are left alone.
+        let mut local = vec![sheet(0..frames)];
+        Signs::default().follow(TextureKind::Local, &mut local);
+        assert_eq!(local[0].data, data);
+    }
 }

@@ -225,10 +225,12 @@ pub(super) fn stream(
             Ok(())
         });
         let mut computed = Ok(());
+        let mut signs = texture::Signs::default();
         for start in (0..frames).step_by(block) {
             let picks: Vec<usize> = (start..frames.min(start + block)).collect();
             match texture::sheet_rows(animation, order, baked, index, kind, fk_device, &picks) {
-                Ok(sheets) => {
+                Ok(mut sheets) => {
+                    signs.follow(kind, &mut sheets);
                     // A closed channel: the writer failed, and says why below.
                     if send.send(sheets).is_err() {
                         break;

@@ -45,8 +45,10 @@ pub struct BakeArgs {
     #[arg(long)]
     allow_external_uris: bool,
     /// Texture per clip: local (rotation, translation, scale of each joint relative to its
-    /// parent), model (3x4 matrices relative to the scene root, by forward kinematics) or skin
-    /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model).
+    /// parent), model (3x4 matrices relative to the scene root, by forward kinematics), skin
+    /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model),
+    /// or model-trs and skin-trs (those transforms as rotation, translation, scale: what a
+    /// shader interpolates between frames without shearing; `quatcurve shaders`).
     #[arg(long, default_value = "local", value_parser = names::<TextureKind>())]
     texture: TextureKind,
     /// Texture element type: f32, or f16 (half the bytes, about 3 significant digits).
@@ -64,7 +66,7 @@ pub struct BakeArgs {
     #[arg(long)]
     atlas: bool,
     /// Also draw each clip's skeleton at evenly spaced frames, front and side views, to
-    /// `<stem>.<clip>.png`.
+    /// `<stem>.<clip>.preview.png`.
     #[arg(long)]
     preview: bool,
     /// Output directory (created if missing).

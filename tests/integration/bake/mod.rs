@@ -8,6 +8,7 @@ mod hostile;
 mod images;
 mod mutations;
 mod reporting;
+mod rigid;
 mod shards;
 mod textures;
 

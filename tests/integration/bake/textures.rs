@@ -138,7 +138,7 @@ fn gltf_fk(gltf: &gltf::Gltf, clip: &str) -> Vec<Vec<M4>> {
 }
 
 /// Bakes `input` into `dir` (on the CPU path unless `extra` names a device); the sidecar.
-fn bake_into(dir: &Path, input: &Path, extra: &[&str]) -> serde_json::Value {
+pub(super) fn bake_into(dir: &Path, input: &Path, extra: &[&str]) -> serde_json::Value {
     let mut args = vec!["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap()];
     if !extra.contains(&"--device") {
         args.extend(["--device", "cpu"]);
@@ -340,7 +340,7 @@ fn skin_textures_are_model_times_inverse_bind() {
 
 /// A glTF with a `matrix` root, non-uniform scales, a joint no clip animates, a second root
 /// and two skins over overlapping joints; node 1's rotation is keyed at 0 and 1 s.
-fn rig() -> String {
+pub(super) fn rig() -> String {
     let (mut doc, mut bytes) = tiny_gltf_value(&[0.0, 1.0], &[[0.0, 0.0, 0.0, 1.0], [0.0, 0.38268343, 0.0, 0.9238795]]);
     let m4 = |t: [f32; 3], s: [f32; 3]| -> Vec<f32> {
         // Column-major: a quarter turn about z with scale s, then translation t.
