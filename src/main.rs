@@ -26,6 +26,9 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Energy, torque and smoothness of curves through the same keys; --paper reruns KKS 6.1.
     Analyze(cli::analyze::AnalyzeArgs),
+    /// The shaders that read baked bone textures (--format exr|png16): WGSL, or GLSL and HLSL
+    /// generated from it.
+    Shaders(cli::shaders::ShadersArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => cli::bake::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
+        Command::Shaders(args) => cli::shaders::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

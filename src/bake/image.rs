@@ -42,11 +42,14 @@ pub const DEFAULT_MAX_TEXTURE_SIZE: usize = 4096;
 const PNG16_MAX: f64 = 65535.0;
 
 /// Where each joint's texels sit in a 2D texture of `frames` frames: a frame's texels are
-/// joint after joint, `texels_per_joint` each, in rows of `width` texels (a whole number of
-/// joints), `rows_per_frame` rows per frame. Texel `t` of joint `j` in row `r` (frame `f` of a
-/// clip that starts at row `first_row` of the file, so `r = first_row + f`) is at
-/// `x = (j * texels_per_joint + t) % width`,
-/// `y = r * rows_per_frame + (j * texels_per_joint + t) / width` ([`Grid::texel`]).
+/// joint after joint, `texels_per_joint` each, in rows of `frame_width` texels (a whole number
+/// of joints), `rows_per_frame` rows per frame; frames go down a column of `frames_per_column`
+/// frames, and columns side by side when one would be taller than the largest side. Texel `t`
+/// of joint `j` in row `r` (frame `f` of a clip that starts at row `first_row` of the file, so
+/// `r = first_row + f`), with `a = j * texels_per_joint + t`, is at
+/// `x = (r / frames_per_column) * frame_width + a % frame_width`,
+/// `y = (r % frames_per_column) * rows_per_frame + a / frame_width` ([`Grid::texel`], and
+/// [`ADDRESS`] in words).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Grid {
     /// Texels per row of the image.
@@ -55,9 +58,19 @@ pub struct Grid {
     pub height: usize,
     /// Texels each joint takes ([`TextureKind::texels`]).
     pub texels_per_joint: usize,
-    /// Image rows each frame takes (1 unless a frame's joints are wider than `width`).
+    /// Texels per row of one frame (a column's width).
+    pub frame_width: usize,
+    /// Image rows each frame takes (1 unless a frame's joints are wider than the largest side).
     pub rows_per_frame: usize,
+    /// Frames down one column before the next column starts.
+    pub frames_per_column: usize,
 }
+
+/// [`Grid::texel`]'s formula as the sidecar states it (`address`), with each file's numbers
+/// beside it.
+pub const ADDRESS: &str = "a = j * texels_per_joint + t, r = first_row + frame, \
+    x = (r / frames_per_column) * frame_width + a % frame_width, \
+    y = (r % frames_per_column) * rows_per_frame + a / frame_width (integer division)";
 
 impl Grid {
     /// The grid of `frames` frames of `joints` joints of `kind` within `max` texels a side.
@@ -67,26 +80,39 @@ impl Grid {
     pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, String> {
         let texels_per_joint = kind.texels().len();
         let per_frame = (joints * texels_per_joint).max(1);
-        let width = per_frame.min(max / texels_per_joint * texels_per_joint);
-        if width == 0 {
+        let frame_width = per_frame.min(max / texels_per_joint * texels_per_joint);
+        if frame_width == 0 {
             return Err(format!("a joint takes {texels_per_joint} texels, more than a texture side of {max}"));
         }
-        let rows_per_frame = per_frame.div_ceil(width);
-        let height = frames * rows_per_frame;
-        if height > max {
+        let rows_per_frame = per_frame.div_ceil(frame_width);
+        let most_per_column = max / rows_per_frame;
+        let columns = frames.max(1).div_ceil(most_per_column.max(1));
+        if most_per_column == 0 || columns * frame_width > max {
             return Err(format!(
-                "{frames} frames of {joints} joints take {height} rows of {width} texels ({rows_per_frame} per frame), more than a \
-                 texture side of {max}; bake at a lower rate, clip by clip rather than as one atlas, or raise the maximum texture size"
+                "{frames} frames of {joints} joints take {} texels ({rows_per_frame} rows of {frame_width} per frame), more \
+                 than a texture side of {max} can hold in rows and columns; bake at a lower rate, clip by clip rather than as one atlas, \
+                 or raise the maximum texture size",
+                frames * per_frame
             ));
         }
-        Ok(Self { width, height, texels_per_joint, rows_per_frame })
+        // Columns of even height, so the image wastes less than a frame per column.
+        let frames_per_column = frames.max(1).div_ceil(columns);
+        Ok(Self {
+            width: columns * frame_width,
+            height: frames_per_column * rows_per_frame,
+            texels_per_joint,
+            frame_width,
+            rows_per_frame,
+            frames_per_column,
+        })
     }
 
     /// `(x, y)` of texel `texel` of joint `joint` in row `row` (a frame of the file).
     #[must_use]
     pub fn texel(&self, row: usize, joint: usize, texel: usize) -> (usize, usize) {
         let at = joint * self.texels_per_joint + texel;
-        (at % self.width, row * self.rows_per_frame + at / self.width)
+        let (column, down) = (row / self.frames_per_column, row % self.frames_per_column);
+        (column * self.frame_width + at % self.frame_width, down * self.rows_per_frame + at / self.frame_width)
     }
 }
 

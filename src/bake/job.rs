@@ -6,6 +6,7 @@
 //! One input failing is reported in its [`InputReport`] and the others still finish; only a
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
+use super::budget::{self, ChosenRate, ErrorBudget};
 use super::error::{BakeError, InputError};
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::inputs::{expand, output_stems, Source};
@@ -13,6 +14,7 @@ use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord}
 use super::outputs::clip_file_names;
 use super::outputs::{refuse_overwriting_input, OutputDir, Outputs};
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
+use super::root_motion::{self, RootMotion};
 use super::shard::Shard;
 use super::sidecar::{Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
@@ -73,6 +75,13 @@ pub struct BakeJob {
     pub resume: bool,
     /// Inputs read, baked and written at once (each bake also uses every core).
     pub jobs: usize,
+    /// Each clip at the lowest rate whose frames, interpolated as the shipped shader does,
+    /// stay within this budget of the curve (in place of [`BakeJob::rate`]); no budget set:
+    /// every clip at [`BakeJob::rate`].
+    pub max_error: ErrorBudget,
+    /// Keep the root's horizontal motion in the textures, or extract it into the sidecar's
+    /// per-clip root track (the textures play in place).
+    pub root_motion: RootMotion,
 }
 
 impl BakeJob {
@@ -99,6 +108,8 @@ impl BakeJob {
             shard: None,
             resume: false,
             jobs: 1,
+            max_error: ErrorBudget::none(),
+            root_motion: RootMotion::Keep,
         }
     }
 
@@ -124,6 +135,42 @@ impl BakeJob {
                 "format",
                 "png16 needs the `plot` cargo feature, which this build leaves out",
             ));
+        }
+        let budget = &self.max_error;
+        for (flag, value) in [("max-error", budget.degrees), ("max-error-mm", budget.millimetres)] {
+            if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return Err(BakeError::option(
+                    flag,
+                    format!("must be a positive number, not {}", value.unwrap_or(0.0)),
+                ));
+            }
+        }
+        if budget.is_set() {
+            if !(budget.max_rate.is_finite() && budget.max_rate > 0.0) {
+                return Err(BakeError::option(
+                    "max-rate",
+                    format!("must be a positive number of Hz, not {}", budget.max_rate),
+                ));
+            }
+            if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
+                return Err(BakeError::option("unit-mm", format!("must be a positive number, not {}", budget.unit_mm)));
+            }
+            if !matches!(self.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
+                return Err(BakeError::option(
+                    "max-error",
+                    format!(
+                        "measures what a shader interpolates between frames, which a {} texture's matrices do not \
+                         hold without shearing; bake --texture local, model-trs or skin-trs",
+                        self.texture
+                    ),
+                ));
+            }
+            if self.exact_rate {
+                return Err(BakeError::option(
+                    "exact-rate",
+                    "a budget chooses each clip's rate; leave out --exact-rate",
+                ));
+            }
         }
         if self.max_texture_size == 0 {
             return Err(BakeError::option("max-texture-size", "must be at least 1 texel"));
@@ -158,6 +205,9 @@ impl BakeJob {
             "characters": self.characters, "texture": self.texture.name(), "precision": self.precision.name(), "format": self.format.name(),
             "max_texture_size": self.max_texture_size,
             "atlas": self.atlas, "preview": self.preview,
+            "max_error": self.max_error.degrees, "max_error_mm": self.max_error.millimetres,
+            "unit_mm": self.max_error.unit_mm, "max_rate": self.max_error.max_rate,
+            "root_motion": self.root_motion.name(),
         })
     }
 
@@ -286,6 +336,31 @@ impl BakeJob {
         Ok(())
     }
 
+    /// Per clip, what the budget chose and measured, and the texture bytes against
+    /// [`BakeJob::rate`]'s (frames times joints times channels times the element's bytes).
+    fn chosen_rates(
+        &self,
+        animation: &Animation,
+        baked: &Baked,
+        measured: Vec<budget::Measured>,
+    ) -> Result<Vec<ChosenRate>, InputError> {
+        let joints: usize = texture::layout(animation, self.texture).iter().map(|(_, width)| width).sum();
+        let element = if self.format == Format::Png16 { 2 } else { self.precision.element().size() };
+        let frame_bytes = joints * self.texture.channels() * element;
+        let mut chosen = Vec::with_capacity(measured.len());
+        for ((clip, result), measured) in animation.clips.iter().zip(&baked.clips).zip(measured) {
+            let [start, end] = clip.span();
+            let (grid, _) = super::clip_frame_grid(start, end, ClipRate::Fit(self.rate), result.looping)?;
+            chosen.push(ChosenRate {
+                clip: clip.name.clone(),
+                bytes: result.times.len() * frame_bytes,
+                fixed_rate_bytes: grid.count() * frame_bytes,
+                measured,
+            });
+        }
+        Ok(chosen)
+    }
+
     /// Reads, bakes and writes one input; the files it wrote come back with the report.
     fn bake_one(
         &self,
@@ -306,13 +381,31 @@ impl BakeJob {
             }
             report.warnings = super::source_step_warnings(animation);
             let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
-            let baked = super::bake(animation, &self.spec, rate, self.looping, device)?;
+            let mut baked = if self.max_error.is_set() {
+                let setting = budget::Setting {
+                    spec: &self.spec,
+                    looping: self.looping,
+                    kind: self.texture,
+                    precision: self.precision,
+                    device,
+                };
+                let measured = budget::choose_rates(animation, &self.max_error, &setting)?;
+                let rates: Vec<ClipRate> = measured.iter().map(|m| ClipRate::Fit(m.rate)).collect();
+                let baked = super::bake_each(animation, &self.spec, &rates, self.looping, device)?;
+                report.rates = self.chosen_rates(animation, &baked, measured)?;
+                baked
+            } else {
+                super::bake(animation, &self.spec, rate, self.looping, device)?
+            };
+            if self.root_motion == RootMotion::Extract {
+                root_motion::extract(animation, &mut baked)?;
+            }
             report.warnings.extend(unbaked_ends(animation, &baked));
             report.samples = baked.sample_count();
             report.max_key_error = baked.max_key_error;
             // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
             let used = baked.device.clone().unwrap_or_else(|| device.name());
-            self.write_outputs(&src, &baked, source, stem, &used, device)
+            self.write_outputs(&src, &baked, &report, stem, &used, device)
         });
         report.seconds = start.elapsed().as_secs_f64();
         let written = match result {
@@ -328,14 +421,15 @@ impl BakeJob {
         (report, written)
     }
 
-    /// Writes the baked file (GLB or BVH), the textures and the sidecar; if any write fails,
+    /// Writes the baked file (GLB or BVH), the textures and the sidecar (with the rates a
+    /// budget chose, from `report`); if any write fails,
     /// removes the ones already written so the job leaves nothing partial. Forward kinematics
     /// (model and skin textures, previews) runs on `fk_device`, the bake's.
     fn write_outputs(
         &self,
         src: &Source,
         baked: &Baked,
-        source: &str,
+        report: &InputReport,
         stem: &str,
         device: &str,
         fk_device: &Device,
@@ -343,7 +437,8 @@ impl BakeJob {
         let mut out = Outputs {
             dir: &self.output,
             stem,
-            source,
+            source: &report.source,
+            rates: &report.rates,
             written: Vec::new(),
             atlas: Vec::new(),
             rows: 0,
@@ -414,6 +509,7 @@ impl BakeJob {
             precision: self.precision,
             format: self.format,
             atlas: self.atlas,
+            max_error: self.max_error.is_set().then_some(&self.max_error),
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written);
@@ -484,6 +580,8 @@ impl BakeJob {
             rate: result.rate,
             looping: result.looping,
             preview,
+            between_frames: out.rates.get(index).cloned(),
+            root_motion: baked.in_place(index).map(|p| p.track.clone()),
         })
     }
 }

@@ -7,6 +7,7 @@
 //! back ([`gltf`], [`bvh`]) and [`texture`] lays them out as animation textures (local,
 //! model-space by forward kinematics, skin matrices).
 
+pub mod budget;
 pub mod bvh;
 pub mod crowd;
 pub mod error;
@@ -18,6 +19,7 @@ pub mod job;
 pub mod manifest;
 mod outputs;
 mod report;
+pub mod root_motion;
 pub mod shard;
 mod sidecar;
 pub mod texture;
@@ -300,9 +302,18 @@ pub struct Baked {
     rotations: Vec<f32>,
     /// Channels evaluated on the host, one value per frame.
     host: Vec<Vec<[f32; 4]>>,
+    /// Per clip, with `--root-motion extract`: the root-motion joint's local rows in place
+    /// ([`root_motion::extract`]), which the textures take in place of its channels.
+    in_place: Vec<Option<root_motion::InPlace>>,
 }
 
 impl Baked {
+    /// Clip `clip`'s root-motion joint in place, when its root motion was extracted.
+    #[must_use]
+    pub fn in_place(&self, clip: usize) -> Option<&root_motion::InPlace> {
+        self.in_place.get(clip).and_then(Option::as_ref)
+    }
+
     /// Clip `clip`'s channels (in the clip's order), one value per frame: rotations
     /// `x, y, z, w`; vectors `x, y, z, 0`.
     ///
@@ -474,7 +485,26 @@ pub fn bake(
     loops: LoopMode,
     device: &Device,
 ) -> Result<Baked, InputError> {
-    let (mut clips, grids) = plan_clips(animation, spec, rate, loops)?;
+    bake_each(animation, spec, &vec![rate; animation.clips.len()], loops, device)
+}
+
+/// [`bake`] with a rate of each clip's own (`rates[c]` for clip `c`): what an error budget
+/// chose ([`budget::choose_rates`]).
+///
+/// # Errors
+/// As [`bake`].
+///
+/// # Panics
+/// When `rates` has not one rate per clip.
+pub fn bake_each(
+    animation: &Animation,
+    spec: &CurveSpec,
+    rates: &[ClipRate],
+    loops: LoopMode,
+    device: &Device,
+) -> Result<Baked, InputError> {
+    assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
+    let (mut clips, grids) = plan_clips(animation, spec, rates, loops)?;
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (c, prepared) in prepare_channels(animation, spec, &clips) {
         clips[c].frames.push(match prepared? {
@@ -490,7 +520,8 @@ pub fn bake(
             }
         });
     }
-    let mut baked = Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host };
+    let mut baked =
+        Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host, in_place: Vec::new() };
     if tracks.is_empty() {
         return Ok(baked);
     }
@@ -527,13 +558,13 @@ pub fn bake(
 fn plan_clips(
     animation: &Animation,
     spec: &CurveSpec,
-    rate: ClipRate,
+    rates: &[ClipRate],
     loops: LoopMode,
 ) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
     let mut clips: Vec<BakedClip> = Vec::with_capacity(animation.clips.len());
     let mut grids = Vec::with_capacity(animation.clips.len());
     let mut total_samples = 0usize;
-    for clip in &animation.clips {
+    for (clip, &rate) in animation.clips.iter().zip(rates) {
         let [start, end] = clip.span();
         let looping = clip_loops(animation, clip, spec, loops)?;
         let hz = rate.hz();

@@ -2,6 +2,7 @@
 //! if the job left it empty), one input's files so far (taken away if it fails), and the rule
 //! that a baked file never replaces its input.
 
+use super::budget::ChosenRate;
 use super::error::{BakeError, InputError};
 use super::texture_file::{TextureFile, Written};
 use crate::io::AtomicFile;
@@ -53,6 +54,8 @@ pub(super) struct Outputs<'a> {
     pub(super) dir: &'a Path,
     pub(super) stem: &'a str,
     pub(super) source: &'a str,
+    /// With an error budget: each clip's chosen rate and its errors, for the sidecar.
+    pub(super) rates: &'a [ChosenRate],
     pub(super) written: Vec<Written>,
     /// `--atlas`: the open files every clip appends to, and their rows so far.
     pub(super) atlas: Vec<TextureFile>,

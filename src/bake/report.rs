@@ -1,6 +1,7 @@
 //! What a bake reports: to its caller as it runs ([`Progress`]), per input when it is done
 //! ([`InputReport`], [`BakeReport`]), and to the manifest ([`input_record`]).
 
+use super::budget::ChosenRate;
 use super::error::InputError;
 use super::manifest::{FileRecord, InputRecord};
 use super::shard::Shard;
@@ -74,6 +75,9 @@ pub struct InputReport {
     /// are probably broken ([`super::source_step_warnings`]), clip ends an exact rate did not
     /// bake. Each names the clip and channel.
     pub warnings: Vec<String>,
+    /// With an error budget ([`super::BakeJob::max_error`]): per clip, the rate chosen and what
+    /// it measured.
+    pub rates: Vec<ChosenRate>,
 }
 
 impl InputReport {
@@ -90,6 +94,7 @@ impl InputReport {
             outcome: Ok(Vec::new()),
             resumed: false,
             warnings: Vec::new(),
+            rates: Vec::new(),
         }
     }
 }

@@ -2,7 +2,9 @@
 //! read them alone (joints, parents, rest pose, skins with their inverse bind matrices,
 //! per-clip files, rows, rates and loops, and for image textures where each texel is).
 
+use super::budget::{ChosenRate, ErrorBudget, SUBSTEPS};
 use super::image::{Format, Grid};
+use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
 use super::{Animation, Baked};
@@ -17,6 +19,7 @@ pub(super) struct SidecarOptions<'a> {
     pub(super) precision: Precision,
     pub(super) format: Format,
     pub(super) atlas: bool,
+    pub(super) max_error: Option<&'a ErrorBudget>,
 }
 
 /// The sidecar JSON next to the animation textures (DESIGN section 5b).
@@ -42,6 +45,10 @@ pub(super) struct Sidecar<'a> {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     textures: Vec<ImageRecord>,
     max_key_error_rad: Option<f64>,
+    /// `--max-error`, `--max-error-mm`: the budget each clip's rate was chosen for, and how it
+    /// was measured (each clip's result is its `between_frames`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max_error: Option<BudgetRecord>,
     baked_file: Option<String>,
     joints: Vec<&'a str>,
     /// Parent joint index, -1 for a root.
@@ -82,6 +89,19 @@ pub(super) struct ImageRecord {
     remap: Option<Vec<[[f32; 2]; 4]>>,
 }
 
+/// The budget a bake chose its rates for.
+#[derive(Serialize)]
+struct BudgetRecord {
+    degrees: Option<f64>,
+    millimetres: Option<f64>,
+    unit_mm: f64,
+    max_rate: f64,
+    /// Points of each frame interval the error was measured at.
+    substeps: usize,
+    /// How the frames are blended: `bone_pose` of `quatcurve shaders`.
+    interpolation: &'static str,
+}
+
 #[derive(Serialize)]
 pub(super) struct SidecarClip {
     pub(super) name: String,
@@ -103,6 +123,14 @@ pub(super) struct SidecarClip {
     pub(super) looping: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) preview: Option<String>,
+    /// With an error budget: the worst rotation (degrees) and model-space position (mm)
+    /// errors between this clip's frames, where and when, and its bytes against `--rate`'s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) between_frames: Option<ChosenRate>,
+    /// With `--root-motion extract`: the root's horizontal motion and heading per frame, taken
+    /// out of the textures (`model = Root(t) * model in place`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) root_motion: Option<RootTrack>,
 }
 
 impl<'a> Sidecar<'a> {
@@ -116,7 +144,7 @@ impl<'a> Sidecar<'a> {
         clips: Vec<SidecarClip>,
         written: &[Written],
     ) -> Self {
-        let &SidecarOptions { device, curve, rate, texture, precision, format, atlas } = options;
+        let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
         let precision = if format == Format::Png16 { "u16" } else { precision.name() };
@@ -159,12 +187,17 @@ impl<'a> Sidecar<'a> {
             format: format.name(),
             layout,
             texels: image.then(|| texture.texels().iter().map(names_of).collect()),
-            address: image.then_some(
-                "x = (j * texels_per_joint + t) % width, y = r * rows_per_frame + (j * texels_per_joint + t) / width, \
-                 r = first_row + frame",
-            ),
+            address: image.then_some(super::image::ADDRESS),
             textures,
             max_key_error_rad: baked.max_key_error,
+            max_error: max_error.map(|b| BudgetRecord {
+                degrees: b.degrees,
+                millimetres: b.millimetres,
+                unit_mm: b.unit_mm,
+                max_rate: b.max_rate,
+                substeps: SUBSTEPS,
+                interpolation: "nlerp of rotations on the shorter arc, lerp of translations and scales (bone_pose)",
+            }),
             baked_file,
             joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
             parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),

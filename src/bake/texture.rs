@@ -142,6 +142,12 @@ pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[u
                 Property::Scale => out[at + 7..at + 10].copy_from_slice(&v[..3]),
             }
         }
+        if let Some(in_place) = baked.in_place(clip) {
+            let count = in_place.roots.len();
+            for (&root, row) in in_place.roots.iter().zip(&in_place.rows[frame * count..(frame + 1) * count]) {
+                out[root * LOCAL_CHANNELS..(root + 1) * LOCAL_CHANNELS].copy_from_slice(row);
+            }
+        }
     });
     data
 }
@@ -176,6 +182,43 @@ pub fn trs(row: &[f32]) -> Affine {
         r[2][2] * sz,
         tz,
     ]
+}
+
+/// The inverse of an affine matrix; `None` when it is singular.
+#[must_use]
+pub fn inverse(m: &Affine) -> Option<Affine> {
+    let a = |r: usize, c: usize| m[4 * r + c];
+    let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
+        + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
+    if !det.is_normal() {
+        return None;
+    }
+    // The adjugate over the determinant: A^-1; the translation is -A^-1 t.
+    let inv = [
+        [
+            a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1),
+            a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2),
+            a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1),
+        ],
+        [
+            a(1, 2) * a(2, 0) - a(1, 0) * a(2, 2),
+            a(0, 0) * a(2, 2) - a(0, 2) * a(2, 0),
+            a(0, 2) * a(1, 0) - a(0, 0) * a(1, 2),
+        ],
+        [
+            a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0),
+            a(0, 1) * a(2, 0) - a(0, 0) * a(2, 1),
+            a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0),
+        ],
+    ]
+    .map(|row| row.map(|v| v / det));
+    let t = [m[3], m[7], m[11]];
+    let mut out = [0.0; 12];
+    for r in 0..3 {
+        out[4 * r..4 * r + 3].copy_from_slice(&inv[r]);
+        out[4 * r + 3] = -(inv[r][0] * t[0] + inv[r][1] * t[1] + inv[r][2] * t[2]);
+    }
+    Some(out)
 }
 
 /// `a * b` for affine matrices.

@@ -7,7 +7,9 @@
 use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use quatcurve::bake::budget::ErrorBudget;
 use quatcurve::bake::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
+use quatcurve::bake::root_motion::RootMotion;
 use quatcurve::bake::texture::{Precision, TextureKind};
 use quatcurve::bake::{crowd, BakeError, BakeJob, BakeReport, InputReport, LoopMode, Progress, Shard};
 use quatcurve::{Curve, KnotMode};
@@ -87,6 +89,26 @@ pub struct BakeArgs {
     /// Inputs read, baked and written at once (each bake also uses every core).
     #[arg(long, default_value_t = 1, value_name = "N")]
     jobs: usize,
+    /// Rotation error budget in degrees: each clip at the lowest rate whose frames, blended
+    /// as `quatcurve shaders` does, stay within it of the curve between frames (16 points
+    /// per frame interval, every joint); replaces --rate. Textures local, model-trs, skin-trs.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    max_error: Option<f64>,
+    /// Position budget in millimetres, for joints in model space (local textures: errors
+    /// accumulated down the hierarchy by forward kinematics); with or without --max-error.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    max_error_mm: Option<f64>,
+    /// Millimetres per unit of the input's positions (glTF: metres, 1000).
+    #[arg(long, default_value_t = quatcurve::bake::budget::GLTF_UNIT_MM, value_name = "MM")]
+    unit_mm: f64,
+    /// keep: the root's horizontal translation and heading stay in the textures; extract: they
+    /// go to a per-frame root track in the sidecar (position, heading, velocities; a loop's
+    /// per-cycle displacement), and the textures play in place.
+    #[arg(long, default_value = "keep", value_parser = names::<RootMotion>())]
+    root_motion: RootMotion,
+    /// The highest rate a budget may choose (Hz); a clip no rate up to it holds is refused.
+    #[arg(long, default_value_t = quatcurve::bake::budget::DEFAULT_MAX_RATE, value_name = "HZ")]
+    max_rate: f64,
 }
 
 impl From<BakeError> for Failure {
@@ -119,6 +141,13 @@ impl BakeArgs {
             shard: self.shard.as_deref().map(Shard::parse).transpose()?,
             resume: self.resume,
             jobs: self.jobs,
+            max_error: ErrorBudget {
+                degrees: self.max_error,
+                millimetres: self.max_error_mm,
+                unit_mm: self.unit_mm,
+                max_rate: self.max_rate,
+            },
+            root_motion: self.root_motion,
             ..BakeJob::new(self.input.clone(), self.output.clone())
         })
     }
@@ -237,7 +266,13 @@ impl Fault {
 
 fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> std::io::Result<()> {
     let (shard, rows) = (&report.shard, &report.inputs);
-    let rate = if args.exact_rate {
+    let rate = if args.max_error.is_some() || args.max_error_mm.is_some() {
+        let budget: Vec<String> = [(args.max_error, "degrees"), (args.max_error_mm, "mm")]
+            .iter()
+            .filter_map(|(v, unit)| v.map(|v| format!("{v} {unit}")))
+            .collect();
+        format!("rates chosen per clip for {} between frames", budget.join(" and "))
+    } else if args.exact_rate {
         format!("exactly {} Hz", args.rate)
     } else {
         format!("{} Hz (fitted per clip)", args.rate)
@@ -277,6 +312,27 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
             "{name:<44} {:>5} {:>8} {:>9} {:>11} {:>8.2} {:>14}  {status}",
             r.clips, r.channels, r.keys, r.samples, r.seconds, error
         )?;
+        for c in &r.rates {
+            let (rot, pos) = (&c.measured.rotation, &c.measured.position);
+            writeln!(
+                w,
+                "  clip '{}': {:.3} Hz, {} frames, worst {:.3} deg ('{}', {:.3} s), {:.3} mm ('{}', {:.3} s); \
+                 {} bytes, {:.0}% of {} Hz's {}",
+                c.clip,
+                c.measured.rate,
+                c.measured.frames,
+                rot.value,
+                rot.joint,
+                rot.time,
+                pos.value,
+                pos.joint,
+                pos.time,
+                c.bytes,
+                100.0 * c.bytes as f64 / c.fixed_rate_bytes.max(1) as f64,
+                args.rate,
+                c.fixed_rate_bytes
+            )?;
+        }
     }
     Ok(())
 }

@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bake;
 pub mod bench;
 pub mod eval;
+pub mod shaders;
 
 use clap::Args;
 use quatcurve::{Blend, Curve, CurveSpec, Device, DeviceChoice, DeviceError, KnotMode, Tangents};
@@ -78,7 +79,9 @@ named!(
     quatcurve::bake::LoopMode,
     quatcurve::bake::texture::TextureKind,
     quatcurve::bake::texture::Precision,
-    quatcurve::bake::image::Format
+    quatcurve::bake::image::Format,
+    quatcurve::gpu::shader::Language,
+    quatcurve::bake::root_motion::RootMotion
 );
 
 /// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").

@@ -19,6 +19,26 @@ pub const FK_FILES: [(&str, &str); 3] = [
     ("fk.wgsl", include_str!("../../shaders/fk.wgsl")),
 ];
 
+/// The bone-texture library a renderer includes (`quatcurve shaders`): self-contained, read
+/// with the bake's textures of `--format exr|png16` (DESIGN section 5c).
+pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../../shaders/bone_texture.wgsl"))];
+
+/// The minimal skinned vertex shader over the bone library: what `quatcurve shaders` ships and
+/// what the GLSL and HLSL are generated from.
+pub const SKIN_VERTEX_FILES: [(&str, &str); 2] =
+    [BONE_FILES[0], ("skin_vertex.wgsl", include_str!("../../shaders/skin_vertex.wgsl"))];
+
+/// The bone library's test and error probe: its functions at given (clip, joint, time) queries
+/// in a compute pass, so the host measures the shader a renderer runs.
+pub const BONE_PROBE_FILES: [(&str, &str); 2] =
+    [BONE_FILES[0], ("bone_probe.wgsl", include_str!("../../shaders/bone_probe.wgsl"))];
+
+/// Name of the skinned vertex shader's entry point.
+pub const SKIN_VERTEX_ENTRY_POINT: &str = "skin_vertex";
+
+/// Name of the bone probe's entry point.
+pub const BONE_PROBE_ENTRY_POINT: &str = "bone_probe";
+
 /// Name of the forward-kinematics entry point.
 pub const FK_ENTRY_POINT: &str = "forward_kinematics";
 
@@ -38,6 +58,115 @@ pub fn source() -> String {
 #[must_use]
 pub fn fk_source() -> String {
     join(&FK_FILES)
+}
+
+/// The skinned vertex shader with the bone library, as one WGSL source.
+#[must_use]
+pub fn skin_vertex_source() -> String {
+    join(&SKIN_VERTEX_FILES)
+}
+
+/// The bone probe with the bone library, as one WGSL source.
+#[must_use]
+pub fn bone_probe_source() -> String {
+    join(&BONE_PROBE_FILES)
+}
+
+/// A shading language `quatcurve shaders` writes the bone library in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Language {
+    /// WGSL, the source itself (WebGPU, wgpu).
+    Wgsl,
+    /// GLSL 4.50 core (OpenGL, Vulkan through glslang).
+    Glsl,
+    /// GLSL ES 3.00 (WebGL2, OpenGL ES 3).
+    GlslEs,
+    /// HLSL shader model 5.1 (Direct3D 12, Unity, Unreal).
+    Hlsl,
+}
+
+crate::curve::names!(Language, "shader language", Wgsl => "wgsl", Glsl => "glsl", GlslEs => "glsl-es", Hlsl => "hlsl");
+
+impl Language {
+    /// The usual file-name extension of a vertex shader in this language.
+    #[must_use]
+    pub fn extension(self) -> &'static str {
+        match self {
+            Language::Wgsl => "wgsl",
+            Language::Glsl | Language::GlslEs => "vert",
+            Language::Hlsl => "hlsl",
+        }
+    }
+}
+
+/// The bone library and its skinned vertex shader in `language`: the WGSL source as it is, or
+/// naga's GLSL or HLSL back end run on it (generated, never kept as a second source).
+///
+/// # Errors
+/// naga's, in words (a bug in this crate: the tests translate every language).
+pub fn skin_vertex_in(language: Language) -> Result<String, String> {
+    let source = skin_vertex_source();
+    if language == Language::Wgsl {
+        return Ok(source);
+    }
+    let (module, info) = validate(&source)?;
+    let mut out = String::new();
+    match language {
+        Language::Wgsl => unreachable!("returned above"),
+        Language::Glsl | Language::GlslEs => {
+            use naga::back::glsl;
+            let version =
+                if language == Language::Glsl { glsl::Version::Desktop(450) } else { glsl::Version::new_gles(300) };
+            // Clip space as the API defines it: naga's default flips y and depth for WebGPU's.
+            let options = glsl::Options { version, writer_flags: glsl::WriterFlags::empty(), ..Default::default() };
+            let pipeline = glsl::PipelineOptions {
+                shader_stage: naga::ShaderStage::Vertex,
+                entry_point: SKIN_VERTEX_ENTRY_POINT.to_string(),
+                multiview: None,
+            };
+            let policies = naga::proc::BoundsCheckPolicies::default();
+            let reflection = glsl::Writer::new(&mut out, &module, &info, &options, &pipeline, policies)
+                .and_then(|mut w| w.write())
+                .map_err(|e| format!("GLSL: {e}"))?;
+            // GLSL has no bind groups: say which generated name each WGSL resource took, after
+            // the `#version` line that must come first.
+            let wgsl_name = |h: naga::Handle<naga::GlobalVariable>| {
+                let var = &module.global_variables[h];
+                let at = var
+                    .binding
+                    .as_ref()
+                    .map_or(String::new(), |b| format!(" (WGSL group {}, binding {})", b.group, b.binding));
+                format!("{}{at}", var.name.as_deref().unwrap_or("?"))
+            };
+            let mut names: Vec<String> = reflection
+                .texture_mapping
+                .iter()
+                .map(|(glsl, m)| format!("// {}: sampler2D {glsl}\n", wgsl_name(m.texture)))
+                .chain(
+                    reflection.uniforms.iter().map(|(&h, glsl)| format!("// {}: uniform block {glsl}\n", wgsl_name(h))),
+                )
+                .collect();
+            names.sort();
+            let header = format!(
+                "// Generated by `quatcurve shaders` (naga) from shaders/bone_texture.wgsl and skin_vertex.wgsl.\n{}",
+                names.concat()
+            );
+            let split = out.find('\n').map_or(0, |i| i + 1);
+            out.insert_str(split, &header);
+        }
+        Language::Hlsl => {
+            use naga::back::hlsl;
+            let options = hlsl::Options::default();
+            let pipeline = hlsl::PipelineOptions::default();
+            out.push_str(
+                "// Generated by `quatcurve shaders` (naga) from shaders/bone_texture.wgsl and skin_vertex.wgsl.\n",
+            );
+            hlsl::Writer::new(&mut out, &options, &pipeline)
+                .write(&module, &info, None)
+                .map_err(|e| format!("HLSL: {e}"))?;
+        }
+    }
+    Ok(out)
 }
 
 fn join(files: &[(&str, &str)]) -> String {

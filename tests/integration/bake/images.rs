@@ -9,8 +9,11 @@ use std::path::Path;
 /// The value at texel `t` of joint `j` in row `r` of an image, by the sidecar's formula.
 fn at(texels: &[[f32; 4]], grid: &serde_json::Value, r: usize, j: usize, t: usize) -> [f32; 4] {
     let n = |k: &str| grid[k].as_u64().unwrap() as usize;
-    let (width, per_joint, rows_per_frame) = (n("width"), n("texels_per_joint"), n("rows_per_frame"));
-    let (x, y) = ((j * per_joint + t) % width, r * rows_per_frame + (j * per_joint + t) / width);
+    let (width, per_joint, frame_width) = (n("width"), n("texels_per_joint"), n("frame_width"));
+    let (rows_per_frame, per_column) = (n("rows_per_frame"), n("frames_per_column"));
+    let a = j * per_joint + t;
+    let (x, y) =
+        ((r / per_column) * frame_width + a % frame_width, (r % per_column) * rows_per_frame + a / frame_width);
     texels[y * width + x]
 }
 
@@ -60,6 +63,8 @@ fn image_textures_hold_the_npy_values_where_the_sidecar_says() {
             ("exr", vec!["--format", "exr"]),
             ("half", vec!["--format", "exr", "--precision", "f16"]),
             ("png16", vec!["--format", "png16"]),
+            // BrainStem's 1050 frames in columns of at most 512.
+            ("columns", vec!["--format", "exr", "--max-texture-size", "512"]),
         ] {
             let mut args: Vec<&str> = vec!["--input"];
             args.extend(inputs.iter().map(String::as_str));
@@ -70,7 +75,7 @@ fn image_textures_hold_the_npy_values_where_the_sidecar_says() {
             assert!(result.status.success(), "{texture} {name}: {}", stderr(&result));
         }
         for stem in ["Fox", "CesiumMan", "BrainStem", "cmu_131_01"] {
-            for name in ["exr", "half", "png16"] {
+            for name in ["exr", "half", "png16", "columns"] {
                 let sidecar = json(&dir(name).join(format!("{stem}.json")));
                 let channels = sidecar["channels"].as_array().unwrap().len();
                 let texels = sidecar["texels"].as_array().unwrap();
@@ -123,6 +128,15 @@ fn image_textures_hold_the_npy_values_where_the_sidecar_says() {
     }
     eprintln!("worst read-back errors: {worst:?} (exr and half: relative; png16: in steps of the channel's range)");
     assert_eq!(worst["exr"], 0.0, "f32 EXR holds the npy floats exactly");
+    assert_eq!(worst["columns"], 0.0, "f32 EXR in columns holds the npy floats exactly");
+    let brainstem = json(&out.path().join("local-columns/BrainStem.json"));
+    let record = &brainstem["textures"][0];
+    assert!(
+        record["width"].as_u64().unwrap() > record["frame_width"].as_u64().unwrap()
+            && record["width"].as_u64().unwrap() <= 512
+            && record["height"].as_u64().unwrap() <= 512,
+        "BrainStem's frames wrap into columns within 512: {record}"
+    );
     assert!(worst["half"] <= 1e-3, "half EXR within 1e-3 relative: {}", worst["half"]);
     assert!(worst["png16"] <= 0.5 + 1e-3, "PNG16 within half a step of each channel's range: {}", worst["png16"]);
 }
@@ -151,7 +165,8 @@ fn image_textures_are_the_same_bytes_every_time_and_refuse_what_cannot_fit() {
         bake(&["--input", &fox, "--format", "exr", "--max-texture-size", "64", "--output", small.to_str().unwrap()]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(
-        stderr(&result).contains("clip 'Survey'") && stderr(&result).contains("more than a texture side of 64"),
+        stderr(&result).contains("clip 'Survey'")
+            && stderr(&result).contains("more than a texture side of 64 can hold"),
         "{}",
         stderr(&result)
     );

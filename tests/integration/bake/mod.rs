@@ -9,6 +9,8 @@ mod images;
 mod mutations;
 mod reporting;
 mod rigid;
+mod root_motion;
+mod shader;
 mod shards;
 mod textures;
 

@@ -1,0 +1,41 @@
+// A skinned vertex from a skin-trs bone texture (composed after bone_texture.wgsl): the
+// minimal vertex shader of a crowd, one character per instance, each with its own clip and
+// time. glTF's skinning: the vertex in bind space times the weighted sum of its four joints'
+// skinning matrices. The camera is the engine's own (group 0).
+
+struct Camera {
+    view_projection: mat4x4f,
+}
+
+@group(0) @binding(0) var<uniform> camera: Camera;
+
+struct SkinnedVertex {
+    @location(0) position: vec3f,
+    @location(1) normal: vec3f,
+    // glTF JOINTS_0 (indices into the skin's joints, as the skin texture's joints) and WEIGHTS_0.
+    @location(2) joints: vec4u,
+    @location(3) weights: vec4f,
+    // Per instance: where the character stands, which clip it plays and how far into it (s).
+    @location(4) instance_offset: vec3f,
+    @location(5) instance_clip: u32,
+    @location(6) instance_time: f32,
+}
+
+struct SkinnedOut {
+    @builtin(position) position: vec4f,
+    @location(0) normal: vec3f,
+}
+
+@vertex
+fn skin_vertex(v: SkinnedVertex) -> SkinnedOut {
+    var skin = mat4x4f(vec4f(0.0), vec4f(0.0), vec4f(0.0), vec4f(0.0));
+    for (var i = 0u; i < 4u; i = i + 1u) {
+        let pose = bone_pose(v.instance_clip, v.joints[i], v.instance_time);
+        skin = skin + bone_pose_matrix(pose) * v.weights[i];
+    }
+    let world = skin * vec4f(v.position, 1.0);
+    var out: SkinnedOut;
+    out.position = camera.view_projection * vec4f(world.xyz + v.instance_offset, 1.0);
+    out.normal = normalize((skin * vec4f(v.normal, 0.0)).xyz);
+    return out;
+}

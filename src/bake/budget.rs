@@ -1,0 +1,397 @@
+//! Rates from an error budget (`bake --max-error DEG`, `--max-error-mm MM`; DESIGN section 5c):
+//! per clip, the lowest rate at which a renderer interpolating the baked frames as
+//! `shaders/bone_texture.wgsl` does (nlerp of rotations on the shorter arc, lerp of
+//! translations and scales) stays within the budget of the continuous curve, measured at
+//! [`SUBSTEPS`] points of every frame interval for every joint of every texture.
+//!
+//! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
+//! run the shader itself on a GPU API over the chosen textures and hold the two together.
+
+use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
+use super::{bake, Animation, ClipRate, InputError, LoopMode};
+use crate::curve::CurveSpec;
+use crate::device::Device;
+use crate::error::Number;
+use serde::Serialize;
+
+/// Points of each frame interval where the error is measured (the interval's start included,
+/// its end being the next interval's start).
+pub const SUBSTEPS: usize = 16;
+
+/// The share of the budget a chosen rate may use on the host, so that the shader's own f32
+/// arithmetic and a PNG16's quantization (at most 1/65535 of a channel's range, 0.002 degrees
+/// of a quaternion) stay inside it.
+pub const BUDGET_MARGIN: f64 = 0.01;
+
+/// The highest rate (Hz) a budget may ask for by default (`--max-rate`): past it a clip is
+/// refused, naming the error there.
+pub const DEFAULT_MAX_RATE: f64 = 480.0;
+
+/// Millimetres per model unit of glTF (metres), the default of `--unit-mm`.
+pub const GLTF_UNIT_MM: f64 = 1000.0;
+
+/// What an interpolated texture may differ from the continuous curve by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorBudget {
+    /// Largest angle (degrees) between a texture's interpolated rotation and the curve's.
+    pub degrees: Option<f64>,
+    /// Largest distance (millimetres) between a joint's interpolated model-space position and
+    /// the curve's (forward kinematics of a local texture: errors accumulated down the
+    /// hierarchy).
+    pub millimetres: Option<f64>,
+    /// Millimetres per model unit: 1000 for glTF (metres); what a BVH's offsets are in.
+    pub unit_mm: f64,
+    /// The highest rate tried (Hz).
+    pub max_rate: f64,
+}
+
+/// Where an error is largest.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Worst {
+    /// Degrees, or millimetres.
+    pub value: f64,
+    /// The joint's name.
+    pub joint: String,
+    /// Seconds from the clip's start.
+    pub time: f64,
+}
+
+/// The error of one clip's frames against its continuous curve, between frames.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Measured {
+    /// The clip's own rate (Hz) these frames are at.
+    pub rate: f64,
+    /// Frames.
+    pub frames: usize,
+    /// The largest rotation error (degrees).
+    pub rotation: Worst,
+    /// The largest model-space position error (millimetres).
+    pub position: Worst,
+}
+
+/// The rate an error budget chose for one clip.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ChosenRate {
+    /// The clip's name.
+    pub clip: String,
+    /// The rate, frames and worst errors between frames.
+    #[serde(flatten)]
+    pub measured: Measured,
+    /// The clip's texture bytes (frames times joints times channels times the element's).
+    pub bytes: usize,
+    /// The same at the job's fixed rate (`--rate`).
+    pub fixed_rate_bytes: usize,
+}
+
+impl ErrorBudget {
+    /// No budget: every clip at the job's rate.
+    #[must_use]
+    pub fn none() -> Self {
+        Self { degrees: None, millimetres: None, unit_mm: GLTF_UNIT_MM, max_rate: DEFAULT_MAX_RATE }
+    }
+
+    /// Whether a budget is set (degrees, millimetres or both).
+    #[must_use]
+    pub fn is_set(&self) -> bool {
+        self.degrees.is_some() || self.millimetres.is_some()
+    }
+
+    /// Whether `m` is within the budget, less [`BUDGET_MARGIN`].
+    fn holds(&self, m: &Measured) -> bool {
+        let within = |limit: Option<f64>, v: f64| limit.map_or(true, |l| v <= l * (1.0 - BUDGET_MARGIN));
+        within(self.degrees, m.rotation.value) && within(self.millimetres, m.position.value)
+    }
+
+    /// The budget in words, for messages.
+    fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(d) = self.degrees {
+            parts.push(format!("--max-error {} degrees", Number(d)));
+        }
+        if let Some(mm) = self.millimetres {
+            parts.push(format!("--max-error-mm {}", Number(mm)));
+        }
+        parts.join(" and ")
+    }
+}
+
+/// `bone_pose`'s blend of two frames' rigid rows (`x, y, z, w`, translation, scale): the
+/// second rotation turned to the first's side, normalized lerp; lerp of the rest.
+#[must_use]
+pub fn interpolate(a: &[f32], b: &[f32], blend: f64) -> [f32; LOCAL_CHANNELS] {
+    let dot: f64 = (0..4).map(|i| f64::from(a[i]) * f64::from(b[i])).sum();
+    let side = if dot < 0.0 { -1.0 } else { 1.0 };
+    let mut out = [0.0f64; LOCAL_CHANNELS];
+    for (i, o) in out.iter_mut().enumerate() {
+        let b = if i < 4 { side * f64::from(b[i]) } else { f64::from(b[i]) };
+        *o = f64::from(a[i]) + (b - f64::from(a[i])) * blend;
+    }
+    let n = (out[..4].iter().map(|v| v * v).sum::<f64>()).sqrt();
+    out[..4].iter_mut().for_each(|v| *v /= n);
+    out.map(|v| v as f32)
+}
+
+/// Angle (degrees) between two rotations given as quaternions.
+fn angle_degrees(a: &[f32], b: &[f32]) -> f64 {
+    let norm = |q: &[f32]| q[..4].iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>().sqrt();
+    let dot: f64 = (0..4).map(|i| f64::from(a[i]) * f64::from(b[i])).sum::<f64>() / (norm(a) * norm(b));
+    // A rotation turns twice its quaternion's angle: 4 atan2(|a - b|, |a + b|), exact near zero,
+    // where 2 acos(|dot|) loses half its digits.
+    let side = if dot < 0.0 { -1.0 } else { 1.0 };
+    let (mut minus, mut plus) = (0.0, 0.0);
+    for i in 0..4 {
+        let (x, y) = (f64::from(a[i]) / norm(a), side * f64::from(b[i]) / norm(b));
+        minus += (x - y) * (x - y);
+        plus += (x + y) * (x + y);
+    }
+    (4.0 * minus.sqrt().atan2(plus.sqrt())).to_degrees()
+}
+
+/// Joint `j`'s rigid row in frame `frame` of rows `width` joints wide.
+fn row(data: &[f32], width: usize, frame: usize, j: usize) -> &[f32] {
+    let at = (frame * width + j) * LOCAL_CHANNELS;
+    &data[at..at + LOCAL_CHANNELS]
+}
+
+/// One clip of `animation` alone, so its frames can be baked at rates of their own.
+fn only(animation: &Animation, clip: usize) -> Animation {
+    Animation {
+        joints: animation.joints.clone(),
+        clips: vec![animation.clips[clip].clone()],
+        skins: animation.skins.clone(),
+    }
+}
+
+/// What a bake writes and the options that decide it.
+pub struct Setting<'a> {
+    /// The curve.
+    pub spec: &'a CurveSpec,
+    /// Which clips loop.
+    pub looping: LoopMode,
+    /// The texture kind (local, model-trs or skin-trs).
+    pub kind: TextureKind,
+    /// The element type the renderer reads (half rounds the frames before they are blended).
+    pub precision: Precision,
+    /// The device the frames are evaluated on.
+    pub device: &'a Device,
+}
+
+/// The error of clip `clip` baked at `rate` (fitted to its span) against its curve at
+/// [`SUBSTEPS`] points of every interval.
+///
+/// # Errors
+/// The bake's ([`bake`], [`texture::sheets`]).
+pub fn measure(animation: &Animation, clip: usize, rate: f64, setting: &Setting<'_>) -> Result<Measured, InputError> {
+    let one = only(animation, clip);
+    let order = one.parents_first()?;
+    let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), InputError> {
+        let baked = bake(&one, setting.spec, ClipRate::Fit(rate), setting.looping, setting.device)?;
+        let sheets = texture::sheets(&one, &order, &baked, 0, setting.kind, setting.device)?;
+        let clip = &baked.clips[0];
+        Ok((sheets, clip.rate, clip.times.clone()))
+    };
+    let (mut coarse, fitted, times) = frames_at(rate)?;
+    if setting.precision == Precision::F16 {
+        for sheet in &mut coarse {
+            sheet.data.iter_mut().for_each(|v| *v = half::f16::from_f32(*v).to_f32());
+        }
+    }
+    let intervals = times.len() - 1;
+    let mut measured = Measured { rate: fitted, frames: times.len(), ..Measured::default() };
+    if intervals == 0 {
+        return Ok(measured);
+    }
+    let (dense, _, dense_times) = frames_at(fitted * SUBSTEPS as f64)?;
+    let substeps = (dense_times.len() - 1) / intervals;
+    if substeps * intervals != dense_times.len() - 1 {
+        return Err(InputError::Animation(format!(
+            "clip '{}': {} dense frames are not {SUBSTEPS} per each of {intervals} intervals",
+            animation.clips[clip].name,
+            dense_times.len()
+        )));
+    }
+    let start = times[0];
+    for (sheet, truth) in coarse.iter().zip(&dense) {
+        let width = sheet.width;
+        // The interpolated rows at every dense frame, as the shader blends them.
+        let mut blended = Vec::with_capacity(truth.data.len());
+        for k in 0..dense_times.len() {
+            // The last dense frame is the end of the last interval.
+            let i = (k / substeps).min(intervals - 1);
+            let u = (k - i * substeps) as f64 / substeps as f64;
+            for j in 0..width {
+                blended.extend(interpolate(row(&sheet.data, width, i, j), row(&sheet.data, width, i + 1, j), u));
+            }
+        }
+        let names = joint_names(animation, setting.kind, &sheet.suffix);
+        let frame = width * LOCAL_CHANNELS;
+        for (k, (b, t)) in blended.chunks_exact(frame).zip(truth.data.chunks_exact(frame)).enumerate() {
+            for (j, (b, t)) in b.chunks_exact(LOCAL_CHANNELS).zip(t.chunks_exact(LOCAL_CHANNELS)).enumerate() {
+                let e = angle_degrees(b, t);
+                if e > measured.rotation.value {
+                    measured.rotation = Worst { value: e, joint: names[j].clone(), time: dense_times[k] - start };
+                }
+            }
+        }
+        let positions = |rows: &[f32]| positions(&one, &order, setting.kind, &sheet.suffix, rows);
+        let (p, t) = (positions(&blended), positions(&truth.data));
+        for (k, (p, t)) in p.chunks_exact(width).zip(t.chunks_exact(width)).enumerate() {
+            for (j, (p, t)) in p.iter().zip(t).enumerate() {
+                let e = (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt();
+                if e > measured.position.value {
+                    measured.position = Worst { value: e, joint: names[j].clone(), time: dense_times[k] - start };
+                }
+            }
+        }
+    }
+    Ok(measured)
+}
+
+/// The joints' names of a sheet (`suffix` `.skin<k>`: the skin's joints).
+fn joint_names(animation: &Animation, kind: TextureKind, suffix: &str) -> Vec<String> {
+    let skin = suffix.strip_prefix(".skin").and_then(|k| k.parse::<usize>().ok());
+    match skin.filter(|_| kind.is_skin()) {
+        Some(k) => animation.skins[k].joints.iter().map(|&j| animation.joints[j].name.clone()).collect(),
+        None => animation.joints.iter().map(|j| j.name.clone()).collect(),
+    }
+}
+
+/// Each row's joint position in model space (model units): forward kinematics of a local
+/// texture, a model-trs row's translation, a skin-trs row applied to the joint's bind position.
+fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: &str, rows: &[f32]) -> Vec<[f64; 3]> {
+    let translation = |m: &[f64]| [m[3], m[7], m[11]];
+    match kind {
+        TextureKind::Local => texture::model(animation, order, rows)
+            .chunks_exact(texture::MATRIX_CHANNELS)
+            .map(|m| translation(&m.iter().map(|&v| f64::from(v)).collect::<Vec<_>>()))
+            .collect(),
+        TextureKind::SkinTrs if !animation.skins.is_empty() => {
+            let k: usize = suffix.trim_start_matches(".skin").parse().unwrap_or(0);
+            let bind: Vec<[f64; 3]> = animation.skins[k].inverse_bind.iter().map(bind_position).collect();
+            rows.chunks_exact(LOCAL_CHANNELS)
+                .enumerate()
+                .map(|(i, row)| {
+                    let m = texture::trs(row);
+                    let b = bind[i % bind.len()];
+                    std::array::from_fn(|r| m[4 * r] * b[0] + m[4 * r + 1] * b[1] + m[4 * r + 2] * b[2] + m[4 * r + 3])
+                })
+                .collect()
+        }
+        _ => rows.chunks_exact(LOCAL_CHANNELS).map(|r| [4, 5, 6].map(|c| f64::from(r[c]))).collect(),
+    }
+}
+
+/// Where a joint is in bind space: the point its inverse bind matrix takes to the origin.
+fn bind_position(ibm: &[f64; 12]) -> [f64; 3] {
+    texture::inverse(ibm).map_or([0.0; 3], |m| [m[3], m[7], m[11]])
+}
+
+/// Per clip, the lowest rate whose frames keep within `budget` ([`measure`]), with what it
+/// measured: a search over whole numbers of intervals in the clip's span, doubling from one
+/// interval per second and then bisecting (the error falls as the rate rises).
+///
+/// # Errors
+/// [`InputError::Animation`] naming the clip, the budget and the error at
+/// [`ErrorBudget::max_rate`] when no rate up to it holds; the bake's.
+pub fn choose_rates(
+    animation: &Animation,
+    budget: &ErrorBudget,
+    setting: &Setting<'_>,
+) -> Result<Vec<Measured>, InputError> {
+    let mut chosen = Vec::with_capacity(animation.clips.len());
+    for (c, clip) in animation.clips.iter().enumerate() {
+        let [start, end] = clip.span();
+        let span = end - start;
+        let at = |intervals: f64| measure(animation, c, if span > 0.0 { intervals / span } else { 1.0 }, setting);
+        let mut scaled = *budget;
+        scaled.millimetres = budget.millimetres.map(|mm| mm / budget.unit_mm);
+        let most = (span * budget.max_rate).floor().max(1.0);
+        let mut low = 0.0; // intervals known to fail (0: none tried)
+        let mut high = span.ceil().clamp(1.0, most);
+        let mut best = loop {
+            let m = at(high)?;
+            if scaled.holds(&m) {
+                break m;
+            }
+            if high >= most {
+                return Err(InputError::Animation(format!(
+                    "clip '{}': no rate up to --max-rate {} Hz keeps within {}: at {} Hz the worst error is {:.3} degrees \
+                     (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s)",
+                    clip.name,
+                    Number(budget.max_rate),
+                    budget.describe(),
+                    Number(m.rate),
+                    m.rotation.value,
+                    m.rotation.joint,
+                    m.rotation.time,
+                    m.position.value * budget.unit_mm,
+                    m.position.joint,
+                    m.position.time
+                )));
+            }
+            low = high;
+            high = (high * 2.0).min(most);
+        };
+        while high - low > 1.0 {
+            let mid = ((low + high) / 2.0).floor();
+            let m = at(mid)?;
+            if scaled.holds(&m) {
+                high = mid;
+                best = m;
+            } else {
+                low = mid;
+            }
+        }
+        best.position.value *= budget.unit_mm;
+        chosen.push(best);
+    }
+    Ok(chosen)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn about_z(degrees: f64) -> [f32; 4] {
+        let h = degrees.to_radians() / 2.0;
+        [0.0, 0.0, h.sin() as f32, h.cos() as f32]
+    }
+
+    #[test]
+    fn the_angle_is_the_rotation_s_not_the_quaternions() {
+        for degrees in [0.01, 0.5, 30.0, 179.0] {
+            let e = angle_degrees(&about_z(0.0), &about_z(degrees));
+            assert!((e - degrees).abs() < 1e-4 * degrees.max(1.0), "{degrees}: {e}");
+            // q and -q are one rotation.
+            let minus = about_z(degrees).map(|v| -v);
+            assert!((angle_degrees(&about_z(0.0), &minus) - degrees).abs() < 1e-4 * degrees.max(1.0));
+        }
+    }
+
+    #[test]
+    fn interpolation_blends_on_the_shorter_arc_and_lerps_the_rest() {
+        let mut a = [0.0f32; LOCAL_CHANNELS];
+        let mut b = [0.0f32; LOCAL_CHANNELS];
+        a[..4].copy_from_slice(&about_z(0.0));
+        // The second frame's quaternion on the far side: still a 40 degree turn.
+        b[..4].copy_from_slice(&about_z(40.0).map(|v| -v));
+        a[4..].copy_from_slice(&[0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        b[4..].copy_from_slice(&[2.0, 4.0, 6.0, 3.0, 1.0, 1.0]);
+        let mid = interpolate(&a, &b, 0.5);
+        // nlerp of a symmetric pair lands on the half-way rotation.
+        assert!((angle_degrees(&mid, &about_z(20.0)) - 0.0).abs() < 1e-3);
+        assert_eq!(&mid[4..], &[1.0, 2.0, 3.0, 2.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn bind_positions_undo_the_inverse_bind_matrix() {
+        // Inverse bind: a quarter turn about z, scale 2, then translation; the joint sits where
+        // the matrix takes to the origin.
+        let ibm = [0.0, -2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 3.0];
+        let p = bind_position(&ibm);
+        let back: Vec<f64> = (0..3)
+            .map(|r| ibm[4 * r] * p[0] + ibm[4 * r + 1] * p[1] + ibm[4 * r + 2] * p[2] + ibm[4 * r + 3])
+            .collect();
+        assert!(back.iter().all(|v| v.abs() < 1e-12), "{back:?}");
+    }
+}

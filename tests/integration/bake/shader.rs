@@ -1,0 +1,379 @@
+//! The shipped bone shader (`shaders/bone_texture.wgsl`, through its probe entry point) run on a
+//! GPU API over real baked EXR and PNG16 textures, at in-between times, against the curve
+//! baked densely on the f64 reference device; with `--max-error` every joint of every clip
+//! within the budget. The GLSL and HLSL `quatcurve shaders` generates, checked by glslang.
+
+use super::{bake, data_dir, json, read_npy, stderr};
+use quatcurve::gpu::shader;
+use std::path::Path;
+
+/// One query of `bone_probe.wgsl` (its `BoneQuery`).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Query {
+    clip: u32,
+    joint: u32,
+    time: f32,
+    mode: u32,
+}
+
+/// `BONE_MAX_CLIPS` of bone_texture.wgsl, read by naga.
+fn max_clips() -> usize {
+    let (module, _) = naga_module(&shader::bone_probe_source());
+    shader::constant_u32(&module, "BONE_MAX_CLIPS").expect("bone_texture.wgsl declares BONE_MAX_CLIPS") as usize
+}
+
+fn naga_module(source: &str) -> (naga::Module, naga::valid::ModuleInfo) {
+    let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+    let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+    (module, info)
+}
+
+/// The sidecar's record of an image texture as `bone_layout`'s bytes (`BoneLayout`: four u32,
+/// low and span per texel slot, then the clips), from the sidecar's own numbers.
+fn layout_bytes(sidecar: &serde_json::Value, record: &serde_json::Value, texels: usize) -> Vec<u8> {
+    let n = |k: &str| record[k].as_u64().unwrap() as u32;
+    let clips = sidecar["clips"].as_array().unwrap();
+    let mut words: Vec<u32> =
+        vec![n("texels_per_joint"), n("frame_width"), n("rows_per_frame"), n("frames_per_column")];
+    let (mut low, mut span) = (Vec::new(), Vec::new());
+    for t in 0..3 {
+        for c in 0..4 {
+            let (lo, hi) = match record.get("remap") {
+                Some(remap) if t < texels => (remap[t][c][0].as_f64().unwrap(), remap[t][c][1].as_f64().unwrap()),
+                _ => (0.0, 1.0),
+            };
+            low.push((lo as f32).to_bits());
+            span.push(((hi - lo) as f32).to_bits());
+        }
+    }
+    words.extend(low);
+    words.extend(span);
+    for k in 0..max_clips() {
+        match clips.get(k) {
+            Some(c) => words.extend([
+                c["first_row"].as_u64().unwrap() as u32,
+                c["frames"].as_u64().unwrap() as u32,
+                u32::from(c["loop"].as_bool().unwrap()),
+                (c["rate"].as_f64().unwrap() as f32).to_bits(),
+            ]),
+            None => words.extend([0; 4]),
+        }
+    }
+    bytemuck::cast_slice(&words).to_vec()
+}
+
+/// An image texture's texels as a renderer samples them: EXR's floats, PNG16's unorm values.
+fn texels(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
+    if path.extension().is_some_and(|e| e == "exr") {
+        let image = exr::prelude::read_first_rgba_layer_from_file(
+            path,
+            |size, _| (size.width(), size.height(), vec![[0.0f32; 4]; size.width() * size.height()]),
+            |(w, _, t), p, (r, g, b, a): (f32, f32, f32, f32)| t[p.y() * *w + p.x()] = [r, g, b, a],
+        )
+        .unwrap();
+        let (w, h, t) = image.layer_data.channel_data.pixels;
+        (w as u32, h as u32, t)
+    } else {
+        let image::DynamicImage::ImageRgba16(buffer) = image::open(path).unwrap() else { panic!("not RGBA16") };
+        let t = buffer.pixels().map(|p| p.0.map(|v| f32::from(v) / 65535.0)).collect();
+        (buffer.width(), buffer.height(), t)
+    }
+}
+
+/// Runs `bone_probe` over one texture: 12 floats per query.
+fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
+    use wgpu::util::DeviceExt;
+    let gpu = crate::shared_gpu()?;
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    // Any validation error (a binding over a limit) fails here, not as answers of zeros.
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let (width, height, data) = texels(texture);
+    let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+    let image = device.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: Some("bone texture"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&data),
+    );
+    let source = shader::bone_probe_source();
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("bone probe"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let entry =
+        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::COMPUTE, ty, count: None };
+    let buffer = |ty| wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
+    let io = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[
+            entry(0, buffer(wgpu::BufferBindingType::Storage { read_only: true })),
+            entry(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
+        ],
+    });
+    let bones = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[
+            entry(
+                0,
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+            ),
+            entry(1, buffer(wgpu::BufferBindingType::Uniform)),
+        ],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(&io), Some(&bones)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("bone probe"),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(shader::BONE_PROBE_ENTRY_POINT),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let floats = queries.len() * 12;
+    let queries_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(queries),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let answers = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (floats * 4) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let read = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (floats * 4) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: layout,
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let view = image.create_view(&wgpu::TextureViewDescriptor::default());
+    let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &io,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: queries_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: answers.as_entire_binding() },
+        ],
+    });
+    let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &bones,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+            wgpu::BindGroupEntry { binding: 1, resource: uniform.as_entire_binding() },
+        ],
+    });
+    let (module_naga, _) = naga_module(&shader::bone_probe_source());
+    let workgroup = shader::entry_workgroup_size(&module_naga, shader::BONE_PROBE_ENTRY_POINT).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group0, &[]);
+        pass.set_bind_group(1, &group1, &[]);
+        let groups = (queries.len() as u32).div_ceil(workgroup);
+        // Within the 65535 groups a dimension allows: callers send at most 4 M queries.
+        pass.dispatch_workgroups(groups, 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&answers, 0, &read, 0, (floats * 4) as u64);
+    queue.submit([encoder.finish()]);
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        panic!("{}: the bone probe was refused: {e}", texture.display());
+    }
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let out = bytemuck::cast_slice::<u8, f32>(&slice.get_mapped_range().unwrap()).to_vec();
+    Some(out)
+}
+
+/// Angle in degrees between two quaternions.
+fn degrees(a: &[f32], b: &[f32]) -> f64 {
+    let dot: f64 = (0..4).map(|i| f64::from(a[i]) * f64::from(b[i])).sum();
+    let na: f64 = (0..4).map(|i| f64::from(a[i]).powi(2)).sum::<f64>().sqrt();
+    let nb: f64 = (0..4).map(|i| f64::from(b[i]).powi(2)).sum::<f64>().sqrt();
+    // clamp, not min: a NaN (an unanswered query) stays NaN.
+    (2.0 * (dot.abs() / (na * nb)).clamp(0.0, 1.0).acos()).to_degrees()
+}
+
+#[test]
+fn a_query_the_shader_leaves_unanswered_is_not_a_small_error() {
+    // An answer of zeros (a dispatch that did not run) is NaN degrees off, never within a bound.
+    assert!(degrees(&[0.0; 4], &[0.0, 0.0, 0.0, 1.0]).is_nan());
+}
+
+/// Worst rotation error (degrees) and where, of the shader over `dir`'s textures of `stem`
+/// against `truth` (`[frames, joints, 10]` npy files per clip, baked densely), per clip.
+fn shader_errors(dir: &Path, stem: &str, truth: &Path) -> Option<Vec<(String, f64, f64)>> {
+    let sidecar = json(&dir.join(format!("{stem}.json")));
+    let dense = json(&truth.join(format!("{stem}.json")));
+    let texels = sidecar["texels"].as_array().unwrap().len();
+    let mut out = Vec::new();
+    for (c, (clip, dense_clip)) in
+        sidecar["clips"].as_array().unwrap().iter().zip(dense["clips"].as_array().unwrap()).enumerate()
+    {
+        for (file, dense_file) in clip["files"].as_array().unwrap().iter().zip(dense_clip["files"].as_array().unwrap())
+        {
+            let file = file.as_str().unwrap();
+            let record = sidecar["textures"].as_array().unwrap().iter().find(|r| r["file"] == file).unwrap();
+            let (shape, rows) = read_npy(&truth.join(dense_file.as_str().unwrap()));
+            let (frames, joints) = (shape[0] as usize, shape[1] as usize);
+            let (start, rate) = (dense_clip["start"].as_f64().unwrap(), dense_clip["rate"].as_f64().unwrap());
+            let clip_start = clip["start"].as_f64().unwrap();
+            let queries: Vec<Query> = (0..frames)
+                .flat_map(|f| {
+                    let time = (start + f as f64 / rate - clip_start) as f32;
+                    (0..joints).map(move |j| Query { clip: c as u32, joint: j as u32, time, mode: 0 })
+                })
+                .collect();
+            let layout = layout_bytes(&sidecar, record, texels);
+            // A million queries a dispatch: within 65535 groups of 64, and 48 MB of answers
+            // within the default storage binding limit (128 MiB).
+            let mut answers = Vec::with_capacity(queries.len() * 12);
+            for chunk in queries.chunks(1 << 20) {
+                answers.extend(probe(&dir.join(file), &layout, chunk)?);
+            }
+            let (mut worst, mut at) = (0.0f64, 0.0);
+            for (k, (answer, row)) in answers.chunks_exact(12).zip(rows.chunks_exact(10)).enumerate() {
+                let e = degrees(&answer[..4], &row[..4]);
+                // A query the shader never answered (zeros) is NaN degrees off: never within a bound.
+                assert!(e.is_finite(), "{file}: query {k} ({:?}) unanswered", (queries[k].joint, queries[k].time));
+                if e > worst {
+                    (worst, at) = (e, f64::from(queries[k].time));
+                }
+            }
+            out.push((format!("{stem} '{}' {file}", clip["name"].as_str().unwrap()), worst, at));
+        }
+    }
+    Some(out)
+}
+
+fn run_bake(dir: &Path, input: &Path, extra: &[&str]) {
+    let mut args = vec!["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let result = bake(&args);
+    assert!(result.status.success(), "{}: {}", input.display(), stderr(&result));
+}
+
+#[test]
+fn the_shader_between_frames_keeps_within_the_budget_the_bake_chose() {
+    let Some(data) = data_dir() else { return };
+    if crate::shared_gpu().is_none() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    for name in ["CesiumMan.glb", "Fox.glb", "BrainStem.glb", "cmu_131_01.bvh", "cmu_131_03.bvh"] {
+        let input = data.join(name);
+        let stem = input.file_stem().unwrap().to_string_lossy().into_owned();
+        // Every clip as local; the rigid kinds (and PNG16's remap) on the glTF files.
+        let kinds: &[(&str, &str)] = if name.ends_with(".bvh") {
+            &[("local", "exr")]
+        } else {
+            &[("local", "exr"), ("model-trs", "png16"), ("skin-trs", "exr")]
+        };
+        for &(kind, format) in kinds {
+            let dir = tmp.path().join(format!("{stem}-{kind}"));
+            // CMU's thumbs flip 180 degrees between keys (broken source data, which the bake
+            // warns of): the curve through them whips round and needs about 840 Hz.
+            let mut args = vec!["--texture", kind, "--format", format, "--max-error", "0.5", "--device", "cpu"];
+            if name.starts_with("cmu") {
+                args.extend(["--max-rate", "1500"]);
+            }
+            run_bake(&dir, &input, &args);
+            let sidecar = json(&dir.join(format!("{stem}.json")));
+            // The densest clip's rate times 16: at least 16 points of every clip's frame intervals.
+            let densest =
+                sidecar["clips"].as_array().unwrap().iter().map(|c| c["rate"].as_f64().unwrap()).fold(0.0, f64::max);
+            let truth = tmp.path().join(format!("{stem}-{kind}-truth"));
+            let rate = format!("{}", densest * 16.0);
+            run_bake(&truth, &input, &["--texture", kind, "--rate", &rate, "--device", "reference"]);
+            let errors = shader_errors(&dir, &stem, &truth).unwrap();
+            for (what, worst, at) in errors {
+                eprintln!("{kind} {format} {what}: the shader's worst {worst:.4} degrees at {at:.3} s");
+                assert!(worst <= 0.5, "{kind} {what}: the shader is {worst} degrees off the curve at {at} s");
+                let reported = sidecar["clips"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|c| what.contains(&format!("'{}'", c["name"].as_str().unwrap())))
+                    .unwrap()["between_frames"]["rotation"]["value"]
+                    .as_f64()
+                    .unwrap();
+                assert!(
+                    (worst - reported).abs() <= 0.02 + 0.1 * reported,
+                    "{kind} {what}: shader {worst} against the bake's {reported}"
+                );
+            }
+        }
+    }
+}
+
+/// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
+/// QUATCURVE_REQUIRE_VALIDATOR, which makes its absence a failure).
+fn glslang() -> Option<&'static str> {
+    let found =
+        std::process::Command::new("glslangValidator").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !found {
+        assert!(
+            std::env::var_os("QUATCURVE_REQUIRE_VALIDATOR").is_none(),
+            "glslangValidator is absent and QUATCURVE_REQUIRE_VALIDATOR is set"
+        );
+        eprintln!("skipped: no glslangValidator");
+        return None;
+    }
+    Some("glslangValidator")
+}
+
+#[test]
+fn generated_glsl_and_hlsl_compile_with_glslang() {
+    let Some(tool) = glslang() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for (lang, extra) in [
+        ("glsl", vec!["-S", "vert"]),
+        ("glsl-es", vec!["-S", "vert"]),
+        ("hlsl", vec!["-D", "-V", "-S", "vert", "-e", shader::SKIN_VERTEX_ENTRY_POINT, "-o", "/dev/null"]),
+    ] {
+        let path = dir.path().join(format!("skin.{lang}"));
+        let out = assert_cmd::Command::cargo_bin("quatcurve")
+            .unwrap()
+            .args(["shaders", "--lang", lang, "--output", path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{lang}: {}", stderr(&out));
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("bone_pose"), "{lang}: the library's bone_pose is missing");
+        let result = std::process::Command::new(tool).args(&extra).arg(&path).current_dir(dir.path()).output().unwrap();
+        assert!(
+            result.status.success(),
+            "{lang}: glslang rejects the generated shader:\n{}\n{}",
+            String::from_utf8_lossy(&result.stdout),
+            text
+        );
+    }
+}
