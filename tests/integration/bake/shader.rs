@@ -377,3 +377,27 @@ fn generated_glsl_and_hlsl_compile_with_glslang() {
         );
     }
 }
+
+#[test]
+fn a_budget_no_rate_meets_and_a_budget_on_matrices_are_refused_with_nothing_written() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fox = data.join("Fox.glb");
+    let out = dir.path().join("out");
+    let fox_arg = fox.to_str().unwrap();
+    let out_arg = out.to_str().unwrap();
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.01", "--max-rate", "10"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    for needle in ["clip 'Survey'", "no rate up to --max-rate 10 Hz", "--max-error 0.01 degrees", "joint '"] {
+        assert!(stderr(&result).contains(needle), "{needle:?} missing from: {}", stderr(&result));
+    }
+    let written: Vec<_> =
+        std::fs::read_dir(&out).map(|d| d.flatten().map(|e| e.file_name()).collect()).unwrap_or_default();
+    assert!(written.iter().all(|f| !f.to_string_lossy().starts_with("Fox.")), "wrote {written:?}");
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.5", "--texture", "model"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--max-error") && stderr(&result).contains("model-trs"), "{}", stderr(&result));
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-mm", "-1"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--max-error-mm must be a positive number"), "{}", stderr(&result));
+}
