@@ -56,7 +56,7 @@ fn main() {
             let mut points = Vec::new();
             let mut cells = Vec::new();
             for rate in RATES {
-                let m = budget::measure(&animation, c, rate, &setting).expect("the clip bakes");
+                let m = budget::measure(&animation, c, rate, &setting, budget::GLTF_UNIT_MM).expect("the clip bakes");
                 points.push((rate, m.rotation.value));
                 cells.push(format!("{:.3}", m.rotation.value));
             }

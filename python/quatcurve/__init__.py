@@ -24,6 +24,8 @@ from ._quatcurve import (
     DEFAULT_CHARACTERS,
     DEFAULT_CURVE,
     DEFAULT_MAX_TEXTURE_SIZE,
+    DEFAULT_MAX_RATE,
+    GLTF_UNIT_MM,
     DEFAULT_RATE,
     __version__,
     bake_files,
@@ -309,6 +311,11 @@ def bake(
     allow_external_uris=False,
     device="auto",
     errors="raise",
+    max_error=None,
+    max_error_mm=None,
+    unit_mm=GLTF_UNIT_MM,
+    max_rate=DEFAULT_MAX_RATE,
+    root_motion="keep",
 ):
     """Resamples animation files at a fixed rate into animation textures, as ``quatcurve bake``
     does (DESIGN section 5b), and returns one summary row per input.
@@ -360,6 +367,21 @@ def bake(
     errors : str
         ``raise`` (default): after every input is done, raise ``ValueError`` if any failed,
         naming each with its error; ``report``: return the rows, failures included.
+    max_error : float, optional
+        Rotation budget in degrees, in place of ``rate``: each clip at the lowest rate whose
+        frames, blended as the shipped shader does (``quatcurve shaders``), stay within it
+        of the curve at 16 points of every frame interval, every joint (textures ``local``,
+        ``model-trs``, ``skin-trs``; DESIGN section 5c).
+    max_error_mm : float, optional
+        Position budget in millimetres for joints in model space, with or without
+        ``max_error``.
+    unit_mm : float
+        Millimetres per unit of the input's positions (glTF: metres, 1000).
+    max_rate : float
+        The highest rate a budget may choose; a clip no rate up to it keeps within fails.
+    root_motion : str
+        ``keep``, or ``extract``: the root's horizontal motion and heading go to the sidecar's
+        per-clip ``root_motion`` track and the textures play in place.
 
     Returns
     -------
@@ -367,7 +389,10 @@ def bake(
         Per input: ``source``, ``clips``, ``channels``, ``keys``, ``samples``, ``seconds``,
         ``max_key_error`` (rad, or None), ``status`` (``ok``, ``resumed`` or ``failed``),
         ``error`` (the message, or None), ``files`` (``pathlib.Path``s written or kept) and
-        ``warnings`` (probably broken source keys, clip ends an exact rate did not bake).
+        ``warnings`` (probably broken source keys, clip ends an exact rate did not bake) and
+        ``rates`` (with a budget, per clip: ``clip``, ``rate``, ``frames``, ``rotation`` and
+        ``position`` as ``{value, joint, time}`` in degrees and mm, ``bytes`` and
+        ``fixed_rate_bytes`` at ``rate``).
 
     Raises
     ------
@@ -388,6 +413,8 @@ def bake(
         paths, os.fspath(output), float(rate), bool(exact_rate), str(curve), int(order), str(knots), str(tangents), str(blend),
         str(loop), str(texture), str(precision), str(format), int(max_texture_size), bool(atlas), bool(preview), int(characters),
         None if shard is None else str(shard), bool(resume), int(jobs), bool(allow_external_uris), str(device),
+        None if max_error is None else float(max_error), None if max_error_mm is None else float(max_error_mm),
+        float(unit_mm), float(max_rate), str(root_motion),
     )
     failed = [row for row in rows if row["status"] == "failed"]
     if failed and errors == "raise":

@@ -64,6 +64,7 @@ class BakeRow(TypedDict):
     error: str | None
     files: list[pathlib.Path]
     warnings: list[str]
+    rates: list[dict[str, Any]]
 
 def bake(
     inputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = None,
@@ -90,6 +91,11 @@ def bake(
     allow_external_uris: bool = False,
     device: DeviceName = "auto",
     errors: Literal["raise", "report"] = "raise",
+    max_error: float | None = None,
+    max_error_mm: float | None = None,
+    unit_mm: float = 1000.0,
+    max_rate: float = 480.0,
+    root_motion: Literal["keep", "extract"] = "keep",
 ) -> list[BakeRow]: ...
 
 class Curve:

@@ -8,6 +8,8 @@ DEFAULT_CURVE: str
 DEFAULT_RATE: float
 DEFAULT_CHARACTERS: int
 DEFAULT_MAX_TEXTURE_SIZE: int
+DEFAULT_MAX_RATE: float
+GLTF_UNIT_MM: float
 
 def evaluate_tracks(
     rotations: npt.NDArray[np.float64],
@@ -54,4 +56,9 @@ def bake_files(
     jobs: int,
     allow_external_uris: bool,
     device: str,
+    max_error: float | None,
+    max_error_mm: float | None,
+    unit_mm: float,
+    max_rate: float,
+    root_motion: str,
 ) -> list[dict[str, Any]]: ...

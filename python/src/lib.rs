@@ -12,6 +12,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUnty
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use quatcurve::bake::budget::{ChosenRate, ErrorBudget, Worst};
 use quatcurve::bake::{BakeJob, Shard};
 use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64};
 use std::path::PathBuf;
@@ -291,11 +292,13 @@ enum Samples {
 /// Bakes `inputs` (glTF/GLB/BVH files or directories; none: the built-in crowd) into `output`
 /// as `quatcurve bake` does, with the GIL released. Returns one dictionary per input of this
 /// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
-/// `resumed`, `failed`), `error`, `files` and `warnings`. See `quatcurve.bake`.
+/// `resumed`, `failed`), `error`, `files`, `warnings` and `rates` (with an error budget: per
+/// clip, [`chosen_rate`]). See `quatcurve.bake`.
 #[pyfunction]
 #[pyo3(signature = (
     inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, format,
-    max_texture_size, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device
+    max_texture_size, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device, max_error,
+    max_error_mm, unit_mm, max_rate, root_motion
 ))]
 #[allow(clippy::too_many_arguments)]
 fn bake_files<'py>(
@@ -322,6 +325,11 @@ fn bake_files<'py>(
     jobs: usize,
     allow_external_uris: bool,
     device: &str,
+    max_error: Option<f64>,
+    max_error_mm: Option<f64>,
+    unit_mm: f64,
+    max_rate: f64,
+    root_motion: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let choice: DeviceChoice = parse("device", device)?;
     let job = BakeJob {
@@ -348,6 +356,8 @@ fn bake_files<'py>(
         shard: shard.map(Shard::parse).transpose().map_err(value_error)?,
         resume,
         jobs,
+        max_error: ErrorBudget { degrees: max_error, millimetres: max_error_mm, unit_mm, max_rate },
+        root_motion: parse("root_motion", root_motion)?,
         ..BakeJob::new(inputs, output)
     };
     job.validate().map_err(value_error)?;
@@ -374,9 +384,32 @@ fn bake_files<'py>(
             row.set_item("error", input.outcome.as_ref().err().map(ToString::to_string))?;
             row.set_item("files", input.outcome.as_ref().map_or_else(|_| Vec::new(), Clone::clone))?;
             row.set_item("warnings", &input.warnings)?;
+            let rates = input.rates.iter().map(|c| chosen_rate(py, c)).collect::<PyResult<Vec<_>>>()?;
+            row.set_item("rates", rates)?;
             Ok(row)
         })
         .collect()
+}
+
+/// One clip's rate chosen by an error budget, as a dictionary: `clip, rate, frames, rotation`
+/// and `position` (each `{value, joint, time}`: degrees or mm), `bytes, fixed_rate_bytes`.
+fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDict>> {
+    let worst = |w: &Worst| -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("value", w.value)?;
+        d.set_item("joint", &w.joint)?;
+        d.set_item("time", w.time)?;
+        Ok(d)
+    };
+    let d = PyDict::new(py);
+    d.set_item("clip", &c.clip)?;
+    d.set_item("rate", c.measured.rate)?;
+    d.set_item("frames", c.measured.frames)?;
+    d.set_item("rotation", worst(&c.measured.rotation)?)?;
+    d.set_item("position", worst(&c.measured.position)?)?;
+    d.set_item("bytes", c.bytes)?;
+    d.set_item("fixed_rate_bytes", c.fixed_rate_bytes)?;
+    Ok(d)
 }
 
 /// The compiled module, `quatcurve._quatcurve`.
@@ -390,5 +423,7 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_RATE", quatcurve::DEFAULT_RATE)?;
     m.add("DEFAULT_CHARACTERS", quatcurve::bake::crowd::CHARACTERS)?;
     m.add("DEFAULT_MAX_TEXTURE_SIZE", quatcurve::bake::image::DEFAULT_MAX_TEXTURE_SIZE)?;
+    m.add("DEFAULT_MAX_RATE", quatcurve::bake::budget::DEFAULT_MAX_RATE)?;
+    m.add("GLTF_UNIT_MM", quatcurve::bake::budget::GLTF_UNIT_MM)?;
     Ok(())
 }

@@ -234,6 +234,8 @@ def outputs(directory):
     (["--texture", "model"], {"texture": "model"}),
     (["--precision", "f16", "--atlas", "--curve", "hermite"], {"precision": "f16", "atlas": True, "curve": "hermite"}),
     (["--rate", "24", "--exact-rate"], {"rate": 24, "exact_rate": True}),
+    (["--max-error", "2", "--max-rate", "1000", "--texture", "skin-trs", "--format", "exr", "--root-motion", "extract"],
+     {"max_error": 2, "max_rate": 1000, "texture": "skin-trs", "format": "exr", "root_motion": "extract"}),
 ])
 def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     binary = cli()
@@ -248,6 +250,11 @@ def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     assert sorted(pathlib.Path(f).name for row in rows for f in row["files"]) == sorted(expected)
     manifest = json.loads((tmp_path / "py" / "manifest.0-of-1.json").read_text())
     assert [record["status"] for record in manifest["inputs"]] == ["ok", "ok"]
+    if "max_error" in kwargs:
+        for row in rows:
+            assert row["rates"] and all(c["rotation"]["value"] <= kwargs["max_error"] for c in row["rates"]), row["rates"]
+    else:
+        assert all(row["rates"] == [] for row in rows)
 
 
 def test_bake_of_the_built_in_crowd_is_a_texture_per_clip(tmp_path):

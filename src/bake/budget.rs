@@ -177,11 +177,17 @@ pub struct Setting<'a> {
 }
 
 /// The error of clip `clip` baked at `rate` (fitted to its span) against its curve at
-/// [`SUBSTEPS`] points of every interval.
+/// [`SUBSTEPS`] points of every interval; positions in mm at `unit_mm` per model unit.
 ///
 /// # Errors
 /// The bake's ([`bake`], [`texture::sheets`]).
-pub fn measure(animation: &Animation, clip: usize, rate: f64, setting: &Setting<'_>) -> Result<Measured, InputError> {
+pub fn measure(
+    animation: &Animation,
+    clip: usize,
+    rate: f64,
+    setting: &Setting<'_>,
+    unit_mm: f64,
+) -> Result<Measured, InputError> {
     let one = only(animation, clip);
     let order = one.parents_first()?;
     let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), InputError> {
@@ -237,7 +243,7 @@ pub fn measure(animation: &Animation, clip: usize, rate: f64, setting: &Setting<
         let (p, t) = (positions(&blended), positions(&truth.data));
         for (k, (p, t)) in p.chunks_exact(width).zip(t.chunks_exact(width)).enumerate() {
             for (j, (p, t)) in p.iter().zip(t).enumerate() {
-                let e = (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt();
+                let e = (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm;
                 if e > measured.position.value {
                     measured.position = Worst { value: e, joint: names[j].clone(), time: dense_times[k] - start };
                 }
@@ -302,15 +308,15 @@ pub fn choose_rates(
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
         let span = end - start;
-        let at = |intervals: f64| measure(animation, c, if span > 0.0 { intervals / span } else { 1.0 }, setting);
-        let mut scaled = *budget;
-        scaled.millimetres = budget.millimetres.map(|mm| mm / budget.unit_mm);
+        let at = |intervals: f64| {
+            measure(animation, c, if span > 0.0 { intervals / span } else { 1.0 }, setting, budget.unit_mm)
+        };
         let most = (span * budget.max_rate).floor().max(1.0);
         let mut low = 0.0; // intervals known to fail (0: none tried)
         let mut high = span.ceil().clamp(1.0, most);
         let mut best = loop {
             let m = at(high)?;
-            if scaled.holds(&m) {
+            if budget.holds(&m) {
                 break m;
             }
             if high >= most {
@@ -324,7 +330,7 @@ pub fn choose_rates(
                     m.rotation.value,
                     m.rotation.joint,
                     m.rotation.time,
-                    m.position.value * budget.unit_mm,
+                    m.position.value,
                     m.position.joint,
                     m.position.time
                 )));
@@ -335,14 +341,13 @@ pub fn choose_rates(
         while high - low > 1.0 {
             let mid = ((low + high) / 2.0).floor();
             let m = at(mid)?;
-            if scaled.holds(&m) {
+            if budget.holds(&m) {
                 high = mid;
                 best = m;
             } else {
                 low = mid;
             }
         }
-        best.position.value *= budget.unit_mm;
         chosen.push(best);
     }
     Ok(chosen)
