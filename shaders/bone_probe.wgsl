@@ -1,6 +1,6 @@
-// The test and error-budget probe of bone_texture.wgsl (composed after it): the library's own
-// functions evaluated at given (clip, joint, time) queries, so that the host measures the
-// shader a renderer runs, not a copy of its math.
+// The test probe of bone_texture.wgsl (composed after it): the library's own functions
+// evaluated at given (clip, joint, time) queries, so that the tests measure the shader a
+// renderer runs, not a copy of its math.
 
 struct BoneQuery {
     clip: u32,

@@ -51,7 +51,7 @@ fn read_png16(path: &Path, remap: &serde_json::Value, per_joint: usize) -> (usiz
 fn image_textures_hold_the_npy_values_where_the_sidecar_says() {
     let Some(data) = data_dir() else { return };
     let out = tempfile::tempdir().unwrap();
-    let inputs: Vec<String> = ["Fox.glb", "CesiumMan.glb", "BrainStem.glb", "cmu_131_01.bvh"]
+    let inputs: Vec<String> = ["Fox.glb", "CesiumMan.glb", "BrainStem.glb", "cmu_131_01.bvh", "cmu_131_03.bvh"]
         .iter()
         .map(|f| data.join(f).display().to_string())
         .collect();
@@ -74,7 +74,7 @@ fn image_textures_hold_the_npy_values_where_the_sidecar_says() {
             let result = bake(&args);
             assert!(result.status.success(), "{texture} {name}: {}", stderr(&result));
         }
-        for stem in ["Fox", "CesiumMan", "BrainStem", "cmu_131_01"] {
+        for stem in ["Fox", "CesiumMan", "BrainStem", "cmu_131_01", "cmu_131_03"] {
             for name in ["exr", "half", "png16", "columns"] {
                 let sidecar = json(&dir(name).join(format!("{stem}.json")));
                 let channels = sidecar["channels"].as_array().unwrap().len();

@@ -334,6 +334,63 @@ fn the_shader_between_frames_keeps_within_the_budget_the_bake_chose() {
     }
 }
 
+#[test]
+fn the_matrix_lerp_is_the_rows_lerped_and_loops_wrap_at_their_period() {
+    let Some(data) = data_dir() else { return };
+    if crate::shared_gpu().is_none() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let input = data.join("Fox.glb");
+    let (exr, npy) = (tmp.path().join("exr"), tmp.path().join("npy"));
+    run_bake(&exr, &input, &["--texture", "model", "--format", "exr", "--atlas", "--device", "cpu"]);
+    run_bake(&npy, &input, &["--texture", "model", "--atlas", "--device", "cpu"]);
+    let sidecar = json(&exr.join("Fox.json"));
+    let record = &sidecar["textures"][0];
+    let layout = layout_bytes(&sidecar, record, 3);
+    let (shape, rows) = read_npy(&npy.join("Fox.npy"));
+    let joints = shape[1] as usize;
+    let row = |r: usize, j: usize| &rows[(r * joints + j) * 12..(r * joints + j + 1) * 12];
+    let mut checked_loops = 0;
+    for (c, clip) in sidecar["clips"].as_array().unwrap().iter().enumerate() {
+        let (first, frames) = (clip["first_row"].as_u64().unwrap() as usize, clip["frames"].as_u64().unwrap() as usize);
+        let rate = clip["rate"].as_f64().unwrap();
+        let period = (frames - 1) as f64 / rate;
+        // At every frame, half-way to the next, and (for a loop) one period later.
+        let mut queries = Vec::new();
+        let mut expected: Vec<Vec<f32>> = Vec::new();
+        for f in 0..frames - 1 {
+            for j in 0..joints {
+                let (a, b) = (row(first + f, j), row(first + f + 1, j));
+                for (time, want) in [
+                    (f as f64 / rate, a.to_vec()),
+                    ((f as f64 + 0.5) / rate, a.iter().zip(b).map(|(x, y)| 0.5 * (x + y)).collect()),
+                ] {
+                    queries.push(Query { clip: c as u32, joint: j as u32, time: time as f32, mode: 1 });
+                    expected.push(want.clone());
+                    if clip["loop"].as_bool().unwrap() {
+                        queries.push(Query { clip: c as u32, joint: j as u32, time: (time + period) as f32, mode: 1 });
+                        expected.push(want);
+                    }
+                }
+            }
+        }
+        checked_loops += usize::from(clip["loop"].as_bool().unwrap());
+        let answers = probe(&exr.join(record["file"].as_str().unwrap()), &layout, &queries).unwrap();
+        let scale = rows.iter().fold(1.0f32, |a, v| a.max(v.abs()));
+        for (k, (answer, want)) in answers.chunks_exact(12).zip(&expected).enumerate() {
+            let error = answer.iter().zip(want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max) / scale;
+            // f32 times one period later land within about 1e-5 of a frame.
+            assert!(
+                error <= 2e-4,
+                "clip {c} query {k} ({:?}): {answer:?} against {want:?}",
+                (queries[k].joint, queries[k].time)
+            );
+        }
+    }
+    assert!(checked_loops >= 2, "Fox's Walk and Run loop");
+}
+
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
 /// QUATCURVE_REQUIRE_VALIDATOR, which makes its absence a failure).
 fn glslang() -> Option<&'static str> {
