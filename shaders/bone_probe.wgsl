@@ -6,8 +6,11 @@ struct BoneQuery {
     clip: u32,
     joint: u32,
     time: f32,
-    // 0: bone_pose (rotation, translation, scale); 1: bone_matrix_lerp (3x4 rows).
+    // 0: bone_pose (rotation, translation, scale); 1: bone_matrix_lerp (3x4 rows);
+    // 2: bone_skin_matrix of `joints` and `weights` (3x4 rows).
     mode: u32,
+    joints: vec4u,
+    weights: vec4f,
 }
 
 @group(0) @binding(0) var<storage, read> bone_queries: array<BoneQuery>;
@@ -32,7 +35,10 @@ fn bone_probe(@builtin(global_invocation_id) id: vec3u) {
             p.scale.x, p.scale.y, p.scale.z, 0.0, 0.0,
         );
     } else {
-        let m = transpose(bone_matrix_lerp(q.clip, q.joint, q.time));
+        var m = transpose(bone_matrix_lerp(q.clip, q.joint, q.time));
+        if q.mode == 2u {
+            m = transpose(bone_skin_matrix(q.clip, q.joints, q.weights, q.time));
+        }
         out = array<f32, 12>(
             m[0].x, m[0].y, m[0].z, m[0].w, m[1].x, m[1].y, m[1].z, m[1].w, m[2].x, m[2].y, m[2].z, m[2].w,
         );

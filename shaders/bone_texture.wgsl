@@ -106,6 +106,17 @@ fn bone_pose_matrix(p: BonePose) -> mat4x4f {
     );
 }
 
+// glTF skinning's matrix for a vertex bound to `joints` (JOINTS_0, indices into the skin's
+// joints: the rows of a skin-trs texture) with `weights` (WEIGHTS_0), at `time` in `clip`:
+// the weighted sum of the joints' skinning matrices, which takes the vertex from bind space.
+fn bone_skin_matrix(clip: u32, joints: vec4u, weights: vec4f, time: f32) -> mat4x4f {
+    var skin = mat4x4f(vec4f(0.0), vec4f(0.0), vec4f(0.0), vec4f(0.0));
+    for (var i = 0u; i < 4u; i = i + 1u) {
+        skin = skin + bone_pose_matrix(bone_pose(clip, joints[i], time)) * weights[i];
+    }
+    return skin;
+}
+
 // The 3x4 matrix of `joint` at `time` in a model or skin (matrix) texture, its rows lerped
 // between the two frames: cheap, but a rotating joint shrinks and shears between frames
 // (prefer the -trs textures and bone_pose).

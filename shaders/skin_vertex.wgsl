@@ -1,7 +1,7 @@
 // A skinned vertex from a skin-trs bone texture (composed after bone_texture.wgsl): the
 // minimal vertex shader of a crowd, one character per instance, each with its own clip and
-// time. glTF's skinning: the vertex in bind space times the weighted sum of its four joints'
-// skinning matrices. The camera is the engine's own (group 0).
+// time: the vertex in bind space times bone_skin_matrix. The camera is the engine's own
+// (group 0).
 
 struct Camera {
     view_projection: mat4x4f,
@@ -28,11 +28,7 @@ struct SkinnedOut {
 
 @vertex
 fn skin_vertex(v: SkinnedVertex) -> SkinnedOut {
-    var skin = mat4x4f(vec4f(0.0), vec4f(0.0), vec4f(0.0), vec4f(0.0));
-    for (var i = 0u; i < 4u; i = i + 1u) {
-        let pose = bone_pose(v.instance_clip, v.joints[i], v.instance_time);
-        skin = skin + bone_pose_matrix(pose) * v.weights[i];
-    }
+    let skin = bone_skin_matrix(v.instance_clip, v.joints, v.weights, v.instance_time);
     let world = skin * vec4f(v.position, 1.0);
     var out: SkinnedOut;
     out.position = camera.view_projection * vec4f(world.xyz + v.instance_offset, 1.0);

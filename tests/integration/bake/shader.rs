@@ -15,6 +15,30 @@ struct Query {
     joint: u32,
     time: f32,
     mode: u32,
+    joints: [u32; 4],
+    weights: [f32; 4],
+}
+
+impl Query {
+    /// `bone_pose` (mode 0) or `bone_matrix_lerp` (mode 1) of one joint.
+    fn of(clip: usize, joint: usize, time: f64, mode: u32) -> Self {
+        Self { clip: clip as u32, joint: joint as u32, time: time as f32, mode, joints: [0; 4], weights: [0.0; 4] }
+    }
+}
+
+#[test]
+fn the_query_is_laid_out_as_its_wgsl_twin() {
+    let (module, _) = naga_module(&shader::bone_probe_source());
+    let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("BoneQuery")).unwrap();
+    let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("BoneQuery is a struct") };
+    let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
+    assert_eq!(
+        (offsets, *span as usize),
+        (
+            vec![0, 4, 8, 12, std::mem::offset_of!(Query, joints) as u32, std::mem::offset_of!(Query, weights) as u32],
+            std::mem::size_of::<Query>()
+        )
+    );
 }
 
 /// `BONE_MAX_CLIPS` of bone_texture.wgsl, read by naga.
@@ -249,7 +273,7 @@ fn shader_errors(dir: &Path, stem: &str, truth: &Path) -> Option<Vec<(String, f6
             let queries: Vec<Query> = (0..frames)
                 .flat_map(|f| {
                     let time = (start + f as f64 / rate - clip_start) as f32;
-                    (0..joints).map(move |j| Query { clip: c as u32, joint: j as u32, time, mode: 0 })
+                    (0..joints).map(move |j| Query::of(c, j, f64::from(time), 0))
                 })
                 .collect();
             let layout = layout_bytes(&sidecar, record, texels);
@@ -366,10 +390,10 @@ fn the_matrix_lerp_is_the_rows_lerped_and_loops_wrap_at_their_period() {
                     (f as f64 / rate, a.to_vec()),
                     ((f as f64 + 0.5) / rate, a.iter().zip(b).map(|(x, y)| 0.5 * (x + y)).collect()),
                 ] {
-                    queries.push(Query { clip: c as u32, joint: j as u32, time: time as f32, mode: 1 });
+                    queries.push(Query::of(c, j, time, 1));
                     expected.push(want.clone());
                     if clip["loop"].as_bool().unwrap() {
-                        queries.push(Query { clip: c as u32, joint: j as u32, time: (time + period) as f32, mode: 1 });
+                        queries.push(Query::of(c, j, time + period, 1));
                         expected.push(want);
                     }
                 }
@@ -389,6 +413,255 @@ fn the_matrix_lerp_is_the_rows_lerped_and_loops_wrap_at_their_period() {
         }
     }
     assert!(checked_loops >= 2, "Fox's Walk and Run loop");
+}
+
+#[test]
+fn the_skinning_matrix_is_the_weighted_sum_of_the_skin_texture_s_matrices() {
+    let Some(data) = data_dir() else { return };
+    if crate::shared_gpu().is_none() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let input = data.join("CesiumMan.glb");
+    let (trs, matrices) = (tmp.path().join("trs"), tmp.path().join("matrices"));
+    run_bake(&trs, &input, &["--texture", "skin-trs", "--format", "exr", "--device", "cpu"]);
+    run_bake(&matrices, &input, &["--texture", "skin", "--device", "cpu"]);
+    let sidecar = json(&trs.join("CesiumMan.json"));
+    let clip = &sidecar["clips"][0];
+    let rate = clip["rate"].as_f64().unwrap();
+    let (shape, rows) =
+        read_npy(&matrices.join(json(&matrices.join("CesiumMan.json"))["clips"][0]["file"].as_str().unwrap()));
+    let (frames, joints) = (shape[0] as usize, shape[1] as usize);
+    // Vertices bound to four joints each with weights summing to one (SplitMix-like stepping).
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        seed = seed.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        (seed ^ (seed >> 31)).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 11
+    };
+    let mut queries = Vec::new();
+    let mut expected = Vec::new();
+    for f in (0..frames).step_by(7) {
+        for _ in 0..20 {
+            let bound: [u32; 4] = std::array::from_fn(|_| (next() % joints as u64) as u32);
+            let raw: [f32; 4] = std::array::from_fn(|_| (next() % 1000) as f32 + 1.0);
+            let total: f32 = raw.iter().sum();
+            let weights = raw.map(|w| w / total);
+            let mut want = [0.0f32; 12];
+            for (j, w) in bound.iter().zip(weights) {
+                let at = (f * joints + *j as usize) * 12;
+                want.iter_mut().zip(&rows[at..at + 12]).for_each(|(o, v)| *o += w * v);
+            }
+            queries.push(Query { mode: 2, joints: bound, weights, ..Query::of(0, 0, f as f64 / rate, 2) });
+            expected.push(want);
+        }
+    }
+    let record = &sidecar["textures"][0];
+    let answers =
+        probe(&trs.join(record["file"].as_str().unwrap()), &layout_bytes(&sidecar, record, 3), &queries).unwrap();
+    let scale = rows.iter().fold(1.0f32, |a, v| a.max(v.abs()));
+    for (k, (answer, want)) in answers.chunks_exact(12).zip(&expected).enumerate() {
+        let error = answer.iter().zip(want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max) / scale;
+        assert!(error <= 1e-5, "vertex {k}: {answer:?} against the skin texture's {want:?}");
+    }
+}
+
+#[test]
+fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
+    use wgpu::util::DeviceExt;
+    let Some(gpu) = crate::shared_gpu() else { return };
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    // The shipped vertex shader and a fragment stage that shows its normal.
+    let source = format!(
+        "{}\n@fragment fn show(v: SkinnedOut) -> @location(0) vec4f {{ return vec4f(v.normal * 0.5 + 0.5, 1.0); }}",
+        shader::skin_vertex_source()
+    );
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("skin vertex"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let entry =
+        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::VERTEX, ty, count: None };
+    let uniform = wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Uniform,
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let camera_layout = device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[entry(0, uniform)] });
+    let bones_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[
+            entry(
+                0,
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+            ),
+            entry(1, uniform),
+        ],
+    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(&camera_layout), Some(&bones_layout)],
+        immediate_size: 0,
+    });
+    let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
+    use wgpu::VertexFormat as F;
+    let per_vertex = [
+        attribute(0, F::Float32x3, 0),
+        attribute(1, F::Float32x3, 12),
+        attribute(2, F::Uint32x4, 24),
+        attribute(3, F::Float32x4, 40),
+    ];
+    let per_instance = [attribute(4, F::Float32x3, 0), attribute(5, F::Uint32, 12), attribute(6, F::Float32, 16)];
+    let target = wgpu::TextureFormat::Rgba8Unorm;
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("skin vertex"),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some(shader::SKIN_VERTEX_ENTRY_POINT),
+            compilation_options: Default::default(),
+            buffers: &[
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: 56,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &per_vertex,
+                }),
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: 20,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &per_instance,
+                }),
+            ],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("show"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState::from(target))],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    // One joint at rest (rotation, translation, scale texels) in a one-frame clip; an identity
+    // camera; a triangle over the whole target bound to that joint, its normal towards +z.
+    let rest: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, 1.0], [0.0; 4], [1.0, 1.0, 1.0, 0.0]];
+    let bones = device.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d { width: 3, height: 1, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&rest),
+    );
+    let one_frame = serde_json::json!({"clips": [{"first_row": 0, "frames": 1, "loop": false, "rate": 30.0}]});
+    let grid =
+        serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
+    let buffer = |contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
+    };
+    let identity: [f32; 16] = std::array::from_fn(|i| if i % 5 == 0 { 1.0 } else { 0.0 });
+    let camera = buffer(bytemuck::cast_slice(&identity), wgpu::BufferUsages::UNIFORM);
+    let bone_layout = buffer(&layout_bytes(&one_frame, &grid, 3), wgpu::BufferUsages::UNIFORM);
+    let mut vertices: Vec<u8> = Vec::new();
+    for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
+        vertices.extend(bytemuck::cast_slice(&[x, y, 0.5, 0.0, 0.0, 1.0]));
+        vertices.extend(bytemuck::cast_slice(&[0u32; 4]));
+        vertices.extend(bytemuck::cast_slice(&[1.0f32, 0.0, 0.0, 0.0]));
+    }
+    let vertices = buffer(&vertices, wgpu::BufferUsages::VERTEX);
+    let mut instance: Vec<u8> = bytemuck::cast_slice(&[0.0f32; 3]).to_vec();
+    instance.extend(bytemuck::cast_slice(&[0u32]));
+    instance.extend(bytemuck::cast_slice(&[0.0f32]));
+    let instances = buffer(&instance, wgpu::BufferUsages::VERTEX);
+    let view = bones.create_view(&Default::default());
+    let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &camera_layout,
+        entries: &[wgpu::BindGroupEntry { binding: 0, resource: camera.as_entire_binding() }],
+    });
+    let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &bones_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+            wgpu::BindGroupEntry { binding: 1, resource: bone_layout.as_entire_binding() },
+        ],
+    });
+    let size = wgpu::Extent3d { width: 4, height: 4, depth_or_array_layers: 1 };
+    let image = device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: target,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let read = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 256 * 4,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let target_view = image.create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: None,
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &target_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+            })],
+            ..Default::default()
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group0, &[]);
+        pass.set_bind_group(1, &group1, &[]);
+        pass.set_vertex_buffer(0, vertices.slice(..));
+        pass.set_vertex_buffer(1, instances.slice(..));
+        pass.draw(0..3, 0..1);
+    }
+    encoder.copy_texture_to_buffer(
+        image.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &read,
+            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(256), rows_per_image: None },
+        },
+        size,
+    );
+    queue.submit([encoder.finish()]);
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        panic!("the skinned vertex shader was refused: {e}");
+    }
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let pixels = slice.get_mapped_range().unwrap().to_vec();
+    // The normal (0, 0, 1), skinned by the joint at rest, shown as (0.5, 0.5, 1).
+    for row in 0..4 {
+        for x in 0..4 {
+            let p = &pixels[row * 256 + x * 4..row * 256 + x * 4 + 4];
+            assert!(p[0].abs_diff(128) <= 1 && p[1].abs_diff(128) <= 1 && p[2] == 255, "pixel ({x}, {row}): {p:?}");
+        }
+    }
 }
 
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
