@@ -422,9 +422,9 @@ impl BakeJob {
     }
 
     /// Writes the baked file (GLB or BVH), the textures and the sidecar (with the rates a
-    /// budget chose, from `report`); if any write fails,
-    /// removes the ones already written so the job leaves nothing partial. Forward kinematics
-    /// (model and skin textures, previews) runs on `fk_device`, the bake's.
+    /// budget chose, from `report`); if any write fails, removes the ones already written so
+    /// the job leaves nothing partial. Forward kinematics (model and skin textures, previews)
+    /// runs on `fk_device`, the bake's.
     fn write_outputs(
         &self,
         src: &Source,
