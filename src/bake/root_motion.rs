@@ -85,7 +85,8 @@ fn heading(m: &Affine) -> f64 {
 /// place.
 ///
 /// # Errors
-/// [`InputError::Animation`] for a hierarchy that has a cycle.
+/// [`InputError::Animation`] for a clip that moves joints under more than one scene root
+/// (several characters), or a hierarchy that has a cycle.
 pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputError> {
     let order = animation.parents_first()?;
     let roots: Vec<usize> = (0..animation.joints.len()).filter(|&j| animation.joints[j].parent.is_none()).collect();
@@ -97,6 +98,28 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
             in_place.push(None);
             continue;
         };
+        // One track moves one character: translations under two scene roots are two.
+        let root_of = |mut j: usize| {
+            while let Some(parent) = animation.joints[j].parent {
+                j = parent;
+            }
+            j
+        };
+        let mut moving: Vec<usize> = translated.iter().map(|&j| root_of(j)).collect();
+        moving.sort_unstable();
+        moving.dedup();
+        if moving.len() > 1 {
+            let names: Vec<String> =
+                moving.iter().take(3).map(|&r| format!("'{}'", animation.joints[r].name)).collect();
+            return Err(InputError::Animation(format!(
+                "clip '{}': {} scene roots move ({}{}): --root-motion extract takes one character per input; \
+                 bake them apart or with --root-motion keep",
+                clip.name,
+                moving.len(),
+                names.join(", "),
+                if moving.len() > 3 { ", ..." } else { "" }
+            )));
+        }
         let joints = animation.joints.len();
         let local = texture::local(animation, baked, c);
         let model = texture::model(animation, &order, &local);

@@ -69,3 +69,23 @@ fn the_root_track_and_the_in_place_textures_give_the_clip_back() {
         }
     }
 }
+
+#[test]
+fn root_motion_of_several_characters_in_one_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("crowd");
+    let result = super::bake(&[
+        "--characters",
+        "2",
+        "--root-motion",
+        "extract",
+        "--device",
+        "cpu",
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(result.status.code(), Some(2), "{}", super::stderr(&result));
+    let message = super::stderr(&result);
+    assert!(message.contains("2 scene roots move") && message.contains("--root-motion keep"), "{message}");
+    assert!(!out.join("crowd.json").exists(), "nothing written for that input");
+}
