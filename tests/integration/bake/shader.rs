@@ -107,20 +107,39 @@ fn texels(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
     }
 }
 
-/// Runs `bone_probe` over one texture: 12 floats per query.
-fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
+/// `bone_texture.wgsl`'s bindings (group 1): the texture, read texel by texel, and its layout.
+fn bones_layout(device: &wgpu::Device, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayout {
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility, ty, count: None };
+    let texture = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    let uniform = wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Uniform,
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("bones"),
+        entries: &[entry(0, texture), entry(1, uniform)],
+    })
+}
+
+/// An `rgba32float` texture of `texels`, `width` by `height`, for `bone_texture`.
+fn bone_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    width: u32,
+    height: u32,
+    texels: &[[f32; 4]],
+) -> wgpu::Texture {
     use wgpu::util::DeviceExt;
-    let gpu = crate::shared_gpu()?;
-    let (device, queue) = (gpu.context().device(), gpu.context().queue());
-    // Any validation error (a binding over a limit) fails here, not as answers of zeros.
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let (width, height, data) = texels(texture);
-    let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
-    let image = device.create_texture_with_data(
+    device.create_texture_with_data(
         queue,
         &wgpu::TextureDescriptor {
             label: Some("bone texture"),
-            size,
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -129,8 +148,19 @@ fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
             view_formats: &[],
         },
         wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&data),
-    );
+        bytemuck::cast_slice(texels),
+    )
+}
+
+/// Runs `bone_probe` over one texture: 12 floats per query.
+fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
+    use wgpu::util::DeviceExt;
+    let gpu = crate::shared_gpu()?;
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    // Any validation error (a binding over a limit) fails here, not as answers of zeros.
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let (width, height, data) = texels(texture);
+    let image = bone_texture(device, queue, width, height, &data);
     let source = shader::bone_probe_source();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("bone probe"),
@@ -146,20 +176,7 @@ fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
             entry(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
         ],
     });
-    let bones = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[
-            entry(
-                0,
-                wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-            ),
-            entry(1, buffer(wgpu::BufferBindingType::Uniform)),
-        ],
-    });
+    let bones = bones_layout(device, wgpu::ShaderStages::COMPUTE);
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
         bind_group_layouts: &[Some(&io), Some(&bones)],
@@ -489,20 +506,7 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
     };
     let camera_layout = device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[entry(0, uniform)] });
-    let bones_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[
-            entry(
-                0,
-                wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-            ),
-            entry(1, uniform),
-        ],
-    });
+    let bones_layout = bones_layout(device, wgpu::ShaderStages::VERTEX);
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
         bind_group_layouts: &[Some(&camera_layout), Some(&bones_layout)],
@@ -553,21 +557,7 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
     // One joint at rest (rotation, translation, scale texels) in a one-frame clip; an identity
     // camera; a triangle over the whole target bound to that joint, its normal towards +z.
     let rest: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, 1.0], [0.0; 4], [1.0, 1.0, 1.0, 0.0]];
-    let bones = device.create_texture_with_data(
-        queue,
-        &wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d { width: 3, height: 1, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&rest),
-    );
+    let bones = bone_texture(device, queue, 3, 1, &rest);
     let one_frame = serde_json::json!({"clips": [{"first_row": 0, "frames": 1, "loop": false, "rate": 30.0}]});
     let grid =
         serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
