@@ -302,13 +302,13 @@ pub struct Baked {
     rotations: Vec<f32>,
     /// Channels evaluated on the host, one value per frame.
     host: Vec<Vec<[f32; 4]>>,
-    /// Per clip, with `--root-motion extract`: the root-motion joint's local rows in place
-    /// ([`root_motion::extract`]), which the textures take in place of its channels.
+    /// Per clip, with `--root-motion extract`: the scene roots' local rows with the root track
+    /// taken out ([`root_motion::extract`]), which the textures take in place of their values.
     in_place: Vec<Option<root_motion::InPlace>>,
 }
 
 impl Baked {
-    /// Clip `clip`'s root-motion joint in place, when its root motion was extracted.
+    /// Clip `clip`'s root track and in-place scene roots, when its root motion was extracted.
     #[must_use]
     pub fn in_place(&self, clip: usize) -> Option<&root_motion::InPlace> {
         self.in_place.get(clip).and_then(Option::as_ref)
