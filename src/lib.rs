@@ -48,6 +48,7 @@ pub mod euclidean;
 pub mod gpu;
 pub mod interp;
 pub mod io;
+pub mod isa;
 pub mod job;
 pub mod output;
 // Charts, synthetic tracks and the demo input serve the CLI, benches and tests; they are not

@@ -2,7 +2,7 @@
 //! (`families`) on every core, a slice at a time, and appended to the packed arrays, sharing
 //! a knot vector between consecutive tracks keyed at the same times.
 
-use super::families::{prepare, PackedData};
+use super::families::{prepare_all, PackedData};
 use super::knots::knots_are_uniform;
 use super::{Batch, PackedTrack};
 use crate::curve::CurveSpec;
@@ -11,6 +11,9 @@ use crate::track::Track;
 
 /// Tracks [`BatchBuilder::extend`] prepares at once.
 pub(super) const EXTEND_CHUNK: usize = 1 << 14;
+
+/// Tracks one core prepares together (a multiple of the solve's four lanes).
+const LANE_GROUP: usize = 64;
 
 /// Builds a [`Batch`] track by track or slice by slice; tracks may use different curve specs.
 #[derive(Debug)]
@@ -38,7 +41,7 @@ impl BatchBuilder {
     pub fn add(&mut self, track: &Track, spec: &CurveSpec) -> Result<usize> {
         let index = self.batch.tracks.len();
         let id = TrackId { index, name: track.name.clone() };
-        let packed = prepare(&id, track, spec)?;
+        let packed = prepare_all(&[(id, track, *spec)]).pop().expect("one track in, one out")?;
         Ok(self.append(track, spec, packed))
     }
 
@@ -61,13 +64,23 @@ impl BatchBuilder {
         // per-track vectors of only one chunk are alive beside the packed arrays.
         for (c, chunk) in tracks.chunks(EXTEND_CHUNK).enumerate() {
             let offset = c * EXTEND_CHUNK;
+            // Slices of LANE_GROUP tracks, so that a clip's channels meet in one slice and
+            // share the solve's SIMD lanes.
             let prepared: Result<Vec<PackedData>> = chunk
-                .par_iter()
+                .par_chunks(LANE_GROUP)
                 .enumerate()
-                .with_min_len(64)
-                .map(|(i, track)| {
-                    prepare(&TrackId { index: first + offset + i, name: track.name.clone() }, track, &spec(offset + i))
+                .map(|(s, slice)| {
+                    let items: Vec<(TrackId, &Track, CurveSpec)> = slice
+                        .iter()
+                        .enumerate()
+                        .map(|(i, track)| {
+                            let i = offset + s * LANE_GROUP + i;
+                            (TrackId { index: first + i, name: track.name.clone() }, track, spec(i))
+                        })
+                        .collect();
+                    prepare_all(&items)
                 })
+                .flatten_iter()
                 .collect();
             let prepared = match prepared {
                 Ok(prepared) => prepared,

@@ -9,6 +9,7 @@ use super::keys::{aligned_keys, check_loop, key_times};
 use super::knots::bspline_knots;
 use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
+use crate::interp;
 use crate::quat::{relative_log, QuatF64, Vec3F64};
 use crate::track::Track;
 use std::f64::consts::PI;
@@ -30,14 +31,57 @@ pub(super) struct PackedData {
     pub(super) domain: [f64; 2],
 }
 
-/// Validates `track` for `spec` and computes its packed data (DESIGN section 3), in f64.
-pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<PackedData> {
+/// Validates each `(id, track, spec)` and computes its packed data (DESIGN section 3), in
+/// f64, in order: the `bspline-interp` tracks' solves go to [`interp::solve_rotations_batch`]
+/// together, so that tracks of one shape share SIMD lanes.
+pub(super) fn prepare_all(items: &[(TrackId, &Track, CurveSpec)]) -> Vec<Result<PackedData>> {
+    let checked: Vec<Result<(Vec<QuatF64>, Vec<f64>)>> =
+        items.iter().map(|(id, track, spec)| check(id, track, spec)).collect();
+    let solving = |(item, checked): (&(TrackId, &Track, CurveSpec), &Result<_>)| {
+        item.2.curve == Curve::BSplineInterp && checked.is_ok()
+    };
+    let problems: Vec<interp::Problem> = items
+        .iter()
+        .zip(&checked)
+        .filter(|&pair| solving(pair))
+        .map(|(item, checked)| {
+            let (keys, times) = checked.as_ref().expect("only checked tracks are solved");
+            interp::Problem { keys, times, periodic: item.2.looping }
+        })
+        .collect();
+    let mut solved = interp::solve_rotations_batch(&problems).into_iter();
+    items
+        .iter()
+        .zip(checked)
+        .map(|(item, checked)| {
+            let solving = solving((item, &checked));
+            let (keys, times) = checked?;
+            let (id, track, spec) = item;
+            pack(id, track, spec, keys, times, if solving { solved.next() } else { None })
+        })
+        .collect()
+}
+
+/// The keys of `track` aligned into one hemisphere and its key times, checked for `spec`.
+fn check(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<(Vec<QuatF64>, Vec<f64>)> {
     let keys = aligned_keys(id, &track.rotations, spec)?;
     let times = key_times(id, track.times.as_deref(), keys.len())?;
-    let n = keys.len() - 1;
     if spec.looping {
         check_loop(id, spec, &keys)?;
     }
+    Ok((keys, times))
+}
+
+/// The packed data of checked keys and times; `solved` is a `bspline-interp` track's solve.
+fn pack(
+    id: &TrackId,
+    track: &Track,
+    spec: &CurveSpec,
+    keys: Vec<QuatF64>,
+    times: Vec<f64>,
+    solved: Option<std::result::Result<interp::Solved, interp::NoConvergence>>,
+) -> Result<PackedData> {
+    let n = keys.len() - 1;
     let (t0, tn) = (times[0], times[n]);
     let vec_coef = |v: Vec3F64| [v.x, v.y, v.z, 0.0];
     let steps = || (1..=n).map(|i| vec_coef(relative_log(keys[i - 1], keys[i])));
@@ -79,14 +123,14 @@ pub(super) fn prepare(id: &TrackId, track: &Track, spec: &CurveSpec) -> Result<P
         }
         Curve::BSpline => bspline(id, track, spec, keys, &times)?,
         Curve::BSplineInterp => {
-            let solved =
-                crate::interp::solve_rotations(&keys, &times, spec.looping).map_err(|e| Error::NoConvergence {
-                    track: id.clone(),
-                    key: e.worst_key,
-                    error: e.error,
-                    iterations: e.iterations,
-                    tolerance: crate::interp::KEY_TOLERANCE,
-                })?;
+            let solved = solved.expect("prepare_all solves every bspline-interp track");
+            let solved = solved.map_err(|e| Error::NoConvergence {
+                track: id.clone(),
+                key: e.worst_key,
+                error: e.error,
+                iterations: e.iterations,
+                tolerance: interp::KEY_TOLERANCE,
+            })?;
             let coefs = solved.coefs.into_iter().map(vec_coef).collect();
             PackedData {
                 curve: Curve::BSpline,

@@ -22,7 +22,9 @@
 //! (natural or periodic cubic spline of translations and scales) is the same system with scalar
 //! blocks, solved once.
 
+mod f64x4;
 mod jacobian;
+mod lanes;
 mod tridiagonal;
 
 use crate::basis::bspline_cumulative;
@@ -426,7 +428,7 @@ fn first_guess(
 struct Workspace {
     state: State,
     trial: State,
-    scratch: Scratch,
+    scratch: Scratch<DMat3>,
     delta: Vec<V3>,
     /// The moves of the first guess, then each Newton step's first-order change of the steps.
     step_change: Vec<V3>,
@@ -469,6 +471,59 @@ pub fn solve_rotations(keys: &[QuatF64], times: &[f64], periodic: bool) -> Resul
     Workspace::with(|workspace| solve_in(workspace, keys, times, periodic))
 }
 
+/// One track's keys for [`solve_rotations_batch`]: as [`solve_rotations`] takes them.
+#[derive(Clone, Copy, Debug)]
+pub struct Problem<'a> {
+    /// Sign-continuous, normalized keys.
+    pub keys: &'a [QuatF64],
+    /// Their times, strictly increasing.
+    pub times: &'a [f64],
+    /// A loop (the keys close) rather than an open curve with natural ends.
+    pub periodic: bool,
+}
+
+/// [`solve_rotations`] for every problem, in order, four tracks of one shape (the same key
+/// count and loop mode: every channel of a clip) at a time in `f64` SIMD lanes (`lanes`); a
+/// group left short fills its spare lanes with copies of its first track. Each track's curve
+/// depends on that track alone, bit for bit (never on its lane mates, on how a batch is
+/// sliced or on the CPU's instruction set), and agrees with [`solve_rotations`]'s to the
+/// solve's own tolerance (the tests bound the difference by `2 KEY_TARGET`).
+#[must_use]
+pub fn solve_rotations_batch(problems: &[Problem]) -> Vec<Result<Solved, NoConvergence>> {
+    let mut out: Vec<Option<Result<Solved, NoConvergence>>> = vec![None; problems.len()];
+    let mut waiting: Vec<((usize, bool), Vec<usize>)> = Vec::new();
+    let run = |group: &[usize], out: &mut Vec<Option<_>>| {
+        let pick = |l: usize| problems[group.get(l).copied().unwrap_or(group[0])];
+        let solved = lanes::solve_rotations_lanes(
+            std::array::from_fn(|l| pick(l).keys),
+            std::array::from_fn(|l| pick(l).times),
+            problems[group[0]].periodic,
+        );
+        for (&i, result) in group.iter().zip(solved) {
+            out[i] = Some(result);
+        }
+    };
+    for (i, p) in problems.iter().enumerate() {
+        let shape = (p.keys.len(), p.periodic);
+        let slot = match waiting.iter().position(|(s, _)| *s == shape) {
+            Some(slot) => slot,
+            None => {
+                waiting.push((shape, Vec::with_capacity(lanes::LANES)));
+                waiting.len() - 1
+            }
+        };
+        waiting[slot].1.push(i);
+        if waiting[slot].1.len() == lanes::LANES {
+            let (_, group) = waiting.swap_remove(slot);
+            run(&group, &mut out);
+        }
+    }
+    for (_, group) in waiting {
+        run(&group, &mut out);
+    }
+    out.into_iter().map(|r| r.expect("every problem is solved")).collect()
+}
+
 /// [`solve_rotations`] in `workspace`'s arrays.
 fn solve_in(
     workspace: &mut Workspace,
@@ -494,7 +549,9 @@ fn solve_in(
         iterations += 1;
         let fail = |h: &Health| NoConvergence { worst_key: h.key.1, error: h.key.0, iterations };
         linearize(&system, state);
-        solve(&system.columns, &state.blocks, &state.rhs, periodic, scratch, delta).ok_or_else(|| fail(&health))?;
+        if solve(&system.columns, &state.blocks, &state.rhs, periodic, scratch, delta) {
+            return Err(fail(&health));
+        }
         let moved = |p: usize, scale: f64| system.unknown(p).map_or(V3::ZERO, |u| delta[u] * scale);
         // Damped update: no control point turns by more than MAX_MOVE at once (a far jump
         // lands in another basin), then halve the step until the residual decreases.
@@ -533,10 +590,24 @@ fn solve_in(
             if health.key.0 > KEY_TOLERANCE { (health.key.1, health.key.0) } else { (health.end.1, health.end.0) };
         return Err(NoConvergence { worst_key, error, iterations });
     }
-    let State { points, steps, .. } = state;
+    Ok(finish(&state.points, &state.steps, n, periodic, &system.knots, iterations, health.key.0))
+}
+
+/// The [`Solved`] curve from converged control points and the steps into them (one period
+/// when `periodic`).
+fn finish(
+    points: &[QuatF64],
+    steps: &[Vec3F64],
+    n: usize,
+    periodic: bool,
+    knots: &[f64],
+    iterations: usize,
+    key_error: f64,
+) -> Solved {
     // Open: P_0..P_{n+2}. Periodic: one period of the repeating sequence, P_{n-1}, P_0, ...,
     // P_{n-1}, P_0, P_1, with the step into each.
-    let order: Vec<usize> = if periodic { (0..n + 3).map(|j| (j + n - 1) % n).collect() } else { (0..count).collect() };
+    let order: Vec<usize> =
+        if periodic { (0..n + 3).map(|j| (j + n - 1) % n).collect() } else { (0..points.len()).collect() };
     let mut out_points: Vec<QuatF64> = order.iter().map(|&j| points[j]).collect();
     let coefs: Vec<Vec3F64> = order[1..].iter().map(|&j| steps[j]).collect();
     // Signs follow the product chain, so that P_j = P_{j-1} exp(w_j) exactly as evaluated.
@@ -544,7 +615,7 @@ fn solve_in(
         let chained = out_points[j - 1] * QuatF64::exp(coefs[j - 1]);
         out_points[j] = out_points[j].aligned_with(chained);
     }
-    Ok(Solved { points: out_points, coefs, knots: system.knots.clone(), iterations, key_error: health.key.0 })
+    Solved { points: out_points, coefs, knots: knots.to_vec(), iterations, key_error }
 }
 
 /// The log of `r` (up to sign) nearest to `predicted`: among `(th + pi m) u` (every `v` with
@@ -604,7 +675,9 @@ pub fn solve_vectors(values: &[Vec3F64], times: &[f64], periodic: bool) -> Optio
         rhs.push(target);
     }
     let mut x = Vec::with_capacity(unknowns);
-    solve(&system.columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x)?;
+    if solve(&system.columns, &blocks, &rhs, periodic, &mut Scratch::default(), &mut x) {
+        return None;
+    }
     let d = |v: V3| Vec3F64::new(v.x, v.y, v.z);
     let points = if periodic {
         (0..n + 3).map(|j| d(x[(j + n - 1) % n])).collect()
