@@ -77,11 +77,13 @@ fn exp_jr<L: Lanes64>(v: V4<L>) -> (Q4<L>, [L; 2]) {
     let h = h2.sqrt();
     let (s, c) = h.sin_cos();
     let small = h.lt(L::splat(1e-4));
-    let series = [L::splat(1.0) - h2 * (1.0 / 3.0), L::splat(2.0 / 3.0) - h2 * (2.0 / 15.0)];
-    let closed = [s * s / h2, (h * 2.0 - s * c * 2.0) / (h2 * h * 2.0)];
-    let jr = [small.pick(series[0], closed[0]), small.pick(series[1], closed[1])];
     let zero = h.le(L::zero());
-    let sinc = zero.pick(L::splat(1.0), s / zero.pick(L::splat(1.0), h));
+    // One division: sin^2 h / h^2 = sinc^2 and (2h - sin 2h) / 2h^3 = (1 - sinc cos h) / h^2.
+    let inverse = L::splat(1.0) / zero.pick(L::splat(1.0), h);
+    let sinc = zero.pick(L::splat(1.0), s * inverse);
+    let series = [L::splat(1.0) - h2 * (1.0 / 3.0), L::splat(2.0 / 3.0) - h2 * (2.0 / 15.0)];
+    let closed = [sinc * sinc, (L::splat(1.0) - sinc * c) * inverse * inverse];
+    let jr = [small.pick(series[0], closed[0]), small.pick(series[1], closed[1])];
     (Q4 { x: v.x * sinc, y: v.y * sinc, z: v.z * sinc, w: c }, jr)
 }
 
@@ -351,13 +353,19 @@ fn linearize<L: Lanes64>(shape: &Shape<L>, state: &mut State<L>) {
 fn nearest_log<L: Lanes64>(r: Q4<L>, predicted: V4<L>) -> V4<L> {
     let short = r.aligned_with(Q4::identity()).log();
     let th = short.length();
-    let length = predicted.length();
-    let (has_angle, has_prediction) = (th.gt(L::zero()), length.gt(L::zero()));
+    let has_angle = th.gt(L::zero());
     let one = L::splat(1.0);
-    let axis =
-        has_angle.pick(short * (one / has_angle.pick(th, one)), predicted * (one / has_prediction.pick(length, one)));
+    let mut axis = short * (one / has_angle.pick(th, one));
+    let mut keep = has_angle;
+    if !has_angle.all() {
+        // The identity in some lane: whole turns about the prediction's axis there.
+        let length = predicted.length();
+        let has_prediction = length.gt(L::zero());
+        axis = has_angle.pick(axis, predicted * (one / has_prediction.pick(length, one)));
+        keep = has_angle | has_prediction;
+    }
     let m = ((predicted.dot(axis) - th) * (1.0 / PI)).round();
-    (has_angle | has_prediction).pick(axis * (th + m * PI), short)
+    keep.pick(axis * (th + m * PI), short)
 }
 
 /// The thread's arrays for lane solves, kept across solves ([`super::Workspace`]).
@@ -657,8 +665,8 @@ fn solve_in<L: Lanes64>(
     let outcome = newton(ws, system);
     chain(&ws.done, n, periodic, &mut ws.trial);
     // Each lane's points and steps, scattered back a point at a time.
-    let mut points: [Vec<QuatF64>; LANES] = Default::default();
-    let mut coefs: [Vec<Vec3F64>; LANES] = Default::default();
+    let mut points: [Vec<QuatF64>; LANES] = std::array::from_fn(|_| Vec::with_capacity(ws.trial.points.len()));
+    let mut coefs: [Vec<Vec3F64>; LANES] = std::array::from_fn(|_| Vec::with_capacity(ws.trial.steps.len()));
     for p in &ws.trial.points {
         let [x, y, z, w] = [p.x, p.y, p.z, p.w].map(L::to_array);
         for (l, lane) in points.iter_mut().enumerate() {

@@ -16,7 +16,7 @@ pub(super) trait Matrix:
     + Mul<Self::Vector, Output = Self::Vector>
 {
     /// The vector a block multiplies.
-    type Vector: Copy + Sub<Output = Self::Vector>;
+    type Vector: Copy + Sub<Output = Self::Vector> + Block<Self>;
     /// Which lanes met a singular pivot: `bool`, or a [`Mask`].
     type Singular: Copy;
     fn zero() -> Self;
@@ -81,14 +81,25 @@ pub(super) trait Block<M>: Copy {
     fn minus(self, o: Self) -> Self;
 }
 
-impl<M: Matrix> Block<M> for (M::Vector,) {
+impl Block<DMat3> for V3 {
     #[inline(always)]
-    fn lmul(m: &M, x: Self) -> Self {
-        (*m * x.0,)
+    fn lmul(m: &DMat3, x: Self) -> Self {
+        *m * x
     }
     #[inline(always)]
     fn minus(self, o: Self) -> Self {
-        (self.0 - o.0,)
+        self - o
+    }
+}
+
+impl<L: Lanes64> Block<M4<L>> for V4<L> {
+    #[inline(always)]
+    fn lmul(m: &M4<L>, x: Self) -> Self {
+        *m * x
+    }
+    #[inline(always)]
+    fn minus(self, o: Self) -> Self {
+        self - o
     }
 }
 
@@ -103,29 +114,27 @@ impl<M: Matrix> Block<M> for (M::Vector, M) {
     }
 }
 
-/// Block tridiagonal solve (block Thomas) of `lower_r x_{r-1} + diag_r x_r + upper_r x_{r+1}
-/// = rhs_r` in place; returns where a pivot block was singular (the solution is garbage
-/// there). `carry` is scratch space.
+/// Block tridiagonal solve (block Thomas) of `rows[r][0] x_{r-1} + rows[r][1] x_r +
+/// rows[r][2] x_{r+1} = rhs_r` in place (the first row's `[0]` and the last row's `[2]` are
+/// not read); returns where a pivot block was singular (the solution is garbage there).
+/// `carry` is scratch space.
 #[inline(always)]
-fn solve_tridiagonal<M: Matrix, T: Block<M>>(
-    lower: &[M],
-    diag: &[M],
-    upper: &[M],
-    rhs: &mut [T],
-    carry: &mut Vec<M>,
-) -> M::Singular {
+fn solve_tridiagonal<M: Matrix, T: Block<M>>(rows: &[[M; 3]], rhs: &mut [T], carry: &mut Vec<M>) -> M::Singular {
     let n = rhs.len();
     carry.clear();
     let mut singular = M::nonsingular();
     for r in 0..n {
-        let mut d = diag[r];
+        let [lower, diag, upper] = &rows[r];
+        let mut d = *diag;
         if r > 0 {
-            d = d - lower[r] * carry[r - 1];
-            rhs[r] = rhs[r].minus(T::lmul(&lower[r], rhs[r - 1]));
+            d = d - *lower * carry[r - 1];
+            rhs[r] = rhs[r].minus(T::lmul(lower, rhs[r - 1]));
         }
         let (inv, s) = d.checked_inverse();
         singular = M::either(singular, s);
-        carry.push(inv * upper[r]);
+        if r + 1 < n {
+            carry.push(inv * *upper);
+        }
         rhs[r] = T::lmul(&inv, rhs[r]);
     }
     for r in (0..n.saturating_sub(1)).rev() {
@@ -134,29 +143,27 @@ fn solve_tridiagonal<M: Matrix, T: Block<M>>(
     singular
 }
 
-/// The arrays a linear solve fills, kept across Newton iterations (allocating and zeroing
-/// them per solve was a measured cost).
+/// The arrays a linear solve fills, kept across Newton iterations (allocating them per solve
+/// was a measured cost).
 pub(super) struct Scratch<M: Matrix> {
-    lower: Vec<M>,
-    diag: Vec<M>,
-    upper: Vec<M>,
-    /// Row 0: column n-1; row n-1: column 0 (cyclic systems, n >= 3).
-    corner: Vec<M>,
+    /// Rows sorted into `[lower, diagonal, upper]` where a short cyclic system meets one
+    /// unknown twice in a row.
+    sorted: Vec<[M; 3]>,
     carry: Vec<M>,
-    plain: Vec<(M::Vector,)>,
     aug: Vec<(M::Vector, M)>,
 }
 
 impl<M: Matrix> Default for Scratch<M> {
     fn default() -> Self {
-        let v = Vec::new;
-        Self { lower: v(), diag: v(), upper: v(), corner: v(), carry: v(), plain: Vec::new(), aug: Vec::new() }
+        Self { sorted: Vec::new(), carry: Vec::new(), aug: Vec::new() }
     }
 }
 
 /// Solves the (possibly cyclic) block tridiagonal system whose row `r` has blocks `blocks[r]`
-/// on the unknowns `cols[r]` (the same unknown may appear twice: the blocks add) into `x`;
-/// returns where it is singular.
+/// on the unknowns `columns[r]` into `x`; returns where it is singular. An open system's row
+/// `r` reads unknowns `r - 1, r, r + 1` (none past the ends), a cyclic one's the same modulo
+/// the row count, so the blocks are read in place; a cyclic system of fewer than three rows
+/// meets an unknown twice in a row, and its blocks are added up first.
 #[inline(always)]
 pub(super) fn solve<M: Matrix>(
     columns: &[[Option<usize>; 3]],
@@ -168,55 +175,47 @@ pub(super) fn solve<M: Matrix>(
 ) -> M::Singular {
     let n = rhs.len();
     let zero = M::zero();
-    // Sort each row's blocks into lower / diagonal / upper / corner (cyclic wrap).
-    let Scratch { lower, diag, upper, corner, carry, plain, aug } = scratch;
-    for v in [&mut *lower, &mut *diag, &mut *upper, &mut *corner] {
-        v.clear();
-        v.resize(n, zero);
-    }
-    for r in 0..n {
-        for (col, block) in columns[r].iter().zip(&blocks[r]) {
-            let Some(c) = *col else { continue };
-            let slot = if c == r {
-                &mut diag[r]
-            } else if c + 1 == r {
-                &mut lower[r]
-            } else if c == r + 1 {
-                &mut upper[r]
-            } else {
-                &mut corner[r]
-            };
-            *slot += *block;
-        }
-    }
+    let Scratch { sorted, carry, aug } = scratch;
     x.clear();
-    if !periodic || n < 3 {
-        plain.clear();
-        for &v in rhs {
-            plain.push((v,));
+    x.extend_from_slice(rhs);
+    if !periodic {
+        return solve_tridiagonal(blocks, x, carry);
+    }
+    if n < 3 {
+        sorted.clear();
+        for (r, (cols, row)) in columns.iter().zip(blocks).enumerate() {
+            let mut out = [zero; 3];
+            for (col, block) in cols.iter().zip(row) {
+                let Some(c) = *col else { continue };
+                let slot = if c == r {
+                    1
+                } else if c + 1 == r {
+                    0
+                } else {
+                    2
+                };
+                out[slot] += *block;
+            }
+            sorted.push(out);
         }
-        let singular = solve_tridiagonal(lower, diag, upper, plain, carry);
-        for v in plain.iter() {
-            x.push(v.0);
-        }
-        return singular;
+        return solve_tridiagonal(sorted, x, carry);
     }
     // Border the last unknown: rows 0..n-2 solve T [y | Z] = [rhs | border], then the last
-    // row gives x_{n-1}, and x' = y - Z x_{n-1}.
+    // row gives x_{n-1}, and x' = y - Z x_{n-1}. Row 0's lower block is the corner on
+    // x_{n-1}, row m - 1's upper block is on x_{n-1} too; both go into the border.
     let m = n - 1;
     aug.clear();
     for &v in &rhs[..m] {
         aug.push((v, zero));
     }
-    aug[0].1 = corner[0];
-    aug[m - 1].1 += upper[m - 1];
-    // Row m - 1's upper block went into the border: the tridiagonal part ends there.
-    upper[m - 1] = zero;
-    let singular = solve_tridiagonal(&lower[..m], &diag[..m], &upper[..m], aug, carry);
-    let (first, last) = (corner[m], lower[m]);
-    let s = diag[m] - last * aug[m - 1].1 - first * aug[0].1;
+    aug[0].1 = blocks[0][0];
+    aug[m - 1].1 += blocks[m - 1][2];
+    let singular = solve_tridiagonal(&blocks[..m], aug, carry);
+    let [last, diag, first] = blocks[m];
+    let s = diag - last * aug[m - 1].1 - first * aug[0].1;
     let (s_inv, s_singular) = s.checked_inverse();
     let xm = s_inv * (rhs[m] - last * aug[m - 1].0 - first * aug[0].0);
+    x.clear();
     for &(y, z) in aug.iter() {
         x.push(y - z * xm);
     }
