@@ -46,9 +46,13 @@ fn main() {
         for (path, results) in [("one track at a time", scalar), ("four tracks per SIMD lane group", lanes)] {
             let mut iterations = BTreeMap::new();
             let mut failures = Vec::new();
+            let mut worst = 0.0f64;
             for (track, result) in results.into_iter().enumerate() {
                 match result {
-                    Ok(solved) => *iterations.entry(solved.iterations).or_insert(0) += 1,
+                    Ok(solved) => {
+                        *iterations.entry(solved.iterations).or_insert(0) += 1;
+                        worst = worst.max(solved.key_error);
+                    }
                     Err(e) => failures.push((track, e)),
                 }
             }
@@ -59,7 +63,7 @@ fn main() {
             });
             let median = median.into_iter().find(|&(_, seen)| 2 * seen >= solved).map_or(0, |(k, _)| k);
             println!(
-                "{}, {path}: {solved} solved, median {median} iterations, most {}; {} failed{}",
+                "{}, {path}: {solved} solved (worst key error {worst:.1e} rad), median {median} iterations, most {}; {} failed{}",
                 if periodic { "loop" } else { "open" },
                 iterations.keys().last().copied().unwrap_or(0),
                 failures.len(),

