@@ -13,8 +13,8 @@ use super::f64x4::Avx2;
 use super::f64x4::{relative_log, Lanes64, Portable, Select, M4, Q4, V4};
 use super::tridiagonal::{solve, Scratch};
 use super::{
-    Condition, NoConvergence, Solved, System, END_TARGET, END_TOLERANCE, KEY_TARGET, KEY_TOLERANCE, MAX_ITERATIONS,
-    MAX_MOVE,
+    keys_as_points, Condition, NoConvergence, Solved, System, END_TARGET, END_TOLERANCE, KEY_TARGET, KEY_TOLERANCE,
+    MAX_ITERATIONS, MAX_MOVE,
 };
 use crate::isa::Isa;
 use crate::quat::{QuatF64, Vec3F64};
@@ -410,14 +410,7 @@ fn first_guess<L: Lanes64>(shape: &Shape<L>, state: &mut State<L>, moves: &mut V
     let (system, keys) = (shape.system, shape.keys);
     let n = keys.len() - 1;
     let points = &mut state.points;
-    points.clear();
-    if system.periodic {
-        points.extend_from_slice(&keys[..n]);
-    } else {
-        points.push(keys[0]);
-        points.extend_from_slice(keys);
-        points.push(keys[n]);
-    }
+    keys_as_points(keys, system.periodic, points);
     let count = points.len();
     let prev = |j: usize| (j + count - 1) % count;
     let steps = &mut state.steps;
@@ -833,8 +826,8 @@ mod mates_tests {
 /// the same formulas), on the hard cases, open and looping.
 #[cfg(all(test, target_arch = "x86_64"))]
 mod isa_tests {
+    use super::tests::track;
     use super::{solve_avx2, solve_portable, Isa, Workspace};
-    use crate::quat::{QuatF64, Vec3F64};
 
     #[test]
     fn avx2_lanes_give_the_portable_bits() {
@@ -843,30 +836,9 @@ mod isa_tests {
             return;
         }
         let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut uniform = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
         for periodic in [false, true] {
             for _ in 0..20 {
-                let tracks: Vec<(Vec<QuatF64>, Vec<f64>)> = (0..4)
-                    .map(|_| {
-                        let mut q = vec![QuatF64::exp(Vec3F64::new(uniform(), 0.2, -uniform()))];
-                        let mut t = vec![0.0];
-                        for _ in 0..12 {
-                            let axis = Vec3F64::new(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
-                            let step = axis.scale(0.5 * uniform() * 170f64.to_radians() / axis.length());
-                            q.push(*q.last().unwrap() * QuatF64::exp(step));
-                            t.push(t.last().unwrap() + 0.1 + 0.9 * uniform());
-                        }
-                        if periodic {
-                            q[12] = q[0].aligned_with(q[11]);
-                        }
-                        (q, t)
-                    })
-                    .collect();
+                let tracks: Vec<_> = (0..4).map(|_| track(&mut seed, 13, 170.0, periodic)).collect();
                 let keys = std::array::from_fn(|l| tracks[l].0.as_slice());
                 let times = std::array::from_fn(|l| tracks[l].1.as_slice());
                 let portable = solve_portable(&mut Workspace::default(), (keys, times), periodic);

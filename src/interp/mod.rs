@@ -363,6 +363,22 @@ fn linearize(system: &System, state: &mut State) {
     }
 }
 
+/// The keys laid out as control points, where Newton's first guess moves them from: one period
+/// (`P_0..P_{n-1}`) of a loop, an open curve's keys with each end key twice more (`P_0 = q_0`,
+/// `P_{n+2} = q_n`).
+#[inline(always)]
+fn keys_as_points<T: Copy>(keys: &[T], periodic: bool, points: &mut Vec<T>) {
+    let n = keys.len() - 1;
+    points.clear();
+    if periodic {
+        points.extend_from_slice(&keys[..n]);
+    } else {
+        points.push(keys[0]);
+        points.extend_from_slice(keys);
+        points.push(keys[n]);
+    }
+}
+
 /// Newton's starting control points and the step into each. Each key row's point is its key
 /// moved against the row's residual at the keys (one Richardson step on `A P = q`: exact for
 /// the row's linear part on keys along one axis at constant speed, and it leaves only the
@@ -378,14 +394,7 @@ fn first_guess(
     moves: &mut Vec<V3>,
 ) {
     let n = keys.len() - 1;
-    points.clear();
-    if system.periodic {
-        points.extend_from_slice(&keys[..n]);
-    } else {
-        points.push(keys[0]);
-        points.extend_from_slice(keys);
-        points.push(keys[n]);
-    }
+    keys_as_points(keys, system.periodic, points);
     let count = points.len();
     let prev = |j: usize| (j + count - 1) % count;
     // Steps between keys are short (the keys are sign-continuous), so folding is right here.
