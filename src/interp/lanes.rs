@@ -1,8 +1,8 @@
 //! Four tracks of one shape (key count and loop mode) solved at once, one per `f64` lane
-//! ([`Lanes64`]): the Newton iteration of [`super::solve_in`] with every branch taken per lane.
+//! ([`Lanes64`]): the first guess, Newton iteration and sign chain of [`super::solve_in`] with
+//! every branch taken per lane, each function here the lane twin of the one named in its doc.
 //! A lane that has converged (or failed) stops changing while the others go on; each lane's
-//! line search halves its own step. The first guess and the final packing are the scalar
-//! path's, per lane; only the iteration, which is nearly all of the cost, runs in lanes.
+//! line search halves its own step; nothing a lane computes reads another lane.
 //!
 //! Built twice, like the CPU evaluator's kernels: inside a `#[target_feature(enable =
 //! "avx2,fma")]` function on CPUs that have AVX2 ([`Isa::Avx2`]), else at the build's
@@ -608,8 +608,8 @@ fn solve_portable(
     solve_in(ws, tracks, periodic)
 }
 
-/// [`solve_rotations_lanes`] in `ws`: each lane's first guess (the scalar path's), the
-/// iteration in lanes, each lane's curve.
+/// [`solve_rotations_lanes`] in `ws`: the rows and keys gathered into lanes, the solve, each
+/// lane's curve scattered back.
 #[inline(always)]
 fn solve_in<L: Lanes64>(
     ws: &mut Workspace<L>,

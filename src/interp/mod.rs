@@ -470,8 +470,10 @@ impl State {
 }
 
 /// Solves the control points of the curve through `keys` (sign-continuous, normalized) at
-/// `times`, open with natural ends or periodic. A periodic `keys` must close (`keys[n]` the
-/// same rotation as `keys[0]`; the builder checks it).
+/// `times`, open with natural ends or periodic, one track at a time in scalar f64: the
+/// formulas the lane solve ([`solve_rotations_batch`], the builder's) is tested against. A
+/// periodic `keys` must close (`keys[n]` the same rotation as `keys[0]`; the builder checks
+/// it).
 ///
 /// # Errors
 /// [`NoConvergence`] when Newton does not bring every key within [`KEY_TOLERANCE`] in
