@@ -80,6 +80,31 @@ fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
     );
 }
 
+/// Steps a hair either side of `SOURCE_STEP_WARNING_DEGREES` are told apart: the cheap
+/// screen that spares most steps the exact angle must not move the limit.
+#[test]
+fn source_steps_just_over_the_warning_limit_are_counted_and_those_just_under_are_not() {
+    use quatcurve::bake::{
+        source_step_warnings, Animation, Channel, Clip, Joint, Property, SOURCE_STEP_WARNING_DEGREES,
+    };
+    let about_z = |degrees: f64| {
+        let half = degrees.to_radians() / 2.0;
+        [0.0, 0.0, half.sin(), half.cos()]
+    };
+    let (under, over) = (SOURCE_STEP_WARNING_DEGREES - 1e-6, SOURCE_STEP_WARNING_DEGREES + 1e-6);
+    let values = vec![about_z(0.0), about_z(under), about_z(0.0), about_z(over), about_z(0.0), about_z(-under)];
+    let channel = Channel { joint: 0, property: Property::Rotation, times: (0..6).map(f64::from).collect(), values };
+    let animation = Animation {
+        joints: vec![Joint::at("bone".into(), None, [0.0; 3])],
+        clips: vec![Clip { name: "edge".into(), channels: vec![channel] }],
+        skins: Vec::new(),
+    };
+    let warnings = source_step_warnings(&animation);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("2 steps between consecutive keys"), "{warnings:?}");
+    assert!(warnings[0].contains("the first is key 2 to key 3 at 3 s"), "{warnings:?}");
+}
+
 #[test]
 fn probably_broken_source_keys_are_warned_per_channel_without_failing() {
     let dir = tempfile::tempdir().unwrap();
