@@ -1,5 +1,6 @@
 //! Animation textures written as they are computed: each sheet is an atomic file, a `.npy`
-//! written a block of frames at a time and hashed on the way, or an image gathered and encoded
+//! written a block of frames at a time, hashed on the way and each block handed to the disk
+//! as the next is computed (the final sync then waits for little), or an image gathered and encoded
 //! at the end ([`TextureFile`]), while the next block is computed ([`stream`]); what each input
 //! wrote, with its hash ([`Written`]).
 
@@ -137,7 +138,8 @@ impl TextureFile {
         let Self { file, hasher, .. } = self;
         let written = std::thread::scope(|s| {
             s.spawn(|| hasher.update(bytes));
-            file.write_all(bytes)
+            file.write_all(bytes)?;
+            file.start_writeback()
         });
         written.map_err(|e| InputError::Output(self.file.error(e).to_string()))?;
         self.size += bytes.len() as u64;
