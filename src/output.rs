@@ -131,6 +131,9 @@ pub const LOCAL_CHANNELS: usize = 10;
 /// Floats per joint and frame of a matrix texture row (`--texture model|skin`, the output of
 /// forward kinematics): a 3x4 row-major matrix.
 pub const MATRIX_CHANNELS: usize = 12;
+/// Floats per vertex and frame of skinned mesh vertices (the input and output of mesh
+/// skinning on either device): position, normal.
+pub const VERTEX_CHANNELS: usize = 6;
 
 /// Float32 samples of the fast paths (GPU, CPU): `samples x channels` in the requested
 /// layout, each sample a [`Row`].

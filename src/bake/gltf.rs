@@ -353,9 +353,9 @@ fn affine_rows(m: [[f32; 4]; 4]) -> [f64; 12] {
     std::array::from_fn(|i| f64::from(m[i % 4][i / 4]))
 }
 
-/// What an animation accessor holds.
+/// What an animation or skinned-mesh accessor holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Element {
+pub(super) enum Element {
     /// Key times: SCALAR float.
     Times,
     /// Rotation keys: VEC4 float or normalized integers.
@@ -364,11 +364,19 @@ enum Element {
     Vectors,
     /// Inverse bind matrices: MAT4 float.
     Matrices,
+    /// Skinned vertices' joint indices (JOINTS_n): VEC4 unsigned byte or short.
+    Joints,
+    /// Skinned vertices' weights (WEIGHTS_n): VEC4 float or normalized unsigned integers.
+    Weights,
 }
 
 /// Whether `accessor` holds `kind`'s element type and its elements lie inside its buffer
 /// view. Accessors without a buffer view (all zeros, or sparse) are refused for animation.
-fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: Element) -> Result<(), String> {
+pub(super) fn check_accessor(
+    accessor: &gltf::Accessor,
+    json: &gltf::json::Accessor,
+    kind: Element,
+) -> Result<(), String> {
     use gltf::json::accessor::{ComponentType as C, GenericComponentType, Type};
     let count = accessor.count();
     if count == 0 {
@@ -389,6 +397,11 @@ fn check_accessor(accessor: &gltf::Accessor, json: &gltf::json::Accessor, kind: 
         Element::Matrices => *element_type == Type::Mat4 && *component == C::F32,
         Element::Rotations => {
             *element_type == Type::Vec4 && matches!(component, C::F32 | C::I8 | C::U8 | C::I16 | C::U16)
+        }
+        Element::Joints => *element_type == Type::Vec4 && matches!(component, C::U8 | C::U16),
+        Element::Weights => {
+            *element_type == Type::Vec4
+                && (*component == C::F32 || (json.normalized && matches!(component, C::U8 | C::U16)))
         }
     };
     if !allowed {
@@ -486,6 +499,20 @@ fn percent_decode(uri: &str) -> Result<String, String> {
 }
 
 impl GltfFile {
+    /// The parsed document and the buffers' bytes: what the mesh readers take
+    /// ([`super::mesh::skinned_primitives`]).
+    /// Whether primitive `primitive` of mesh `mesh` uses glTF extension `name` (the crate's
+    /// document keeps no unknown extensions).
+    pub(super) fn primitive_uses(&self, mesh: usize, primitive: usize, name: &str) -> bool {
+        self.json["meshes"][mesh]["primitives"][primitive]["extensions"].get(name).is_some()
+    }
+
+    pub(super) fn document(&self) -> Result<(gltf::Document, &[Vec<u8>]), InputError> {
+        let root: gltf::json::Root =
+            serde_json::from_value(self.json.clone()).map_err(|e| input(format!("not valid glTF JSON: {e}")))?;
+        Ok((gltf::Document::from_json_without_validation(root), &self.buffers))
+    }
+
     /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames, and
     /// nothing left that only the replaced keys used (DESIGN section 5b, "Baked glTF").
     ///

@@ -145,6 +145,45 @@ impl GpuContext {
         self.map_outputs
     }
 
+    /// The compute program `source` (parsed and validated as `module`) with one bind group,
+    /// at `entry`, on this device; the layout comes from the shader's own bindings.
+    pub(super) fn compile(
+        &self,
+        label: &str,
+        module: &naga::Module,
+        source: &str,
+        entry: &str,
+    ) -> Result<super::shader::Compiled, GpuError> {
+        use super::shader::{entry_workgroup_size, Compiled, Resources};
+        let device = &self.device;
+        let workgroup_size = entry_workgroup_size(module, entry).map_err(GpuError::Shader)?;
+        let scope = ErrorScope::push(device);
+        let resources = Resources::of(module).map_err(GpuError::Shader)?;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &resources.layout_entries(),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            cache: None,
+        });
+        scope.pop()?;
+        Ok(Compiled { pipeline, layout, resources, workgroup_size })
+    }
+
     /// The usage of a buffer a kernel writes and the host reads back.
     pub(super) fn output_usage(&self) -> wgpu::BufferUsages {
         let readable = if self.map_outputs { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() };

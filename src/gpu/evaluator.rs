@@ -152,6 +152,8 @@ pub struct GpuEvaluator {
     program: Program,
     /// Forward kinematics on the same device, built on first use.
     fk: std::sync::OnceLock<ForwardKinematics>,
+    /// The mesh-skinning program, built on first use (vertex textures).
+    skinning: std::sync::OnceLock<super::MeshSkinning>,
     /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
     /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
     /// of the kernel's time).
@@ -203,6 +205,7 @@ impl GpuEvaluator {
             context,
             program,
             fk: std::sync::OnceLock::new(),
+            skinning: std::sync::OnceLock::new(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
         })
@@ -256,6 +259,7 @@ impl GpuEvaluator {
             context: self.context.clone(),
             program: self.program.clone(),
             fk: std::sync::OnceLock::new(),
+            skinning: std::sync::OnceLock::new(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
         }
@@ -280,6 +284,27 @@ impl GpuEvaluator {
             }
         };
         fk.run(parents, order, local)
+    }
+
+    /// A mesh primitive skinned at every frame of `matrices` on this evaluator's device
+    /// ([`super::MeshSkinning::run`]; its program is built on first use).
+    ///
+    /// # Errors
+    /// As [`super::MeshSkinning::run`], and [`GpuError::Device`] when the program cannot be built.
+    pub fn skin_mesh(
+        &self,
+        mesh: &super::skinning::BindMesh,
+        joints: usize,
+        matrices: &[f32],
+    ) -> Result<Vec<f32>, GpuError> {
+        let skinning = match self.skinning.get() {
+            Some(s) => s,
+            None => {
+                let built = super::MeshSkinning::new(&self.context)?;
+                self.skinning.get_or_init(|| built)
+            }
+        };
+        skinning.run(mesh, joints, matrices)
     }
 
     /// Largest binding of one chunk [`GpuEvaluator::evaluate`] and [`GpuEvaluator::prepare`]

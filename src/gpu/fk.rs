@@ -27,37 +27,6 @@ pub struct FkLevel {
     pub pad: [u32; 3],
 }
 
-/// Compiles the forward-kinematics program.
-fn compile(device: &wgpu::Device) -> Result<Compiled, GpuError> {
-    let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
-    let workgroup_size = shader::entry_workgroup_size(&module, shader::FK_ENTRY_POINT).map_err(GpuError::Shader)?;
-    let scope = ErrorScope::push(device);
-    let resources = shader::Resources::of(&module).map_err(GpuError::Shader)?;
-    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("quatcurve fk"),
-        entries: &resources.layout_entries(),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("quatcurve fk"),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("quatcurve fk"),
-        source: wgpu::ShaderSource::Wgsl(shader::fk_source().into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("quatcurve fk"),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(shader::FK_ENTRY_POINT),
-        compilation_options: wgpu::PipelineCompilationOptions::default(),
-        cache: None,
-    });
-    scope.pop()?;
-    Ok(Compiled { pipeline, layout, resources, workgroup_size })
-}
-
 /// Joint indices grouped by depth (roots first) and where each depth starts, from `parents`
 /// and an order with every parent before its children.
 ///
@@ -105,7 +74,9 @@ impl ForwardKinematics {
     /// # Errors
     /// [`GpuError::Shader`] or [`GpuError::Device`] when it cannot be built.
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
-        Ok(Self { context: context.clone(), program: compile(context.device())? })
+        let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
+        let program = context.compile("quatcurve fk", &module, &shader::fk_source(), shader::FK_ENTRY_POINT)?;
+        Ok(Self { context: context.clone(), program })
     }
 
     /// Model matrices of every joint and frame from local rows (see the module docs):

@@ -6,16 +6,19 @@
 //! - [`context`]: [`GpuContext`], one device and the calls every pass makes.
 //! - [`evaluator`]: [`GpuEvaluator`], created once and reused.
 //! - [`fk`]: [`ForwardKinematics`], bake's model matrices on the same device.
+//! - [`skinning`]: [`MeshSkinning`], vertex textures' skinned meshes on the same device.
 
 pub mod context;
 pub mod evaluator;
 pub mod fk;
 pub mod layout;
 pub mod shader;
+pub mod skinning;
 
 pub use context::GpuContext;
 pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 pub use fk::ForwardKinematics;
+pub use skinning::MeshSkinning;
 
 /// Runs `f` (which creates a wgpu instance, adapter or device) without the display-server
 /// noise it would print on a server. wgpu's Vulkan instance enables the Wayland surface

@@ -19,6 +19,9 @@ pub const FK_FILES: [(&str, &str); 3] = [
     ("fk.wgsl", include_str!("../../shaders/fk.wgsl")),
 ];
 
+/// The mesh-skinning program of vertex textures: self-contained.
+pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../shaders/skin_mesh.wgsl"))];
+
 /// The bone-texture library a renderer includes (`quatcurve shaders`): self-contained, read
 /// with the bake's textures of `--format exr|png16` (DESIGN section 5c).
 pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../../shaders/bone_texture.wgsl"))];
@@ -39,6 +42,9 @@ pub const SKIN_VERTEX_ENTRY_POINT: &str = "skin_vertex";
 /// Name of the bone probe's entry point.
 pub const BONE_PROBE_ENTRY_POINT: &str = "bone_probe";
 
+/// Name of the mesh-skinning entry point.
+pub const SKIN_MESH_ENTRY_POINT: &str = "skin_mesh";
+
 /// Name of the forward-kinematics entry point.
 pub const FK_ENTRY_POINT: &str = "forward_kinematics";
 
@@ -58,6 +64,12 @@ pub fn source() -> String {
 #[must_use]
 pub fn fk_source() -> String {
     join(&FK_FILES)
+}
+
+/// The mesh-skinning program as one WGSL source.
+#[must_use]
+pub fn skin_mesh_source() -> String {
+    join(&SKIN_MESH_FILES)
 }
 
 /// The skinned vertex shader with the bone library, as one WGSL source.
@@ -189,6 +201,14 @@ pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     validate(&fk_source())
 }
 
+/// Parses and validates the mesh-skinning program with naga.
+///
+/// # Errors
+/// As [`module`].
+pub fn skin_mesh_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    validate(&skin_mesh_source())
+}
+
 fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
@@ -218,8 +238,9 @@ pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, St
 }
 
 /// A compute program compiled on a device: its pipeline, bind group layout, buffers by name
-/// and workgroup width. The evaluator keeps the forward-kinematics program in one, built on
-/// first use by [`super::fk`].
+/// and workgroup width. The evaluator keeps the forward-kinematics and mesh-skinning programs
+/// in one each, built on first use ([`super::fk`], [`super::skinning`]) by
+/// [`super::GpuContext::compile`].
 pub(crate) struct Compiled {
     pub(crate) pipeline: wgpu::ComputePipeline,
     pub(crate) layout: wgpu::BindGroupLayout,

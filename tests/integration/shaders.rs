@@ -165,6 +165,20 @@ fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
     );
 }
 
+#[test]
+fn the_mesh_skinning_program_validates_and_matches_its_host_struct() {
+    let (module, _) = shader::skin_mesh_module().unwrap_or_else(|e| panic!("naga rejected the skinning program:\n{e}"));
+    assert!(shader::entry_workgroup_size(&module, shader::SKIN_MESH_ENTRY_POINT).unwrap() >= 32);
+    let (_, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("SkinMeshJob"))
+        .expect("SkinMeshJob in skin_mesh.wgsl");
+    assert_eq!(ty.inner.size(module.to_ctx()) as usize, std::mem::size_of::<quatcurve::gpu::skinning::SkinMeshJob>());
+    assert_eq!(shader::constant_u32(&module, "SKIN_VERTEX_CHANNELS"), Some(quatcurve::output::VERTEX_CHANNELS as u32));
+    assert_eq!(shader::constant_u32(&module, "SKIN_MATRIX_CHANNELS"), Some(quatcurve::output::MATRIX_CHANNELS as u32));
+}
+
 /// The value of the shader's `f32` constant `name`.
 fn constant_f32(module: &naga::Module, name: &str) -> f32 {
     let (_, constant) =

@@ -13,6 +13,7 @@ mod root_motion;
 mod shader;
 mod shards;
 mod textures;
+mod vertex;
 
 use assert_cmd::Command;
 use base64::Engine;

@@ -1,0 +1,266 @@
+//! The skinned mesh primitives of a glTF file, read for vertex textures: bind-space positions
+//! and normals (morph targets applied at their default weights) and each vertex's joints and
+//! weights, checked against the skin and normalized. Read on demand, so that a file whose
+//! meshes are broken still bakes bone textures.
+
+use super::gltf::{check_accessor, Element, GltfFile};
+use super::InputError;
+
+/// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
+/// normalized (they are divided by their sum either way); normalized-integer weights are also
+/// allowed half a quantum per influence.
+pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
+
+/// The glTF extension of Draco-compressed primitives (their accessors have no buffer views).
+pub const DRACO: &str = "KHR_draco_mesh_compression";
+
+/// A mesh primitive drawn by a skinned node: what linear blend skinning needs of it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinnedPrimitive {
+    /// `node 'N', mesh 'M', primitive p`, for messages and the sidecar.
+    pub name: String,
+    /// The node that draws it.
+    pub node: usize,
+    /// The node's mesh.
+    pub mesh: usize,
+    /// The primitive's index in the mesh.
+    pub primitive: usize,
+    /// Index into [`super::Animation::skins`].
+    pub skin: usize,
+    /// Bind-space positions, morph targets applied at their default weights.
+    pub positions: Vec<[f64; 3]>,
+    /// Bind-space normals (as the positions), when the primitive has them.
+    pub normals: Option<Vec<[f64; 3]>>,
+    /// Influences per vertex: four per `JOINTS_n`/`WEIGHTS_n` set.
+    pub influences: usize,
+    /// Per vertex, [`Self::influences`] indices into the skin's joints.
+    pub joints: Vec<u32>,
+    /// Per vertex, [`Self::influences`] weights, summing to 1.
+    pub weights: Vec<f64>,
+    /// Vertices whose weights were off 1 by more than [`WEIGHT_SUM_TOLERANCE`] (normalized).
+    pub normalized: usize,
+}
+
+impl SkinnedPrimitive {
+    /// Vertices.
+    #[must_use]
+    pub fn vertices(&self) -> usize {
+        self.positions.len()
+    }
+}
+
+fn error(msg: String) -> InputError {
+    InputError::Gltf(msg)
+}
+
+/// Every primitive drawn by a node with a skin, in node then primitive order. A mesh drawn by a
+/// node without a skin is rigid and left out, unless it carries joints and weights (then the
+/// skin is missing, an error); a skinned node's primitive without `JOINTS_0` and `WEIGHTS_0`
+/// is an error.
+///
+/// # Errors
+/// [`InputError::Gltf`] naming the node, mesh, primitive, vertex and rule broken; also when no
+/// node draws a skinned mesh.
+pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, InputError> {
+    let (document, buffers) = file.document()?;
+    let skins = &file.animation.skins;
+    let mut out = Vec::new();
+    for node in document.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
+        let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+        for primitive in mesh.primitives() {
+            let name = format!("node '{node_name}', mesh '{mesh_name}', primitive {}", primitive.index());
+            let weighted = primitive.get(&gltf::Semantic::Joints(0)).is_some()
+                || primitive.get(&gltf::Semantic::Weights(0)).is_some();
+            let skin = match (node.skin(), weighted) {
+                (None, false) => continue,
+                (None, true) => {
+                    return Err(error(format!(
+                        "{name}: has JOINTS_0 and WEIGHTS_0 but its node has no skin to bind them to"
+                    )))
+                }
+                (Some(skin), _) => skin.index(),
+            };
+            let Some(skin_joints) = skins.get(skin).map(|s| s.joints.len()) else {
+                return Err(error(format!("{name}: skin {skin} does not exist")));
+            };
+            if file.primitive_uses(mesh.index(), primitive.index(), DRACO) {
+                return Err(error(format!(
+                    "{name}: its vertices are Draco-compressed ({DRACO}), which vertex textures do not decode; \
+                     decompress the file first (e.g. gltf-transform copy)"
+                )));
+            }
+            let weights = node.weights().or_else(|| mesh.weights()).unwrap_or(&[]);
+            out.push(read_primitive(
+                &document,
+                buffers,
+                &primitive,
+                name,
+                skin,
+                skin_joints,
+                weights,
+                (node.index(), mesh.index()),
+            )?);
+        }
+    }
+    if out.is_empty() {
+        return Err(error("no node draws a skinned mesh: there are no vertices to bake".into()));
+    }
+    Ok(out)
+}
+
+/// Checks `accessor` (a primitive's attribute) as `kind` and that it has `count` elements.
+fn check(
+    document: &gltf::Document,
+    name: &str,
+    what: &str,
+    accessor: &gltf::Accessor,
+    kind: Element,
+    count: Option<usize>,
+) -> Result<(), InputError> {
+    let json = &document.as_json().accessors[accessor.index()];
+    check_accessor(accessor, json, kind)
+        .map_err(|e| error(format!("{name}: {what} (accessor {}): {e}", accessor.index())))?;
+    match count {
+        Some(count) if accessor.count() != count => Err(error(format!(
+            "{name}: {what} (accessor {}) has {} elements for {count} vertices",
+            accessor.index(),
+            accessor.count()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn read_primitive(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    primitive: &gltf::Primitive,
+    name: String,
+    skin: usize,
+    skin_joints: usize,
+    morph_weights: &[f32],
+    (node, mesh): (usize, usize),
+) -> Result<SkinnedPrimitive, InputError> {
+    use gltf::Semantic;
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let position = primitive.get(&Semantic::Positions).ok_or_else(|| error(format!("{name}: has no POSITION")))?;
+    check(document, &name, "POSITION", &position, Element::Vectors, None)?;
+    let count = position.count();
+    let wide = |p: [f32; 3]| p.map(f64::from);
+    let mut positions: Vec<[f64; 3]> = reader.read_positions().into_iter().flatten().map(wide).collect();
+    let mut normals = match primitive.get(&Semantic::Normals) {
+        Some(accessor) => {
+            check(document, &name, "NORMAL", &accessor, Element::Vectors, Some(count))?;
+            Some(reader.read_normals().into_iter().flatten().map(wide).collect::<Vec<_>>())
+        }
+        None => None,
+    };
+    // Each target's deltas checked first: the crate's readers trust the counts.
+    for (t, target) in primitive.morph_targets().enumerate() {
+        for (attribute, accessor) in [("POSITION", target.positions()), ("NORMAL", target.normals())] {
+            if let Some(accessor) = accessor {
+                let what = format!("morph target {t} {attribute}");
+                check(document, &name, &what, &accessor, Element::Vectors, Some(count))?;
+            }
+        }
+    }
+    for (t, (position_deltas, normal_deltas, _)) in reader.read_morph_targets().enumerate() {
+        let weight = f64::from(morph_weights.get(t).copied().unwrap_or(0.0));
+        if weight == 0.0 {
+            continue;
+        }
+        let add = |values: &mut Vec<[f64; 3]>, deltas: gltf::accessor::Iter<'_, [f32; 3]>| {
+            for (v, d) in values.iter_mut().zip(deltas) {
+                for (c, d) in v.iter_mut().zip(d) {
+                    *c += weight * f64::from(d);
+                }
+            }
+        };
+        if let Some(deltas) = position_deltas {
+            add(&mut positions, deltas);
+        }
+        if let (Some(normals), Some(deltas)) = (normals.as_mut(), normal_deltas) {
+            add(normals, deltas);
+        }
+    }
+    if let Some(normals) = &mut normals {
+        for n in normals.iter_mut() {
+            let length = n.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if length > 0.0 {
+                *n = n.map(|c| c / length);
+            }
+        }
+    }
+    let mut sets = 0;
+    while primitive.get(&Semantic::Joints(sets)).is_some() || primitive.get(&Semantic::Weights(sets)).is_some() {
+        sets += 1;
+    }
+    if sets == 0 {
+        return Err(error(format!("{name}: its node has a skin but the primitive has no JOINTS_0 and WEIGHTS_0")));
+    }
+    let influences = 4 * sets as usize;
+    let mut joints = vec![0u32; count * influences];
+    let mut weights = vec![0.0f64; count * influences];
+    let mut quantum = 0.0f64;
+    for set in 0..sets {
+        let (Some(j), Some(w)) = (primitive.get(&Semantic::Joints(set)), primitive.get(&Semantic::Weights(set))) else {
+            return Err(error(format!("{name}: JOINTS_{set} and WEIGHTS_{set} must come in pairs")));
+        };
+        check(document, &name, &format!("JOINTS_{set}"), &j, Element::Joints, Some(count))?;
+        check(document, &name, &format!("WEIGHTS_{set}"), &w, Element::Weights, Some(count))?;
+        quantum = quantum.max(match w.data_type() {
+            gltf::accessor::DataType::U8 => 1.0 / 255.0,
+            gltf::accessor::DataType::U16 => 1.0 / 65535.0,
+            _ => 0.0,
+        });
+        let read_j = reader.read_joints(set).expect("checked: JOINTS_n is present").into_u16();
+        let read_w = reader.read_weights(set).expect("checked: WEIGHTS_n is present").into_f32();
+        for (v, (js, ws)) in read_j.zip(read_w).enumerate() {
+            for k in 0..4 {
+                let slot = v * influences + 4 * set as usize + k;
+                let (joint, weight) = (js[k], f64::from(ws[k]));
+                if usize::from(joint) >= skin_joints {
+                    return Err(error(format!(
+                        "{name}: vertex {v}: JOINTS_{set}[{k}] is {joint}, but its skin has {skin_joints} joints"
+                    )));
+                }
+                if !weight.is_finite() || weight < 0.0 {
+                    return Err(error(format!(
+                        "{name}: vertex {v}: WEIGHTS_{set}[{k}] is {weight}; weights are finite and not negative"
+                    )));
+                }
+                joints[slot] = u32::from(joint);
+                weights[slot] = weight;
+            }
+        }
+    }
+    let tolerance = WEIGHT_SUM_TOLERANCE + 0.5 * quantum * influences as f64;
+    let mut normalized = 0;
+    for (v, ws) in weights.chunks_exact_mut(influences).enumerate() {
+        let sum: f64 = ws.iter().sum();
+        if sum <= 0.0 {
+            return Err(error(format!("{name}: vertex {v}: its weights are all zero, so no joint moves it")));
+        }
+        if (sum - 1.0).abs() > tolerance {
+            normalized += 1;
+        }
+        for w in ws.iter_mut() {
+            *w /= sum;
+        }
+    }
+    Ok(SkinnedPrimitive {
+        name,
+        node,
+        mesh,
+        primitive: primitive.index(),
+        skin,
+        positions,
+        normals,
+        influences,
+        joints,
+        weights,
+        normalized,
+    })
+}
