@@ -179,20 +179,7 @@ impl ForwardKinematics {
                     ("fk_model", &model),
                     ("fk_level", &uniform),
                 ];
-                let entries = buffers
-                    .into_iter()
-                    .map(|(name, buffer)| {
-                        Ok(wgpu::BindGroupEntry {
-                            binding: fk.resources.binding(name).map_err(GpuError::Shader)?,
-                            resource: buffer.as_entire_binding(),
-                        })
-                    })
-                    .collect::<Result<Vec<_>, GpuError>>()?;
-                let group = self.context.device().create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("quatcurve fk"),
-                    layout: &fk.layout,
-                    entries: &entries,
-                });
+                let group = fk.bind_group(self.context.device(), "quatcurve fk", &buffers)?;
                 Ok((group, [x, y]))
             })
             .collect::<Result<_, GpuError>>()?;

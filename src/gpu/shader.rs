@@ -249,6 +249,31 @@ pub(crate) struct Compiled {
     pub(crate) workgroup_size: u32,
 }
 
+impl Compiled {
+    /// The bind group of `buffers`, each named as the shader names its variable.
+    pub(crate) fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        buffers: &[(&str, &wgpu::Buffer)],
+    ) -> Result<wgpu::BindGroup, super::GpuError> {
+        let entries = buffers
+            .iter()
+            .map(|&(name, buffer)| {
+                Ok(wgpu::BindGroupEntry {
+                    binding: self.resources.binding(name).map_err(super::GpuError::Shader)?,
+                    resource: buffer.as_entire_binding(),
+                })
+            })
+            .collect::<Result<Vec<_>, super::GpuError>>()?;
+        Ok(device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &self.layout,
+            entries: &entries,
+        }))
+    }
+}
+
 /// A program's buffers as naga reflects them: every module-scope variable with a `@binding`,
 /// by name, with the bind group layout entry its address space implies. The host builds its
 /// layouts and bind groups from this, so binding numbers and access modes are written once, in

@@ -164,20 +164,7 @@ impl MeshSkinning {
             ("skin_out", &output),
             ("skin_job", &uniform),
         ];
-        let entries = buffers
-            .into_iter()
-            .map(|(name, buffer)| {
-                Ok(wgpu::BindGroupEntry {
-                    binding: program.resources.binding(name).map_err(GpuError::Shader)?,
-                    resource: buffer.as_entire_binding(),
-                })
-            })
-            .collect::<Result<Vec<_>, GpuError>>()?;
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("quatcurve skin mesh"),
-            layout: &program.layout,
-            entries: &entries,
-        });
+        let group = program.bind_group(device, "quatcurve skin mesh", &buffers)?;
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve skin mesh") });
         {
