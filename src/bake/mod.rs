@@ -26,6 +26,7 @@ mod sidecar;
 pub mod skinning;
 pub mod texture;
 mod texture_file;
+pub mod vertex_encoding;
 mod workers;
 
 use error::InputError as E;
