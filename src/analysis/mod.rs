@@ -10,9 +10,11 @@
 //! next span's first node on the knot (its right limit), so the same samples give both the
 //! integrals and the jumps.
 //!
-//! [`paper`] reruns KKS section 6.1's torque comparison on random key sequences.
+//! [`paper`] reruns KKS section 6.1's torque comparison on random key sequences;
+//! [`vertex_error`] measures how far a lossy motion is from its source, as ACL does.
 
 pub mod paper;
+pub mod vertex_error;
 
 use crate::batch::{Batch, TrackView};
 use crate::device::{Device, DeviceError};
