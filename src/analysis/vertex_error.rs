@@ -4,7 +4,8 @@
 //! poses are taken to object space (a parent's error moves its children's vertices), and a
 //! joint's error is the largest distance between where its vertices land in the two. A clip's
 //! error is the largest over joints and samples. ACL's default `d` is 3 cm and its threshold
-//! 0.01 cm.
+//! 0.01 cm. Poses compose as matrices, so a non-uniform scale's shear counts (ACL's `qvvf`
+//! composition drops it; without non-uniform scale the two agree).
 
 use glam::{DAffine3, DQuat, DVec3};
 
