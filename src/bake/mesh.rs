@@ -54,7 +54,7 @@ fn error(msg: String) -> InputError {
 }
 
 /// Every primitive drawn by a node with a skin, in node then primitive order. A mesh drawn by a
-/// node without a skin is rigid and left out, unless it carries joints and weights (then the
+/// node without a skin is rigid and left out, unless it carries joints or weights (then the
 /// skin is missing, an error); a skinned node's primitive without `JOINTS_0` and `WEIGHTS_0`
 /// is an error.
 ///
@@ -77,7 +77,7 @@ pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, Inpu
                 (None, false) => continue,
                 (None, true) => {
                     return Err(error(format!(
-                        "{name}: has JOINTS_0 and WEIGHTS_0 but its node has no skin to bind them to"
+                        "{name}: has JOINTS_0 or WEIGHTS_0 but its node has no skin to bind them to"
                     )))
                 }
                 (Some(skin), _) => skin.index(),

@@ -299,7 +299,7 @@ fn bad_skinned_meshes_are_refused_naming_the_primitive_vertex_and_rule() {
             skinned_triangle(true, Some([[0, 0, 0, 0], [0, 0, 0, 0], [1, 0, 0, 0]]), weights, 3),
             "vertex 2: JOINTS_0[0] is 1, but its skin has 1 joints",
         ),
-        (skinned_triangle(false, joints, weights, 3), "has JOINTS_0 and WEIGHTS_0 but its node has no skin"),
+        (skinned_triangle(false, joints, weights, 3), "has JOINTS_0 or WEIGHTS_0 but its node has no skin"),
         (skinned_triangle(true, None, None, 3), "has a skin but the primitive has no JOINTS_0 and WEIGHTS_0"),
         (skinned_triangle(true, joints, None, 3), "JOINTS_0 and WEIGHTS_0 must come in pairs"),
         (
