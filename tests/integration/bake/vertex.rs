@@ -8,6 +8,7 @@ use glam::{DMat4, DQuat, DVec3};
 use quatcurve::bake::gltf::{self, UriPolicy};
 use quatcurve::bake::mesh::{skinned_primitives, SkinnedPrimitive, DRACO};
 use quatcurve::bake::skinning;
+use quatcurve::bake::vertex_encoding::Bounds;
 use quatcurve::bake::{texture, ClipRate, LoopMode};
 use quatcurve::curve::{Curve, CurveSpec};
 use quatcurve::device::Device;
@@ -19,19 +20,6 @@ const POSITION_BOUND: f64 = 1e-4;
 const NORMAL_BOUND: f64 = 1e-3;
 
 const FILES: [&str; 4] = ["CesiumMan.glb", "Fox.glb", "BrainStem.glb", "SimpleSkin.gltf"];
-
-/// The diagonal of the bounding box of `[vertices, VERTEX_CHANNELS]` positions.
-fn diagonal(vertices: &[f64]) -> f64 {
-    let mut low = [f64::INFINITY; 3];
-    let mut high = [f64::NEG_INFINITY; 3];
-    for v in vertices.chunks_exact(VERTEX_CHANNELS) {
-        for c in 0..3 {
-            low[c] = low[c].min(v[c]);
-            high[c] = high[c].max(v[c]);
-        }
-    }
-    (0..3).map(|c| (high[c] - low[c]).powi(2)).sum::<f64>().sqrt()
-}
 
 /// Worst position difference (as a fraction of `scale`) and worst normal angle between two
 /// `[vertices, VERTEX_CHANNELS]` frames; `has_normals` says whether normals are compared.
@@ -191,7 +179,7 @@ fn skinned_vertices_match_an_independent_skinning_at_keys_and_the_gpu_kernel_at_
             let has_normals = primitive.normals.is_some();
             for frame in [0, frames - 1] {
                 let theirs = independent(&path, primitive, 0, times[frame]);
-                let scale = diagonal(&theirs);
+                let scale = Bounds::of(&theirs).unwrap().diagonal();
                 let ours = &ours[frame * frame_len..(frame + 1) * frame_len];
                 let (p, n) = worst(ours, &theirs, scale, has_normals);
                 worst_key = (worst_key.0.max(p), worst_key.1.max(n));
@@ -207,7 +195,8 @@ fn skinned_vertices_match_an_independent_skinning_at_keys_and_the_gpu_kernel_at_
             for frame in 0..frames {
                 let range = frame * frame_len..(frame + 1) * frame_len;
                 let got: Vec<f64> = got[range.clone()].iter().map(|&v| f64::from(v)).collect();
-                let (p, n) = worst(&got, &ours[range.clone()], diagonal(&ours[range]), has_normals);
+                let (p, n) =
+                    worst(&got, &ours[range.clone()], Bounds::of(&ours[range]).unwrap().diagonal(), has_normals);
                 worst_gpu = (worst_gpu.0.max(p), worst_gpu.1.max(n));
                 assert!(
                     p <= POSITION_BOUND && n <= NORMAL_BOUND,
