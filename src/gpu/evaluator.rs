@@ -276,14 +276,7 @@ impl GpuEvaluator {
         order: &[usize],
         local: &[f32],
     ) -> Result<Vec<f32>, GpuError> {
-        let fk = match self.fk.get() {
-            Some(fk) => fk,
-            None => {
-                let built = ForwardKinematics::new(&self.context)?;
-                self.fk.get_or_init(|| built)
-            }
-        };
-        fk.run(parents, order, local)
+        built(&self.fk, || ForwardKinematics::new(&self.context))?.run(parents, order, local)
     }
 
     /// A mesh primitive skinned at every frame of `matrices` on this evaluator's device
@@ -297,14 +290,7 @@ impl GpuEvaluator {
         joints: usize,
         matrices: &[f32],
     ) -> Result<Vec<f32>, GpuError> {
-        let skinning = match self.skinning.get() {
-            Some(s) => s,
-            None => {
-                let built = super::MeshSkinning::new(&self.context)?;
-                self.skinning.get_or_init(|| built)
-            }
-        };
-        skinning.run(mesh, joints, matrices)
+        built(&self.skinning, || super::MeshSkinning::new(&self.context))?.run(mesh, joints, matrices)
     }
 
     /// Largest binding of one chunk [`GpuEvaluator::evaluate`] and [`GpuEvaluator::prepare`]
@@ -673,6 +659,18 @@ fn scatter(local: &[f32], chunk: &ChunkPlan, times: &SampleTimes, layout: Layout
                 let dst = layout.slot(times, chunk.first_track, chunk.sample_base + j) * channels;
                 data[dst..dst + n * channels].copy_from_slice(&local[src..src + n * channels]);
             }
+        }
+    }
+}
+
+/// The program in `cell`, built by `build` on first use (a failed build is not kept, so the
+/// next call tries again).
+fn built<T>(cell: &std::sync::OnceLock<T>, build: impl FnOnce() -> Result<T, GpuError>) -> Result<&T, GpuError> {
+    match cell.get() {
+        Some(program) => Ok(program),
+        None => {
+            let program = build()?;
+            Ok(cell.get_or_init(|| program))
         }
     }
 }
