@@ -344,8 +344,10 @@ def bake(
     texture : str
         ``local`` ``[frames, joints, 10]`` (rotation, translation, scale), ``model``
         ``[frames, joints, 12]`` (3x4 matrices by forward kinematics), ``skin`` (model
-        times inverse bind matrix, per glTF skin), or ``model-trs`` and ``skin-trs`` (those
-        transforms as rotation, translation, scale, which a shader interpolates rigidly).
+        times inverse bind matrix, per glTF skin), ``model-trs`` and ``skin-trs`` (those
+        transforms as rotation, translation, scale, which a shader interpolates rigidly), or
+        ``vertex`` (glTF only: every skinned mesh primitive skinned at every frame, with
+        ``<stem>.mesh.glb`` the mesh to draw; DESIGN section 5d).
     precision : str
         ``f32`` or ``f16`` (``npy`` and ``exr``).
     format : str
@@ -392,7 +394,8 @@ def bake(
         ``warnings`` (probably broken source keys, clip ends an exact rate did not bake) and
         ``rates`` (with a budget, per clip: ``clip``, ``rate``, ``frames``, ``rotation`` and
         ``position`` as ``{value, joint, time}`` in degrees and mm, ``bytes`` and
-        ``fixed_rate_bytes`` at ``rate``).
+        ``fixed_rate_bytes`` at ``rate``) and ``skinning`` (``texture="vertex"``:
+        ``{vertex_frames, seconds}`` skinned on the device, else None).
 
     Raises
     ------

@@ -292,8 +292,9 @@ enum Samples {
 /// Bakes `inputs` (glTF/GLB/BVH files or directories; none: the built-in crowd) into `output`
 /// as `quatcurve bake` does, with the GIL released. Returns one dictionary per input of this
 /// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
-/// `resumed`, `failed`), `error`, `files`, `warnings` and `rates` (with an error budget: per
-/// clip, [`chosen_rate`]). See `quatcurve.bake`.
+/// `resumed`, `failed`), `error`, `files`, `warnings`, `rates` (with an error budget: per
+/// clip, [`chosen_rate`]) and `skinning` (vertex textures: `{vertex_frames, seconds}`, else
+/// `None`). See `quatcurve.bake`.
 #[pyfunction]
 #[pyo3(signature = (
     inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, format,
@@ -386,6 +387,16 @@ fn bake_files<'py>(
             row.set_item("warnings", &input.warnings)?;
             let rates = input.rates.iter().map(|c| chosen_rate(py, c)).collect::<PyResult<Vec<_>>>()?;
             row.set_item("rates", rates)?;
+            let skinning = match input.skinning {
+                Some((vertex_frames, seconds)) => {
+                    let work = PyDict::new(py);
+                    work.set_item("vertex_frames", vertex_frames)?;
+                    work.set_item("seconds", seconds)?;
+                    Some(work)
+                }
+                None => None,
+            };
+            row.set_item("skinning", skinning)?;
             Ok(row)
         })
         .collect()

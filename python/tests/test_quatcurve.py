@@ -257,6 +257,23 @@ def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
         assert all(row["rates"] == [] for row in rows)
 
 
+def test_bake_of_vertex_textures_writes_what_the_cli_writes_and_counts_the_skinning(tmp_path):
+    binary = cli()
+    inputs = data_files("CesiumMan.glb")
+    subprocess.run([str(binary), "bake", "--input", *inputs, "--output", str(tmp_path / "cli"), "--device", "cpu",
+                    "--texture", "vertex"], capture_output=True, text=True, check=True)
+    rows = quatcurve.bake(inputs, tmp_path / "py", device="cpu", texture="vertex")
+    assert outputs(tmp_path / "py") == outputs(tmp_path / "cli")
+    sidecar = json.loads((tmp_path / "py" / "CesiumMan.json").read_text())
+    (primitive,) = sidecar["vertex"]["primitives"]
+    (clip,) = sidecar["clips"]
+    vertices = np.load(tmp_path / "py" / clip["file"])
+    assert vertices.shape == (clip["frames"], primitive["vertices"], 6)
+    np.testing.assert_allclose(np.linalg.norm(vertices[..., 3:], axis=-1), 1.0, atol=1e-6)
+    assert rows[0]["skinning"]["vertex_frames"] == clip["frames"] * primitive["vertices"]
+    assert rows[0]["skinning"]["seconds"] > 0
+
+
 def test_bake_of_the_built_in_crowd_is_a_texture_per_clip(tmp_path):
     rows = quatcurve.bake(output=tmp_path, characters=2, rate=10, texture="model", device="cpu")
     assert len(rows) == 1 and rows[0]["status"] == "ok" and rows[0]["source"].startswith("built-in crowd: 2 x")

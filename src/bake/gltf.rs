@@ -368,6 +368,8 @@ pub(super) enum Element {
     Joints,
     /// Skinned vertices' weights (WEIGHTS_n): VEC4 float or normalized unsigned integers.
     Weights,
+    /// A primitive's vertex indices: SCALAR unsigned byte, short or int.
+    Indices,
 }
 
 /// Whether `accessor` holds `kind`'s element type and its elements lie inside its buffer
@@ -402,6 +404,9 @@ pub(super) fn check_accessor(
         Element::Weights => {
             *element_type == Type::Vec4
                 && (*component == C::F32 || (json.normalized && matches!(component, C::U8 | C::U16)))
+        }
+        Element::Indices => {
+            *element_type == Type::Scalar && !json.normalized && matches!(component, C::U8 | C::U16 | C::U32)
         }
     };
     if !allowed {

@@ -2,10 +2,34 @@
 //! texture with each joint's floats in a fixed number of texels, frames along rows, wrapped so
 //! that neither side exceeds the largest texture size asked for ([`Grid`]), written as
 //! OpenEXR (half or float) or 16-bit PNG (each channel remapped to its own range, recorded
-//! in the sidecar as OpenVAT does).
+//! in the sidecar as OpenVAT does). A vertex texture's images hold positions in their box
+//! and octahedral normals instead (DESIGN section 5d), both in `0..1`.
 
 use super::texture::TextureKind;
+use super::vertex_encoding::{encode_normal, Bounds};
 use serde::Serialize;
+
+/// What an image's texels hold, made from the rows its file gathered ([`encode`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Texels {
+    /// A texture's floats as they are: [`TextureKind::texels`] texels of each joint's.
+    Rows(TextureKind),
+    /// Skinned positions (three floats a vertex), remapped into their box: `(x, y, z, 1)`.
+    Positions,
+    /// Skinned unit normals (three floats a vertex), octahedral: `(u, v, 0, 1)`.
+    Normals,
+}
+
+impl Texels {
+    /// Floats per joint or vertex in the rows gathered.
+    #[must_use]
+    pub fn channels(self) -> usize {
+        match self {
+            Texels::Rows(kind) => kind.channels(),
+            Texels::Positions | Texels::Normals => 3,
+        }
+    }
+}
 
 /// How a bake writes its textures (`bake --format`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -114,6 +138,48 @@ impl Grid {
         let (column, down) = (row / self.frames_per_column, row % self.frames_per_column);
         (column * self.frame_width + at % self.frame_width, down * self.rows_per_frame + at / self.frame_width)
     }
+}
+
+/// The image of `rows` (frame-major rows of `joints` joints or vertices, [`Texels::channels`]
+/// floats each) on `grid`, with the box positions were remapped into.
+///
+/// # Errors
+/// A position that is not finite, in words.
+pub fn encode(
+    what: Texels,
+    grid: &Grid,
+    joints: usize,
+    rows: &[f32],
+) -> Result<(Vec<[f32; 4]>, Option<Bounds>), String> {
+    let bounds = match what {
+        Texels::Rows(kind) => return Ok((texels(kind, grid, joints, rows), None)),
+        Texels::Positions => {
+            let positions = rows.chunks_exact(3).map(|p| [p[0], p[1], p[2]].map(f64::from));
+            Some(Bounds::of_positions(positions).ok_or("a skinned position is not finite")?)
+        }
+        Texels::Normals => None,
+    };
+    let encoded = |value: &[f32]| -> [f32; 4] {
+        let value = [value[0], value[1], value[2]].map(f64::from);
+        match &bounds {
+            Some(bounds) => {
+                let [x, y, z] = bounds.encode(value);
+                [x as f32, y as f32, z as f32, 1.0]
+            }
+            None => {
+                let [u, v] = encode_normal(value);
+                [u as f32, v as f32, 0.0, 1.0]
+            }
+        }
+    };
+    let mut image = vec![[0.0f32; 4]; grid.width * grid.height];
+    for (row, values) in rows.chunks_exact(joints.max(1) * 3).enumerate() {
+        for (v, value) in values.chunks_exact(3).enumerate() {
+            let (x, y) = grid.texel(row, v, 0);
+            image[y * grid.width + x] = encoded(value);
+        }
+    }
+    Ok((image, bounds))
 }
 
 /// Texels of `rows` (frame-major rows of `joints` joints of `kind`'s channels) laid on `grid`,

@@ -18,9 +18,10 @@ use super::root_motion::{self, RootMotion};
 use super::shard::Shard;
 use super::sidecar::{Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
-use super::texture_file::{self, TextureFile, TextureOptions, Written};
+use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
+use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
-use super::{crowd, gltf, Animation, Baked, ClipRate, LoopMode};
+use super::{crowd, gltf, mesh, vertex_glb, Animation, Baked, ClipRate, LoopMode};
 use crate::curve::CurveSpec;
 use crate::device::{Device, DeviceChoice};
 use crate::io::write_atomic;
@@ -127,6 +128,12 @@ impl BakeJob {
         if self.inputs.is_empty() && self.characters == 0 {
             return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
         }
+        if self.inputs.is_empty() && self.texture == TextureKind::Vertex {
+            return Err(BakeError::option(
+                "texture",
+                "vertex skins a glTF's meshes, and the built-in crowd has none; name glTF inputs, or bake a bone texture",
+            ));
+        }
         if self.format == Format::Png16 && self.precision == Precision::F16 {
             return Err(BakeError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
         }
@@ -154,6 +161,13 @@ impl BakeJob {
             }
             if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
                 return Err(BakeError::option("unit-mm", format!("must be a positive number, not {}", budget.unit_mm)));
+            }
+            if self.texture == TextureKind::Vertex {
+                return Err(BakeError::option(
+                    "max-error",
+                    "measures joints blended between frames, not a vertex texture's positions; bake vertex textures at a \
+                     --rate",
+                ));
             }
             if !matches!(self.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
                 return Err(BakeError::option(
@@ -186,11 +200,14 @@ impl BakeJob {
 
     /// How this job writes its textures.
     fn texture_options(&self) -> TextureOptions {
-        TextureOptions {
-            format: self.format,
-            precision: self.precision,
-            kind: self.texture,
-            max_size: self.max_texture_size,
+        TextureOptions { format: self.format, precision: self.precision, max_size: self.max_texture_size }
+    }
+
+    /// The files of each clip's (or the atlas's) texture.
+    fn sheets(&self, animation: &Animation, vertex: Option<&VertexSheets>) -> Vec<SheetSpec> {
+        match vertex {
+            Some(vertex) => vertex.layout(),
+            None => texture_file::bone_sheets(animation, self.texture),
         }
     }
 
@@ -312,15 +329,23 @@ impl BakeJob {
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
-                let baked = match input.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-                    Some("gltf" | "glb") => Some(format!("{stem}.glb")),
-                    Some("bvh") => Some(format!("{stem}.bvh")),
-                    _ => None,
+                let gltf = match input.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+                    Some("gltf" | "glb") => {
+                        names.push(format!("{stem}.glb"));
+                        true
+                    }
+                    Some("bvh") => {
+                        names.push(format!("{stem}.bvh"));
+                        false
+                    }
+                    _ => false,
                 };
-                if let Some(baked) = baked {
-                    refuse_overwriting_input(&self.output.join(&baked), &input.display().to_string())
+                if gltf && self.texture == TextureKind::Vertex {
+                    names.push(format!("{stem}{MESH_GLB_SUFFIX}"));
+                }
+                for baked in &names[1..] {
+                    refuse_overwriting_input(&self.output.join(baked), &input.display().to_string())
                         .map_err(|e| BakeError::Job(format!("{e} (nothing was baked)")))?;
-                    names.push(baked);
                 }
             }
             if let Some(dir) = names.iter().map(|n| self.output.join(n)).find(|p| p.is_dir()) {
@@ -380,6 +405,18 @@ impl BakeJob {
                 return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
             }
             report.warnings = super::source_step_warnings(animation);
+            // Checked before the curves are baked.
+            let vertex = match (&src, self.texture) {
+                (Source::Gltf(file), TextureKind::Vertex) => {
+                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
+                }
+                (_, TextureKind::Vertex) => {
+                    return Err(InputError::Animation(
+                        "a BVH file has no mesh, and vertex textures skin a glTF's meshes; bake a bone texture".into(),
+                    ))
+                }
+                _ => None,
+            };
             let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
             let mut baked = if self.max_error.is_set() {
                 let setting = budget::Setting {
@@ -405,7 +442,9 @@ impl BakeJob {
             report.max_key_error = baked.max_key_error;
             // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
             let used = baked.device.clone().unwrap_or_else(|| device.name());
-            self.write_outputs(&src, &baked, &report, stem, &used, device)
+            let written = self.write_outputs(&src, &baked, &report, stem, &used, device, vertex.as_ref());
+            report.skinning = vertex.map(|v| v.work());
+            written
         });
         report.seconds = start.elapsed().as_secs_f64();
         let written = match result {
@@ -424,7 +463,8 @@ impl BakeJob {
     /// Writes the baked file (GLB or BVH), the textures and the sidecar (with the rates a
     /// budget chose, from `report`); if any write fails, removes the ones already written so
     /// the job leaves nothing partial. Forward kinematics (model and skin textures, previews)
-    /// runs on `fk_device`, the bake's.
+    /// and skinning (`vertex`, for vertex textures) run on `fk_device`, the bake's.
+    #[allow(clippy::too_many_arguments)]
     fn write_outputs(
         &self,
         src: &Source,
@@ -433,6 +473,7 @@ impl BakeJob {
         stem: &str,
         device: &str,
         fk_device: &Device,
+        vertex: Option<&VertexSheets>,
     ) -> Result<Vec<Written>, InputError> {
         let mut out = Outputs {
             dir: &self.output,
@@ -444,7 +485,7 @@ impl BakeJob {
             rows: 0,
             clip_names: Vec::new(),
         };
-        match self.write_all(&mut out, src, baked, device, fk_device) {
+        match self.write_all(&mut out, src, baked, device, fk_device, vertex) {
             Ok(()) => Ok(out.written),
             Err(e) => {
                 for file in &out.written {
@@ -463,6 +504,7 @@ impl BakeJob {
         baked: &Baked,
         device: &str,
         fk_device: &Device,
+        vertex: Option<&VertexSheets>,
     ) -> Result<(), InputError> {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
@@ -479,7 +521,14 @@ impl BakeJob {
             }
             Source::Crowd(_) => None,
         };
-        if let Some((name, bytes)) = &baked_file {
+        let mesh_file = match vertex {
+            Some(vertex) => Some((
+                format!("{stem}{MESH_GLB_SUFFIX}"),
+                vertex_glb::write(&vertex.primitives, self.max_texture_size)?,
+            )),
+            None => None,
+        };
+        for (name, bytes) in baked_file.iter().chain(&mesh_file) {
             let path = dir.join(name);
             refuse_overwriting_input(&path, out.source)?;
             write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
@@ -489,14 +538,15 @@ impl BakeJob {
         let extension = self.format.extension();
         if self.atlas {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
+            let sheets = self.sheets(animation, vertex);
             out.atlas =
-                texture_file::open(animation, &self.texture_options(), rows, "the atlas of every clip", |suffix| {
+                texture_file::open(&sheets, &self.texture_options(), rows, "the atlas of every clip", |suffix| {
                     dir.join(format!("{stem}{suffix}.{extension}"))
                 })?;
         }
         out.clip_names = clip_file_names(animation);
         let clips = (0..animation.clips.len())
-            .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device))
+            .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device, vertex))
             .collect::<Result<Vec<_>, _>>()?;
         for texture in std::mem::take(&mut out.atlas) {
             out.written.push(texture.finish()?);
@@ -512,7 +562,8 @@ impl BakeJob {
             max_error: self.max_error.is_set().then_some(&self.max_error),
         };
         let baked_file = baked_file.map(|(name, _)| name);
-        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written);
+        let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
+        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex);
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;
@@ -521,6 +572,7 @@ impl BakeJob {
     }
 
     /// Clip `index`'s textures (or its rows of the atlas) and preview; its sidecar entry.
+    #[allow(clippy::too_many_arguments)]
     fn write_clip(
         &self,
         out: &mut Outputs<'_>,
@@ -529,6 +581,7 @@ impl BakeJob {
         order: &[usize],
         index: usize,
         fk_device: &Device,
+        vertex: Option<&VertexSheets>,
     ) -> Result<SidecarClip, InputError> {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
         let file_name = out.clip_names[index].clone();
@@ -552,17 +605,28 @@ impl BakeJob {
         } else {
             None
         };
+        // The clip's sheets for a block of its frames.
+        let mut signs = texture::Signs::default();
+        let rows = |frames: &[usize]| match vertex {
+            Some(vertex) => vertex.rows(animation, order, baked, index, fk_device, frames),
+            None => {
+                let mut sheets = texture::sheet_rows(animation, order, baked, index, self.texture, fk_device, frames)?;
+                signs.follow(self.texture, &mut sheets);
+                Ok(sheets)
+            }
+        };
         let (files, first_row) = if self.atlas {
-            texture_file::stream(self.texture, animation, baked, order, index, fk_device, &mut out.atlas)?;
+            texture_file::stream(frames, rows, &mut out.atlas)?;
             out.rows += frames;
             (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
         } else {
             let what = format!("clip '{}'", clip.name);
             let extension = self.format.extension();
-            let mut textures = texture_file::open(animation, &self.texture_options(), frames, &what, |suffix| {
+            let sheets = self.sheets(animation, vertex);
+            let mut textures = texture_file::open(&sheets, &self.texture_options(), frames, &what, |suffix| {
                 dir.join(format!("{stem}.{file_name}{suffix}.{extension}"))
             })?;
-            texture_file::stream(self.texture, animation, baked, order, index, fk_device, &mut textures)?;
+            texture_file::stream(frames, rows, &mut textures)?;
             let names = textures.iter().map(TextureFile::name).collect();
             for texture in textures {
                 out.written.push(texture.finish()?);
@@ -602,6 +666,10 @@ fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Res
     // validate() refuses previews without the feature.
     Err(InputError::Output("previews need the `plot` cargo feature".into()))
 }
+
+/// The file name after an input's stem of the mesh a vertex texture plays
+/// (skinned primitives as plain meshes, DESIGN section 5d).
+pub const MESH_GLB_SUFFIX: &str = ".mesh.glb";
 
 fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), BakeError> {
     manifest.updated = super::manifest::now();

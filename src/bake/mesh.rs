@@ -39,6 +39,10 @@ pub struct SkinnedPrimitive {
     pub weights: Vec<f64>,
     /// Vertices whose weights were off 1 by more than [`WEIGHT_SUM_TOLERANCE`] (normalized).
     pub normalized: usize,
+    /// The primitive's vertex indices, each checked to be a vertex; `None`: drawn in order.
+    pub indices: Option<Vec<u32>>,
+    /// glTF's topology (`mode`: 4 triangles, the default; 0 points, 1-3 lines, 5-6 strips and fans).
+    pub mode: u32,
 }
 
 impl SkinnedPrimitive {
@@ -236,6 +240,17 @@ fn read_primitive(
             }
         }
     }
+    let indices = match primitive.indices() {
+        Some(accessor) => {
+            check(document, &name, "indices", &accessor, Element::Indices, None)?;
+            let indices: Vec<u32> = reader.read_indices().expect("checked: indices are present").into_u32().collect();
+            if let Some((k, i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= count) {
+                return Err(error(format!("{name}: indices[{k}] is {i}, but the primitive has {count} vertices")));
+            }
+            Some(indices)
+        }
+        None => None,
+    };
     let tolerance = WEIGHT_SUM_TOLERANCE + 0.5 * quantum * influences as f64;
     let mut normalized = 0;
     for (v, ws) in weights.chunks_exact_mut(influences).enumerate() {
@@ -262,5 +277,7 @@ fn read_primitive(
         joints,
         weights,
         normalized,
+        indices,
+        mode: primitive.mode().as_gl_enum(),
     })
 }

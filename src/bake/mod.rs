@@ -27,6 +27,8 @@ pub mod skinning;
 pub mod texture;
 mod texture_file;
 pub mod vertex_encoding;
+mod vertex_glb;
+mod vertex_texture;
 mod workers;
 
 use error::InputError as E;

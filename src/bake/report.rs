@@ -75,6 +75,9 @@ pub struct InputReport {
     /// are probably broken ([`super::source_step_warnings`]), clip ends an exact rate did not
     /// bake. Each names the clip and channel.
     pub warnings: Vec<String>,
+    /// Vertex textures: vertex-frames skinned and the seconds skinning took on the bake's
+    /// device (without forward kinematics or writing).
+    pub skinning: Option<(u64, f64)>,
     /// With an error budget ([`super::BakeJob::max_error`]): per clip, the rate chosen and what
     /// it measured.
     pub rates: Vec<ChosenRate>,
@@ -94,6 +97,7 @@ impl InputReport {
             outcome: Ok(Vec::new()),
             resumed: false,
             warnings: Vec::new(),
+            skinning: None,
             rates: Vec::new(),
         }
     }

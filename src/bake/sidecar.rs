@@ -7,6 +7,7 @@ use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
+use super::vertex_texture::VertexSheets;
 use super::{Animation, Baked};
 use serde::Serialize;
 
@@ -55,7 +56,44 @@ pub(super) struct Sidecar<'a> {
     parents: Vec<i64>,
     rest: Vec<Rest>,
     skins: Vec<SidecarSkin<'a>>,
+    /// Vertex textures: the mesh they play and each primitive's sheets.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    vertex: Option<VertexRecord>,
     clips: Vec<SidecarClip>,
+}
+
+/// How a vertex texture's files are read (DESIGN section 5d).
+#[derive(Serialize)]
+pub(super) struct VertexRecord {
+    /// The GLB of the skinned primitives as plain meshes, `TEXCOORD_0` each vertex's address.
+    mesh_file: String,
+    /// How a `.pos` texel decodes (with its file's `low` and `span` in `textures`).
+    position: &'static str,
+    /// How a `.nrm` texel decodes.
+    normal: &'static str,
+    /// Where vertex `v`'s texel of frame `frame` is, from its `TEXCOORD_0` `(u, v)`.
+    texcoord: &'static str,
+    primitives: Vec<VertexPrimitive>,
+}
+
+/// One skinned primitive of a vertex texture.
+#[derive(Serialize)]
+struct VertexPrimitive {
+    /// `node 'N', mesh 'M', primitive p`.
+    name: String,
+    node: usize,
+    mesh: usize,
+    primitive: usize,
+    skin: usize,
+    vertices: usize,
+    influences: usize,
+    normals: bool,
+    /// Vertices whose weights did not sum to 1 and were divided by their sum.
+    normalized: usize,
+    /// The file-name suffix of its sheets (before `.pos`/`.nrm` for images), and its mesh
+    /// in `mesh_file`.
+    suffix: String,
+    mesh_in_file: usize,
 }
 
 /// A joint's rest pose, parent-relative.
@@ -87,6 +125,11 @@ pub(super) struct ImageRecord {
     /// PNG16: per texel slot and channel, the `[min, max]` that 0 and 65535 stand for.
     #[serde(skip_serializing_if = "Option::is_none")]
     remap: Option<Vec<[[f32; 2]; 4]>>,
+    /// A vertex texture's positions: `position = low + texel.xyz * span`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    low: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    span: Option<[f64; 3]>,
 }
 
 /// The budget a bake chose its rates for.
@@ -134,7 +177,9 @@ pub(super) struct SidecarClip {
 }
 
 impl<'a> Sidecar<'a> {
-    /// The sidecar of one input's bake.
+    /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
+    /// textures.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         options: &SidecarOptions<'a>,
         animation: &'a Animation,
@@ -143,12 +188,16 @@ impl<'a> Sidecar<'a> {
         baked_file: Option<String>,
         clips: Vec<SidecarClip>,
         written: &[Written],
+        vertex: Option<(&VertexSheets, String)>,
     ) -> Self {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
         let precision = if format == Format::Png16 { "u16" } else { precision.name() };
         let layout = match (atlas, texture) {
+            (false, TextureKind::Vertex) => {
+                format!("per clip and skinned primitive: [frames, vertices, {channels}] {precision}: {names}")
+            }
             (false, kind) if kind.is_skin() && !animation.skins.is_empty() => {
                 format!("per clip and skin: [frames, skin joints, {channels}] {}: {names}", precision)
             }
@@ -168,13 +217,23 @@ impl<'a> Sidecar<'a> {
             .iter()
             .filter_map(|w| {
                 let file = w.path.file_name()?.to_string_lossy().into_owned();
-                w.image.as_ref().map(|i| ImageRecord { file, joints: i.joints, grid: i.grid, remap: i.remap.clone() })
+                w.image.as_ref().map(|i| ImageRecord {
+                    file,
+                    joints: i.joints,
+                    grid: i.grid,
+                    remap: i.remap.clone(),
+                    low: i.bounds.map(|b| b.low),
+                    span: i.bounds.map(|b| b.span()),
+                })
             })
             .collect();
-        let layout = if image {
-            format!("{layout}; as {format} RGBA images of texels: see texels, address and textures")
-        } else {
-            layout
+        let layout = match (image, texture) {
+            (true, TextureKind::Vertex) => format!(
+                "{layout}; as {format} RGBA images, .pos (positions) and .nrm (normals) per primitive, one texel per \
+                 vertex (joint j = vertex, t = 0): see vertex, address and textures"
+            ),
+            (true, _) => format!("{layout}; as {format} RGBA images of texels: see texels, address and textures"),
+            (false, _) => layout,
         };
         Sidecar {
             source,
@@ -186,7 +245,7 @@ impl<'a> Sidecar<'a> {
             precision,
             format: format.name(),
             layout,
-            texels: image.then(|| texture.texels().iter().map(names_of).collect()),
+            texels: (image && texture != TextureKind::Vertex).then(|| texture.texels().iter().map(names_of).collect()),
             address: image.then_some(super::image::ADDRESS),
             textures,
             max_key_error_rad: baked.max_key_error,
@@ -211,7 +270,42 @@ impl<'a> Sidecar<'a> {
                 .iter()
                 .map(|s| SidecarSkin { name: &s.name, joints: &s.joints, inverse_bind: &s.inverse_bind })
                 .collect(),
+            vertex: vertex.map(|(sheets, mesh_file)| VertexRecord {
+                mesh_file,
+                position: POSITION_DECODING,
+                normal: NORMAL_DECODING,
+                texcoord: TEXCOORD_ADDRESS,
+                primitives: sheets
+                    .primitives
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| VertexPrimitive {
+                        name: p.name.clone(),
+                        node: p.node,
+                        mesh: p.mesh,
+                        primitive: p.primitive,
+                        skin: p.skin,
+                        vertices: p.vertices(),
+                        influences: p.influences,
+                        normals: p.normals.is_some(),
+                        normalized: p.normalized,
+                        suffix: super::vertex_texture::suffix(k),
+                        mesh_in_file: k,
+                    })
+                    .collect(),
+            }),
             clips,
         }
     }
 }
+
+/// [`super::vertex_encoding::Bounds::decode`] in words.
+const POSITION_DECODING: &str = "position = low + texel.xyz * span (low and span of the file, in textures); \
+    as npy: px, py, pz as they are";
+/// [`super::vertex_encoding::decode_normal`] in words.
+const NORMAL_DECODING: &str = "(u, v) = 2 * texel.xy - 1; z = 1 - |u| - |v|; f = max(-z, 0); \
+    n = normalize(u - f * sign(u), v - f * sign(v), z), sign(0) = 1; as npy: nx, ny, nz as they are";
+/// Where a vertex's texel is, from the mesh file's `TEXCOORD_0` (`vertex_glb::address`).
+const TEXCOORD_ADDRESS: &str = "TEXCOORD_0 = (v mod frame_width, v div frame_width); for r = first_row + frame: \
+    x = (r / frames_per_column) * frame_width + u, y = (r % frames_per_column) * rows_per_frame + v \
+    (integer division)";

@@ -34,21 +34,25 @@ pub enum TextureKind {
     /// `[frames, skin joints, 10]` per glTF skin: the skin matrices as rotation, translation,
     /// scale.
     SkinTrs,
+    /// `[frames, vertices, 6]` per skinned glTF mesh primitive: skinned position and normal
+    /// (DESIGN section 5d); as images, a position and a normal image, encoded.
+    Vertex,
 }
 
 crate::curve::names!(TextureKind, "texture",
-    Local => "local", Model => "model", Skin => "skin", ModelTrs => "model-trs", SkinTrs => "skin-trs");
+    Local => "local", Model => "model", Skin => "skin", ModelTrs => "model-trs", SkinTrs => "skin-trs",
+    Vertex => "vertex");
 
-pub use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
+pub use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS, VERTEX_CHANNELS};
 
 impl TextureKind {
     /// Floats per joint and frame.
     #[must_use]
     pub fn channels(self) -> usize {
-        if self.is_matrix() {
-            MATRIX_CHANNELS
-        } else {
-            LOCAL_CHANNELS
+        match self {
+            TextureKind::Vertex => VERTEX_CHANNELS,
+            kind if kind.is_matrix() => MATRIX_CHANNELS,
+            _ => LOCAL_CHANNELS,
         }
     }
 
@@ -66,26 +70,32 @@ impl TextureKind {
 
     /// How a joint's floats fill RGBA texels of a 2D texture ([`super::image`]): each range
     /// of floats one texel, the rest of it zero. Rotation, translation, scale for `local`;
-    /// the matrix's three rows for `model` and `skin`.
+    /// the matrix's three rows for `model` and `skin`; for `vertex` one texel per vertex in
+    /// each of its images (position, normal), encoded (DESIGN section 5d).
     #[must_use]
     pub fn texels(self) -> &'static [std::ops::Range<usize>] {
-        if self.is_matrix() {
-            &[0..4, 4..8, 8..12]
-        } else {
-            &[0..4, 4..7, 7..10]
+        match self {
+            TextureKind::Vertex => std::slice::from_ref(&VERTEX_TEXEL),
+            kind if kind.is_matrix() => &[0..4, 4..8, 8..12],
+            _ => &[0..4, 4..7, 7..10],
         }
     }
 
     /// What each float is, in order (the sidecar's `channels`).
     #[must_use]
     pub fn channel_names(self) -> &'static [&'static str] {
-        if self.is_matrix() {
-            &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"]
-        } else {
-            &["qx", "qy", "qz", "qw", "tx", "ty", "tz", "sx", "sy", "sz"]
+        match self {
+            TextureKind::Vertex => &["px", "py", "pz", "nx", "ny", "nz"],
+            kind if kind.is_matrix() => {
+                &["r00", "r01", "r02", "tx", "r10", "r11", "r12", "ty", "r20", "r21", "r22", "tz"]
+            }
+            _ => &["qx", "qy", "qz", "qw", "tx", "ty", "tz", "sx", "sy", "sz"],
         }
     }
 }
+
+/// A vertex's one texel in each of a vertex texture's images (three floats).
+static VERTEX_TEXEL: std::ops::Range<usize> = 0..3;
 
 /// Element type of the written textures (`bake --precision`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -340,6 +350,12 @@ pub fn sheet_rows(
     device: &Device,
     frames: &[usize],
 ) -> Result<Vec<Sheet>, InputError> {
+    if kind == TextureKind::Vertex {
+        return Err(InputError::Animation(
+            "a vertex texture skins a glTF's meshes, which an animation alone does not have; bake it with a BakeJob"
+                .into(),
+        ));
+    }
     let local = local_rows(animation, baked, clip, frames);
     if kind == TextureKind::Local {
         return Ok(vec![Sheet { suffix: String::new(), width: animation.joints.len(), data: local }]);

@@ -5,10 +5,10 @@
 //! wrote, with its hash ([`Written`]).
 
 use super::error::InputError;
-use super::image::{self, Format, Grid};
+use super::image::{self, Format, Grid, Texels};
 use super::texture::{self, Precision, TextureKind};
-use super::{Animation, Baked};
-use crate::device::Device;
+use super::vertex_encoding::Bounds;
+use super::Animation;
 use crate::io::{npy_header, AtomicFile, NpyElement};
 use sha2::{Digest, Sha256};
 use std::io::Write;
@@ -29,14 +29,38 @@ impl From<PathBuf> for Written {
     }
 }
 
-/// What a renderer needs to read an image texture: its grid, the joints per frame, and for
-/// PNG16 the range each channel of each texel slot was mapped from.
+/// What a renderer needs to read an image texture: its grid, the joints (or vertices) per
+/// frame, for a bone texture's PNG16 the range each channel of each texel slot was mapped
+/// from, and for a vertex texture's positions the box they were remapped into.
 #[derive(Clone, Debug)]
 pub(super) struct ImageTexture {
     pub(super) grid: Grid,
     pub(super) joints: usize,
     pub(super) remap: Option<Vec<[[f32; 2]; 4]>>,
+    pub(super) bounds: Option<Bounds>,
 }
+
+/// One file of a texture: its name's suffix, joints (or vertices) per frame, and what its
+/// rows hold ([`Texels`]: their floats per joint, and how an image of them is made).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct SheetSpec {
+    pub(super) suffix: String,
+    pub(super) width: usize,
+    pub(super) texels: Texels,
+}
+
+/// The files of a bone texture of `kind` ([`texture::layout`]).
+pub(super) fn bone_sheets(animation: &Animation, kind: TextureKind) -> Vec<SheetSpec> {
+    texture::layout(animation, kind)
+        .into_iter()
+        .map(|(suffix, width)| SheetSpec { suffix, width, texels: Texels::Rows(kind) })
+        .collect()
+}
+
+/// The most memory an image texture may hold while its rows are gathered (its floats, then
+/// its texels): images are encoded whole, so one larger than this is refused before any of
+/// its rows are computed. `.npy` textures are streamed and have no such limit.
+pub const IMAGE_MEMORY_LIMIT: u64 = 1 << 30;
 
 /// Bytes of texture rows computed and written at a time ([`stream`]): large
 /// enough that a block is many frames of a small skeleton and a few of a crowd.
@@ -60,37 +84,54 @@ pub(super) struct TextureFile {
 enum Content {
     /// Rows go straight to the `.npy` file in this element type.
     Npy(NpyElement),
-    /// Rows gathered for an image of `kind` texels on `grid`.
-    Image { format: Format, kind: TextureKind, half: bool, grid: Grid, joints: usize, rows: Vec<f32> },
+    /// Rows gathered for an image of `texels` on `grid`.
+    Image { format: Format, texels: Texels, half: bool, grid: Grid, joints: usize, rows: Vec<f32> },
 }
 
-/// How a bake's textures are written: their format, element type, kind and largest side.
+/// How a bake's textures are written: their format, element type and largest side.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TextureOptions {
     pub(super) format: Format,
     pub(super) precision: Precision,
-    pub(super) kind: TextureKind,
     pub(super) max_size: usize,
 }
 
 impl TextureFile {
-    /// The texture at `path` for `shape` (`[rows, joints, channels]`); an image's grid is laid
-    /// out here, so a texture that cannot fit is refused before any row is computed (`what`
-    /// names it in the message).
+    /// The texture at `path` of `rows` rows of `sheet`; an image's grid is laid out and its
+    /// memory checked here, so a texture that cannot be made is refused before any row is
+    /// computed (`what` names it in the message).
     pub(super) fn create(
         path: PathBuf,
         options: &TextureOptions,
-        shape: &[u64; 3],
+        sheet: &SheetSpec,
+        rows: usize,
         what: &str,
     ) -> Result<Self, InputError> {
-        let [rows, joints, channels] = shape.map(|n| n as usize);
+        let (joints, channels) = (sheet.width, sheet.texels.channels());
+        let shape = [rows as u64, joints as u64, channels as u64];
         let content = match options.format {
             Format::Npy => Content::Npy(options.precision.element()),
             format => {
-                let grid = Grid::new(options.kind, joints, rows, options.max_size)
-                    .map_err(|e| InputError::Animation(format!("{what}: {e}")))?;
+                let refuse = |e: String| InputError::Animation(format!("{what}: {e}"));
+                let kind = match sheet.texels {
+                    Texels::Rows(kind) => kind,
+                    Texels::Positions | Texels::Normals => TextureKind::Vertex,
+                };
+                let grid = Grid::new(kind, joints, rows, options.max_size).map_err(refuse)?;
+                let floats = shape.iter().product::<u64>() * 4;
+                let texels = (grid.width * grid.height) as u64 * 16;
+                if floats + texels > IMAGE_MEMORY_LIMIT {
+                    return Err(refuse(format!(
+                        "its {format} image {} would take {} MiB of memory while it is gathered and encoded, over \
+                         IMAGE_MEMORY_LIMIT = {} MiB; bake at a lower rate, clip by clip rather than as one atlas, or \
+                         as npy (streamed)",
+                        path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                        (floats + texels).div_ceil(1 << 20),
+                        IMAGE_MEMORY_LIMIT >> 20
+                    )));
+                }
                 let half = options.precision == Precision::F16;
-                Content::Image { format, kind: options.kind, half, grid, joints, rows: Vec::new() }
+                Content::Image { format, texels: sheet.texels, half, grid, joints, rows: Vec::new() }
             }
         };
         let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
@@ -107,7 +148,7 @@ impl TextureFile {
             row_bytes: joints * channels * element_bytes,
         };
         if let Content::Npy(element) = texture.content {
-            texture.write(&npy_header(element.descr(), shape))?;
+            texture.write(&npy_header(element.descr(), &shape))?;
         }
         Ok(texture)
     }
@@ -155,16 +196,22 @@ impl TextureFile {
         }
         let image = match std::mem::replace(&mut self.content, Content::Npy(NpyElement::F32)) {
             Content::Npy(_) => None,
-            Content::Image { format, kind, half, grid, joints, rows } => {
-                let texels = image::texels(kind, &grid, joints, &rows);
+            Content::Image { format, texels: what, half, grid, joints, rows } => {
                 let internal = |e: String| InputError::Internal(format!("{}: {e}", path.display()));
+                let (texels, bounds) = image::encode(what, &grid, joints, &rows).map_err(internal)?;
                 let (bytes, remap) = match format {
                     Format::Exr => (image::exr(&grid, &texels, half).map_err(internal)?, None),
                     #[cfg(feature = "plot")]
-                    Format::Png16 => {
-                        let remap = image::ranges(kind, &rows);
-                        (image::png16(&grid, &texels, &remap).map_err(internal)?, Some(remap))
-                    }
+                    Format::Png16 => match what {
+                        Texels::Rows(kind) => {
+                            let remap = image::ranges(kind, &rows);
+                            (image::png16(&grid, &texels, &remap).map_err(internal)?, Some(remap))
+                        }
+                        // Encoded in 0..1 already.
+                        Texels::Positions | Texels::Normals => {
+                            (image::png16(&grid, &texels, &[[[0.0, 1.0]; 4]]).map_err(internal)?, None)
+                        }
+                    },
                     _ => {
                         return Err(InputError::Internal(format!(
                             "{}: no encoder for {format} in this build",
@@ -173,7 +220,7 @@ impl TextureFile {
                     }
                 };
                 self.write(&bytes)?;
-                Some(ImageTexture { grid, joints, remap })
+                Some(ImageTexture { grid, joints, remap, bounds })
             }
         };
         self.file.commit().map_err(|e| InputError::Output(e.to_string()))?;
@@ -181,39 +228,28 @@ impl TextureFile {
     }
 }
 
-/// One [`TextureFile`] per sheet of `options.kind` ([`texture::layout`]), each `[rows,
-/// width, channels]`, at `path(suffix)`; `what` names the texture in messages.
+/// One [`TextureFile`] per sheet, each of `rows` rows, at `path(suffix)`; `what` names the
+/// texture in messages.
 pub(super) fn open(
-    animation: &Animation,
+    sheets: &[SheetSpec],
     options: &TextureOptions,
     rows: usize,
     what: &str,
     path: impl Fn(&str) -> PathBuf,
 ) -> Result<Vec<TextureFile>, InputError> {
-    let channels = options.kind.channels();
-    texture::layout(animation, options.kind)
-        .into_iter()
-        .map(|(suffix, width)| {
-            TextureFile::create(path(&suffix), options, &[rows as u64, width as u64, channels as u64], what)
-        })
-        .collect()
+    sheets.iter().map(|sheet| TextureFile::create(path(&sheet.suffix), options, sheet, rows, what)).collect()
 }
 
-/// Computes clip `index`'s sheets of `kind` a block of frames at a time (frames on every core)
-/// and appends each block to `textures` on another thread as the next block is computed: the
-/// texture is never whole in memory, and the disk writes overlap the arithmetic. Forward
-/// kinematics runs on `fk_device`.
+/// Computes a clip's sheets a block of its `frames` at a time (`rows` of the frames asked
+/// for, one sheet per texture) and appends each block to `textures` on another thread as the
+/// next block is computed: the texture is never whole in memory, and the disk writes overlap
+/// the arithmetic.
 pub(super) fn stream(
-    kind: TextureKind,
-    animation: &Animation,
-    baked: &Baked,
-    order: &[usize],
-    index: usize,
-    fk_device: &Device,
+    frames: usize,
+    mut rows: impl FnMut(&[usize]) -> Result<Vec<texture::Sheet>, InputError>,
     textures: &mut [TextureFile],
 ) -> Result<(), InputError> {
-    let frames = baked.clips[index].times.len();
-    let row_bytes = textures.iter().map(|t| t.row_bytes).max().unwrap_or(1).max(1);
+    let row_bytes = textures.iter().map(|t| t.row_bytes).sum::<usize>().max(1);
     let block = (TEXTURE_BLOCK_BYTES / row_bytes).max(1);
     std::thread::scope(|s| {
         // One block in flight beside the one being computed.
@@ -227,12 +263,10 @@ pub(super) fn stream(
             Ok(())
         });
         let mut computed = Ok(());
-        let mut signs = texture::Signs::default();
         for start in (0..frames).step_by(block) {
             let picks: Vec<usize> = (start..frames.min(start + block)).collect();
-            match texture::sheet_rows(animation, order, baked, index, kind, fk_device, &picks) {
-                Ok(mut sheets) => {
-                    signs.follow(kind, &mut sheets);
+            match rows(&picks) {
+                Ok(sheets) => {
                     // A closed channel: the writer failed, and says why below.
                     if send.send(sheets).is_err() {
                         break;

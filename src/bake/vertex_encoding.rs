@@ -21,9 +21,15 @@ impl Bounds {
     /// `None` when there is no vertex or a coordinate is not finite.
     #[must_use]
     pub fn of(vertices: &[f64]) -> Option<Self> {
+        Self::of_positions(vertices.chunks_exact(VERTEX_CHANNELS).map(|v| [v[0], v[1], v[2]]))
+    }
+
+    /// The box of `positions`; `None` when there is none or a coordinate is not finite.
+    #[must_use]
+    pub fn of_positions(positions: impl IntoIterator<Item = [f64; 3]>) -> Option<Self> {
         let mut low = [f64::INFINITY; 3];
         let mut high = [f64::NEG_INFINITY; 3];
-        for v in vertices.chunks_exact(VERTEX_CHANNELS) {
+        for v in positions {
             for c in 0..3 {
                 if !v[c].is_finite() {
                     return None;

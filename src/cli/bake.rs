@@ -50,7 +50,9 @@ pub struct BakeArgs {
     /// parent), model (3x4 matrices relative to the scene root, by forward kinematics), skin
     /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model),
     /// or model-trs and skin-trs (those transforms as rotation, translation, scale: what a
-    /// shader interpolates between frames without shearing; `quatcurve shaders`).
+    /// shader interpolates between frames without shearing; `quatcurve shaders`), or vertex
+    /// (glTF only: every skinned mesh primitive skinned at every frame on the device, positions
+    /// and normals; images hold them encoded, and `<stem>.mesh.glb` is the mesh they play).
     #[arg(long, default_value = "local", value_parser = names::<TextureKind>())]
     texture: TextureKind,
     /// Texture element type: f32, or f16 (half the bytes, about 3 significant digits).
@@ -331,6 +333,15 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
                 100.0 * c.bytes as f64 / c.fixed_rate_bytes.max(1) as f64,
                 args.rate,
                 c.fixed_rate_bytes
+            )?;
+        }
+        if let Some((vertex_frames, seconds)) = r.skinning {
+            writeln!(
+                w,
+                "  skinned {:.2} M vertex-frames in {seconds:.3} s: {:.1} M vertex-frames/s on {}",
+                vertex_frames as f64 / 1e6,
+                vertex_frames as f64 / seconds.max(1e-9) / 1e6,
+                report.device
             )?;
         }
     }

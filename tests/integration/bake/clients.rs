@@ -297,3 +297,39 @@ fn a_baked_glb_keeps_nothing_that_only_the_replaced_keys_used() {
         }
     }
 }
+
+/// The mesh files of vertex bakes (`<stem>.mesh.glb`: skinned primitives as plain meshes, each
+/// vertex's texel address in `TEXCOORD_0`) for every skinned file without Draco, with images
+/// wrapped to a small side so addresses span rows: the validator finds no error, warning or
+/// hint in them, only the information that it sees no material reading `TEXCOORD_0` (a vertex
+/// texture's shader does).
+#[test]
+fn vertex_texture_meshes_pass_the_khronos_validator() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let names = ["Fox.glb", "CesiumMan.glb", "SimpleSkin.gltf"];
+    let mut args = vec!["--texture", "vertex", "--format", "exr", "--max-texture-size", "1024", "--input"];
+    let inputs: Vec<String> = names.iter().map(|f| data.join(f).display().to_string()).collect();
+    args.extend(inputs.iter().map(String::as_str));
+    args.extend(["--output", out.path().to_str().unwrap()]);
+    let result = super::bake(&args);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let files: Vec<PathBuf> = names
+        .iter()
+        .map(|n| out.path().join(format!("{}.mesh.glb", Path::new(n).file_stem().unwrap().to_str().unwrap())))
+        .collect();
+    let Some(reports) = validate(&files) else { return };
+    for (name, report) in names.iter().zip(&reports) {
+        for ((severity, code), messages) in report {
+            let texcoord_unused = code == "UNUSED_OBJECT" && messages.iter().all(|m| m.contains("/TEXCOORD_0"));
+            assert!(*severity == 2 && texcoord_unused, "{name}: {code} (severity {severity}): {messages:?}");
+        }
+    }
+    let document = document(&files[1]);
+    assert_eq!(document["meshes"].as_array().unwrap().len(), 1);
+    assert!(document.get("skins").is_none() && document.get("animations").is_none());
+    let attributes = document["meshes"][0]["primitives"][0]["attributes"].as_object().unwrap();
+    let mut keys: Vec<&str> = attributes.keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    assert_eq!(keys, ["NORMAL", "POSITION", "TEXCOORD_0"]);
+}

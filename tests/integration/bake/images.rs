@@ -18,7 +18,7 @@ fn at(texels: &[[f32; 4]], grid: &serde_json::Value, r: usize, j: usize, t: usiz
 }
 
 /// An EXR's RGBA texels, row after row, by the `exr` crate's reader.
-fn read_exr(path: &Path) -> (usize, usize, Vec<[f32; 4]>) {
+pub(super) fn read_exr(path: &Path) -> (usize, usize, Vec<[f32; 4]>) {
     let image = exr::prelude::read_first_rgba_layer_from_file(
         path,
         |size, _| (size.width(), size.height(), vec![[0.0f32; 4]; size.width() * size.height()]),

@@ -18,6 +18,10 @@ use quatcurve::output::VERTEX_CHANNELS;
 const POSITION_BOUND: f64 = 1e-4;
 /// Normals agree within this angle (rad).
 const NORMAL_BOUND: f64 = 1e-3;
+/// Half-float images: DESIGN section 5d's half precision (2.3e-4 of the box's diagonal,
+/// 2.0e-3 rad), with room for the f32 skinning.
+const HALF_POSITION_BOUND: f64 = 2.5e-4;
+const HALF_NORMAL_BOUND: f64 = 2.5e-3;
 
 const FILES: [&str; 4] = ["CesiumMan.glb", "Fox.glb", "BrainStem.glb", "SimpleSkin.gltf"];
 
@@ -310,4 +314,193 @@ fn bad_skinned_meshes_are_refused_naming_the_primitive_vertex_and_rule() {
     let halves = read(skinned_triangle(true, joints, Some([[0.5, 0.0, 0.0, 0.0]; 3]), 3)).unwrap();
     assert_eq!(halves[0].normalized, 3);
     assert!(halves[0].weights.chunks_exact(4).all(|w| (w.iter().sum::<f64>() - 1.0).abs() < 1e-15));
+}
+
+/// A unit normal from an octahedral texel, as the sidecar's `vertex.normal` states it (written
+/// here from that text, not with the library's decoder).
+fn octahedral(u: f64, v: f64) -> [f64; 3] {
+    let (u, v) = (2.0 * u - 1.0, 2.0 * v - 1.0);
+    let z = 1.0 - u.abs() - v.abs();
+    let f = (-z).max(0.0);
+    let sign = |c: f64| if c < 0.0 { -1.0 } else { 1.0 };
+    let n = DVec3::new(u - f * sign(u), v - f * sign(v), z).normalize();
+    [n.x, n.y, n.z]
+}
+
+/// Each mesh's `TEXCOORD_0` in the mesh file a vertex bake wrote, by the glTF crate's reader.
+fn addresses(path: &std::path::Path) -> Vec<Vec<[f32; 2]>> {
+    let (document, buffers) = open(path);
+    document
+        .meshes()
+        .map(|mesh| {
+            let primitive = mesh.primitives().next().unwrap();
+            let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+            reader.read_tex_coords(0).unwrap().into_f32().collect()
+        })
+        .collect()
+}
+
+/// A 16-bit PNG's RGBA samples as `0..1`, by the `image` crate's reader.
+fn read_png16(path: &std::path::Path) -> (usize, usize, Vec<[f32; 4]>) {
+    let image::DynamicImage::ImageRgba16(buffer) = image::open(path).unwrap() else { panic!("not 16-bit RGBA") };
+    let texels = buffer.pixels().map(|p| p.0.map(|c| f32::from(c) / 65535.0)).collect();
+    (buffer.width() as usize, buffer.height() as usize, texels)
+}
+
+/// Frame `frame` of primitive `k` of clip `clip` (a sidecar entry) as stored in `dir`, decoded
+/// with the sidecar's numbers and the mesh file's addresses: `[vertices, VERTEX_CHANNELS]`;
+/// for images also the diagonal of the box their positions were remapped into.
+fn decoded(
+    dir: &std::path::Path,
+    sidecar: &serde_json::Value,
+    clip: &serde_json::Value,
+    k: usize,
+    frame: usize,
+) -> (Vec<f64>, Option<f64>) {
+    let files: Vec<&str> = clip["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap()).collect();
+    let file = |part: &str| files.iter().find(|f| f.contains(&format!(".mesh{k}{part}"))).map(|f| dir.join(f));
+    let row = clip["first_row"].as_u64().unwrap() as usize + frame;
+    if sidecar["format"] == "npy" {
+        let (shape, values) = super::read_npy(&file("").unwrap());
+        let width = (shape[1] * shape[2]) as usize;
+        return (values[row * width..(row + 1) * width].iter().map(|&v| f64::from(v)).collect(), None);
+    }
+    let mesh_file = dir.join(sidecar["vertex"]["mesh_file"].as_str().unwrap());
+    let address = &addresses(&mesh_file)[k];
+    let record = |path: &std::path::Path| {
+        let name = path.file_name().unwrap().to_str().unwrap();
+        sidecar["textures"].as_array().unwrap().iter().find(|t| t["file"] == name).unwrap().clone()
+    };
+    let read = |path: &std::path::Path| {
+        let (width, _, texels) =
+            if sidecar["format"] == "exr" { super::images::read_exr(path) } else { read_png16(path) };
+        let grid = record(path);
+        let n = |key: &str| grid[key].as_u64().unwrap() as usize;
+        address
+            .iter()
+            .map(|&[u, v]| {
+                let x = (row / n("frames_per_column")) * n("frame_width") + u as usize;
+                let y = (row % n("frames_per_column")) * n("rows_per_frame") + v as usize;
+                texels[y * width + x].map(f64::from)
+            })
+            .collect::<Vec<[f64; 4]>>()
+    };
+    let positions = file(".pos").unwrap();
+    let box_of = record(&positions);
+    let three = |key: &str| -> [f64; 3] { std::array::from_fn(|c| box_of[key][c].as_f64().unwrap()) };
+    let (low, span) = (three("low"), three("span"));
+    let normals = file(".nrm").map(|path| read(&path));
+    let mut out = Vec::new();
+    for (v, texel) in read(&positions).into_iter().enumerate() {
+        out.extend((0..3).map(|c| low[c] + texel[c] * span[c]));
+        out.extend(normals.as_ref().map_or([0.0; 3], |n| octahedral(n[v][0], n[v][1])));
+    }
+    (out, Some(span.iter().map(|s| s * s).sum::<f64>().sqrt()))
+}
+
+#[test]
+fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_device() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let devices: &[&str] = if crate::shared_gpu().is_some() { &["cpu", "gpu"] } else { &["cpu"] };
+    // Format, precision, largest image side, and the bounds each holds to (position /
+    // diagonal, normal rad): DESIGN section 5d's precision of its encoding, plus the f32
+    // skinning's. At 1,024 texels a side, CesiumMan's 3,273 vertices wrap to four rows a frame.
+    let variants = [
+        ("npy", "f32", "4096", POSITION_BOUND, NORMAL_BOUND),
+        ("exr", "f32", "4096", POSITION_BOUND, NORMAL_BOUND),
+        ("png16", "f32", "1024", POSITION_BOUND, NORMAL_BOUND),
+        ("exr", "f16", "4096", HALF_POSITION_BOUND, HALF_NORMAL_BOUND),
+    ];
+    let names = ["CesiumMan.glb", "Fox.glb", "SimpleSkin.gltf"];
+    for device in devices {
+        for (format, precision, side, position_bound, normal_bound) in variants {
+            let dir = out.path().join(format!("{device}-{format}-{precision}"));
+            let mut args = vec!["--texture", "vertex", "--rate", "30", "--format", format, "--precision", precision];
+            args.extend(["--max-texture-size", side]);
+            let output = dir.to_str().unwrap();
+            args.extend(["--device", device, "--output", output, "--input"]);
+            let inputs: Vec<String> = names.iter().map(|n| data.join(n).display().to_string()).collect();
+            args.extend(inputs.iter().map(String::as_str));
+            let result = super::bake(&args);
+            assert!(result.status.success(), "{}", super::stderr(&result));
+            let summary = String::from_utf8_lossy(&result.stdout);
+            assert!(summary.contains("M vertex-frames/s on"), "{summary}");
+            let mut largest = (0.0f64, 0.0f64);
+            for name in names {
+                let path = data.join(name);
+                let stem = path.file_stem().unwrap().to_str().unwrap();
+                let sidecar = super::json(&dir.join(format!("{stem}.json")));
+                let file = gltf::read(&path, UriPolicy::default()).unwrap();
+                let primitives = skinned_primitives(&file).unwrap();
+                assert_eq!(sidecar["vertex"]["primitives"].as_array().unwrap().len(), primitives.len());
+                let clip = &sidecar["clips"][0];
+                let frames = clip["frames"].as_u64().unwrap() as usize;
+                for (k, primitive) in primitives.iter().enumerate() {
+                    for (frame, time) in
+                        [(0, clip["start"].as_f64().unwrap()), (frames - 1, clip["end"].as_f64().unwrap())]
+                    {
+                        let theirs = independent(&path, primitive, 0, time);
+                        let (ours, animated) = decoded(&dir, &sidecar, clip, k, frame);
+                        assert_eq!(ours.len(), theirs.len());
+                        // Images: against the box they were encoded in (the mesh's over the
+                        // clip, as DESIGN section 5d states their precision); npy: against
+                        // this frame's box, which is smaller.
+                        let scale = animated.unwrap_or_else(|| Bounds::of(&theirs).unwrap().diagonal());
+                        let (p, n) = worst(&ours, &theirs, scale, primitive.normals.is_some());
+                        largest = (largest.0.max(p), largest.1.max(n));
+                        assert!(
+                            p <= position_bound && n <= normal_bound,
+                            "{device} {format} {precision}: {name}, {}, frame {frame}: {p:e} of the diagonal, {n:e} rad",
+                            primitive.name
+                        );
+                    }
+                }
+            }
+            eprintln!(
+                "{device} {format} {precision}: worst against the independent skinning {:.1e} of the diagonal, {:.1e} rad",
+                largest.0, largest.1
+            );
+        }
+    }
+}
+
+#[test]
+fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let input = |name: &str| data.join(name).display().to_string();
+    let cases: [(Vec<String>, &str); 5] = [
+        (vec!["--input".into(), input("cmu_131_01.bvh")], "a BVH file has no mesh"),
+        (vec![], "vertex skins a glTF's meshes, and the built-in crowd has none"),
+        (vec!["--input".into(), input("CesiumMan.glb"), "--max-error".into(), "1".into()], "bake vertex textures at a --rate"),
+        (vec!["--input".into(), input("BrainStem.glb")], DRACO),
+        // 11,751 frames (1.958 s at 6 kHz) of 3,273 vertices, 28 bytes each (three floats
+        // gathered, one RGBA texel): 1,028 MiB of position image in memory.
+        (
+            vec![
+                "--input".into(),
+                input("CesiumMan.glb"),
+                "--rate".into(),
+                "6000".into(),
+                "--format".into(),
+                "exr".into(),
+                "--max-texture-size".into(),
+                "65536".into(),
+            ],
+            "clip 'animation0': its exr image CesiumMan.animation0.mesh0.pos.exr would take 1028 MiB of memory while it \
+             is gathered and encoded, over IMAGE_MEMORY_LIMIT = 1024 MiB",
+        ),
+    ];
+    for (k, (args, expected)) in cases.iter().enumerate() {
+        let dir = out.path().join(format!("case{k}"));
+        let mut all: Vec<&str> = vec!["--texture", "vertex", "--output", dir.to_str().unwrap()];
+        all.extend(args.iter().map(String::as_str));
+        let result = super::bake(&all);
+        let message = super::stderr(&result);
+        assert_eq!(result.status.code(), Some(2), "{args:?}: {message}");
+        assert!(message.contains(expected), "{args:?}: {message}\nlacks: {expected}");
+        let left: Vec<_> = std::fs::read_dir(&dir).map(|d| d.flatten().map(|e| e.path()).collect()).unwrap_or_default();
+        assert!(left.is_empty(), "{args:?}: left behind {left:?}");
+    }
 }
