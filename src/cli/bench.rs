@@ -62,6 +62,11 @@ pub struct BenchArgs {
     /// track shape (.png or .svg).
     #[arg(long, value_name = "FILE", requires = "sweep")]
     plot: Option<std::path::PathBuf>,
+    /// Time linear blend skinning instead (vertex textures, DESIGN section 5d): every skinned
+    /// primitive of this glTF at --samples frames of its first clip, on the CPU (f64, every
+    /// core) and the GPU (`shaders/skin_mesh.wgsl`, upload and read-back included).
+    #[arg(long, value_name = "GLTF", conflicts_with = "sweep")]
+    skinning: Option<std::path::PathBuf>,
 }
 
 #[derive(Serialize)]
@@ -108,6 +113,16 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     }
     if args.sweep {
         return sweep(args);
+    }
+    if let Some(file) = &args.skinning {
+        let report = skinning(args, file)?;
+        return print_stdout(|w| {
+            if args.json {
+                writeln!(w, "{}", serde_json::to_string(&report)?)
+            } else {
+                skinning_table(w, &report)
+            }
+        });
     }
     let report = measure(args)?;
     print_stdout(|w| if args.json { writeln!(w, "{}", serde_json::to_string(&report)?) } else { table(w, &report) })
@@ -390,6 +405,126 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
             r.samples_per_s / 1e6,
             dispatch,
             roofline,
+            r.adapter
+        )?;
+    }
+    Ok(())
+}
+
+/// `--skinning`: what was skinned and how fast on each device.
+#[derive(Serialize)]
+struct SkinningReport {
+    file: String,
+    primitives: usize,
+    vertices: usize,
+    frames: usize,
+    runs: usize,
+    results: Vec<SkinningTiming>,
+}
+
+#[derive(Serialize)]
+struct SkinningTiming {
+    device: &'static str,
+    adapter: String,
+    vertex_frames_per_s: f64,
+    seconds: f64,
+    vertex_frames: usize,
+}
+
+/// Skins every skinned primitive of `file` at `args.samples` frames of its first clip (the
+/// skin matrices baked once, before the timing) on the CPU and the GPU.
+fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, Failure> {
+    use quatcurve::bake::{self, gltf, mesh, skinning, texture};
+    let input = |e: String| Failure::Input(format!("bench --skinning {}: {e}", file.display()));
+    let source = gltf::read(file, gltf::UriPolicy::default()).map_err(|e| input(e.to_string()))?;
+    let animation = &source.animation;
+    let primitives = mesh::skinned_primitives(&source).map_err(|e| input(e.to_string()))?;
+    let clip = animation.clips.first().ok_or_else(|| input("no clip to skin by".into()))?;
+    let [start, end] = clip.span();
+    let rate = (args.samples.saturating_sub(1)).max(1) as f64 / (end - start).max(1e-9);
+    let spec = CurveSpec::new(quatcurve::curve::DEFAULT_CURVE);
+    let baked = bake::bake(animation, &spec, bake::ClipRate::Fit(rate), bake::LoopMode::Auto, &Device::Reference)
+        .map_err(|e| input(e.to_string()))?;
+    let order = animation.parents_first().map_err(|e| input(e.to_string()))?;
+    let model = texture::model(animation, &order, &texture::local(animation, &baked, 0));
+    let skins: Vec<Vec<f32>> =
+        animation.skins.iter().map(|s| texture::skin(s, animation.joints.len(), &model)).collect();
+    let frames = baked.clips[0].times.len();
+    let vertices: usize = primitives.iter().map(mesh::SkinnedPrimitive::vertices).sum();
+    let joints = |p: &mesh::SkinnedPrimitive| animation.skins[p.skin].joints.len();
+    let explicit = args.devices.is_some();
+    let devices = args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Cpu, DeviceChoice::Gpu]);
+    let mut results = Vec::new();
+    for choice in devices {
+        let device = match (choice, super::open_device(choice, "--devices")) {
+            (DeviceChoice::Auto | DeviceChoice::Reference, _) => {
+                return Err(Failure::Input(
+                    "bench --skinning: name devices cpu and gpu (skinning's CPU path is f64 already)".into(),
+                ))
+            }
+            (_, Ok(device)) => device,
+            (_, Err(e)) if explicit => return Err(e),
+            (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
+                eprintln!("skipped {choice}: {e}");
+                continue;
+            }
+        };
+        let (name, adapter, seconds) = match &device {
+            Device::Gpu(gpu) | Device::Auto(gpu, _) => {
+                let bound: Vec<_> = primitives.iter().map(skinning::bind_mesh).collect();
+                let seconds = median_seconds(args.runs, || {
+                    for (p, mesh) in primitives.iter().zip(&bound) {
+                        gpu.skin_mesh(mesh, joints(p), &skins[p.skin])
+                            .map_err(|e| Failure::Internal(format!("gpu: {e}")))?;
+                    }
+                    Ok(())
+                })?;
+                ("gpu", gpu.adapter_name().to_string(), seconds)
+            }
+            Device::Cpu(_) | Device::Reference => {
+                let seconds = median_seconds(args.runs, || {
+                    for p in &primitives {
+                        drop(skinning::skin(p, joints(p), &skins[p.skin]));
+                    }
+                    Ok(())
+                })?;
+                ("cpu", format!("f64, {} threads", rayon::current_num_threads()), seconds)
+            }
+        };
+        let vertex_frames = vertices * frames;
+        results.push(SkinningTiming {
+            device: name,
+            adapter,
+            vertex_frames_per_s: vertex_frames as f64 / seconds,
+            seconds,
+            vertex_frames,
+        });
+    }
+    Ok(SkinningReport {
+        file: file.display().to_string(),
+        primitives: primitives.len(),
+        vertices,
+        frames,
+        runs: args.runs,
+        results,
+    })
+}
+
+fn skinning_table(w: &mut dyn std::io::Write, report: &SkinningReport) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "skinning: {}, {} primitives, {} vertices x {} frames; median of {} runs",
+        report.file, report.primitives, report.vertices, report.frames, report.runs
+    )?;
+    writeln!(w, "{:<10} {:>14} {:>10} {:>20}  adapter", "device", "vertex-frames", "seconds", "M vertex-frames/s")?;
+    for r in &report.results {
+        writeln!(
+            w,
+            "{:<10} {:>14} {:>10.4} {:>20.2}  {}",
+            r.device,
+            r.vertex_frames,
+            r.seconds,
+            r.vertex_frames_per_s / 1e6,
             r.adapter
         )?;
     }

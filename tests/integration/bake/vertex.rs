@@ -504,3 +504,27 @@ fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind(
         assert!(left.is_empty(), "{args:?}: left behind {left:?}");
     }
 }
+
+#[test]
+fn bench_times_skinning_on_the_cpu_and_the_gpu_side_by_side() {
+    let Some(data) = data_dir() else { return };
+    let file = data.join("CesiumMan.glb");
+    let out = assert_cmd::Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["bench", "--skinning", file.to_str().unwrap(), "--samples", "40", "--runs", "1", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", super::stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (doc["primitives"].as_u64(), doc["vertices"].as_u64(), doc["frames"].as_u64()),
+        (Some(1), Some(3273), Some(40))
+    );
+    let devices: Vec<&str> = doc["results"].as_array().unwrap().iter().map(|r| r["device"].as_str().unwrap()).collect();
+    let expected: &[&str] = if crate::shared_gpu().is_some() { &["cpu", "gpu"] } else { &["cpu"] };
+    assert_eq!(devices, expected);
+    for r in doc["results"].as_array().unwrap() {
+        assert_eq!(r["vertex_frames"], 3273 * 40, "{r}");
+        assert!(r["vertex_frames_per_s"].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
