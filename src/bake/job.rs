@@ -548,9 +548,7 @@ impl BakeJob {
         let clips = (0..animation.clips.len())
             .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device, vertex))
             .collect::<Result<Vec<_>, _>>()?;
-        for texture in std::mem::take(&mut out.atlas) {
-            out.written.push(texture.finish()?);
-        }
+        texture_file::finish_all(std::mem::take(&mut out.atlas), &mut out.written)?;
         let options = SidecarOptions {
             device,
             curve: self.spec.curve.name(),
@@ -628,9 +626,7 @@ impl BakeJob {
             })?;
             texture_file::stream(frames, rows, &mut textures)?;
             let names = textures.iter().map(TextureFile::name).collect();
-            for texture in textures {
-                out.written.push(texture.finish()?);
-            }
+            texture_file::finish_all(textures, &mut out.written)?;
             (names, 0)
         };
         Ok(SidecarClip {

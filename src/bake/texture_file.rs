@@ -228,6 +228,23 @@ impl TextureFile {
     }
 }
 
+/// Finishes every texture ([`TextureFile::finish`]) on every core (an image's encoding is
+/// single-threaded, and an input may have a hundred images) and records each file
+/// committed in `written`, so a failure leaves none of them unlisted; the first error.
+pub(super) fn finish_all(textures: Vec<TextureFile>, written: &mut Vec<Written>) -> Result<(), InputError> {
+    use rayon::prelude::*;
+    let results: Vec<Result<Written, InputError>> = textures.into_par_iter().map(TextureFile::finish).collect();
+    let mut first = Ok(());
+    for result in results {
+        match result {
+            Ok(file) => written.push(file),
+            Err(e) if first.is_ok() => first = Err(e),
+            Err(_) => {}
+        }
+    }
+    first
+}
+
 /// One [`TextureFile`] per sheet, each of `rows` rows, at `path(suffix)`; `what` names the
 /// texture in messages.
 pub(super) fn open(
