@@ -504,14 +504,14 @@ fn percent_decode(uri: &str) -> Result<String, String> {
 }
 
 impl GltfFile {
-    /// The parsed document and the buffers' bytes: what the mesh readers take
-    /// ([`super::mesh::skinned_primitives`]).
-    /// Whether primitive `primitive` of mesh `mesh` uses glTF extension `name` (the crate's
-    /// document keeps no unknown extensions).
-    pub(super) fn primitive_uses(&self, mesh: usize, primitive: usize, name: &str) -> bool {
-        self.json["meshes"][mesh]["primitives"][primitive]["extensions"].get(name).is_some()
+    /// Primitive `primitive` of mesh `mesh`'s object of glTF extension `name`, if it uses it
+    /// (the crate's document keeps no unknown extensions).
+    pub(super) fn primitive_extension(&self, mesh: usize, primitive: usize, name: &str) -> Option<&serde_json::Value> {
+        self.json["meshes"][mesh]["primitives"][primitive]["extensions"].get(name)
     }
 
+    /// The parsed document and the buffers' bytes: what the mesh readers take
+    /// ([`super::mesh::skinned_primitives`]).
     pub(super) fn document(&self) -> Result<(gltf::Document, &[Vec<u8>]), InputError> {
         let root: gltf::json::Root =
             serde_json::from_value(self.json.clone()).map_err(|e| input(format!("not valid glTF JSON: {e}")))?;

@@ -11,7 +11,8 @@ use super::InputError;
 /// allowed half a quantum per influence.
 pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
 
-/// The glTF extension of Draco-compressed primitives (their accessors have no buffer views).
+/// The glTF extension of Draco-compressed primitives (their accessors have no buffer views;
+/// `draco-core` decodes them).
 pub const DRACO: &str = "KHR_draco_mesh_compression";
 
 /// A mesh primitive drawn by a skinned node: what linear blend skinning needs of it.
@@ -89,12 +90,7 @@ pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, Inpu
             let Some(skin_joints) = skins.get(skin).map(|s| s.joints.len()) else {
                 return Err(error(format!("{name}: skin {skin} does not exist")));
             };
-            if file.primitive_uses(mesh.index(), primitive.index(), DRACO) {
-                return Err(error(format!(
-                    "{name}: its vertices are Draco-compressed ({DRACO}), which vertex textures do not decode; \
-                     decompress the file first (e.g. gltf-transform copy)"
-                )));
-            }
+            let draco = file.primitive_extension(mesh.index(), primitive.index(), DRACO);
             let weights = node.weights().or_else(|| mesh.weights()).unwrap_or(&[]);
             out.push(read_primitive(
                 &document,
@@ -105,6 +101,7 @@ pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, Inpu
                 skin_joints,
                 weights,
                 (node.index(), mesh.index()),
+                draco,
             )?);
         }
     }
@@ -136,6 +133,138 @@ fn check(
     }
 }
 
+/// One `JOINTS_n`/`WEIGHTS_n` set: each vertex's four joints and weights.
+type WeightSet = (Vec<[u16; 4]>, Vec<[f64; 4]>);
+
+/// What a primitive stores per vertex, read from its accessors or decoded from Draco.
+struct Stored {
+    positions: Vec<[f64; 3]>,
+    normals: Option<Vec<[f64; 3]>>,
+    sets: Vec<WeightSet>,
+    /// The largest step of the weights' normalized integers (0 for floats).
+    quantum: f64,
+    indices: Option<Vec<u32>>,
+    /// glTF's topology.
+    mode: u32,
+}
+
+/// The `JOINTS_n`/`WEIGHTS_n` sets of `primitive` (counted from 0 while either is present).
+fn weight_sets(primitive: &gltf::Primitive) -> u32 {
+    use gltf::Semantic;
+    let mut sets = 0;
+    while primitive.get(&Semantic::Joints(sets)).is_some() || primitive.get(&Semantic::Weights(sets)).is_some() {
+        sets += 1;
+    }
+    sets
+}
+
+/// The largest step of a weights accessor's normalized integers (0 for floats).
+fn quantum(weights: &gltf::Accessor) -> f64 {
+    match weights.data_type() {
+        gltf::accessor::DataType::U8 => 1.0 / 255.0,
+        gltf::accessor::DataType::U16 => 1.0 / 65535.0,
+        _ => 0.0,
+    }
+}
+
+/// `primitive`'s vertices from its accessors, each checked against its bytes first (the
+/// crate's readers trust the counts).
+fn from_accessors(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    primitive: &gltf::Primitive,
+    name: &str,
+) -> Result<Stored, InputError> {
+    use gltf::Semantic;
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let position = primitive.get(&Semantic::Positions).ok_or_else(|| error(format!("{name}: has no POSITION")))?;
+    check(document, name, "POSITION", &position, Element::Vectors, None)?;
+    let count = position.count();
+    let wide = |p: [f32; 3]| p.map(f64::from);
+    let positions: Vec<[f64; 3]> = reader.read_positions().into_iter().flatten().map(wide).collect();
+    let normals = match primitive.get(&Semantic::Normals) {
+        Some(accessor) => {
+            check(document, name, "NORMAL", &accessor, Element::Vectors, Some(count))?;
+            Some(reader.read_normals().into_iter().flatten().map(wide).collect::<Vec<_>>())
+        }
+        None => None,
+    };
+    let (mut sets, mut step) = (Vec::new(), 0.0f64);
+    for set in 0..weight_sets(primitive) {
+        let (Some(j), Some(w)) = (primitive.get(&Semantic::Joints(set)), primitive.get(&Semantic::Weights(set))) else {
+            return Err(error(format!("{name}: JOINTS_{set} and WEIGHTS_{set} must come in pairs")));
+        };
+        check(document, name, &format!("JOINTS_{set}"), &j, Element::Joints, Some(count))?;
+        check(document, name, &format!("WEIGHTS_{set}"), &w, Element::Weights, Some(count))?;
+        step = step.max(quantum(&w));
+        let joints = reader.read_joints(set).expect("checked: JOINTS_n is present").into_u16().collect();
+        let weights = reader.read_weights(set).expect("checked: WEIGHTS_n is present").into_f32();
+        sets.push((joints, weights.map(|w| w.map(f64::from)).collect()));
+    }
+    let indices = match primitive.indices() {
+        Some(accessor) => {
+            check(document, name, "indices", &accessor, Element::Indices, None)?;
+            Some(reader.read_indices().expect("checked: indices are present").into_u32().collect())
+        }
+        None => None,
+    };
+    Ok(Stored { positions, normals, sets, quantum: step, indices, mode: primitive.mode().as_gl_enum() })
+}
+
+/// `primitive`'s vertices decoded from its Draco bytes (`extension`, the primitive's
+/// [`DRACO`] object): the extension's attribute ids name the decoded attributes, and the
+/// primitive's accessors give their counts and whether weights are normalized.
+fn from_draco(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    primitive: &gltf::Primitive,
+    name: &str,
+    extension: &serde_json::Value,
+) -> Result<Stored, InputError> {
+    use gltf::Semantic;
+    let fail = |what: String| error(format!("{name}: {DRACO}: {what}"));
+    let view = extension["bufferView"].as_u64().ok_or_else(|| fail("no bufferView".into()))?;
+    let view = document.views().nth(view as usize).ok_or_else(|| fail(format!("bufferView {view} does not exist")))?;
+    let bytes = buffers
+        .get(view.buffer().index())
+        .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
+        .ok_or_else(|| fail(format!("bufferView {} lies outside its buffer", view.index())))?;
+    let decoded = super::draco::Decoded::new(bytes).map_err(|e| fail(format!("cannot decode: {e}")))?;
+    let id = |attribute: &str| -> Result<u32, InputError> {
+        let id = extension["attributes"][attribute].as_u64();
+        id.and_then(|i| u32::try_from(i).ok()).ok_or_else(|| fail(format!("its attributes name no {attribute}")))
+    };
+    let four = |attribute: &str, normalized: bool| -> Result<Vec<[f64; 4]>, InputError> {
+        decoded.attribute::<4>(id(attribute)?, normalized).map_err(|e| fail(format!("{attribute}: {e}")))
+    };
+    let three = |attribute: &str| -> Result<Vec<[f64; 3]>, InputError> {
+        decoded.attribute::<3>(id(attribute)?, false).map_err(|e| fail(format!("{attribute}: {e}")))
+    };
+    let position = primitive.get(&Semantic::Positions).ok_or_else(|| error(format!("{name}: has no POSITION")))?;
+    if decoded.points() != position.count() {
+        return Err(fail(format!("{} points decoded for POSITION's {} vertices", decoded.points(), position.count())));
+    }
+    let positions = three("POSITION")?;
+    let normals = if primitive.get(&Semantic::Normals).is_some() { Some(three("NORMAL")?) } else { None };
+    let (mut sets, mut step) = (Vec::new(), 0.0f64);
+    for set in 0..weight_sets(primitive) {
+        let (Some(_), Some(w)) = (primitive.get(&Semantic::Joints(set)), primitive.get(&Semantic::Weights(set))) else {
+            return Err(error(format!("{name}: JOINTS_{set} and WEIGHTS_{set} must come in pairs")));
+        };
+        step = step.max(quantum(&w));
+        let mut joints = Vec::with_capacity(positions.len());
+        for (v, js) in four(&format!("JOINTS_{set}"), false)?.into_iter().enumerate() {
+            if js.iter().any(|&j| j.fract() != 0.0 || !(0.0..=f64::from(u16::MAX)).contains(&j)) {
+                return Err(fail(format!("vertex {v}: JOINTS_{set} is {js:?}, not joint indices")));
+            }
+            joints.push(js.map(|j| j as u16));
+        }
+        sets.push((joints, four(&format!("WEIGHTS_{set}"), w.normalized())?));
+    }
+    // Draco meshes are triangle lists.
+    Ok(Stored { positions, normals, sets, quantum: step, indices: Some(decoded.indices()), mode: 4 })
+}
+
 #[allow(clippy::too_many_arguments)]
 fn read_primitive(
     document: &gltf::Document,
@@ -146,21 +275,14 @@ fn read_primitive(
     skin_joints: usize,
     morph_weights: &[f32],
     (node, mesh): (usize, usize),
+    draco: Option<&serde_json::Value>,
 ) -> Result<SkinnedPrimitive, InputError> {
-    use gltf::Semantic;
-    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-    let position = primitive.get(&Semantic::Positions).ok_or_else(|| error(format!("{name}: has no POSITION")))?;
-    check(document, &name, "POSITION", &position, Element::Vectors, None)?;
-    let count = position.count();
-    let wide = |p: [f32; 3]| p.map(f64::from);
-    let mut positions: Vec<[f64; 3]> = reader.read_positions().into_iter().flatten().map(wide).collect();
-    let mut normals = match primitive.get(&Semantic::Normals) {
-        Some(accessor) => {
-            check(document, &name, "NORMAL", &accessor, Element::Vectors, Some(count))?;
-            Some(reader.read_normals().into_iter().flatten().map(wide).collect::<Vec<_>>())
-        }
-        None => None,
+    let Stored { mut positions, mut normals, sets, quantum, indices, mode } = match draco {
+        Some(extension) => from_draco(document, buffers, primitive, &name, extension)?,
+        None => from_accessors(document, buffers, primitive, &name)?,
     };
+    let count = positions.len();
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     // Each target's deltas checked first: the crate's readers trust the counts.
     for (t, target) in primitive.morph_targets().enumerate() {
         for (attribute, accessor) in [("POSITION", target.positions()), ("NORMAL", target.normals())] {
@@ -197,34 +319,17 @@ fn read_primitive(
             }
         }
     }
-    let mut sets = 0;
-    while primitive.get(&Semantic::Joints(sets)).is_some() || primitive.get(&Semantic::Weights(sets)).is_some() {
-        sets += 1;
-    }
-    if sets == 0 {
+    if sets.is_empty() {
         return Err(error(format!("{name}: its node has a skin but the primitive has no JOINTS_0 and WEIGHTS_0")));
     }
-    let influences = 4 * sets as usize;
+    let influences = 4 * sets.len();
     let mut joints = vec![0u32; count * influences];
     let mut weights = vec![0.0f64; count * influences];
-    let mut quantum = 0.0f64;
-    for set in 0..sets {
-        let (Some(j), Some(w)) = (primitive.get(&Semantic::Joints(set)), primitive.get(&Semantic::Weights(set))) else {
-            return Err(error(format!("{name}: JOINTS_{set} and WEIGHTS_{set} must come in pairs")));
-        };
-        check(document, &name, &format!("JOINTS_{set}"), &j, Element::Joints, Some(count))?;
-        check(document, &name, &format!("WEIGHTS_{set}"), &w, Element::Weights, Some(count))?;
-        quantum = quantum.max(match w.data_type() {
-            gltf::accessor::DataType::U8 => 1.0 / 255.0,
-            gltf::accessor::DataType::U16 => 1.0 / 65535.0,
-            _ => 0.0,
-        });
-        let read_j = reader.read_joints(set).expect("checked: JOINTS_n is present").into_u16();
-        let read_w = reader.read_weights(set).expect("checked: WEIGHTS_n is present").into_f32();
-        for (v, (js, ws)) in read_j.zip(read_w).enumerate() {
+    for (set, (set_joints, set_weights)) in sets.iter().enumerate() {
+        for (v, (js, ws)) in set_joints.iter().zip(set_weights).enumerate() {
             for k in 0..4 {
-                let slot = v * influences + 4 * set as usize + k;
-                let (joint, weight) = (js[k], f64::from(ws[k]));
+                let slot = v * influences + 4 * set + k;
+                let (joint, weight) = (js[k], ws[k]);
                 if usize::from(joint) >= skin_joints {
                     return Err(error(format!(
                         "{name}: vertex {v}: JOINTS_{set}[{k}] is {joint}, but its skin has {skin_joints} joints"
@@ -240,17 +345,9 @@ fn read_primitive(
             }
         }
     }
-    let indices = match primitive.indices() {
-        Some(accessor) => {
-            check(document, &name, "indices", &accessor, Element::Indices, None)?;
-            let indices: Vec<u32> = reader.read_indices().expect("checked: indices are present").into_u32().collect();
-            if let Some((k, i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= count) {
-                return Err(error(format!("{name}: indices[{k}] is {i}, but the primitive has {count} vertices")));
-            }
-            Some(indices)
-        }
-        None => None,
-    };
+    if let Some((k, i)) = indices.iter().flatten().enumerate().find(|(_, &i)| i as usize >= count) {
+        return Err(error(format!("{name}: indices[{k}] is {i}, but the primitive has {count} vertices")));
+    }
     let tolerance = WEIGHT_SUM_TOLERANCE + 0.5 * quantum * influences as f64;
     let mut normalized = 0;
     for (v, ws) in weights.chunks_exact_mut(influences).enumerate() {
@@ -278,6 +375,6 @@ fn read_primitive(
         weights,
         normalized,
         indices,
-        mode: primitive.mode().as_gl_enum(),
+        mode,
     })
 }

@@ -10,6 +10,7 @@
 pub mod budget;
 pub mod bvh;
 pub mod crowd;
+mod draco;
 pub mod error;
 mod glb;
 pub mod gltf;
