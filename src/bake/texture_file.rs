@@ -40,11 +40,13 @@ pub(super) struct ImageTexture {
     pub(super) bounds: Option<Bounds>,
 }
 
-/// One file of a texture: its name's suffix, joints (or vertices) per frame, and what its
-/// rows hold ([`Texels`]: their floats per joint, and how an image of them is made).
+/// One file of a texture: its name's suffix, what it holds in words (for messages), joints
+/// (or vertices) per frame, and what its rows hold ([`Texels`]: their floats per joint, and
+/// how an image of them is made).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct SheetSpec {
     pub(super) suffix: String,
+    pub(super) label: String,
     pub(super) width: usize,
     pub(super) texels: Texels,
 }
@@ -53,13 +55,20 @@ pub(super) struct SheetSpec {
 pub(super) fn bone_sheets(animation: &Animation, kind: TextureKind) -> Vec<SheetSpec> {
     texture::layout(animation, kind)
         .into_iter()
-        .map(|(suffix, width)| SheetSpec { suffix, width, texels: Texels::Rows(kind) })
+        .map(|(suffix, width)| {
+            let label = match suffix.strip_prefix('.') {
+                Some(skin) => format!("the {kind} texture of {skin}"),
+                None => format!("the {kind} texture"),
+            };
+            SheetSpec { suffix, label, width, texels: Texels::Rows(kind) }
+        })
         .collect()
 }
 
 /// The most memory an image texture may hold while its rows are gathered (its floats, then
-/// its texels): images are encoded whole, so one larger than this is refused before any of
-/// its rows are computed. `.npy` textures are streamed and have no such limit.
+/// its texels), and the most the images of one clip (or atlas) may gather together: images
+/// are encoded whole, so larger ones are refused before any row is computed. `.npy` textures
+/// are streamed and have no such limit.
 pub const IMAGE_MEMORY_LIMIT: u64 = 1 << 30;
 
 /// Bytes of texture rows computed and written at a time ([`stream`]): large
@@ -254,6 +263,23 @@ pub(super) fn open(
     what: &str,
     path: impl Fn(&str) -> PathBuf,
 ) -> Result<Vec<TextureFile>, InputError> {
+    if options.format != Format::Npy {
+        let gathered = |sheet: &SheetSpec| (rows * sheet.width * sheet.texels.channels() * 4) as u64;
+        let total: u64 = sheets.iter().map(gathered).sum();
+        if total > IMAGE_MEMORY_LIMIT {
+            let largest = sheets.iter().max_by_key(|s| gathered(s)).map_or("", |s| s.label.as_str());
+            return Err(InputError::Animation(format!(
+                "{what}: its {} {} images would gather {} MiB of rows in memory together (the largest, {largest}: \
+                 {} MiB), over IMAGE_MEMORY_LIMIT = {} MiB; bake at a lower rate, clip by clip rather than as one atlas, \
+                 or as npy (streamed)",
+                sheets.len(),
+                options.format,
+                total.div_ceil(1 << 20),
+                sheets.iter().map(gathered).max().unwrap_or(0).div_ceil(1 << 20),
+                IMAGE_MEMORY_LIMIT >> 20
+            )));
+        }
+    }
     sheets.iter().map(|sheet| TextureFile::create(path(&sheet.suffix), options, sheet, rows, what)).collect()
 }
 

@@ -54,13 +54,19 @@ impl VertexSheets {
         let mut out = Vec::new();
         for (k, p) in self.primitives.iter().enumerate() {
             let width = p.vertices();
+            let sheet = |suffix: String, what: &str, texels: Texels| SheetSpec {
+                suffix,
+                label: format!("{}'s {what}", p.name),
+                width,
+                texels,
+            };
             if !self.images {
-                out.push(SheetSpec { suffix: suffix(k), width, texels: Texels::Rows(TextureKind::Vertex) });
+                out.push(sheet(suffix(k), "vertices", Texels::Rows(TextureKind::Vertex)));
                 continue;
             }
-            out.push(SheetSpec { suffix: format!("{}.pos", suffix(k)), width, texels: Texels::Positions });
+            out.push(sheet(format!("{}.pos", suffix(k)), "positions", Texels::Positions));
             if p.normals.is_some() {
-                out.push(SheetSpec { suffix: format!("{}.nrm", suffix(k)), width, texels: Texels::Normals });
+                out.push(sheet(format!("{}.nrm", suffix(k)), "normals", Texels::Normals));
             }
         }
         out

@@ -483,7 +483,7 @@ fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind(
     let Some(data) = data_dir() else { return };
     let out = tempfile::tempdir().unwrap();
     let input = |name: &str| data.join(name).display().to_string();
-    let cases: [(Vec<String>, &str); 4] = [
+    let cases: [(Vec<String>, &str); 5] = [
         (vec!["--input".into(), input("cmu_131_01.bvh")], "a BVH file has no mesh"),
         (vec![], "vertex skins a glTF's meshes, and the built-in crowd has none"),
         (vec!["--input".into(), input("CesiumMan.glb"), "--max-error".into(), "1".into()], "bake vertex textures at a --rate"),
@@ -502,6 +502,13 @@ fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind(
             ],
             "clip 'animation0': its exr image CesiumMan.animation0.mesh0.pos.exr would take 1028 MiB of memory while it \
              is gathered and encoded, over IMAGE_MEMORY_LIMIT = 1024 MiB",
+        ),
+        // 1,396 frames of BrainStem's 34,239 vertices in 59 primitives, 24 bytes each (a
+        // position and a normal), every image of the clip gathered at once: 1,095 MiB.
+        (
+            vec!["--input".into(), input("BrainStem.glb"), "--rate".into(), "40".into(), "--format".into(), "exr".into()],
+            "clip 'animation0': its 118 exr images would gather 1095 MiB of rows in memory together (the largest, node \
+             'node1', mesh 'Figure_2_geometry', primitive 25's normals: 54 MiB), over IMAGE_MEMORY_LIMIT = 1024 MiB",
         ),
     ];
     for (k, (args, expected)) in cases.iter().enumerate() {
