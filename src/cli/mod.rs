@@ -81,6 +81,7 @@ named!(
     quatcurve::bake::texture::Precision,
     quatcurve::bake::image::Format,
     quatcurve::gpu::shader::Language,
+    quatcurve::gpu::shader::Program,
     quatcurve::bake::root_motion::RootMotion
 );
 

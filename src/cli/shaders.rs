@@ -4,7 +4,7 @@
 
 use super::{names, print_stdout, Failure};
 use clap::Args;
-use quatcurve::gpu::shader::{self, Language};
+use quatcurve::gpu::shader::{self, Language, Program};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -13,13 +13,17 @@ pub struct ShadersArgs {
     /// hlsl (shader model 5.1).
     #[arg(long, default_value = "wgsl", value_parser = names::<Language>())]
     lang: Language,
+    /// The program: bones (bone_texture.wgsl and a skinned vertex shader) or vertex
+    /// (vertex_texture.wgsl over it, and a vertex shader reading a `--texture vertex` bake).
+    #[arg(long, default_value = "bones", value_parser = names::<Program>())]
+    program: Program,
     /// Write to this file (atomically) instead of standard output.
     #[arg(long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
 
 pub fn run(args: &ShadersArgs) -> Result<(), Failure> {
-    let text = shader::skin_vertex_in(args.lang).map_err(Failure::Internal)?;
+    let text = shader::program_in(args.program, args.lang).map_err(Failure::Internal)?;
     match &args.output {
         Some(path) => quatcurve::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
             .map_err(|e| Failure::Input(format!("--output {e}"))),

@@ -16,6 +16,23 @@ fn every_shader_file_parses_and_the_program_validates() {
 }
 
 #[test]
+fn every_shipped_program_translates_to_every_language() {
+    use shader::{Language, Program};
+    for program in [Program::Bones, Program::Vertex] {
+        for language in [Language::Wgsl, Language::Glsl, Language::GlslEs, Language::Hlsl] {
+            let text = shader::program_in(program, language).unwrap_or_else(|e| panic!("{program} in {language}: {e}"));
+            // GLSL names its one entry point main.
+            let entry = if matches!(language, Language::Glsl | Language::GlslEs) {
+                "void main("
+            } else {
+                program.entry_point()
+            };
+            assert!(text.contains(entry), "{program} in {language} lacks {entry}");
+        }
+    }
+}
+
+#[test]
 fn shader_program_uses_no_f64() {
     // naga 30 emits invalid SPIR-V for f64 transcendentals, which lavapipe runs silently wrong.
     let (module, _) = shader::module().unwrap();

@@ -14,6 +14,7 @@ mod shader;
 mod shards;
 mod textures;
 mod vertex;
+mod vertex_shader;
 
 use assert_cmd::Command;
 use base64::Engine;

@@ -47,7 +47,7 @@ fn max_clips() -> usize {
     shader::constant_u32(&module, "BONE_MAX_CLIPS").expect("bone_texture.wgsl declares BONE_MAX_CLIPS") as usize
 }
 
-fn naga_module(source: &str) -> (naga::Module, naga::valid::ModuleInfo) {
+pub(super) fn naga_module(source: &str) -> (naga::Module, naga::valid::ModuleInfo) {
     let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
         .validate(&module)
@@ -90,7 +90,7 @@ fn layout_bytes(sidecar: &serde_json::Value, record: &serde_json::Value, texels:
 }
 
 /// An image texture's texels as a renderer samples them: EXR's floats, PNG16's unorm values.
-fn texels(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
+pub(super) fn texels(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
     if path.extension().is_some_and(|e| e == "exr") {
         let image = exr::prelude::read_first_rgba_layer_from_file(
             path,
@@ -127,7 +127,7 @@ fn bones_layout(device: &wgpu::Device, visibility: wgpu::ShaderStages) -> wgpu::
 }
 
 /// An `rgba32float` texture of `texels`, `width` by `height`, for `bone_texture`.
-fn bone_texture(
+pub(super) fn bone_texture(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     width: u32,
@@ -656,7 +656,7 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
 
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
 /// QUATCURVE_REQUIRE_VALIDATOR, which makes its absence a failure).
-fn glslang() -> Option<&'static str> {
+pub(super) fn glslang() -> Option<&'static str> {
     let found =
         std::process::Command::new("glslangValidator").arg("--version").output().is_ok_and(|o| o.status.success());
     if !found {

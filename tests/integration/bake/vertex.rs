@@ -341,7 +341,7 @@ fn octahedral(u: f64, v: f64) -> [f64; 3] {
 }
 
 /// Each mesh's `TEXCOORD_0` in the mesh file a vertex bake wrote, by the glTF crate's reader.
-fn addresses(path: &std::path::Path) -> Vec<Vec<[f32; 2]>> {
+pub(super) fn addresses(path: &std::path::Path) -> Vec<Vec<[f32; 2]>> {
     let (document, buffers) = open(path);
     document
         .meshes()

@@ -1,0 +1,281 @@
+//! The shipped vertex-texture library (`shaders/vertex_texture.wgsl`, through its probe entry
+//! point) run on a GPU API over real baked EXR textures and the mesh file's addresses, at
+//! every frame and between frames, against the `.npy` bake of the same clips (positions lerped,
+//! normals nlerped, loops wrapped); and its crowd vertex shader translated to GLSL, GLSL ES and
+//! HLSL by `quatcurve shaders --program vertex`, checked by glslang.
+
+use super::shader::{bone_texture, naga_module, texels};
+use super::{bake, data_dir, json, read_npy, stderr};
+use glam::DVec3;
+use quatcurve::gpu::shader;
+use std::path::Path;
+
+/// One query of `vertex_probe.wgsl` (its `VertexQuery`).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Query {
+    clip: u32,
+    time: f32,
+    address: [u32; 2],
+}
+
+/// `vertex_texture.wgsl`'s `VertexLayout` for one clip: the grid, normals or not, the box, and
+/// the clip as `BoneClip` at index 0 (the rest of the 64 zero).
+fn layout_bytes(record: &serde_json::Value, clip: &serde_json::Value, has_normals: bool) -> Vec<u8> {
+    let n = |v: &serde_json::Value| v.as_u64().unwrap() as u32;
+    let mut words: Vec<u32> = vec![
+        n(&record["frame_width"]),
+        n(&record["rows_per_frame"]),
+        n(&record["frames_per_column"]),
+        u32::from(has_normals),
+    ];
+    for key in ["low", "span"] {
+        words.extend((0..3).map(|c| (record[key][c].as_f64().unwrap() as f32).to_bits()));
+        words.push(0);
+    }
+    let looping = u32::from(clip["loop"].as_bool().unwrap());
+    let rate = clip["rate"].as_f64().unwrap() as f32;
+    words.extend([n(&clip["first_row"]), n(&clip["frames"]), looping, rate.to_bits()]);
+    words.resize(words.len() + 63 * 4, 0);
+    bytemuck::cast_slice(&words).to_vec()
+}
+
+#[test]
+fn the_layout_and_query_are_laid_out_as_their_wgsl_twins() {
+    let (module, _) = naga_module(&shader::vertex_probe_source());
+    let find = |name: &str| {
+        let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).unwrap();
+        let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("{name} is a struct") };
+        (members.iter().map(|m| m.offset).collect::<Vec<u32>>(), *span as usize)
+    };
+    assert_eq!(find("VertexQuery"), (vec![0, 4, 8], std::mem::size_of::<Query>()));
+    let record = serde_json::json!({"frame_width": 1, "rows_per_frame": 1, "frames_per_column": 1,
+        "low": [0.0, 0.0, 0.0], "span": [1.0, 1.0, 1.0]});
+    let clip = serde_json::json!({"first_row": 0, "frames": 1, "loop": false, "rate": 30.0});
+    assert_eq!(find("VertexLayout"), (vec![0, 4, 8, 12, 16, 32, 48], layout_bytes(&record, &clip, true).len()));
+}
+
+/// Runs `vertex_probe` over one primitive's textures: six floats (position, normal) per query.
+fn probe(positions: &Path, normals: Option<&Path>, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
+    use wgpu::util::DeviceExt;
+    let gpu = crate::shared_gpu()?;
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let upload = |path: &Path| {
+        let (width, height, data) = texels(path);
+        bone_texture(device, queue, width, height, &data)
+    };
+    let position_texture = upload(positions);
+    // Without normals the layout says so, and the positions stand in for the binding.
+    let normal_texture = normals.map(upload);
+    let source = shader::vertex_probe_source();
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("vertex probe"),
+        source: wgpu::ShaderSource::Wgsl(source.clone().into()),
+    });
+    let entry =
+        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::COMPUTE, ty, count: None };
+    let buffer = |ty| wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
+    let texture = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    let io = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[
+            entry(0, buffer(wgpu::BufferBindingType::Storage { read_only: true })),
+            entry(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
+        ],
+    });
+    let vertex = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: None,
+        entries: &[entry(0, texture), entry(1, texture), entry(2, buffer(wgpu::BufferBindingType::Uniform))],
+    });
+    let empty = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[] });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(&io), Some(&empty), Some(&vertex)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("vertex probe"),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(shader::VERTEX_PROBE_ENTRY_POINT),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let bytes = (queries.len() * 6 * 4) as u64;
+    let init = |contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
+    };
+    let queries_buffer = init(bytemuck::cast_slice(queries), wgpu::BufferUsages::STORAGE);
+    let uniform = init(layout, wgpu::BufferUsages::UNIFORM);
+    let plain = |usage| {
+        device.create_buffer(&wgpu::BufferDescriptor { label: None, size: bytes, usage, mapped_at_creation: false })
+    };
+    let answers = plain(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+    let read = plain(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+    let position_view = position_texture.create_view(&Default::default());
+    let normal_view = normal_texture.as_ref().unwrap_or(&position_texture).create_view(&Default::default());
+    let group = |layout, entries: &[wgpu::BindGroupEntry]| {
+        device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries })
+    };
+    let group0 = group(
+        &io,
+        &[
+            wgpu::BindGroupEntry { binding: 0, resource: queries_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: answers.as_entire_binding() },
+        ],
+    );
+    let group1 = group(&empty, &[]);
+    let group2 = group(
+        &vertex,
+        &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&position_view) },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&normal_view) },
+            wgpu::BindGroupEntry { binding: 2, resource: uniform.as_entire_binding() },
+        ],
+    );
+    let (module_naga, _) = naga_module(&source);
+    let workgroup = shader::entry_workgroup_size(&module_naga, shader::VERTEX_PROBE_ENTRY_POINT).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group0, &[]);
+        pass.set_bind_group(1, &group1, &[]);
+        pass.set_bind_group(2, &group2, &[]);
+        pass.dispatch_workgroups((queries.len() as u32).div_ceil(workgroup), 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&answers, 0, &read, 0, bytes);
+    queue.submit([encoder.finish()]);
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        panic!("{}: the vertex probe was refused: {e}", positions.display());
+    }
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let out = bytemuck::cast_slice::<u8, f32>(&slice.get_mapped_range().unwrap()).to_vec();
+    Some(out)
+}
+
+#[test]
+fn the_vertex_texture_shader_reads_every_frame_and_blends_between_them_as_the_npy_holds() {
+    let Some(data) = data_dir() else { return };
+    if crate::shared_gpu().is_none() {
+        return;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let names = ["CesiumMan.glb", "Fox.glb"];
+    let inputs: Vec<String> = names.iter().map(|n| data.join(n).display().to_string()).collect();
+    for format in ["exr", "npy"] {
+        let dir = out.path().join(format);
+        let mut args = vec!["--texture", "vertex", "--rate", "30", "--format", format, "--max-texture-size", "1024"];
+        args.extend(["--output", dir.to_str().unwrap(), "--input"]);
+        args.extend(inputs.iter().map(String::as_str));
+        let result = bake(&args);
+        assert!(result.status.success(), "{}", stderr(&result));
+    }
+    let (mut worst_position, mut worst_normal, mut queried) = (0.0f64, 0.0f64, 0usize);
+    for name in names {
+        let stem = Path::new(name).file_stem().unwrap().to_str().unwrap();
+        let (exr, npy) = (out.path().join("exr"), out.path().join("npy"));
+        let sidecar = json(&exr.join(format!("{stem}.json")));
+        let raw = json(&npy.join(format!("{stem}.json")));
+        let addresses = super::vertex::addresses(&exr.join(format!("{stem}.mesh.glb")));
+        for (clip, raw_clip) in sidecar["clips"].as_array().unwrap().iter().zip(raw["clips"].as_array().unwrap()) {
+            let (frames, rate) = (clip["frames"].as_u64().unwrap() as usize, clip["rate"].as_f64().unwrap());
+            let files: Vec<&str> = clip["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap()).collect();
+            for (k, address) in addresses.iter().enumerate() {
+                let file =
+                    |part: &str| files.iter().find(|f| f.contains(&format!(".mesh{k}.{part}."))).map(|f| exr.join(f));
+                let positions = file("pos").unwrap();
+                let normals = file("nrm");
+                let record = sidecar["textures"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|t| t["file"] == positions.file_name().unwrap().to_str().unwrap())
+                    .unwrap();
+                let span: Vec<f64> = (0..3).map(|c| record["span"][c].as_f64().unwrap()).collect();
+                let diagonal = span.iter().map(|s| s * s).sum::<f64>().sqrt();
+                let (shape, rows) = read_npy(&npy.join(raw_clip["files"][k].as_str().unwrap()));
+                let vertices = shape[1] as usize;
+                let at = |frame: usize, v: usize| -> [f64; 6] {
+                    std::array::from_fn(|c| f64::from(rows[(frame * vertices + v) * 6 + c]))
+                };
+                // Every frame, and half-way between frames; a loop also a period later.
+                let mut times: Vec<(f64, usize, f64)> = (0..frames).map(|f| (f as f64 / rate, f, 0.0)).collect();
+                times.extend((0..frames - 1).map(|f| ((f as f64 + 0.5) / rate, f, 0.5)));
+                if clip["loop"].as_bool().unwrap() {
+                    let period = (frames - 1) as f64 / rate;
+                    times.extend((0..frames - 1).map(|f| (period + (f as f64 + 0.25) / rate, f, 0.25)));
+                }
+                let picked: Vec<usize> = (0..vertices).step_by((vertices / 97).max(1)).collect();
+                let mut queries = Vec::new();
+                for &(time, _, _) in &times {
+                    for &v in &picked {
+                        let [x, y] = address[v].map(|c| c as u32);
+                        queries.push(Query { clip: 0, time: time as f32, address: [x, y] });
+                    }
+                }
+                let layout = layout_bytes(record, clip, normals.is_some());
+                let answers = probe(&positions, normals.as_deref(), &layout, &queries).unwrap();
+                for (q, (&(time, frame, blend), &v)) in
+                    times.iter().flat_map(|t| picked.iter().map(move |v| (t, v))).enumerate()
+                {
+                    let (a, b) = (at(frame, v), at((frame + 1).min(frames - 1), v));
+                    let got = &answers[q * 6..q * 6 + 6];
+                    let want: Vec<f64> = (0..3).map(|c| a[c] + (b[c] - a[c]) * blend).collect();
+                    let position = (0..3).map(|c| (f64::from(got[c]) - want[c]).powi(2)).sum::<f64>().sqrt() / diagonal;
+                    worst_position = worst_position.max(position);
+                    let what = format!("{name} clip {} primitive {k} vertex {v} at {time:.4} s", clip["name"]);
+                    assert!(position <= 1e-5, "{what}: position off by {position:e} of the diagonal");
+                    if normals.is_some() {
+                        let n = |r: &[f64; 6]| DVec3::new(r[3], r[4], r[5]);
+                        let want = (n(&a) + (n(&b) - n(&a)) * blend).normalize();
+                        let got = DVec3::new(f64::from(got[3]), f64::from(got[4]), f64::from(got[5]));
+                        let angle = got.angle_between(want);
+                        worst_normal = worst_normal.max(angle);
+                        assert!(angle <= 1e-4, "{what}: normal off by {angle:e} rad");
+                    }
+                }
+                queried += queries.len();
+            }
+        }
+    }
+    eprintln!(
+        "vertex_texture.wgsl on the GPU, {queried} queries: positions within {worst_position:.1e} of the diagonal, \
+         normals within {worst_normal:.1e} rad of the npy frames, lerped and nlerped"
+    );
+}
+
+#[test]
+fn generated_vertex_texture_shaders_compile_with_glslang() {
+    let Some(tool) = super::shader::glslang() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for (lang, extra) in [
+        ("glsl", vec!["-S", "vert"]),
+        ("glsl-es", vec!["-S", "vert"]),
+        ("hlsl", vec!["-D", "-V", "-S", "vert", "-e", shader::VERTEX_TEXTURE_ENTRY_POINT, "-o", "/dev/null"]),
+    ] {
+        let path = dir.path().join(format!("vertex.{lang}"));
+        let out = assert_cmd::Command::cargo_bin("quatcurve")
+            .unwrap()
+            .args(["shaders", "--program", "vertex", "--lang", lang, "--output", path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{lang}: {}", stderr(&out));
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("vertex_position"), "{lang}: the library's vertex_position is missing");
+        let result = std::process::Command::new(tool).args(&extra).arg(&path).current_dir(dir.path()).output().unwrap();
+        assert!(
+            result.status.success(),
+            "{lang}: glslang rejects the generated shader:\n{}\n{}",
+            String::from_utf8_lossy(&result.stdout),
+            text
+        );
+    }
+}
