@@ -482,65 +482,46 @@ fn the_skinning_matrix_is_the_weighted_sum_of_the_skin_texture_s_matrices() {
     }
 }
 
-#[test]
-fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
+/// A 4x4 `Rgba8Unorm` image drawn on the shared GPU by vertex entry point `entry` of `source`
+/// (a fragment stage `show` is appended: the normal as a colour), with `groups` bound at
+/// their indices and `buffers` (layout, bytes) as vertex buffers 0, 1, ...: `vertices`
+/// vertices of one instance. Rows of 256 bytes; `None` without a GPU.
+pub(super) fn draw(
+    source: &str,
+    out: &str,
+    entry: &str,
+    groups: &[(&wgpu::BindGroupLayout, &wgpu::BindGroup)],
+    buffers: &[(wgpu::VertexBufferLayout<'_>, Vec<u8>)],
+    vertices: u32,
+) -> Option<Vec<u8>> {
     use wgpu::util::DeviceExt;
-    let Some(gpu) = crate::shared_gpu() else { return };
+    let gpu = crate::shared_gpu()?;
     let (device, queue) = (gpu.context().device(), gpu.context().queue());
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    // The shipped vertex shader and a fragment stage that shows its normal.
     let source = format!(
-        "{}\n@fragment fn show(v: SkinnedOut) -> @location(0) vec4f {{ return vec4f(v.normal * 0.5 + 0.5, 1.0); }}",
-        shader::skin_vertex_source()
+        "{source}\n@fragment fn show(v: {out}) -> @location(0) vec4f {{ return vec4f(v.normal * 0.5 + 0.5, 1.0); }}"
     );
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("skin vertex"),
+        label: Some(entry),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
-    let entry =
-        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::VERTEX, ty, count: None };
-    let uniform = wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Uniform,
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    };
-    let camera_layout = device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[entry(0, uniform)] });
-    let bones_layout = bones_layout(device, wgpu::ShaderStages::VERTEX);
+    let layouts: Vec<Option<&wgpu::BindGroupLayout>> = groups.iter().map(|(l, _)| Some(*l)).collect();
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
-        bind_group_layouts: &[Some(&camera_layout), Some(&bones_layout)],
+        bind_group_layouts: &layouts,
         immediate_size: 0,
     });
-    let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
-    use wgpu::VertexFormat as F;
-    let per_vertex = [
-        attribute(0, F::Float32x3, 0),
-        attribute(1, F::Float32x3, 12),
-        attribute(2, F::Uint32x4, 24),
-        attribute(3, F::Float32x4, 40),
-    ];
-    let per_instance = [attribute(4, F::Float32x3, 0), attribute(5, F::Uint32, 12), attribute(6, F::Float32, 16)];
     let target = wgpu::TextureFormat::Rgba8Unorm;
+    let vertex_layouts: Vec<Option<wgpu::VertexBufferLayout<'_>>> =
+        buffers.iter().map(|(l, _)| Some(l.clone())).collect();
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("skin vertex"),
+        label: Some(entry),
         layout: Some(&layout),
         vertex: wgpu::VertexState {
             module: &module,
-            entry_point: Some(shader::SKIN_VERTEX_ENTRY_POINT),
+            entry_point: Some(entry),
             compilation_options: Default::default(),
-            buffers: &[
-                Some(wgpu::VertexBufferLayout {
-                    array_stride: 56,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &per_vertex,
-                }),
-                Some(wgpu::VertexBufferLayout {
-                    array_stride: 20,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &per_instance,
-                }),
-            ],
+            buffers: &vertex_layouts,
         },
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: None,
@@ -554,44 +535,16 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
         multiview_mask: None,
         cache: None,
     });
-    // One joint at rest (rotation, translation, scale texels) in a one-frame clip; an identity
-    // camera; a triangle over the whole target bound to that joint, its normal towards +z.
-    let rest: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, 1.0], [0.0; 4], [1.0, 1.0, 1.0, 0.0]];
-    let bones = bone_texture(device, queue, 3, 1, &rest);
-    let one_frame = serde_json::json!({"clips": [{"first_row": 0, "frames": 1, "loop": false, "rate": 30.0}]});
-    let grid =
-        serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
-    let buffer = |contents: &[u8], usage| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
-    };
-    let identity: [f32; 16] = std::array::from_fn(|i| if i % 5 == 0 { 1.0 } else { 0.0 });
-    let camera = buffer(bytemuck::cast_slice(&identity), wgpu::BufferUsages::UNIFORM);
-    let bone_layout = buffer(&layout_bytes(&one_frame, &grid, 3), wgpu::BufferUsages::UNIFORM);
-    let mut vertices: Vec<u8> = Vec::new();
-    for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
-        vertices.extend(bytemuck::cast_slice(&[x, y, 0.5, 0.0, 0.0, 1.0]));
-        vertices.extend(bytemuck::cast_slice(&[0u32; 4]));
-        vertices.extend(bytemuck::cast_slice(&[1.0f32, 0.0, 0.0, 0.0]));
-    }
-    let vertices = buffer(&vertices, wgpu::BufferUsages::VERTEX);
-    let mut instance: Vec<u8> = bytemuck::cast_slice(&[0.0f32; 3]).to_vec();
-    instance.extend(bytemuck::cast_slice(&[0u32]));
-    instance.extend(bytemuck::cast_slice(&[0.0f32]));
-    let instances = buffer(&instance, wgpu::BufferUsages::VERTEX);
-    let view = bones.create_view(&Default::default());
-    let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &camera_layout,
-        entries: &[wgpu::BindGroupEntry { binding: 0, resource: camera.as_entire_binding() }],
-    });
-    let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &bones_layout,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
-            wgpu::BindGroupEntry { binding: 1, resource: bone_layout.as_entire_binding() },
-        ],
-    });
+    let vertex_buffers: Vec<wgpu::Buffer> = buffers
+        .iter()
+        .map(|(_, bytes)| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: None,
+                contents: bytes,
+                usage: wgpu::BufferUsages::VERTEX,
+            })
+        })
+        .collect();
     let size = wgpu::Extent3d { width: 4, height: 4, depth_or_array_layers: 1 };
     let image = device.create_texture(&wgpu::TextureDescriptor {
         label: None,
@@ -623,11 +576,13 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
             ..Default::default()
         });
         pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group0, &[]);
-        pass.set_bind_group(1, &group1, &[]);
-        pass.set_vertex_buffer(0, vertices.slice(..));
-        pass.set_vertex_buffer(1, instances.slice(..));
-        pass.draw(0..3, 0..1);
+        for (k, (_, group)) in groups.iter().enumerate() {
+            pass.set_bind_group(k as u32, *group, &[]);
+        }
+        for (k, buffer) in vertex_buffers.iter().enumerate() {
+            pass.set_vertex_buffer(k as u32, buffer.slice(..));
+        }
+        pass.draw(0..vertices, 0..1);
     }
     encoder.copy_texture_to_buffer(
         image.as_image_copy(),
@@ -639,19 +594,149 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
     );
     queue.submit([encoder.finish()]);
     if let Some(e) = pollster::block_on(scope.pop()) {
-        panic!("the skinned vertex shader was refused: {e}");
+        panic!("{entry} was refused: {e}");
     }
     let slice = read.slice(..);
     slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
     device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
     let pixels = slice.get_mapped_range().unwrap().to_vec();
-    // The normal (0, 0, 1), skinned by the joint at rest, shown as (0.5, 0.5, 1).
+    Some(pixels)
+}
+
+/// Every pixel of a [`draw`]n image is the colour of normal +z: (0.5, 0.5, 1).
+pub(super) fn assert_facing_the_camera(pixels: &[u8], what: &str) {
     for row in 0..4 {
         for x in 0..4 {
             let p = &pixels[row * 256 + x * 4..row * 256 + x * 4 + 4];
-            assert!(p[0].abs_diff(128) <= 1 && p[1].abs_diff(128) <= 1 && p[2] == 255, "pixel ({x}, {row}): {p:?}");
+            assert!(
+                p[0].abs_diff(128) <= 1 && p[1].abs_diff(128) <= 1 && p[2] == 255,
+                "{what}: pixel ({x}, {row}): {p:?}"
+            );
         }
     }
+}
+
+/// A bind group layout of `entries` visible to the vertex stage, and its group of `resources`.
+pub(super) fn vertex_group(
+    device: &wgpu::Device,
+    entries: &[wgpu::BindingType],
+    resources: &[wgpu::BindingResource<'_>],
+) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = entries
+        .iter()
+        .enumerate()
+        .map(|(k, ty)| wgpu::BindGroupLayoutEntry {
+            binding: k as u32,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: *ty,
+            count: None,
+        })
+        .collect();
+    let layout =
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &layout_entries });
+    let group_entries: Vec<wgpu::BindGroupEntry> = resources
+        .iter()
+        .enumerate()
+        .map(|(k, resource)| wgpu::BindGroupEntry { binding: k as u32, resource: resource.clone() })
+        .collect();
+    let group =
+        device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &group_entries });
+    (layout, group)
+}
+
+/// A uniform buffer binding's type.
+pub(super) const UNIFORM: wgpu::BindingType = wgpu::BindingType::Buffer {
+    ty: wgpu::BufferBindingType::Uniform,
+    has_dynamic_offset: false,
+    min_binding_size: None,
+};
+
+/// A texture read texel by texel.
+pub(super) const TEXEL_TEXTURE: wgpu::BindingType = wgpu::BindingType::Texture {
+    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+    view_dimension: wgpu::TextureViewDimension::D2,
+    multisampled: false,
+};
+
+/// A buffer of `contents` for `usage`, on the shared GPU.
+pub(super) fn gpu_buffer(device: &wgpu::Device, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
+}
+
+/// The identity matrix as a camera's view-projection.
+pub(super) fn identity_camera() -> Vec<u8> {
+    let identity: [f32; 16] = std::array::from_fn(|i| if i % 5 == 0 { 1.0 } else { 0.0 });
+    bytemuck::cast_slice(&identity).to_vec()
+}
+
+#[test]
+fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
+    let Some(gpu) = crate::shared_gpu() else { return };
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    // One joint at rest (rotation, translation, scale texels) in a one-frame clip; an identity
+    // camera; a triangle over the whole target bound to that joint, its normal towards +z.
+    let rest: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, 1.0], [0.0; 4], [1.0, 1.0, 1.0, 0.0]];
+    let bones = bone_texture(device, queue, 3, 1, &rest);
+    let one_frame = serde_json::json!({"clips": [{"first_row": 0, "frames": 1, "loop": false, "rate": 30.0}]});
+    let grid =
+        serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
+    let camera = gpu_buffer(device, &identity_camera(), wgpu::BufferUsages::UNIFORM);
+    let bone_layout = gpu_buffer(device, &layout_bytes(&one_frame, &grid, 3), wgpu::BufferUsages::UNIFORM);
+    let mut vertices: Vec<u8> = Vec::new();
+    for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
+        vertices.extend(bytemuck::cast_slice(&[x, y, 0.5, 0.0, 0.0, 1.0]));
+        vertices.extend(bytemuck::cast_slice(&[0u32; 4]));
+        vertices.extend(bytemuck::cast_slice(&[1.0f32, 0.0, 0.0, 0.0]));
+    }
+    let mut instance: Vec<u8> = bytemuck::cast_slice(&[0.0f32; 3]).to_vec();
+    instance.extend(bytemuck::cast_slice(&[0u32]));
+    instance.extend(bytemuck::cast_slice(&[0.0f32]));
+    let view = bones.create_view(&Default::default());
+    let group0 = vertex_group(device, &[UNIFORM], &[camera.as_entire_binding()]);
+    let group1 = vertex_group(
+        device,
+        &[TEXEL_TEXTURE, UNIFORM],
+        &[wgpu::BindingResource::TextureView(&view), bone_layout.as_entire_binding()],
+    );
+    let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
+    use wgpu::VertexFormat as F;
+    let per_vertex = [
+        attribute(0, F::Float32x3, 0),
+        attribute(1, F::Float32x3, 12),
+        attribute(2, F::Uint32x4, 24),
+        attribute(3, F::Float32x4, 40),
+    ];
+    let per_instance = [attribute(4, F::Float32x3, 0), attribute(5, F::Uint32, 12), attribute(6, F::Float32, 16)];
+    let buffers = [
+        (
+            wgpu::VertexBufferLayout {
+                array_stride: 56,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &per_vertex,
+            },
+            vertices,
+        ),
+        (
+            wgpu::VertexBufferLayout {
+                array_stride: 20,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &per_instance,
+            },
+            instance,
+        ),
+    ];
+    let pixels = draw(
+        &shader::skin_vertex_source(),
+        "SkinnedOut",
+        shader::SKIN_VERTEX_ENTRY_POINT,
+        &[(&group0.0, &group0.1), (&group1.0, &group1.1)],
+        &buffers,
+        3,
+    )
+    .unwrap();
+    // The normal (0, 0, 1), skinned by the joint at rest, shown as (0.5, 0.5, 1).
+    assert_facing_the_camera(&pixels, "the skinned vertex shader");
 }
 
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets

@@ -279,3 +279,65 @@ fn generated_vertex_texture_shaders_compile_with_glslang() {
         );
     }
 }
+
+#[test]
+fn the_vertex_texture_vertex_shader_draws_on_a_gpu_api() {
+    use super::shader::{assert_facing_the_camera, draw, gpu_buffer, identity_camera, vertex_group};
+    use super::shader::{TEXEL_TEXTURE, UNIFORM};
+    let Some(gpu) = crate::shared_gpu() else { return };
+    let (device, queue) = (gpu.context().device(), gpu.context().queue());
+    // One frame of three vertices whose positions, in the box low (-1, -1, 0.5) span (4, 4, 1),
+    // are a triangle over the whole target, each normal +z (octahedral (0.5, 0.5)).
+    let positions =
+        bone_texture(device, queue, 3, 1, &[[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]]);
+    let normals = bone_texture(device, queue, 3, 1, &[[0.5, 0.5, 0.0, 1.0]; 3]);
+    let record = serde_json::json!({"frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1,
+        "low": [-1.0, -1.0, 0.5], "span": [4.0, 4.0, 1.0]});
+    let clip = serde_json::json!({"first_row": 0, "frames": 1, "loop": false, "rate": 30.0});
+    let layout = gpu_buffer(device, &layout_bytes(&record, &clip, true), wgpu::BufferUsages::UNIFORM);
+    let camera = gpu_buffer(device, &identity_camera(), wgpu::BufferUsages::UNIFORM);
+    let (position_view, normal_view) =
+        (positions.create_view(&Default::default()), normals.create_view(&Default::default()));
+    let group0 = vertex_group(device, &[UNIFORM], &[camera.as_entire_binding()]);
+    let group1 = vertex_group(device, &[], &[]);
+    let group2 = vertex_group(
+        device,
+        &[TEXEL_TEXTURE, TEXEL_TEXTURE, UNIFORM],
+        &[
+            wgpu::BindingResource::TextureView(&position_view),
+            wgpu::BindingResource::TextureView(&normal_view),
+            layout.as_entire_binding(),
+        ],
+    );
+    // TEXCOORD_0 of the three vertices: texels 0, 1 and 2 of the frame's row.
+    let addresses: Vec<u8> = bytemuck::cast_slice(&[0.0f32, 0.0, 1.0, 0.0, 2.0, 0.0]).to_vec();
+    let mut instance: Vec<u8> = bytemuck::cast_slice(&[0.0f32; 3]).to_vec();
+    instance.extend(bytemuck::cast_slice(&[0u32]));
+    instance.extend(bytemuck::cast_slice(&[0.0f32]));
+    let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
+    use wgpu::VertexFormat as F;
+    let per_vertex = [attribute(0, F::Float32x2, 0)];
+    let per_instance = [attribute(1, F::Float32x3, 0), attribute(2, F::Uint32, 12), attribute(3, F::Float32, 16)];
+    let buffers = [
+        (
+            wgpu::VertexBufferLayout {
+                array_stride: 8,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &per_vertex,
+            },
+            addresses,
+        ),
+        (
+            wgpu::VertexBufferLayout {
+                array_stride: 20,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &per_instance,
+            },
+            instance,
+        ),
+    ];
+    let source = shader::Program::Vertex.source();
+    let groups = [(&group0.0, &group0.1), (&group1.0, &group1.1), (&group2.0, &group2.1)];
+    let pixels = draw(&source, "TexturedOut", shader::VERTEX_TEXTURE_ENTRY_POINT, &groups, &buffers, 3).unwrap();
+    assert_facing_the_camera(&pixels, "the vertex-texture vertex shader");
+}
