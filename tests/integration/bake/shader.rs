@@ -741,7 +741,7 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
 
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
 /// QUATCURVE_REQUIRE_VALIDATOR, which makes its absence a failure).
-pub(super) fn glslang() -> Option<&'static str> {
+fn glslang() -> Option<&'static str> {
     let found =
         std::process::Command::new("glslangValidator").arg("--version").output().is_ok_and(|o| o.status.success());
     if !found {
@@ -759,27 +759,28 @@ pub(super) fn glslang() -> Option<&'static str> {
 fn generated_glsl_and_hlsl_compile_with_glslang() {
     let Some(tool) = glslang() else { return };
     let dir = tempfile::tempdir().unwrap();
-    for (lang, extra) in [
-        ("glsl", vec!["-S", "vert"]),
-        ("glsl-es", vec!["-S", "vert"]),
-        ("hlsl", vec!["-D", "-V", "-S", "vert", "-e", shader::SKIN_VERTEX_ENTRY_POINT, "-o", "/dev/null"]),
-    ] {
-        let path = dir.path().join(format!("skin.{lang}"));
-        let out = assert_cmd::Command::cargo_bin("quatcurve")
-            .unwrap()
-            .args(["shaders", "--lang", lang, "--output", path.to_str().unwrap()])
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "{lang}: {}", stderr(&out));
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains("bone_pose"), "{lang}: the library's bone_pose is missing");
-        let result = std::process::Command::new(tool).args(&extra).arg(&path).current_dir(dir.path()).output().unwrap();
-        assert!(
-            result.status.success(),
-            "{lang}: glslang rejects the generated shader:\n{}\n{}",
-            String::from_utf8_lossy(&result.stdout),
-            text
-        );
+    // Each program with a function of its library that must be in the output.
+    for (program, function) in [(shader::Program::Bones, "bone_pose"), (shader::Program::Vertex, "vertex_position")] {
+        for (lang, extra) in [
+            ("glsl", vec!["-S", "vert"]),
+            ("glsl-es", vec!["-S", "vert"]),
+            ("hlsl", vec!["-D", "-V", "-S", "vert", "-e", program.entry_point(), "-o", "/dev/null"]),
+        ] {
+            let path = dir.path().join(format!("{program}.{lang}"));
+            let args = ["shaders", "--program", program.name(), "--lang", lang, "--output", path.to_str().unwrap()];
+            let out = assert_cmd::Command::cargo_bin("quatcurve").unwrap().args(args).output().unwrap();
+            assert!(out.status.success(), "{program} {lang}: {}", stderr(&out));
+            let text = std::fs::read_to_string(&path).unwrap();
+            assert!(text.contains(function), "{program} {lang}: the library's {function} is missing");
+            let result =
+                std::process::Command::new(tool).args(&extra).arg(&path).current_dir(dir.path()).output().unwrap();
+            assert!(
+                result.status.success(),
+                "{program} {lang}: glslang rejects the generated shader:\n{}\n{}",
+                String::from_utf8_lossy(&result.stdout),
+                text
+            );
+        }
     }
 }
 
