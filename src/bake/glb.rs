@@ -333,12 +333,19 @@ pub(super) fn write(
     json["bufferViews"] = Value::Array(views);
     json["accessors"] = Value::Array(accessors);
     json["buffers"] = json!([{"byteLength": bin.len()}]);
+    assemble(&json, bin, "the baked GLB would exceed 4 GiB, the most a GLB can hold; bake at a lower rate")
+}
+
+/// The GLB of `json` and its BIN chunk `bin` (`json`'s one buffer); `too_large` is the message
+/// when the file would exceed the 4 GiB a GLB can hold.
+///
+/// # Errors
+/// [`InputError::Animation`] saying `too_large`.
+pub(super) fn assemble(json: &Value, bin: Vec<u8>, too_large: &str) -> Result<Vec<u8>, InputError> {
     if u32::try_from(bin.len() + (1 << 20)).is_err() {
-        return Err(InputError::Animation(
-            "the baked GLB would exceed 4 GiB, the most a GLB can hold; bake at a lower rate".into(),
-        ));
+        return Err(InputError::Animation(too_large.into()));
     }
-    let text = serde_json::to_vec(&json).map_err(|e| InputError::Internal(e.to_string()))?;
+    let text = serde_json::to_vec(json).map_err(|e| InputError::Internal(e.to_string()))?;
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header { magic: *super::gltf::GLB_MAGIC, version: 2, length: 0 },
         json: text.into(),

@@ -99,9 +99,6 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
         meshes.push(json!({"name": p.name, "primitives": [primitive]}));
         nodes.push(json!({"name": format!("{}{}", p.name, super::vertex_texture::suffix(k)), "mesh": k}));
     }
-    if u32::try_from(bin.len() + (1 << 20)).is_err() {
-        return Err(InputError::Animation("the mesh GLB would exceed 4 GiB, the most a GLB can hold".into()));
-    }
     let document = json!({
         "asset": {"version": "2.0", "generator": format!("quatcurve {}", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
@@ -112,11 +109,5 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    let text = serde_json::to_vec(&document).map_err(|e| InputError::Internal(e.to_string()))?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *super::gltf::GLB_MAGIC, version: 2, length: 0 },
-        json: text.into(),
-        bin: Some(bin.into()),
-    };
-    glb.to_vec().map_err(|e| InputError::Internal(format!("cannot assemble GLB: {e}")))
+    super::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
 }
