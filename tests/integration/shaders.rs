@@ -33,6 +33,31 @@ fn every_shipped_program_translates_to_every_language() {
 }
 
 #[test]
+fn the_viewer_fragment_shader_links_to_both_crowd_vertex_shaders_in_glsl_es() {
+    use shader::{Language, Program};
+    let varyings = |text: &str, qualifier: &str| -> Vec<String> {
+        text.lines()
+            .filter(|l| l.contains(&format!(" {qualifier} ")) && l.contains("_vs2fs_"))
+            .map(|l| l.split_whitespace().last().unwrap().trim_end_matches(';').to_string())
+            .collect()
+    };
+    let fragment = shader::glsl(
+        &shader::VIEWER_FRAGMENT_FILES,
+        shader::VIEWER_FRAGMENT_ENTRY_POINT,
+        naga::ShaderStage::Fragment,
+        Language::GlslEs,
+    )
+    .unwrap();
+    let inputs = varyings(&fragment.text, "in");
+    assert_eq!(inputs, ["_vs2fs_location0"], "{}", fragment.text);
+    for program in [Program::Bones, Program::Vertex] {
+        let vertex =
+            shader::glsl(program.files(), program.entry_point(), naga::ShaderStage::Vertex, Language::GlslEs).unwrap();
+        assert_eq!(varyings(&vertex.text, "out"), inputs, "{program}");
+    }
+}
+
+#[test]
 fn shader_program_uses_no_f64() {
     // naga 30 emits invalid SPIR-V for f64 transcendentals, which lavapipe runs silently wrong.
     let (module, _) = shader::module().unwrap();
