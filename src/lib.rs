@@ -64,6 +64,8 @@ pub(crate) mod segment;
 #[doc(hidden)]
 pub mod synthetic;
 pub mod track;
+#[cfg(feature = "view")]
+pub mod view;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;

@@ -29,6 +29,9 @@ enum Command {
     /// The shaders that read baked bone textures (--format exr|png16): WGSL, or GLSL and HLSL
     /// generated from it.
     Shaders(cli::shaders::ShadersArgs),
+    /// Serve a baked directory to a WebGL2 page that plays it as a crowd (127.0.0.1 only
+    /// unless --address says otherwise).
+    View(cli::view::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +42,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => cli::bench::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Shaders(args) => cli::shaders::run(&args),
+        Command::View(args) => cli::view::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -74,7 +74,7 @@ const PNG16_MAX: f64 = 65535.0;
 /// `x = (r / frames_per_column) * frame_width + a % frame_width`,
 /// `y = (r % frames_per_column) * rows_per_frame + a / frame_width` ([`Grid::texel`], and
 /// [`ADDRESS`] in words).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub struct Grid {
     /// Texels per row of the image.
     pub width: usize,

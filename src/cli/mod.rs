@@ -6,6 +6,7 @@ pub mod bake;
 pub mod bench;
 pub mod eval;
 pub mod shaders;
+pub mod view;
 
 use clap::Args;
 use quatcurve::{Blend, Curve, CurveSpec, Device, DeviceChoice, DeviceError, KnotMode, Tangents};

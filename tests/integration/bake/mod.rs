@@ -15,6 +15,7 @@ mod shards;
 mod textures;
 mod vertex;
 mod vertex_shader;
+mod viewer;
 
 use assert_cmd::Command;
 use base64::Engine;

@@ -78,7 +78,7 @@ fn local_at(document: &::gltf::Document, buffers: &[Vec<u8>], clip: usize, time:
 
 /// The document and its buffers as the glTF crate reads them: the GLB's binary chunk, or
 /// base64 `data:` URIs (the files used here have no others).
-fn open(path: &std::path::Path) -> (::gltf::Document, Vec<Vec<u8>>) {
+pub(super) fn open(path: &std::path::Path) -> (::gltf::Document, Vec<Vec<u8>>) {
     use base64::Engine;
     // Without validation: the crate refuses files that require Draco, which it cannot decode.
     let ::gltf::Gltf { document, blob } =
@@ -99,7 +99,7 @@ fn open(path: &std::path::Path) -> (::gltf::Document, Vec<Vec<u8>>) {
 /// `primitive` skinned at `time` of `clip`, computed without quatcurve's bake: glam forward
 /// kinematics over the glTF nodes, the skin's inverse bind matrices from the crate's reader,
 /// and the weights as the file stores them (normalized here).
-fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, clip: usize, time: f64) -> Vec<f64> {
+pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, clip: usize, time: f64) -> Vec<f64> {
     let (document, buffers) = open(path);
     let local = local_at(&document, &buffers, clip, time);
     let mut parent = vec![None; local.len()];

@@ -1,0 +1,629 @@
+//! What the viewer's page plays: the bakes a directory holds (found by their sidecars), and
+//! for one clip of one bake a scene: the shipped crowd shaders in GLSL ES with the names their
+//! resources took, and per mesh primitive its vertex inputs (by the locations the WGSL
+//! declares), the textures to sample and the uniform blocks' bytes, built from the sidecar's
+//! numbers as an engine would build them. The page itself knows no file format.
+
+use super::files::url_path;
+use super::texels::Texels;
+use crate::bake::gltf::{self, UriPolicy};
+use crate::bake::image::{Format, Grid};
+use crate::bake::mesh::{self, SkinnedPrimitive};
+use crate::bake::texture::{self, TextureKind};
+use crate::bake::{skinning, vertex_encoding::Bounds};
+use crate::gpu::shader::{self, Glsl, Language, Program};
+use crate::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
+use naga::ShaderStage;
+use serde::Serialize;
+use serde_json::Value;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// How deep under the served directory sidecars are looked for.
+pub const SEARCH_DEPTH: usize = 4;
+
+/// Influences per vertex the crowd vertex shader reads (its `joints: vec4u`); a primitive
+/// with more keeps its largest weights, renormalized, and the scene says so.
+pub const SHADER_INFLUENCES: usize = 4;
+
+/// Frames of a clip skinned on the CPU to find the box a bone-texture crowd moves in.
+const BOX_FRAMES: usize = 16;
+
+/// Which shipped vertex shader plays a bake.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Playback {
+    /// `skin_vertex.wgsl` over a `skin-trs` bone texture: GPU skinning of the glTF's mesh.
+    Bones,
+    /// `vertex_texture_vertex.wgsl` over a `--texture vertex` bake and its mesh file.
+    Vertex,
+}
+
+impl Playback {
+    /// How a bake of `texture` in `format` plays, or why it cannot.
+    fn of(texture: &str, format: &str) -> Result<Self, String> {
+        if !matches!(format.parse::<Format>(), Ok(Format::Exr | Format::Png16)) {
+            return Err(format!("its textures are {format}; the page samples images: bake with --format exr or png16"));
+        }
+        match texture.parse::<TextureKind>() {
+            Ok(TextureKind::SkinTrs) => Ok(Playback::Bones),
+            Ok(TextureKind::Vertex) => Ok(Playback::Vertex),
+            _ => Err(format!(
+                "--texture {texture}; the page plays skin-trs bone textures (GPU skinning) or vertex textures"
+            )),
+        }
+    }
+
+    fn program(self) -> Program {
+        match self {
+            Playback::Bones => Program::Bones,
+            Playback::Vertex => Program::Vertex,
+        }
+    }
+}
+
+/// One bake in the served directory: its sidecar and whether (and how) the page plays it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Bake {
+    /// The sidecar's path under the directory, as a URL path.
+    pub sidecar: String,
+    /// The baked source file.
+    pub source: String,
+    /// The sidecar's `texture` and `format`.
+    pub texture: String,
+    /// See [`Self::texture`].
+    pub format: String,
+    /// Its clips.
+    pub clips: Vec<Clip>,
+    /// How it plays; `None` with [`Self::refusal`] saying why not.
+    pub playback: Option<Playback>,
+    /// Why the page cannot play it.
+    pub refusal: Option<String>,
+}
+
+/// A clip as the page offers it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Clip {
+    /// The clip's name.
+    pub name: String,
+    /// Baked frames, and their rate in Hz (the clip's own).
+    pub frames: u64,
+    /// See [`Self::frames`].
+    pub rate: f64,
+    /// A loop: its last frame is its first.
+    pub looping: bool,
+    /// Seconds from its first frame to its last.
+    pub duration: f64,
+}
+
+impl Clip {
+    fn of(clip: &Value) -> Result<Self, String> {
+        let frames = field(clip, "frames")?.as_u64().ok_or("clip `frames` is not a count")?;
+        let rate = number(clip, "rate")?;
+        Ok(Self {
+            name: field(clip, "name")?.as_str().unwrap_or_default().to_string(),
+            frames,
+            rate,
+            looping: clip.get("loop").and_then(Value::as_bool).unwrap_or(false),
+            duration: frames.saturating_sub(1) as f64 / rate,
+        })
+    }
+}
+
+/// Every bake under `root` (sidecars up to [`SEARCH_DEPTH`] directories deep, by path).
+#[must_use]
+pub fn bakes(root: &Path) -> Vec<Bake> {
+    let mut found = Vec::new();
+    sidecars(root, SEARCH_DEPTH, &mut found);
+    found.sort();
+    found
+        .into_iter()
+        .filter_map(|path| {
+            let sidecar = read_json(&path).ok()?;
+            let text = |k: &str| sidecar.get(k).and_then(Value::as_str).map(str::to_string);
+            let clips = sidecar.get("clips")?.as_array()?.iter().map(Clip::of).collect::<Result<_, _>>().ok()?;
+            let (texture, format) = (text("texture")?, text("format").unwrap_or_else(|| "npy".into()));
+            let playback = Playback::of(&texture, &format);
+            Some(Bake {
+                sidecar: url_path(root, &path),
+                source: text("source").unwrap_or_default(),
+                texture,
+                format,
+                clips,
+                refusal: playback.as_ref().err().cloned(),
+                playback: playback.ok(),
+            })
+        })
+        .collect()
+}
+
+fn sidecars(dir: &Path, depth: usize, found: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        // Links are not followed: what is found lies under the directory.
+        let Ok(kind) = entry.file_type() else { continue };
+        let path = entry.path();
+        if kind.is_dir() && depth > 0 {
+            sidecars(&path, depth - 1, found);
+        } else if kind.is_file() && path.extension().is_some_and(|e| e == "json") {
+            found.push(path);
+        }
+    }
+}
+
+/// One clip of one bake, ready to draw.
+#[derive(Debug, Serialize)]
+pub struct Scene {
+    /// Which shader plays it.
+    pub playback: Playback,
+    /// The clip.
+    pub clip: Clip,
+    /// The crowd vertex shader (`quatcurve shaders --program bones|vertex --lang glsl-es`) and
+    /// the viewer's fragment shader, GLSL ES 3.00 generated by naga.
+    pub vertex_shader: String,
+    /// See [`Self::vertex_shader`].
+    pub fragment_shader: String,
+    /// The uniform block of the camera (WGSL group 0): one column-major `mat4`.
+    pub camera: String,
+    /// The per-instance inputs' locations.
+    pub instance: InstanceInputs,
+    /// One draw per mesh primitive.
+    pub draws: Vec<Draw>,
+    /// The box the clip's vertices move in (every draw's, at the bone path's sampled frames).
+    pub low: [f64; 3],
+    /// See [`Self::low`].
+    pub high: [f64; 3],
+    /// What the page should show the user about this scene (influences dropped, no normals).
+    pub notes: Vec<String>,
+}
+
+/// Locations of the crowd shaders' per-instance inputs.
+#[derive(Debug, Serialize)]
+pub struct InstanceInputs {
+    /// `instance_offset` (vec3), `instance_clip` (uint), `instance_time` (float).
+    pub offset: u32,
+    /// See [`Self::offset`].
+    pub clip: u32,
+    /// See [`Self::offset`].
+    pub time: u32,
+}
+
+/// One mesh primitive: vertex inputs by location, triangles, and what it binds.
+#[derive(Debug, Serialize)]
+pub struct Draw {
+    /// The primitive, as the sidecar or the bake's messages name it.
+    pub name: String,
+    /// Vertices.
+    pub vertices: usize,
+    /// Per-vertex inputs.
+    pub attributes: Vec<Attribute>,
+    /// Triangle list.
+    pub indices: Vec<u32>,
+    /// Textures: the GLSL sampler and where its texels are.
+    pub textures: Vec<TextureBinding>,
+    /// Uniform blocks: the GLSL block and its bytes as 32-bit words.
+    pub blocks: Vec<BlockBinding>,
+}
+
+/// A per-vertex input.
+#[derive(Debug, Serialize)]
+pub struct Attribute {
+    /// The WGSL input's name and location.
+    pub name: String,
+    /// See [`Self::name`].
+    pub location: u32,
+    /// Components (1-4).
+    pub size: u32,
+    /// An unsigned-integer input (`vertexAttribIPointer`), else float.
+    pub integer: bool,
+    /// `vertices * size` values.
+    pub data: Vec<f64>,
+}
+
+/// A texture a draw samples.
+#[derive(Debug, Serialize)]
+pub struct TextureBinding {
+    /// The GLSL sampler.
+    pub sampler: String,
+    /// The `/texels/...` URL of its `f32` RGBA texels.
+    pub url: String,
+    /// Its size in texels.
+    pub width: usize,
+    /// See [`Self::width`].
+    pub height: usize,
+}
+
+/// A uniform block a draw binds.
+#[derive(Debug, Serialize)]
+pub struct BlockBinding {
+    /// The GLSL uniform block.
+    pub block: String,
+    /// Its std140 bytes as little-endian 32-bit words (floats by their bits).
+    pub words: Vec<u32>,
+}
+
+/// The shaders of a playback in GLSL ES, and what the host needs to know of them.
+struct Shaders {
+    vertex: Glsl,
+    fragment: Glsl,
+    module: naga::Module,
+    inputs: Vec<(String, u32)>,
+}
+
+impl Shaders {
+    fn of(program: Program) -> Result<Self, String> {
+        let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)?;
+        let fragment = shader::glsl(
+            &shader::VIEWER_FRAGMENT_FILES,
+            shader::VIEWER_FRAGMENT_ENTRY_POINT,
+            ShaderStage::Fragment,
+            Language::GlslEs,
+        )?;
+        let (module, _) = shader::parse(program.files())?;
+        let inputs = shader::vertex_inputs(&module, program.entry_point())?;
+        Ok(Self { vertex, fragment, module, inputs })
+    }
+
+    /// The GLSL name of WGSL resource `wgsl`.
+    fn name(&self, wgsl: &str) -> Result<String, String> {
+        self.vertex
+            .bindings
+            .iter()
+            .find(|b| b.wgsl == wgsl)
+            .map(|b| b.glsl.clone())
+            .ok_or_else(|| format!("the vertex shader binds no `{wgsl}`"))
+    }
+
+    fn location(&self, name: &str) -> Result<u32, String> {
+        self.inputs
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|&(_, l)| l)
+            .ok_or_else(|| format!("the vertex shader has no input `{name}`"))
+    }
+
+    fn attribute(&self, name: &str, size: u32, integer: bool, data: Vec<f64>) -> Result<Attribute, String> {
+        Ok(Attribute { name: name.to_string(), location: self.location(name)?, size, integer, data })
+    }
+
+    /// `words` checked to be the size of WGSL struct `name` (std140 and WGSL's uniform layout
+    /// agree for these structs: vec4-aligned members, 16-byte array strides).
+    fn block(&self, wgsl: &str, name: &str, words: Vec<u32>) -> Result<BlockBinding, String> {
+        let span = shader::struct_span(&self.module, name).ok_or_else(|| format!("no struct `{name}`"))?;
+        if words.len() * 4 != span as usize {
+            return Err(format!("`{name}` is {span} bytes; {} were packed", words.len() * 4));
+        }
+        Ok(BlockBinding { block: self.name(wgsl)?, words })
+    }
+
+    fn max_clips(&self, name: &str) -> Result<usize, String> {
+        shader::constant_u32(&self.module, name).map(|n| n as usize).ok_or_else(|| format!("no constant `{name}`"))
+    }
+}
+
+/// Clip `clip` of the bake whose sidecar is at `sidecar` (under `root`, canonical).
+///
+/// # Errors
+/// What in the bake the page cannot play, naming the file, clip or primitive.
+pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, String> {
+    let sidecar = read_json(sidecar_path)?;
+    let dir = sidecar_path.parent().unwrap_or(root);
+    let text = |k: &str| sidecar.get(k).and_then(Value::as_str).unwrap_or_default();
+    let playback = Playback::of(text("texture"), text("format"))?;
+    let clips = field(&sidecar, "clips")?.as_array().ok_or("`clips` is not a list")?;
+    let clip_json = clips.get(clip).ok_or_else(|| format!("no clip {clip}: the bake has {}", clips.len()))?;
+    let shaders = Shaders::of(playback.program())?;
+    let mut bake = Assembly { root, dir, sidecar: &sidecar, clip: clip_json, shaders: &shaders, notes: Vec::new() };
+    let (draws, bounds) = match playback {
+        Playback::Bones => bake.bones()?,
+        Playback::Vertex => bake.vertex()?,
+    };
+    let camera = shaders.vertex.bindings.iter().find(|b| b.group == 0 && !b.sampler).ok_or("no camera block")?;
+    Ok(Scene {
+        playback,
+        clip: Clip::of(clip_json)?,
+        vertex_shader: shaders.vertex.text.clone(),
+        fragment_shader: shaders.fragment.text.clone(),
+        camera: camera.glsl.clone(),
+        instance: InstanceInputs {
+            offset: shaders.location("instance_offset")?,
+            clip: shaders.location("instance_clip")?,
+            time: shaders.location("instance_time")?,
+        },
+        draws,
+        low: bounds.low,
+        high: bounds.high,
+        notes: bake.notes,
+    })
+}
+
+/// One scene being put together.
+struct Assembly<'a> {
+    root: &'a Path,
+    dir: &'a Path,
+    sidecar: &'a Value,
+    clip: &'a Value,
+    shaders: &'a Shaders,
+    notes: Vec<String>,
+}
+
+impl<'a> Assembly<'a> {
+    /// The sidecar's `textures` record of `file`, its grid, and the file's texel URL.
+    fn texture(&self, file: &str) -> Result<(&'a Value, Grid, PathBuf), String> {
+        let sidecar: &'a Value = self.sidecar;
+        let record = field(sidecar, "textures")?
+            .as_array()
+            .and_then(|t| t.iter().find(|r| r.get("file").and_then(Value::as_str) == Some(file)))
+            .ok_or_else(|| format!("the sidecar's `textures` has no record of {file}"))?;
+        let grid: Grid =
+            serde_json::from_value(record.clone()).map_err(|e| format!("textures record of {file}: {e}"))?;
+        Ok((record, grid, self.dir.join(file)))
+    }
+
+    fn binding(&self, wgsl: &str, path: &Path, grid: &Grid) -> Result<TextureBinding, String> {
+        Ok(TextureBinding {
+            sampler: self.shaders.name(wgsl)?,
+            url: format!("/texels/{}", url_path(self.root, path)),
+            width: grid.width,
+            height: grid.height,
+        })
+    }
+
+    /// The clip as `BoneClip` words at index 0 of a layout's `clips` array of `max` entries.
+    fn clip_words(&self, max: usize) -> Result<Vec<u32>, String> {
+        let count = |k: &str| -> Result<u32, String> {
+            let v = field(self.clip, k)?.as_u64().ok_or_else(|| format!("clip `{k}` is not a count"))?;
+            u32::try_from(v).map_err(|_| format!("clip `{k}` {v} does not fit the shader's u32"))
+        };
+        let looping = self.clip.get("loop").and_then(Value::as_bool).unwrap_or(false);
+        let mut words = vec![
+            count("first_row")?,
+            count("frames")?,
+            u32::from(looping),
+            (number(self.clip, "rate")? as f32).to_bits(),
+        ];
+        words.resize(4 * max, 0);
+        Ok(words)
+    }
+
+    /// Every skinned primitive of the baked glTF, skinned by `bone_texture.wgsl` from its
+    /// skin's `skin-trs` texture of the clip.
+    fn bones(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
+        let baked = field(self.sidecar, "baked_file")?.as_str().ok_or("the sidecar names no baked glTF")?;
+        let path = self.dir.join(baked);
+        let file = gltf::read(&path, UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
+        let primitives = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+        let files = field(self.clip, "files")?.as_array().ok_or("clip `files` is not a list")?;
+        let max_clips = self.shaders.max_clips("BONE_MAX_CLIPS")?;
+        let mut texels: HashMap<PathBuf, Texels> = HashMap::new();
+        let (mut draws, mut corners) = (Vec::new(), Vec::new());
+        for p in &primitives {
+            if p.mode != 4 {
+                self.notes.push(format!("{}: mode {} is not a triangle list; not drawn", p.name, p.mode));
+                continue;
+            }
+            let name = files
+                .get(p.skin)
+                .and_then(Value::as_str)
+                .ok_or_else(|| format!("{}: no texture of skin {}", p.name, p.skin))?;
+            let (record, grid, image) = self.texture(name)?;
+            let remap = remap(record)?;
+            let mut words = vec![grid.texels_per_joint, grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
+                .into_iter()
+                .map(|n| u32::try_from(n).map_err(|_| format!("{name}: grid number {n} does not fit u32")))
+                .collect::<Result<Vec<u32>, String>>()?;
+            words.extend(remap.iter().flat_map(|slot| slot.map(|(low, _)| low.to_bits())));
+            words.extend(remap.iter().flat_map(|slot| slot.map(|(_, span)| span.to_bits())));
+            words.extend(self.clip_words(max_clips)?);
+            let block = self.shaders.block("bone_layout", "BoneLayout", words)?;
+            let joints = field(record, "joints")?.as_u64().unwrap_or(0) as usize;
+            if !texels.contains_key(&image) {
+                let read = Texels::read(&image).map_err(|e| format!("{name}: {e}"))?;
+                texels.insert(image.clone(), read);
+            }
+            corners.extend(self.skinned_box(p, &texels[&image], &grid, &remap, joints)?);
+            draws.push(Draw {
+                name: p.name.clone(),
+                vertices: p.vertices(),
+                attributes: self.bone_attributes(p)?,
+                indices: p.indices.clone().unwrap_or_else(|| (0..p.vertices() as u32).collect()),
+                textures: vec![self.binding("bone_texture", &image, &grid)?],
+                blocks: vec![block],
+            });
+        }
+        let bounds = Bounds::of_positions(corners).ok_or("no triangles to draw")?;
+        Ok((draws, bounds))
+    }
+
+    /// Positions, normals, and the [`SHADER_INFLUENCES`] largest joints and weights.
+    fn bone_attributes(&mut self, p: &SkinnedPrimitive) -> Result<Vec<Attribute>, String> {
+        let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
+        let normals = match &p.normals {
+            Some(n) => flat(n),
+            None => {
+                self.notes.push(format!("{}: no normals; lit as facing +y", p.name));
+                [0.0, 1.0, 0.0].repeat(p.vertices())
+            }
+        };
+        if p.influences > SHADER_INFLUENCES {
+            self.notes.push(format!(
+                "{}: {} influences per vertex; the shader reads {SHADER_INFLUENCES}, the largest, renormalized",
+                p.name, p.influences
+            ));
+        }
+        let (mut joints, mut weights) = (Vec::new(), Vec::new());
+        for v in 0..p.vertices() {
+            let range = v * p.influences..(v + 1) * p.influences;
+            let mut pairs: Vec<(u32, f64)> =
+                p.joints[range.clone()].iter().copied().zip(p.weights[range].iter().copied()).collect();
+            pairs.sort_by(|a, b| b.1.total_cmp(&a.1));
+            pairs.resize(SHADER_INFLUENCES, (0, 0.0));
+            let sum: f64 = pairs.iter().map(|(_, w)| w).sum();
+            joints.extend(pairs.iter().map(|&(j, _)| f64::from(j)));
+            weights.extend(pairs.iter().map(|&(_, w)| if sum > 0.0 { w / sum } else { 0.0 }));
+        }
+        Ok(vec![
+            self.shaders.attribute("position", 3, false, flat(&p.positions))?,
+            self.shaders.attribute("normal", 3, false, normals)?,
+            self.shaders.attribute("joints", 4, true, joints)?,
+            self.shaders.attribute("weights", 4, false, weights)?,
+        ])
+    }
+
+    /// The box of `p` skinned on the CPU ([`skinning::skin`]) at [`BOX_FRAMES`] frames of the
+    /// clip, from the texture's own texels.
+    fn skinned_box(
+        &self,
+        p: &SkinnedPrimitive,
+        image: &Texels,
+        grid: &Grid,
+        remap: &[[(f32, f32); 4]; 3],
+        joints: usize,
+    ) -> Result<Vec<[f64; 3]>, String> {
+        let first_row = field(self.clip, "first_row")?.as_u64().unwrap_or(0) as usize;
+        let frames = field(self.clip, "frames")?.as_u64().unwrap_or(1).max(1) as usize;
+        let slots = TextureKind::SkinTrs.texels();
+        let mut matrices = Vec::new();
+        for f in (0..BOX_FRAMES).map(|i| i * (frames - 1) / (BOX_FRAMES - 1)) {
+            for j in 0..joints {
+                let mut row = [0.0f32; 10];
+                for (t, range) in slots.iter().enumerate() {
+                    let (x, y) = grid.texel(first_row + f, j, t);
+                    if x >= image.width || y >= image.height {
+                        return Err(format!(
+                            "{}: texel ({x}, {y}) is outside its {}x{} image",
+                            p.name, image.width, image.height
+                        ));
+                    }
+                    let texel = image.at((x, y));
+                    for (c, r) in range.clone().enumerate() {
+                        row[r] = remap[t][c].0 + texel[c] * remap[t][c].1;
+                    }
+                }
+                matrices.extend(texture::trs(&row).map(|v| v as f32));
+            }
+        }
+        debug_assert_eq!(matrices.len(), BOX_FRAMES * joints * MATRIX_CHANNELS);
+        let skinned = skinning::skin(p, joints, &matrices);
+        Ok(skinned.chunks_exact(VERTEX_CHANNELS).map(|v| [v[0], v[1], v[2]]).collect())
+    }
+
+    /// Every primitive of the bake's mesh file, its vertices read from its `.pos` (and
+    /// `.nrm`) texture of the clip at its `TEXCOORD_0`.
+    fn vertex(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
+        let vertex = field(self.sidecar, "vertex")?;
+        let mesh_file = field(vertex, "mesh_file")?.as_str().ok_or("`vertex.mesh_file` is not a name")?;
+        let bytes = std::fs::read(self.dir.join(mesh_file)).map_err(|e| format!("{mesh_file}: {e}"))?;
+        let glb = ::gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{mesh_file}: {e}"))?;
+        let blob = glb.blob.as_deref().ok_or_else(|| format!("{mesh_file}: no binary chunk"))?;
+        let files: Vec<&str> = field(self.clip, "files")?
+            .as_array()
+            .ok_or("clip `files` is not a list")?
+            .iter()
+            .filter_map(Value::as_str)
+            .collect();
+        let format = field(self.sidecar, "format")?.as_str().unwrap_or_default();
+        let ext = format.parse::<Format>()?.extension();
+        let max_clips = self.shaders.max_clips("VERTEX_MAX_CLIPS")?;
+        let (mut draws, mut corners) = (Vec::new(), Vec::new());
+        for p in field(vertex, "primitives")?.as_array().ok_or("`vertex.primitives` is not a list")? {
+            let name = field(p, "name")?.as_str().unwrap_or_default().to_string();
+            let suffix = field(p, "suffix")?.as_str().unwrap_or_default();
+            let find = |what: &str| files.iter().find(|f| f.ends_with(&format!("{suffix}.{what}.{ext}"))).copied();
+            let positions = find("pos").ok_or_else(|| format!("{name}: the clip lists no {suffix}.pos.{ext}"))?;
+            let (record, grid, pos_path) = self.texture(positions)?;
+            let normals = find("nrm").map(|file| self.texture(file)).transpose()?;
+            let vec3 = |k: &str| -> Result<[f64; 3], String> {
+                let v = field(record, k)?
+                    .as_array()
+                    .filter(|v| v.len() == 3)
+                    .ok_or_else(|| format!("{positions}: `{k}` is not 3 numbers"))?;
+                Ok(std::array::from_fn(|i| v[i].as_f64().unwrap_or(f64::NAN)))
+            };
+            let (low, span) = (vec3("low")?, vec3("span")?);
+            corners.push(low);
+            corners.push(std::array::from_fn(|i| low[i] + span[i]));
+            let mut words = vec![grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
+                .into_iter()
+                .map(|n| u32::try_from(n).map_err(|_| format!("{positions}: grid number {n} does not fit u32")))
+                .collect::<Result<Vec<u32>, String>>()?;
+            words.push(u32::from(normals.is_some()));
+            for v in [low, span] {
+                words.extend(v.iter().map(|&c| (c as f32).to_bits()));
+                words.push(0);
+            }
+            words.extend(self.clip_words(max_clips)?);
+            let mesh_index = field(p, "mesh_in_file")?.as_u64().unwrap_or(0) as usize;
+            let (addresses, indices) =
+                mesh_addresses(&glb, blob, mesh_index).map_err(|e| format!("{mesh_file}: {e}"))?;
+            // Without normals the layout says so, and the positions stand in for the binding.
+            let normal_path = normals.as_ref().map_or(&pos_path, |(_, _, path)| path);
+            if normals.is_none() {
+                self.notes.push(format!("{name}: no normals; lit as facing +z"));
+            }
+            draws.push(Draw {
+                name,
+                vertices: addresses.len() / 2,
+                attributes: vec![self.shaders.attribute("address", 2, false, addresses)?],
+                indices,
+                textures: vec![
+                    self.binding("vertex_positions", &pos_path, &grid)?,
+                    self.binding("vertex_normals", normal_path, &normals.as_ref().map_or(grid, |(_, g, _)| *g))?,
+                ],
+                blocks: vec![self.shaders.block("vertex_layout", "VertexLayout", words)?],
+            });
+        }
+        let bounds = Bounds::of_positions(corners).ok_or("no primitives to draw")?;
+        Ok((draws, bounds))
+    }
+}
+
+/// `TEXCOORD_0` (flat) and the triangle list of mesh `mesh` of a vertex bake's mesh file, by
+/// the glTF crate's reader (as a renderer's importer reads the file).
+fn mesh_addresses(glb: &::gltf::Gltf, blob: &[u8], mesh: usize) -> Result<(Vec<f64>, Vec<u32>), String> {
+    let mesh = glb.document.meshes().nth(mesh).ok_or_else(|| format!("no mesh {mesh}"))?;
+    let primitive = mesh.primitives().next().ok_or("a mesh without primitives")?;
+    let reader = primitive.reader(|_| Some(blob));
+    let addresses: Vec<f64> = reader
+        .read_tex_coords(0)
+        .ok_or("a primitive without TEXCOORD_0")?
+        .into_f32()
+        .flat_map(|[u, v]| [f64::from(u), f64::from(v)])
+        .collect();
+    let indices = match reader.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..(addresses.len() / 2) as u32).collect(),
+    };
+    Ok((addresses, indices))
+}
+
+/// A bone texture's `(low, span)` per texel slot and channel: PNG16's `remap`, else `(0, 1)`.
+fn remap(record: &Value) -> Result<[[(f32, f32); 4]; 3], String> {
+    let mut out = [[(0.0, 1.0); 4]; 3];
+    if let Some(remap) = record.get("remap") {
+        for (t, slot) in out.iter_mut().enumerate() {
+            for (c, pair) in slot.iter_mut().enumerate() {
+                let range = &remap[t][c];
+                let (lo, hi) = (range[0].as_f64(), range[1].as_f64());
+                let (Some(lo), Some(hi)) = (lo, hi) else {
+                    return Err(format!("`remap[{t}][{c}]` is not a [min, max] pair"));
+                };
+                *pair = (lo as f32, (hi - lo) as f32);
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn read_json(path: &Path) -> Result<Value, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn field<'v>(value: &'v Value, key: &str) -> Result<&'v Value, String> {
+    value.get(key).ok_or_else(|| format!("no `{key}`"))
+}
+
+fn number(value: &Value, key: &str) -> Result<f64, String> {
+    field(value, key)?.as_f64().ok_or_else(|| format!("`{key}` is not a number"))
+}

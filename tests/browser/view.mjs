@@ -1,0 +1,55 @@
+// Opens `quatcurve view`'s page in Debian's headless Chromium (WebGL2 on SwiftShader) and
+// writes what the test asks of it as JSON: the renderer, page errors, any request that left
+// the viewer's origin (none may), and on request a captured frame, timed frames or a
+// screenshot. Usage: node view.mjs URL OUT.json [--capture] [--measure FRAMES] [--watch SECONDS]
+// [--screenshot FILE.png] [--viewport WxH]. QUATCURVE_CHROMIUM names another browser binary.
+import { chromium } from 'playwright-core';
+import { writeFileSync } from 'node:fs';
+
+const [url, out, ...rest] = process.argv.slice(2);
+const option = (name) => {
+  const i = rest.indexOf(name);
+  return i < 0 ? undefined : rest[i + 1] ?? true;
+};
+const [width, height] = (option('--viewport') || '1280x720').split('x').map(Number);
+const origin = new URL(url).origin;
+
+const browser = await chromium.launch({
+  executablePath: process.env.QUATCURVE_CHROMIUM || '/usr/bin/chromium',
+  // Root in a container has no sandbox; SwiftShader is the GPU a headless server has.
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
+});
+const result = { errors: [], foreign: [] };
+try {
+  const page = await browser.newPage({ viewport: { width, height } });
+  page.on('pageerror', (e) => result.errors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error') result.errors.push(m.text()); });
+  await page.route('**/*', (route) => {
+    if (route.request().url().startsWith(origin)) return route.continue();
+    result.foreign.push(route.request().url());
+    return route.abort();
+  });
+  await page.goto(url);
+  await page.evaluate(() => window.quatcurveViewer.ready);
+  result.renderer = await page.evaluate(() => {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    return gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER);
+  });
+  if (option('--capture')) result.capture = await page.evaluate(() => window.quatcurveViewer.capture());
+  if (option('--watch')) {
+    await page.waitForTimeout(1000 * Number(option('--watch')));
+    result.frame_times = await page.evaluate(() => window.quatcurveViewer.frameTimes());
+  }
+  if (option('--measure')) {
+    result.measure = await page.evaluate((n) => window.quatcurveViewer.measure(n), Number(option('--measure')));
+  }
+  if (option('--screenshot')) await page.screenshot({ path: option('--screenshot') });
+  result.stats = await page.evaluate(() => document.getElementById('stats').textContent);
+  result.message = await page.evaluate(() => document.getElementById('message').textContent);
+} catch (e) {
+  result.errors.push(String(e));
+} finally {
+  await browser.close();
+}
+writeFileSync(out, JSON.stringify(result));

@@ -1,0 +1,322 @@
+//! `quatcurve view`: its server refuses every path out of the served directory, and its page,
+//! in Debian's headless Chromium (WebGL2 on SwiftShader, driven by `tests/browser/view.mjs`),
+//! draws CesiumMan at a clip's first and last frames with the silhouette a CPU render of an
+//! independent skinning of the same pose has, on both the bone-texture and the vertex-texture
+//! paths; and plays 1,000 of them. `.ci/run` installs the browser and requires these tests
+//! (`QUATCURVE_REQUIRE_BROWSER`).
+
+use super::vertex::{independent, open};
+use super::{bake, data_dir, json, stderr};
+use glam::{DMat4, DVec3, DVec4};
+use quatcurve::bake::gltf::{self, UriPolicy};
+use quatcurve::bake::mesh::skinned_primitives;
+use quatcurve::output::VERTEX_CHANNELS;
+use std::io::{BufRead, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Silhouettes agree when the pixels inside one but not the other are at most this fraction
+/// of the pixels inside either (rasterization rules differ on edge pixels, and the page's f32
+/// skinning and texture reads differ from the f64 skinning by ~1e-6 of the box).
+const SILHOUETTE_TOLERANCE: f64 = 0.01;
+
+/// A channel this far (of 255) from the clear colour is the character.
+const CLEAR_THRESHOLD: i32 = 12;
+
+/// The drawing buffer of a captured frame, pixels a side.
+const CAPTURE_SIZE: usize = 256;
+
+/// A running `quatcurve view`, stopped when dropped.
+struct Server {
+    child: std::process::Child,
+    address: String,
+}
+
+impl Server {
+    fn start(dir: &Path) -> Self {
+        let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("quatcurve"))
+            .args(["view", dir.to_str().unwrap(), "--address", "127.0.0.1:0"])
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut first = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+        let address = first.trim().trim_start_matches("http://").trim_end_matches('/').to_string();
+        assert!(address.starts_with("127.0.0.1:"), "the first line is the URL: {first:?}");
+        Self { child, address }
+    }
+
+    /// `method target` as sent, byte for byte (no client normalizes `..` away): status, body.
+    fn request(&self, method: &str, target: &str) -> (u16, Vec<u8>) {
+        let mut stream = std::net::TcpStream::connect(&self.address).unwrap();
+        write!(stream, "{method} {target} HTTP/1.1\r\nHost: {}\r\nConnection: close\r\n\r\n", self.address).unwrap();
+        let mut response = Vec::new();
+        stream.read_to_end(&mut response).unwrap();
+        let head_end = response.windows(4).position(|w| w == b"\r\n\r\n").expect("a whole response") + 4;
+        let head = String::from_utf8_lossy(&response[..head_end]).into_owned();
+        let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).expect("a status line");
+        (status, response[head_end..].to_vec())
+    }
+
+    fn url(&self) -> String {
+        format!("http://{}/", self.address)
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn the_server_serves_files_under_its_directory_and_refuses_every_way_out() {
+    let outer = tempfile::tempdir().unwrap();
+    let dir = outer.path().join("served");
+    std::fs::create_dir_all(dir.join("inner")).unwrap();
+    std::fs::write(dir.join("inner/kept.json"), b"{\"kept\": 1}").unwrap();
+    std::fs::write(outer.path().join("secret.txt"), b"not yours").unwrap();
+    std::os::unix::fs::symlink(outer.path().join("secret.txt"), dir.join("link.txt")).unwrap();
+    std::os::unix::fs::symlink(outer.path(), dir.join("up")).unwrap();
+    let server = Server::start(&dir);
+    assert_eq!(server.request("GET", "/files/inner/kept.json"), (200, b"{\"kept\": 1}".to_vec()));
+    for way_out in [
+        "/files/../secret.txt",
+        "/files/inner/../../secret.txt",
+        "/files/%2e%2e/secret.txt",
+        "/files/%2E%2E%2Fsecret.txt",
+        "/files/..%5csecret.txt",
+        "/files/link.txt",
+        "/files/up/secret.txt",
+        "/texels/../secret.txt",
+        "/api/scene?bake=..%2Fsecret.txt",
+    ] {
+        let (status, body) = server.request("GET", way_out);
+        assert_eq!(status, 403, "{way_out}: {}", String::from_utf8_lossy(&body));
+        assert!(!String::from_utf8_lossy(&body).contains("not yours"), "{way_out}");
+    }
+    assert_eq!(server.request("GET", "/files/%2Fetc%2Fpasswd").0, 404);
+    assert_eq!(server.request("GET", "/files/inner").0, 404);
+    assert_eq!(server.request("GET", "/nothing").0, 404);
+    assert_eq!(server.request("POST", "/files/inner/kept.json").0, 405);
+    // Not a sidecar, not an image: named, not a crash.
+    let (status, body) = server.request("GET", "/texels/inner/kept.json");
+    assert_eq!(status, 422, "{}", String::from_utf8_lossy(&body));
+    assert!(String::from_utf8_lossy(&body).contains("inner/kept.json"));
+    let (status, body) = server.request("GET", "/api/bakes");
+    assert_eq!((status, body), (200, b"[]".to_vec()));
+    let (status, page) = server.request("GET", "/");
+    assert_eq!(status, 200);
+    assert!(String::from_utf8_lossy(&page).contains("viewer.js"));
+}
+
+#[test]
+fn view_refuses_a_directory_it_cannot_serve_and_an_address_it_cannot_take() {
+    let file = tempfile::NamedTempFile::new().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for (args, expected) in [
+        (vec!["view", "/nonexistent/baked"], "/nonexistent/baked"),
+        (vec!["view", file.path().to_str().unwrap()], "not a directory"),
+        (vec!["view", dir.path().to_str().unwrap(), "--address", "not-an-address"], "--address not-an-address"),
+    ] {
+        let out = assert_cmd::Command::cargo_bin("quatcurve").unwrap().args(&args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&out).contains(expected), "{args:?}: {}", stderr(&out));
+    }
+}
+
+/// `tests/browser/view.mjs` when Node, its `playwright-core` and Chromium are installed; else
+/// skipped, unless `QUATCURVE_REQUIRE_BROWSER` is set.
+fn browser() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
+    let chromium = std::env::var_os("QUATCURVE_CHROMIUM").map_or(PathBuf::from("/usr/bin/chromium"), PathBuf::from);
+    let node = std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    let missing: Vec<String> = [
+        (!node).then(|| "node".to_string()),
+        (!dir.join("node_modules/playwright-core").exists())
+            .then(|| "tests/browser/node_modules (npm ci --prefix tests/browser)".to_string()),
+        (!chromium.exists()).then(|| format!("{} (apt-get install chromium)", chromium.display())),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    if missing.is_empty() {
+        return Some(dir.join("view.mjs"));
+    }
+    assert!(
+        std::env::var_os("QUATCURVE_REQUIRE_BROWSER").is_none(),
+        "QUATCURVE_REQUIRE_BROWSER is set and the browser test lacks {}",
+        missing.join(", ")
+    );
+    eprintln!("skipped: the browser test lacks {}", missing.join(", "));
+    None
+}
+
+/// Runs the page at `query` in headless Chromium with `args` for `view.mjs`; its result, with
+/// no page error and no request outside the viewer.
+fn page(script: &Path, server: &Server, query: &str, args: &[&str]) -> serde_json::Value {
+    let out = tempfile::NamedTempFile::new().unwrap();
+    let status = std::process::Command::new("node")
+        .arg(script)
+        .arg(format!("{}?{query}", server.url()))
+        .arg(out.path())
+        .args(args)
+        .status()
+        .unwrap();
+    assert!(status.success(), "view.mjs failed on {query}");
+    let result = json(out.path());
+    assert_eq!(result["errors"], serde_json::json!([]), "page errors on {query}");
+    assert_eq!(result["foreign"], serde_json::json!([]), "the page reached outside the viewer on {query}");
+    result
+}
+
+/// The pixels of a captured frame that are not the clear colour, row 0 at the bottom.
+fn page_mask(capture: &serde_json::Value) -> Vec<bool> {
+    use base64::Engine;
+    let rgba = base64::engine::general_purpose::STANDARD.decode(capture["rgba"].as_str().unwrap()).unwrap();
+    let clear: Vec<i32> =
+        capture["clear"].as_array().unwrap().iter().map(|c| (c.as_f64().unwrap() * 255.0).round() as i32).collect();
+    rgba.chunks_exact(4).map(|p| (0..3).any(|c| (i32::from(p[c]) - clear[c]).abs() > CLEAR_THRESHOLD)).collect()
+}
+
+/// Pixel centres covered by the triangles of `positions` (`[vertices, VERTEX_CHANNELS]`)
+/// moved by `offset` and projected by the page's `view_projection`, row 0 at the bottom as GL
+/// counts window rows.
+fn cpu_mask(positions: &[f64], indices: &[u32], offset: DVec3, view_projection: &DMat4, size: usize) -> Vec<bool> {
+    let window: Vec<[f64; 2]> = positions
+        .chunks_exact(VERTEX_CHANNELS)
+        .map(|v| {
+            let clip = *view_projection * (DVec3::new(v[0], v[1], v[2]) + offset).extend(1.0);
+            assert!(clip.w > 0.0, "a vertex behind the camera");
+            let ndc = DVec4::new(clip.x / clip.w, clip.y / clip.w, 0.0, 0.0);
+            [(ndc.x + 1.0) / 2.0 * size as f64, (ndc.y + 1.0) / 2.0 * size as f64]
+        })
+        .collect();
+    let mut mask = vec![false; size * size];
+    for t in indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| window[t[k] as usize]);
+        let edge = |p: [f64; 2], q: [f64; 2], x: f64, y: f64| (q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0]);
+        let area = edge(a, b, c[0], c[1]);
+        if area == 0.0 {
+            continue;
+        }
+        let lo = |k: usize| a[k].min(b[k]).min(c[k]).floor().max(0.0) as usize;
+        let hi = |k: usize| (a[k].max(b[k]).max(c[k]).ceil() as usize).min(size);
+        for y in lo(1)..hi(1) {
+            for x in lo(0)..hi(0) {
+                let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                let w = [edge(b, c, px, py), edge(c, a, px, py), edge(a, b, px, py)];
+                if w.iter().all(|&w| w * area >= 0.0) {
+                    mask[y * size + x] = true;
+                }
+            }
+        }
+    }
+    mask
+}
+
+/// Pixels in one mask but not the other, as a fraction of the pixels in either.
+fn mismatch(a: &[bool], b: &[bool]) -> f64 {
+    let either = a.iter().zip(b).filter(|(a, b)| **a || **b).count();
+    let one = a.iter().zip(b).filter(|(a, b)| a != b).count();
+    one as f64 / either.max(1) as f64
+}
+
+#[test]
+fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let source = data.join("CesiumMan.glb");
+    let dir = tempfile::tempdir().unwrap();
+    // PNG16 for bones (its remap through the layout), EXR for vertices; the other way round below.
+    for (sub, texture, format) in [("bones", "skin-trs", "png16"), ("vertex", "vertex", "exr")] {
+        let out = bake(&[
+            "--input",
+            source.to_str().unwrap(),
+            "--texture",
+            texture,
+            "--format",
+            format,
+            "--output",
+            dir.path().join(sub).to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    // Poses at keys spread over the walk (the clip's first key is its first frame), skinned
+    // without quatcurve's bake; the page is asked for the same times from the clip's start.
+    let (document, buffers) = open(&source);
+    let channel = document.animations().next().unwrap().channels().next().unwrap();
+    let keys: Vec<f32> = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice)).read_inputs().unwrap().collect();
+    let times: Vec<f64> = [0, keys.len() / 4, keys.len() / 2, keys.len() - 1].map(|k| f64::from(keys[k])).to_vec();
+    let file = gltf::read(&source, UriPolicy::default()).unwrap();
+    let primitive = &skinned_primitives(&file).unwrap()[0];
+    let indices = primitive.indices.clone().unwrap();
+    let poses: Vec<Vec<f64>> = times.iter().map(|&t| independent(&source, primitive, 0, t)).collect();
+    let server = Server::start(dir.path());
+    for path in ["bones", "vertex"] {
+        for (k, time) in times.iter().enumerate() {
+            // From the side, where a walk's stride shows in the silhouette.
+            let query = format!(
+                "bake={path}%2FCesiumMan.json&instances=1&paused=1&time={}&azimuth=90&width={CAPTURE_SIZE}&height={CAPTURE_SIZE}&antialias=0",
+                time - times[0]
+            );
+            let result = page(&script, &server, &query, &["--capture"]);
+            let capture = &result["capture"];
+            let numbers = |key: &str| -> Vec<f64> {
+                capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+            };
+            let view_projection = DMat4::from_cols_slice(&numbers("view_projection"));
+            let offset = DVec3::from_slice(&numbers("offsets")[..3]);
+            let page = page_mask(capture);
+            let against: Vec<f64> = poses
+                .iter()
+                .map(|pose| mismatch(&page, &cpu_mask(pose, &indices, offset, &view_projection, CAPTURE_SIZE)))
+                .collect();
+            let inside = page.iter().filter(|&&p| p).count();
+            let others =
+                against.iter().enumerate().filter(|&(j, _)| j != k).map(|(_, &m)| m).fold(f64::INFINITY, f64::min);
+            eprintln!(
+                "{path} at {:.4} s: {inside} pixels drawn, silhouette mismatch {:.4} against the same pose, at least {others:.4} \
+                 against the others ({})",
+                times[k],
+                against[k],
+                result["renderer"]
+            );
+            assert!(inside > 500, "{path} at {time} s: the character takes {inside} pixels");
+            assert!(
+                against[k] <= SILHOUETTE_TOLERANCE,
+                "{path} at {time} s: mismatch {} > {SILHOUETTE_TOLERANCE}",
+                against[k]
+            );
+            // The comparison tells poses apart: every other pose is well outside the tolerance.
+            assert!(others > 3.0 * SILHOUETTE_TOLERANCE, "{path} at {time} s: another pose differs by only {others}");
+        }
+    }
+}
+
+#[test]
+fn the_page_plays_a_thousand_cesium_men_on_both_paths() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for (sub, texture, format) in [("bones", "skin-trs", "exr"), ("vertex", "vertex", "png16")] {
+        let out = bake(&[
+            "--input",
+            data.join("CesiumMan.glb").to_str().unwrap(),
+            "--texture",
+            texture,
+            "--format",
+            format,
+            "--output",
+            dir.path().join(sub).to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    let server = Server::start(dir.path());
+    for path in ["bones", "vertex"] {
+        let result =
+            page(&script, &server, &format!("bake={path}%2FCesiumMan.json&instances=1000"), &["--measure", "2"]);
+        let times: Vec<f64> = result["measure"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        eprintln!("{path}: 1000 CesiumMen, frames drawn and waited for in {times:?} ms ({})", result["renderer"]);
+        assert_eq!(times.len(), 2);
+        assert!(result["stats"].as_str().unwrap().contains("1000 instances"), "{}", result["stats"]);
+    }
+}
