@@ -89,41 +89,11 @@ fn layout_bytes(sidecar: &serde_json::Value, record: &serde_json::Value, texels:
     bytemuck::cast_slice(&words).to_vec()
 }
 
-/// An image texture's texels as a renderer samples them: EXR's floats, PNG16's unorm values.
+/// An image texture's texels as a renderer samples them: EXR's floats, PNG16's unorm values
+/// (the viewer's decoding, which these probes hold to the baked truth).
 pub(super) fn texels(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
-    if path.extension().is_some_and(|e| e == "exr") {
-        let image = exr::prelude::read_first_rgba_layer_from_file(
-            path,
-            |size, _| (size.width(), size.height(), vec![[0.0f32; 4]; size.width() * size.height()]),
-            |(w, _, t), p, (r, g, b, a): (f32, f32, f32, f32)| t[p.y() * *w + p.x()] = [r, g, b, a],
-        )
-        .unwrap();
-        let (w, h, t) = image.layer_data.channel_data.pixels;
-        (w as u32, h as u32, t)
-    } else {
-        let image::DynamicImage::ImageRgba16(buffer) = image::open(path).unwrap() else { panic!("not RGBA16") };
-        let t = buffer.pixels().map(|p| p.0.map(|v| f32::from(v) / 65535.0)).collect();
-        (buffer.width(), buffer.height(), t)
-    }
-}
-
-/// `bone_texture.wgsl`'s bindings (group 1): the texture, read texel by texel, and its layout.
-fn bones_layout(device: &wgpu::Device, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayout {
-    let entry = |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility, ty, count: None };
-    let texture = wgpu::BindingType::Texture {
-        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
-    let uniform = wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Uniform,
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    };
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("bones"),
-        entries: &[entry(0, texture), entry(1, uniform)],
-    })
+    let t = quatcurve::view::texels::Texels::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    (t.width as u32, t.height as u32, t.rgba)
 }
 
 /// An `rgba32float` texture of `texels`, `width` by `height`, for `bone_texture`.
@@ -154,98 +124,151 @@ pub(super) fn bone_texture(
 
 /// Runs `bone_probe` over one texture: 12 floats per query.
 fn probe(texture: &Path, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
+    let textures = ProbeTextures { group: 1, files: vec![texture], uniform: layout };
+    run_probe(
+        &shader::bone_probe_source(),
+        shader::BONE_PROBE_ENTRY_POINT,
+        &textures,
+        bytemuck::cast_slice(queries),
+        queries.len(),
+        12,
+    )
+}
+
+/// What a probe reads besides its queries: image files (bindings 0, 1, ...) and a uniform
+/// block after them, in one bind group.
+pub(super) struct ProbeTextures<'a> {
+    pub(super) group: u32,
+    pub(super) files: Vec<&'a Path>,
+    pub(super) uniform: &'a [u8],
+}
+
+/// Runs compute entry point `entry` of `source` on the shared GPU: `count` queries (their
+/// bytes) at group 0 binding 0, `floats_per_query` answers each at binding 1, and `textures`
+/// in their group (the groups between them empty). `None` without a GPU; a validation error
+/// panics, so a refused probe is never answers of zeros.
+pub(super) fn run_probe(
+    source: &str,
+    entry: &str,
+    textures: &ProbeTextures,
+    queries: &[u8],
+    count: usize,
+    floats_per_query: usize,
+) -> Option<Vec<f32>> {
     use wgpu::util::DeviceExt;
     let gpu = crate::shared_gpu()?;
     let (device, queue) = (gpu.context().device(), gpu.context().queue());
     // Any validation error (a binding over a limit) fails here, not as answers of zeros.
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let (width, height, data) = texels(texture);
-    let image = bone_texture(device, queue, width, height, &data);
-    let source = shader::bone_probe_source();
+    let images: Vec<wgpu::Texture> = textures
+        .files
+        .iter()
+        .map(|path| {
+            let (width, height, data) = texels(path);
+            bone_texture(device, queue, width, height, &data)
+        })
+        .collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("bone probe"),
+        label: Some(entry),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
-    let entry =
+    let entry_of =
         |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::COMPUTE, ty, count: None };
     let buffer = |ty| wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
-    let io = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[
-            entry(0, buffer(wgpu::BufferBindingType::Storage { read_only: true })),
-            entry(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
-        ],
-    });
-    let bones = bones_layout(device, wgpu::ShaderStages::COMPUTE);
+    let texture = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    let layout = |entries: &[wgpu::BindGroupLayoutEntry]| {
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries })
+    };
+    let io = layout(&[
+        entry_of(0, buffer(wgpu::BufferBindingType::Storage { read_only: true })),
+        entry_of(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
+    ]);
+    let n = images.len() as u32;
+    let mut read_entries: Vec<_> = (0..n).map(|b| entry_of(b, texture)).collect();
+    read_entries.push(entry_of(n, buffer(wgpu::BufferBindingType::Uniform)));
+    let read_layout = layout(&read_entries);
+    let empty = layout(&[]);
+    let layouts: Vec<Option<&wgpu::BindGroupLayout>> = (0..=textures.group)
+        .map(|g| {
+            Some(if g == 0 {
+                &io
+            } else if g == textures.group {
+                &read_layout
+            } else {
+                &empty
+            })
+        })
+        .collect();
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
-        bind_group_layouts: &[Some(&io), Some(&bones)],
+        bind_group_layouts: &layouts,
         immediate_size: 0,
     });
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("bone probe"),
+        label: Some(entry),
         layout: Some(&pipeline_layout),
         module: &module,
-        entry_point: Some(shader::BONE_PROBE_ENTRY_POINT),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
     });
-    let floats = queries.len() * 12;
-    let queries_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(queries),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let answers = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: (floats * 4) as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let read = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: (floats * 4) as u64,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: layout,
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let view = image.create_view(&wgpu::TextureViewDescriptor::default());
-    let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &io,
-        entries: &[
+    let bytes = (count * floats_per_query * 4) as u64;
+    let init = |contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
+    };
+    let queries_buffer = init(queries, wgpu::BufferUsages::STORAGE);
+    let uniform = init(textures.uniform, wgpu::BufferUsages::UNIFORM);
+    let plain = |usage| {
+        device.create_buffer(&wgpu::BufferDescriptor { label: None, size: bytes, usage, mapped_at_creation: false })
+    };
+    let answers = plain(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+    let read = plain(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+    let views: Vec<wgpu::TextureView> = images.iter().map(|t| t.create_view(&Default::default())).collect();
+    let group = |layout, entries: &[wgpu::BindGroupEntry]| {
+        device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries })
+    };
+    let io_group = group(
+        &io,
+        &[
             wgpu::BindGroupEntry { binding: 0, resource: queries_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: answers.as_entire_binding() },
         ],
-    });
-    let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &bones,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
-            wgpu::BindGroupEntry { binding: 1, resource: uniform.as_entire_binding() },
-        ],
-    });
-    let (module_naga, _) = naga_module(&shader::bone_probe_source());
-    let workgroup = shader::entry_workgroup_size(&module_naga, shader::BONE_PROBE_ENTRY_POINT).unwrap();
+    );
+    let mut read_group_entries: Vec<wgpu::BindGroupEntry> = views
+        .iter()
+        .enumerate()
+        .map(|(b, view)| wgpu::BindGroupEntry { binding: b as u32, resource: wgpu::BindingResource::TextureView(view) })
+        .collect();
+    read_group_entries.push(wgpu::BindGroupEntry { binding: n, resource: uniform.as_entire_binding() });
+    let read_group = group(&read_layout, &read_group_entries);
+    let empty_group = group(&empty, &[]);
+    let (module_naga, _) = naga_module(source);
+    let workgroup = shader::entry_workgroup_size(&module_naga, entry).unwrap();
     let mut encoder = device.create_command_encoder(&Default::default());
     {
         let mut pass = encoder.begin_compute_pass(&Default::default());
         pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group0, &[]);
-        pass.set_bind_group(1, &group1, &[]);
-        let groups = (queries.len() as u32).div_ceil(workgroup);
+        for g in 0..=textures.group {
+            let bound = if g == 0 {
+                &io_group
+            } else if g == textures.group {
+                &read_group
+            } else {
+                &empty_group
+            };
+            pass.set_bind_group(g, bound, &[]);
+        }
         // Within the 65535 groups a dimension allows: callers send at most 4 M queries.
-        pass.dispatch_workgroups(groups, 1, 1);
+        pass.dispatch_workgroups((count as u32).div_ceil(workgroup), 1, 1);
     }
-    encoder.copy_buffer_to_buffer(&answers, 0, &read, 0, (floats * 4) as u64);
+    encoder.copy_buffer_to_buffer(&answers, 0, &read, 0, bytes);
     queue.submit([encoder.finish()]);
     if let Some(e) = pollster::block_on(scope.pop()) {
-        panic!("{}: the bone probe was refused: {e}", texture.display());
+        panic!("{}: {entry} was refused: {e}", textures.files[0].display());
     }
     let slice = read.slice(..);
     slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());

@@ -4,7 +4,7 @@
 //! normals nlerped, loops wrapped); and its crowd vertex shader drawing on a GPU API (its GLSL,
 //! GLSL ES and HLSL are checked by glslang with the bone program's, in `shader`).
 
-use super::shader::{bone_texture, naga_module, texels};
+use super::shader::{bone_texture, naga_module, run_probe, ProbeTextures};
 use super::{bake, data_dir, json, read_npy, stderr};
 use glam::DVec3;
 use quatcurve::gpu::shader;
@@ -57,108 +57,17 @@ fn the_layout_and_query_are_laid_out_as_their_wgsl_twins() {
 
 /// Runs `vertex_probe` over one primitive's textures: six floats (position, normal) per query.
 fn probe(positions: &Path, normals: Option<&Path>, layout: &[u8], queries: &[Query]) -> Option<Vec<f32>> {
-    use wgpu::util::DeviceExt;
-    let gpu = crate::shared_gpu()?;
-    let (device, queue) = (gpu.context().device(), gpu.context().queue());
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let upload = |path: &Path| {
-        let (width, height, data) = texels(path);
-        bone_texture(device, queue, width, height, &data)
-    };
-    let position_texture = upload(positions);
     // Without normals the layout says so, and the positions stand in for the binding.
-    let normal_texture = normals.map(upload);
-    let source = shader::vertex_probe_source();
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("vertex probe"),
-        source: wgpu::ShaderSource::Wgsl(source.clone().into()),
-    });
-    let entry =
-        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::COMPUTE, ty, count: None };
-    let buffer = |ty| wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
-    let texture = wgpu::BindingType::Texture {
-        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
-    let io = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[
-            entry(0, buffer(wgpu::BufferBindingType::Storage { read_only: true })),
-            entry(1, buffer(wgpu::BufferBindingType::Storage { read_only: false })),
-        ],
-    });
-    let vertex = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: None,
-        entries: &[entry(0, texture), entry(1, texture), entry(2, buffer(wgpu::BufferBindingType::Uniform))],
-    });
-    let empty = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &[] });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: None,
-        bind_group_layouts: &[Some(&io), Some(&empty), Some(&vertex)],
-        immediate_size: 0,
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("vertex probe"),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(shader::VERTEX_PROBE_ENTRY_POINT),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let bytes = (queries.len() * 6 * 4) as u64;
-    let init = |contents: &[u8], usage| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: None, contents, usage })
-    };
-    let queries_buffer = init(bytemuck::cast_slice(queries), wgpu::BufferUsages::STORAGE);
-    let uniform = init(layout, wgpu::BufferUsages::UNIFORM);
-    let plain = |usage| {
-        device.create_buffer(&wgpu::BufferDescriptor { label: None, size: bytes, usage, mapped_at_creation: false })
-    };
-    let answers = plain(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-    let read = plain(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-    let position_view = position_texture.create_view(&Default::default());
-    let normal_view = normal_texture.as_ref().unwrap_or(&position_texture).create_view(&Default::default());
-    let group = |layout, entries: &[wgpu::BindGroupEntry]| {
-        device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries })
-    };
-    let group0 = group(
-        &io,
-        &[
-            wgpu::BindGroupEntry { binding: 0, resource: queries_buffer.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 1, resource: answers.as_entire_binding() },
-        ],
-    );
-    let group1 = group(&empty, &[]);
-    let group2 = group(
-        &vertex,
-        &[
-            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&position_view) },
-            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&normal_view) },
-            wgpu::BindGroupEntry { binding: 2, resource: uniform.as_entire_binding() },
-        ],
-    );
-    let (module_naga, _) = naga_module(&source);
-    let workgroup = shader::entry_workgroup_size(&module_naga, shader::VERTEX_PROBE_ENTRY_POINT).unwrap();
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group0, &[]);
-        pass.set_bind_group(1, &group1, &[]);
-        pass.set_bind_group(2, &group2, &[]);
-        pass.dispatch_workgroups((queries.len() as u32).div_ceil(workgroup), 1, 1);
-    }
-    encoder.copy_buffer_to_buffer(&answers, 0, &read, 0, bytes);
-    queue.submit([encoder.finish()]);
-    if let Some(e) = pollster::block_on(scope.pop()) {
-        panic!("{}: the vertex probe was refused: {e}", positions.display());
-    }
-    let slice = read.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let out = bytemuck::cast_slice::<u8, f32>(&slice.get_mapped_range().unwrap()).to_vec();
-    Some(out)
+    let files = vec![positions, normals.unwrap_or(positions)];
+    let textures = ProbeTextures { group: 2, files, uniform: layout };
+    run_probe(
+        &shader::vertex_probe_source(),
+        shader::VERTEX_PROBE_ENTRY_POINT,
+        &textures,
+        bytemuck::cast_slice(queries),
+        queries.len(),
+        6,
+    )
 }
 
 #[test]

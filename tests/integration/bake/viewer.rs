@@ -222,25 +222,25 @@ fn mismatch(a: &[bool], b: &[bool]) -> f64 {
     one as f64 / either.max(1) as f64
 }
 
+/// `source` baked into `bones/` (`skin-trs`) and `vertex/` (`vertex`) of a new directory, in
+/// `formats` (bones', vertices').
+fn bake_both(source: &Path, formats: [&str; 2]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for ((sub, texture), format) in [("bones", "skin-trs"), ("vertex", "vertex")].into_iter().zip(formats) {
+        let output = dir.path().join(sub);
+        let args = ["--input", source.to_str().unwrap(), "--texture", texture, "--format", format];
+        let out = bake(&[&args[..], &["--output", output.to_str().unwrap()]].concat());
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    dir
+}
+
 #[test]
 fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
     let source = data.join("CesiumMan.glb");
-    let dir = tempfile::tempdir().unwrap();
     // PNG16 for bones (its remap through the layout), EXR for vertices; the other way round below.
-    for (sub, texture, format) in [("bones", "skin-trs", "png16"), ("vertex", "vertex", "exr")] {
-        let out = bake(&[
-            "--input",
-            source.to_str().unwrap(),
-            "--texture",
-            texture,
-            "--format",
-            format,
-            "--output",
-            dir.path().join(sub).to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", stderr(&out));
-    }
+    let dir = bake_both(&source, ["png16", "exr"]);
     // Poses at keys spread over the walk (the clip's first key is its first frame), skinned
     // without quatcurve's bake; the page is asked for the same times from the clip's start.
     let (document, buffers) = open(&source);
@@ -296,20 +296,7 @@ fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() 
 #[test]
 fn the_page_plays_a_thousand_cesium_men_on_both_paths() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
-    let dir = tempfile::tempdir().unwrap();
-    for (sub, texture, format) in [("bones", "skin-trs", "exr"), ("vertex", "vertex", "png16")] {
-        let out = bake(&[
-            "--input",
-            data.join("CesiumMan.glb").to_str().unwrap(),
-            "--texture",
-            texture,
-            "--format",
-            format,
-            "--output",
-            dir.path().join(sub).to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", stderr(&out));
-    }
+    let dir = bake_both(&data.join("CesiumMan.glb"), ["exr", "png16"]);
     let server = Server::start(dir.path());
     for path in ["bones", "vertex"] {
         let result =
