@@ -313,7 +313,9 @@
     if (!gl) throw new Error('this browser has no WebGL2');
     resize();
     window.addEventListener('resize', resize);
-    state.bakes = await (await fetchOk('/api/bakes')).json();
+    const listing = await (await fetchOk('/api/bakes')).json();
+    state.bakes = listing.bakes;
+    if (listing.left_out > 0) show(`listing the first ${state.bakes.length} bakes; ${listing.left_out} more files not read`);
     const playable = state.bakes.filter((b) => b.playback);
     $('bake').replaceChildren(...state.bakes.map((b) => {
       const o = new Option(`${b.sidecar} (${b.playback || `does not play: ${b.refusal}`})`, b.sidecar);

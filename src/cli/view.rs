@@ -20,7 +20,8 @@ pub struct ViewArgs {
 pub fn run(args: &ViewArgs) -> Result<(), Failure> {
     let viewer = Viewer::new(&args.dir).map_err(|e| Failure::Input(format!("{}: {e}", args.dir.display())))?;
     let (server, address) = view::bind(&args.address).map_err(|e| Failure::Input(format!("--address {e}")))?;
-    let bakes = scene::bakes(viewer.root());
+    let listing = scene::bakes(viewer.root());
+    let bakes = &listing.bakes;
     let playable = bakes.iter().filter(|b| b.playback.is_some()).count();
     // The first line is the URL (scripts read it to find a free port's number).
     let mut out = std::io::stdout().lock();
@@ -29,6 +30,14 @@ pub fn run(args: &ViewArgs) -> Result<(), Failure> {
         writeln!(out, "serving {} ({} bakes, {playable} playable); Ctrl-C stops", viewer.root().display(), bakes.len());
     for bake in bakes.iter().filter(|b| b.playback.is_none()) {
         let _ = writeln!(out, "  {} does not play: {}", bake.sidecar, bake.refusal.as_deref().unwrap_or(""));
+    }
+    if listing.left_out > 0 {
+        let _ = writeln!(
+            out,
+            "  the page lists the first {} bakes; {} more JSON files were not read",
+            scene::MAX_LISTED,
+            listing.left_out
+        );
     }
     let _ = out.flush();
     drop(out);

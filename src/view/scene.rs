@@ -110,31 +110,54 @@ impl Clip {
     }
 }
 
-/// Every bake under `root` (sidecars up to [`SEARCH_DEPTH`] directories deep, by path).
+/// The most bakes a listing holds: a directory of a whole motion library lists its first ones
+/// by path, and says how many JSON files it did not read.
+pub const MAX_LISTED: usize = 1000;
+
+/// The bakes under a directory, as `/api/bakes` lists them.
+#[derive(Clone, Debug, Serialize)]
+pub struct Listing {
+    /// Bakes by sidecar path, at most [`MAX_LISTED`].
+    pub bakes: Vec<Bake>,
+    /// JSON files past the listed ones, not read.
+    pub left_out: usize,
+}
+
+/// The bakes under `root`: sidecars up to [`SEARCH_DEPTH`] directories deep, by path, the
+/// first [`MAX_LISTED`] of them.
 #[must_use]
-pub fn bakes(root: &Path) -> Vec<Bake> {
+pub fn bakes(root: &Path) -> Listing {
     let mut found = Vec::new();
     sidecars(root, SEARCH_DEPTH, &mut found);
     found.sort();
-    found
-        .into_iter()
-        .filter_map(|path| {
-            let sidecar = read_json(&path).ok()?;
-            let text = |k: &str| sidecar.get(k).and_then(Value::as_str).map(str::to_string);
-            let clips = sidecar.get("clips")?.as_array()?.iter().map(Clip::of).collect::<Result<_, _>>().ok()?;
-            let (texture, format) = (text("texture")?, text("format").unwrap_or_else(|| "npy".into()));
-            let playback = Playback::of(&texture, &format);
-            Some(Bake {
-                sidecar: url_path(root, &path),
-                source: text("source").unwrap_or_default(),
-                texture,
-                format,
-                clips,
-                refusal: playback.as_ref().err().cloned(),
-                playback: playback.ok(),
-            })
-        })
-        .collect()
+    let mut bakes = Vec::new();
+    let mut read = 0;
+    for path in &found {
+        if bakes.len() == MAX_LISTED {
+            break;
+        }
+        read += 1;
+        bakes.extend(bake(root, path));
+    }
+    Listing { bakes, left_out: found.len() - read }
+}
+
+/// The bake whose sidecar `path` is, or `None` for a JSON file that is not a sidecar.
+fn bake(root: &Path, path: &Path) -> Option<Bake> {
+    let sidecar = read_json(path).ok()?;
+    let text = |k: &str| sidecar.get(k).and_then(Value::as_str).map(str::to_string);
+    let clips = sidecar.get("clips")?.as_array()?.iter().map(Clip::of).collect::<Result<_, _>>().ok()?;
+    let (texture, format) = (text("texture")?, text("format").unwrap_or_else(|| "npy".into()));
+    let playback = Playback::of(&texture, &format);
+    Some(Bake {
+        sidecar: url_path(root, path),
+        source: text("source").unwrap_or_default(),
+        texture,
+        format,
+        clips,
+        refusal: playback.as_ref().err().cloned(),
+        playback: playback.ok(),
+    })
 }
 
 fn sidecars(dir: &Path, depth: usize, found: &mut Vec<PathBuf>) {
@@ -626,4 +649,24 @@ fn field<'v>(value: &'v Value, key: &str) -> Result<&'v Value, String> {
 
 fn number(value: &Value, key: &str) -> Result<f64, String> {
     field(value, key)?.as_f64().ok_or_else(|| format!("`{key}` is not a number"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_listing_holds_at_most_its_limit_and_counts_what_it_left_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("0-manifest.json"), r#"{"inputs": []}"#).unwrap();
+        let sidecar = r#"{"texture": "vertex", "format": "npy", "clips": []}"#;
+        for k in 0..MAX_LISTED + 2 {
+            std::fs::write(dir.path().join(format!("{k:05}.json")), sidecar).unwrap();
+        }
+        let listing = bakes(dir.path());
+        assert_eq!((listing.bakes.len(), listing.left_out), (MAX_LISTED, 2));
+        assert_eq!(listing.bakes[0].sidecar, "00000.json");
+        let refusal = listing.bakes[0].refusal.as_deref().unwrap();
+        assert!(refusal.contains("npy") && refusal.contains("--format exr or png16"), "{refusal}");
+    }
 }
