@@ -239,7 +239,7 @@ pub struct Glsl {
 }
 
 /// A WGSL resource and the GLSL name naga gave it (GLSL has no bind groups).
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug)]
 pub struct GlslBinding {
     /// The WGSL variable's name.
     pub wgsl: String,
