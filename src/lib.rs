@@ -44,6 +44,7 @@ pub mod curve;
 pub mod device;
 pub mod error;
 pub mod euclidean;
+pub mod fit;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod interp;

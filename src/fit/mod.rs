@@ -1,0 +1,418 @@
+//! Curve fitting, the core of curve compression: a sampled channel as the fewest control points
+//! of a clamped cubic B-spline whose every sample lies within a tolerance. Rotations take the
+//! KKS cumulative form (`bspline` with explicit knots, which every evaluator decodes), vectors
+//! its Euclidean analogue `sum B_i(t) p_i`. Knots are placed per channel: a span whose samples
+//! are off by more than the tolerance is split at its middle sample, and the control points are
+//! fitted again, until every span is within it or has no sample left to split at.
+//!
+//! Fitting a vector channel is linear least squares on the B-spline basis. Fitting rotations is
+//! Gauss-Newton in each control point's tangent space with the same basis as the Jacobian (the
+//! cumulative form's first-order change when control point `i` turns by `exp(d)` is
+//! `B_i(t) d` while neighbouring control points are close); each step is kept only when the
+//! worst sample improves, and the error is always measured with the reference evaluator.
+
+pub mod banded;
+
+use crate::basis::bspline_cumulative;
+use crate::batch::BatchBuilder;
+use crate::curve::{Curve, CurveSpec, KnotMode};
+use crate::error::TrackId;
+use crate::euclidean::VectorCurve;
+use crate::quat::{QuatF64, Vec3F64};
+use crate::segment::locate;
+use crate::track::Track;
+use banded::Banded;
+
+/// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
+pub const ORDER: usize = 4;
+
+/// Levenberg-Marquardt steps at most per knot vector.
+const STEPS: usize = 60;
+
+/// Damping values tried (each ten times the last) before a step is given up.
+const DAMPING_TRIES: usize = 8;
+
+/// A fitted channel: the knot vector (clamped: [`ORDER`] copies of each end) and the control
+/// points, with the largest error over the samples and where.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit<T> {
+    /// `controls.len() + ORDER` knots.
+    pub knots: Vec<f64>,
+    /// The control points.
+    pub controls: Vec<T>,
+    /// The largest error over the samples: radians for rotations, the values' units for vectors.
+    pub worst: f64,
+    /// The sample where it is.
+    pub worst_at: usize,
+}
+
+impl Fit<QuatF64> {
+    /// The fitted curve as a track of explicit knots, and its spec.
+    #[must_use]
+    pub fn track(&self) -> (Track, CurveSpec) {
+        let track = Track {
+            rotations: self.controls.iter().map(|q| q.to_array()).collect(),
+            knots: Some(self.knots.clone()),
+            ..Track::default()
+        };
+        (track, CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() })
+    }
+
+    /// The curve at `times`, by the reference evaluator.
+    ///
+    /// # Errors
+    /// The batch builder's, for a knot vector it refuses (a fit never makes one).
+    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<QuatF64>> {
+        let (track, spec) = self.track();
+        let mut builder = BatchBuilder::new();
+        builder.add(&track, &spec)?;
+        let batch = builder.build()?;
+        Ok(times.iter().map(|&t| crate::reference::evaluate_rotation(batch.view(0), t)).collect())
+    }
+}
+
+impl Fit<[f64; 3]> {
+    /// The curve at `times`, by the vector evaluator ([`VectorCurve`], the Euclidean analogue).
+    ///
+    /// # Errors
+    /// The evaluator's, for a knot vector it refuses (a fit never makes one).
+    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
+        let spec = CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() };
+        let id = TrackId { index: 0, name: None };
+        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spec)?;
+        Ok(times.iter().map(|&t| curve.evaluate(t)).collect())
+    }
+}
+
+/// `[start; ORDER]`, `interior`, `[end; ORDER]`.
+fn clamped(start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
+    let mut knots = vec![start; ORDER];
+    knots.extend_from_slice(interior);
+    knots.extend(std::iter::repeat(end).take(ORDER));
+    knots
+}
+
+/// Per sample time, the first control point it depends on and the [`ORDER`] basis values
+/// `B_i(t)` from there, derived from the cumulative basis (`B_i = B~_i - B~_{i+1}`).
+fn collocation(knots: &[f64], times: &[f64]) -> Vec<(usize, [f64; ORDER])> {
+    let last = knots.len() - ORDER - 1;
+    times
+        .iter()
+        .map(|&t| {
+            let (l, t) = locate(knots, ORDER - 1, last, t);
+            let cumulative = bspline_cumulative(knots, ORDER, l, t);
+            // cumulative[m] is B~_{l-k+2+m}; B~ is 1 below that window and 0 above it.
+            let at = |m: usize| {
+                if m == 0 {
+                    1.0
+                } else if m < ORDER {
+                    cumulative[m - 1][0]
+                } else {
+                    0.0
+                }
+            };
+            (l + 1 - ORDER, std::array::from_fn(|m| at(m) - at(m + 1)))
+        })
+        .collect()
+}
+
+/// The least-squares control point offsets for `residuals` on the basis `rows`, `n` controls.
+fn least_squares(rows: &[(usize, [f64; ORDER])], residuals: &[[f64; 3]], n: usize) -> Option<Vec<[f64; 3]>> {
+    let mut normal = Banded::zeros(n, ORDER);
+    let mut rhs = vec![[0.0; 3]; n];
+    for ((first, b), r) in rows.iter().zip(residuals) {
+        for (a, &ba) in b.iter().enumerate() {
+            for (c, &bc) in b.iter().enumerate().take(a + 1) {
+                normal.add(first + a, first + c, ba * bc);
+            }
+            for (x, &rv) in rhs[first + a].iter_mut().zip(r) {
+                *x += ba * rv;
+            }
+        }
+    }
+    // A control point no sample depends on (a span without samples) keeps its value.
+    for i in 0..n {
+        normal.add(i, i, 1e-12);
+    }
+    let factored = normal.factor()?;
+    for c in 0..3 {
+        let mut column: Vec<f64> = rhs.iter().map(|r| r[c]).collect();
+        factored.solve(&mut column);
+        for (r, v) in rhs.iter_mut().zip(column) {
+            r[c] = v;
+        }
+    }
+    Some(rhs)
+}
+
+/// Times of the knots to insert: the middle sample of every span whose worst error exceeds
+/// `tolerance`, where that sample lies strictly inside the span; a span between two samples
+/// that is still off (a flip in one frame, which a smooth cubic cannot follow: it rings, and
+/// its control points would need to be more than half a turn apart) gets its inner ends
+/// repeated up to `ORDER - 1` times, so the curve passes through a control point there and
+/// the span stands alone.
+fn splits(knots: &[f64], times: &[f64], errors: &[f64], tolerance: f64) -> Vec<f64> {
+    let (start, end) = (knots[0], *knots.last().unwrap());
+    let multiplicity = |v: f64| knots.iter().filter(|&&k| k == v).count();
+    let mut out = Vec::new();
+    let mut j = 0;
+    for span in knots.windows(2).filter(|w| w[1] > w[0]) {
+        let begin = j;
+        while j < times.len() && (times[j] < span[1] || (span[1] == end && times[j] <= span[1])) {
+            j += 1;
+        }
+        if !errors[begin..j].iter().any(|&e| e > tolerance) && !errors.get(j).is_some_and(|&e| e > tolerance) {
+            continue;
+        }
+        let inside: Vec<usize> = (begin..j).filter(|&s| times[s] > span[0] && times[s] < span[1]).collect();
+        if inside.is_empty() {
+            for v in [span[0], span[1]] {
+                if v > start && v < end && multiplicity(v) < ORDER - 1 && !out.contains(&v) {
+                    out.push(v);
+                }
+            }
+        } else {
+            out.push(times[inside[inside.len() / 2]]);
+        }
+    }
+    out
+}
+
+/// Merges sorted `a` and `b`.
+fn merged(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut out: Vec<f64> = a.iter().chain(b).copied().collect();
+    out.sort_by(f64::total_cmp);
+    out
+}
+
+/// Index and value of the largest of `errors`.
+fn worst(errors: &[f64]) -> (usize, f64) {
+    errors.iter().copied().enumerate().fold((0, 0.0), |w, (i, e)| if e > w.1 { (i, e) } else { w })
+}
+
+/// `values` at `times` (at least two, strictly increasing) as a clamped cubic B-spline
+/// `sum B_i(t) p_i` whose every sample is within `tolerance` (Euclidean distance), or as close
+/// as knots at the samples allow.
+///
+/// # Panics
+/// With fewer than two samples or a length mismatch.
+#[must_use]
+pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerance: f64) -> Fit<[f64; 3]> {
+    assert!(times.len() >= 2 && times.len() == values.len(), "at least two samples, one value each");
+    let (start, end) = (times[0], *times.last().unwrap());
+    let mut interior = Vec::new();
+    loop {
+        let knots = clamped(start, end, &interior);
+        let n = knots.len() - ORDER;
+        let rows = collocation(&knots, times);
+        let controls = least_squares(&rows, values, n).expect("a ridge-regularized normal matrix is definite");
+        let mut fit = Fit { knots, controls, worst: 0.0, worst_at: 0 };
+        let curve = fit.evaluate(times).expect("a fitted curve evaluates");
+        let errors: Vec<f64> = curve.iter().zip(values).map(|(p, v)| (*p - Vec3F64::from_array(*v)).length()).collect();
+        let new = splits(&fit.knots, times, &errors, tolerance);
+        if new.is_empty() {
+            (fit.worst_at, fit.worst) = worst(&errors);
+            return fit;
+        }
+        interior = merged(&interior, &new);
+    }
+}
+
+/// `rotations` at `times` (at least two, strictly increasing) as a KKS cumulative cubic
+/// B-spline whose every sample is within `tolerance` radians, or as close as knots at the
+/// samples allow.
+///
+/// # Panics
+/// With fewer than two samples or a length mismatch.
+#[must_use]
+pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerance: f64) -> Fit<QuatF64> {
+    assert!(times.len() >= 2 && times.len() == rotations.len(), "at least two samples, one rotation each");
+    let mut samples = rotations.to_vec();
+    for j in 1..samples.len() {
+        samples[j] = samples[j].normalize().aligned_with(samples[j - 1]);
+    }
+    let (start, end) = (times[0], *times.last().unwrap());
+    let mut fit: Option<Fit<QuatF64>> = None;
+    let mut interior = Vec::new();
+    loop {
+        let knots = clamped(start, end, &interior);
+        let rows = collocation(&knots, times);
+        // First guess: each control point at its Greville abscissa, on the last fit (or the
+        // samples, slerped).
+        let greville: Vec<f64> =
+            (0..knots.len() - ORDER).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / 3.0).collect();
+        let controls = match &fit {
+            Some(previous) => previous.evaluate(&greville).expect("a fitted curve evaluates"),
+            None => greville.iter().map(|&t| sampled(times, &samples, t)).collect(),
+        };
+        let (current, errors) =
+            refine(Fit { knots, controls, worst: f64::INFINITY, worst_at: 0 }, times, &samples, &rows);
+        let new = splits(&current.knots, times, &errors, tolerance);
+        let done = new.is_empty();
+        interior = merged(&interior, &new);
+        fit = Some(current);
+        if done {
+            return fit.expect("set above");
+        }
+    }
+}
+
+/// The sample rotation at `t`, slerped between the samples around it.
+fn sampled(times: &[f64], samples: &[QuatF64], t: f64) -> QuatF64 {
+    let j = times.partition_point(|&s| s <= t).clamp(1, times.len() - 1);
+    let h = ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0);
+    samples[j - 1].slerp(samples[j], h)
+}
+
+/// The Gauss-Newton step of every control point (its body frame) for `residuals` (each
+/// sample's, in the curve's body frame there): turning control point `i` by `exp(d)` turns the
+/// curve at `t` by about `B_i(t) R d`, `R` the rotation from the control point's frame to the
+/// curve's, so the normal equations couple a point's three components (a band of
+/// `3 * ORDER`).
+fn rotation_steps(
+    rows: &[(usize, [f64; ORDER])],
+    curve: &[QuatF64],
+    controls: &[QuatF64],
+    residuals: &[[f64; 3]],
+    damping: f64,
+) -> Option<Vec<[f64; 3]>> {
+    let n = controls.len();
+    let mut normal = Banded::zeros(3 * n, 3 * ORDER);
+    let mut rhs = vec![0.0; 3 * n];
+    for (((first, b), q), r) in rows.iter().zip(curve).zip(residuals) {
+        // Row-major 3x3 blocks J_m = B_m R_m.
+        let blocks: Vec<[[f64; 3]; 3]> = (0..ORDER)
+            .map(|m| (q.conjugate() * controls[first + m]).to_mat3().map(|row| row.map(|v| v * b[m])))
+            .collect();
+        for a in 0..ORDER {
+            for x in 0..3 {
+                let row = 3 * (first + a) + x;
+                // J^T r: column x of block a against r.
+                rhs[row] += (0..3).map(|k| blocks[a][k][x] * r[k]).sum::<f64>();
+                for c in 0..=a {
+                    for y in 0..3 {
+                        let col = 3 * (first + c) + y;
+                        if col <= row {
+                            normal.add(row, col, (0..3).map(|k| blocks[a][k][x] * blocks[c][k][y]).sum());
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // Damping relative to the mean diagonal (`sum B^2` over the samples per control point).
+    let mean = rows.iter().map(|(_, b)| b.iter().map(|v| v * v).sum::<f64>()).sum::<f64>() / n as f64;
+    for i in 0..3 * n {
+        normal.add(i, i, 1e-12 + damping * mean);
+    }
+    normal.factor()?.solve(&mut rhs);
+    Some(rhs.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+/// Levenberg-Marquardt steps on the control points of `fit` (the sum of squared residual
+/// angles falls at every step kept; damping, a multiple of the normal matrix's mean diagonal,
+/// grows until a step helps); its worst sample, and every sample's angle to the curve.
+fn refine(
+    mut fit: Fit<QuatF64>,
+    times: &[f64],
+    samples: &[QuatF64],
+    rows: &[(usize, [f64; ORDER])],
+) -> (Fit<QuatF64>, Vec<f64>) {
+    let residuals_of = |controls: &Fit<QuatF64>| -> (Vec<QuatF64>, Vec<[f64; 3]>, f64) {
+        let curve = controls.evaluate(times).expect("a fitted curve evaluates");
+        // Body-frame residuals, in the exp/log convention of the controls' update.
+        let residuals: Vec<[f64; 3]> =
+            curve.iter().zip(samples).map(|(q, s)| (q.conjugate() * *s).log().to_array()).collect();
+        let sum = residuals.iter().map(|r| r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sum();
+        (curve, residuals, sum)
+    };
+    let (mut curve, mut residuals, mut sum) = residuals_of(&fit);
+    let mut damping = 0.0;
+    for _ in 0..STEPS {
+        let mut kept = false;
+        for _ in 0..DAMPING_TRIES {
+            let Some(steps) = rotation_steps(rows, &curve, &fit.controls, &residuals, damping) else { break };
+            let controls = fit
+                .controls
+                .iter()
+                .zip(&steps)
+                .map(|(c, d)| (*c * QuatF64::exp(Vec3F64::from_array(*d))).normalize())
+                .collect();
+            let candidate = Fit { knots: fit.knots.clone(), controls, worst: 0.0, worst_at: 0 };
+            let (c, r, s) = residuals_of(&candidate);
+            if s < sum {
+                kept = s < sum * (1.0 - 1e-9);
+                (fit, curve, residuals, sum) = (candidate, c, r, s);
+                damping *= 0.1;
+                break;
+            }
+            damping = if damping == 0.0 { 1e-4 } else { damping * 10.0 };
+        }
+        if !kept {
+            break;
+        }
+    }
+    let errors: Vec<f64> = curve.iter().zip(samples).map(|(q, s)| q.angle_to(*s)).collect();
+    (fit.worst_at, fit.worst) = worst(&errors);
+    (fit, errors)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rotation(t: f64) -> QuatF64 {
+        QuatF64::from_rotation_vector(Vec3F64::new((2.0 * t).sin(), 0.3 * t, (3.0 * t).cos() * 0.5))
+    }
+
+    #[test]
+    fn the_collocation_rows_are_a_partition_of_unity_on_their_controls() {
+        let knots = clamped(0.0, 1.0, &[0.2, 0.5, 0.55]);
+        for (first, b) in collocation(&knots, &[0.0, 0.1, 0.2, 0.51, 0.99, 1.0]) {
+            assert!(first + ORDER <= knots.len() - ORDER);
+            assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-12 && b.iter().all(|&v| v >= -1e-15), "{b:?}");
+        }
+    }
+
+    #[test]
+    fn a_vector_spline_is_fitted_back_exactly_on_its_own_knots() {
+        let times: Vec<f64> = (0..=60).map(|j| j as f64 / 60.0).collect();
+        let values: Vec<[f64; 3]> = times.iter().map(|&t| [t * t * t, (t - 0.5).powi(2), 1.0 - t]).collect();
+        // A cubic polynomial is one span: four control points reproduce it.
+        let fit = fit_vectors(&times, &values, 1e-9);
+        assert_eq!(fit.controls.len(), ORDER);
+        assert!(fit.worst < 1e-12, "{}", fit.worst);
+    }
+
+    #[test]
+    fn every_sample_of_a_fitted_channel_is_within_the_tolerance() {
+        let times: Vec<f64> = (0..=240).map(|j| j as f64 / 120.0).collect();
+        let rotations: Vec<QuatF64> = times.iter().map(|&t| rotation(t)).collect();
+        for tolerance in [1e-3, 1e-5] {
+            let fit = fit_rotations(&times, &rotations, tolerance);
+            let curve = fit.evaluate(&times).unwrap();
+            assert!(
+                curve.iter().zip(&rotations).all(|(q, s)| q.angle_to(*s) <= tolerance),
+                "{tolerance}: {}",
+                fit.worst
+            );
+            assert!(fit.controls.len() < times.len() / 4, "{tolerance}: {} controls", fit.controls.len());
+        }
+        let values: Vec<[f64; 3]> = times.iter().map(|&t| [t.sin(), (5.0 * t).cos(), t]).collect();
+        let fit = fit_vectors(&times, &values, 1e-4);
+        assert!(fit.worst <= 1e-4 && fit.controls.len() < times.len() / 4, "{} {}", fit.worst, fit.controls.len());
+    }
+
+    #[test]
+    fn a_flip_in_one_frame_is_still_within_the_tolerance_at_every_sample() {
+        // A cubic rings around a step, so the spans near it are split down to the samples
+        // (knots of multiplicity 3 at a step would stop the ringing: not yet).
+        let times: Vec<f64> = (0..=40).map(f64::from).collect();
+        let rotations: Vec<QuatF64> = times
+            .iter()
+            .map(|&t| QuatF64::from_rotation_vector(Vec3F64::new(0.0, 0.0, if t < 20.0 { 0.1 } else { 2.5 })))
+            .collect();
+        let fit = fit_rotations(&times, &rotations, 1e-4);
+        assert!(fit.worst <= 1e-4, "worst {} at sample {}", fit.worst, fit.worst_at);
+    }
+}
