@@ -1,5 +1,6 @@
 //! Curve fitting, the core of curve compression: a sampled channel as the fewest control points
-//! of a clamped cubic B-spline whose every sample lies within a tolerance. Rotations take the
+//! of a clamped cubic B-spline whose every sample lies within its tolerance (each sample its
+//! own: a clip holds its frames tighter than points between them). Rotations take the
 //! KKS cumulative form (`bspline` with explicit knots, which every evaluator decodes), vectors
 //! its Euclidean analogue `sum B_i(t) p_i`. Knots are placed per channel: a span whose samples
 //! are off by more than the tolerance is split at its middle sample, and the control points are
@@ -12,6 +13,7 @@
 //! worst sample improves, and the error is always measured with the reference evaluator.
 
 pub mod banded;
+pub mod clip;
 
 use crate::basis::bspline_cumulative;
 use crate::batch::BatchBuilder;
@@ -117,16 +119,21 @@ fn collocation(knots: &[f64], times: &[f64]) -> Vec<(usize, [f64; ORDER])> {
 }
 
 /// The least-squares control point offsets for `residuals` on the basis `rows`, `n` controls.
-fn least_squares(rows: &[(usize, [f64; ORDER])], residuals: &[[f64; 3]], n: usize) -> Option<Vec<[f64; 3]>> {
+fn least_squares(
+    rows: &[(usize, [f64; ORDER])],
+    weights: &[f64],
+    residuals: &[[f64; 3]],
+    n: usize,
+) -> Option<Vec<[f64; 3]>> {
     let mut normal = Banded::zeros(n, ORDER);
     let mut rhs = vec![[0.0; 3]; n];
-    for ((first, b), r) in rows.iter().zip(residuals) {
+    for (((first, b), r), &w) in rows.iter().zip(residuals).zip(weights) {
         for (a, &ba) in b.iter().enumerate() {
             for (c, &bc) in b.iter().enumerate().take(a + 1) {
-                normal.add(first + a, first + c, ba * bc);
+                normal.add(first + a, first + c, w * ba * bc);
             }
             for (x, &rv) in rhs[first + a].iter_mut().zip(r) {
-                *x += ba * rv;
+                *x += w * ba * rv;
             }
         }
     }
@@ -145,13 +152,14 @@ fn least_squares(rows: &[(usize, [f64; ORDER])], residuals: &[[f64; 3]], n: usiz
     Some(rhs)
 }
 
-/// Times of the knots to insert: the middle sample of every span whose worst error exceeds
-/// `tolerance`, where that sample lies strictly inside the span; a span between two samples
+/// Times of the knots to insert: the middle sample of every span where a sample's error
+/// exceeds its tolerance, where that sample lies strictly inside the span; a span between two samples
 /// that is still off (a flip in one frame, which a smooth cubic cannot follow: it rings, and
 /// its control points would need to be more than half a turn apart) gets its inner ends
 /// repeated up to `ORDER - 1` times, so the curve passes through a control point there and
 /// the span stands alone.
-fn splits(knots: &[f64], times: &[f64], errors: &[f64], tolerance: f64) -> Vec<f64> {
+fn splits(knots: &[f64], times: &[f64], errors: &[f64], tolerances: &[f64]) -> Vec<f64> {
+    let off = |s: usize| errors[s] > tolerances[s];
     let (start, end) = (knots[0], *knots.last().unwrap());
     let multiplicity = |v: f64| knots.iter().filter(|&&k| k == v).count();
     let mut out = Vec::new();
@@ -161,7 +169,8 @@ fn splits(knots: &[f64], times: &[f64], errors: &[f64], tolerance: f64) -> Vec<f
         while j < times.len() && (times[j] < span[1] || (span[1] == end && times[j] <= span[1])) {
             j += 1;
         }
-        if !errors[begin..j].iter().any(|&e| e > tolerance) && !errors.get(j).is_some_and(|&e| e > tolerance) {
+        let end_sample_off = j < times.len() && off(j);
+        if !end_sample_off && !(begin..j).any(off) {
             continue;
         }
         let inside: Vec<usize> = (begin..j).filter(|&s| times[s] > span[0] && times[s] < span[1]).collect();
@@ -178,6 +187,14 @@ fn splits(knots: &[f64], times: &[f64], errors: &[f64], tolerance: f64) -> Vec<f
     out
 }
 
+/// Least-squares weights: the inverse square of each tolerance, the tightest weighing 1 (a
+/// zero tolerance counts as the smallest positive one).
+fn weights(tolerances: &[f64]) -> Vec<f64> {
+    let positive = |t: f64| t.max(f64::MIN_POSITIVE);
+    let tightest = tolerances.iter().copied().map(positive).fold(f64::INFINITY, f64::min);
+    tolerances.iter().map(|&t| (tightest / positive(t)).powi(2)).collect()
+}
+
 /// Merges sorted `a` and `b`.
 fn merged(a: &[f64], b: &[f64]) -> Vec<f64> {
     let mut out: Vec<f64> = a.iter().chain(b).copied().collect();
@@ -191,25 +208,31 @@ fn worst(errors: &[f64]) -> (usize, f64) {
 }
 
 /// `values` at `times` (at least two, strictly increasing) as a clamped cubic B-spline
-/// `sum B_i(t) p_i` whose every sample is within `tolerance` (Euclidean distance), or as close
-/// as knots at the samples allow.
+/// `sum B_i(t) p_i` whose every sample is within its tolerance (Euclidean distance), or as
+/// close as knots at the samples allow. Least squares weighs each sample by the inverse square
+/// of its tolerance.
 ///
 /// # Panics
 /// With fewer than two samples or a length mismatch.
 #[must_use]
-pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerance: f64) -> Fit<[f64; 3]> {
-    assert!(times.len() >= 2 && times.len() == values.len(), "at least two samples, one value each");
+pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fit<[f64; 3]> {
+    assert!(
+        times.len() >= 2 && times.len() == values.len() && times.len() == tolerances.len(),
+        "at least two samples, one value and one tolerance each"
+    );
+    let weights = weights(tolerances);
     let (start, end) = (times[0], *times.last().unwrap());
     let mut interior = Vec::new();
     loop {
         let knots = clamped(start, end, &interior);
         let n = knots.len() - ORDER;
         let rows = collocation(&knots, times);
-        let controls = least_squares(&rows, values, n).expect("a ridge-regularized normal matrix is definite");
+        let controls =
+            least_squares(&rows, &weights, values, n).expect("a ridge-regularized normal matrix is definite");
         let mut fit = Fit { knots, controls, worst: 0.0, worst_at: 0 };
         let curve = fit.evaluate(times).expect("a fitted curve evaluates");
         let errors: Vec<f64> = curve.iter().zip(values).map(|(p, v)| (*p - Vec3F64::from_array(*v)).length()).collect();
-        let new = splits(&fit.knots, times, &errors, tolerance);
+        let new = splits(&fit.knots, times, &errors, tolerances);
         if new.is_empty() {
             (fit.worst_at, fit.worst) = worst(&errors);
             return fit;
@@ -219,14 +242,18 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerance: f64) -> Fit<[f
 }
 
 /// `rotations` at `times` (at least two, strictly increasing) as a KKS cumulative cubic
-/// B-spline whose every sample is within `tolerance` radians, or as close as knots at the
-/// samples allow.
+/// B-spline whose every sample is within its tolerance (radians), or as close as knots at the
+/// samples allow; weighted as [`fit_vectors`].
 ///
 /// # Panics
 /// With fewer than two samples or a length mismatch.
 #[must_use]
-pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerance: f64) -> Fit<QuatF64> {
-    assert!(times.len() >= 2 && times.len() == rotations.len(), "at least two samples, one rotation each");
+pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -> Fit<QuatF64> {
+    assert!(
+        times.len() >= 2 && times.len() == rotations.len() && times.len() == tolerances.len(),
+        "at least two samples, one rotation and one tolerance each"
+    );
+    let weights = weights(tolerances);
     let mut samples = rotations.to_vec();
     for j in 1..samples.len() {
         samples[j] = samples[j].normalize().aligned_with(samples[j - 1]);
@@ -245,9 +272,9 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerance: f64) -> Fi
             Some(previous) => previous.evaluate(&greville).expect("a fitted curve evaluates"),
             None => greville.iter().map(|&t| sampled(times, &samples, t)).collect(),
         };
-        let (current, errors) =
-            refine(Fit { knots, controls, worst: f64::INFINITY, worst_at: 0 }, times, &samples, &rows);
-        let new = splits(&current.knots, times, &errors, tolerance);
+        let start_fit = Fit { knots, controls, worst: f64::INFINITY, worst_at: 0 };
+        let (current, errors) = refine(start_fit, times, &samples, &rows, &weights);
+        let new = splits(&current.knots, times, &errors, tolerances);
         let done = new.is_empty();
         interior = merged(&interior, &new);
         fit = Some(current);
@@ -273,16 +300,19 @@ fn rotation_steps(
     rows: &[(usize, [f64; ORDER])],
     curve: &[QuatF64],
     controls: &[QuatF64],
+    weights: &[f64],
     residuals: &[[f64; 3]],
     damping: f64,
 ) -> Option<Vec<[f64; 3]>> {
     let n = controls.len();
     let mut normal = Banded::zeros(3 * n, 3 * ORDER);
     let mut rhs = vec![0.0; 3 * n];
-    for (((first, b), q), r) in rows.iter().zip(curve).zip(residuals) {
-        // Row-major 3x3 blocks J_m = B_m R_m.
+    for ((((first, b), q), r), &w) in rows.iter().zip(curve).zip(residuals).zip(weights) {
+        // Row-major 3x3 blocks J_m = sqrt(w) B_m R_m, against sqrt(w) r.
+        let root = w.sqrt();
+        let r = r.map(|v| v * root);
         let blocks: Vec<[[f64; 3]; 3]> = (0..ORDER)
-            .map(|m| (q.conjugate() * controls[first + m]).to_mat3().map(|row| row.map(|v| v * b[m])))
+            .map(|m| (q.conjugate() * controls[first + m]).to_mat3().map(|row| row.map(|v| v * b[m] * root)))
             .collect();
         for a in 0..ORDER {
             for x in 0..3 {
@@ -301,7 +331,8 @@ fn rotation_steps(
         }
     }
     // Damping relative to the mean diagonal (`sum B^2` over the samples per control point).
-    let mean = rows.iter().map(|(_, b)| b.iter().map(|v| v * v).sum::<f64>()).sum::<f64>() / n as f64;
+    let mean =
+        rows.iter().zip(weights).map(|((_, b), w)| w * b.iter().map(|v| v * v).sum::<f64>()).sum::<f64>() / n as f64;
     for i in 0..3 * n {
         normal.add(i, i, 1e-12 + damping * mean);
     }
@@ -317,13 +348,14 @@ fn refine(
     times: &[f64],
     samples: &[QuatF64],
     rows: &[(usize, [f64; ORDER])],
+    weights: &[f64],
 ) -> (Fit<QuatF64>, Vec<f64>) {
     let residuals_of = |controls: &Fit<QuatF64>| -> (Vec<QuatF64>, Vec<[f64; 3]>, f64) {
         let curve = controls.evaluate(times).expect("a fitted curve evaluates");
         // Body-frame residuals, in the exp/log convention of the controls' update.
         let residuals: Vec<[f64; 3]> =
             curve.iter().zip(samples).map(|(q, s)| (q.conjugate() * *s).log().to_array()).collect();
-        let sum = residuals.iter().map(|r| r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sum();
+        let sum = residuals.iter().zip(weights).map(|(r, w)| w * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2])).sum();
         (curve, residuals, sum)
     };
     let (mut curve, mut residuals, mut sum) = residuals_of(&fit);
@@ -331,7 +363,7 @@ fn refine(
     for _ in 0..STEPS {
         let mut kept = false;
         for _ in 0..DAMPING_TRIES {
-            let Some(steps) = rotation_steps(rows, &curve, &fit.controls, &residuals, damping) else { break };
+            let Some(steps) = rotation_steps(rows, &curve, &fit.controls, weights, &residuals, damping) else { break };
             let controls = fit
                 .controls
                 .iter()
@@ -379,7 +411,7 @@ mod tests {
         let times: Vec<f64> = (0..=60).map(|j| j as f64 / 60.0).collect();
         let values: Vec<[f64; 3]> = times.iter().map(|&t| [t * t * t, (t - 0.5).powi(2), 1.0 - t]).collect();
         // A cubic polynomial is one span: four control points reproduce it.
-        let fit = fit_vectors(&times, &values, 1e-9);
+        let fit = fit_vectors(&times, &values, &vec![1e-9; times.len()]);
         assert_eq!(fit.controls.len(), ORDER);
         assert!(fit.worst < 1e-12, "{}", fit.worst);
     }
@@ -389,7 +421,7 @@ mod tests {
         let times: Vec<f64> = (0..=240).map(|j| j as f64 / 120.0).collect();
         let rotations: Vec<QuatF64> = times.iter().map(|&t| rotation(t)).collect();
         for tolerance in [1e-3, 1e-5] {
-            let fit = fit_rotations(&times, &rotations, tolerance);
+            let fit = fit_rotations(&times, &rotations, &vec![tolerance; times.len()]);
             let curve = fit.evaluate(&times).unwrap();
             assert!(
                 curve.iter().zip(&rotations).all(|(q, s)| q.angle_to(*s) <= tolerance),
@@ -399,7 +431,7 @@ mod tests {
             assert!(fit.controls.len() < times.len() / 4, "{tolerance}: {} controls", fit.controls.len());
         }
         let values: Vec<[f64; 3]> = times.iter().map(|&t| [t.sin(), (5.0 * t).cos(), t]).collect();
-        let fit = fit_vectors(&times, &values, 1e-4);
+        let fit = fit_vectors(&times, &values, &vec![1e-4; times.len()]);
         assert!(fit.worst <= 1e-4 && fit.controls.len() < times.len() / 4, "{} {}", fit.worst, fit.controls.len());
     }
 
@@ -412,7 +444,7 @@ mod tests {
             .iter()
             .map(|&t| QuatF64::from_rotation_vector(Vec3F64::new(0.0, 0.0, if t < 20.0 { 0.1 } else { 2.5 })))
             .collect();
-        let fit = fit_rotations(&times, &rotations, 1e-4);
+        let fit = fit_rotations(&times, &rotations, &vec![1e-4; times.len()]);
         assert!(fit.worst <= 1e-4, "worst {} at sample {}", fit.worst, fit.worst_at);
     }
 }

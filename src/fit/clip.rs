@@ -1,0 +1,374 @@
+//! A whole clip fitted within ACL's error: every channel as a B-spline ([`super`]), with
+//! tolerances shared down the hierarchy so that the object-space error of every joint's
+//! virtual vertices ([`crate::analysis::vertex_error`]) stays within a budget at every source
+//! frame; then measured at every frame and at points between frames against the source's own
+//! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip.
+
+use super::{fit_rotations, fit_vectors, Fit, ORDER};
+use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
+use crate::bake::{Animation, Channel, Property};
+use crate::quat::{QuatF64, Vec3F64};
+use rayon::prelude::*;
+
+/// Points measured strictly between two consecutive source frames.
+pub const BETWEEN_POINTS: usize = 4;
+
+/// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
+pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
+
+/// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
+const SCALINGS: usize = 6;
+
+/// A fit whose worst error is within this factor of the budget is not tried looser.
+const ROOM_TO_GROW: f64 = 1.25;
+
+/// The most the tolerances grow from one fit to the next.
+const MAX_GROWTH: f64 = 4.0;
+
+/// The error allowed and where it is measured, in the file's units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Budget {
+    /// The largest distance a virtual vertex may move, at any source frame.
+    pub max_error: f64,
+    /// The largest between frames, from the source's own interpolation (a looser bound: a
+    /// curve through the frames alone may swing between them).
+    pub between_error: f64,
+    /// How far from each joint its virtual vertices are.
+    pub vertex_distance: f64,
+}
+
+/// A fitted channel.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Fitted {
+    /// Every key within its tolerance of one value: stored once.
+    Constant([f64; 4]),
+    /// A KKS cumulative B-spline.
+    Rotation(Fit<QuatF64>),
+    /// Its Euclidean analogue (translation, scale).
+    Vector(Fit<[f64; 3]>),
+}
+
+impl Fitted {
+    /// Its bytes as `f32`: 16 a rotation control point, 12 a vector one, 4 an interior knot.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        match self {
+            Fitted::Constant(v) => {
+                if v[3] == 0.0 {
+                    12
+                } else {
+                    16
+                }
+            }
+            Fitted::Rotation(f) => 16 * f.controls.len() + 4 * (f.knots.len() - 2 * ORDER),
+            Fitted::Vector(f) => 12 * f.controls.len() + 4 * (f.knots.len() - 2 * ORDER),
+        }
+    }
+}
+
+/// The largest error of a clip and where it is.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Worst {
+    /// The distance, in file units.
+    pub error: f64,
+    /// The joint.
+    pub joint: usize,
+    /// The time, seconds.
+    pub time: f64,
+}
+
+/// A clip fitted within a [`Budget`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClipFit {
+    /// Per channel of the clip, in its order.
+    pub channels: Vec<Fitted>,
+    /// The worst error at the source frames, and between them.
+    pub at_frames: Worst,
+    /// See [`Self::at_frames`].
+    pub between_frames: Worst,
+    /// The source's frames (every channel's key times).
+    pub frames: usize,
+    /// [`RAW_BYTES_PER_JOINT_FRAME`] per joint per frame.
+    pub raw_bytes: usize,
+    /// Every channel's [`Fitted::bytes`].
+    pub fitted_bytes: usize,
+}
+
+/// Clip `clip` of `animation` fitted within `budget`.
+///
+/// # Errors
+/// A budget length that is not positive, a hierarchy that is not a tree, or a budget no fit
+/// meets.
+pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<ClipFit, String> {
+    for (name, value) in [
+        ("max error", budget.max_error),
+        ("between error", budget.between_error),
+        ("vertex distance", budget.vertex_distance),
+    ] {
+        if !(value > 0.0 && value.is_finite()) {
+            return Err(format!("the {name} is {value}; it must be a positive length"));
+        }
+    }
+    let order = animation.parents_first().map_err(|e| e.to_string())?;
+    let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+    let channels = &animation.clips[clip].channels;
+    let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
+    frames.sort_by(f64::total_cmp);
+    frames.dedup();
+    let between: Vec<f64> = frames
+        .windows(2)
+        .flat_map(|w| (1..=BETWEEN_POINTS).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / (BETWEEN_POINTS + 1) as f64))
+        .collect();
+    let tolerances = tolerances(animation, &order, channels, budget);
+    let between_share = budget.between_error / budget.max_error;
+    // The shares are conservative (errors along a chain seldom add up in one direction), so
+    // the tolerances are scaled towards the budget: up while the worst error leaves room,
+    // down when it is over; the smallest fit within the budget is kept.
+    let mut best: Option<ClipFit> = None;
+    let mut scale = 1.0;
+    for _ in 0..SCALINGS {
+        let fitted: Vec<Fitted> =
+            channels.par_iter().zip(&tolerances).map(|(c, &t)| fit_channel(c, t * scale, between_share)).collect();
+        let measure = |times: &[f64]| worst_error(animation, &parents, &order, channels, &fitted, times, budget);
+        let (at_frames, between_frames) = (measure(&frames), measure(&between));
+        let room = (budget.max_error / at_frames.error).min(budget.between_error / between_frames.error);
+        if room >= 1.0 {
+            let fit = ClipFit {
+                between_frames,
+                fitted_bytes: fitted.iter().map(Fitted::bytes).sum(),
+                channels: fitted,
+                at_frames,
+                frames: frames.len(),
+                raw_bytes: RAW_BYTES_PER_JOINT_FRAME * animation.joints.len() * frames.len(),
+            };
+            if best.as_ref().map_or(true, |b| fit.fitted_bytes < b.fitted_bytes) {
+                best = Some(fit);
+            }
+            if room < ROOM_TO_GROW {
+                break;
+            }
+        }
+        scale *= 0.9 * room.min(MAX_GROWTH);
+    }
+    best.ok_or_else(|| {
+        format!(
+            "no fit within {} at frames and {} between them after {SCALINGS} scalings of the tolerances",
+            budget.max_error, budget.between_error
+        )
+    })
+}
+
+/// Each channel's tolerance: the budget split evenly over the animated channels of the longest
+/// chain from a root, a rotation's as the angle that moves the farthest vertex it carries (at
+/// rest) by that share, a scale's likewise, a translation's the share itself.
+fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budget: &Budget) -> Vec<f64> {
+    let joints = &animation.joints;
+    let rest: Vec<Transform> =
+        joints.iter().map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale }).collect();
+    let parents: Vec<Option<usize>> = joints.iter().map(|j| j.parent).collect();
+    let at: Vec<Vec3F64> = object_space(&parents, order, &rest)
+        .iter()
+        .map(|m| Vec3F64::new(m.translation.x, m.translation.y, m.translation.z))
+        .collect();
+    // Reach: the farthest joint it carries, plus the vertex distance.
+    let mut reach = vec![budget.vertex_distance; joints.len()];
+    // Animated channels on the way from a root down to each joint, itself included.
+    let mut depth = vec![0usize; joints.len()];
+    let animated = |j: usize| channels.iter().filter(|c| c.joint == j && c.times.len() > 1).count();
+    for &j in order {
+        depth[j] = joints[j].parent.map_or(0, |p| depth[p]) + animated(j);
+        let mut a = joints[j].parent;
+        while let Some(p) = a {
+            reach[p] = reach[p].max((at[j] - at[p]).length() + budget.vertex_distance);
+            a = joints[p].parent;
+        }
+    }
+    let share = budget.max_error / depth.iter().copied().max().unwrap_or(1).max(1) as f64;
+    channels
+        .iter()
+        .map(|c| match c.property {
+            Property::Translation => share,
+            Property::Rotation | Property::Scale => share / reach[c.joint],
+        })
+        .collect()
+}
+
+/// `channel` fitted at its keys within `tolerance` and at [`BETWEEN_POINTS`] points of its own
+/// interpolation between them within `between_share` times that; a channel whose every key is
+/// within `tolerance` of its first is stored once.
+fn fit_channel(channel: &Channel, tolerance: f64, between_share: f64) -> Fitted {
+    let first = channel.values[0];
+    let rotation = channel.property == Property::Rotation;
+    let off = |v: &[f64; 4]| {
+        if rotation {
+            QuatF64::from_array(*v).angle_to(QuatF64::from_array(first))
+        } else {
+            (Vec3F64::new(v[0], v[1], v[2]) - Vec3F64::new(first[0], first[1], first[2])).length()
+        }
+    };
+    if channel.times.len() < 2 || channel.values.iter().all(|v| off(v) <= tolerance) {
+        return Fitted::Constant(if rotation { first } else { [first[0], first[1], first[2], 0.0] });
+    }
+    let mut times = vec![channel.times[0]];
+    let mut tolerances = vec![tolerance];
+    for w in channel.times.windows(2) {
+        for k in 1..=BETWEEN_POINTS {
+            times.push(w[0] + (w[1] - w[0]) * k as f64 / (BETWEEN_POINTS + 1) as f64);
+            tolerances.push(tolerance * between_share);
+        }
+        times.push(w[1]);
+        tolerances.push(tolerance);
+    }
+    let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
+    if rotation {
+        let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
+        Fitted::Rotation(fit_rotations(&times, &rotations, &tolerances))
+    } else {
+        let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+        Fitted::Vector(fit_vectors(&times, &vectors, &tolerances))
+    }
+}
+
+/// The source's value of `channel` at `t`: keys slerped (rotations) or lerped, held outside.
+fn source_at(channel: &Channel, t: f64) -> [f64; 4] {
+    let times = &channel.times;
+    let j = times.partition_point(|&s| s <= t).clamp(1, times.len().max(2) - 1);
+    if times.len() < 2 {
+        return channel.values[0];
+    }
+    let h = ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0);
+    let (a, b) = (channel.values[j - 1], channel.values[j]);
+    if channel.property == Property::Rotation {
+        QuatF64::from_array(a).slerp(QuatF64::from_array(b).aligned_with(QuatF64::from_array(a)), h).to_array()
+    } else {
+        std::array::from_fn(|c| a[c] + (b[c] - a[c]) * h)
+    }
+}
+
+/// The worst object-space error over `times` between the source and the fitted channels.
+fn worst_error(
+    animation: &Animation,
+    parents: &[Option<usize>],
+    order: &[usize],
+    channels: &[Channel],
+    fitted: &[Fitted],
+    times: &[f64],
+    budget: &Budget,
+) -> Worst {
+    // Every fitted channel at every time, evaluated once per channel.
+    let curves: Vec<Vec<[f64; 4]>> = fitted
+        .par_iter()
+        .map(|f| match f {
+            Fitted::Constant(v) => vec![*v; times.len()],
+            Fitted::Rotation(fit) => {
+                fit.evaluate(times).expect("a fitted curve evaluates").iter().map(|q| q.to_array()).collect()
+            }
+            Fitted::Vector(fit) => fit
+                .evaluate(times)
+                .expect("a fitted curve evaluates")
+                .iter()
+                .map(|v| {
+                    let [x, y, z] = v.to_array();
+                    [x, y, z, 0.0]
+                })
+                .collect(),
+        })
+        .collect();
+    let rest: Vec<Transform> = animation
+        .joints
+        .iter()
+        .map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale })
+        .collect();
+    let pose = |values: &dyn Fn(usize) -> [f64; 4]| {
+        let mut local = rest.clone();
+        for (k, c) in channels.iter().enumerate() {
+            let v = values(k);
+            let t = &mut local[c.joint];
+            match c.property {
+                Property::Rotation => t.rotation = v,
+                Property::Translation => t.translation = [v[0], v[1], v[2]],
+                Property::Scale => t.scale = [v[0], v[1], v[2]],
+            }
+        }
+        local
+    };
+    times
+        .par_iter()
+        .enumerate()
+        .map(|(i, &t)| {
+            let raw = pose(&|k| source_at(&channels[k], t));
+            let lossy = pose(&|k| curves[k][i]);
+            let errors = pose_errors(parents, order, &raw, &lossy, budget.vertex_distance);
+            let (joint, error) =
+                errors.iter().copied().enumerate().fold((0, 0.0), |w, (j, e)| if e > w.1 { (j, e) } else { w });
+            Worst { error, joint, time: t }
+        })
+        .reduce(Worst::default, |a, b| if b.error > a.error { b } else { a })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{Clip, Joint};
+
+    /// A three-joint arm (10 cm bones) waving smoothly for two seconds at 120 Hz, its root
+    /// also moving.
+    fn arm() -> Animation {
+        let joints = vec![
+            Joint::at("root".into(), None, [0.0; 3]),
+            Joint::at("elbow".into(), Some(0), [10.0, 0.0, 0.0]),
+            Joint::at("hand".into(), Some(1), [10.0, 0.0, 0.0]),
+        ];
+        let times: Vec<f64> = (0..=240).map(|f| f64::from(f) / 120.0).collect();
+        let turn = |joint: usize, speed: f64| Channel {
+            joint,
+            property: Property::Rotation,
+            times: times.clone(),
+            values: times
+                .iter()
+                .map(|&t| {
+                    QuatF64::from_rotation_vector(Vec3F64::new(
+                        0.2 * (speed * t).sin(),
+                        0.1 * t,
+                        0.5 * (speed * t).cos(),
+                    ))
+                    .to_array()
+                })
+                .collect(),
+        };
+        let slide = Channel {
+            joint: 0,
+            property: Property::Translation,
+            times: times.clone(),
+            values: times.iter().map(|&t| [5.0 * t, (3.0 * t).sin(), 0.0, 0.0]).collect(),
+        };
+        let still = Channel {
+            joint: 2,
+            property: Property::Rotation,
+            times: times.clone(),
+            values: vec![[0.0, 0.0, 0.0, 1.0]; times.len()],
+        };
+        let clip = Clip { name: "wave".into(), channels: vec![turn(0, 2.0), turn(1, 3.0), slide, still] };
+        Animation { joints, clips: vec![clip], skins: Vec::new() }
+    }
+
+    #[test]
+    fn a_clip_fits_within_its_budget_at_frames_and_between_them_in_fewer_bytes() {
+        let animation = arm();
+        let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
+        let fit = fit_clip(&animation, 0, &budget).unwrap();
+        assert!(fit.at_frames.error <= budget.max_error, "{:?}", fit.at_frames);
+        assert!(fit.between_frames.error <= budget.between_error, "{:?}", fit.between_frames);
+        // Measured again here, at every frame, from the fitted curves and the keys.
+        let channels = &animation.clips[0].channels;
+        let order = animation.parents_first().unwrap();
+        let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+        let again = worst_error(&animation, &parents, &order, channels, &fit.channels, &channels[0].times, &budget);
+        assert_eq!(again, fit.at_frames);
+        assert!(matches!(fit.channels[3], Fitted::Constant(_)), "the still hand is stored once");
+        assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
+        assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);
+        let none = Budget { max_error: 0.0, ..budget };
+        assert_eq!(fit_clip(&animation, 0, &none).unwrap_err(), "the max error is 0; it must be a positive length");
+    }
+}
