@@ -4,6 +4,7 @@
 //! frame; then measured at every frame and at points between frames against the source's own
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip.
 
+use super::quantize::{self, Quantized};
 use super::{fit_rotations, fit_vectors, Fit, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
 use crate::bake::{Animation, Channel, Property};
@@ -15,6 +16,14 @@ pub const BETWEEN_POINTS: usize = 4;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
 pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
+
+/// The share of a channel's tolerance its control points' quantization may take; the fit
+/// takes the rest.
+pub const QUANTIZATION_SHARE: f64 = 0.25;
+
+/// Bytes of an interior knot: its index among the clip's fitted sample times (every knot is
+/// one), as `u16`.
+pub const KNOT_BYTES: usize = 2;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 6;
@@ -42,26 +51,22 @@ pub struct Budget {
 pub enum Fitted {
     /// Every key within its tolerance of one value: stored once.
     Constant([f64; 4]),
-    /// A KKS cumulative B-spline.
-    Rotation(Fit<QuatF64>),
-    /// Its Euclidean analogue (translation, scale).
-    Vector(Fit<[f64; 3]>),
+    /// A KKS cumulative B-spline, its control points as their codes decode.
+    Rotation(Fit<QuatF64>, Quantized),
+    /// Its Euclidean analogue (translation, scale), likewise.
+    Vector(Fit<[f64; 3]>, Quantized),
 }
 
 impl Fitted {
-    /// Its bytes as `f32`: 16 a rotation control point, 12 a vector one, 4 an interior knot.
+    /// Its bytes: a constant's `f32` value; a curve's quantized control points and
+    /// [`KNOT_BYTES`] per interior knot.
     #[must_use]
     pub fn bytes(&self) -> usize {
+        let knots = |knots: &[f64]| KNOT_BYTES * (knots.len() - 2 * ORDER);
         match self {
-            Fitted::Constant(v) => {
-                if v[3] == 0.0 {
-                    12
-                } else {
-                    16
-                }
-            }
-            Fitted::Rotation(f) => 16 * f.controls.len() + 4 * (f.knots.len() - 2 * ORDER),
-            Fitted::Vector(f) => 12 * f.controls.len() + 4 * (f.knots.len() - 2 * ORDER),
+            Fitted::Constant(v) => 4 * if v[3] == 0.0 { 3 } else { 4 },
+            Fitted::Rotation(f, q) => quantize::rotation_bytes(q) + knots(&f.knots),
+            Fitted::Vector(f, q) => q.bytes() + knots(&f.knots),
         }
     }
 }
@@ -220,12 +225,20 @@ fn fit_channel(channel: &Channel, tolerance: f64, between_share: f64) -> Fitted 
         tolerances.push(tolerance);
     }
     let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
+    let fitting: Vec<f64> = tolerances.iter().map(|t| t * (1.0 - QUANTIZATION_SHARE)).collect();
+    let rounding = tolerance * QUANTIZATION_SHARE;
     if rotation {
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
-        Fitted::Rotation(fit_rotations(&times, &rotations, &tolerances))
+        let mut fit = fit_rotations(&times, &rotations, &fitting);
+        let (codes, decoded) = quantize::rotations(&fit.controls, rounding);
+        fit.controls = decoded;
+        Fitted::Rotation(fit, codes)
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-        Fitted::Vector(fit_vectors(&times, &vectors, &tolerances))
+        let mut fit = fit_vectors(&times, &vectors, &fitting);
+        let codes = Quantized::of(&fit.controls, rounding);
+        fit.controls = codes.values();
+        Fitted::Vector(fit, codes)
     }
 }
 
@@ -260,10 +273,10 @@ fn worst_error(
         .par_iter()
         .map(|f| match f {
             Fitted::Constant(v) => vec![*v; times.len()],
-            Fitted::Rotation(fit) => {
+            Fitted::Rotation(fit, _) => {
                 fit.evaluate(times).expect("a fitted curve evaluates").iter().map(|q| q.to_array()).collect()
             }
-            Fitted::Vector(fit) => fit
+            Fitted::Vector(fit, _) => fit
                 .evaluate(times)
                 .expect("a fitted curve evaluates")
                 .iter()

@@ -14,6 +14,7 @@
 
 pub mod banded;
 pub mod clip;
+pub mod quantize;
 
 use crate::basis::bspline_cumulative;
 use crate::batch::BatchBuilder;

@@ -1,0 +1,152 @@
+//! Control points in fewer bits: per channel, each stored component's range over its control
+//! points (`low`, `span`) and the fewest bits (at most [`MAX_BITS`]) whose rounding moves a
+//! control point by at most a given amount. A B-spline point is a blend of its control points,
+//! so the curve moves by about as much; the clip measures it after quantization anyway.
+//! Rotations store their three smallest components (the batch builder makes the decoded control
+//! points sign-continuous again).
+
+use crate::quat::QuatF64;
+
+/// The most bits a component takes.
+pub const MAX_BITS: u32 = 24;
+
+/// Bytes of a channel's ranges: `low` and `span` of three components as `f32`, and the bit width.
+pub const HEADER_BYTES: usize = 25;
+
+/// A channel's control points as `bits`-bit codes of three components in `[low, low + span]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Quantized {
+    /// Bits per component.
+    pub bits: u32,
+    /// Each component's smallest value, and its range.
+    pub low: [f64; 3],
+    /// See [`Self::low`].
+    pub span: [f64; 3],
+    /// Per control point, its three codes.
+    pub codes: Vec<[u32; 3]>,
+}
+
+impl Quantized {
+    /// `components` in the fewest bits that keep each control point within `error`
+    /// (Euclidean, over its three components).
+    #[must_use]
+    pub fn of(components: &[[f64; 3]], error: f64) -> Self {
+        let low: [f64; 3] = std::array::from_fn(|c| components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min));
+        let span: [f64; 3] = std::array::from_fn(|c| components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max));
+        let widest = span.iter().copied().fold(0.0, f64::max);
+        // Rounding moves each component by at most half a step: sqrt(3) / 2 steps in all.
+        let bits = (1..=MAX_BITS)
+            .find(|&b| 3f64.sqrt() / 2.0 * widest / f64::from((1u32 << b) - 1) <= error)
+            .unwrap_or(MAX_BITS);
+        let levels = f64::from((1u32 << bits) - 1);
+        let codes = components
+            .iter()
+            .map(|v| {
+                std::array::from_fn(
+                    |c| if span[c] > 0.0 { ((v[c] - low[c]) / span[c] * levels).round() as u32 } else { 0 },
+                )
+            })
+            .collect();
+        Self { bits, low, span, codes }
+    }
+
+    /// The components the codes stand for.
+    #[must_use]
+    pub fn values(&self) -> Vec<[f64; 3]> {
+        let levels = f64::from((1u32 << self.bits) - 1);
+        self.codes
+            .iter()
+            .map(|code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
+            .collect()
+    }
+
+    /// Its bytes: the header and the codes, packed.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        HEADER_BYTES + (3 * self.bits as usize * self.codes.len()).div_ceil(8)
+    }
+}
+
+/// Rotation control points quantized within `angle` radians each, as their three smallest
+/// components (the largest, turned positive, is rebuilt from them; its index takes
+/// [`INDEX_BITS`] per control point), and the rotations they decode to.
+#[must_use]
+pub fn rotations(controls: &[QuatF64], angle: f64) -> (Quantized, Vec<QuatF64>) {
+    let stored: Vec<(usize, [f64; 3])> = controls
+        .iter()
+        .map(|q| {
+            let c = q.normalize().to_array();
+            let largest = (0..4).max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs())).unwrap_or(3);
+            let sign = c[largest].signum();
+            let mut rest = [0.0; 3];
+            for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
+                rest[slot] = c[i] * sign;
+            }
+            (largest, rest)
+        })
+        .collect();
+    // The largest is at least 1/2 and the rest at most sqrt(3)/2 long, so moving the rest by
+    // `d` moves the quaternion by at most 2d and the rotation by at most 4d.
+    let components: Vec<[f64; 3]> = stored.iter().map(|(_, rest)| *rest).collect();
+    let quantized = Quantized::of(&components, angle / 4.0);
+    let decoded = quantized
+        .values()
+        .iter()
+        .zip(&stored)
+        .map(|(rest, &(largest, _))| {
+            let mut c = [0.0; 4];
+            for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
+                c[i] = rest[slot];
+            }
+            c[largest] = (1.0 - rest.iter().map(|v| v * v).sum::<f64>()).max(0.0).sqrt();
+            QuatF64::from_array(c).normalize()
+        })
+        .collect();
+    (quantized, decoded)
+}
+
+/// Bits of a rotation control point's largest-component index.
+pub const INDEX_BITS: usize = 2;
+
+/// The bytes of a rotation channel's quantized control points: the codes and the indices.
+#[must_use]
+pub fn rotation_bytes(quantized: &Quantized) -> usize {
+    quantized.bytes() + (INDEX_BITS * quantized.codes.len()).div_ceil(8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quat::Vec3F64;
+
+    #[test]
+    fn codes_decode_within_the_error_asked_in_the_fewest_bits() {
+        let values: Vec<[f64; 3]> = (0..50).map(|i| [f64::from(i).sin(), 0.5 * f64::from(i).cos(), 2.0]).collect();
+        for error in [1e-2, 1e-4, 1e-6] {
+            let q = Quantized::of(&values, error);
+            let worst = q
+                .values()
+                .iter()
+                .zip(&values)
+                .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>().sqrt())
+                .fold(0.0, f64::max);
+            assert!(worst <= error, "{error}: {worst} with {} bits", q.bits);
+            let fewer = Quantized { bits: q.bits - 1, ..q.clone() };
+            let widest = q.span.iter().copied().fold(0.0, f64::max);
+            let step = widest / f64::from((1u32 << fewer.bits) - 1);
+            assert!(3f64.sqrt() / 2.0 * step > error, "{error}: {} bits is not the fewest", q.bits);
+        }
+    }
+
+    #[test]
+    fn rotations_decode_within_the_angle() {
+        let controls: Vec<QuatF64> = (0..40)
+            .map(|i| QuatF64::from_rotation_vector(Vec3F64::new(0.1 * f64::from(i), -0.05 * f64::from(i), 0.3)))
+            .collect();
+        for angle in [1e-2, 1e-4] {
+            let (q, decoded) = rotations(&controls, angle);
+            let worst = decoded.iter().zip(&controls).map(|(a, b)| a.angle_to(*b)).fold(0.0, f64::max);
+            assert!(worst <= angle, "{angle}: {worst} with {} bits", q.bits);
+        }
+    }
+}
