@@ -102,8 +102,8 @@ pub struct ClipFit {
 /// Clip `clip` of `animation` fitted within `budget`.
 ///
 /// # Errors
-/// A budget length that is not positive, a hierarchy that is not a tree, or a budget no fit
-/// meets.
+/// A clip index out of range, a budget length that is not positive, a hierarchy that is not
+/// a tree, or a budget no fit meets.
 pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<ClipFit, String> {
     for (name, value) in [
         ("max error", budget.max_error),
@@ -116,7 +116,11 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     }
     let order = animation.parents_first().map_err(|e| e.to_string())?;
     let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-    let channels = &animation.clips[clip].channels;
+    let channels = &animation
+        .clips
+        .get(clip)
+        .ok_or_else(|| format!("no clip {clip}: the animation has {}", animation.clips.len()))?
+        .channels;
     let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
     frames.sort_by(f64::total_cmp);
     frames.dedup();
@@ -168,10 +172,8 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
 /// rest) by that share, a scale's likewise, a translation's the share itself.
 fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budget: &Budget) -> Vec<f64> {
     let joints = &animation.joints;
-    let rest: Vec<Transform> =
-        joints.iter().map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale }).collect();
     let parents: Vec<Option<usize>> = joints.iter().map(|j| j.parent).collect();
-    let at: Vec<Vec3F64> = object_space(&parents, order, &rest)
+    let at: Vec<Vec3F64> = object_space(&parents, order, &rest_pose(animation))
         .iter()
         .map(|m| Vec3F64::new(m.translation.x, m.translation.y, m.translation.z))
         .collect();
@@ -242,6 +244,15 @@ fn fit_channel(channel: &Channel, tolerance: f64, between_share: f64) -> Fitted 
     }
 }
 
+/// Every joint's rest transform.
+fn rest_pose(animation: &Animation) -> Vec<Transform> {
+    animation
+        .joints
+        .iter()
+        .map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale })
+        .collect()
+}
+
 /// The source's value of `channel` at `t`: keys slerped (rotations) or lerped, held outside.
 fn source_at(channel: &Channel, t: f64) -> [f64; 4] {
     let times = &channel.times;
@@ -287,11 +298,7 @@ fn worst_error(
                 .collect(),
         })
         .collect();
-    let rest: Vec<Transform> = animation
-        .joints
-        .iter()
-        .map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale })
-        .collect();
+    let rest = rest_pose(animation);
     let pose = |values: &dyn Fn(usize) -> [f64; 4]| {
         let mut local = rest.clone();
         for (k, c) in channels.iter().enumerate() {
@@ -383,5 +390,6 @@ mod tests {
         assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);
         let none = Budget { max_error: 0.0, ..budget };
         assert_eq!(fit_clip(&animation, 0, &none).unwrap_err(), "the max error is 0; it must be a positive length");
+        assert_eq!(fit_clip(&animation, 1, &budget).unwrap_err(), "no clip 1: the animation has 1");
     }
 }
