@@ -5,7 +5,7 @@
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip.
 
 use super::quantize::{self, Quantized};
-use super::{fit_rotations, fit_vectors, Fit, ORDER};
+use super::{bracket, fit_rotations, fit_vectors, Fit, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
 use crate::bake::{Animation, Channel, Property};
 use crate::quat::{QuatF64, Vec3F64};
@@ -255,13 +255,11 @@ fn rest_pose(animation: &Animation) -> Vec<Transform> {
 
 /// The source's value of `channel` at `t`: keys slerped (rotations) or lerped, held outside.
 fn source_at(channel: &Channel, t: f64) -> [f64; 4] {
-    let times = &channel.times;
-    let j = times.partition_point(|&s| s <= t).clamp(1, times.len().max(2) - 1);
-    if times.len() < 2 {
+    if channel.times.len() < 2 {
         return channel.values[0];
     }
-    let h = ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0);
-    let (a, b) = (channel.values[j - 1], channel.values[j]);
+    let (j, h) = bracket(&channel.times, t);
+    let (a, b) = (channel.values[j], channel.values[j + 1]);
     if channel.property == Property::Rotation {
         QuatF64::from_array(a).slerp(QuatF64::from_array(b).aligned_with(QuatF64::from_array(a)), h).to_array()
     } else {

@@ -287,9 +287,15 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -
 
 /// The sample rotation at `t`, slerped between the samples around it.
 fn sampled(times: &[f64], samples: &[QuatF64], t: f64) -> QuatF64 {
+    let (j, h) = bracket(times, t);
+    samples[j].slerp(samples[j + 1], h)
+}
+
+/// The samples around `t` among `times` (at least two): the first's index and how far `t` is
+/// from it to the next, held to `0..=1` outside.
+pub(crate) fn bracket(times: &[f64], t: f64) -> (usize, f64) {
     let j = times.partition_point(|&s| s <= t).clamp(1, times.len() - 1);
-    let h = ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0);
-    samples[j - 1].slerp(samples[j], h)
+    (j - 1, ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0))
 }
 
 /// The Gauss-Newton step of every control point (its body frame) for `residuals` (each
