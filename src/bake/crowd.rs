@@ -89,7 +89,7 @@ fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>)
                 QuatF64::exp(Vec3F64::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
             })
             .collect();
-        channels.push(Channel { joint, property: Property::Rotation, times: times.to_vec(), values });
+        channels.push(Channel { joint, property: Property::Rotation, times: times.to_vec(), values, knots: None });
         if j == 0 {
             let speed = 1.2 * vigour;
             let values = times
@@ -99,7 +99,13 @@ fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>)
                     [origin[0], 0.95 + bob, origin[2] + speed * t, 0.0]
                 })
                 .collect();
-            channels.push(Channel { joint, property: Property::Translation, times: times.to_vec(), values });
+            channels.push(Channel {
+                joint,
+                property: Property::Translation,
+                times: times.to_vec(),
+                values,
+                knots: None,
+            });
         }
     }
     (joints, channels)

@@ -248,7 +248,7 @@ fn read_channel(
         Checked::Invalid => return Err(unknown("interpolation")),
     };
     let joint = channel.target().node().index();
-    let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new() };
+    let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new(), knots: None };
     let label = animation.label(clip, &keyed);
     // The crate's readers trust accessor counts (and allocate from them): check every
     // accessor against the bytes present first.

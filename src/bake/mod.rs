@@ -70,6 +70,10 @@ pub struct Channel {
     pub times: Vec<f64>,
     /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
     pub values: Vec<[f64; 4]>,
+    /// A fitted channel's knots ([`crate::fit`]): then `values` are the control points of a
+    /// clamped cubic B-spline on them (the KKS cumulative form for rotations), not keys, and
+    /// `times` their Greville abscissae; `None` for keys.
+    pub knots: Option<Vec<f64>>,
 }
 
 /// One clip: channels sharing a time line.

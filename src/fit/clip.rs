@@ -2,17 +2,16 @@
 //! tolerances shared down the hierarchy so that the object-space error of every joint's
 //! virtual vertices ([`crate::analysis::vertex_error`]) stays within a budget at every source
 //! frame; then measured at every frame and at points between frames against the source's own
-//! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip.
+//! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
+//! against the clip's bytes in the container ([`super::container`]).
 
-use super::quantize::{self, Quantized};
-use super::{bracket, fit_rotations, fit_vectors, Fit, ORDER};
+use super::quantize::{self, Quantized, QuantizedRotations};
+use super::timeline::{Timeline, BETWEEN_POINTS};
+use super::{bracket, clamped, fit_rotations, fit_vectors, Fit, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
-use crate::bake::{Animation, Channel, Property};
+use crate::bake::{Animation, Channel, Clip, Property};
 use crate::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
-
-/// Points measured strictly between two consecutive source frames.
-pub const BETWEEN_POINTS: usize = 4;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
 pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
@@ -20,10 +19,6 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 /// The share of a channel's tolerance its control points' quantization may take; the fit
 /// takes the rest.
 pub const QUANTIZATION_SHARE: f64 = 0.25;
-
-/// Bytes of an interior knot: its index among the clip's fitted sample times (every knot is
-/// one), as `u16`.
-pub const KNOT_BYTES: usize = 2;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 6;
@@ -46,28 +41,106 @@ pub struct Budget {
     pub vertex_distance: f64,
 }
 
-/// A fitted channel.
+/// A fitted curve: its knots as samples of its timeline, and the curve they and the decoded
+/// control points make.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spline<T> {
+    /// Index into the clip's [`FittedClip::timelines`].
+    pub timeline: usize,
+    /// Interior knots as sample indices of the timeline ([`Timeline::sample`]), ascending; a
+    /// knot of multiplicity `m` appears `m` times.
+    pub knots: Vec<u32>,
+    /// The curve: knot times, and the control points as their codes decode.
+    pub fit: Fit<T>,
+}
+
+impl<T> Spline<T> {
+    /// The curve of `controls` on interior `knots` of `timeline` (clamped at its ends).
+    fn new(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, controls: Vec<T>) -> Self {
+        let line = &timelines[timeline];
+        let interior: Vec<f64> = knots.iter().map(|&s| line.sample(s as usize)).collect();
+        let times = clamped(line.sample(0), line.sample(line.samples() - 1), &interior);
+        Spline { timeline, knots, fit: Fit { knots: times, controls, worst: 0.0, worst_at: 0 } }
+    }
+}
+
+/// A fitted channel's curve.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Fitted {
     /// Every key within its tolerance of one value: stored once.
     Constant([f64; 4]),
-    /// A KKS cumulative B-spline, its control points as their codes decode.
-    Rotation(Fit<QuatF64>, Quantized),
-    /// Its Euclidean analogue (translation, scale), likewise.
-    Vector(Fit<[f64; 3]>, Quantized),
+    /// A KKS cumulative B-spline.
+    Rotation(Spline<QuatF64>, QuantizedRotations),
+    /// Its Euclidean analogue (translation, scale).
+    Vector(Spline<[f64; 3]>, Quantized),
 }
 
 impl Fitted {
-    /// Its bytes: a constant's `f32` value; a curve's quantized control points and
-    /// [`KNOT_BYTES`] per interior knot.
+    /// The rotation curve of `codes` on `knots` of a timeline: the fit and the container
+    /// decode through this one function.
     #[must_use]
-    pub fn bytes(&self) -> usize {
-        let knots = |knots: &[f64]| KNOT_BYTES * (knots.len() - 2 * ORDER);
-        match self {
-            Fitted::Constant(v) => 4 * if v[3] == 0.0 { 3 } else { 4 },
-            Fitted::Rotation(f, q) => quantize::rotation_bytes(q) + knots(&f.knots),
-            Fitted::Vector(f, q) => q.bytes() + knots(&f.knots),
-        }
+    pub fn rotation(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: QuantizedRotations) -> Self {
+        Fitted::Rotation(Spline::new(timelines, timeline, knots, codes.values()), codes)
+    }
+
+    /// The vector curve of `codes` on `knots` of a timeline, likewise.
+    #[must_use]
+    pub fn vector(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: Quantized) -> Self {
+        Fitted::Vector(Spline::new(timelines, timeline, knots, codes.values()), codes)
+    }
+
+    /// Knots and control points as a [`Channel`] of the common model: `times` are the control
+    /// points' Greville abscissae (strictly increasing, spanning the curve's domain), `values`
+    /// the control points. A constant is one key at `span`'s start, or two when the span is
+    /// not empty.
+    fn channel(&self, joint: usize, property: Property, span: [f64; 2]) -> Channel {
+        let (knots, values): (Vec<f64>, Vec<[f64; 4]>) = match self {
+            Fitted::Constant(v) => {
+                let times = if span[1] > span[0] { vec![span[0], span[1]] } else { vec![span[0]] };
+                let values = vec![*v; times.len()];
+                return Channel { joint, property, times, values, knots: None };
+            }
+            Fitted::Rotation(s, _) => (s.fit.knots.clone(), s.fit.controls.iter().map(|q| q.to_array()).collect()),
+            Fitted::Vector(s, _) => {
+                (s.fit.knots.clone(), s.fit.controls.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect())
+            }
+        };
+        let greville = (0..values.len()).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / (ORDER - 1) as f64);
+        Channel { joint, property, times: greville.collect(), values, knots: Some(knots) }
+    }
+}
+
+/// A fitted channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FittedChannel {
+    /// Index into the animation's joints.
+    pub joint: usize,
+    /// What it animates.
+    pub property: Property,
+    /// Its curve.
+    pub curve: Fitted,
+}
+
+/// A clip as fitting keeps it and the container stores it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FittedClip {
+    /// The source clip's name.
+    pub name: String,
+    /// The source clip's first and last key times, seconds.
+    pub span: [f64; 2],
+    /// The distinct key times of its curve channels.
+    pub timelines: Vec<Timeline>,
+    /// In the source clip's order.
+    pub channels: Vec<FittedChannel>,
+}
+
+impl FittedClip {
+    /// The clip in the common model, for baking: each curve channel carries its knots and
+    /// its control points ([`Channel::knots`]), each constant its value.
+    #[must_use]
+    pub fn to_clip(&self) -> Clip {
+        let channels = self.channels.iter().map(|c| c.curve.channel(c.joint, c.property, self.span)).collect();
+        Clip { name: self.name.clone(), channels }
     }
 }
 
@@ -82,11 +155,11 @@ pub struct Worst {
     pub time: f64,
 }
 
-/// A clip fitted within a [`Budget`].
+/// A clip fitted within a [`Budget`], measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClipFit {
-    /// Per channel of the clip, in its order.
-    pub channels: Vec<Fitted>,
+    /// The fitted clip.
+    pub clip: FittedClip,
     /// The worst error at the source frames, and between them.
     pub at_frames: Worst,
     /// See [`Self::at_frames`].
@@ -95,7 +168,7 @@ pub struct ClipFit {
     pub frames: usize,
     /// [`RAW_BYTES_PER_JOINT_FRAME`] per joint per frame.
     pub raw_bytes: usize,
-    /// Every channel's [`Fitted::bytes`].
+    /// The clip's bytes in the container ([`super::container::clip_bytes`]).
     pub fitted_bytes: usize,
 }
 
@@ -116,17 +189,35 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     }
     let order = animation.parents_first().map_err(|e| e.to_string())?;
     let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-    let channels = &animation
+    let source = animation
         .clips
         .get(clip)
-        .ok_or_else(|| format!("no clip {clip}: the animation has {}", animation.clips.len()))?
-        .channels;
+        .ok_or_else(|| format!("no clip {clip}: the animation has {}", animation.clips.len()))?;
+    let channels = &source.channels;
+    if let Some(c) = channels.iter().find(|c| c.knots.is_some()) {
+        return Err(format!("{} is fitted already: it holds control points, not keys", animation.label(source, c)));
+    }
     let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
     frames.sort_by(f64::total_cmp);
     frames.dedup();
     let between: Vec<f64> = frames
         .windows(2)
         .flat_map(|w| (1..=BETWEEN_POINTS).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / (BETWEEN_POINTS + 1) as f64))
+        .collect();
+    // The distinct key times of the channels with more than one key, and each one's.
+    let mut timelines: Vec<Timeline> = Vec::new();
+    let timeline_of: Vec<usize> = channels
+        .iter()
+        .map(|c| {
+            if c.times.len() < 2 {
+                return 0;
+            }
+            let line = Timeline::of(&c.times);
+            timelines.iter().position(|l| *l == line).unwrap_or_else(|| {
+                timelines.push(line);
+                timelines.len() - 1
+            })
+        })
         .collect();
     let tolerances = tolerances(animation, &order, channels, budget);
     let between_share = budget.between_error / budget.max_error;
@@ -136,16 +227,30 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     let mut best: Option<ClipFit> = None;
     let mut scale = 1.0;
     for _ in 0..SCALINGS {
-        let fitted: Vec<Fitted> =
-            channels.par_iter().zip(&tolerances).map(|(c, &t)| fit_channel(c, t * scale, between_share)).collect();
+        let fitted: Vec<FittedChannel> = channels
+            .par_iter()
+            .zip(&tolerances)
+            .zip(&timeline_of)
+            .map(|((c, &t), &line)| FittedChannel {
+                joint: c.joint,
+                property: c.property,
+                curve: fit_channel(c, &timelines, line, t * scale, between_share),
+            })
+            .collect();
         let measure = |times: &[f64]| worst_error(animation, &parents, &order, channels, &fitted, times, budget);
         let (at_frames, between_frames) = (measure(&frames), measure(&between));
         let room = (budget.max_error / at_frames.error).min(budget.between_error / between_frames.error);
         if room >= 1.0 {
+            let fitted = FittedClip {
+                name: source.name.clone(),
+                span: source.span(),
+                timelines: timelines.clone(),
+                channels: fitted,
+            };
             let fit = ClipFit {
                 between_frames,
-                fitted_bytes: fitted.iter().map(Fitted::bytes).sum(),
-                channels: fitted,
+                fitted_bytes: super::container::clip_bytes(&fitted),
+                clip: fitted,
                 at_frames,
                 frames: frames.len(),
                 raw_bytes: RAW_BYTES_PER_JOINT_FRAME * animation.joints.len() * frames.len(),
@@ -200,10 +305,11 @@ fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budg
         .collect()
 }
 
-/// `channel` fitted at its keys within `tolerance` and at [`BETWEEN_POINTS`] points of its own
-/// interpolation between them within `between_share` times that; a channel whose every key is
-/// within `tolerance` of its first is stored once.
-fn fit_channel(channel: &Channel, tolerance: f64, between_share: f64) -> Fitted {
+/// `channel` fitted at the samples of its timeline (`timelines[line]`: its keys and the points
+/// between them), within `tolerance` at keys and `between_share` times that between them,
+/// against its own interpolation; a channel whose every key is within `tolerance` of its first
+/// is stored once.
+fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, tolerance: f64, between_share: f64) -> Fitted {
     let first = channel.values[0];
     let rotation = channel.property == Property::Rotation;
     let off = |v: &[f64; 4]| {
@@ -214,33 +320,33 @@ fn fit_channel(channel: &Channel, tolerance: f64, between_share: f64) -> Fitted 
         }
     };
     if channel.times.len() < 2 || channel.values.iter().all(|v| off(v) <= tolerance) {
-        return Fitted::Constant(if rotation { first } else { [first[0], first[1], first[2], 0.0] });
+        // As the container stores it.
+        let value = first.map(|v| f64::from(v as f32));
+        return Fitted::Constant(if rotation { value } else { [value[0], value[1], value[2], 0.0] });
     }
-    let mut times = vec![channel.times[0]];
-    let mut tolerances = vec![tolerance];
-    for w in channel.times.windows(2) {
-        for k in 1..=BETWEEN_POINTS {
-            times.push(w[0] + (w[1] - w[0]) * k as f64 / (BETWEEN_POINTS + 1) as f64);
-            tolerances.push(tolerance * between_share);
-        }
-        times.push(w[1]);
-        tolerances.push(tolerance);
-    }
+    let samples = timelines[line].sample_times();
+    let times: Vec<f64> = samples.iter().map(|&(t, _)| t).collect();
+    let fitting: Vec<f64> = samples
+        .iter()
+        .map(|&(_, key)| tolerance * (1.0 - QUANTIZATION_SHARE) * if key { 1.0 } else { between_share })
+        .collect();
     let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
-    let fitting: Vec<f64> = tolerances.iter().map(|t| t * (1.0 - QUANTIZATION_SHARE)).collect();
     let rounding = tolerance * QUANTIZATION_SHARE;
+    // Every knot is one of the samples; the container stores its index.
+    let sample_of = |knot: &f64| {
+        let s = times.partition_point(|&t| t < *knot);
+        debug_assert_eq!(times[s], *knot, "a knot at a sample");
+        s as u32
+    };
+    let interior = |knots: &[f64]| knots[ORDER..knots.len() - ORDER].iter().map(sample_of).collect();
     if rotation {
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
-        let mut fit = fit_rotations(&times, &rotations, &fitting);
-        let (codes, decoded) = quantize::rotations(&fit.controls, rounding);
-        fit.controls = decoded;
-        Fitted::Rotation(fit, codes)
+        let fit = fit_rotations(&times, &rotations, &fitting);
+        Fitted::rotation(timelines, line, interior(&fit.knots), quantize::rotations(&fit.controls, rounding))
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-        let mut fit = fit_vectors(&times, &vectors, &fitting);
-        let codes = Quantized::of(&fit.controls, rounding);
-        fit.controls = codes.values();
-        Fitted::Vector(fit, codes)
+        let fit = fit_vectors(&times, &vectors, &fitting);
+        Fitted::vector(timelines, line, interior(&fit.knots), Quantized::of(&fit.controls, rounding))
     }
 }
 
@@ -273,19 +379,20 @@ fn worst_error(
     parents: &[Option<usize>],
     order: &[usize],
     channels: &[Channel],
-    fitted: &[Fitted],
+    fitted: &[FittedChannel],
     times: &[f64],
     budget: &Budget,
 ) -> Worst {
     // Every fitted channel at every time, evaluated once per channel.
     let curves: Vec<Vec<[f64; 4]>> = fitted
         .par_iter()
-        .map(|f| match f {
+        .map(|f| match &f.curve {
             Fitted::Constant(v) => vec![*v; times.len()],
-            Fitted::Rotation(fit, _) => {
-                fit.evaluate(times).expect("a fitted curve evaluates").iter().map(|q| q.to_array()).collect()
+            Fitted::Rotation(spline, _) => {
+                spline.fit.evaluate(times).expect("a fitted curve evaluates").iter().map(|q| q.to_array()).collect()
             }
-            Fitted::Vector(fit, _) => fit
+            Fitted::Vector(spline, _) => spline
+                .fit
                 .evaluate(times)
                 .expect("a fitted curve evaluates")
                 .iter()
@@ -353,18 +460,21 @@ mod tests {
                     .to_array()
                 })
                 .collect(),
+            knots: None,
         };
         let slide = Channel {
             joint: 0,
             property: Property::Translation,
             times: times.clone(),
             values: times.iter().map(|&t| [5.0 * t, (3.0 * t).sin(), 0.0, 0.0]).collect(),
+            knots: None,
         };
         let still = Channel {
             joint: 2,
             property: Property::Rotation,
             times: times.clone(),
             values: vec![[0.0, 0.0, 0.0, 1.0]; times.len()],
+            knots: None,
         };
         let clip = Clip { name: "wave".into(), channels: vec![turn(0, 2.0), turn(1, 3.0), slide, still] };
         Animation { joints, clips: vec![clip], skins: Vec::new() }
@@ -381,9 +491,10 @@ mod tests {
         let channels = &animation.clips[0].channels;
         let order = animation.parents_first().unwrap();
         let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-        let again = worst_error(&animation, &parents, &order, channels, &fit.channels, &channels[0].times, &budget);
+        let again =
+            worst_error(&animation, &parents, &order, channels, &fit.clip.channels, &channels[0].times, &budget);
         assert_eq!(again, fit.at_frames);
-        assert!(matches!(fit.channels[3], Fitted::Constant(_)), "the still hand is stored once");
+        assert!(matches!(fit.clip.channels[3].curve, Fitted::Constant(_)), "the still hand is stored once");
         assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
         assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);
         let none = Budget { max_error: 0.0, ..budget };

@@ -14,7 +14,9 @@
 
 pub mod banded;
 pub mod clip;
+pub mod container;
 pub mod quantize;
+pub mod timeline;
 
 use crate::basis::bspline_cumulative;
 use crate::batch::BatchBuilder;

@@ -3,15 +3,13 @@
 //! control point by at most a given amount. A B-spline point is a blend of its control points,
 //! so the curve moves by about as much; the clip measures it after quantization anyway.
 //! Rotations store their three smallest components (the batch builder makes the decoded control
-//! points sign-continuous again).
+//! points sign-continuous again). Ranges are `f32` values, as the container stores them, so a
+//! fit's decoded control points are the container's to the bit.
 
 use crate::quat::QuatF64;
 
 /// The most bits a component takes.
 pub const MAX_BITS: u32 = 24;
-
-/// Bytes of a channel's ranges: `low` and `span` of three components as `f32`, and the bit width.
-pub const HEADER_BYTES: usize = 25;
 
 /// A channel's control points as `bits`-bit codes of three components in `[low, low + span]`.
 #[derive(Clone, Debug, PartialEq)]
@@ -31,8 +29,10 @@ impl Quantized {
     /// (Euclidean, over its three components).
     #[must_use]
     pub fn of(components: &[[f64; 3]], error: f64) -> Self {
-        let low: [f64; 3] = std::array::from_fn(|c| components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min));
-        let span: [f64; 3] = std::array::from_fn(|c| components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max));
+        let low: [f64; 3] =
+            std::array::from_fn(|c| f32_at_most(components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min)));
+        let span: [f64; 3] =
+            std::array::from_fn(|c| f32_at_least(components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max)));
         let widest = span.iter().copied().fold(0.0, f64::max);
         // Rounding moves each component by at most half a step: sqrt(3) / 2 steps in all.
         let bits = (1..=MAX_BITS)
@@ -42,9 +42,13 @@ impl Quantized {
         let codes = components
             .iter()
             .map(|v| {
-                std::array::from_fn(
-                    |c| if span[c] > 0.0 { ((v[c] - low[c]) / span[c] * levels).round() as u32 } else { 0 },
-                )
+                std::array::from_fn(|c| {
+                    if span[c] > 0.0 {
+                        ((v[c] - low[c]) / span[c] * levels).round().clamp(0.0, levels) as u32
+                    } else {
+                        0
+                    }
+                })
             })
             .collect();
         Self { bits, low, span, codes }
@@ -59,20 +63,67 @@ impl Quantized {
             .map(|code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
             .collect()
     }
+}
 
-    /// Its bytes: the header and the codes, packed.
+/// The largest `f32` value at most `v`.
+fn f32_at_most(v: f64) -> f64 {
+    let r = v as f32;
+    f64::from(if f64::from(r) > v { f32_step(r, false) } else { r })
+}
+
+/// The smallest `f32` value at least `v`.
+fn f32_at_least(v: f64) -> f64 {
+    let r = v as f32;
+    f64::from(if f64::from(r) < v { f32_step(r, true) } else { r })
+}
+
+/// The next `f32` up or down from finite `r` (`f32::next_up` is newer than the MSRV).
+fn f32_step(r: f32, up: bool) -> f32 {
+    if r == 0.0 {
+        let tiny = f32::from_bits(1);
+        return if up { tiny } else { -tiny };
+    }
+    let away_from_zero = (r > 0.0) == up;
+    f32::from_bits(if away_from_zero { r.to_bits() + 1 } else { r.to_bits() - 1 })
+}
+
+/// Rotation control points as [`Quantized`] three smallest components and, per control point,
+/// the index (0-3, `x, y, z, w`) of the largest, which is rebuilt positive.
+#[derive(Clone, Debug, PartialEq)]
+pub struct QuantizedRotations {
+    /// The three smallest components, in `x, y, z, w` order with the largest left out.
+    pub smallest: Quantized,
+    /// Per control point, the index of its largest component.
+    pub largest: Vec<u8>,
+}
+
+impl QuantizedRotations {
+    /// The rotations the codes stand for.
     #[must_use]
-    pub fn bytes(&self) -> usize {
-        HEADER_BYTES + (3 * self.bits as usize * self.codes.len()).div_ceil(8)
+    pub fn values(&self) -> Vec<QuatF64> {
+        self.smallest
+            .values()
+            .iter()
+            .zip(&self.largest)
+            .map(|(rest, &largest)| {
+                let largest = usize::from(largest);
+                let mut c = [0.0; 4];
+                for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
+                    c[i] = rest[slot];
+                }
+                c[largest] = (1.0 - rest.iter().map(|v| v * v).sum::<f64>()).max(0.0).sqrt();
+                QuatF64::from_array(c).normalize()
+            })
+            .collect()
     }
 }
 
 /// Rotation control points quantized within `angle` radians each, as their three smallest
-/// components (the largest, turned positive, is rebuilt from them; its index takes
-/// [`INDEX_BITS`] per control point), and the rotations they decode to.
+/// components (moving those by `d` moves the unit quaternion by at most `2 d`, as the largest is
+/// at least 1/2, and so the rotation by at most `4 d`).
 #[must_use]
-pub fn rotations(controls: &[QuatF64], angle: f64) -> (Quantized, Vec<QuatF64>) {
-    let stored: Vec<(usize, [f64; 3])> = controls
+pub fn rotations(controls: &[QuatF64], angle: f64) -> QuantizedRotations {
+    let stored: Vec<(u8, [f64; 3])> = controls
         .iter()
         .map(|q| {
             let c = q.normalize().to_array();
@@ -82,36 +133,14 @@ pub fn rotations(controls: &[QuatF64], angle: f64) -> (Quantized, Vec<QuatF64>) 
             for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
                 rest[slot] = c[i] * sign;
             }
-            (largest, rest)
+            (largest as u8, rest)
         })
         .collect();
-    // The largest is at least 1/2 and the rest at most sqrt(3)/2 long, so moving the rest by
-    // `d` moves the quaternion by at most 2d and the rotation by at most 4d.
     let components: Vec<[f64; 3]> = stored.iter().map(|(_, rest)| *rest).collect();
-    let quantized = Quantized::of(&components, angle / 4.0);
-    let decoded = quantized
-        .values()
-        .iter()
-        .zip(&stored)
-        .map(|(rest, &(largest, _))| {
-            let mut c = [0.0; 4];
-            for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
-                c[i] = rest[slot];
-            }
-            c[largest] = (1.0 - rest.iter().map(|v| v * v).sum::<f64>()).max(0.0).sqrt();
-            QuatF64::from_array(c).normalize()
-        })
-        .collect();
-    (quantized, decoded)
-}
-
-/// Bits of a rotation control point's largest-component index.
-pub const INDEX_BITS: usize = 2;
-
-/// The bytes of a rotation channel's quantized control points: the codes and the indices.
-#[must_use]
-pub fn rotation_bytes(quantized: &Quantized) -> usize {
-    quantized.bytes() + (INDEX_BITS * quantized.codes.len()).div_ceil(8)
+    QuantizedRotations {
+        smallest: Quantized::of(&components, angle / 4.0),
+        largest: stored.iter().map(|&(largest, _)| largest).collect(),
+    }
 }
 
 #[cfg(test)]
@@ -144,9 +173,9 @@ mod tests {
             .map(|i| QuatF64::from_rotation_vector(Vec3F64::new(0.1 * f64::from(i), -0.05 * f64::from(i), 0.3)))
             .collect();
         for angle in [1e-2, 1e-4] {
-            let (q, decoded) = rotations(&controls, angle);
-            let worst = decoded.iter().zip(&controls).map(|(a, b)| a.angle_to(*b)).fold(0.0, f64::max);
-            assert!(worst <= angle, "{angle}: {worst} with {} bits", q.bits);
+            let q = rotations(&controls, angle);
+            let worst = q.values().iter().zip(&controls).map(|(a, b)| a.angle_to(*b)).fold(0.0, f64::max);
+            assert!(worst <= angle, "{angle}: {worst} with {} bits", q.smallest.bits);
         }
     }
 }

@@ -1,0 +1,637 @@
+//! The fitted-clip container (`.qcf`, DESIGN section 10): a skeleton, the BVH hierarchy it came
+//! from when it did, and fitted clips, as versioned little-endian binary. Every count is
+//! checked against the bytes left before anything is allocated, and a bad or truncated field
+//! is an error naming it and its byte offset.
+
+use super::clip::{Fitted, FittedChannel, FittedClip};
+use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
+use super::timeline::{Timeline, BETWEEN_POINTS};
+use super::ORDER;
+use crate::bake::{Animation, Joint, Property};
+
+/// The first bytes of a container.
+pub const MAGIC: [u8; 8] = *b"QCURVFIT";
+
+/// The layout this code writes and reads.
+pub const VERSION: u16 = 1;
+
+/// The file extension.
+pub const EXTENSION: &str = "qcf";
+
+/// Bits of a rotation control point's largest-component index.
+const INDEX_BITS: u32 = 2;
+
+/// A container's contents.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Container {
+    /// The skeleton at rest, parents by index.
+    pub joints: Vec<Joint>,
+    /// The BVH hierarchy of a BVH source, so that a bake writes BVH again.
+    pub bvh: Option<BvhSkeleton>,
+    /// The clips.
+    pub clips: Vec<FittedClip>,
+}
+
+/// A BVH source's text before `MOTION` and its frame time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BvhSkeleton {
+    /// The hierarchy text, as the source wrote it.
+    pub hierarchy: String,
+    /// Seconds per source frame.
+    pub frame_time: f64,
+}
+
+/// A field of a container that is missing, truncated or out of its range.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("byte {offset}: {field}: {reason}")]
+pub struct ContainerError {
+    /// Where the field starts.
+    pub offset: usize,
+    /// Which field (`clip 0 'walk', channel 3, knot 2`).
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl Container {
+    /// The animation a bake reads: the skeleton, and each clip's channels with their knots
+    /// and control points ([`FittedClip::to_clip`]).
+    #[must_use]
+    pub fn animation(&self) -> Animation {
+        Animation {
+            joints: self.joints.clone(),
+            clips: self.clips.iter().map(FittedClip::to_clip).collect(),
+            skins: Vec::new(),
+        }
+    }
+
+    /// The container's bytes.
+    #[must_use]
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Writer::default();
+        out.bytes(&MAGIC);
+        out.bytes(&VERSION.to_le_bytes());
+        out.u8(ORDER as u8);
+        out.u8(BETWEEN_POINTS as u8);
+        out.count(self.joints.len());
+        for joint in &self.joints {
+            out.text(&joint.name);
+            out.count(joint.parent.map_or(0, |p| p + 1));
+            joint.rotation.iter().chain(&joint.translation).chain(&joint.scale).for_each(|&v| out.f64(v));
+        }
+        match &self.bvh {
+            None => out.count(0),
+            Some(bvh) => {
+                out.text(&bvh.hierarchy);
+                out.f64(bvh.frame_time);
+            }
+        }
+        out.count(self.clips.len());
+        for clip in &self.clips {
+            let section = clip_section(clip);
+            out.count(section.len());
+            out.bytes(&section);
+        }
+        out.bytes
+    }
+
+    /// A container from its bytes.
+    ///
+    /// # Errors
+    /// The first field that is truncated or out of its range, named, with its offset.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, ContainerError> {
+        let mut r = Reader { bytes, at: 0 };
+        let magic = r.take(MAGIC.len(), "magic")?;
+        if magic != MAGIC {
+            return Err(r.bad_at(0, "magic", format!("not a quatcurve fitted-clip container (expected {MAGIC:?})")));
+        }
+        let version = u16::from_le_bytes([r.u8("version")?, r.u8("version")?]);
+        if version != VERSION {
+            return Err(r.bad_at(8, "version", format!("{version}; this quatcurve reads version {VERSION}")));
+        }
+        r.expect("order", ORDER)?;
+        r.expect("points between keys", BETWEEN_POINTS)?;
+        // A joint takes at least a name length, a parent and 10 f64.
+        let n = r.count("joint count", 2 + 80)?;
+        let mut joints = Vec::with_capacity(n);
+        for j in 0..n {
+            let field = |what: &str| format!("joint {j} {what}");
+            let name = r.text(&field("name"))?;
+            let at = r.at;
+            let parent = match r.varint(&field("parent"))? {
+                0 => None,
+                p if p <= n as u64 && p as usize - 1 != j => Some(p as usize - 1),
+                p => return Err(r.bad_at(at, &field("parent"), format!("{} is not another of the {n} joints", p - 1))),
+            };
+            let mut floats = [0.0; 10];
+            for v in &mut floats {
+                *v = r.finite_f64(&field("rest pose"))?;
+            }
+            let [x, y, z, w, tx, ty, tz, sx, sy, sz] = floats;
+            joints.push(Joint { name, parent, rotation: [x, y, z, w], translation: [tx, ty, tz], scale: [sx, sy, sz] });
+        }
+        let hierarchy = r.text("BVH hierarchy")?;
+        let bvh = if hierarchy.is_empty() {
+            None
+        } else {
+            let frame_time = r.finite_f64("BVH frame time")?;
+            if frame_time <= 0.0 {
+                return Err(r.bad("BVH frame time", format!("{frame_time} s is not positive")));
+            }
+            Some(BvhSkeleton { hierarchy, frame_time })
+        };
+        let clip_count = r.count("clip count", 1)?;
+        let mut clips = Vec::with_capacity(clip_count);
+        for c in 0..clip_count {
+            let length = r.count(&format!("clip {c} length"), 1)?;
+            let start = r.at;
+            let clip = read_clip(&mut r, c, &joints)?;
+            if r.at - start != length {
+                return Err(r.bad_at(
+                    start,
+                    &format!("clip {c} '{}'", clip.name),
+                    format!("{} bytes where its length says {length}", r.at - start),
+                ));
+            }
+            clips.push(clip);
+        }
+        if r.at != bytes.len() {
+            return Err(r.bad("end", format!("{} bytes after the last clip", bytes.len() - r.at)));
+        }
+        Ok(Container { joints, bvh, clips })
+    }
+}
+
+/// A clip's bytes in the container: what compression is counted in.
+#[must_use]
+pub fn clip_bytes(clip: &FittedClip) -> usize {
+    clip_section(clip).len()
+}
+
+/// Property codes in a channel's tag.
+const PROPERTIES: [Property; 3] = [Property::Rotation, Property::Translation, Property::Scale];
+
+/// A clip: name, span, timelines, channels.
+fn clip_section(clip: &FittedClip) -> Vec<u8> {
+    let mut out = Writer::default();
+    out.text(&clip.name);
+    out.f64(clip.span[0]);
+    out.f64(clip.span[1]);
+    out.count(clip.timelines.len());
+    for line in &clip.timelines {
+        match line {
+            Timeline::Even { first, last, count } => {
+                out.u8(0);
+                out.count(*count);
+                out.f64(*first);
+                out.f64(*last);
+            }
+            Timeline::Listed(times) => {
+                out.u8(1);
+                out.count(times.len());
+                times.iter().for_each(|&t| out.f64(t));
+            }
+        }
+    }
+    out.count(clip.channels.len());
+    for channel in &clip.channels {
+        out.count(channel.joint);
+        let property = PROPERTIES.iter().position(|&p| p == channel.property).expect("a property") as u8;
+        let vector = |out: &mut Writer, v: &[f64]| v.iter().for_each(|&x| out.f32(x as f32));
+        match &channel.curve {
+            Fitted::Constant(v) => {
+                out.u8(property);
+                vector(&mut out, if channel.property == Property::Rotation { &v[..] } else { &v[..3] });
+            }
+            Fitted::Rotation(spline, codes) => {
+                out.u8(property | 4);
+                out.curve(spline.timeline, &spline.knots, &codes.smallest);
+                let mut bits = BitWriter::default();
+                codes.largest.iter().for_each(|&i| bits.push(u32::from(i), INDEX_BITS));
+                out.bytes(&bits.finish());
+            }
+            Fitted::Vector(spline, codes) => {
+                out.u8(property | 4);
+                out.curve(spline.timeline, &spline.knots, codes);
+            }
+        }
+    }
+    out.bytes
+}
+
+fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, ContainerError> {
+    let name = r.text(&format!("clip {c} name"))?;
+    let clip = format!("clip {c} '{name}'");
+    let span = [r.finite_f64(&format!("{clip} start"))?, r.finite_f64(&format!("{clip} end"))?];
+    if span[1] < span[0] {
+        return Err(r.bad(&format!("{clip} end"), format!("{} s is before its start {} s", span[1], span[0])));
+    }
+    let count = r.count(&format!("{clip} timeline count"), 2)?;
+    let mut timelines = Vec::with_capacity(count);
+    for l in 0..count {
+        let field = format!("{clip} timeline {l}");
+        let kind = r.u8(&field)?;
+        // Listed keys take 8 bytes each; even keys take none (knot indices stay within u32).
+        let keys = r.count(&format!("{field} key count"), if kind == 1 { 8 } else { 0 })?;
+        if keys > u32::MAX as usize / (BETWEEN_POINTS + 1) {
+            return Err(r.bad(&format!("{field} key count"), format!("{keys} keys are more than a knot index reaches")));
+        }
+        if keys < 2 {
+            return Err(r.bad(&field, format!("{keys} keys; a timeline has at least 2")));
+        }
+        let line = match kind {
+            0 => {
+                let (first, last) = (r.finite_f64(&field)?, r.finite_f64(&field)?);
+                if last <= first {
+                    return Err(r.bad(&field, format!("its last key {last} s is not after its first {first} s")));
+                }
+                Timeline::Even { first, last, count: keys }
+            }
+            1 => {
+                let mut times = Vec::with_capacity(keys);
+                for k in 0..keys {
+                    let t = r.finite_f64(&format!("{field} key {k}"))?;
+                    if times.last().is_some_and(|&p| t <= p) {
+                        return Err(r.bad(&format!("{field} key {k}"), format!("{t} s is not after the key before")));
+                    }
+                    times.push(t);
+                }
+                Timeline::Listed(times)
+            }
+            other => return Err(r.bad(&field, format!("kind {other} is neither 0 (even) nor 1 (listed)"))),
+        };
+        timelines.push(line);
+    }
+    // A channel takes at least a joint, a tag and three f32.
+    let count = r.count(&format!("{clip} channel count"), 14)?;
+    let mut channels = Vec::with_capacity(count);
+    for k in 0..count {
+        let field = format!("{clip} channel {k}");
+        let joint = r.varint(&format!("{field} joint"))? as usize;
+        if joint >= joints.len() {
+            return Err(r.bad(&format!("{field} joint"), format!("{joint} is not one of the {} joints", joints.len())));
+        }
+        let field = format!("{field} ({})", joints[joint].name);
+        let tag = r.u8(&format!("{field} tag"))?;
+        let property = *PROPERTIES.get(usize::from(tag & 3)).ok_or_else(|| {
+            r.bad(&format!("{field} tag"), format!("property {} is not 0-2 (rotation, translation, scale)", tag & 3))
+        })?;
+        let rotation = property == Property::Rotation;
+        let curve = match tag >> 2 {
+            0 => {
+                let mut v = [0.0; 4];
+                for x in v.iter_mut().take(if rotation { 4 } else { 3 }) {
+                    *x = r.finite_f32(&format!("{field} value"))?;
+                }
+                Fitted::Constant(v)
+            }
+            1 => {
+                let (line, knots, codes) = r.curve(&field, &timelines)?;
+                if rotation {
+                    let indices = r.take(
+                        (codes.codes.len() * INDEX_BITS as usize).div_ceil(8),
+                        &format!("{field} largest components"),
+                    )?;
+                    let mut bits = BitReader::new(indices);
+                    let largest = (0..codes.codes.len()).map(|_| bits.take(INDEX_BITS) as u8).collect();
+                    Fitted::rotation(&timelines, line, knots, QuantizedRotations { smallest: codes, largest })
+                } else {
+                    Fitted::vector(&timelines, line, knots, codes)
+                }
+            }
+            other => {
+                return Err(
+                    r.bad(&format!("{field} tag"), format!("kind {other} is neither 0 (constant) nor 1 (curve)"))
+                )
+            }
+        };
+        channels.push(FittedChannel { joint, property, curve });
+    }
+    Ok(FittedClip { name, span, timelines, channels })
+}
+
+/// Bytes being written.
+#[derive(Default)]
+struct Writer {
+    bytes: Vec<u8>,
+}
+
+impl Writer {
+    fn bytes(&mut self, b: &[u8]) {
+        self.bytes.extend_from_slice(b);
+    }
+
+    fn u8(&mut self, v: u8) {
+        self.bytes.push(v);
+    }
+
+    /// LEB128: seven bits a byte, low first.
+    fn count(&mut self, mut v: usize) {
+        loop {
+            let low = (v & 0x7f) as u8;
+            v >>= 7;
+            if v == 0 {
+                self.u8(low);
+                return;
+            }
+            self.u8(low | 0x80);
+        }
+    }
+
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_le_bytes());
+    }
+
+    fn f64(&mut self, v: f64) {
+        self.bytes(&v.to_le_bytes());
+    }
+
+    fn text(&mut self, s: &str) {
+        self.count(s.len());
+        self.bytes(s.as_bytes());
+    }
+
+    /// A curve: timeline, knots as deltas of sample indices, bit width, ranges, codes.
+    fn curve(&mut self, timeline: usize, knots: &[u32], codes: &Quantized) {
+        self.count(timeline);
+        self.count(knots.len());
+        let mut previous = 0;
+        for &k in knots {
+            self.count((k - previous) as usize);
+            previous = k;
+        }
+        self.u8(codes.bits as u8);
+        codes.low.iter().chain(&codes.span).for_each(|&v| self.f32(v as f32));
+        let mut bits = BitWriter::default();
+        codes.codes.iter().flatten().for_each(|&c| bits.push(c, codes.bits));
+        self.bytes(&bits.finish());
+    }
+}
+
+/// Bytes being read, and where.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn bad(&self, field: &str, reason: String) -> ContainerError {
+        self.bad_at(self.at, field, reason)
+    }
+
+    fn bad_at(&self, offset: usize, field: &str, reason: String) -> ContainerError {
+        ContainerError { offset, field: field.to_string(), reason }
+    }
+
+    fn take(&mut self, n: usize, field: &str) -> Result<&[u8], ContainerError> {
+        let left = self.bytes.len() - self.at;
+        if n > left {
+            return Err(self.bad(field, format!("truncated: {n} bytes needed, {left} left")));
+        }
+        self.at += n;
+        Ok(&self.bytes[self.at - n..self.at])
+    }
+
+    fn u8(&mut self, field: &str) -> Result<u8, ContainerError> {
+        Ok(self.take(1, field)?[0])
+    }
+
+    fn expect(&mut self, field: &str, value: usize) -> Result<(), ContainerError> {
+        let got = self.u8(field)?;
+        if usize::from(got) == value {
+            Ok(())
+        } else {
+            Err(self.bad_at(self.at - 1, field, format!("{got}; this quatcurve reads {value}")))
+        }
+    }
+
+    fn varint(&mut self, field: &str) -> Result<u64, ContainerError> {
+        let start = self.at;
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let b = self.u8(field)?;
+            v |= u64::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        Err(self.bad_at(start, field, "a varint longer than 64 bits".into()))
+    }
+
+    /// A count of items each at least `min_bytes` long: more than the bytes left can hold is
+    /// an error before anything is allocated for them.
+    fn count(&mut self, field: &str, min_bytes: usize) -> Result<usize, ContainerError> {
+        let start = self.at;
+        let n = self.varint(field)?;
+        let left = self.bytes.len() - self.at;
+        match usize::try_from(n) {
+            Ok(n) if n.saturating_mul(min_bytes) <= left => Ok(n),
+            _ => Err(self.bad_at(start, field, format!("{n} cannot fit in the {left} bytes left"))),
+        }
+    }
+
+    fn text(&mut self, field: &str) -> Result<String, ContainerError> {
+        let n = self.count(field, 1)?;
+        let start = self.at;
+        let bytes = self.take(n, field)?.to_vec();
+        String::from_utf8(bytes).map_err(|e| self.bad_at(start, field, format!("not UTF-8: {e}")))
+    }
+
+    fn finite_f64(&mut self, field: &str) -> Result<f64, ContainerError> {
+        let v = f64::from_le_bytes(self.take(8, field)?.try_into().expect("8 bytes"));
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.bad_at(self.at - 8, field, format!("{v} is not finite")))
+        }
+    }
+
+    fn finite_f32(&mut self, field: &str) -> Result<f64, ContainerError> {
+        let v = f32::from_le_bytes(self.take(4, field)?.try_into().expect("4 bytes"));
+        if v.is_finite() {
+            Ok(f64::from(v))
+        } else {
+            Err(self.bad_at(self.at - 4, field, format!("{v} is not finite")))
+        }
+    }
+
+    /// A curve's timeline, knots and codes (see [`Writer::curve`]), each checked.
+    fn curve(&mut self, field: &str, timelines: &[Timeline]) -> Result<(usize, Vec<u32>, Quantized), ContainerError> {
+        let line = self.varint(&format!("{field} timeline"))? as usize;
+        let timeline = timelines.get(line).ok_or_else(|| {
+            self.bad(&format!("{field} timeline"), format!("{line} is not one of the clip's {}", timelines.len()))
+        })?;
+        let count = self.count(&format!("{field} knot count"), 1)?;
+        let mut knots: Vec<u32> = Vec::with_capacity(count);
+        for k in 0..count {
+            let name = format!("{field} knot {k}");
+            let at = knots.last().copied().unwrap_or(0) as u64 + self.varint(&name)?;
+            // Interior: strictly inside the samples, and at most ORDER - 1 at one sample.
+            if at == 0 || at >= timeline.samples() as u64 - 1 {
+                return Err(self.bad(&name, format!("sample {at} is not inside 1..{}", timeline.samples() - 1)));
+            }
+            if knots.len() >= ORDER - 1 && knots[knots.len() + 1 - ORDER..].iter().all(|&p| u64::from(p) == at) {
+                return Err(self.bad(&name, format!("sample {at} repeated {ORDER} times; at most {}", ORDER - 1)));
+            }
+            knots.push(at as u32);
+        }
+        let bits = u32::from(self.u8(&format!("{field} bit width"))?);
+        if !(1..=MAX_BITS).contains(&bits) {
+            return Err(self.bad(&format!("{field} bit width"), format!("{bits} is not 1-{MAX_BITS}")));
+        }
+        let mut ranges = [0.0; 6];
+        for (i, v) in ranges.iter_mut().enumerate() {
+            let name = format!("{field} {}", if i < 3 { "low" } else { "span" });
+            *v = self.finite_f32(&name)?;
+            if i >= 3 && *v < 0.0 {
+                return Err(self.bad_at(self.at - 4, &name, format!("{v} is negative")));
+            }
+        }
+        let controls = count + ORDER;
+        let packed = self.take((3 * controls * bits as usize).div_ceil(8), &format!("{field} codes"))?;
+        let mut reader = BitReader::new(packed);
+        let codes = (0..controls).map(|_| std::array::from_fn(|_| reader.take(bits))).collect();
+        let [l0, l1, l2, s0, s1, s2] = ranges;
+        Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span: [s0, s1, s2], codes }))
+    }
+}
+
+/// Values packed low bit first.
+#[derive(Default)]
+struct BitWriter {
+    bytes: Vec<u8>,
+    pending: u64,
+    filled: u32,
+}
+
+impl BitWriter {
+    fn push(&mut self, value: u32, bits: u32) {
+        self.pending |= u64::from(value) << self.filled;
+        self.filled += bits;
+        while self.filled >= 8 {
+            self.bytes.push(self.pending as u8);
+            self.pending >>= 8;
+            self.filled -= 8;
+        }
+    }
+
+    fn finish(mut self) -> Vec<u8> {
+        if self.filled > 0 {
+            self.bytes.push(self.pending as u8);
+        }
+        self.bytes
+    }
+}
+
+/// Values unpacked low bit first (the caller sized the slice).
+struct BitReader<'a> {
+    bytes: &'a [u8],
+    bit: usize,
+}
+
+impl<'a> BitReader<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        Self { bytes, bit: 0 }
+    }
+
+    fn take(&mut self, bits: u32) -> u32 {
+        let mut v = 0u32;
+        for i in 0..bits as usize {
+            let b = self.bit + i;
+            v |= u32::from(self.bytes[b / 8] >> (b % 8) & 1) << i;
+        }
+        self.bit += bits as usize;
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::clip::{fit_clip, Budget};
+
+    /// A two-joint clip: a turning root, a sliding child, a still child rotation.
+    fn container() -> Container {
+        let times: Vec<f64> = (0..=60).map(|f| f64::from(f) / 30.0).collect();
+        let joints = vec![Joint::at("root".into(), None, [0.0; 3]), Joint::at("tip".into(), Some(0), [0.0, 10.0, 0.0])];
+        let spin: Vec<[f64; 4]> = times
+            .iter()
+            .map(|&t| {
+                crate::quat::QuatF64::from_rotation_vector(crate::quat::Vec3F64::new(t, 0.3 * t * t, 0.1)).to_array()
+            })
+            .collect();
+        let slide: Vec<[f64; 4]> = times.iter().map(|&t| [t.sin(), 10.0, 0.0, 0.0]).collect();
+        let channels = vec![
+            crate::bake::Channel {
+                joint: 0,
+                property: Property::Rotation,
+                times: times.clone(),
+                values: spin,
+                knots: None,
+            },
+            crate::bake::Channel {
+                joint: 1,
+                property: Property::Translation,
+                times: times.clone(),
+                values: slide,
+                knots: None,
+            },
+            crate::bake::Channel {
+                joint: 1,
+                property: Property::Rotation,
+                times: times.clone(),
+                values: vec![[0.0, 0.0, 0.0, 1.0]; times.len()],
+                knots: None,
+            },
+        ];
+        let animation =
+            Animation { joints, clips: vec![crate::bake::Clip { name: "turn".into(), channels }], skins: Vec::new() };
+        let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
+        let fit = fit_clip(&animation, 0, &budget).unwrap();
+        Container {
+            joints: animation.joints,
+            bvh: Some(BvhSkeleton { hierarchy: "HIERARCHY\n".into(), frame_time: 1.0 / 30.0 }),
+            clips: vec![fit.clip],
+        }
+    }
+
+    #[test]
+    fn a_container_reads_back_what_was_written_to_the_bit() {
+        let container = container();
+        assert!(container.clips[0].channels.iter().any(|c| matches!(c.curve, Fitted::Rotation(..))));
+        assert!(container.clips[0].channels.iter().any(|c| matches!(c.curve, Fitted::Vector(..))));
+        let bytes = container.to_bytes();
+        assert_eq!(Container::from_bytes(&bytes).unwrap(), container);
+    }
+
+    #[test]
+    fn every_truncation_and_bad_field_is_named() {
+        let bytes = container().to_bytes();
+        for cut in 0..bytes.len() {
+            let e = Container::from_bytes(&bytes[..cut]).unwrap_err();
+            assert!(e.reason.contains("truncated") || e.reason.contains("cannot fit"), "cut at {cut}: {e}");
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(
+            Container::from_bytes(&longer).unwrap_err().to_string(),
+            format!("byte {}: end: 1 bytes after the last clip", bytes.len())
+        );
+        let mut magic = bytes.clone();
+        magic[0] = b'X';
+        assert!(Container::from_bytes(&magic).unwrap_err().to_string().starts_with("byte 0: magic: not a quatcurve"));
+        let mut version = bytes.clone();
+        version[8] = 9;
+        assert_eq!(
+            Container::from_bytes(&version).unwrap_err().to_string(),
+            "byte 8: version: 9; this quatcurve reads version 1"
+        );
+        let mut parent = bytes;
+        // Joint 0's name "root" (length byte at 13, text 14..18) and then its parent.
+        parent[18] = 1;
+        assert_eq!(
+            Container::from_bytes(&parent).unwrap_err().to_string(),
+            "byte 18: joint 0 parent: 0 is not another of the 2 joints"
+        );
+    }
+}

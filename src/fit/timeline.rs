@@ -1,0 +1,108 @@
+//! A channel's key times as a fitted clip stores them, and the samples a fit is made at: every
+//! key and [`BETWEEN_POINTS`] evenly spaced points between consecutive keys. A fitted knot is
+//! always one of those samples, so the container stores it as a sample index.
+
+/// Points fitted and measured strictly between two consecutive keys.
+pub const BETWEEN_POINTS: usize = 4;
+
+/// Keys evenly spaced when none is further than this (seconds, relative to the clip's last
+/// time, at least 1) from its even place: then two `f64`s stand for all of them.
+const EVEN_TOLERANCE: f64 = 1e-12;
+
+/// Key times (at least two, strictly increasing).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Timeline {
+    /// `count` keys from `first` to `last`, evenly spaced.
+    Even {
+        /// The first key's time.
+        first: f64,
+        /// The last key's time.
+        last: f64,
+        /// How many keys.
+        count: usize,
+    },
+    /// Each key's time.
+    Listed(Vec<f64>),
+}
+
+impl Timeline {
+    /// `times` (at least two, strictly increasing) as evenly spaced keys when they are.
+    #[must_use]
+    pub fn of(times: &[f64]) -> Self {
+        let (first, last, count) = (times[0], times[times.len() - 1], times.len());
+        let even = Timeline::Even { first, last, count };
+        let tolerance = EVEN_TOLERANCE * last.abs().max(1.0);
+        if times.iter().enumerate().all(|(i, &t)| (even.key(i) - t).abs() <= tolerance) {
+            even
+        } else {
+            Timeline::Listed(times.to_vec())
+        }
+    }
+
+    /// How many keys.
+    #[must_use]
+    pub fn keys(&self) -> usize {
+        match self {
+            Timeline::Even { count, .. } => *count,
+            Timeline::Listed(times) => times.len(),
+        }
+    }
+
+    /// Key `i`'s time.
+    #[must_use]
+    pub fn key(&self, i: usize) -> f64 {
+        match self {
+            Timeline::Even { first, last, count } => {
+                if i + 1 == *count {
+                    *last
+                } else {
+                    first + (last - first) * i as f64 / (count - 1) as f64
+                }
+            }
+            Timeline::Listed(times) => times[i],
+        }
+    }
+
+    /// How many samples: every key and the points between them.
+    #[must_use]
+    pub fn samples(&self) -> usize {
+        (self.keys() - 1) * (BETWEEN_POINTS + 1) + 1
+    }
+
+    /// Sample `s`'s time: key `s / (BETWEEN_POINTS + 1)`, or a point between it and the next.
+    #[must_use]
+    pub fn sample(&self, s: usize) -> f64 {
+        let (key, step) = (s / (BETWEEN_POINTS + 1), s % (BETWEEN_POINTS + 1));
+        if step == 0 {
+            return self.key(key);
+        }
+        let (a, b) = (self.key(key), self.key(key + 1));
+        a + (b - a) * step as f64 / (BETWEEN_POINTS + 1) as f64
+    }
+
+    /// Every sample's time, and whether it is a key.
+    #[must_use]
+    pub fn sample_times(&self) -> Vec<(f64, bool)> {
+        (0..self.samples()).map(|s| (self.sample(s), s % (BETWEEN_POINTS + 1) == 0)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn even_keys_take_two_numbers_and_give_their_times_back() {
+        let times: Vec<f64> = (0..=360).map(|f| f64::from(f) / 120.0).collect();
+        let line = Timeline::of(&times);
+        assert!(matches!(line, Timeline::Even { count: 361, .. }), "{line:?}");
+        for (i, &t) in times.iter().enumerate() {
+            assert!((line.key(i) - t).abs() <= 1e-12, "key {i}");
+            assert_eq!(line.sample(i * (BETWEEN_POINTS + 1)), line.key(i));
+        }
+        assert_eq!(line.samples(), 360 * (BETWEEN_POINTS + 1) + 1);
+        assert!((line.sample(1) - 1.0 / 600.0).abs() < 1e-15);
+        let uneven = [0.0, 0.1, 0.3, 0.35];
+        assert_eq!(Timeline::of(&uneven), Timeline::Listed(uneven.to_vec()));
+    }
+}
