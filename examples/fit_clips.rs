@@ -2,7 +2,7 @@
 //! the fewest B-spline control points that hold ACL's object-space error (virtual vertices at
 //! `--vertex-distance` from each joint) within a budget at every source frame, and reports the
 //! error between frames too. Bytes as ACL counts a raw clip (40 per joint per frame) against
-//! quantized control points and 16-bit knot indices. CMU's BVH unit is 5.644 cm, glTF's
+//! the clip's bytes in the `.qcf` container (quantized control points, knots as varint sample deltas). CMU's BVH unit is 5.644 cm, glTF's
 //! the metre.
 //!
 //! Run: `cargo run --release --example fit_clips -- ../shared/data MAX_ERROR_CM [BETWEEN_CM]
@@ -28,7 +28,7 @@ fn main() {
     let vertex_cm: f64 = args.next().map_or(3.0, |a| a.parse().expect("a length in cm"));
     println!(
         "every source frame within {max_error_cm} cm and between frames within {between_cm} cm, at virtual vertices \
-         {vertex_cm} cm from each joint (control points quantized, knots as u16 indices)"
+         {vertex_cm} cm from each joint (bytes as the container stores the clip)"
     );
     println!(
         "| clip | frames | joints | raw KB | fitted KB | ratio | worst at frames cm | between frames cm | seconds |"

@@ -22,6 +22,9 @@ enum Command {
     Eval(cli::eval::EvalArgs),
     /// Resample glTF/GLB and BVH animation (or a built-in synthetic crowd) at a new rate.
     Bake(cli::bake::BakeArgs),
+    /// Fit glTF/BVH clips as the fewest quantized B-spline control points within an error
+    /// budget (cm), one .qcf container per input, which bake reads as it reads the source.
+    Fit(cli::fit::FitArgs),
     /// Time the same synthetic batch on every available device, side by side.
     Bench(cli::bench::BenchArgs),
     /// Energy, torque and smoothness of curves through the same keys; --paper reruns KKS 6.1.
@@ -39,6 +42,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Eval(args) => cli::eval::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
+        Command::Fit(args) => cli::fit::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Shaders(args) => cli::shaders::run(&args),

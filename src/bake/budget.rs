@@ -304,6 +304,13 @@ pub fn choose_rates(
     budget: &ErrorBudget,
     setting: &Setting<'_>,
 ) -> Result<Vec<Measured>, InputError> {
+    if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(|c| c.knots.is_some())) {
+        return Err(InputError::Animation(format!(
+            "clip '{}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it \
+                at a --rate",
+            clip.name
+        )));
+    }
     let mut chosen = Vec::with_capacity(animation.clips.len());
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();

@@ -75,6 +75,27 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     Ok(BvhFile { joints, frame_time, frames, hierarchy: hierarchy.to_string() })
 }
 
+/// A BVH file without frames from a fitted container's skeleton ([`crate::fit::container`]),
+/// to write baked frames under the source's hierarchy.
+///
+/// # Errors
+/// [`InputError::Bvh`] for a malformed hierarchy; [`InputError::Animation`] when its joints are
+/// not the container's, in order.
+pub fn skeleton(skeleton: &crate::fit::container::BvhSkeleton, animation: &Animation) -> Result<BvhFile, InputError> {
+    let joints = parse_hierarchy(&skeleton.hierarchy)?;
+    let names = |j: &[String]| j.join(", ");
+    let (ours, theirs): (Vec<String>, Vec<String>) =
+        (joints.iter().map(|j| j.name.clone()).collect(), animation.joints.iter().map(|j| j.name.clone()).collect());
+    if ours != theirs {
+        return Err(InputError::Animation(format!(
+            "the container's BVH hierarchy has joints [{}] but its skeleton [{}]",
+            names(&ours),
+            names(&theirs)
+        )));
+    }
+    Ok(BvhFile { joints, frame_time: skeleton.frame_time, frames: Vec::new(), hierarchy: skeleton.hierarchy.clone() })
+}
+
 /// A token with its line, or the error that the text ended where `what` was expected.
 type Token<'a> = Result<(usize, &'a str), InputError>;
 
@@ -338,6 +359,12 @@ impl BvhFile {
         }
         let joints = self.joints.iter().map(|j| Joint::at(j.name.clone(), j.parent, j.offset)).collect();
         Animation { joints, clips: vec![Clip { name: clip_name.to_string(), channels }], skins: Vec::new() }
+    }
+
+    /// The file's text before `MOTION`, as it was read.
+    #[must_use]
+    pub fn hierarchy(&self) -> &str {
+        &self.hierarchy
     }
 
     /// BVH text of the baked clip at its baked rate: the original hierarchy, new frames.

@@ -39,9 +39,12 @@ pub enum InputError {
     /// The file could not be read.
     #[error("cannot read: {0}")]
     Read(std::io::Error),
-    /// Neither glTF (`.gltf`, `.glb`) nor BVH (`.bvh`).
-    #[error("unknown format: expected .gltf, .glb or .bvh")]
+    /// Not one of [`super::inputs::INPUT_EXTENSIONS`].
+    #[error("unknown format: expected .gltf, .glb, .bvh or .qcf (a fitted container)")]
     UnknownFormat,
+    /// A fitted container ([`crate::fit::container`]) with a field truncated or out of range.
+    #[error("fitted container {0}")]
+    Container(#[from] crate::fit::container::ContainerError),
     /// A glTF file that is corrupt or breaks a rule of the format; the message names the node,
     /// accessor, skin or buffer.
     #[error("{0}")]

@@ -1,6 +1,6 @@
 //! A bake's inputs: files and directories expanded and sorted (the order every shard shares),
 //! their output stems (two inputs may not write the same outputs), and each file read into the
-//! common model with what it needs to write itself back ([`Source`]).
+//! common model with what it needs to write itself back (`Source`): glTF, BVH or a fitted container.
 
 use super::error::{BakeError, InputError};
 use super::{bvh, gltf, Animation};
@@ -11,20 +11,38 @@ pub(super) enum Source {
     Gltf(Box<gltf::GltfFile>),
     Bvh(bvh::BvhFile, Animation),
     Crowd(Animation),
+    /// A fitted container without a BVH skeleton (one with it reads as [`Source::Bvh`]).
+    Fitted(Animation),
+}
+
+/// The extensions a bake reads, lower case.
+pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", crate::fit::container::EXTENSION];
+
+/// `path`'s extension, lower case.
+pub(crate) fn extension(path: &Path) -> Option<String> {
+    path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase)
 }
 
 impl Source {
-    /// Reads the file at `path` by its extension (glTF/GLB or BVH); a glTF's buffer URIs as
-    /// `uris` allows.
+    /// Reads the file at `path` by its extension ([`INPUT_EXTENSIONS`]); a glTF's buffer URIs
+    /// as `uris` allows.
     pub(super) fn read(path: &Path, uris: gltf::UriPolicy) -> Result<Self, InputError> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        match ext.as_deref() {
+        match extension(path).as_deref() {
             Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, uris)?))),
             Some("bvh") => {
                 let file = bvh::read(path)?;
                 let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
                 let animation = file.animation(&name);
                 Ok(Source::Bvh(file, animation))
+            }
+            Some(crate::fit::container::EXTENSION) => {
+                let bytes = std::fs::read(path).map_err(InputError::Read)?;
+                let container = crate::fit::container::Container::from_bytes(&bytes)?;
+                let animation = container.animation();
+                match &container.bvh {
+                    Some(skeleton) => Ok(Source::Bvh(bvh::skeleton(skeleton, &animation)?, animation)),
+                    None => Ok(Source::Fitted(animation)),
+                }
             }
             _ => Err(InputError::UnknownFormat),
         }
@@ -33,20 +51,17 @@ impl Source {
     pub(super) fn animation(&self) -> &Animation {
         match self {
             Source::Gltf(f) => &f.animation,
-            Source::Bvh(_, a) | Source::Crowd(a) => a,
+            Source::Bvh(_, a) | Source::Crowd(a) | Source::Fitted(a) => a,
         }
     }
 }
 
-/// Files given, with directories replaced by their .gltf/.glb/.bvh files, sorted by path. A
-/// directory without one is an error: baking the built-in crowd instead would be a surprise.
-pub(super) fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
-    let known = |p: &Path| {
-        matches!(
-            p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
-            Some("gltf" | "glb" | "bvh")
-        )
-    };
+/// Files given, with directories replaced by their files of the `known` extensions (lower
+/// case), sorted by path. A directory without one is an error: baking the built-in crowd
+/// instead would be a surprise.
+pub fn expand(inputs: &[PathBuf], known: &[&str]) -> Result<Vec<PathBuf>, BakeError> {
+    let listed = known.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(", ");
+    let known = |p: &Path| extension(p).is_some_and(|e| known.contains(&e.as_str()));
     let mut files = Vec::new();
     for input in inputs {
         if input.is_dir() {
@@ -57,7 +72,7 @@ pub(super) fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
             if found.is_empty() {
                 return Err(BakeError::option(
                     "input",
-                    format!("{}: the directory holds no .gltf, .glb or .bvh file", input.display()),
+                    format!("{}: the directory holds no file of {listed}", input.display()),
                 ));
             }
             files.extend(found);
@@ -73,7 +88,7 @@ pub(super) fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, BakeError> {
 /// Each input's output stem (its file name without extension). Two inputs with one stem
 /// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
 /// replacing the first: refused before anything is baked.
-pub(super) fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
+pub fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, BakeError> {
     let stems: Vec<String> = inputs
         .iter()
         .map(|p| p.file_stem().map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned()))

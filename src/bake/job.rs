@@ -240,10 +240,10 @@ impl BakeJob {
             Some(shard) => shard.clone(),
             None => Shard::from_env(&|name| std::env::var(name).ok())?,
         };
-        let inputs = expand(&self.inputs)?;
+        let inputs = expand(&self.inputs, &super::inputs::INPUT_EXTENSIONS)?;
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
-        let output = OutputDir::create(&self.output)?;
+        let output = OutputDir::create(&self.output, "baked")?;
         if let Err(e) = self.check_output_names(&inputs, &stems) {
             output.remove_if_unused();
             return Err(e);
@@ -329,12 +329,13 @@ impl BakeJob {
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
-                let gltf = match input.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+                let gltf = match super::inputs::extension(input).as_deref() {
                     Some("gltf" | "glb") => {
                         names.push(format!("{stem}.glb"));
                         true
                     }
-                    Some("bvh") => {
+                    // A container of a BVH source bakes to BVH again.
+                    Some("bvh" | crate::fit::container::EXTENSION) => {
                         names.push(format!("{stem}.bvh"));
                         false
                     }
@@ -406,17 +407,18 @@ impl BakeJob {
             }
             report.warnings = super::source_step_warnings(animation);
             // Checked before the curves are baked.
-            let vertex = match (&src, self.texture) {
-                (Source::Gltf(file), TextureKind::Vertex) => {
-                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
-                }
-                (_, TextureKind::Vertex) => {
-                    return Err(InputError::Animation(
-                        "a BVH file has no mesh, and vertex textures skin a glTF's meshes; bake a bone texture".into(),
-                    ))
-                }
-                _ => None,
-            };
+            let vertex =
+                match (&src, self.texture) {
+                    (Source::Gltf(file), TextureKind::Vertex) => {
+                        Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
+                    }
+                    (_, TextureKind::Vertex) => return Err(InputError::Animation(
+                        "a BVH file or a fitted container has no mesh, and vertex textures skin a glTF's meshes; bake \
+                            a bone texture"
+                            .into(),
+                    )),
+                    _ => None,
+                };
             let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
             let mut baked = if self.max_error.is_set() {
                 let setting = budget::Setting {
@@ -519,7 +521,7 @@ impl BakeJob {
             Source::Bvh(file, animation) => {
                 Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes()))
             }
-            Source::Crowd(_) => None,
+            Source::Crowd(_) | Source::Fitted(_) => None,
         };
         let mesh_file = match vertex {
             Some(vertex) => Some((
@@ -551,7 +553,7 @@ impl BakeJob {
         texture_file::finish_all(std::mem::take(&mut out.atlas), &mut out.written)?;
         let options = SidecarOptions {
             device,
-            curve: self.spec.curve.name(),
+            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.spec.curve.name() },
             rate: self.rate,
             texture: self.texture,
             precision: self.precision,

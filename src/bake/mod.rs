@@ -15,11 +15,11 @@ pub mod error;
 mod glb;
 pub mod gltf;
 pub mod image;
-mod inputs;
+pub mod inputs;
 pub mod job;
 pub mod manifest;
 pub mod mesh;
-mod outputs;
+pub(crate) mod outputs;
 mod report;
 pub mod root_motion;
 pub mod shard;
@@ -144,7 +144,16 @@ pub struct Animation {
     pub skins: Vec<Skin>,
 }
 
+/// The curve a sidecar names for a fitted input: its own B-splines, whatever `--curve` says.
+pub const FITTED_CURVE: &str = "fitted-bspline";
+
 impl Animation {
+    /// Whether any channel is fitted ([`Channel::knots`]): control points, not keys.
+    #[must_use]
+    pub fn is_fitted(&self) -> bool {
+        self.clips.iter().flat_map(|c| &c.channels).any(|c| c.knots.is_some())
+    }
+
     /// Joint indices with every parent before its children (the order forward kinematics
     /// walks).
     ///
@@ -224,7 +233,13 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     let channels: Vec<(&Clip, &Channel)> = animation
         .clips
         .iter()
-        .flat_map(|clip| clip.channels.iter().filter(|c| c.property == Property::Rotation).map(move |c| (clip, c)))
+        .flat_map(|clip| {
+            // A fitted channel's values are control points, not keys.
+            clip.channels
+                .iter()
+                .filter(|c| c.property == Property::Rotation && c.knots.is_none())
+                .map(move |c| (clip, c))
+        })
         .collect();
     let warning = |&(clip, channel): &(&Clip, &Channel)| -> Option<String> {
         let steps: Vec<(usize, f64)> = channel
@@ -383,6 +398,16 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
         (angle.is_nan() || angle > crate::batch::LOOP_TOLERANCE).then_some(angle)
     };
     let rotations = || clip.channels.iter().filter(|c| c.property == Property::Rotation && c.values.len() > 1);
+    if clip.channels.iter().any(|c| c.knots.is_some()) {
+        // A fitted clip is the open curve it was fitted as.
+        return match mode {
+            LoopMode::On => Err(E::Animation(format!(
+                "clip '{}' is fitted (an open curve of control points); loop mode on needs keys",
+                clip.name
+            ))),
+            _ => Ok(false),
+        };
+    }
     match mode {
         LoopMode::Off => Ok(false),
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
@@ -569,7 +594,8 @@ pub fn bake_each(
     }
     baked.rotations = out.data;
     baked.device = Some(name);
-    if interpolates(spec) {
+    // A fitted clip's control points are not keys the curve passes through.
+    if interpolates(spec) && !animation.is_fitted() {
         baked.max_key_error = Some(key_error(&tracks, &batch, device)?);
     }
     Ok(baked)
@@ -632,6 +658,9 @@ fn prepare_channels(
         let spec = CurveSpec { looping: clips[c].looping, ..*spec };
         let name = animation.label(clip, channel);
         let frames = &clips[c].times;
+        if let Some(knots) = &channel.knots {
+            return fitted_channel(channel, knots, name, frames);
+        }
         Ok(match (channel.property, channel.values.len()) {
             (_, 1) => ChannelWork::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
             (Property::Rotation, _) => ChannelWork::Track(
@@ -657,6 +686,29 @@ fn prepare_channels(
         })
     };
     channels.par_iter().with_min_len(16).map(|&(c, k)| (c, prepare(c, k))).collect()
+}
+
+/// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
+/// curve family ([`crate::fit::spline_spec`]); rotations on the device, vectors here.
+fn fitted_channel(channel: &Channel, knots: &[f64], name: String, frames: &[f64]) -> Result<ChannelWork, InputError> {
+    let spec = crate::fit::spline_spec();
+    if channel.property == Property::Rotation {
+        let rotations = channel.values.clone();
+        return Ok(ChannelWork::Track(
+            Track { name: Some(name), knots: Some(knots.to_vec()), rotations, ..Track::default() },
+            spec,
+        ));
+    }
+    let id = TrackId { index: 0, name: Some(name) };
+    let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+    let curve = VectorCurve::new(&id, None, &controls, Some(knots), &spec)?;
+    Ok(ChannelWork::Host(
+        frames
+            .iter()
+            .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
+            .map(|[x, y, z]| [x, y, z, 0.0])
+            .collect(),
+    ))
 }
 
 /// A channel ready to evaluate: a device track, or its frames computed here.

@@ -11,19 +11,20 @@ use std::path::{Path, PathBuf};
 /// The output directory, created for the job; if this job created it (and any missing
 /// parents) and wrote nothing into it, [`Self::remove_if_unused`] takes them away again, so a
 /// failed job leaves nothing behind.
-pub(super) struct OutputDir {
+pub(crate) struct OutputDir {
     /// Directories this job created, deepest first.
     created: Vec<PathBuf>,
 }
 
 impl OutputDir {
     /// Creates `dir` and proves it takes a new file (as every output is first written), so an
-    /// output directory that cannot be written is refused before any input is baked.
-    pub(super) fn create(dir: &Path) -> Result<Self, BakeError> {
+    /// output directory that cannot be written is refused before any input is read; `done`
+    /// says what the job would have done to them (`baked`).
+    pub(crate) fn create(dir: &Path, done: &str) -> Result<Self, BakeError> {
         let created: Vec<PathBuf> =
             dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).map(Path::to_path_buf).collect();
         let refuse = |what: &str, e: std::io::Error| {
-            BakeError::option("output", format!("{}: {what}: {e} (nothing was baked)", dir.display()))
+            BakeError::option("output", format!("{}: {what}: {e} (nothing was {done})", dir.display()))
         };
         std::fs::create_dir_all(dir).map_err(|e| refuse("cannot create the directory", e))?;
         let this = Self { created };
@@ -38,7 +39,7 @@ impl OutputDir {
         Ok(this)
     }
 
-    pub(super) fn remove_if_unused(&self) {
+    pub(crate) fn remove_if_unused(&self) {
         // remove_dir only removes empty directories.
         for dir in &self.created {
             if std::fs::remove_dir(dir).is_err() {
@@ -65,7 +66,7 @@ pub(super) struct Outputs<'a> {
 }
 
 /// Baking into the input's own directory must not replace the input.
-pub(super) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputError> {
+pub(crate) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), InputError> {
     let same = match (std::fs::canonicalize(output), std::fs::canonicalize(source)) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,

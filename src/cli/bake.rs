@@ -279,7 +279,11 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
     } else {
         format!("{} Hz (fitted per clip)", args.rate)
     };
-    writeln!(w, "baked at {rate} with {} on {} -> {}", args.curve, report.device, args.output.display())?;
+    let fitted =
+        report.inputs.iter().any(|i| i.source.ends_with(&format!(".{}", quatcurve::fit::container::EXTENSION)));
+    let curve =
+        if fitted { format!("{} (fitted inputs: their own B-splines)", args.curve) } else { args.curve.to_string() };
+    writeln!(w, "baked at {rate} with {curve} on {} -> {}", report.device, args.output.display())?;
     if shard.count > 1 {
         writeln!(
             w,

@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bake;
 pub mod bench;
 pub mod eval;
+pub mod fit;
 pub mod shaders;
 pub mod view;
 

@@ -5,11 +5,12 @@
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
 //! against the clip's bytes in the container ([`super::container`]).
 
-use super::quantize::{self, Quantized, QuantizedRotations};
+use super::fitted::{Fitted, FittedChannel, FittedClip};
+use super::quantize::{self, Quantized};
 use super::timeline::{Timeline, BETWEEN_POINTS};
-use super::{bracket, clamped, fit_rotations, fit_vectors, Fit, ORDER};
+use super::{bracket, fit_rotations, fit_vectors, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
-use crate::bake::{Animation, Channel, Clip, Property};
+use crate::bake::{Animation, Channel, Property};
 use crate::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
 
@@ -35,113 +36,10 @@ pub struct Budget {
     /// The largest distance a virtual vertex may move, at any source frame.
     pub max_error: f64,
     /// The largest between frames, from the source's own interpolation (a looser bound: a
-    /// curve through the frames alone may swing between them).
+    /// curve through the frames alone may swing between them); infinite: not checked.
     pub between_error: f64,
     /// How far from each joint its virtual vertices are.
     pub vertex_distance: f64,
-}
-
-/// A fitted curve: its knots as samples of its timeline, and the curve they and the decoded
-/// control points make.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Spline<T> {
-    /// Index into the clip's [`FittedClip::timelines`].
-    pub timeline: usize,
-    /// Interior knots as sample indices of the timeline ([`Timeline::sample`]), ascending; a
-    /// knot of multiplicity `m` appears `m` times.
-    pub knots: Vec<u32>,
-    /// The curve: knot times, and the control points as their codes decode.
-    pub fit: Fit<T>,
-}
-
-impl<T> Spline<T> {
-    /// The curve of `controls` on interior `knots` of `timeline` (clamped at its ends).
-    fn new(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, controls: Vec<T>) -> Self {
-        let line = &timelines[timeline];
-        let interior: Vec<f64> = knots.iter().map(|&s| line.sample(s as usize)).collect();
-        let times = clamped(line.sample(0), line.sample(line.samples() - 1), &interior);
-        Spline { timeline, knots, fit: Fit { knots: times, controls, worst: 0.0, worst_at: 0 } }
-    }
-}
-
-/// A fitted channel's curve.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Fitted {
-    /// Every key within its tolerance of one value: stored once.
-    Constant([f64; 4]),
-    /// A KKS cumulative B-spline.
-    Rotation(Spline<QuatF64>, QuantizedRotations),
-    /// Its Euclidean analogue (translation, scale).
-    Vector(Spline<[f64; 3]>, Quantized),
-}
-
-impl Fitted {
-    /// The rotation curve of `codes` on `knots` of a timeline: the fit and the container
-    /// decode through this one function.
-    #[must_use]
-    pub fn rotation(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: QuantizedRotations) -> Self {
-        Fitted::Rotation(Spline::new(timelines, timeline, knots, codes.values()), codes)
-    }
-
-    /// The vector curve of `codes` on `knots` of a timeline, likewise.
-    #[must_use]
-    pub fn vector(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: Quantized) -> Self {
-        Fitted::Vector(Spline::new(timelines, timeline, knots, codes.values()), codes)
-    }
-
-    /// Knots and control points as a [`Channel`] of the common model: `times` are the control
-    /// points' Greville abscissae (strictly increasing, spanning the curve's domain), `values`
-    /// the control points. A constant is one key at `span`'s start, or two when the span is
-    /// not empty.
-    fn channel(&self, joint: usize, property: Property, span: [f64; 2]) -> Channel {
-        let (knots, values): (Vec<f64>, Vec<[f64; 4]>) = match self {
-            Fitted::Constant(v) => {
-                let times = if span[1] > span[0] { vec![span[0], span[1]] } else { vec![span[0]] };
-                let values = vec![*v; times.len()];
-                return Channel { joint, property, times, values, knots: None };
-            }
-            Fitted::Rotation(s, _) => (s.fit.knots.clone(), s.fit.controls.iter().map(|q| q.to_array()).collect()),
-            Fitted::Vector(s, _) => {
-                (s.fit.knots.clone(), s.fit.controls.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect())
-            }
-        };
-        let greville = (0..values.len()).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / (ORDER - 1) as f64);
-        Channel { joint, property, times: greville.collect(), values, knots: Some(knots) }
-    }
-}
-
-/// A fitted channel.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FittedChannel {
-    /// Index into the animation's joints.
-    pub joint: usize,
-    /// What it animates.
-    pub property: Property,
-    /// Its curve.
-    pub curve: Fitted,
-}
-
-/// A clip as fitting keeps it and the container stores it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FittedClip {
-    /// The source clip's name.
-    pub name: String,
-    /// The source clip's first and last key times, seconds.
-    pub span: [f64; 2],
-    /// The distinct key times of its curve channels.
-    pub timelines: Vec<Timeline>,
-    /// In the source clip's order.
-    pub channels: Vec<FittedChannel>,
-}
-
-impl FittedClip {
-    /// The clip in the common model, for baking: each curve channel carries its knots and
-    /// its control points ([`Channel::knots`]), each constant its value.
-    #[must_use]
-    pub fn to_clip(&self) -> Clip {
-        let channels = self.channels.iter().map(|c| c.curve.channel(c.joint, c.property, self.span)).collect();
-        Clip { name: self.name.clone(), channels }
-    }
 }
 
 /// The largest error of a clip and where it is.
@@ -183,7 +81,8 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         ("between error", budget.between_error),
         ("vertex distance", budget.vertex_distance),
     ] {
-        if !(value > 0.0 && value.is_finite()) {
+        // An infinite between error leaves the points between frames unchecked.
+        if !(value > 0.0 && (value.is_finite() || name == "between error")) {
             return Err(format!("the {name} is {value}; it must be a positive length"));
         }
     }
@@ -320,9 +219,7 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, tolerance
         }
     };
     if channel.times.len() < 2 || channel.values.iter().all(|v| off(v) <= tolerance) {
-        // As the container stores it.
-        let value = first.map(|v| f64::from(v as f32));
-        return Fitted::Constant(if rotation { value } else { [value[0], value[1], value[2], 0.0] });
+        return Fitted::constant(if rotation { first } else { [first[0], first[1], first[2], 0.0] });
     }
     let samples = timelines[line].sample_times();
     let times: Vec<f64> = samples.iter().map(|&(t, _)| t).collect();

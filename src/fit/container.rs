@@ -3,7 +3,7 @@
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
 //! is an error naming it and its byte offset.
 
-use super::clip::{Fitted, FittedChannel, FittedClip};
+use super::fitted::{Fitted, FittedChannel, FittedClip};
 use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use super::timeline::{Timeline, BETWEEN_POINTS};
 use super::ORDER;
@@ -103,7 +103,11 @@ impl Container {
         let mut r = Reader { bytes, at: 0 };
         let magic = r.take(MAGIC.len(), "magic")?;
         if magic != MAGIC {
-            return Err(r.bad_at(0, "magic", format!("not a quatcurve fitted-clip container (expected {MAGIC:?})")));
+            return Err(r.bad_at(
+                0,
+                "magic",
+                format!("not a quatcurve fitted-clip container (those start with {})", String::from_utf8_lossy(&MAGIC)),
+            ));
         }
         let version = u16::from_le_bytes([r.u8("version")?, r.u8("version")?]);
         if version != VERSION {
@@ -548,58 +552,39 @@ impl<'a> BitReader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::clip::{fit_clip, Budget};
+    use crate::fit::quantize;
+    use crate::quat::{QuatF64, Vec3F64};
 
-    /// A two-joint clip: a turning root, a sliding child, a still child rotation.
+    /// Two joints: a rotation curve, a vector curve with a knot of multiplicity 3, a constant.
     fn container() -> Container {
-        let times: Vec<f64> = (0..=60).map(|f| f64::from(f) / 30.0).collect();
-        let joints = vec![Joint::at("root".into(), None, [0.0; 3]), Joint::at("tip".into(), Some(0), [0.0, 10.0, 0.0])];
-        let spin: Vec<[f64; 4]> = times
-            .iter()
-            .map(|&t| {
-                crate::quat::QuatF64::from_rotation_vector(crate::quat::Vec3F64::new(t, 0.3 * t * t, 0.1)).to_array()
-            })
-            .collect();
-        let slide: Vec<[f64; 4]> = times.iter().map(|&t| [t.sin(), 10.0, 0.0, 0.0]).collect();
+        let timelines =
+            vec![Timeline::Even { first: 0.0, last: 2.0, count: 61 }, Timeline::Listed(vec![0.0, 0.5, 2.0])];
+        let turns: Vec<QuatF64> =
+            (0..8).map(|i| QuatF64::from_rotation_vector(Vec3F64::new(0.2 * f64::from(i), 0.1, -0.3))).collect();
+        let points: Vec<[f64; 3]> = (0..7).map(|i| [f64::from(i), 10.0, -0.5 * f64::from(i)]).collect();
         let channels = vec![
-            crate::bake::Channel {
+            FittedChannel {
                 joint: 0,
                 property: Property::Rotation,
-                times: times.clone(),
-                values: spin,
-                knots: None,
+                curve: Fitted::rotation(&timelines, 0, vec![50, 100, 150, 200], quantize::rotations(&turns, 1e-4)),
             },
-            crate::bake::Channel {
+            FittedChannel {
                 joint: 1,
                 property: Property::Translation,
-                times: times.clone(),
-                values: slide,
-                knots: None,
+                curve: Fitted::vector(&timelines, 1, vec![3, 3, 3], Quantized::of(&points, 1e-3)),
             },
-            crate::bake::Channel {
-                joint: 1,
-                property: Property::Rotation,
-                times: times.clone(),
-                values: vec![[0.0, 0.0, 0.0, 1.0]; times.len()],
-                knots: None,
-            },
+            FittedChannel { joint: 1, property: Property::Rotation, curve: Fitted::constant([0.0, 0.0, 0.6, 0.8]) },
         ];
-        let animation =
-            Animation { joints, clips: vec![crate::bake::Clip { name: "turn".into(), channels }], skins: Vec::new() };
-        let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
-        let fit = fit_clip(&animation, 0, &budget).unwrap();
         Container {
-            joints: animation.joints,
+            joints: vec![Joint::at("root".into(), None, [0.0; 3]), Joint::at("tip".into(), Some(0), [0.0, 10.0, 0.0])],
             bvh: Some(BvhSkeleton { hierarchy: "HIERARCHY\n".into(), frame_time: 1.0 / 30.0 }),
-            clips: vec![fit.clip],
+            clips: vec![FittedClip { name: "turn".into(), span: [0.0, 2.0], timelines, channels }],
         }
     }
 
     #[test]
     fn a_container_reads_back_what_was_written_to_the_bit() {
         let container = container();
-        assert!(container.clips[0].channels.iter().any(|c| matches!(c.curve, Fitted::Rotation(..))));
-        assert!(container.clips[0].channels.iter().any(|c| matches!(c.curve, Fitted::Vector(..))));
         let bytes = container.to_bytes();
         assert_eq!(Container::from_bytes(&bytes).unwrap(), container);
     }
@@ -626,6 +611,20 @@ mod tests {
             Container::from_bytes(&version).unwrap_err().to_string(),
             "byte 8: version: 9; this quatcurve reads version 1"
         );
+        // Knots a fit never makes: outside the samples, or more than ORDER - 1 at one.
+        for (knots, reason) in [
+            (vec![0], "sample 0 is not inside 1..10"),
+            (vec![3, 3, 3, 3], "sample 3 repeated 4 times; at most 3"),
+            (vec![10], "sample 10 is not inside 1..10"),
+        ] {
+            let mut bad = container();
+            let points = vec![[0.0; 3]; knots.len() + ORDER];
+            bad.clips[0].channels[1].curve =
+                Fitted::vector(&bad.clips[0].timelines, 1, knots.clone(), Quantized::of(&points, 1e-3));
+            let e = Container::from_bytes(&bad.to_bytes()).unwrap_err();
+            assert!(e.field.starts_with("clip 0 'turn' channel 1 (tip) knot"), "{knots:?}: {e}");
+            assert_eq!(e.reason, reason, "{knots:?}");
+        }
         let mut parent = bytes;
         // Joint 0's name "root" (length byte at 13, text 14..18) and then its parent.
         parent[18] = 1;

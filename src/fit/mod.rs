@@ -15,6 +15,8 @@
 pub mod banded;
 pub mod clip;
 pub mod container;
+pub mod fitted;
+pub mod job;
 pub mod quantize;
 pub mod timeline;
 
@@ -51,6 +53,12 @@ pub struct Fit<T> {
     pub worst_at: usize,
 }
 
+/// The curve family of every fit: a clamped B-spline of [`ORDER`] on explicit knots, open.
+#[must_use]
+pub fn spline_spec() -> CurveSpec {
+    CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() }
+}
+
 impl Fit<QuatF64> {
     /// The fitted curve as a track of explicit knots, and its spec.
     #[must_use]
@@ -60,7 +68,7 @@ impl Fit<QuatF64> {
             knots: Some(self.knots.clone()),
             ..Track::default()
         };
-        (track, CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() })
+        (track, spline_spec())
     }
 
     /// The curve at `times`, by the reference evaluator.
@@ -82,9 +90,8 @@ impl Fit<[f64; 3]> {
     /// # Errors
     /// The evaluator's, for a knot vector it refuses (a fit never makes one).
     pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
-        let spec = CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() };
         let id = TrackId { index: 0, name: None };
-        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spec)?;
+        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec())?;
         Ok(times.iter().map(|&t| curve.evaluate(t)).collect())
     }
 }

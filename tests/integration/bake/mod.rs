@@ -4,6 +4,7 @@
 //! sharded jobs and resume ([`shards`]).
 
 mod clients;
+mod fitted;
 mod hostile;
 mod images;
 mod mutations;

@@ -1,0 +1,106 @@
+//! `quatcurve fit`: glTF/BVH clips to fitted containers (`<stem>.qcf`), each clip's curves
+//! within an error budget in centimetres (DESIGN section 10), and a report per clip.
+
+use super::{print_stdout, Failure};
+use clap::Args;
+use quatcurve::fit::job::{FitJob, FitReport, DEFAULT_BETWEEN_ERROR_CM, DEFAULT_VERTEX_DISTANCE_CM};
+use std::io::Write;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct FitArgs {
+    /// Input files (.gltf, .glb, .bvh) or directories of them.
+    #[arg(long, num_args = 1.., required = true)]
+    input: Vec<PathBuf>,
+    /// Output directory (created if missing): one `<stem>.qcf` per input.
+    #[arg(long, default_value = "fitted")]
+    output: PathBuf,
+    /// The largest distance, in cm, a virtual vertex may move at any source frame (ACL's
+    /// metric: object space, so a parent's error counts in its children's).
+    #[arg(long, value_name = "CM", default_value_t = 0.01, allow_negative_numbers = true)]
+    max_error: f64,
+    /// The largest between source frames, in cm, against the source's own interpolation.
+    #[arg(long, value_name = "CM", default_value_t = DEFAULT_BETWEEN_ERROR_CM, allow_negative_numbers = true)]
+    between_error: f64,
+    /// Fit the source frames alone: the curve may swing between them (reported all the same).
+    #[arg(long, conflicts_with = "between_error")]
+    no_between_check: bool,
+    /// The virtual vertices' distance from each joint, cm.
+    #[arg(long, value_name = "CM", default_value_t = DEFAULT_VERTEX_DISTANCE_CM, allow_negative_numbers = true)]
+    vertex_distance: f64,
+    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files do not say
+    /// theirs, so a BVH input needs it (CMU's is 5.644).
+    #[arg(long, value_name = "CM", allow_negative_numbers = true)]
+    unit_cm: Option<f64>,
+    /// Print the report as JSON (DESIGN section 10) instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &FitArgs) -> Result<(), Failure> {
+    let job = FitJob {
+        inputs: args.input.clone(),
+        output: args.output.clone(),
+        max_error_cm: args.max_error,
+        between_error_cm: (!args.no_between_check).then_some(args.between_error),
+        vertex_distance_cm: args.vertex_distance,
+        unit_cm: args.unit_cm,
+    };
+    let report = job.run(&|input, clip| {
+        eprintln!("{input}: clip '{}' {:.1}:1 in {:.1} s", clip.clip, clip.ratio, clip.seconds);
+    })?;
+    if args.json {
+        print_stdout(|w| {
+            serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::from)?;
+            writeln!(w)
+        })?;
+    } else {
+        print_stdout(|w| table(w, &report))?;
+    }
+    let failed: Vec<String> =
+        report.inputs.iter().filter_map(|i| i.error.as_ref().map(|e| format!("{}: {e}", i.input))).collect();
+    match failed.len() {
+        0 => Ok(()),
+        n => Err(Failure::Input(format!(
+            "{n} of {} inputs failed (no container written for them): {}",
+            report.inputs.len(),
+            failed.join("; ")
+        ))),
+    }
+}
+
+fn table(w: &mut dyn Write, report: &FitReport) -> std::io::Result<()> {
+    let between = report.between_error_cm.map_or_else(|| "not checked".into(), |cm| format!("{cm} cm"));
+    writeln!(
+        w,
+        "within {} cm at every source frame, between frames {between}, virtual vertices {} cm from each joint",
+        report.max_error_cm, report.vertex_distance_cm
+    )?;
+    writeln!(w, "| input | clip | frames | raw KB | fitted KB | ratio | worst at frames | worst between | s |")?;
+    writeln!(w, "|---|---|---:|---:|---:|---:|---|---|---:|")?;
+    for input in &report.inputs {
+        if let Some(e) = &input.error {
+            writeln!(w, "| {} | failed: {e} | | | | | | | |", input.input)?;
+        }
+        for c in &input.clips {
+            writeln!(
+                w,
+                "| {} | {} | {} | {:.1} | {:.1} | {:.1}:1 | {:.5} cm ({}, {:.3} s) | {:.4} cm ({}, {:.3} s) | {:.1} |",
+                input.input,
+                c.clip,
+                c.frames,
+                c.raw_bytes as f64 / 1024.0,
+                c.compressed_bytes as f64 / 1024.0,
+                c.ratio,
+                c.at_frames.error_cm,
+                c.at_frames.joint,
+                c.at_frames.time,
+                c.between_frames.error_cm,
+                c.between_frames.joint,
+                c.between_frames.time,
+                c.seconds
+            )?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,204 @@
+//! `quatcurve fit` end to end: a real CMU clip fitted within ACL's error, its container baked
+//! back to BVH at the source rate on every device, and the error measured again from the
+//! decoded BVH alone (parsed, posed and compared with the source, frame by frame), which must
+//! be the report's; and the faults a fit or a bad container meets, named.
+
+use super::{bake, data_dir, stderr};
+use assert_cmd::Command;
+use quatcurve::analysis::vertex_error::{pose_errors, Transform};
+use quatcurve::bake::{bvh, Animation, Property};
+use std::path::Path;
+
+/// CMU's BVH unit in cm.
+const CMU_UNIT_CM: f64 = 5.644;
+
+fn fit(args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("quatcurve").unwrap().arg("fit").args(args).output().unwrap()
+}
+
+/// The first `frames` frames of `source` as a BVH file at `path`.
+fn first_frames(source: &Path, frames: usize, path: &Path) {
+    let text = std::fs::read_to_string(source).unwrap();
+    let (hierarchy, motion) = text.split_at(text.find("MOTION").unwrap());
+    let mut lines = motion.lines().skip(3).filter(|l| !l.trim().is_empty());
+    let frame_time = motion.lines().nth(2).unwrap();
+    let rows: Vec<&str> = lines.by_ref().take(frames).collect();
+    std::fs::write(path, format!("{hierarchy}MOTION\nFrames: {}\n{frame_time}\n{}\n", rows.len(), rows.join("\n")))
+        .unwrap();
+}
+
+/// Each frame's local transforms: the rest pose with the clip's keys at frame `f`.
+fn pose(animation: &Animation, f: usize) -> Vec<Transform> {
+    let mut local: Vec<Transform> = animation
+        .joints
+        .iter()
+        .map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale })
+        .collect();
+    for c in &animation.clips[0].channels {
+        let v = c.values[f];
+        match c.property {
+            Property::Rotation => local[c.joint].rotation = v,
+            Property::Translation => local[c.joint].translation = [v[0], v[1], v[2]],
+            Property::Scale => local[c.joint].scale = [v[0], v[1], v[2]],
+        }
+    }
+    local
+}
+
+/// The worst virtual-vertex error (file units) over the frames of `decoded` against `source`.
+fn worst_error(source: &Animation, decoded: &Animation, distance: f64) -> f64 {
+    let parents: Vec<Option<usize>> = source.joints.iter().map(|j| j.parent).collect();
+    let order = source.parents_first().unwrap();
+    let frames = source.clips[0].channels[0].times.len();
+    assert_eq!(decoded.clips[0].channels[0].times.len(), frames, "every source frame decoded");
+    (0..frames)
+        .map(|f| pose_errors(&parents, &order, &pose(source, f), &pose(decoded, f), distance))
+        .flat_map(|errors| errors.into_iter())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_fitted_bvh_bakes_back_to_its_frames_within_the_error_the_report_gives() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("walk.bvh");
+    first_frames(&data.join("cmu_131_01.bvh"), 240, &source);
+    let fitted = dir.path().join("fitted");
+    let unit = CMU_UNIT_CM.to_string();
+    let result = fit(&[
+        "--input",
+        source.to_str().unwrap(),
+        "--output",
+        fitted.to_str().unwrap(),
+        "--max-error",
+        "0.01",
+        "--unit-cm",
+        &unit,
+        "--json",
+    ]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    let input = &report["inputs"][0];
+    let clip = &input["clips"][0];
+    let at_frames_cm = clip["at_frames"]["error_cm"].as_f64().unwrap();
+    assert!(at_frames_cm <= 0.01, "{clip}");
+    assert!(clip["between_frames"]["error_cm"].as_f64().unwrap() <= 0.3, "{clip}");
+    assert_eq!(clip["frames"], 240);
+    assert_eq!(clip["raw_bytes"].as_u64().unwrap(), 40 * 31 * 240, "ACL's raw bytes: 40 per joint per frame");
+    let (raw, compressed) = (clip["raw_bytes"].as_f64().unwrap(), clip["compressed_bytes"].as_f64().unwrap());
+    assert!(raw / compressed > 8.0, "{clip}");
+    let container = fitted.join("walk.qcf");
+    // The clip's bytes are in the container, beside the skeleton and the BVH hierarchy.
+    let file_bytes = std::fs::metadata(&container).unwrap().len();
+    assert_eq!(input["container_bytes"].as_u64().unwrap(), file_bytes);
+    assert!(compressed < file_bytes as f64);
+    let source_animation = bvh::read(&source).unwrap().animation("walk");
+    let devices: &[&str] =
+        if crate::shared_gpu().is_some() { &["cpu", "gpu", "reference"] } else { &["cpu", "reference"] };
+    for device in devices {
+        let out = dir.path().join(device);
+        let baked = bake(&[
+            "--input",
+            container.to_str().unwrap(),
+            "--rate",
+            "120",
+            "--device",
+            device,
+            "--output",
+            out.to_str().unwrap(),
+        ]);
+        assert!(baked.status.success(), "{device}: {}", stderr(&baked));
+        let sidecar = super::json(&out.join("walk.json"));
+        assert_eq!(sidecar["curve"], "fitted-bspline", "{device}");
+        let decoded = bvh::read(&out.join("walk.bvh")).unwrap();
+        assert!((decoded.frame_time - 1.0 / 120.0).abs() < 1e-12, "{device}: {}", decoded.frame_time);
+        let again_cm = worst_error(&source_animation, &decoded.animation("walk"), 3.0 / CMU_UNIT_CM) * CMU_UNIT_CM;
+        eprintln!("{device}: the decoded BVH is within {again_cm} cm; the report says {at_frames_cm} cm");
+        assert!((again_cm - at_frames_cm).abs() <= 2e-5, "{device}: {again_cm} cm decoded, {at_frames_cm} reported");
+    }
+}
+
+/// A small BVH: a root that moves and turns, a child that bends, 61 frames at 30 Hz.
+fn small_bvh(path: &Path) {
+    let mut text = String::from(
+        "HIERARCHY\nROOT hips\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation \
+         Yrotation\n  JOINT knee\n  {\n    OFFSET 0 -10 0\n    CHANNELS 3 Zrotation Xrotation Yrotation\n    End Site\n    \
+         {\n      OFFSET 0 -10 0\n    }\n  }\n}\nMOTION\nFrames: 61\nFrame Time: 0.0333333\n",
+    );
+    for f in 0..61 {
+        let t = f64::from(f) / 30.0;
+        let row = [
+            t,
+            1.0 + (2.0 * t).sin(),
+            0.0,
+            20.0 * t,
+            5.0 * (3.0 * t).sin(),
+            0.0,
+            30.0 * (2.0 * t).sin(),
+            0.0,
+            10.0 * t,
+        ];
+        text.push_str(&row.map(|v| format!("{v:.6}")).join(" "));
+        text.push('\n');
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_container_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("bend.bvh");
+    small_bvh(&source);
+    let out = dir.path().join("out");
+    let (src, dst) = (source.to_str().unwrap(), out.to_str().unwrap());
+    // A BVH does not say its unit: refused before anything is read or made.
+    let result = fit(&["--input", src, "--output", dst]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("--unit-cm is needed for"), "{}", stderr(&result));
+    assert!(!out.exists(), "nothing made for a refused job");
+    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--max-error", "0"]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("--max-error is 0; it must be a positive length"), "{}", stderr(&result));
+    // The container's place taken by a directory: refused before the fit.
+    std::fs::create_dir_all(out.join("bend.qcf")).unwrap();
+    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1"]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("is a directory (nothing was fitted)"), "{}", stderr(&result));
+    std::fs::remove_dir(out.join("bend.qcf")).unwrap();
+    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--json"]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let container = out.join("bend.qcf");
+    let bytes = std::fs::read(&container).unwrap();
+    // Fitted clips are open curves of control points: no loop, no rate budget over keys.
+    let baked = dir.path().join("baked");
+    for (flags, message) in [
+        (&["--loop", "on"][..], "is fitted (an open curve of control points); loop mode on needs keys"),
+        (&["--max-error", "1"][..], "is fitted (control points, not keys)"),
+    ] {
+        let result =
+            bake(&[&["--input", container.to_str().unwrap(), "--output", baked.to_str().unwrap()][..], flags].concat());
+        assert_eq!(result.status.code(), Some(2), "{flags:?}");
+        assert!(stderr(&result).contains(message), "{flags:?}: {}", stderr(&result));
+    }
+    // Truncated, or not a container at all: exit 2, the field named.
+    for (name, cut, field) in [
+        ("cut.qcf", bytes.len() - 3, "clip 0 length: "),
+        ("header.qcf", 9, "byte 9: version: truncated: 1 bytes needed, 0 left"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes[..cut]).unwrap();
+        let result = bake(&["--input", path.to_str().unwrap(), "--output", baked.to_str().unwrap()]);
+        assert_eq!(result.status.code(), Some(2), "{name}");
+        assert!(stderr(&result).contains("fitted container byte"), "{name}: {}", stderr(&result));
+        assert!(stderr(&result).contains(field), "{name}: {}", stderr(&result));
+    }
+    let text = dir.path().join("text.qcf");
+    std::fs::write(&text, "HIERARCHY").unwrap();
+    let result = bake(&["--input", text.to_str().unwrap(), "--output", baked.to_str().unwrap()]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(
+        stderr(&result).contains("byte 0: magic: not a quatcurve fitted-clip container (those start with QCURVFIT)"),
+        "{}",
+        stderr(&result)
+    );
+}
