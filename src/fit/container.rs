@@ -21,6 +21,9 @@ pub const EXTENSION: &str = "qcf";
 /// Bits of a rotation control point's largest-component index.
 const INDEX_BITS: u32 = 2;
 
+/// The largest-component byte that says each control point's index follows, packed.
+const SEVERAL_LARGEST: u8 = 4;
+
 /// A container's contents.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Container {
@@ -210,9 +213,16 @@ fn clip_section(clip: &FittedClip) -> Vec<u8> {
             Fitted::Rotation(spline, codes) => {
                 out.u8(property | 4);
                 out.curve(spline.timeline, &spline.knots, &codes.smallest);
-                let mut bits = BitWriter::default();
-                codes.largest.iter().for_each(|&i| bits.push(u32::from(i), INDEX_BITS));
-                out.bytes(&bits.finish());
+                // One index for every control point (the usual case), or each packed.
+                match codes.largest.iter().all(|&i| i == codes.largest[0]) {
+                    true => out.u8(codes.largest[0]),
+                    false => {
+                        out.u8(SEVERAL_LARGEST);
+                        let mut bits = BitWriter::default();
+                        codes.largest.iter().for_each(|&i| bits.push(u64::from(i), INDEX_BITS));
+                        out.bytes(&bits.finish());
+                    }
+                }
             }
             Fitted::Vector(spline, codes) => {
                 out.u8(property | 4);
@@ -292,12 +302,22 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, C
             1 => {
                 let (line, knots, codes) = r.curve(&field, &timelines)?;
                 if rotation {
-                    let indices = r.take(
-                        (codes.codes.len() * INDEX_BITS as usize).div_ceil(8),
-                        &format!("{field} largest components"),
-                    )?;
-                    let mut bits = BitReader::new(indices);
-                    let largest = (0..codes.codes.len()).map(|_| bits.take(INDEX_BITS) as u8).collect();
+                    let name = format!("{field} largest components");
+                    let largest = match r.u8(&name)? {
+                        one @ 0..=3 => vec![one; codes.codes.len()],
+                        SEVERAL_LARGEST => {
+                            let n = codes.codes.len();
+                            let mut bits = BitReader::new(r.take((n * INDEX_BITS as usize).div_ceil(8), &name)?);
+                            (0..n).map(|_| bits.take(INDEX_BITS).map_or(0, |i| i as u8)).collect()
+                        }
+                        other => {
+                            return Err(r.bad_at(
+                                r.at - 1,
+                                &name,
+                                format!("{other} is neither 0-3 nor {SEVERAL_LARGEST}"),
+                            ))
+                        }
+                    };
                     Fitted::rotation(&timelines, line, knots, QuantizedRotations { smallest: codes, largest })
                 } else {
                     Fitted::vector(&timelines, line, knots, codes)
@@ -366,10 +386,84 @@ impl Writer {
         }
         self.u8(codes.bits as u8);
         codes.low.iter().chain(&codes.span).for_each(|&v| self.f32(v as f32));
-        let mut bits = BitWriter::default();
-        codes.codes.iter().flatten().for_each(|&c| bits.push(c, codes.bits));
-        self.bytes(&bits.finish());
+        let packed = pack_codes(&codes.codes, codes.bits);
+        self.count(packed.len());
+        self.bytes(&packed);
     }
+}
+
+/// Control points per block of residual widths.
+const BLOCK: usize = 16;
+
+/// Bits of a block's residual width.
+const WIDTH_BITS: u32 = 5;
+
+/// Each code's prediction from the ones before it: the previous code for the second point,
+/// the line through the two before it after that (a smooth curve's control points lie
+/// nearly on one), nothing for the first.
+fn predicted(codes: &[[u32; 3]], i: usize, c: usize) -> i64 {
+    match i {
+        0 => 0,
+        1 => i64::from(codes[0][c]),
+        _ => 2 * i64::from(codes[i - 1][c]) - i64::from(codes[i - 2][c]),
+    }
+}
+
+/// Codes packed low bit first: the first point's at `bits` each, then per block of [`BLOCK`]
+/// points each component's residual width ([`WIDTH_BITS`]) and the points' zigzagged
+/// residuals from [`predicted`] at those widths.
+fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
+    let mut out = BitWriter::default();
+    let Some(first) = codes.first() else { return out.finish() };
+    first.iter().for_each(|&c| out.push(u64::from(c), bits));
+    let zigzag = |i: usize, c: usize| {
+        let r = i64::from(codes[i][c]) - predicted(codes, i, c);
+        ((r << 1) ^ (r >> 63)) as u64
+    };
+    for block in (1..codes.len()).step_by(BLOCK) {
+        let points = block..(block + BLOCK).min(codes.len());
+        let widths: [u32; 3] =
+            std::array::from_fn(|c| points.clone().map(|i| 64 - zigzag(i, c).leading_zeros()).max().unwrap_or(0));
+        widths.iter().for_each(|&w| out.push(u64::from(w), WIDTH_BITS));
+        for i in points {
+            for (c, &w) in widths.iter().enumerate() {
+                out.push(zigzag(i, c), w);
+            }
+        }
+    }
+    out.finish()
+}
+
+/// `n` points' codes of [`pack_codes`], each checked to lie within `bits`.
+fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, String> {
+    let mut input = BitReader::new(packed);
+    let mut take = |w: u32| input.take(w).ok_or_else(|| format!("the packed codes end before control point {n}"));
+    let mut codes: Vec<[u32; 3]> = Vec::with_capacity(n);
+    let most = (1i64 << bits) - 1;
+    let mut widths = [0; 3];
+    for i in 0..n {
+        if i % BLOCK == 1 {
+            for w in &mut widths {
+                *w = take(WIDTH_BITS)? as u32;
+            }
+        }
+        let mut point = [0u32; 3];
+        for c in 0..3 {
+            let value = if i == 0 {
+                take(bits)? as i64
+            } else {
+                let z = take(widths[c])?;
+                let r = (z >> 1) as i64 ^ -((z & 1) as i64);
+                predicted(&codes, i, c).wrapping_add(r)
+            };
+            if !(0..=most).contains(&value) {
+                return Err(format!("control point {i} component {c} decodes to {value}, outside {bits} bits"));
+            }
+            point[c] = value as u32;
+        }
+        codes.push(point);
+    }
+    Ok(codes)
 }
 
 /// Bytes being read, and where.
@@ -492,9 +586,11 @@ impl Reader<'_> {
             }
         }
         let controls = count + ORDER;
-        let packed = self.take((3 * controls * bits as usize).div_ceil(8), &format!("{field} codes"))?;
-        let mut reader = BitReader::new(packed);
-        let codes = (0..controls).map(|_| std::array::from_fn(|_| reader.take(bits))).collect();
+        let name = format!("{field} codes");
+        let length = self.count(&name, 1)?;
+        let start = self.at;
+        let packed = self.take(length, &name)?;
+        let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, &name, e))?;
         let [l0, l1, l2, s0, s1, s2] = ranges;
         Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span: [s0, s1, s2], codes }))
     }
@@ -509,8 +605,9 @@ struct BitWriter {
 }
 
 impl BitWriter {
-    fn push(&mut self, value: u32, bits: u32) {
-        self.pending |= u64::from(value) << self.filled;
+    /// `value`'s low `bits` (at most 32).
+    fn push(&mut self, value: u64, bits: u32) {
+        self.pending |= (value & ((1u64 << bits) - 1)) << self.filled;
         self.filled += bits;
         while self.filled >= 8 {
             self.bytes.push(self.pending as u8);
@@ -538,14 +635,18 @@ impl<'a> BitReader<'a> {
         Self { bytes, bit: 0 }
     }
 
-    fn take(&mut self, bits: u32) -> u32 {
-        let mut v = 0u32;
+    /// The next `bits` (at most 32), or `None` past the end.
+    fn take(&mut self, bits: u32) -> Option<u64> {
+        if self.bit + bits as usize > 8 * self.bytes.len() {
+            return None;
+        }
+        let mut v = 0u64;
         for i in 0..bits as usize {
             let b = self.bit + i;
-            v |= u32::from(self.bytes[b / 8] >> (b % 8) & 1) << i;
+            v |= u64::from(self.bytes[b / 8] >> (b % 8) & 1) << i;
         }
         self.bit += bits as usize;
-        v
+        Some(v)
     }
 }
 
@@ -580,6 +681,27 @@ mod tests {
             bvh: Some(BvhSkeleton { hierarchy: "HIERARCHY\n".into(), frame_time: 1.0 / 30.0 }),
             clips: vec![FittedClip { name: "turn".into(), span: [0.0, 2.0], timelines, channels }],
         }
+    }
+
+    #[test]
+    fn codes_pack_as_residuals_and_unpack_to_the_same_codes_or_a_named_fault() {
+        // A smooth ramp with a jump (a flip) in the middle, and the extremes of the width.
+        let bits = 20;
+        let top = (1u32 << bits) - 1;
+        let mut codes: Vec<[u32; 3]> =
+            (0..100u32).map(|i| [1000 + 37 * i, 500_000 - i * i, if i < 50 { 0 } else { top }]).collect();
+        codes.push([top, 0, top]);
+        let packed = pack_codes(&codes, bits);
+        assert!(packed.len() * 8 < codes.len() * 3 * bits as usize / 2, "{} bytes: residuals are small", packed.len());
+        assert_eq!(unpack_codes(&packed, codes.len(), bits).unwrap(), codes);
+        assert_eq!(
+            unpack_codes(&packed, codes.len(), 10).unwrap_err(),
+            "control point 1 component 1 decodes to 4544, outside 10 bits"
+        );
+        assert_eq!(
+            unpack_codes(&packed[..packed.len() - 2], codes.len(), bits).unwrap_err(),
+            format!("the packed codes end before control point {}", codes.len())
+        );
     }
 
     #[test]
