@@ -19,10 +19,10 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 
 /// The share of a channel's tolerance its control points' quantization may take; the fit
 /// takes the rest.
-pub const QUANTIZATION_SHARE: f64 = 0.25;
+pub const QUANTIZATION_SHARE: f64 = 0.4;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
-const SCALINGS: usize = 6;
+const SCALINGS: usize = 8;
 
 /// A fit whose worst error is within this factor of the budget is not tried looser.
 const ROOM_TO_GROW: f64 = 1.25;
@@ -121,47 +121,65 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     let tolerances = tolerances(animation, &order, channels, budget);
     let between_share = budget.between_error / budget.max_error;
     // The shares are conservative (errors along a chain seldom add up in one direction), so
-    // the tolerances are scaled towards the budget: up while the worst error leaves room,
-    // down when it is over; the smallest fit within the budget is kept.
+    // each channel's tolerance is scaled towards the budget by the room its joint's subtree
+    // left (the worst of the virtual vertices it moves): up while there is room, down where a
+    // vertex is over; the smallest fit within the budget is kept.
     let mut best: Option<ClipFit> = None;
-    let mut scale = 1.0;
+    // Per channel, the scales of its tolerance at frames and between them: the two rooms
+    // differ, and one scale for both lets a channel with room at frames ring between them.
+    let mut scales = vec![[1.0, 1.0]; channels.len()];
+    // The scales of the smallest fit within the budget so far.
+    let mut kept = scales.clone();
     for _ in 0..SCALINGS {
         let fitted: Vec<FittedChannel> = channels
             .par_iter()
             .zip(&tolerances)
             .zip(&timeline_of)
-            .map(|((c, &t), &line)| FittedChannel {
+            .zip(&scales)
+            .map(|(((c, &t), &line), &[at, between])| FittedChannel {
                 joint: c.joint,
                 property: c.property,
-                curve: fit_channel(c, &timelines, line, t * scale, between_share),
+                curve: fit_channel(c, &timelines, line, [t * at, t * between_share * between]),
             })
             .collect();
         let measure = |times: &[f64]| worst_error(animation, &parents, &order, channels, &fitted, times, budget);
-        let (at_frames, between_frames) = (measure(&frames), measure(&between));
+        let ((at_frames, at_joints), (between_frames, between_joints)) = (measure(&frames), measure(&between));
         let room = (budget.max_error / at_frames.error).min(budget.between_error / between_frames.error);
-        if room >= 1.0 {
-            let fitted = FittedClip {
-                name: source.name.clone(),
-                span: source.span(),
-                timelines: timelines.clone(),
-                channels: fitted,
-            };
-            let fit = ClipFit {
+        let fitted = FittedClip {
+            name: source.name.clone(),
+            span: source.span(),
+            timelines: timelines.clone(),
+            channels: fitted,
+        };
+        let fitted_bytes = super::container::clip_bytes(&fitted);
+        if room >= 1.0 && best.as_ref().map_or(true, |b| fitted_bytes < b.fitted_bytes) {
+            kept.clone_from(&scales);
+            best = Some(ClipFit {
                 between_frames,
-                fitted_bytes: super::container::clip_bytes(&fitted),
+                fitted_bytes,
                 clip: fitted,
                 at_frames,
                 frames: frames.len(),
                 raw_bytes: RAW_BYTES_PER_JOINT_FRAME * animation.joints.len() * frames.len(),
-            };
-            if best.as_ref().map_or(true, |b| fit.fitted_bytes < b.fitted_bytes) {
-                best = Some(fit);
-            }
-            if room < ROOM_TO_GROW {
-                break;
-            }
+            });
         }
-        scale *= 0.9 * room.min(MAX_GROWTH);
+        let (at, between) =
+            (subtree_worst(&parents, &order, at_joints), subtree_worst(&parents, &order, between_joints));
+        let rooms: Vec<[f64; 2]> = channels
+            .iter()
+            .map(|c| {
+                [budget.max_error / at[c.joint], budget.between_error / between[c.joint]].map(|r| r.min(MAX_GROWTH))
+            })
+            .collect();
+        if rooms.iter().flatten().all(|r| (1.0..ROOM_TO_GROW).contains(r)) {
+            break;
+        }
+        for ((scale, room), kept) in scales.iter_mut().flatten().zip(rooms.iter().flatten()).zip(kept.iter().flatten())
+        {
+            // Over the budget after a step from the kept fit: half the step back (errors do
+            // not follow tolerances smoothly: a looser channel may ring between frames).
+            *scale = if *room < 1.0 && kept < scale { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
+        }
     }
     best.ok_or_else(|| {
         format!(
@@ -205,10 +223,10 @@ fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budg
 }
 
 /// `channel` fitted at the samples of its timeline (`timelines[line]`: its keys and the points
-/// between them), within `tolerance` at keys and `between_share` times that between them,
+/// between them), within `tolerance[0]` at keys and `tolerance[1]` between them,
 /// against its own interpolation; a channel whose every key is within `tolerance` of its first
 /// is stored once.
-fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, tolerance: f64, between_share: f64) -> Fitted {
+fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [tolerance, between]: [f64; 2]) -> Fitted {
     let first = channel.values[0];
     let rotation = channel.property == Property::Rotation;
     let off = |v: &[f64; 4]| {
@@ -223,10 +241,8 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, tolerance
     }
     let samples = timelines[line].sample_times();
     let times: Vec<f64> = samples.iter().map(|&(t, _)| t).collect();
-    let fitting: Vec<f64> = samples
-        .iter()
-        .map(|&(_, key)| tolerance * (1.0 - QUANTIZATION_SHARE) * if key { 1.0 } else { between_share })
-        .collect();
+    let fitting: Vec<f64> =
+        samples.iter().map(|&(_, key)| (1.0 - QUANTIZATION_SHARE) * if key { tolerance } else { between }).collect();
     let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
     let rounding = tolerance * QUANTIZATION_SHARE;
     // Every knot is one of the samples; the container stores its index.
@@ -270,7 +286,8 @@ fn source_at(channel: &Channel, t: f64) -> [f64; 4] {
     }
 }
 
-/// The worst object-space error over `times` between the source and the fitted channels.
+/// The worst object-space error over `times` between the source and the fitted channels, and
+/// each joint's worst.
 fn worst_error(
     animation: &Animation,
     parents: &[Option<usize>],
@@ -279,7 +296,7 @@ fn worst_error(
     fitted: &[FittedChannel],
     times: &[f64],
     budget: &Budget,
-) -> Worst {
+) -> (Worst, Vec<f64>) {
     // Every fitted channel at every time, evaluated once per channel.
     let curves: Vec<Vec<[f64; 4]>> = fitted
         .par_iter()
@@ -314,6 +331,7 @@ fn worst_error(
         }
         local
     };
+    let joints = parents.len();
     times
         .par_iter()
         .enumerate()
@@ -323,9 +341,26 @@ fn worst_error(
             let errors = pose_errors(parents, order, &raw, &lossy, budget.vertex_distance);
             let (joint, error) =
                 errors.iter().copied().enumerate().fold((0, 0.0), |w, (j, e)| if e > w.1 { (j, e) } else { w });
-            Worst { error, joint, time: t }
+            (Worst { error, joint, time: t }, errors)
         })
-        .reduce(Worst::default, |a, b| if b.error > a.error { b } else { a })
+        .reduce(
+            || (Worst::default(), vec![0.0; joints]),
+            |(a, ea), (b, eb)| {
+                let worst = if b.error > a.error { b } else { a };
+                (worst, ea.iter().zip(&eb).map(|(x, y)| x.max(*y)).collect())
+            },
+        )
+}
+
+/// Per joint, the worst of `errors` over it and its descendants: what a change to its channels
+/// can move.
+fn subtree_worst(parents: &[Option<usize>], order: &[usize], mut errors: Vec<f64>) -> Vec<f64> {
+    for &j in order.iter().rev() {
+        if let Some(p) = parents[j] {
+            errors[p] = errors[p].max(errors[j]);
+        }
+    }
+    errors
 }
 
 #[cfg(test)]
@@ -390,7 +425,7 @@ mod tests {
         let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
         let again =
             worst_error(&animation, &parents, &order, channels, &fit.clip.channels, &channels[0].times, &budget);
-        assert_eq!(again, fit.at_frames);
+        assert_eq!(again.0, fit.at_frames);
         assert!(matches!(fit.clip.channels[3].curve, Fitted::Constant(_)), "the still hand is stored once");
         assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
         assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);
