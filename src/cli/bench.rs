@@ -67,6 +67,14 @@ pub struct BenchArgs {
     /// core) and the GPU (`shaders/skin_mesh.wgsl`, upload and read-back included).
     #[arg(long, value_name = "GLTF", conflicts_with = "sweep")]
     skinning: Option<std::path::PathBuf>,
+    /// Time decompression instead: the clips of these fitted containers (`quatcurve fit`),
+    /// each --copies times, baked in memory at their source rates on each device; poses per
+    /// second and nanoseconds per bone-pose beside ACL's published single-core figure.
+    #[arg(long, value_name = "QCF", num_args = 1.., conflicts_with_all = ["sweep", "skinning"])]
+    fitted: Vec<std::path::PathBuf>,
+    /// With --fitted: copies of every clip in the batch.
+    #[arg(long, default_value_t = 10)]
+    copies: usize,
 }
 
 #[derive(Serialize)]
@@ -113,6 +121,12 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     }
     if args.sweep {
         return sweep(args);
+    }
+    if !args.fitted.is_empty() {
+        if args.copies == 0 {
+            return Err(Failure::Input("bench: --copies must be at least 1".into()));
+        }
+        return super::bench_fitted::run(&args.fitted, args.copies, args.runs, args.devices.as_deref(), args.json);
     }
     if let Some(file) = &args.skinning {
         let report = skinning(args, file)?;
@@ -239,17 +253,7 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
         args.devices.clone().unwrap_or_else(|| vec![DeviceChoice::Reference, DeviceChoice::Cpu, DeviceChoice::Gpu]);
     let mut results = Vec::new();
     for choice in devices {
-        let device = match (choice, super::open_device(choice, "--devices")) {
-            (DeviceChoice::Auto, _) => {
-                return Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into()))
-            }
-            (_, Ok(device)) => device,
-            (_, Err(e)) if explicit => return Err(e),
-            (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
-                eprintln!("skipped {choice}: {e}");
-                continue;
-            }
-        };
+        let Some(device) = open_bench_device(choice, explicit)? else { continue };
         results.push(match &device {
             Device::Reference => time_reference(args, &spec)?,
             Device::Gpu(gpu) | Device::Auto(gpu, _) => time_gpu(args, gpu, &batch, &times)?,
@@ -275,8 +279,22 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
     Ok(report)
 }
 
+/// Device `choice` for a bench: `None` (skipped, said on stderr) when it is missing and the
+/// devices were not named; an error when they were.
+pub fn open_bench_device(choice: DeviceChoice, explicit: bool) -> Result<Option<Device>, Failure> {
+    match (choice, super::open_device(choice, "--devices")) {
+        (DeviceChoice::Auto, _) => Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into())),
+        (_, Ok(device)) => Ok(Some(device)),
+        (_, Err(e)) if explicit => Err(e),
+        (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
+            eprintln!("skipped {choice}: {e}");
+            Ok(None)
+        }
+    }
+}
+
 /// Median wall time of `runs` calls after one warm-up.
-fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
+pub fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
     f()?;
     let mut seconds = Vec::with_capacity(runs);
     for _ in 0..runs {

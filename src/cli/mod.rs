@@ -4,6 +4,7 @@
 pub mod analyze;
 pub mod bake;
 pub mod bench;
+pub mod bench_fitted;
 pub mod eval;
 pub mod fit;
 pub mod shaders;

@@ -108,6 +108,13 @@ pub struct FittedClip {
 }
 
 impl FittedClip {
+    /// The source's frame rate: its densest timeline's keys a second (1 for a clip of
+    /// constants, which holds one pose).
+    #[must_use]
+    pub fn source_rate(&self) -> f64 {
+        self.timelines.iter().map(|l| (l.keys() - 1) as f64 / (l.key(l.keys() - 1) - l.key(0))).fold(1.0, f64::max)
+    }
+
     /// The clip in the common model, for baking: each curve channel carries its knots and
     /// its control points ([`Channel::knots`]), each constant its value.
     #[must_use]

@@ -1,0 +1,143 @@
+//! `quatcurve bench --fitted`: decompression speed. Fitted containers' clips (copied to make a
+//! batch) baked in memory at each clip's source rate on each device, as a bake evaluates them:
+//! rotations in the packed batch, vectors beside it. A bone-pose is one joint's transform at one
+//! frame (ACL's unit; its published single-core figure is 30-45 ns per bone-pose).
+
+use super::{print_stdout, Failure};
+use quatcurve::bake::{self, Animation, ClipRate, LoopMode};
+use quatcurve::fit::container::Container;
+use quatcurve::{CurveSpec, Device, DeviceChoice};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// ACL's published decompression cost per bone-pose on one core, ns (its lowest and highest).
+pub const ACL_NS_PER_BONE_POSE: [f64; 2] = [30.0, 45.0];
+
+#[derive(Serialize)]
+pub struct FittedReport {
+    files: Vec<String>,
+    copies: usize,
+    clips: usize,
+    poses: usize,
+    bone_poses: usize,
+    runs: usize,
+    acl_ns_per_bone_pose: [f64; 2],
+    results: Vec<FittedTiming>,
+}
+
+#[derive(Serialize)]
+struct FittedTiming {
+    device: String,
+    threads: usize,
+    seconds: f64,
+    poses_per_s: f64,
+    ns_per_bone_pose: f64,
+    /// `ns_per_bone_pose` times the threads: the figure to set beside a one-core one.
+    core_ns_per_bone_pose: f64,
+}
+
+/// Times the decompression of `files`' clips, each `copies` times, on `devices`.
+pub fn measure(
+    files: &[PathBuf],
+    copies: usize,
+    runs: usize,
+    devices: Option<&[DeviceChoice]>,
+) -> Result<FittedReport, Failure> {
+    let mut animations: Vec<(Animation, Vec<ClipRate>)> = Vec::new();
+    for file in files {
+        let input = |e: String| Failure::Input(format!("bench --fitted {}: {e}", file.display()));
+        let bytes = std::fs::read(file).map_err(|e| input(e.to_string()))?;
+        let container = Container::from_bytes(&bytes).map_err(|e| input(format!("fitted container {e}")))?;
+        let mut animation = container.animation();
+        let rates: Vec<ClipRate> = container.clips.iter().map(|c| ClipRate::Fit(c.source_rate())).collect();
+        animation.clips = animation.clips.iter().cycle().take(animation.clips.len() * copies).cloned().collect();
+        let rates = rates.iter().cycle().take(rates.len() * copies).copied().collect();
+        animations.push((animation, rates));
+    }
+    // The curve a bake would use for keys; every fitted channel uses the fit's own.
+    let spec = CurveSpec::new(quatcurve::curve::DEFAULT_CURVE);
+    // Poses and bone-poses decompressed.
+    let bake_all = |device: &Device| -> Result<(usize, usize), Failure> {
+        let (mut poses, mut bone_poses) = (0, 0);
+        for (animation, rates) in &animations {
+            let baked = bake::bake_each(animation, &spec, rates, LoopMode::Off, device)
+                .map_err(|e| Failure::Internal(e.to_string()))?;
+            let frames: usize = baked.clips.iter().map(|c| c.times.len()).sum();
+            poses += frames;
+            bone_poses += frames * animation.joints.len();
+        }
+        Ok((poses, bone_poses))
+    };
+    let explicit = devices.is_some();
+    let devices = devices.map_or_else(|| vec![DeviceChoice::Cpu, DeviceChoice::Gpu], <[DeviceChoice]>::to_vec);
+    let (mut poses, mut bone_poses) = (0, 0);
+    let mut results = Vec::new();
+    for choice in devices {
+        let Some(device) = super::bench::open_bench_device(choice, explicit)? else { continue };
+        let seconds = super::bench::median_seconds(runs, || {
+            (poses, bone_poses) = bake_all(&device)?;
+            Ok(())
+        })?;
+        let threads = if matches!(device, Device::Reference) { 1 } else { rayon::current_num_threads() };
+        results.push(FittedTiming {
+            device: device.name(),
+            threads,
+            seconds,
+            poses_per_s: poses as f64 / seconds,
+            ns_per_bone_pose: seconds * 1e9 / bone_poses as f64,
+            core_ns_per_bone_pose: seconds * 1e9 * threads as f64 / bone_poses as f64,
+        });
+    }
+    Ok(FittedReport {
+        files: files.iter().map(|f| f.display().to_string()).collect(),
+        copies,
+        clips: animations.iter().map(|(a, _)| a.clips.len()).sum(),
+        poses,
+        bone_poses,
+        runs,
+        acl_ns_per_bone_pose: ACL_NS_PER_BONE_POSE,
+        results,
+    })
+}
+
+/// The report as a table.
+pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "decompression: {} clips ({} copies of {}), {} poses, {} bone-poses; median of {} runs; ACL: {}-{} ns a \
+         bone-pose on one core",
+        report.clips,
+        report.copies,
+        report.files.join(", "),
+        report.poses,
+        report.bone_poses,
+        report.runs,
+        report.acl_ns_per_bone_pose[0],
+        report.acl_ns_per_bone_pose[1]
+    )?;
+    writeln!(
+        w,
+        "{:<44} {:>8} {:>10} {:>14} {:>12} {:>16}",
+        "device", "threads", "seconds", "poses/s", "ns/bone-pose", "core-ns/bone-pose"
+    )?;
+    for r in &report.results {
+        writeln!(
+            w,
+            "{:<44} {:>8} {:>10.4} {:>14.0} {:>12.2} {:>16.2}",
+            r.device, r.threads, r.seconds, r.poses_per_s, r.ns_per_bone_pose, r.core_ns_per_bone_pose
+        )?;
+    }
+    Ok(())
+}
+
+/// Runs `bench --fitted`.
+pub fn run(
+    files: &[PathBuf],
+    copies: usize,
+    runs: usize,
+    devices: Option<&[DeviceChoice]>,
+    json: bool,
+) -> Result<(), Failure> {
+    let report = measure(files, copies, runs, devices)?;
+    print_stdout(|w| if json { writeln!(w, "{}", serde_json::to_string(&report)?) } else { table(w, &report) })
+}
