@@ -21,18 +21,21 @@ import os
 import numpy as np
 
 from ._quatcurve import (
+    DEFAULT_BETWEEN_ERROR_CM,
     DEFAULT_CHARACTERS,
     DEFAULT_CURVE,
     DEFAULT_MAX_TEXTURE_SIZE,
     DEFAULT_MAX_RATE,
     GLTF_UNIT_MM,
     DEFAULT_RATE,
+    DEFAULT_VERTEX_DISTANCE_CM,
     __version__,
     bake_files,
     evaluate_tracks,
+    fit_files,
 )
 
-__all__ = ["evaluate", "bake", "Curve", "__version__"]
+__all__ = ["evaluate", "bake", "fit", "Curve", "__version__"]
 
 
 def _float64(name, value, ndims):
@@ -426,3 +429,74 @@ def bake(
         rest = "nothing was baked" if baked == 0 else "the other was baked" if baked == 1 else "the others were baked"
         raise ValueError(f"{len(failed)} of {len(rows)} inputs failed ({rest}): {lines}")
     return rows
+
+
+def fit(
+    inputs,
+    output="fitted",
+    *,
+    max_error=0.01,
+    between_error=DEFAULT_BETWEEN_ERROR_CM,
+    vertex_distance=DEFAULT_VERTEX_DISTANCE_CM,
+    unit_cm=None,
+    errors="raise",
+):
+    """Fits every clip of glTF/BVH files as quantized B-splines within an error budget, one
+    ``<stem>.qcf`` container per input, as ``quatcurve fit`` does (DESIGN section 10).
+    :func:`bake` reads the containers as it reads their sources.
+
+    Parameters
+    ----------
+    inputs : str, os.PathLike or a list of them
+        ``.gltf``, ``.glb`` and ``.bvh`` files, or directories of them.
+    output : str or os.PathLike
+        Output directory, created if missing.
+    max_error : float
+        The largest distance in cm a virtual vertex may move at any source frame (ACL's
+        metric: object space, so a parent's error counts in its children's).
+    between_error : float or None
+        The largest between source frames, in cm, against the source's interpolation; None:
+        not checked.
+    vertex_distance : float
+        The virtual vertices' distance from each joint, cm.
+    unit_cm : float, optional
+        The length of one file unit in cm (default: glTF's metre); BVH files need it (CMU's
+        is 5.644).
+    errors : str
+        ``raise`` (default): raise ``ValueError`` if any input failed, naming each;
+        ``report``: return the report, failures included.
+
+    Returns
+    -------
+    dict
+        The report: ``max_error_cm``, ``between_error_cm``, ``vertex_distance_cm`` and
+        ``inputs``, per input ``input``, ``output``, ``unit_cm``, ``container_bytes``,
+        ``error`` and ``clips``, per clip ``clip``, ``frames``, ``joints``, ``raw_bytes``,
+        ``compressed_bytes``, ``ratio``, ``at_frames`` and ``between_frames`` (each
+        ``{error_cm, joint, time}``) and ``seconds``.
+
+    Raises
+    ------
+    ValueError
+        A job refused before the work (a length that is not positive, a BVH input without
+        ``unit_cm``, an output that cannot be written), or with ``errors="raise"`` any input
+        that failed.
+    """
+    import json
+
+    if errors not in ("raise", "report"):
+        raise ValueError(f"errors must be 'raise' or 'report', got {errors!r}")
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    report = json.loads(
+        fit_files(
+            [os.fspath(p) for p in inputs], os.fspath(output), float(max_error),
+            None if between_error is None else float(between_error), float(vertex_distance),
+            None if unit_cm is None else float(unit_cm),
+        )
+    )
+    failed = [row for row in report["inputs"] if row["error"] is not None]
+    if failed and errors == "raise":
+        lines = "; ".join(f"{row['input']}: {row['error']}" for row in failed)
+        raise ValueError(f"{len(failed)} of {len(report['inputs'])} inputs failed (no container written for them): {lines}")
+    return report

@@ -98,6 +98,17 @@ def bake(
     root_motion: Literal["keep", "extract"] = "keep",
 ) -> list[BakeRow]: ...
 
+def fit(
+    inputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
+    output: str | os.PathLike[str] = "fitted",
+    *,
+    max_error: float = 0.01,
+    between_error: float | None = 0.3,
+    vertex_distance: float = 3.0,
+    unit_cm: float | None = None,
+    errors: Literal["raise", "report"] = "raise",
+) -> dict[str, Any]: ...
+
 class Curve:
     rotations: npt.NDArray[np.float64]
     times: npt.NDArray[np.float64]

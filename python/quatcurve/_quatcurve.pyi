@@ -10,6 +10,8 @@ DEFAULT_CHARACTERS: int
 DEFAULT_MAX_TEXTURE_SIZE: int
 DEFAULT_MAX_RATE: float
 GLTF_UNIT_MM: float
+DEFAULT_BETWEEN_ERROR_CM: float
+DEFAULT_VERTEX_DISTANCE_CM: float
 
 def evaluate_tracks(
     rotations: npt.NDArray[np.float64],
@@ -62,3 +64,12 @@ def bake_files(
     max_rate: float,
     root_motion: str,
 ) -> list[dict[str, Any]]: ...
+
+def fit_files(
+    inputs: list[str],
+    output: str,
+    max_error_cm: float,
+    between_error_cm: float | None,
+    vertex_distance_cm: float,
+    unit_cm: float | None,
+) -> str: ...

@@ -14,6 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use quatcurve::bake::budget::{ChosenRate, ErrorBudget, Worst};
 use quatcurve::bake::{BakeJob, Shard};
+use quatcurve::fit::job::FitJob;
 use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64};
 use std::path::PathBuf;
 use std::str::FromStr;
@@ -423,11 +424,30 @@ fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDi
     Ok(d)
 }
 
+/// `quatcurve fit` in-process (DESIGN section 10): the report as JSON text (the Python side
+/// parses it), or `ValueError` for a job refused before the work.
+#[pyfunction]
+#[pyo3(signature = (inputs, output, max_error_cm, between_error_cm, vertex_distance_cm, unit_cm))]
+fn fit_files(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    output: PathBuf,
+    max_error_cm: f64,
+    between_error_cm: Option<f64>,
+    vertex_distance_cm: f64,
+    unit_cm: Option<f64>,
+) -> PyResult<String> {
+    let job = FitJob { inputs, output, max_error_cm, between_error_cm, vertex_distance_cm, unit_cm };
+    let report = py.detach(|| job.run(&|_, _| {})).map_err(value_error)?;
+    serde_json::to_string(&report).map_err(value_error)
+}
+
 /// The compiled module, `quatcurve._quatcurve`.
 #[pymodule]
 fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(bake_files, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // The front ends' defaults, from the library (the Python signatures use these).
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;
@@ -436,5 +456,7 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_MAX_TEXTURE_SIZE", quatcurve::bake::image::DEFAULT_MAX_TEXTURE_SIZE)?;
     m.add("DEFAULT_MAX_RATE", quatcurve::bake::budget::DEFAULT_MAX_RATE)?;
     m.add("GLTF_UNIT_MM", quatcurve::bake::budget::GLTF_UNIT_MM)?;
+    m.add("DEFAULT_BETWEEN_ERROR_CM", quatcurve::fit::job::DEFAULT_BETWEEN_ERROR_CM)?;
+    m.add("DEFAULT_VERTEX_DISTANCE_CM", quatcurve::fit::job::DEFAULT_VERTEX_DISTANCE_CM)?;
     Ok(())
 }

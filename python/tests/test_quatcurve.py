@@ -313,3 +313,25 @@ def test_bake_errors_name_the_option_or_the_input(tmp_path):
     # What did not fail the bake but should be known: the take's flipping thumb.
     assert any("RThumb rotation" in w for w in rows["cmu_131_03.bvh"]["warnings"]), rows["cmu_131_03.bvh"]["warnings"]
     assert rows["bad.bvh"]["warnings"] == []
+
+
+def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
+    binary = cli()
+    inputs = data_files("CesiumMan.glb")
+    done = subprocess.run([str(binary), "fit", "--input", *inputs, "--output", str(tmp_path / "cli"), "--json"],
+                          capture_output=True, text=True, check=True)
+    expected = json.loads(done.stdout)
+    report = quatcurve.fit(inputs, tmp_path / "py")
+    assert outputs(tmp_path / "py") == outputs(tmp_path / "cli")
+    (clip,) = report["inputs"][0]["clips"]
+    (cli_clip,) = expected["inputs"][0]["clips"]
+    assert {k: v for k, v in clip.items() if k != "seconds"} == {k: v for k, v in cli_clip.items() if k != "seconds"}
+    assert clip["at_frames"]["error_cm"] <= 0.01 and clip["between_frames"]["error_cm"] <= 0.3
+    assert clip["raw_bytes"] == 40 * clip["joints"] * clip["frames"] and clip["ratio"] > 1
+    (row,) = quatcurve.bake(tmp_path / "py" / "CesiumMan.qcf", tmp_path / "baked", device="cpu", texture="model")
+    assert row["status"] == "ok", row
+    assert json.loads((tmp_path / "baked" / "CesiumMan.json").read_text())["curve"] == "fitted-bspline"
+    with pytest.raises(ValueError, match="unit-cm is needed for"):
+        quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
+    with pytest.raises(ValueError, match="max-error is 0; it must be a positive length"):
+        quatcurve.fit(inputs, tmp_path / "zero", max_error=0)
