@@ -8,6 +8,8 @@ use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use super::timeline::{Timeline, BETWEEN_POINTS};
 use super::ORDER;
 use crate::bake::{Animation, Joint, Property};
+use crate::batch::MIN_KEY_NORM;
+use crate::error::Number;
 
 /// The first bytes of a container.
 pub const MAGIC: [u8; 8] = *b"QCURVFIT";
@@ -135,6 +137,14 @@ impl Container {
                 *v = r.finite_f64(&field("rest pose"))?;
             }
             let [x, y, z, w, tx, ty, tz, sx, sy, sz] = floats;
+            let norm = (x * x + y * y + z * z + w * w).sqrt();
+            if norm < MIN_KEY_NORM {
+                return Err(r.bad_at(
+                    r.at - 80,
+                    &field("rest pose"),
+                    format!("its rotation has norm {}, below {}", Number(norm), Number(MIN_KEY_NORM)),
+                ));
+            }
             joints.push(Joint { name, parent, rotation: [x, y, z, w], translation: [tx, ty, tz], scale: [sx, sy, sz] });
         }
         let hierarchy = r.text("BVH hierarchy")?;
@@ -747,6 +757,10 @@ mod tests {
             assert!(e.field.starts_with("clip 0 'turn' channel 1 (tip) knot"), "{knots:?}: {e}");
             assert_eq!(e.reason, reason, "{knots:?}");
         }
+        let mut still = container();
+        still.joints[1].rotation = [0.0; 4];
+        let e = Container::from_bytes(&still.to_bytes()).unwrap_err();
+        assert_eq!(e.to_string(), "byte 104: joint 1 rest pose: its rotation has norm 0, below 1e-6");
         let mut parent = bytes;
         // Joint 0's name "root" (length byte at 13, text 14..18) and then its parent.
         parent[18] = 1;

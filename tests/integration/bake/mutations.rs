@@ -1,4 +1,5 @@
-//! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, BVH, track JSON, .npy) and what
+//! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, BVH, track JSON, .npy, fitted
+//! containers) and what
 //! follows it: proptest mutates seed files (the real files in `../shared/data` when present,
 //! and crafted ones) and each mutant goes through read, bake or evaluation (fast CPU path) and
 //! the writers' encoders in memory. Accepted:
@@ -25,6 +26,8 @@ enum Kind {
     Tracks,
     /// A `.npy` of rotations `[tracks, keys, 4]` (`eval --input`).
     Npy,
+    /// A fitted container (`quatcurve fit`).
+    Container,
 }
 
 struct Seed {
@@ -35,6 +38,12 @@ struct Seed {
     bin: Vec<u8>,
 }
 
+/// A two-joint BVH of three frames.
+const TINY_BVH: &[u8] = b"HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation \
+    Xrotation Yrotation\n JOINT Leg\n {\n  OFFSET 0 -1 0\n  CHANNELS 3 Zrotation Xrotation \
+    Yrotation\n  End Site\n  {\n   OFFSET 0 -1 0\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n0 \
+    1 0 0 0 0 0 0 0\n0 1 0 10 5 0 20 0 0\n0 1 0 0 0 0 0 0 0\n";
+
 fn seeds() -> &'static [Seed] {
     static SEEDS: OnceLock<Vec<Seed>> = OnceLock::new();
     SEEDS.get_or_init(|| {
@@ -43,15 +52,7 @@ fn seeds() -> &'static [Seed] {
         let seed = |name, kind, bytes: Vec<u8>| Seed { name, kind, bytes, bin: Vec::new() };
         let mut seeds = vec![
             seed("tiny.gltf", Kind::Gltf, tiny_gltf(&[0.0, 0.5, 1.0], &[q, turn, q]).into_bytes()),
-            seed(
-                "tiny.bvh",
-                Kind::Bvh,
-                b"HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation \
-                    Xrotation Yrotation\n JOINT Leg\n {\n  OFFSET 0 -1 0\n  CHANNELS 3 Zrotation Xrotation \
-                    Yrotation\n  End Site\n  {\n   OFFSET 0 -1 0\n  }\n }\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n0 \
-                    1 0 0 0 0 0 0 0\n0 1 0 10 5 0 20 0 0\n0 1 0 0 0 0 0 0 0\n"
-                    .to_vec(),
-            ),
+            seed("tiny.bvh", Kind::Bvh, TINY_BVH.to_vec()),
             seed(
                 "demo.json",
                 Kind::Tracks,
@@ -72,6 +73,8 @@ fn seeds() -> &'static [Seed] {
                 bytes
             }),
         ];
+        let fitted = fitted_container(std::str::from_utf8(TINY_BVH).unwrap());
+        seeds.push(seed("tiny.qcf", Kind::Container, fitted));
         if let Some(data) = data_dir() {
             let fox = std::fs::read(data.join("Fox.glb")).unwrap();
             let glb = ::gltf::binary::Glb::from_slice(&fox).unwrap();
@@ -96,6 +99,18 @@ fn seeds() -> &'static [Seed] {
         }
         seeds
     })
+}
+
+/// The container `quatcurve fit` writes for a BVH text (1 cm units).
+fn fitted_container(text: &str) -> Vec<u8> {
+    use quatcurve::fit::clip::{fit_clip, Budget};
+    use quatcurve::fit::container::{BvhSkeleton, Container};
+    let file = bvh::parse(text).unwrap();
+    let animation = file.animation("clip");
+    let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
+    let clip = fit_clip(&animation, 0, &budget).unwrap().clip;
+    let bvh = BvhSkeleton { hierarchy: file.hierarchy().to_string(), frame_time: file.frame_time };
+    Container { joints: animation.joints, bvh: Some(bvh), clips: vec![clip] }.to_bytes()
 }
 
 /// One edit of a seed's bytes.
@@ -258,6 +273,20 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             }
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
             let _ = file.to_text(&animation.clips[0], &baked);
+            let order = animation.parents_first()?;
+            let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
+            Ok(Reached::Baked(baked.sample_count()))
+        }
+        Kind::Container => {
+            let container = quatcurve::fit::container::Container::from_bytes(bytes)?;
+            let animation = container.animation();
+            if animation.clips.is_empty() {
+                return Ok(Reached::Skipped("no clip"));
+            }
+            let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
+            if let Some(skeleton) = &container.bvh {
+                let _ = bvh::skeleton(skeleton, &animation).map(|file| file.to_text(&animation.clips[0], &baked));
+            }
             let order = animation.parents_first()?;
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
             Ok(Reached::Baked(baked.sample_count()))

@@ -1,0 +1,31 @@
+//! Fitted-container bytes -> reader -> bake (fast CPU path) -> BVH and texture encoders, in
+//! memory.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use quatcurve::bake::{self, bvh, LoopMode};
+use quatcurve::fit::container::Container;
+use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
+
+fuzz_target!(|bytes: &[u8]| {
+    let Ok(container) = Container::from_bytes(bytes) else { return };
+    let animation = container.animation();
+    if animation.clips.is_empty() {
+        return;
+    }
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    if let Ok(baked) = bake::bake(
+        &animation,
+        &CurveSpec::new(Curve::BSplineInterp),
+        bake::ClipRate::Fit(10.0),
+        LoopMode::Auto,
+        &device,
+    ) {
+        if let Some(skeleton) = &container.bvh {
+            let _ = bvh::skeleton(skeleton, &animation).map(|file| file.to_text(&animation.clips[0], &baked));
+        }
+        if let Ok(order) = animation.parents_first() {
+            let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, &device);
+        }
+    }
+});
