@@ -1,7 +1,8 @@
 //! The cumulative B-spline basis on unequal knots, eight samples at a time: the SIMD twin of
 //! [`crate::basis::bspline_cumulative_into`]. The knot quotients of a span are the same for
 //! every lane, so [`SpanKnots`] computes them once per span (reciprocals, zero for
-//! repeated knots as in the reference) and the triangle itself is all lane arithmetic.
+//! repeated knots as in the reference) and the triangle itself is all lane arithmetic;
+//! [`CoxDeBoor`] keeps both from group to group.
 
 use super::lanes::LANES;
 use super::lanes::MAX_FACTORS;
@@ -33,22 +34,66 @@ pub struct SpanKnots {
     derivative: [[f64; 3]; MAX_FACTORS],
 }
 
+/// The triangle of basis values, `tri[m][r]` per lane: storage a piece reuses, since every
+/// entry [`SpanKnots::jets`] reads it wrote in the same call.
+pub type Triangle = [[[f64; LANES]; MAX_FACTORS + 1]; MAX_FACTORS + 2];
+
+/// The Cox-de Boor state a piece keeps from group to group: the last span's constants and the
+/// triangle, both filled in place (a triangle zeroed per group and constants built and moved
+/// per span were a third of the time of a track with a knot every few samples).
+pub struct CoxDeBoor {
+    constants: SpanKnots,
+    /// Whether `constants` hold a span yet.
+    filled: bool,
+    tri: Triangle,
+}
+
+impl CoxDeBoor {
+    /// No span yet, for order `k`.
+    pub fn new(k: usize) -> Self {
+        let constants = SpanKnots {
+            span: 0,
+            k,
+            origin: 0.0,
+            left: [[(0.0, 0.0); MAX_FACTORS + 1]; MAX_FACTORS + 1],
+            right: [[(0.0, 0.0); MAX_FACTORS + 1]; MAX_FACTORS + 1],
+            derivative: [[0.0; 3]; MAX_FACTORS],
+        };
+        Self { constants, filled: false, tri: [[[0.0; LANES]; MAX_FACTORS + 1]; MAX_FACTORS + 2] }
+    }
+
+    /// [`SpanKnots::jets`] of span `span`, its constants computed only when the span changed.
+    #[inline(always)]
+    pub fn jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
+        &mut self,
+        knots: &[f64],
+        span: usize,
+        t: &[f64; LANES],
+        out: &mut [[S; 3]; F],
+    ) {
+        if !self.filled || self.constants.span != span {
+            self.constants.fill(knots, span);
+            self.filled = true;
+        }
+        self.constants.jets::<S, F, DERIVATIVES>(t, out, &mut self.tri);
+    }
+}
+
 impl SpanKnots {
-    /// The constants of span `span` (`k - 1 <= span`, `span + k <= knots.len()`).
-    pub fn new(knots: &[f64], k: usize, span: usize) -> Self {
+    /// The constants of span `span` (`k - 1 <= span`, `span + k <= knots.len()`), written over
+    /// the entries order `k` reads (the others are never read).
+    fn fill(&mut self, knots: &[f64], span: usize) {
+        let k = self.k;
         let origin = knots[span];
         let rel = |j: usize| knots[j] - origin;
-        let mut left = [[(0.0, 0.0); MAX_FACTORS + 1]; MAX_FACTORS + 1];
-        let mut right = left;
         for m in 1..k {
             for r in 0..=m {
                 let j = span + r - m;
-                left[m][r] = (rel(j), inverse(knots[j], knots[j + m]));
-                right[m][r] = (rel(j + m + 1), inverse(knots[j + 1], knots[j + m + 1]));
+                self.left[m][r] = (rel(j), inverse(knots[j], knots[j + m]));
+                self.right[m][r] = (rel(j + m + 1), inverse(knots[j + 1], knots[j + m + 1]));
             }
         }
-        let mut derivative = [[0.0; 3]; MAX_FACTORS];
-        for (f, d) in derivative.iter_mut().enumerate().take(k - 1) {
+        for (f, d) in self.derivative.iter_mut().enumerate().take(k - 1) {
             let i = span + 2 + f - k;
             *d = [
                 inverse(knots[i], knots[i + k - 1]),
@@ -56,7 +101,7 @@ impl SpanKnots {
                 inverse(knots[i + 1], knots[i + k - 1]),
             ];
         }
-        Self { span, k, origin, left, right, derivative }
+        (self.span, self.origin) = (span, origin);
     }
 
     /// `[B~, B~', B~'']` (time units) of the `F = k - 1` factors at the lanes' times `t`; the
@@ -64,12 +109,17 @@ impl SpanKnots {
     /// lanes, which the compiler vectorizes): in f32 its rounding, summed over seven factors
     /// of near half-turns, reached 1.1e-5 rad at order 8, over DESIGN's bar.
     #[inline(always)]
-    pub fn jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(&self, t: &[f64; LANES], out: &mut [[S; 3]; F]) {
+    pub fn jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
+        &self,
+        t: &[f64; LANES],
+        out: &mut [[S; 3]; F],
+        tri: &mut Triangle,
+    ) {
         debug_assert_eq!(self.k, F + 1);
         let k = F + 1;
         let x = t.map(|t| t - self.origin);
-        // tri[m][r] = B_{span-m+1+r, m}(t), orders m = 1..=k.
-        let mut tri = [[[0.0f64; LANES]; MAX_FACTORS + 1]; MAX_FACTORS + 2];
+        // tri[m][r] = B_{span-m+1+r, m}(t), orders m = 1..=k; each read below is of an entry
+        // written above it in this call.
         tri[1][0] = [1.0; LANES];
         for m in 1..k {
             for r in 0..=m {

@@ -2,7 +2,7 @@
 //! product and the rows' columns, eight samples at a time.
 
 use super::bases::{bernstein_cumulative_lanes, Bases, Basis};
-use super::cox_de_boor::SpanKnots;
+use super::cox_de_boor::CoxDeBoor;
 use super::lanes::{axis_angle, cumulative_product, write_columns, AngleRange, Factor8, LANES, Q8, V8};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::{Batch, PackedTrack, TrackView};
@@ -332,7 +332,7 @@ impl Piece<'_> {
             TrackTimes::Explicit { .. } => None,
         };
         // The knot constants of the last span Cox-de Boor needed.
-        let mut span_knots: Option<SpanKnots> = None;
+        let mut cox_de_boor = CoxDeBoor::new(F + 1);
         // The segment the last shared group was on, and its `start * (axis_0, 0)`.
         let mut shared_segment: Option<(Segment<F>, [f32; 4])> = None;
         // The lanes of a group that is not shared (kept across groups, so that they are not
@@ -372,7 +372,7 @@ impl Piece<'_> {
                 Basis::Poly(poly) => poly.eval::<S, F>(u, DERIVATIVES, &mut jets),
                 Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(u, &mut jets),
                 Basis::CoxDeBoor => {
-                    cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut span_knots, &mut jets)
+                    cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut cox_de_boor, &mut jets)
                 }
             }
             // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
@@ -432,14 +432,14 @@ impl Piece<'_> {
 
 /// Cox-de Boor basis jets of a group at times `t` in spans `spans`: once per distinct span
 /// among the lanes (one, or two where the group straddles a knot), lanes of other spans
-/// blended out; `span_knots` keeps the last span's constants across groups.
+/// blended out; `cox_de_boor` keeps the last span's constants across groups.
 #[inline(always)]
 fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
     knots: &[f64],
     spans: &[usize; LANES],
     t: &[f64; LANES],
     shared: bool,
-    span_knots: &mut Option<SpanKnots>,
+    cox_de_boor: &mut CoxDeBoor,
     jets: &mut [[S; 3]; F],
 ) {
     let mut done = [false; LANES];
@@ -448,16 +448,12 @@ fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
             continue;
         }
         let span = spans[lane];
-        if span_knots.as_ref().map(|c| c.span) != Some(span) {
-            *span_knots = None;
-        }
-        let constants = span_knots.get_or_insert_with(|| SpanKnots::new(knots, F + 1, span));
         if shared {
-            constants.jets::<S, F, DERIVATIVES>(t, jets);
+            cox_de_boor.jets::<S, F, DERIVATIVES>(knots, span, t, jets);
             return;
         }
         let mut these = [[S::ZERO; 3]; F];
-        constants.jets::<S, F, DERIVATIVES>(t, &mut these);
+        cox_de_boor.jets::<S, F, DERIVATIVES>(knots, span, t, &mut these);
         let mut mask = [0.0f32; LANES];
         for (l, m) in mask.iter_mut().enumerate() {
             if spans[l] == span {
