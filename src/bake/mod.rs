@@ -659,7 +659,7 @@ fn prepare_channels(
         let name = animation.label(clip, channel);
         let frames = &clips[c].times;
         if let Some(knots) = &channel.knots {
-            return fitted_channel(channel, knots, name, frames);
+            return fitted_channel(channel, knots, TrackId { index: k, name: Some(name) }, frames);
         }
         Ok(match (channel.property, channel.values.len()) {
             (_, 1) => ChannelWork::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
@@ -674,14 +674,7 @@ fn prepare_channels(
             _ => {
                 let id = TrackId { index: k, name: Some(name) };
                 let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                let curve = VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?;
-                ChannelWork::Host(
-                    frames
-                        .iter()
-                        .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
-                        .map(|[x, y, z]| [x, y, z, 0.0])
-                        .collect(),
-                )
+                host_vectors(&VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?, frames)
             }
         })
     };
@@ -690,25 +683,26 @@ fn prepare_channels(
 
 /// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
 /// curve family ([`crate::fit::spline_spec`]); rotations on the device, vectors here.
-fn fitted_channel(channel: &Channel, knots: &[f64], name: String, frames: &[f64]) -> Result<ChannelWork, InputError> {
+fn fitted_channel(channel: &Channel, knots: &[f64], id: TrackId, frames: &[f64]) -> Result<ChannelWork, InputError> {
     let spec = crate::fit::spline_spec();
     if channel.property == Property::Rotation {
-        let rotations = channel.values.clone();
-        return Ok(ChannelWork::Track(
-            Track { name: Some(name), knots: Some(knots.to_vec()), rotations, ..Track::default() },
-            spec,
-        ));
+        let track =
+            Track { name: id.name, knots: Some(knots.to_vec()), rotations: channel.values.clone(), ..Track::default() };
+        return Ok(ChannelWork::Track(track, spec));
     }
-    let id = TrackId { index: 0, name: Some(name) };
     let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-    let curve = VectorCurve::new(&id, None, &controls, Some(knots), &spec)?;
-    Ok(ChannelWork::Host(
+    Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
+}
+
+/// A vector curve at `frames`, `x, y, z, 0`, for the host's rows.
+fn host_vectors(curve: &VectorCurve, frames: &[f64]) -> ChannelWork {
+    ChannelWork::Host(
         frames
             .iter()
             .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
             .map(|[x, y, z]| [x, y, z, 0.0])
             .collect(),
-    ))
+    )
 }
 
 /// A channel ready to evaluate: a device track, or its frames computed here.

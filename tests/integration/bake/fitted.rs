@@ -169,6 +169,20 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     assert!(result.status.success(), "{}", stderr(&result));
     let container = out.join("bend.qcf");
     let bytes = std::fs::read(&container).unwrap();
+    // Decompression timed: every clip, copied, at its source rate (61 frames of 2 joints).
+    let bench = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["bench", "--fitted", container.to_str().unwrap(), "--copies", "3", "--runs", "1"])
+        .args(["--devices", "cpu,reference", "--json"])
+        .output()
+        .unwrap();
+    assert!(bench.status.success(), "{}", stderr(&bench));
+    let timed: serde_json::Value = serde_json::from_slice(&bench.stdout).unwrap();
+    assert_eq!((timed["clips"].as_u64(), timed["poses"].as_u64()), (Some(3), Some(3 * 61)), "{timed}");
+    assert_eq!(timed["bone_poses"].as_u64(), Some(3 * 61 * 2));
+    for row in timed["results"].as_array().unwrap() {
+        assert!(row["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{row}");
+    }
     // Fitted clips are open curves of control points: no loop, no rate budget over keys.
     let baked = dir.path().join("baked");
     for (flags, message) in [
