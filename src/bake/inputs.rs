@@ -48,6 +48,16 @@ impl Source {
         }
     }
 
+    /// What the source is, for messages.
+    pub(super) fn kind(&self) -> &'static str {
+        match self {
+            Source::Gltf(_) => "a glTF file",
+            Source::Bvh(..) => "a BVH file",
+            Source::Crowd(_) => "the built-in crowd",
+            Source::Fitted(_) => "a fitted container",
+        }
+    }
+
     pub(super) fn animation(&self) -> &Animation {
         match self {
             Source::Gltf(f) => &f.animation,

@@ -407,18 +407,18 @@ impl BakeJob {
             }
             report.warnings = super::source_step_warnings(animation);
             // Checked before the curves are baked.
-            let vertex =
-                match (&src, self.texture) {
-                    (Source::Gltf(file), TextureKind::Vertex) => {
-                        Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
-                    }
-                    (_, TextureKind::Vertex) => return Err(InputError::Animation(
-                        "a BVH file or a fitted container has no mesh, and vertex textures skin a glTF's meshes; bake \
-                            a bone texture"
-                            .into(),
-                    )),
-                    _ => None,
-                };
+            let vertex = match (&src, self.texture) {
+                (Source::Gltf(file), TextureKind::Vertex) => {
+                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
+                }
+                (other, TextureKind::Vertex) => {
+                    return Err(InputError::Animation(format!(
+                        "{} has no mesh, and vertex textures skin a glTF's meshes; bake a bone texture",
+                        other.kind()
+                    )))
+                }
+                _ => None,
+            };
             let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
             let mut baked = if self.max_error.is_set() {
                 let setting = budget::Setting {

@@ -10,8 +10,9 @@ use std::path::{Path, PathBuf};
 pub struct EvalArgs {
     /// Input tracks: JSON ({"tracks": [...]}), or numpy arrays for large batches: .npz with
     /// rotations [tracks, keys, 4] (x, y, z, w) and optional times [keys] or [tracks, keys],
-    /// names [tracks], angular_velocities [tracks, keys, 3]; .npy with rotations alone.
-    /// Without it, a built-in three-joint demo.
+    /// names [tracks], angular_velocities [tracks, keys, 3]; .npy with rotations alone; or a
+    /// fitted container (.qcf from `quatcurve fit`): every clip's rotation channels, named
+    /// <clip>/<joint>. Without it, a built-in three-joint demo.
     #[arg(long)]
     input: Option<PathBuf>,
     /// Key times of .npz/.npy input without a times array: this many keys per second from 0
@@ -21,9 +22,10 @@ pub struct EvalArgs {
     /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
     #[arg(long)]
     output: Option<PathBuf>,
-    /// Curve family (bspline-interp: C2 and through every key).
-    #[arg(long, default_value = quatcurve::DEFAULT_CURVE.name(), value_parser = names::<Curve>())]
-    curve: Curve,
+    /// Curve family [default: bspline-interp, C2 and through every key; a fitted container's
+    /// own cubic B-splines for .qcf input].
+    #[arg(long, value_parser = names::<Curve>())]
+    curve: Option<Curve>,
     #[arg(long = "loop", help = super::loop_help())]
     looping: bool,
     #[command(flatten)]
@@ -68,8 +70,18 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
-    let (source, tracks) = read_tracks(args.input.as_deref(), args.key_rate)?;
-    let spec = args.options.spec(args.curve, KnotMode::Phantom, args.looping);
+    let (source, tracks, spec) = match &args.input {
+        Some(path) if super::is_container(Some(path)) => {
+            let spec = container_spec(args)?;
+            let (source, tracks) = super::read_container_tracks(path)?;
+            (source, tracks, spec)
+        }
+        input => {
+            let (source, tracks) = read_tracks(input.as_deref(), args.key_rate)?;
+            let curve = args.curve.unwrap_or(quatcurve::DEFAULT_CURVE);
+            (source, tracks, args.options.spec(curve, KnotMode::Phantom, args.looping))
+        }
+    };
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
     let sampling = match (args.samples, args.rate) {
@@ -97,7 +109,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let (out, device_name) = device.evaluate_named(&job).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
     let device = device_name;
-    let json = || ResultFile::new(args.curve.name(), &device, &tracks, &times, &out, f32);
+    let json = || ResultFile::new(spec.curve.name(), &device, &tracks, &times, &out, f32);
     let Some(path) = &args.output else {
         return print_stdout(|w| {
             serde_json::to_writer(&mut *w, &json()).map_err(std::io::Error::from)?;
@@ -122,10 +134,30 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         "evaluated {} tracks, {} samples ({} on {device}) from {source} -> {}",
         batch.len(),
         times.total(),
-        args.curve,
+        spec.curve,
         path.display()
     );
     Ok(())
+}
+
+/// A fitted container's curves are its own ([`quatcurve::fit::spline_spec`]): a curve option
+/// that would change them is refused.
+fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
+    let spec = quatcurve::fit::spline_spec();
+    let refused = [
+        (args.curve.is_some_and(|c| c != spec.curve), "--curve"),
+        (args.options.order != spec.order, "--order"),
+        (args.options.knots.is_some_and(|k| k != spec.knots), "--knots"),
+        (args.looping, "--loop"),
+        (args.key_rate.is_some(), "--key-rate"),
+    ];
+    match refused.iter().find(|(given, _)| *given) {
+        Some((_, flag)) => Err(Failure::Input(format!(
+            "{flag}: a fitted container's curves are its own ({} of order {} on its knots)",
+            spec.curve, spec.order
+        ))),
+        None => Ok(spec),
+    }
 }
 
 /// Float32 rows of DESIGN section 5's `.npy` ([`quatcurve::Row`]s without matrices).

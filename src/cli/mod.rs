@@ -143,10 +143,32 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
 
 /// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in
 /// demo without one; with the name messages give the source.
+/// Every clip's rotation channels of the fitted container at `path`, as tracks
+/// ([`quatcurve::fit::container::Container::rotation_tracks`]).
+pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {
+    let source = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
+    let container = quatcurve::fit::container::Container::from_bytes(&bytes)
+        .map_err(|e| Failure::Input(format!("{source}: {}", quatcurve::bake::InputError::from(e))))?;
+    Ok((source, container.rotation_tracks()))
+}
+
+/// Whether `input` is a fitted container, by its extension.
+pub fn is_container(input: Option<&Path>) -> bool {
+    let extension = input.and_then(|p| p.extension()).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    extension.as_deref() == Some(quatcurve::fit::container::EXTENSION)
+}
+
 pub fn read_tracks(input: Option<&Path>, key_rate: Option<f64>) -> Result<(String, Vec<quatcurve::Track>), Failure> {
     let Some(path) = input else {
         return Ok(("built-in demo".to_string(), quatcurve::io::demo_tracks()));
     };
+    if is_container(Some(path)) {
+        return Err(Failure::Input(format!(
+            "{}: a fitted container holds curves, not keys: eval and bake read it",
+            path.display()
+        )));
+    }
     let arrays = matches!(
         path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
         Some("npz" | "npy")

@@ -70,6 +70,12 @@ impl Container {
         }
     }
 
+    /// Every clip's rotation channels as tracks ([`FittedClip::rotation_tracks`]).
+    #[must_use]
+    pub fn rotation_tracks(&self) -> Vec<crate::track::Track> {
+        self.clips.iter().flat_map(|c| c.rotation_tracks(&self.joints)).collect()
+    }
+
     /// The container's bytes.
     #[must_use]
     pub fn to_bytes(&self) -> Vec<u8> {

@@ -5,8 +5,9 @@
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
 use super::{clamped, Fit, ORDER};
-use crate::bake::{Channel, Clip, Property};
+use crate::bake::{Channel, Clip, Joint, Property};
 use crate::quat::QuatF64;
+use crate::track::Track;
 
 /// A fitted curve: its knots as samples of its timeline, and the curve they and the decoded
 /// control points make.
@@ -113,6 +114,28 @@ impl FittedClip {
     #[must_use]
     pub fn source_rate(&self) -> f64 {
         self.timelines.iter().map(|l| (l.keys() - 1) as f64 / (l.key(l.keys() - 1) - l.key(0))).fold(1.0, f64::max)
+    }
+
+    /// The clip's rotation channels as tracks of explicit knots ([`super::spline_spec`]),
+    /// named `<clip>/<joint>`: what `eval` evaluates. A constant is [`ORDER`] equal control
+    /// points over the clip's span, so that every track shares the clip's domain.
+    #[must_use]
+    pub fn rotation_tracks(&self, joints: &[Joint]) -> Vec<Track> {
+        let track = |c: &FittedChannel| {
+            let (knots, controls) = match (&c.curve, c.property) {
+                (Fitted::Constant(v), Property::Rotation) => {
+                    (clamped(self.span[0], self.span[1], &[]), vec![*v; ORDER])
+                }
+                (Fitted::Rotation(s, _), _) => {
+                    (s.fit.knots.clone(), s.fit.controls.iter().map(|q| q.to_array()).collect())
+                }
+                _ => return None,
+            };
+            let joint = joints.get(c.joint).map_or("", |j| j.name.as_str());
+            let name = Some(format!("{}/{joint}", self.name));
+            Some(Track { name, rotations: controls, knots: Some(knots), ..Track::default() })
+        };
+        self.channels.iter().filter_map(track).collect()
     }
 
     /// The clip in the common model, for baking: each curve channel carries its knots and
