@@ -6,11 +6,12 @@
 //! against the clip's bytes in the container ([`super::container`]).
 
 use super::fitted::{Fitted, FittedChannel, FittedClip};
-use super::quantize::{self, Quantized};
+use super::quantize::{self, Quantized, QuantizedRotations};
 use super::timeline::{Timeline, BETWEEN_POINTS};
-use super::{bracket, fit_rotations, fit_vectors, ORDER};
+use super::{bracket, fit_rotations, fit_vectors, Fit, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
 use crate::bake::{Animation, Channel, Property};
+use crate::error::Number;
 use crate::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
 
@@ -70,12 +71,33 @@ pub struct ClipFit {
     pub fitted_bytes: usize,
 }
 
+/// Why a clip was not fitted.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FitClipError {
+    /// The clip or the budget cannot be fitted at all.
+    #[error("{0}")]
+    Input(String),
+    /// Every fit was over the budget; the errors of the closest one, in file units.
+    #[error(
+        "no fit within the budget after {SCALINGS} scalings of the tolerances; the closest was {} at frames and {} \
+         between them (file units)",
+        Number(at_frames.error),
+        Number(between_frames.error)
+    )]
+    OverBudget {
+        /// Its worst at the source frames.
+        at_frames: Worst,
+        /// Its worst between them.
+        between_frames: Worst,
+    },
+}
+
 /// Clip `clip` of `animation` fitted within `budget`.
 ///
 /// # Errors
 /// A clip index out of range, a budget length that is not positive, a hierarchy that is not
-/// a tree, or a budget no fit meets.
-pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<ClipFit, String> {
+/// a tree ([`FitClipError::Input`]), or a budget no fit meets ([`FitClipError::OverBudget`]).
+pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<ClipFit, FitClipError> {
     for (name, value) in [
         ("max error", budget.max_error),
         ("between error", budget.between_error),
@@ -83,18 +105,21 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     ] {
         // An infinite between error leaves the points between frames unchecked.
         if !(value > 0.0 && (value.is_finite() || name == "between error")) {
-            return Err(format!("the {name} is {value}; it must be a positive length"));
+            return Err(FitClipError::Input(format!("the {name} is {value}; it must be a positive length")));
         }
     }
-    let order = animation.parents_first().map_err(|e| e.to_string())?;
+    let order = animation.parents_first().map_err(|e| FitClipError::Input(e.to_string()))?;
     let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
     let source = animation
         .clips
         .get(clip)
-        .ok_or_else(|| format!("no clip {clip}: the animation has {}", animation.clips.len()))?;
+        .ok_or_else(|| FitClipError::Input(format!("no clip {clip}: the animation has {}", animation.clips.len())))?;
     let channels = &source.channels;
     if let Some(c) = channels.iter().find(|c| c.knots.is_some()) {
-        return Err(format!("{} is fitted already: it holds control points, not keys", animation.label(source, c)));
+        return Err(FitClipError::Input(format!(
+            "{} is fitted already: it holds control points, not keys",
+            animation.label(source, c)
+        )));
     }
     let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
     frames.sort_by(f64::total_cmp);
@@ -130,6 +155,8 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     let mut scales = vec![[1.0, 1.0]; channels.len()];
     // The scales of the smallest fit within the budget so far.
     let mut kept = scales.clone();
+    // The fit with the most room, and its errors, for the message when none is within.
+    let mut closest = (0.0, Worst::default(), Worst::default());
     for _ in 0..SCALINGS {
         let fitted: Vec<FittedChannel> = channels
             .par_iter()
@@ -145,6 +172,9 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         let measure = |times: &[f64]| worst_error(animation, &parents, &order, channels, &fitted, times, budget);
         let ((at_frames, at_joints), (between_frames, between_joints)) = (measure(&frames), measure(&between));
         let room = (budget.max_error / at_frames.error).min(budget.between_error / between_frames.error);
+        if room > closest.0 {
+            closest = (room, at_frames, between_frames);
+        }
         let fitted = FittedClip {
             name: source.name.clone(),
             span: source.span(),
@@ -181,12 +211,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             *scale = if *room < 1.0 && kept < scale { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
         }
     }
-    best.ok_or_else(|| {
-        format!(
-            "no fit within {} at frames and {} between them after {SCALINGS} scalings of the tolerances",
-            budget.max_error, budget.between_error
-        )
-    })
+    best.ok_or(FitClipError::OverBudget { at_frames: closest.1, between_frames: closest.2 })
 }
 
 /// Each channel's tolerance: the budget split evenly over the animated channels of the longest
@@ -255,7 +280,16 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
     if rotation {
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
         let fit = fit_rotations(&times, &rotations, &fitting);
-        Fitted::rotation(timelines, line, interior(&fit.knots), quantize::rotations(&fit.controls, rounding))
+        let knots: Vec<u32> = interior(&fit.knots);
+        // Each sample's whole tolerance, which the decoded curve must keep.
+        let limits: Vec<f64> = fitting.iter().map(|f| f / (1.0 - QUANTIZATION_SHARE)).collect();
+        let keeps = |codes: &QuantizedRotations| {
+            let decoded = Fit { knots: fit.knots.clone(), controls: codes.values(), worst: 0.0, worst_at: 0 };
+            decoded.evaluate(&times).is_ok_and(|decoded| {
+                decoded.iter().zip(&rotations).zip(&limits).all(|((d, r), limit)| d.angle_to(*r) <= *limit)
+            })
+        };
+        Fitted::rotation(timelines, line, knots, quantize::rotations_keeping(&fit.controls, rounding, keeps))
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
         let fit = fit_vectors(&times, &vectors, &fitting);
@@ -430,7 +464,10 @@ mod tests {
         assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
         assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);
         let none = Budget { max_error: 0.0, ..budget };
-        assert_eq!(fit_clip(&animation, 0, &none).unwrap_err(), "the max error is 0; it must be a positive length");
-        assert_eq!(fit_clip(&animation, 1, &budget).unwrap_err(), "no clip 1: the animation has 1");
+        assert_eq!(
+            fit_clip(&animation, 0, &none).unwrap_err().to_string(),
+            "the max error is 0; it must be a positive length"
+        );
+        assert_eq!(fit_clip(&animation, 1, &budget).unwrap_err().to_string(), "no clip 1: the animation has 1");
     }
 }

@@ -3,11 +3,12 @@
 //! directory that takes no file, two inputs with one stem, an output that would replace its
 //! input); a failed input is reported and the others still finish.
 
-use super::clip::{fit_clip, Budget, ClipFit, Worst};
+use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use super::container::{BvhSkeleton, Container, EXTENSION};
 use crate::bake::inputs::{expand, extension, output_stems};
 use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
 use crate::bake::{bvh, gltf, Animation, BakeError, InputError};
+use crate::error::Number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -180,6 +181,28 @@ impl FitJob {
         })
     }
 
+    /// A clip no fit held within the budget: how close the closest came, and what loosens it.
+    fn over_budget(&self, clip: &str, at: &WorstReport, between: &WorstReport) -> String {
+        let between_budget =
+            self.between_error_cm.map_or_else(|| "unchecked".into(), |cm| format!("{} cm", Number(cm)));
+        let loosen = "; a larger --between-error or --no-between-check loosens the check between frames";
+        let hint = match self.between_error_cm {
+            Some(cm) if between.error_cm > cm => loosen,
+            _ => "",
+        };
+        format!(
+            "clip '{clip}': no fit within --max-error {} cm at every frame and --between-error {between_budget} between \
+             them; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
+            Number(self.max_error_cm),
+            Number(at.error_cm),
+            at.joint,
+            at.time,
+            Number(between.error_cm),
+            between.joint,
+            between.time
+        )
+    }
+
     fn fit_one(&self, input: &Path, stem: &str, progress: &dyn Fn(&str, &ClipReport)) -> InputFit {
         let name = input.display().to_string();
         let bvh = extension(input).as_deref() == Some("bvh");
@@ -206,8 +229,17 @@ impl FitJob {
             let mut clips = Vec::with_capacity(animation.clips.len());
             for c in 0..animation.clips.len() {
                 let started = Instant::now();
-                let fit =
-                    fit_clip(&animation, c, &budget).map_err(|e| format!("clip '{}': {e}", animation.clips[c].name))?;
+                let fit = fit_clip(&animation, c, &budget).map_err(|e| {
+                    let clip = &animation.clips[c].name;
+                    match e {
+                        FitClipError::OverBudget { at_frames, between_frames } => self.over_budget(
+                            clip,
+                            &worst_report(&animation, &at_frames, unit_cm),
+                            &worst_report(&animation, &between_frames, unit_cm),
+                        ),
+                        FitClipError::Input(e) => format!("clip '{clip}': {e}"),
+                    }
+                })?;
                 let clip = clip_report(&animation, &fit, unit_cm, started.elapsed().as_secs_f64());
                 progress(&name, &clip);
                 report.clips.push(clip);
@@ -229,12 +261,12 @@ impl FitJob {
     }
 }
 
+fn worst_report(animation: &Animation, w: &Worst, unit_cm: f64) -> WorstReport {
+    WorstReport { error_cm: w.error * unit_cm, joint: animation.joints[w.joint].name.clone(), time: w.time }
+}
+
 fn clip_report(animation: &Animation, fit: &ClipFit, unit_cm: f64, seconds: f64) -> ClipReport {
-    let worst = |w: &Worst| WorstReport {
-        error_cm: w.error * unit_cm,
-        joint: animation.joints[w.joint].name.clone(),
-        time: w.time,
-    };
+    let worst = |w: &Worst| worst_report(animation, w, unit_cm);
     ClipReport {
         clip: fit.clip.name.clone(),
         frames: fit.frames,

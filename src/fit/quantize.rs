@@ -143,6 +143,29 @@ pub fn rotations(controls: &[QuatF64], angle: f64) -> QuantizedRotations {
     }
 }
 
+/// Quantizations tried by [`rotations_keeping`] at most.
+pub const ROTATION_TRIES: usize = 4;
+
+/// [`rotations`] within `angle`, or within a quarter of it, and so on up to
+/// [`ROTATION_TRIES`] times, until `keeps` accepts the codes: rounding bounds each control
+/// point's move but not the curve's, whose two control points about half a turn apart are
+/// joined the other way round when rounding moves them across it.
+pub fn rotations_keeping(
+    controls: &[QuatF64],
+    angle: f64,
+    keeps: impl Fn(&QuantizedRotations) -> bool,
+) -> QuantizedRotations {
+    let mut angle = angle;
+    for _ in 1..ROTATION_TRIES {
+        let codes = rotations(controls, angle);
+        if keeps(&codes) {
+            return codes;
+        }
+        angle /= 4.0;
+    }
+    rotations(controls, angle)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -165,6 +188,26 @@ mod tests {
             let step = widest / f64::from((1u32 << fewer.bits) - 1);
             assert!(3f64.sqrt() / 2.0 * step > error, "{error}: {} bits is not the fewest", q.bits);
         }
+    }
+
+    #[test]
+    fn control_points_half_a_turn_apart_keep_their_way_round() {
+        let turn = |z: f64| QuatF64::from_rotation_vector(Vec3F64::new(0.0, 0.0, z));
+        let ways = |controls: &[QuatF64]| -> Vec<bool> {
+            let c: Vec<[f64; 4]> = controls.iter().map(|q| q.to_array()).collect();
+            c.windows(2).map(|w| (0..4).map(|i| w[0][i] * w[1][i]).sum::<f64>() > 0.0).collect()
+        };
+        let mut flipped = 0;
+        for k in 2..60 {
+            // The third and fourth control points are half a turn less `gap` apart.
+            let gap = f64::from(k) * 1e-3;
+            let controls = [turn(1.2), turn(-1.2), turn(-0.5), turn(std::f64::consts::PI - 0.5 - gap), turn(2.0)];
+            let same_way = |codes: &QuantizedRotations| ways(&codes.values()) == ways(&controls);
+            flipped += usize::from(!same_way(&rotations(&controls, 0.05)));
+            let kept = rotations_keeping(&controls, 0.05, same_way);
+            assert!(same_way(&kept), "gap {gap}: {:?}", kept.values());
+        }
+        assert!(flipped > 0, "rounding within 0.05 never joined a pair the other way round: the case tests nothing");
     }
 
     #[test]

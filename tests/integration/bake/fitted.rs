@@ -165,6 +165,18 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     assert_eq!(result.status.code(), Some(2));
     assert!(stderr(&result).contains("is a directory (nothing was fitted)"), "{}", stderr(&result));
     std::fs::remove_dir(out.join("bend.qcf")).unwrap();
+    // A budget no fit meets: how close the closest came, by joint and time, and what loosens it.
+    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--between-error", "1e-6"]);
+    assert_eq!(result.status.code(), Some(2));
+    for part in [
+        "bend.bvh: clip 'bend': no fit within --max-error 0.01 cm at every frame and --between-error 1e-6 cm between \
+         them; the closest came to ",
+        " cm between them (knee at ",
+        "; a larger --between-error or --no-between-check loosens the check between frames",
+    ] {
+        assert!(stderr(&result).contains(part), "{}\nlacks: {part}", stderr(&result));
+    }
+    assert!(!out.join("bend.qcf").exists(), "no container for a clip over its budget");
     let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--json"]);
     assert!(result.status.success(), "{}", stderr(&result));
     let container = out.join("bend.qcf");
@@ -215,4 +227,67 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
         "{}",
         stderr(&result)
     );
+}
+
+#[test]
+fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("bend.bvh");
+    small_bvh(&source);
+    let fitted = dir.path().join("fitted");
+    let result = fit(&["--input", source.to_str().unwrap(), "--output", fitted.to_str().unwrap(), "--unit-cm", "1"]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let container = fitted.join("bend.qcf");
+    let baked = dir.path().join("baked");
+    let result = bake(&["--input", container.to_str().unwrap(), "--rate", "30", "--output", baked.to_str().unwrap()]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let decoded = bvh::read(&baked.join("bend.bvh")).unwrap().animation("bend");
+    let frames = decoded.clips[0].channels[0].times.len();
+    assert_eq!(frames, 61);
+    let devices: &[&str] =
+        if crate::shared_gpu().is_some() { &["cpu", "gpu", "reference"] } else { &["cpu", "reference"] };
+    for device in devices {
+        let samples = frames.to_string();
+        let eval = Command::cargo_bin("quatcurve")
+            .unwrap()
+            .args(["eval", "--input", container.to_str().unwrap(), "--samples", &samples, "--device", device])
+            .output()
+            .unwrap();
+        assert!(eval.status.success(), "{device}: {}", stderr(&eval));
+        let out: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
+        assert_eq!(out["curve"], "bspline");
+        let tracks = out["tracks"].as_array().unwrap();
+        let names: Vec<&str> = tracks.iter().map(|t| t["name"].as_str().unwrap()).collect();
+        assert_eq!(names, ["bend/hips", "bend/knee"], "every rotation channel, named <clip>/<joint>");
+        for (track, joint) in tracks.iter().zip(0..) {
+            let channel = decoded.clips[0]
+                .channels
+                .iter()
+                .find(|c| c.joint == joint && c.property == Property::Rotation)
+                .unwrap();
+            for (f, q) in track["rotations"].as_array().unwrap().iter().enumerate() {
+                let q: Vec<f64> = q.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+                let dot: f64 = q.iter().zip(channel.values[f]).map(|(a, b)| a * b).sum();
+                let off =
+                    q.iter().zip(channel.values[f]).map(|(a, b)| (a - b * dot.signum()).abs()).fold(0.0, f64::max);
+                // Both are f32 samples of one curve (the BVH's Euler angles printed to 1e-6 degrees).
+                assert!(off < 1e-6, "{device}: joint {joint} frame {f}: {q:?} vs {:?}", channel.values[f]);
+            }
+        }
+    }
+    // The container's curves are its own; analyze reads keys, not curves.
+    let refused = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["eval", "--input", container.to_str().unwrap(), "--curve", "slerp"])
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(stderr(&refused).contains("--curve: a fitted container's curves are its own"), "{}", stderr(&refused));
+    let refused = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["analyze", "--input", container.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(stderr(&refused).contains("a fitted container holds curves, not keys"), "{}", stderr(&refused));
 }
