@@ -22,8 +22,13 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 /// takes the rest.
 pub const QUANTIZATION_SHARE: f64 = 0.4;
 
+/// A rounding of a rotation channel's control points that moves its curve by more than this
+/// multiple of the rounding has joined two of them the other way round
+/// ([`quantize::rotations_keeping`]); smaller moves are left to the clip's measure.
+const OTHER_WAY_ROUND: f64 = 2.0;
+
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
-const SCALINGS: usize = 8;
+const SCALINGS: usize = 12;
 
 /// A fit whose worst error is within this factor of the budget is not tried looser.
 const ROOM_TO_GROW: f64 = 1.25;
@@ -204,11 +209,13 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         if rooms.iter().flatten().all(|r| (1.0..ROOM_TO_GROW).contains(r)) {
             break;
         }
+        // Over the budget after a step from the kept fit: every scale half the step back, in
+        // proportion (errors do not follow tolerances smoothly, so a step of each channel by its
+        // own room can stay over the budget, step after step).
+        let back = room < 1.0 && best.is_some();
         for ((scale, room), kept) in scales.iter_mut().flatten().zip(rooms.iter().flatten()).zip(kept.iter().flatten())
         {
-            // Over the budget after a step from the kept fit: half the step back (errors do
-            // not follow tolerances smoothly: a looser channel may ring between frames).
-            *scale = if *room < 1.0 && kept < scale { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
+            *scale = if back { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
         }
     }
     best.ok_or(FitClipError::OverBudget { at_frames: closest.1, between_frames: closest.2 })
@@ -281,12 +288,12 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
         let fit = fit_rotations(&times, &rotations, &fitting);
         let knots: Vec<u32> = interior(&fit.knots);
-        // Each sample's whole tolerance, which the decoded curve must keep.
-        let limits: Vec<f64> = fitting.iter().map(|f| f / (1.0 - QUANTIZATION_SHARE)).collect();
+        // The curve before rounding, which the decoded one must stay near.
+        let unrounded = fit.evaluate(&times).unwrap_or_default();
         let keeps = |codes: &QuantizedRotations| {
             let decoded = Fit { knots: fit.knots.clone(), controls: codes.values(), worst: 0.0, worst_at: 0 };
             decoded.evaluate(&times).is_ok_and(|decoded| {
-                decoded.iter().zip(&rotations).zip(&limits).all(|((d, r), limit)| d.angle_to(*r) <= *limit)
+                decoded.iter().zip(&unrounded).all(|(d, u)| d.angle_to(*u) <= OTHER_WAY_ROUND * rounding)
             })
         };
         Fitted::rotation(timelines, line, knots, quantize::rotations_keeping(&fit.controls, rounding, keeps))

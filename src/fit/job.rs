@@ -183,16 +183,17 @@ impl FitJob {
 
     /// A clip no fit held within the budget: how close the closest came, and what loosens it.
     fn over_budget(&self, clip: &str, at: &WorstReport, between: &WorstReport) -> String {
-        let between_budget =
-            self.between_error_cm.map_or_else(|| "unchecked".into(), |cm| format!("{} cm", Number(cm)));
+        let between_budget = self.between_error_cm.map_or_else(
+            || "unchecked between them".into(),
+            |cm| format!("--between-error {} cm between them", Number(cm)),
+        );
         let loosen = "; a larger --between-error or --no-between-check loosens the check between frames";
         let hint = match self.between_error_cm {
             Some(cm) if between.error_cm > cm => loosen,
             _ => "",
         };
         format!(
-            "clip '{clip}': no fit within --max-error {} cm at every frame and --between-error {between_budget} between \
-             them; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
+            "clip '{clip}': no fit within --max-error {} cm at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
             Number(self.max_error_cm),
             Number(at.error_cm),
             at.joint,
