@@ -25,7 +25,7 @@ pub const QUANTIZATION_SHARE: f64 = 0.4;
 /// A rounding of a rotation channel's control points that moves its curve by more than this
 /// multiple of the rounding has joined two of them the other way round
 /// ([`quantize::rotations_keeping`]); smaller moves are left to the clip's measure.
-const OTHER_WAY_ROUND: f64 = 2.0;
+const OTHER_WAY_ROUND: f64 = 8.0;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 12;
@@ -162,6 +162,8 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     let mut kept = scales.clone();
     // The fit with the most room, and its errors, for the message when none is within.
     let mut closest = (0.0, Worst::default(), Worst::default());
+    // Fits over the budget in a row.
+    let mut overs = 0;
     for _ in 0..SCALINGS {
         let fitted: Vec<FittedChannel> = channels
             .par_iter()
@@ -209,12 +211,16 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         if rooms.iter().flatten().all(|r| (1.0..ROOM_TO_GROW).contains(r)) {
             break;
         }
-        // Over the budget after a step from the kept fit: every scale half the step back, in
-        // proportion (errors do not follow tolerances smoothly, so a step of each channel by its
-        // own room can stay over the budget, step after step).
-        let back = room < 1.0 && best.is_some();
+        // Over the budget after a step from the kept fit: half the step back (geometric mean),
+        // for the channels over it; the second time in a row, for every channel (errors do not
+        // follow tolerances smoothly, and stepping back only the channels over it can stay over
+        // the budget, step after step).
+        let over = room < 1.0 && best.is_some();
+        let all_back = over && overs > 0;
+        overs = if over { overs + 1 } else { 0 };
         for ((scale, room), kept) in scales.iter_mut().flatten().zip(rooms.iter().flatten()).zip(kept.iter().flatten())
         {
+            let back = all_back || (over && *room < 1.0 && kept < scale);
             *scale = if back { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
         }
     }
