@@ -36,8 +36,7 @@ impl Source {
                 Ok(Source::Bvh(file, animation))
             }
             Some(crate::fit::container::EXTENSION) => {
-                let bytes = std::fs::read(path).map_err(InputError::Read)?;
-                let container = crate::fit::container::Container::from_bytes(&bytes)?;
+                let container = crate::fit::container::Container::read(path)?;
                 let animation = container.animation();
                 match &container.bvh {
                     Some(skeleton) => Ok(Source::Bvh(bvh::skeleton(skeleton, &animation)?, animation)),

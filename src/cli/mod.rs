@@ -147,9 +147,8 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
 /// ([`quatcurve::fit::container::Container::rotation_tracks`]).
 pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {
     let source = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
-    let container = quatcurve::fit::container::Container::from_bytes(&bytes)
-        .map_err(|e| Failure::Input(format!("{source}: {}", quatcurve::bake::InputError::from(e))))?;
+    let container =
+        quatcurve::fit::container::Container::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
     Ok((source, container.rotation_tracks()))
 }
 

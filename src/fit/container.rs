@@ -7,7 +7,7 @@ use super::fitted::{Fitted, FittedChannel, FittedClip};
 use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use super::timeline::{Timeline, BETWEEN_POINTS};
 use super::ORDER;
-use crate::bake::{Animation, Joint, Property};
+use crate::bake::{Animation, InputError, Joint, Property};
 use crate::batch::MIN_KEY_NORM;
 use crate::error::Number;
 
@@ -68,6 +68,15 @@ impl Container {
             clips: self.clips.iter().map(FittedClip::to_clip).collect(),
             skins: Vec::new(),
         }
+    }
+
+    /// The container in the file at `path`.
+    ///
+    /// # Errors
+    /// The file cannot be read, or a field of it is bad ([`ContainerError`]).
+    pub fn read(path: &std::path::Path) -> Result<Self, InputError> {
+        let bytes = std::fs::read(path).map_err(InputError::Read)?;
+        Ok(Self::from_bytes(&bytes)?)
     }
 
     /// Every clip's rotation channels as tracks ([`FittedClip::rotation_tracks`]).

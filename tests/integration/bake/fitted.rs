@@ -12,8 +12,13 @@ use std::path::Path;
 /// CMU's BVH unit in cm.
 const CMU_UNIT_CM: f64 = 5.644;
 
+/// `quatcurve ARGS`, run to the end.
+fn quatcurve(args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("quatcurve").unwrap().args(args).output().unwrap()
+}
+
 fn fit(args: &[&str]) -> std::process::Output {
-    Command::cargo_bin("quatcurve").unwrap().arg("fit").args(args).output().unwrap()
+    quatcurve(&[&["fit"][..], args].concat())
 }
 
 /// The first `frames` frames of `source` as a BVH file at `path`.
@@ -183,12 +188,18 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let container = out.join("bend.qcf");
     let bytes = std::fs::read(&container).unwrap();
     // Decompression timed: every clip, copied, at its source rate (61 frames of 2 joints).
-    let bench = Command::cargo_bin("quatcurve")
-        .unwrap()
-        .args(["bench", "--fitted", container.to_str().unwrap(), "--copies", "3", "--runs", "1"])
-        .args(["--devices", "cpu,reference", "--json"])
-        .output()
-        .unwrap();
+    let bench = quatcurve(&[
+        "bench",
+        "--fitted",
+        container.to_str().unwrap(),
+        "--copies",
+        "3",
+        "--runs",
+        "1",
+        "--devices",
+        "cpu,reference",
+        "--json",
+    ]);
     assert!(bench.status.success(), "{}", stderr(&bench));
     let timed: serde_json::Value = serde_json::from_slice(&bench.stdout).unwrap();
     assert_eq!((timed["clips"].as_u64(), timed["poses"].as_u64()), (Some(3), Some(3 * 61)), "{timed}");
@@ -249,11 +260,8 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
         if crate::shared_gpu().is_some() { &["cpu", "gpu", "reference"] } else { &["cpu", "reference"] };
     for device in devices {
         let samples = frames.to_string();
-        let eval = Command::cargo_bin("quatcurve")
-            .unwrap()
-            .args(["eval", "--input", container.to_str().unwrap(), "--samples", &samples, "--device", device])
-            .output()
-            .unwrap();
+        let eval =
+            quatcurve(&["eval", "--input", container.to_str().unwrap(), "--samples", &samples, "--device", device]);
         assert!(eval.status.success(), "{device}: {}", stderr(&eval));
         let out: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
         assert_eq!(out["curve"], "bspline");
@@ -277,18 +285,10 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
         }
     }
     // The container's curves are its own; analyze reads keys, not curves.
-    let refused = Command::cargo_bin("quatcurve")
-        .unwrap()
-        .args(["eval", "--input", container.to_str().unwrap(), "--curve", "slerp"])
-        .output()
-        .unwrap();
+    let refused = quatcurve(&["eval", "--input", container.to_str().unwrap(), "--curve", "slerp"]);
     assert_eq!(refused.status.code(), Some(2));
     assert!(stderr(&refused).contains("--curve: a fitted container's curves are its own"), "{}", stderr(&refused));
-    let refused = Command::cargo_bin("quatcurve")
-        .unwrap()
-        .args(["analyze", "--input", container.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let refused = quatcurve(&["analyze", "--input", container.to_str().unwrap()]);
     assert_eq!(refused.status.code(), Some(2));
     assert!(stderr(&refused).contains("a fitted container holds curves, not keys"), "{}", stderr(&refused));
 }
