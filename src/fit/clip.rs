@@ -5,10 +5,10 @@
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
 //! against the clip's bytes in the container ([`super::container`]).
 
-use super::fitted::{Fitted, FittedChannel, FittedClip};
-use super::quantize::{self, Quantized, QuantizedRotations};
+use super::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
+use super::quantize::{self, Quantized};
 use super::timeline::{Timeline, BETWEEN_POINTS};
-use super::{bracket, fit_rotations, fit_vectors, Fit, ORDER};
+use super::{bracket, fit_rotations, fit_vectors, ORDER};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
 use crate::bake::{Animation, Channel, Property};
 use crate::error::Number;
@@ -18,14 +18,10 @@ use rayon::prelude::*;
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
 pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 
-/// The share of a channel's tolerance its control points' quantization may take; the fit
-/// takes the rest.
+/// The share of a channel's tolerance the fit leaves to its control points' quantization:
+/// the fit is made within the rest, and the codes take the fewest bits whose decoded curve is
+/// within the whole.
 pub const QUANTIZATION_SHARE: f64 = 0.4;
-
-/// A rounding of a rotation channel's control points that moves its curve by more than this
-/// multiple of the rounding has joined two of them the other way round
-/// ([`quantize::rotations_keeping`]); smaller moves are left to the clip's measure.
-const OTHER_WAY_ROUND: f64 = 8.0;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 12;
@@ -279,35 +275,155 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
     }
     let samples = timelines[line].sample_times();
     let times: Vec<f64> = samples.iter().map(|&(t, _)| t).collect();
-    let fitting: Vec<f64> =
-        samples.iter().map(|&(_, key)| (1.0 - QUANTIZATION_SHARE) * if key { tolerance } else { between }).collect();
+    // Each sample's bound on the decoded curve; the fit takes its share of it.
+    let limits: Vec<f64> = samples.iter().map(|&(_, key)| if key { tolerance } else { between }).collect();
+    let fitting: Vec<f64> = limits.iter().map(|l| (1.0 - QUANTIZATION_SHARE) * l).collect();
     let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
-    let rounding = tolerance * QUANTIZATION_SHARE;
+    let errors = |curve: &[[f64; 4]]| -> Vec<f64> {
+        curve.iter().zip(&values).map(|(a, b)| distance(channel.property, a, b)).collect()
+    };
     // Every knot is one of the samples; the container stores its index.
     let sample_of = |knot: &f64| {
         let s = times.partition_point(|&t| t < *knot);
         debug_assert_eq!(times[s], *knot, "a knot at a sample");
         s as u32
     };
-    let interior = |knots: &[f64]| knots[ORDER..knots.len() - ORDER].iter().map(sample_of).collect();
-    if rotation {
+    let interior = |knots: &[f64]| -> Vec<u32> { knots[ORDER..knots.len() - ORDER].iter().map(sample_of).collect() };
+    let cubic = if rotation {
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
         let fit = fit_rotations(&times, &rotations, &fitting);
-        let knots: Vec<u32> = interior(&fit.knots);
-        // The curve before rounding, which the decoded one must stay near.
-        let unrounded = fit.evaluate(&times).unwrap_or_default();
-        let keeps = |codes: &QuantizedRotations| {
-            let decoded = Fit { knots: fit.knots.clone(), controls: codes.values(), worst: 0.0, worst_at: 0 };
-            decoded.evaluate(&times).is_ok_and(|decoded| {
-                decoded.iter().zip(&unrounded).all(|(d, u)| d.angle_to(*u) <= OTHER_WAY_ROUND * rounding)
-            })
-        };
-        Fitted::rotation(timelines, line, knots, quantize::rotations_keeping(&fit.controls, rounding, keeps))
+        (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls))
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
         let fit = fit_vectors(&times, &vectors, &fitting);
-        Fitted::vector(timelines, line, interior(&fit.knots), Quantized::of(&fit.controls, rounding))
+        (Form::Cubic, interior(&fit.knots), Controls::Vectors(fit.controls))
+    };
+    let kept = kept_keys(channel.property, &values, &times, &fitting);
+    let at_kept = |k: &usize| values[k * (BETWEEN_POINTS + 1)];
+    let kept_values: Vec<[f64; 4]> =
+        [0].iter().chain(&kept).chain([timelines[line].keys() - 1].iter()).map(at_kept).collect();
+    let keys = (
+        Form::Keys,
+        kept.iter().map(|&k| k as u32).collect(),
+        if rotation {
+            Controls::Rotations(kept_values.iter().map(|v| QuatF64::from_array(*v)).collect())
+        } else {
+            Controls::Vectors(kept_values.iter().map(|v| [v[0], v[1], v[2]]).collect())
+        },
+    );
+    // Each form in the fewest bits whose decoded curve is within every sample's bound, or,
+    // where the fit itself missed its share, within the rounding's share past the fit's own
+    // error; the form of fewer bytes is kept.
+    [cubic, keys]
+        .into_iter()
+        .map(|(form, knots, controls)| {
+            let unrounded = errors(&controls.unrounded(timelines, line, form, &knots).at(&times));
+            let within = |curve: &Fitted| {
+                errors(&curve.at(&times))
+                    .iter()
+                    .zip(&unrounded)
+                    .zip(&limits)
+                    .all(|((&d, &u), &l)| d <= l.max(u + QUANTIZATION_SHARE * l))
+            };
+            let start = controls.bits_within(tolerance * QUANTIZATION_SHARE);
+            let curve = |bits| controls.quantized(timelines, line, form, knots.clone(), bits);
+            quantize::fewest_bits(start, curve, within)
+        })
+        .min_by_key(|curve| {
+            super::container::channel_bytes(&FittedChannel {
+                joint: channel.joint,
+                property: channel.property,
+                curve: curve.clone(),
+            })
+        })
+        .expect("two forms")
+}
+
+/// A channel's control points before quantization.
+enum Controls {
+    Rotations(Vec<QuatF64>),
+    Vectors(Vec<[f64; 3]>),
+}
+
+impl Controls {
+    /// The curve they make in `form` on `knots` of a timeline, unrounded.
+    fn unrounded(&self, timelines: &[Timeline], line: usize, form: Form, knots: &[u32]) -> Fitted {
+        match self {
+            Controls::Rotations(c) => {
+                let codes = quantize::rotations_with_bits(c, 1);
+                Fitted::Rotation(Spline::new(timelines, line, form, knots.to_vec(), c.clone()), codes)
+            }
+            Controls::Vectors(c) => {
+                let codes = Quantized::with_bits(c, 1);
+                Fitted::Vector(Spline::new(timelines, line, form, knots.to_vec(), c.clone()), codes)
+            }
+        }
     }
+
+    /// The fewest bits whose rounding moves no control point by more than `error`.
+    fn bits_within(&self, error: f64) -> u32 {
+        match self {
+            Controls::Rotations(c) => quantize::rotations(c, error).smallest.bits,
+            Controls::Vectors(c) => Quantized::bits_within(c, error),
+        }
+    }
+
+    /// The curve of the control points quantized in `bits`, as the container decodes it.
+    fn quantized(&self, timelines: &[Timeline], line: usize, form: Form, knots: Vec<u32>, bits: u32) -> Fitted {
+        match self {
+            Controls::Rotations(c) => {
+                Fitted::rotation(timelines, line, form, knots, quantize::rotations_with_bits(c, bits))
+            }
+            Controls::Vectors(c) => Fitted::vector(timelines, line, form, knots, Quantized::with_bits(c, bits)),
+        }
+    }
+}
+
+/// The distance between two values of `property`: radians between rotations, else Euclidean.
+fn distance(property: Property, a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    match property {
+        Property::Rotation => QuatF64::from_array(*a).angle_to(QuatF64::from_array(*b)),
+        _ => (Vec3F64::new(a[0], a[1], a[2]) - Vec3F64::new(b[0], b[1], b[2])).length(),
+    }
+}
+
+/// The interior keys a [`Form::Keys`] curve keeps (key indices, ascending): from each kept
+/// key, the farthest key that the source's interpolation between the two holds within
+/// `tolerances` at every sample of `values` between them (its keys and the points between).
+fn kept_keys(property: Property, values: &[[f64; 4]], times: &[f64], tolerances: &[f64]) -> Vec<usize> {
+    let step = BETWEEN_POINTS + 1;
+    let last = (values.len() - 1) / step;
+    let between = |a: usize, b: usize, s: usize| -> [f64; 4] {
+        let (sa, sb) = (a * step, b * step);
+        let h = (times[s] - times[sa]) / (times[sb] - times[sa]);
+        match property {
+            Property::Rotation => {
+                let (p, q) = (QuatF64::from_array(values[sa]), QuatF64::from_array(values[sb]));
+                p.between(q, h).to_array()
+            }
+            _ => {
+                let [x, y, z] = [values[sa][0], values[sa][1], values[sa][2]]
+                    .between([values[sb][0], values[sb][1], values[sb][2]], h);
+                [x, y, z, 0.0]
+            }
+        }
+    };
+    let holds = |a: usize, b: usize| {
+        (a * step + 1..b * step).all(|s| distance(property, &between(a, b, s), &values[s]) <= tolerances[s])
+    };
+    let mut kept = Vec::new();
+    let mut a = 0;
+    while a < last {
+        let mut b = a + 1;
+        while b < last && holds(a, b + 1) {
+            b += 1;
+        }
+        if b < last {
+            kept.push(b);
+        }
+        a = b;
+    }
+    kept
 }
 
 /// Every joint's rest transform.
@@ -345,25 +461,7 @@ fn worst_error(
     budget: &Budget,
 ) -> (Worst, Vec<f64>) {
     // Every fitted channel at every time, evaluated once per channel.
-    let curves: Vec<Vec<[f64; 4]>> = fitted
-        .par_iter()
-        .map(|f| match &f.curve {
-            Fitted::Constant(v) => vec![*v; times.len()],
-            Fitted::Rotation(spline, _) => {
-                spline.fit.evaluate(times).expect("a fitted curve evaluates").iter().map(|q| q.to_array()).collect()
-            }
-            Fitted::Vector(spline, _) => spline
-                .fit
-                .evaluate(times)
-                .expect("a fitted curve evaluates")
-                .iter()
-                .map(|v| {
-                    let [x, y, z] = v.to_array();
-                    [x, y, z, 0.0]
-                })
-                .collect(),
-        })
-        .collect();
+    let curves: Vec<Vec<[f64; 4]>> = fitted.par_iter().map(|f| f.curve.at(times)).collect();
     let rest = rest_pose(animation);
     let pose = |values: &dyn Fn(usize) -> [f64; 4]| {
         let mut local = rest.clone();
@@ -482,5 +580,49 @@ mod tests {
             "the max error is 0; it must be a positive length"
         );
         assert_eq!(fit_clip(&animation, 1, &budget).unwrap_err().to_string(), "no clip 1: the animation has 1");
+    }
+
+    #[test]
+    fn keys_on_one_arc_are_dropped_and_a_corner_is_kept() {
+        let times: Vec<f64> = (0..=8 * (BETWEEN_POINTS + 1)).map(|s| s as f64 / 10.0).collect();
+        let turn = |t: f64| {
+            // One arc at constant speed up to t = 2, then another about a second axis.
+            let about = |x: f64, y: f64| QuatF64::from_rotation_vector(Vec3F64::new(x, y, 0.0));
+            if t <= 2.0 { about(0.4 * t, 0.0) } else { about(0.8, 0.0) * about(0.0, 0.3 * (t - 2.0)) }.to_array()
+        };
+        // The points between keys are the keys' slerps, as `source_at` makes them.
+        let step = BETWEEN_POINTS + 1;
+        let values: Vec<[f64; 4]> = (0..times.len())
+            .map(|s| {
+                let (a, b) = (s / step * step, (s / step * step + step).min(times.len() - 1));
+                let h = if a == b { 0.0 } else { (times[s] - times[a]) / (times[b] - times[a]) };
+                QuatF64::from_array(turn(times[a])).between(QuatF64::from_array(turn(times[b])), h).to_array()
+            })
+            .collect();
+        let kept = kept_keys(Property::Rotation, &values, &times, &vec![1e-9; times.len()]);
+        // Key k is at time k / 2: the corner is key 4.
+        assert_eq!(kept, vec![4]);
+    }
+
+    #[test]
+    fn a_clip_keyed_sparsely_is_stored_as_its_keys_and_exact_between_them() {
+        let mut animation = arm();
+        // Five keys over two seconds, each channel's interpolation linear between them.
+        for channel in &mut animation.clips[0].channels {
+            let keep = |i: &usize| i % 60 == 0;
+            channel.times = channel.times.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &t)| t).collect();
+            channel.values = channel.values.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &v)| v).collect();
+        }
+        let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
+        let fit = fit_clip(&animation, 0, &budget).unwrap();
+        for (k, channel) in fit.clip.channels.iter().enumerate().take(3) {
+            assert!(
+                matches!(&channel.curve, Fitted::Rotation(s, _) if s.form == Form::Keys)
+                    || matches!(&channel.curve, Fitted::Vector(s, _) if s.form == Form::Keys),
+                "channel {k}: {:?}",
+                channel.curve
+            );
+        }
+        assert!(fit.between_frames.error <= budget.max_error, "{:?}", fit.between_frames);
     }
 }

@@ -3,7 +3,7 @@
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
 //! is an error naming it and its byte offset.
 
-use super::fitted::{Fitted, FittedChannel, FittedClip};
+use super::fitted::{Fitted, FittedChannel, FittedClip, Form};
 use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use super::timeline::{Timeline, BETWEEN_POINTS};
 use super::ORDER;
@@ -15,7 +15,7 @@ use crate::error::Number;
 pub const MAGIC: [u8; 8] = *b"QCURVFIT";
 
 /// The layout this code writes and reads.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 
 /// The file extension.
 pub const EXTENSION: &str = "qcf";
@@ -131,7 +131,11 @@ impl Container {
         }
         let version = u16::from_le_bytes([r.u8("version")?, r.u8("version")?]);
         if version != VERSION {
-            return Err(r.bad_at(8, "version", format!("{version}; this quatcurve reads version {VERSION}")));
+            return Err(r.bad_at(
+                8,
+                "version",
+                format!("{version}; this quatcurve reads version {VERSION} (fit the source again)"),
+            ));
         }
         r.expect("order", ORDER)?;
         r.expect("points between keys", BETWEEN_POINTS)?;
@@ -227,35 +231,56 @@ fn clip_section(clip: &FittedClip) -> Vec<u8> {
     }
     out.count(clip.channels.len());
     for channel in &clip.channels {
-        out.count(channel.joint);
-        let property = PROPERTIES.iter().position(|&p| p == channel.property).expect("a property") as u8;
-        let vector = |out: &mut Writer, v: &[f64]| v.iter().for_each(|&x| out.f32(x as f32));
-        match &channel.curve {
-            Fitted::Constant(v) => {
-                out.u8(property);
-                vector(&mut out, if channel.property == Property::Rotation { &v[..] } else { &v[..3] });
-            }
-            Fitted::Rotation(spline, codes) => {
-                out.u8(property | 4);
-                out.curve(spline.timeline, &spline.knots, &codes.smallest);
-                // One index for every control point (the usual case), or each packed.
-                match codes.largest.iter().all(|&i| i == codes.largest[0]) {
-                    true => out.u8(codes.largest[0]),
-                    false => {
-                        out.u8(SEVERAL_LARGEST);
-                        let mut bits = BitWriter::default();
-                        codes.largest.iter().for_each(|&i| bits.push(u64::from(i), INDEX_BITS));
-                        out.bytes(&bits.finish());
-                    }
-                }
-            }
-            Fitted::Vector(spline, codes) => {
-                out.u8(property | 4);
-                out.curve(spline.timeline, &spline.knots, codes);
-            }
-        }
+        write_channel(&mut out, channel);
     }
     out.bytes
+}
+
+/// A channel's bytes in the container: what a fit weighs its forms by.
+#[must_use]
+pub fn channel_bytes(channel: &FittedChannel) -> usize {
+    let mut out = Writer::default();
+    write_channel(&mut out, channel);
+    out.bytes.len()
+}
+
+/// The tag's kind of each [`Form`] (0 is a constant).
+fn form_kind(form: Form) -> u8 {
+    match form {
+        Form::Cubic => 1,
+        Form::Keys => 2,
+    }
+}
+
+/// A channel: joint, tag (property in the low two bits, kind above), then its value or curve.
+fn write_channel(out: &mut Writer, channel: &FittedChannel) {
+    out.count(channel.joint);
+    let property = PROPERTIES.iter().position(|&p| p == channel.property).expect("a property") as u8;
+    let vector = |out: &mut Writer, v: &[f64]| v.iter().for_each(|&x| out.f32(x as f32));
+    match &channel.curve {
+        Fitted::Constant(v) => {
+            out.u8(property);
+            vector(out, if channel.property == Property::Rotation { &v[..] } else { &v[..3] });
+        }
+        Fitted::Rotation(spline, codes) => {
+            out.u8(property | form_kind(spline.form) << 2);
+            out.curve(spline.timeline, &spline.knots, &codes.smallest);
+            // One index for every control point (the usual case), or each packed.
+            match codes.largest.iter().all(|&i| i == codes.largest[0]) {
+                true => out.u8(codes.largest[0]),
+                false => {
+                    out.u8(SEVERAL_LARGEST);
+                    let mut bits = BitWriter::default();
+                    codes.largest.iter().for_each(|&i| bits.push(u64::from(i), INDEX_BITS));
+                    out.bytes(&bits.finish());
+                }
+            }
+        }
+        Fitted::Vector(spline, codes) => {
+            out.u8(property | form_kind(spline.form) << 2);
+            out.curve(spline.timeline, &spline.knots, codes);
+        }
+    }
 }
 
 fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, ContainerError> {
@@ -316,16 +341,27 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, C
             r.bad(&format!("{field} tag"), format!("property {} is not 0-2 (rotation, translation, scale)", tag & 3))
         })?;
         let rotation = property == Property::Rotation;
-        let curve = match tag >> 2 {
-            0 => {
+        let form = match tag >> 2 {
+            0 => None,
+            1 => Some(Form::Cubic),
+            2 => Some(Form::Keys),
+            other => {
+                return Err(r.bad(
+                    &format!("{field} tag"),
+                    format!("kind {other} is none of 0 (constant), 1 (cubic) and 2 (keys)"),
+                ))
+            }
+        };
+        let curve = match form {
+            None => {
                 let mut v = [0.0; 4];
                 for x in v.iter_mut().take(if rotation { 4 } else { 3 }) {
                     *x = r.finite_f32(&format!("{field} value"))?;
                 }
                 Fitted::Constant(v)
             }
-            1 => {
-                let (line, knots, codes) = r.curve(&field, &timelines)?;
+            Some(form) => {
+                let (line, knots, codes) = r.curve(&field, &timelines, form)?;
                 if rotation {
                     let name = format!("{field} largest components");
                     let largest = match r.u8(&name)? {
@@ -343,15 +379,10 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, C
                             ))
                         }
                     };
-                    Fitted::rotation(&timelines, line, knots, QuantizedRotations { smallest: codes, largest })
+                    Fitted::rotation(&timelines, line, form, knots, QuantizedRotations { smallest: codes, largest })
                 } else {
-                    Fitted::vector(&timelines, line, knots, codes)
+                    Fitted::vector(&timelines, line, form, knots, codes)
                 }
-            }
-            other => {
-                return Err(
-                    r.bad(&format!("{field} tag"), format!("kind {other} is neither 0 (constant) nor 1 (curve)"))
-                )
             }
         };
         channels.push(FittedChannel { joint, property, curve });
@@ -400,20 +431,30 @@ impl Writer {
         self.bytes(s.as_bytes());
     }
 
-    /// A curve: timeline, knots as deltas of sample indices, bit width, ranges, codes.
+    /// A curve: timeline, knots ([`Self::knots`]), bit width, ranges, codes.
     fn curve(&mut self, timeline: usize, knots: &[u32], codes: &Quantized) {
         self.count(timeline);
-        self.count(knots.len());
-        let mut previous = 0;
-        for &k in knots {
-            self.count((k - previous) as usize);
-            previous = k;
-        }
+        self.knots(knots);
         self.u8(codes.bits as u8);
         codes.low.iter().chain(&codes.span).for_each(|&v| self.f32(v as f32));
         let packed = pack_codes(&codes.codes, codes.bits);
         self.count(packed.len());
         self.bytes(&packed);
+    }
+
+    /// Ascending knot indices: their count, then (when there are any) the bit width of the
+    /// largest delta from the one before (the first's from 0) and every delta at that width.
+    fn knots(&mut self, knots: &[u32]) {
+        self.count(knots.len());
+        if knots.is_empty() {
+            return;
+        }
+        let deltas: Vec<u32> = knots.iter().scan(0, |previous, &k| Some(k - std::mem::replace(previous, k))).collect();
+        let width = deltas.iter().map(|d| 32 - d.leading_zeros()).max().unwrap_or(0);
+        self.u8(width as u8);
+        let mut bits = BitWriter::default();
+        deltas.iter().for_each(|&d| bits.push(u64::from(d), width));
+        self.bytes(&bits.finish());
     }
 }
 
@@ -578,26 +619,33 @@ impl Reader<'_> {
         }
     }
 
-    /// A curve's timeline, knots and codes (see [`Writer::curve`]), each checked.
-    fn curve(&mut self, field: &str, timelines: &[Timeline]) -> Result<(usize, Vec<u32>, Quantized), ContainerError> {
+    /// A curve's timeline, knots and codes in `form` (see [`Writer::curve`]), each checked.
+    fn curve(
+        &mut self,
+        field: &str,
+        timelines: &[Timeline],
+        form: Form,
+    ) -> Result<(usize, Vec<u32>, Quantized), ContainerError> {
         let line = self.varint(&format!("{field} timeline"))? as usize;
         let timeline = timelines.get(line).ok_or_else(|| {
             self.bad(&format!("{field} timeline"), format!("{line} is not one of the clip's {}", timelines.len()))
         })?;
-        let count = self.count(&format!("{field} knot count"), 1)?;
-        let mut knots: Vec<u32> = Vec::with_capacity(count);
-        for k in 0..count {
-            let name = format!("{field} knot {k}");
-            let at = knots.last().copied().unwrap_or(0) as u64 + self.varint(&name)?;
-            // Interior: strictly inside the samples, and at most ORDER - 1 at one sample.
-            if at == 0 || at >= timeline.samples() as u64 - 1 {
-                return Err(self.bad(&name, format!("sample {at} is not inside 1..{}", timeline.samples() - 1)));
+        // Interior knots: strictly inside the timeline's samples (a cubic's, at most ORDER - 1
+        // at one) or keys (each once), and the control points they make.
+        let (unit, last, repeats, controls) = match form {
+            Form::Cubic => ("sample", timeline.samples() - 1, ORDER - 1, ORDER),
+            Form::Keys => ("key", timeline.keys() - 1, 1, 2),
+        };
+        let knots = self.knots(field, |knots, at| {
+            if at == 0 || at >= last as u64 {
+                return Err(format!("{unit} {at} is not inside 1..{last}"));
             }
-            if knots.len() >= ORDER - 1 && knots[knots.len() + 1 - ORDER..].iter().all(|&p| u64::from(p) == at) {
-                return Err(self.bad(&name, format!("sample {at} repeated {ORDER} times; at most {}", ORDER - 1)));
+            if knots.len() >= repeats && knots[knots.len() - repeats..].iter().all(|&p| u64::from(p) == at) {
+                return Err(format!("{unit} {at} repeated {} times; at most {repeats}", repeats + 1));
             }
-            knots.push(at as u32);
-        }
+            Ok(())
+        })?;
+        let controls = knots.len() + controls;
         let bits = u32::from(self.u8(&format!("{field} bit width"))?);
         if !(1..=MAX_BITS).contains(&bits) {
             return Err(self.bad(&format!("{field} bit width"), format!("{bits} is not 1-{MAX_BITS}")));
@@ -610,7 +658,6 @@ impl Reader<'_> {
                 return Err(self.bad_at(self.at - 4, &name, format!("{v} is negative")));
             }
         }
-        let controls = count + ORDER;
         let name = format!("{field} codes");
         let length = self.count(&name, 1)?;
         let start = self.at;
@@ -618,6 +665,39 @@ impl Reader<'_> {
         let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, &name, e))?;
         let [l0, l1, l2, s0, s1, s2] = ranges;
         Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span: [s0, s1, s2], codes }))
+    }
+}
+
+impl Reader<'_> {
+    /// Knot indices as [`Writer::knots`] writes them, each checked by `check` (given the knots
+    /// before it and its index) before it is kept.
+    fn knots(
+        &mut self,
+        field: &str,
+        check: impl Fn(&[u32], u64) -> Result<(), String>,
+    ) -> Result<Vec<u32>, ContainerError> {
+        let count = self.count(&format!("{field} knot count"), 0)?;
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let name = format!("{field} knot width");
+        let width = u32::from(self.u8(&name)?);
+        if width > 32 {
+            return Err(self.bad_at(self.at - 1, &name, format!("{width} bits is more than 32")));
+        }
+        let start = self.at;
+        let bytes = count.checked_mul(width as usize).map(|b| b.div_ceil(8)).unwrap_or(usize::MAX);
+        let packed = self.take(bytes, &format!("{field} knots"))?.to_vec();
+        let mut deltas = BitReader::new(&packed);
+        let mut knots: Vec<u32> = Vec::with_capacity(count);
+        for k in 0..count {
+            let name = format!("{field} knot {k}");
+            let delta = deltas.take(width).expect("sized above");
+            let at = u64::from(knots.last().copied().unwrap_or(0)) + delta;
+            check(&knots, at).map_err(|reason| self.bad_at(start, &name, reason))?;
+            knots.push(at as u32);
+        }
+        Ok(knots)
     }
 }
 
@@ -692,17 +772,37 @@ mod tests {
             FittedChannel {
                 joint: 0,
                 property: Property::Rotation,
-                curve: Fitted::rotation(&timelines, 0, vec![50, 100, 150, 200], quantize::rotations(&turns, 1e-4)),
+                curve: Fitted::rotation(
+                    &timelines,
+                    0,
+                    Form::Cubic,
+                    vec![50, 100, 150, 200],
+                    quantize::rotations(&turns, 1e-4),
+                ),
             },
             FittedChannel {
                 joint: 1,
                 property: Property::Translation,
-                curve: Fitted::vector(&timelines, 1, vec![3, 3, 3], Quantized::of(&points, 1e-3)),
+                curve: Fitted::vector(&timelines, 1, Form::Cubic, vec![3, 3, 3], Quantized::of(&points, 1e-3)),
             },
             FittedChannel { joint: 1, property: Property::Rotation, curve: Fitted::constant([0.0, 0.0, 0.6, 0.8]) },
+            FittedChannel {
+                joint: 0,
+                property: Property::Translation,
+                curve: Fitted::vector(&timelines, 0, Form::Keys, vec![10, 30, 31], Quantized::of(&points[..5], 1e-3)),
+            },
+            FittedChannel {
+                joint: 2,
+                property: Property::Rotation,
+                curve: Fitted::rotation(&timelines, 1, Form::Keys, vec![1], quantize::rotations(&turns[5..], 1e-3)),
+            },
         ];
         Container {
-            joints: vec![Joint::at("root".into(), None, [0.0; 3]), Joint::at("tip".into(), Some(0), [0.0, 10.0, 0.0])],
+            joints: vec![
+                Joint::at("root".into(), None, [0.0; 3]),
+                Joint::at("tip".into(), Some(0), [0.0, 10.0, 0.0]),
+                Joint::at("end".into(), Some(1), [0.0, 5.0, 0.0]),
+            ],
             bvh: Some(BvhSkeleton { hierarchy: "HIERARCHY\n".into(), frame_time: 1.0 / 30.0 }),
             clips: vec![FittedClip { name: "turn".into(), span: [0.0, 2.0], timelines, channels }],
         }
@@ -756,20 +856,27 @@ mod tests {
         version[8] = 9;
         assert_eq!(
             Container::from_bytes(&version).unwrap_err().to_string(),
-            "byte 8: version: 9; this quatcurve reads version 1"
+            "byte 8: version: 9; this quatcurve reads version 2 (fit the source again)"
         );
-        // Knots a fit never makes: outside the samples, or more than ORDER - 1 at one.
-        for (knots, reason) in [
-            (vec![0], "sample 0 is not inside 1..10"),
-            (vec![3, 3, 3, 3], "sample 3 repeated 4 times; at most 3"),
-            (vec![10], "sample 10 is not inside 1..10"),
+        // Knots a fit never makes: outside the samples, or more than ORDER - 1 at one; keys
+        // outside the keys, or one kept twice.
+        for (form, channel, knots, reason) in [
+            (Form::Cubic, 1, vec![0], "sample 0 is not inside 1..10"),
+            (Form::Cubic, 1, vec![3, 3, 3, 3], "sample 3 repeated 4 times; at most 3"),
+            (Form::Cubic, 1, vec![10], "sample 10 is not inside 1..10"),
+            (Form::Keys, 3, vec![0], "key 0 is not inside 1..60"),
+            (Form::Keys, 3, vec![7, 7], "key 7 repeated 2 times; at most 1"),
+            (Form::Keys, 3, vec![5, 60], "key 60 is not inside 1..60"),
         ] {
             let mut bad = container();
-            let points = vec![[0.0; 3]; knots.len() + ORDER];
-            bad.clips[0].channels[1].curve =
-                Fitted::vector(&bad.clips[0].timelines, 1, knots.clone(), Quantized::of(&points, 1e-3));
+            let clip = &mut bad.clips[0];
+            let controls = knots.len() + if form == Form::Cubic { ORDER } else { 2 };
+            let line = if form == Form::Cubic { 1 } else { 0 };
+            let codes = Quantized::of(&vec![[0.0; 3]; controls], 1e-3);
+            clip.channels[channel].curve = Fitted::vector(&clip.timelines, line, form, knots.clone(), codes);
             let e = Container::from_bytes(&bad.to_bytes()).unwrap_err();
-            assert!(e.field.starts_with("clip 0 'turn' channel 1 (tip) knot"), "{knots:?}: {e}");
+            assert!(e.field.starts_with(&format!("clip 0 'turn' channel {channel} (")), "{knots:?}: {e}");
+            assert!(e.field.contains(") knot"), "{knots:?}: {e}");
             assert_eq!(e.reason, reason, "{knots:?}");
         }
         let mut still = container();
@@ -781,7 +888,7 @@ mod tests {
         parent[18] = 1;
         assert_eq!(
             Container::from_bytes(&parent).unwrap_err().to_string(),
-            "byte 18: joint 0 parent: 0 is not another of the 2 joints"
+            "byte 18: joint 0 parent: 0 is not another of the 3 joints"
         );
     }
 }

@@ -9,26 +9,95 @@ use crate::bake::{Channel, Clip, Joint, Property};
 use crate::quat::QuatF64;
 use crate::track::Track;
 
-/// A fitted curve: its knots as samples of its timeline, and the curve they and the decoded
-/// control points make.
+/// How a fitted curve passes between its knots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    /// A clamped cubic B-spline whose knots are samples of its timeline: `knots + ORDER`
+    /// control points.
+    Cubic,
+    /// Some of the source's keys, slerped or lerped between as the source is (an order-2
+    /// B-spline): its knots are the kept interior keys, its control points the `knots + 2` kept
+    /// keys' values. Evaluators read it as the cubic with a triple knot at each kept key and
+    /// control points at the thirds of each segment, which is the same curve: KKS's cumulative
+    /// cubic Bernstein form with three equal steps along one arc is slerp at constant speed.
+    Keys,
+}
+
+/// A fitted curve: its knots on its timeline, and the curve they and the decoded control
+/// points make.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Spline<T> {
     /// Index into the clip's [`FittedClip::timelines`].
     pub timeline: usize,
-    /// Interior knots as sample indices of the timeline ([`Timeline::sample`]), ascending; a
-    /// knot of multiplicity `m` appears `m` times.
+    /// How it passes between its knots.
+    pub form: Form,
+    /// Interior knots, ascending: for [`Form::Cubic`] sample indices of the timeline
+    /// ([`Timeline::sample`]), a knot of multiplicity `m` appearing `m` times; for
+    /// [`Form::Keys`] key indices ([`Timeline::key`]), each once.
     pub knots: Vec<u32>,
-    /// The curve: knot times, and the control points as their codes decode.
+    /// The curve as every evaluator reads it: a clamped cubic's knot times and control points.
     pub fit: Fit<T>,
 }
 
-impl<T> Spline<T> {
-    /// The curve of `controls` on interior `knots` of `timeline` (clamped at its ends).
-    fn new(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, controls: Vec<T>) -> Self {
+/// A point `h` of the way from a control point to the next, along the shortest path: what a
+/// [`Form::Keys`] curve is between its keys.
+pub trait Between: Copy {
+    /// The point `h` (0 to 1) of the way to `next`.
+    #[must_use]
+    fn between(self, next: Self, h: f64) -> Self;
+}
+
+impl Between for QuatF64 {
+    fn between(self, next: Self, h: f64) -> Self {
+        self.slerp(next.aligned_with(self), h)
+    }
+}
+
+impl Between for [f64; 3] {
+    fn between(self, next: Self, h: f64) -> Self {
+        std::array::from_fn(|c| self[c] + (next[c] - self[c]) * h)
+    }
+}
+
+impl<T: Between> Spline<T> {
+    /// The curve of `controls` in `form` on interior `knots` of `timeline` (clamped at its ends).
+    pub(super) fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
         let line = &timelines[timeline];
-        let interior: Vec<f64> = knots.iter().map(|&s| line.sample(s as usize)).collect();
-        let times = clamped(line.sample(0), line.sample(line.samples() - 1), &interior);
-        Spline { timeline, knots, fit: Fit { knots: times, controls, worst: 0.0, worst_at: 0 } }
+        let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
+        let fit = match form {
+            Form::Cubic => {
+                let interior: Vec<f64> = knots.iter().map(|&s| line.sample(s as usize)).collect();
+                Fit { knots: clamped(start, end, &interior), controls, worst: 0.0, worst_at: 0 }
+            }
+            Form::Keys => {
+                let interior: Vec<f64> = knots.iter().flat_map(|&k| [line.key(k as usize); ORDER - 1]).collect();
+                let mut points = controls[..1].to_vec();
+                for pair in controls.windows(2) {
+                    let thirds = (1..ORDER - 1).map(|i| pair[0].between(pair[1], i as f64 / (ORDER - 1) as f64));
+                    points.extend(thirds.chain([pair[1]]));
+                }
+                Fit { knots: clamped(start, end, &interior), controls: points, worst: 0.0, worst_at: 0 }
+            }
+        };
+        Spline { timeline, form, knots, fit }
+    }
+}
+
+impl Spline<QuatF64> {
+    /// The curve at `times` as `x, y, z, w` ([`Fitted::at`]).
+    #[must_use]
+    pub fn at(&self, times: &[f64]) -> Vec<[f64; 4]> {
+        let curve = self.fit.evaluate(times).expect("a fitted curve evaluates");
+        curve.iter().map(|q| q.to_array()).collect()
+    }
+}
+
+impl Spline<[f64; 3]> {
+    /// The curve at `times` as `x, y, z, 0` ([`Fitted::at`]).
+    #[must_use]
+    pub fn at(&self, times: &[f64]) -> Vec<[f64; 4]> {
+        let curve = self.fit.evaluate(times).expect("a fitted curve evaluates");
+        curve.iter().map(|v| v.to_array()).map(|[x, y, z]| [x, y, z, 0.0]).collect()
     }
 }
 
@@ -50,17 +119,34 @@ impl Fitted {
         Fitted::Constant(value.map(|v| f64::from(v as f32)))
     }
 
-    /// The rotation curve of `codes` on `knots` of a timeline: the fit and the container
-    /// decode through this one function.
+    /// The rotation curve in `form` of `codes` on `knots` of a timeline: the fit and the
+    /// container decode through this one function.
     #[must_use]
-    pub fn rotation(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: QuantizedRotations) -> Self {
-        Fitted::Rotation(Spline::new(timelines, timeline, knots, codes.values()), codes)
+    pub fn rotation(
+        timelines: &[Timeline],
+        timeline: usize,
+        form: Form,
+        knots: Vec<u32>,
+        codes: QuantizedRotations,
+    ) -> Self {
+        Fitted::Rotation(Spline::new(timelines, timeline, form, knots, codes.values()), codes)
     }
 
-    /// The vector curve of `codes` on `knots` of a timeline, likewise.
+    /// The vector curve in `form` of `codes` on `knots` of a timeline, likewise.
     #[must_use]
-    pub fn vector(timelines: &[Timeline], timeline: usize, knots: Vec<u32>, codes: Quantized) -> Self {
-        Fitted::Vector(Spline::new(timelines, timeline, knots, codes.values()), codes)
+    pub fn vector(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, codes: Quantized) -> Self {
+        Fitted::Vector(Spline::new(timelines, timeline, form, knots, codes.values()), codes)
+    }
+
+    /// The curve at `times`, by the reference evaluator: a rotation's `x, y, z, w`, a vector's
+    /// `x, y, z, 0`.
+    #[must_use]
+    pub fn at(&self, times: &[f64]) -> Vec<[f64; 4]> {
+        match self {
+            Fitted::Constant(v) => vec![*v; times.len()],
+            Fitted::Rotation(spline, _) => spline.at(times),
+            Fitted::Vector(spline, _) => spline.at(times),
+        }
     }
 
     /// Knots and control points as a [`Channel`] of the common model: `times` are the control
@@ -144,5 +230,41 @@ impl FittedClip {
     pub fn to_clip(&self) -> Clip {
         let channels = self.channels.iter().map(|c| c.curve.channel(c.joint, c.property, self.span)).collect();
         Clip { name: self.name.clone(), channels }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quat::Vec3F64;
+
+    #[test]
+    fn a_keyed_curve_is_its_keys_slerped_and_lerped_between_them_on_the_evaluators_cubic() {
+        let line = Timeline::Listed(vec![0.0, 0.1, 0.25, 0.3, 0.7, 1.0]);
+        // Kept keys 0, 2, 3, 5; steps up to 170 degrees between them.
+        let kept = [0usize, 2, 3, 5];
+        let turns: Vec<QuatF64> = [0.0, 2.9, 2.0, -0.7]
+            .iter()
+            .enumerate()
+            .map(|(i, &a)| QuatF64::from_rotation_vector(Vec3F64::new(a, 0.3 * i as f64, -0.2)))
+            .collect();
+        let points: Vec<[f64; 3]> = (0..4).map(|i| [f64::from(i * i), -2.0 * f64::from(i), 0.5]).collect();
+        let knots: Vec<u32> = vec![2, 3];
+        let rotations = Spline::new(std::slice::from_ref(&line), 0, Form::Keys, knots.clone(), turns.clone());
+        let vectors = Spline::new(std::slice::from_ref(&line), 0, Form::Keys, knots, points.clone());
+        assert_eq!(rotations.fit.controls.len(), 3 * (kept.len() - 1) + 1);
+        for j in 0..kept.len() - 1 {
+            let (a, b) = (line.key(kept[j]), line.key(kept[j + 1]));
+            let times: Vec<f64> = (0..=20).map(|i| a + (b - a) * f64::from(i) / 20.0).collect();
+            let curve = rotations.fit.evaluate(&times).unwrap();
+            let path = vectors.fit.evaluate(&times).unwrap();
+            for (i, &t) in times.iter().enumerate() {
+                let h = (t - a) / (b - a);
+                let slerped = turns[j].between(turns[j + 1], h);
+                assert!(curve[i].angle_to(slerped) < 1e-9, "segment {j} at {h}: {}", curve[i].angle_to(slerped));
+                let lerped = Vec3F64::from_array(points[j].between(points[j + 1], h));
+                assert!((path[i] - lerped).length() < 1e-12, "segment {j} at {h}");
+            }
+        }
     }
 }

@@ -29,15 +29,22 @@ impl Quantized {
     /// (Euclidean, over its three components).
     #[must_use]
     pub fn of(components: &[[f64; 3]], error: f64) -> Self {
-        let low: [f64; 3] =
-            std::array::from_fn(|c| f32_at_most(components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min)));
-        let span: [f64; 3] =
-            std::array::from_fn(|c| f32_at_least(components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max)));
+        Self::with_bits(components, Self::bits_within(components, error))
+    }
+
+    /// The fewest bits (at most [`MAX_BITS`]) whose rounding moves no point of `components` by
+    /// more than `error`: each component by at most half a step, `sqrt(3) / 2` steps in all.
+    #[must_use]
+    pub fn bits_within(components: &[[f64; 3]], error: f64) -> u32 {
+        let (_, span) = ranges(components);
         let widest = span.iter().copied().fold(0.0, f64::max);
-        // Rounding moves each component by at most half a step: sqrt(3) / 2 steps in all.
-        let bits = (1..=MAX_BITS)
-            .find(|&b| 3f64.sqrt() / 2.0 * widest / f64::from((1u32 << b) - 1) <= error)
-            .unwrap_or(MAX_BITS);
+        (1..=MAX_BITS).find(|&b| 3f64.sqrt() / 2.0 * widest / f64::from((1u32 << b) - 1) <= error).unwrap_or(MAX_BITS)
+    }
+
+    /// `components` as `bits`-bit codes (1 to [`MAX_BITS`]) over their ranges.
+    #[must_use]
+    pub fn with_bits(components: &[[f64; 3]], bits: u32) -> Self {
+        let (low, span) = ranges(components);
         let levels = f64::from((1u32 << bits) - 1);
         let codes = components
             .iter()
@@ -63,6 +70,15 @@ impl Quantized {
             .map(|code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
             .collect()
     }
+}
+
+/// Each component's smallest value and its range over `components`, as `f32` values that
+/// hold every one.
+fn ranges(components: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let low: [f64; 3] =
+        std::array::from_fn(|c| f32_at_most(components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min)));
+    let span = std::array::from_fn(|c| f32_at_least(components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max)));
+    (low, span)
 }
 
 /// The largest `f32` value at most `v`.
@@ -118,12 +134,10 @@ impl QuantizedRotations {
     }
 }
 
-/// Rotation control points quantized within `angle` radians each, as their three smallest
-/// components (moving those by `d` moves the unit quaternion by at most `2 d`, as the largest is
-/// at least 1/2, and so the rotation by at most `4 d`).
-#[must_use]
-pub fn rotations(controls: &[QuatF64], angle: f64) -> QuantizedRotations {
-    let stored: Vec<(u8, [f64; 3])> = controls
+/// Rotation control points as their three smallest components, each with the index of its
+/// largest, rebuilt positive.
+fn smallest_three(controls: &[QuatF64]) -> (Vec<[f64; 3]>, Vec<u8>) {
+    controls
         .iter()
         .map(|q| {
             let c = q.normalize().to_array();
@@ -133,37 +147,46 @@ pub fn rotations(controls: &[QuatF64], angle: f64) -> QuantizedRotations {
             for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
                 rest[slot] = c[i] * sign;
             }
-            (largest as u8, rest)
+            (rest, largest as u8)
         })
-        .collect();
-    let components: Vec<[f64; 3]> = stored.iter().map(|(_, rest)| *rest).collect();
-    QuantizedRotations {
-        smallest: Quantized::of(&components, angle / 4.0),
-        largest: stored.iter().map(|&(largest, _)| largest).collect(),
-    }
+        .unzip()
 }
 
-/// Quantizations tried by [`rotations_keeping`] at most.
-pub const ROTATION_TRIES: usize = 4;
+/// Rotation control points quantized within `angle` radians each, as their three smallest
+/// components (moving those by `d` moves the unit quaternion by at most `2 d`, as the largest is
+/// at least 1/2, and so the rotation by at most `4 d`).
+#[must_use]
+pub fn rotations(controls: &[QuatF64], angle: f64) -> QuantizedRotations {
+    let (components, largest) = smallest_three(controls);
+    QuantizedRotations { smallest: Quantized::of(&components, angle / 4.0), largest }
+}
 
-/// [`rotations`] within `angle`, or within a quarter of it, and so on up to
-/// [`ROTATION_TRIES`] times, until `keeps` accepts the codes: rounding bounds each control
-/// point's move but not the curve's, whose two control points about half a turn apart are
-/// joined the other way round when rounding moves them across it.
-pub fn rotations_keeping(
-    controls: &[QuatF64],
-    angle: f64,
-    keeps: impl Fn(&QuantizedRotations) -> bool,
-) -> QuantizedRotations {
-    let mut angle = angle;
-    for _ in 1..ROTATION_TRIES {
-        let codes = rotations(controls, angle);
-        if keeps(&codes) {
-            return codes;
+/// Rotation control points in `bits` bits per component (1 to [`MAX_BITS`]).
+#[must_use]
+pub fn rotations_with_bits(controls: &[QuatF64], bits: u32) -> QuantizedRotations {
+    let (components, largest) = smallest_three(controls);
+    QuantizedRotations { smallest: Quantized::with_bits(&components, bits), largest }
+}
+
+/// The codes of the fewest bits that `fits` accepts, searched from `start` bits (a bound that
+/// usually holds): down while it still fits, else up until it does, [`MAX_BITS`] at most.
+/// Rounding bounds each control point's move, not the curve's: the curve is measured, and the
+/// bound is loose (rounding errors seldom line up) or, for two rotation control points about
+/// half a turn apart that rounding joins the other way round, too tight.
+pub fn fewest_bits<Q>(start: u32, codes: impl Fn(u32) -> Q, fits: impl Fn(&Q) -> bool) -> Q {
+    let first = codes(start);
+    if fits(&first) {
+        let mut best = first;
+        for bits in (1..start).rev() {
+            let fewer = codes(bits);
+            if !fits(&fewer) {
+                break;
+            }
+            best = fewer;
         }
-        angle /= 4.0;
+        return best;
     }
-    rotations(controls, angle)
+    (start + 1..=MAX_BITS).map(&codes).find(|c| fits(c)).unwrap_or_else(|| codes(MAX_BITS))
 }
 
 #[cfg(test)]
@@ -204,7 +227,8 @@ mod tests {
             let controls = [turn(1.2), turn(-1.2), turn(-0.5), turn(std::f64::consts::PI - 0.5 - gap), turn(2.0)];
             let same_way = |codes: &QuantizedRotations| ways(&codes.values()) == ways(&controls);
             flipped += usize::from(!same_way(&rotations(&controls, 0.05)));
-            let kept = rotations_keeping(&controls, 0.05, same_way);
+            let start = rotations(&controls, 0.05).smallest.bits;
+            let kept = fewest_bits(start, |bits| rotations_with_bits(&controls, bits), same_way);
             assert!(same_way(&kept), "gap {gap}: {:?}", kept.values());
         }
         assert!(flipped > 0, "rounding within 0.05 never joined a pair the other way round: the case tests nothing");

@@ -7,6 +7,8 @@ use super::{bake, data_dir, stderr};
 use assert_cmd::Command;
 use quatcurve::analysis::vertex_error::{pose_errors, Transform};
 use quatcurve::bake::{bvh, Animation, Property};
+use quatcurve::fit::container::Container;
+use quatcurve::fit::fitted::{Fitted, Form};
 use std::path::Path;
 
 /// CMU's BVH unit in cm.
@@ -21,15 +23,19 @@ fn fit(args: &[&str]) -> std::process::Output {
     quatcurve(&[&["fit"][..], args].concat())
 }
 
-/// The first `frames` frames of `source` as a BVH file at `path`.
-fn first_frames(source: &Path, frames: usize, path: &Path) {
+/// Every `every`th of the first `frames` frames of `source` as a BVH file at `path`.
+fn first_frames(source: &Path, frames: usize, every: usize, path: &Path) {
     let text = std::fs::read_to_string(source).unwrap();
     let (hierarchy, motion) = text.split_at(text.find("MOTION").unwrap());
-    let mut lines = motion.lines().skip(3).filter(|l| !l.trim().is_empty());
-    let frame_time = motion.lines().nth(2).unwrap();
-    let rows: Vec<&str> = lines.by_ref().take(frames).collect();
-    std::fs::write(path, format!("{hierarchy}MOTION\nFrames: {}\n{frame_time}\n{}\n", rows.len(), rows.join("\n")))
-        .unwrap();
+    let lines = motion.lines().skip(3).filter(|l| !l.trim().is_empty());
+    let frame_time: f64 = motion.lines().nth(2).unwrap().split(':').nth(1).unwrap().trim().parse().unwrap();
+    let rows: Vec<&str> = lines.take(frames).step_by(every).collect();
+    let frame_time = frame_time * every as f64;
+    std::fs::write(
+        path,
+        format!("{hierarchy}MOTION\nFrames: {}\nFrame Time: {frame_time}\n{}\n", rows.len(), rows.join("\n")),
+    )
+    .unwrap();
 }
 
 /// Each frame's local transforms: the rest pose with the clip's keys at frame `f`.
@@ -64,10 +70,33 @@ fn worst_error(source: &Animation, decoded: &Animation, distance: f64) -> f64 {
 
 #[test]
 fn a_fitted_bvh_bakes_back_to_its_frames_within_the_error_the_report_gives() {
-    let Some(data) = data_dir() else { return };
+    bakes_back_within_the_reported_error(1);
+}
+
+#[test]
+fn a_fitted_bvh_at_24_hz_keeps_keys_and_bakes_back_within_the_reported_error() {
+    let Some(container) = bakes_back_within_the_reported_error(5) else { return };
+    // Noisy frames at a low rate: keys are cheaper than a cubic, and the GPU decodes them.
+    let container = Container::from_bytes(&container).unwrap();
+    let keyed = container.clips[0]
+        .channels
+        .iter()
+        .filter(|c| {
+            matches!(&c.curve, Fitted::Rotation(s, _) if s.form == Form::Keys)
+                || matches!(&c.curve, Fitted::Vector(s, _) if s.form == Form::Keys)
+        })
+        .count();
+    assert!(keyed * 2 > container.clips[0].channels.len(), "{keyed} channels kept as keys");
+}
+
+/// The first 240 frames of CMU 131_01 at 120 Hz, every `every`th of them, fitted within 0.01
+/// cm, baked back at their rate on every device and measured from the BVH; the container's
+/// bytes.
+fn bakes_back_within_the_reported_error(every: usize) -> Option<Vec<u8>> {
+    let data = data_dir()?;
     let dir = tempfile::tempdir().unwrap();
     let source = dir.path().join("walk.bvh");
-    first_frames(&data.join("cmu_131_01.bvh"), 240, &source);
+    first_frames(&data.join("cmu_131_01.bvh"), 240, every, &source);
     let fitted = dir.path().join("fitted");
     let unit = CMU_UNIT_CM.to_string();
     let result = fit(&[
@@ -88,10 +117,11 @@ fn a_fitted_bvh_bakes_back_to_its_frames_within_the_error_the_report_gives() {
     let at_frames_cm = clip["at_frames"]["error_cm"].as_f64().unwrap();
     assert!(at_frames_cm <= 0.01, "{clip}");
     assert!(clip["between_frames"]["error_cm"].as_f64().unwrap() <= 0.3, "{clip}");
-    assert_eq!(clip["frames"], 240);
-    assert_eq!(clip["raw_bytes"].as_u64().unwrap(), 40 * 31 * 240, "ACL's raw bytes: 40 per joint per frame");
+    let frames = 240 / every;
+    assert_eq!(clip["frames"], frames);
+    assert_eq!(clip["raw_bytes"].as_u64().unwrap(), 40 * 31 * frames as u64, "ACL's raw bytes: 40 per joint per frame");
     let (raw, compressed) = (clip["raw_bytes"].as_f64().unwrap(), clip["compressed_bytes"].as_f64().unwrap());
-    assert!(raw / compressed > 8.0, "{clip}");
+    assert!(raw / compressed > 8.0 / every as f64, "{clip}");
     let container = fitted.join("walk.qcf");
     // The clip's bytes are in the container, beside the skeleton and the BVH hierarchy.
     let file_bytes = std::fs::metadata(&container).unwrap().len();
@@ -100,13 +130,14 @@ fn a_fitted_bvh_bakes_back_to_its_frames_within_the_error_the_report_gives() {
     let source_animation = bvh::read(&source).unwrap().animation("walk");
     let devices: &[&str] =
         if crate::shared_gpu().is_some() { &["cpu", "gpu", "reference"] } else { &["cpu", "reference"] };
+    let rate = (120 / every).to_string();
     for device in devices {
         let out = dir.path().join(device);
         let baked = bake(&[
             "--input",
             container.to_str().unwrap(),
             "--rate",
-            "120",
+            &rate,
             "--device",
             device,
             "--output",
@@ -116,11 +147,12 @@ fn a_fitted_bvh_bakes_back_to_its_frames_within_the_error_the_report_gives() {
         let sidecar = super::json(&out.join("walk.json"));
         assert_eq!(sidecar["curve"], "fitted-bspline", "{device}");
         let decoded = bvh::read(&out.join("walk.bvh")).unwrap();
-        assert!((decoded.frame_time - 1.0 / 120.0).abs() < 1e-12, "{device}: {}", decoded.frame_time);
+        assert!((decoded.frame_time - every as f64 / 120.0).abs() < 1e-9, "{device}: {}", decoded.frame_time);
         let again_cm = worst_error(&source_animation, &decoded.animation("walk"), 3.0 / CMU_UNIT_CM) * CMU_UNIT_CM;
         eprintln!("{device}: the decoded BVH is within {again_cm} cm; the report says {at_frames_cm} cm");
         assert!((again_cm - at_frames_cm).abs() <= 2e-5, "{device}: {again_cm} cm decoded, {at_frames_cm} reported");
     }
+    Some(std::fs::read(&container).unwrap())
 }
 
 /// A small BVH: a root that moves and turns, a child that bends, 61 frames at 30 Hz.
@@ -172,10 +204,11 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     std::fs::remove_dir(out.join("bend.qcf")).unwrap();
     // A budget no fit meets: how close the closest came, by joint and time, and what loosens it.
     // (Rounding a control point to f32 alone moves it by more than 1e-9 cm.)
-    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--max-error", "1e-9"]);
+    let tight = ["--max-error", "1e-9", "--between-error", "1e-9"];
+    let result = fit(&[&["--input", src, "--output", dst, "--unit-cm", "1"][..], &tight].concat());
     assert_eq!(result.status.code(), Some(2));
     for part in [
-        "bend.bvh: clip 'bend': no fit within --max-error 1e-9 cm at every frame and --between-error 0.3 cm between \
+        "bend.bvh: clip 'bend': no fit within --max-error 1e-9 cm at every frame and --between-error 1e-9 cm between \
          them; the closest came to ",
         " cm at frames (knee at ",
         "; a larger --between-error or --no-between-check loosens the check between frames",
