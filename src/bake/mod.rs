@@ -682,9 +682,10 @@ fn prepare_channels(
 }
 
 /// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
-/// curve family ([`crate::fit::spline_spec`]); rotations on the device, vectors here.
+/// curve family of the order they make ([`crate::fit::spline_spec`]); rotations on the device,
+/// vectors here.
 fn fitted_channel(channel: &Channel, knots: &[f64], id: TrackId, frames: &[f64]) -> Result<ChannelWork, InputError> {
-    let spec = crate::fit::spline_spec();
+    let spec = crate::fit::spline_spec(crate::fit::order_of(knots.len(), channel.values.len()));
     if channel.property == Property::Rotation {
         let track =
             Track { name: id.name, knots: Some(knots.to_vec()), rotations: channel.values.clone(), ..Track::default() };

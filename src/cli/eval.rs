@@ -70,20 +70,26 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
-    let (source, tracks, spec) = match &args.input {
+    let (source, tracks, spec, fitted) = match &args.input {
         Some(path) if super::is_container(Some(path)) => {
             let spec = container_spec(args)?;
             let (source, tracks) = super::read_container_tracks(path)?;
-            (source, tracks, spec)
+            (source, tracks, spec, true)
         }
         input => {
             let (source, tracks) = read_tracks(input.as_deref(), args.key_rate)?;
             let curve = args.curve.unwrap_or(quatcurve::DEFAULT_CURVE);
-            (source, tracks, args.options.spec(curve, KnotMode::Phantom, args.looping))
+            (source, tracks, args.options.spec(curve, KnotMode::Phantom, args.looping), false)
         }
     };
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
-    let batch = Batch::from_tracks(&tracks, &spec).map_err(input_err)?;
+    let batch = if fitted {
+        // Each fitted track's order is its own (a cubic, or keys slerped between).
+        Batch::from_tracks_each(&tracks, |i| quatcurve::fit::track_spec(&tracks[i]))
+    } else {
+        Batch::from_tracks(&tracks, &spec)
+    }
+    .map_err(input_err)?;
     let sampling = match (args.samples, args.rate) {
         (Some(n), _) => Sampling::Count(n),
         (None, rate) => Sampling::Rate(rate.unwrap_or(quatcurve::DEFAULT_RATE)),
@@ -140,10 +146,10 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A fitted container's curves are its own ([`quatcurve::fit::spline_spec`]): a curve option
-/// that would change them is refused.
+/// A fitted container's curves are its own ([`quatcurve::fit::spline_spec`], cubic or keys
+/// per channel): a curve option that would change them is refused.
 fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
-    let spec = quatcurve::fit::spline_spec();
+    let spec = quatcurve::fit::spline_spec(quatcurve::fit::ORDER);
     let refused = [
         (args.curve.is_some_and(|c| c != spec.curve), "--curve"),
         (args.options.order != spec.order, "--order"),
@@ -153,8 +159,10 @@ fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
     ];
     match refused.iter().find(|(given, _)| *given) {
         Some((_, flag)) => Err(Failure::Input(format!(
-            "{flag}: a fitted container's curves are its own ({} of order {} on its knots)",
-            spec.curve, spec.order
+            "{flag}: a fitted container's curves are its own ({} on its knots, of order {} or {} per channel)",
+            spec.curve,
+            spec.order,
+            quatcurve::fit::fitted::KEYS_ORDER
         ))),
         None => Ok(spec),
     }

@@ -21,7 +21,7 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 /// The share of a channel's tolerance the fit leaves to its control points' quantization:
 /// the fit is made within the rest, and the codes take the fewest bits whose decoded curve is
 /// within the whole.
-pub const QUANTIZATION_SHARE: f64 = 0.4;
+pub const QUANTIZATION_SHARE: f64 = 0.25;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 12;

@@ -9,17 +9,19 @@ use crate::bake::{Channel, Clip, Joint, Property};
 use crate::quat::QuatF64;
 use crate::track::Track;
 
+/// The B-spline order of a [`Form::Keys`] curve.
+pub const KEYS_ORDER: usize = 2;
+
 /// How a fitted curve passes between its knots.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Form {
     /// A clamped cubic B-spline whose knots are samples of its timeline: `knots + ORDER`
     /// control points.
     Cubic,
-    /// Some of the source's keys, slerped or lerped between as the source is (an order-2
-    /// B-spline): its knots are the kept interior keys, its control points the `knots + 2` kept
-    /// keys' values. Evaluators read it as the cubic with a triple knot at each kept key and
-    /// control points at the thirds of each segment, which is the same curve: KKS's cumulative
-    /// cubic Bernstein form with three equal steps along one arc is slerp at constant speed.
+    /// Some of the source's keys, slerped or lerped between as the source is: a clamped
+    /// B-spline of [`KEYS_ORDER`] (KKS's order 2 is slerp from each control point to the next)
+    /// whose knots are the kept interior keys and whose `knots + 2` control points are the kept
+    /// keys' values.
     Keys,
 }
 
@@ -35,7 +37,8 @@ pub struct Spline<T> {
     /// ([`Timeline::sample`]), a knot of multiplicity `m` appearing `m` times; for
     /// [`Form::Keys`] key indices ([`Timeline::key`]), each once.
     pub knots: Vec<u32>,
-    /// The curve as every evaluator reads it: a clamped cubic's knot times and control points.
+    /// The curve as every evaluator reads it: knot times and control points of a clamped
+    /// B-spline ([`Fit::order`]).
     pub fit: Fit<T>,
 }
 
@@ -59,26 +62,16 @@ impl Between for [f64; 3] {
     }
 }
 
-impl<T: Between> Spline<T> {
+impl<T> Spline<T> {
     /// The curve of `controls` in `form` on interior `knots` of `timeline` (clamped at its ends).
     pub(super) fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
         let line = &timelines[timeline];
         let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
-        let fit = match form {
-            Form::Cubic => {
-                let interior: Vec<f64> = knots.iter().map(|&s| line.sample(s as usize)).collect();
-                Fit { knots: clamped(start, end, &interior), controls, worst: 0.0, worst_at: 0 }
-            }
-            Form::Keys => {
-                let interior: Vec<f64> = knots.iter().flat_map(|&k| [line.key(k as usize); ORDER - 1]).collect();
-                let mut points = controls[..1].to_vec();
-                for pair in controls.windows(2) {
-                    let thirds = (1..ORDER - 1).map(|i| pair[0].between(pair[1], i as f64 / (ORDER - 1) as f64));
-                    points.extend(thirds.chain([pair[1]]));
-                }
-                Fit { knots: clamped(start, end, &interior), controls: points, worst: 0.0, worst_at: 0 }
-            }
+        let (order, interior): (usize, Vec<f64>) = match form {
+            Form::Cubic => (ORDER, knots.iter().map(|&s| line.sample(s as usize)).collect()),
+            Form::Keys => (KEYS_ORDER, knots.iter().map(|&k| line.key(k as usize)).collect()),
         };
+        let fit = Fit { knots: clamped(order, start, end, &interior), controls, worst: 0.0, worst_at: 0 };
         Spline { timeline, form, knots, fit }
     }
 }
@@ -165,7 +158,8 @@ impl Fitted {
                 (s.fit.knots.clone(), s.fit.controls.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect())
             }
         };
-        let greville = (0..values.len()).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / (ORDER - 1) as f64);
+        let order = super::order_of(knots.len(), values.len());
+        let greville = (0..values.len()).map(|i| knots[i + 1..i + order].iter().sum::<f64>() / (order - 1) as f64);
         Channel { joint, property, times: greville.collect(), values, knots: Some(knots) }
     }
 }
@@ -210,7 +204,7 @@ impl FittedClip {
         let track = |c: &FittedChannel| {
             let (knots, controls) = match (&c.curve, c.property) {
                 (Fitted::Constant(v), Property::Rotation) => {
-                    (clamped(self.span[0], self.span[1], &[]), vec![*v; ORDER])
+                    (clamped(ORDER, self.span[0], self.span[1], &[]), vec![*v; ORDER])
                 }
                 (Fitted::Rotation(s, _), _) => {
                     (s.fit.knots.clone(), s.fit.controls.iter().map(|q| q.to_array()).collect())
@@ -239,7 +233,7 @@ mod tests {
     use crate::quat::Vec3F64;
 
     #[test]
-    fn a_keyed_curve_is_its_keys_slerped_and_lerped_between_them_on_the_evaluators_cubic() {
+    fn a_keyed_curve_is_its_keys_slerped_and_lerped_between_them() {
         let line = Timeline::Listed(vec![0.0, 0.1, 0.25, 0.3, 0.7, 1.0]);
         // Kept keys 0, 2, 3, 5; steps up to 170 degrees between them.
         let kept = [0usize, 2, 3, 5];
@@ -252,7 +246,7 @@ mod tests {
         let knots: Vec<u32> = vec![2, 3];
         let rotations = Spline::new(std::slice::from_ref(&line), 0, Form::Keys, knots.clone(), turns.clone());
         let vectors = Spline::new(std::slice::from_ref(&line), 0, Form::Keys, knots, points.clone());
-        assert_eq!(rotations.fit.controls.len(), 3 * (kept.len() - 1) + 1);
+        assert_eq!((rotations.fit.order(), rotations.fit.controls.len()), (KEYS_ORDER, kept.len()));
         for j in 0..kept.len() - 1 {
             let (a, b) = (line.key(kept[j]), line.key(kept[j + 1]));
             let times: Vec<f64> = (0..=20).map(|i| a + (b - a) * f64::from(i) / 20.0).collect();

@@ -53,10 +53,33 @@ pub struct Fit<T> {
     pub worst_at: usize,
 }
 
-/// The curve family of every fit: a clamped B-spline of [`ORDER`] on explicit knots, open.
+/// The curve family of a fit of `order` ([`ORDER`] for a cubic, 2 for keys slerped or
+/// lerped between): a clamped B-spline on explicit knots, open.
 #[must_use]
-pub fn spline_spec() -> CurveSpec {
-    CurveSpec { curve: Curve::BSpline, order: ORDER, knots: KnotMode::Explicit, ..CurveSpec::default() }
+pub fn spline_spec(order: usize) -> CurveSpec {
+    CurveSpec { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..CurveSpec::default() }
+}
+
+/// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
+/// fitted channel's knot vector says of its curve.
+#[must_use]
+pub fn order_of(knots: usize, controls: usize) -> usize {
+    knots.saturating_sub(controls)
+}
+
+/// The spec of a fitted track of explicit knots ([`Fit::track`], a container's
+/// [`fitted::FittedClip::rotation_tracks`]): the order its knots and control points make.
+#[must_use]
+pub fn track_spec(track: &Track) -> CurveSpec {
+    spline_spec(order_of(track.knots.as_ref().map_or(0, Vec::len), track.rotations.len()))
+}
+
+impl<T> Fit<T> {
+    /// The curve's B-spline order ([`order_of`]).
+    #[must_use]
+    pub fn order(&self) -> usize {
+        order_of(self.knots.len(), self.controls.len())
+    }
 }
 
 impl Fit<QuatF64> {
@@ -68,7 +91,7 @@ impl Fit<QuatF64> {
             knots: Some(self.knots.clone()),
             ..Track::default()
         };
-        (track, spline_spec())
+        (track, spline_spec(self.order()))
     }
 
     /// The curve at `times`, by the reference evaluator.
@@ -91,16 +114,16 @@ impl Fit<[f64; 3]> {
     /// The evaluator's, for a knot vector it refuses (a fit never makes one).
     pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
         let id = TrackId { index: 0, name: None };
-        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec())?;
+        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec(self.order()))?;
         Ok(times.iter().map(|&t| curve.evaluate(t)).collect())
     }
 }
 
-/// `[start; ORDER]`, `interior`, `[end; ORDER]`.
-fn clamped(start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
-    let mut knots = vec![start; ORDER];
+/// `[start; order]`, `interior`, `[end; order]`.
+fn clamped(order: usize, start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
+    let mut knots = vec![start; order];
     knots.extend_from_slice(interior);
-    knots.extend(std::iter::repeat(end).take(ORDER));
+    knots.extend(std::iter::repeat(end).take(order));
     knots
 }
 
@@ -234,7 +257,7 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
     let (start, end) = (times[0], *times.last().unwrap());
     let mut interior = Vec::new();
     loop {
-        let knots = clamped(start, end, &interior);
+        let knots = clamped(ORDER, start, end, &interior);
         let n = knots.len() - ORDER;
         let rows = collocation(&knots, times);
         let controls =
@@ -272,7 +295,7 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -
     let mut fit: Option<Fit<QuatF64>> = None;
     let mut interior = Vec::new();
     loop {
-        let knots = clamped(start, end, &interior);
+        let knots = clamped(ORDER, start, end, &interior);
         let rows = collocation(&knots, times);
         // First guess: each control point at its Greville abscissa, on the last fit (or the
         // samples, slerped).
@@ -415,7 +438,7 @@ mod tests {
 
     #[test]
     fn the_collocation_rows_are_a_partition_of_unity_on_their_controls() {
-        let knots = clamped(0.0, 1.0, &[0.2, 0.5, 0.55]);
+        let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.55]);
         for (first, b) in collocation(&knots, &[0.0, 0.1, 0.2, 0.51, 0.99, 1.0]) {
             assert!(first + ORDER <= knots.len() - ORDER);
             assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-12 && b.iter().all(|&v| v >= -1e-15), "{b:?}");
