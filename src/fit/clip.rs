@@ -317,7 +317,7 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
     [cubic, keys]
         .into_iter()
         .map(|(form, knots, controls)| {
-            let unrounded = errors(&controls.unrounded(timelines, line, form, &knots).at(&times));
+            let unrounded = errors(&controls.unrounded_at(timelines, line, form, &knots, &times));
             let within = |curve: &Fitted| {
                 errors(&curve.at(&times))
                     .iter()
@@ -346,17 +346,18 @@ enum Controls {
 }
 
 impl Controls {
-    /// The curve they make in `form` on `knots` of a timeline, unrounded.
-    fn unrounded(&self, timelines: &[Timeline], line: usize, form: Form, knots: &[u32]) -> Fitted {
+    /// The curve they make in `form` on `knots` of a timeline, unrounded, at `times`.
+    fn unrounded_at(
+        &self,
+        timelines: &[Timeline],
+        line: usize,
+        form: Form,
+        knots: &[u32],
+        times: &[f64],
+    ) -> Vec<[f64; 4]> {
         match self {
-            Controls::Rotations(c) => {
-                let codes = quantize::rotations_with_bits(c, 1);
-                Fitted::Rotation(Spline::new(timelines, line, form, knots.to_vec(), c.clone()), codes)
-            }
-            Controls::Vectors(c) => {
-                let codes = Quantized::with_bits(c, 1);
-                Fitted::Vector(Spline::new(timelines, line, form, knots.to_vec(), c.clone()), codes)
-            }
+            Controls::Rotations(c) => Spline::new(timelines, line, form, knots.to_vec(), c.clone()).at(times),
+            Controls::Vectors(c) => Spline::new(timelines, line, form, knots.to_vec(), c.clone()).at(times),
         }
     }
 
