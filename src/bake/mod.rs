@@ -71,8 +71,9 @@ pub struct Channel {
     /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
     pub values: Vec<[f64; 4]>,
     /// A fitted channel's knots ([`crate::fit`]): then `values` are the control points of a
-    /// clamped cubic B-spline on them (the KKS cumulative form for rotations), not keys, and
-    /// `times` their Greville abscissae; `None` for keys.
+    /// clamped B-spline on them (the KKS cumulative form for rotations; its order is the knot
+    /// count less the control point count), not keys, and `times` their Greville abscissae;
+    /// `None` for keys.
     pub knots: Option<Vec<f64>>,
 }
 

@@ -23,7 +23,7 @@ pub struct EvalArgs {
     #[arg(long)]
     output: Option<PathBuf>,
     /// Curve family [default: bspline-interp, C2 and through every key; a fitted container's
-    /// own cubic B-splines for .qcf input].
+    /// own B-splines for .qcf input].
     #[arg(long, value_parser = names::<Curve>())]
     curve: Option<Curve>,
     #[arg(long = "loop", help = super::loop_help())]
