@@ -636,7 +636,9 @@ impl Reader<'_> {
             Form::Cubic => ("sample", timeline.samples() - 1, ORDER - 1, ORDER),
             Form::Keys => ("key", timeline.keys() - 1, 1, 2),
         };
-        let knots = self.knots(field, |knots, at| {
+        // Every interior place, each taken `repeats` times at most.
+        let most = (last - 1) * repeats;
+        let knots = self.knots(field, most, |knots, at| {
             if at == 0 || at >= last as u64 {
                 return Err(format!("{unit} {at} is not inside 1..{last}"));
             }
@@ -669,14 +671,22 @@ impl Reader<'_> {
 }
 
 impl Reader<'_> {
-    /// Knot indices as [`Writer::knots`] writes them, each checked by `check` (given the knots
-    /// before it and its index) before it is kept.
+    /// Knot indices as [`Writer::knots`] writes them, at most `most`, each checked by `check`
+    /// (given the knots before it and its index) before it is kept.
     fn knots(
         &mut self,
         field: &str,
+        most: usize,
         check: impl Fn(&[u32], u64) -> Result<(), String>,
     ) -> Result<Vec<u32>, ContainerError> {
-        let count = self.count(&format!("{field} knot count"), 0)?;
+        let name = format!("{field} knot count");
+        let start = self.at;
+        // Deltas of width 0 take no bytes: the count is held to the knots the curve can have
+        // before anything is allocated for them.
+        let count = self.count(&name, 0)?;
+        if count > most {
+            return Err(self.bad_at(start, &name, format!("{count} knots; its timeline has room for {most}")));
+        }
         if count == 0 {
             return Ok(Vec::new());
         }
@@ -827,6 +837,17 @@ mod tests {
             unpack_codes(&packed[..packed.len() - 2], codes.len(), bits).unwrap_err(),
             format!("the packed codes end before control point {}", codes.len())
         );
+    }
+
+    #[test]
+    fn a_knot_count_of_zero_width_deltas_is_held_to_the_room_before_any_allocation() {
+        // 2^40 knots at width 0 would take no bytes at all.
+        let mut out = Writer::default();
+        out.count(1 << 40);
+        out.u8(0);
+        let mut r = Reader { bytes: &out.bytes, at: 0 };
+        let e = r.knots("channel 0", 10, |_, _| Ok(())).unwrap_err();
+        assert_eq!(e.to_string(), "byte 0: channel 0 knot count: 1099511627776 knots; its timeline has room for 10");
     }
 
     #[test]
