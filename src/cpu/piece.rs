@@ -180,7 +180,10 @@ pub(super) fn inv_step(view: TrackView<'_>) -> f64 {
     }
 }
 
-/// `locate`, first trying the previous span and the next (sample times usually increase);
+/// Spans [`locate_from`] steps through before it searches.
+const SCAN_AHEAD: usize = 4;
+
+/// `locate`, first trying the previous span and the next few (sample times usually increase);
 /// on equally spaced knots (`inv_step` their inverse spacing, else 0) by arithmetic, else by
 /// bisection. Short tracks land on a new span at almost every sample.
 #[inline(always)]
@@ -196,11 +199,20 @@ pub(super) fn locate_from(
     if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
         return (h, t);
     }
-    // Or the next one.
-    let h = h + 1;
-    if h >= first && h <= last && knots[h] <= t && t < knots[h + 1] {
-        *hint = h;
-        return (h, t);
+    // Or one of the next few: on a knot every frame, a sample that rounding put just before
+    // a knot is followed by one two spans on.
+    if h >= first && knots[h] <= t {
+        let mut h = h;
+        for _ in 0..SCAN_AHEAD {
+            h += 1;
+            if h > last {
+                break;
+            }
+            if t < knots[h + 1] {
+                *hint = h;
+                return (h, t);
+            }
+        }
     }
     let (span, t) =
         if inv_step > 0.0 { locate_uniform(knots, first, last, t, inv_step) } else { locate(knots, first, last, t) };
@@ -331,7 +343,7 @@ impl Piece<'_> {
             }
             TrackTimes::Explicit { .. } => None,
         };
-        // The knot constants of the last span Cox-de Boor needed.
+        // The knot constants of the last group's spans.
         let mut cox_de_boor = CoxDeBoor::new(F + 1);
         // The segment the last shared group was on, and its `start * (axis_0, 0)`.
         let mut shared_segment: Option<(Segment<F>, [f32; 4])> = None;
@@ -361,19 +373,28 @@ impl Piece<'_> {
                 }
                 (S::new(u), S::splat(inv_len as f32))
             } else {
+                // Neighbouring lanes mostly share a span: its rows are read once.
+                let mut read: Option<(usize, ([f32; 4], [[f32; 4]; F]))> = None;
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane], inv_step);
                     (spans[lane], t[lane]) = (span, tl);
-                    lanes.set(lane, tl, [knots[span], knots[span + 1]], segments.rows::<F>(self.shared, span));
+                    let rows = match read {
+                        Some((s, rows)) if s == span => rows,
+                        _ => read.insert((span, segments.rows::<F>(self.shared, span))).1,
+                    };
+                    lanes.set(lane, tl, [knots[span], knots[span + 1]], rows);
                 }
-                lanes.params::<S>()
+                // Cox-de Boor takes the times themselves.
+                if matches!(self.basis, Basis::CoxDeBoor) {
+                    (S::ZERO, S::ZERO)
+                } else {
+                    lanes.params::<S>()
+                }
             };
             match self.basis {
                 Basis::Poly(poly) => poly.eval::<S, F>(u, DERIVATIVES, &mut jets),
                 Basis::Bernstein => bernstein_cumulative_lanes::<S, F>(u, &mut jets),
-                Basis::CoxDeBoor => {
-                    cox_de_boor_jets::<S, F, DERIVATIVES>(knots, &spans, &t, shared, &mut cox_de_boor, &mut jets)
-                }
+                Basis::CoxDeBoor => cox_de_boor.jets::<S, F, DERIVATIVES>(knots, &spans, &t, &mut jets),
             }
             // The span-parameter bases have derivatives in u; Cox-de Boor's are in time.
             if DERIVATIVES && !matches!(self.basis, Basis::CoxDeBoor) {
@@ -427,46 +448,6 @@ impl Piece<'_> {
             }
         }
         t
-    }
-}
-
-/// Cox-de Boor basis jets of a group at times `t` in spans `spans`: once per distinct span
-/// among the lanes (one, or two where the group straddles a knot), lanes of other spans
-/// blended out; `cox_de_boor` keeps the last span's constants across groups.
-#[inline(always)]
-fn cox_de_boor_jets<S: Lanes, const F: usize, const DERIVATIVES: bool>(
-    knots: &[f64],
-    spans: &[usize; LANES],
-    t: &[f64; LANES],
-    shared: bool,
-    cox_de_boor: &mut CoxDeBoor,
-    jets: &mut [[S; 3]; F],
-) {
-    let mut done = [false; LANES];
-    for lane in 0..LANES {
-        if done[lane] {
-            continue;
-        }
-        let span = spans[lane];
-        if shared {
-            cox_de_boor.jets::<S, F, DERIVATIVES>(knots, span, t, jets);
-            return;
-        }
-        let mut these = [[S::ZERO; 3]; F];
-        cox_de_boor.jets::<S, F, DERIVATIVES>(knots, span, t, &mut these);
-        let mut mask = [0.0f32; LANES];
-        for (l, m) in mask.iter_mut().enumerate() {
-            if spans[l] == span {
-                *m = f32::from_bits(u32::MAX);
-                done[l] = true;
-            }
-        }
-        let mask = S::new(mask);
-        for (jet, this) in jets.iter_mut().zip(&these) {
-            for d in 0..3 {
-                jet[d] = mask.blend(this[d], jet[d]);
-            }
-        }
     }
 }
 

@@ -349,3 +349,47 @@ fn short_tracks_sharing_simd_groups_give_the_bits_they_give_alone() {
     }
     worst.assert_within_bars("cpu: short tracks sharing SIMD groups");
 }
+
+/// Fitted curves have a knot every frame or two, so a group of eight samples straddles
+/// several spans, each lane with its own knot constants, and samples on a frame grid land on
+/// knots (rounding puts some just before one, so the next skips a span). Orders 2 to 8 on
+/// knots 1/120 s apart, some repeated up to k - 1 times, sampled at 120 Hz (on the knots),
+/// 47 Hz (several spans skipped per sample) and 400 Hz, with and without derivatives.
+#[test]
+fn knots_denser_than_the_samples_match_the_reference() {
+    use quatcurve::Curve;
+    let mut all = Worst::default();
+    for (seed, order) in [2usize, 3, 4, 6, 8].into_iter().enumerate() {
+        let mut g = Gen::new(40 + seed as u64);
+        let spec = CurveSpec { order, knots: KnotMode::Explicit, ..CurveSpec::new(Curve::BSpline) };
+        let count = 240;
+        let mut track = accurate_track(&mut g, &spec, count, Kind::Random);
+        let mut knots = vec![0.0; order];
+        let mut frame = 0;
+        while knots.len() < count {
+            frame += 1;
+            let repeats = if g.range(0.0, 1.0) < 0.1 { 1 + (g.next_u64() % (order as u64 - 1)) as usize } else { 1 };
+            knots.extend(std::iter::repeat(f64::from(frame) / 120.0).take(repeats.min(count - knots.len())));
+        }
+        knots.extend(std::iter::repeat(f64::from(frame + 1) / 120.0).take(order));
+        track.knots = Some(knots);
+        let mut builder = quatcurve::BatchBuilder::new();
+        builder.add(&track, &spec).unwrap();
+        let batch = builder.build().unwrap();
+        for rate in [120.0, 47.0, 400.0] {
+            let times = SampleTimes::uniform(&batch, Sampling::Rate(rate)).unwrap();
+            for derivatives in [false, true] {
+                let label = format!("order {order} at {rate} Hz derivatives={derivatives}");
+                all.merge(compare_output(
+                    &on_cpu(&batch, &times, Layout::Track, derivatives),
+                    &batch,
+                    &times,
+                    Layout::Track,
+                    derivatives,
+                    &label,
+                ));
+            }
+        }
+    }
+    all.assert_within_bars("cpu: knots denser than the samples");
+}
