@@ -106,6 +106,13 @@ impl CurveSpec {
         Self { curve, ..Self::default() }
     }
 
+    /// An open B-spline of `order` on explicit knots: the curve of a fitted channel
+    /// ([`crate::batch::BatchBuilder::add_spline`]).
+    #[must_use]
+    pub fn open_bspline(order: usize) -> Self {
+        Self { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..Self::default() }
+    }
+
     /// Whether this spec can loop (DESIGN section 3, "Loops"): Bezier and B-splines on
     /// uniform, clamped or explicit knots cannot.
     #[must_use]

@@ -3,10 +3,12 @@
 //! a knot vector between consecutive tracks keyed at the same times.
 
 use super::families::{prepare_all, PackedData};
-use super::knots::knots_are_uniform;
+use super::keys::{check_key_count, push_aligned};
+use super::knots::{check_explicit_knots, check_order, knots_are_uniform};
 use super::{Batch, PackedTrack};
-use crate::curve::CurveSpec;
+use crate::curve::{Curve, CurveSpec};
 use crate::error::{Error, Result, TrackId};
+use crate::quat::relative_log;
 use crate::track::Track;
 
 /// Tracks [`BatchBuilder::extend`] prepares at once.
@@ -34,6 +36,16 @@ impl BatchBuilder {
         Self::default()
     }
 
+    /// An empty builder on `batch`'s arrays, its tracks dropped: one that builds batch after
+    /// batch (a decoder baking clip after clip) writes into pages it already touched.
+    #[must_use]
+    pub fn reusing(mut batch: Batch) -> Self {
+        batch.first_index = 0;
+        let mut builder = Self { batch };
+        builder.truncate(0, [0; 3]);
+        builder
+    }
+
     /// Validates `track` for `spec` and appends it; returns its index in the batch.
     ///
     /// # Errors
@@ -43,6 +55,65 @@ impl BatchBuilder {
         let id = TrackId { index, name: track.name.clone() };
         let packed = prepare_all(&[(id, track, *spec)]).pop().expect("one track in, one out")?;
         self.append_all(std::slice::from_ref(track), |_| *spec, &[packed]);
+        Ok(index)
+    }
+
+    /// Validates and appends an open B-spline given as evaluators read it: control points
+    /// `points` on the knot vector `knots`, of the order their counts make
+    /// ([`CurveSpec::open_bspline`] of `knots.len() - points.len()`), checked as a [`Track`]
+    /// with explicit knots is and packed as it would be. Straight into the packed arrays, with
+    /// no track and no copy per step: a fitted container's channels built through tracks cost
+    /// more than evaluating them. Returns the track's index in the batch.
+    ///
+    /// # Errors
+    /// As [`BatchBuilder::add`] for that track; the builder is unchanged then.
+    pub fn add_spline(&mut self, name: Option<&str>, points: &[[f64; 4]], knots: &[f64]) -> Result<usize> {
+        let b = &mut self.batch;
+        let index = b.tracks.len();
+        let id = TrackId { index, name: name.map(str::to_owned) };
+        let order = knots.len().saturating_sub(points.len());
+        let spec = CurveSpec::open_bspline(order);
+        let (point_offset, coef_offset) = (b.points.len(), b.coefs.len());
+        let checked = check_key_count(&id, &spec, points.len())
+            .and_then(|()| push_aligned(&id, points, &mut b.points))
+            .and_then(|()| check_order(&id, order))
+            .and_then(|()| check_explicit_knots(&id, knots, order, points.len() - 1));
+        if let Err(e) = checked {
+            b.points.truncate(point_offset);
+            return Err(e);
+        }
+        let steps = b.points[point_offset..].windows(2).map(|w| {
+            let v = relative_log(w[0], w[1]);
+            [v.x, v.y, v.z, 0.0]
+        });
+        b.coefs.extend(steps);
+        // Shared with the last track's knots when equal, as `append_all` shares them.
+        let shared = b
+            .tracks
+            .last()
+            .filter(|last| b.knots[last.knot_offset..][..last.knot_count] == *knots)
+            .map(|last| (last.knot_offset, last.uniform_knots));
+        let (knot_offset, uniform_knots) = shared.unwrap_or_else(|| {
+            b.knots.extend_from_slice(knots);
+            (b.knots.len() - knots.len(), knots_are_uniform(knots))
+        });
+        let last = points.len() - 1;
+        b.tracks.push(PackedTrack {
+            curve: Curve::BSpline,
+            order,
+            bezier_degree: 0,
+            blend: spec.blend,
+            point_offset,
+            point_count: points.len(),
+            coef_offset,
+            coef_count: last,
+            knot_offset,
+            knot_count: knots.len(),
+            domain: [knots[order - 1], knots[last + 1]],
+            looping: false,
+            uniform_knots,
+        });
+        b.names.push(name);
         Ok(index)
     }
 

@@ -37,19 +37,32 @@ pub(super) fn curve_label(spec: &CurveSpec) -> String {
 
 /// Normalizes keys and makes them sign-continuous (DESIGN section 1).
 pub(super) fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<QuatF64>> {
-    let min = spec.min_keys();
-    if rotations.len() < min {
-        return Err(Error::TooFewKeys { track: id.clone(), curve: curve_label(spec), min, found: rotations.len() });
-    }
+    check_key_count(id, spec, rotations.len())?;
     let mut keys: Vec<QuatF64> = Vec::with_capacity(rotations.len());
+    push_aligned(id, rotations, &mut keys)?;
+    Ok(keys)
+}
+
+/// At least the keys `spec` needs.
+pub(super) fn check_key_count(id: &TrackId, spec: &CurveSpec, found: usize) -> Result<()> {
+    let min = spec.min_keys();
+    if found < min {
+        return Err(Error::TooFewKeys { track: id.clone(), curve: curve_label(spec), min, found });
+    }
+    Ok(())
+}
+
+/// Appends `rotations` to `out`, normalized, each in the hemisphere of the one before it (the
+/// first as it is); on an error, `out` keeps the keys before the bad one.
+pub(super) fn push_aligned(id: &TrackId, rotations: &[[f64; 4]], out: &mut Vec<QuatF64>) -> Result<()> {
+    let mut prev: Option<QuatF64> = None;
     for (key, &value) in rotations.iter().enumerate() {
         let q = normalized_key(id, key, value)?;
-        keys.push(match keys.last() {
-            Some(&prev) => q.aligned_with(prev),
-            None => q,
-        });
+        let q = prev.map_or(q, |prev| q.aligned_with(prev));
+        out.push(q);
+        prev = Some(q);
     }
-    Ok(keys)
+    Ok(())
 }
 
 /// Key `key` of track `id` as a unit quaternion: finite and not (near) zero. The one check of

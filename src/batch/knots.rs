@@ -56,12 +56,7 @@ pub(crate) fn bspline_knots(
     times: &[f64],
 ) -> Result<Vec<f64>> {
     let k = spec.order;
-    if !(MIN_ORDER..=MAX_ORDER).contains(&k) {
-        return Err(Error::BadOrder {
-            track: id.clone(),
-            reason: format!("bspline order {k} is outside {MIN_ORDER}..={MAX_ORDER}"),
-        });
-    }
+    check_order(id, k)?;
     let n = times.len() - 1;
     let (t0, tn) = (times[0], times[n]);
     Ok(match spec.knots {
@@ -89,15 +84,30 @@ pub(crate) fn bspline_knots(
             knots.extend(std::iter::repeat(tn).take(k));
             knots
         }
-        KnotMode::Explicit => explicit_knots(id, explicit, k, n)?,
+        KnotMode::Explicit => {
+            let knots = explicit.unwrap_or(&[]);
+            check_explicit_knots(id, knots, k, n)?;
+            knots.to_vec()
+        }
     })
 }
 
-/// Validates a user knot vector: length n + k + 1, finite, non-decreasing, multiplicity at most
-/// k - 1 strictly inside the domain and at most k elsewhere, non-empty domain.
-fn explicit_knots(id: &TrackId, knots: Option<&[f64]>, k: usize, n: usize) -> Result<Vec<f64>> {
+/// A B-spline order within [`MIN_ORDER`]`..=`[`MAX_ORDER`].
+pub(super) fn check_order(id: &TrackId, k: usize) -> Result<()> {
+    if !(MIN_ORDER..=MAX_ORDER).contains(&k) {
+        return Err(Error::BadOrder {
+            track: id.clone(),
+            reason: format!("bspline order {k} is outside {MIN_ORDER}..={MAX_ORDER}"),
+        });
+    }
+    Ok(())
+}
+
+/// Validates a user knot vector for `n + 1` control points of order `k`: length n + k + 1,
+/// finite, non-decreasing, multiplicity at most k - 1 strictly inside the domain and at most k
+/// elsewhere, non-empty domain.
+pub(super) fn check_explicit_knots(id: &TrackId, knots: &[f64], k: usize, n: usize) -> Result<()> {
     let expected = n + k + 1;
-    let knots = knots.unwrap_or(&[]);
     if knots.len() != expected {
         return Err(Error::KnotCount { track: id.clone(), order: k, keys: n + 1, expected, found: knots.len() });
     }
@@ -135,5 +145,5 @@ fn explicit_knots(id: &TrackId, knots: Option<&[f64]>, k: usize, n: usize) -> Re
         }
         run_start = knot;
     }
-    Ok(knots.to_vec())
+    Ok(())
 }

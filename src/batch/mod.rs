@@ -382,4 +382,71 @@ mod tests {
         assert_eq!(subset.names.len(), 2);
         assert_eq!([subset.id(0), subset.id(1)], [id(2, None), id(3, Some("dé"))]);
     }
+
+    /// A spline added as control points and knots packs as the same track with explicit knots
+    /// does: unnormalized and sign-flipped points, orders 2 and 4, knots shared with the track
+    /// before when equal, a reused builder; and every broken rule is the same error, naming
+    /// the same track and key, with the builder left as it was.
+    #[test]
+    fn a_spline_packs_and_fails_as_its_track_does() {
+        use crate::curve::CurveSpec;
+        let point = |i: usize| {
+            let a = 0.3 * i as f64;
+            let sign = if i % 3 == 1 { -2.0 } else { 0.5 };
+            [sign * a.sin() * 0.6, sign * a.cos() * 0.3, sign * 0.1, sign * (1.0 + a).cos()]
+        };
+        let points: Vec<[f64; 4]> = (0..7).map(point).collect();
+        let cubic = vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 1.5, 2.0, 2.0, 2.0, 2.0];
+        let keys = vec![0.0, 0.0, 0.25, 0.5, 1.0, 1.5, 1.75, 2.0, 2.0];
+        let inputs = [(Some("a"), &cubic), (Some("b"), &cubic), (None, &keys)];
+        let track = |(name, knots): (Option<&str>, &Vec<f64>)| Track {
+            name: name.map(str::to_owned),
+            knots: Some(knots.clone()),
+            rotations: points.clone(),
+            ..Track::default()
+        };
+        let tracks: Vec<Track> = inputs.iter().map(|&(n, k)| track((n, k))).collect();
+        let want = super::Batch::from_tracks_each(&tracks, |i| {
+            CurveSpec::open_bspline(tracks[i].knots.as_ref().unwrap().len() - points.len())
+        })
+        .unwrap();
+        let mut builder = BatchBuilder::reusing(want.clone());
+        for &(name, knots) in &inputs {
+            builder.add_spline(name, &points, knots).unwrap();
+        }
+        let got = builder.build().unwrap();
+        assert_eq!(got, want);
+        assert_eq!(got.knots().len(), cubic.len() + keys.len(), "the second cubic shares the first's knots");
+
+        let mut bad_point = points.clone();
+        bad_point[4] = [0.0; 4];
+        let mut decreasing = cubic.clone();
+        decreasing[5] = 0.25;
+        let mut repeated = keys.clone();
+        repeated[3] = 0.25;
+        for (points, knots) in [
+            (&bad_point, &cubic),
+            (&points, &decreasing),
+            (&points, &repeated),
+            (&points, &cubic[..10].to_vec()),
+            (&points[..2].to_vec(), &vec![0.0, 1.0, 2.0]),
+            (&points[..3].to_vec(), &vec![0.0; 12]),
+        ] {
+            let spec = CurveSpec::open_bspline(knots.len().saturating_sub(points.len()));
+            let track = Track {
+                name: Some("t".into()),
+                knots: Some(knots.clone()),
+                rotations: points.clone(),
+                ..Track::default()
+            };
+            let mut builder = BatchBuilder::new();
+            builder.add(&tracks[0], &CurveSpec::open_bspline(4)).unwrap();
+            let want = builder.add(&track, &spec).unwrap_err();
+            assert_eq!(builder.add_spline(Some("t"), points, knots).unwrap_err(), want);
+            assert_eq!(
+                builder.build().unwrap(),
+                super::Batch::from_tracks_each(&tracks[..1], |_| CurveSpec::open_bspline(4)).unwrap()
+            );
+        }
+    }
 }

@@ -22,7 +22,7 @@ pub mod timeline;
 
 use crate::basis::bspline_cumulative;
 use crate::batch::BatchBuilder;
-use crate::curve::{Curve, CurveSpec, KnotMode};
+use crate::curve::CurveSpec;
 use crate::error::TrackId;
 use crate::euclidean::VectorCurve;
 use crate::quat::{QuatF64, Vec3F64};
@@ -57,7 +57,7 @@ pub struct Fit<T> {
 /// lerped between): a clamped B-spline on explicit knots, open.
 #[must_use]
 pub fn spline_spec(order: usize) -> CurveSpec {
-    CurveSpec { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..CurveSpec::default() }
+    CurveSpec::open_bspline(order)
 }
 
 /// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
