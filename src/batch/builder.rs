@@ -3,7 +3,7 @@
 //! a knot vector between consecutive tracks keyed at the same times.
 
 use super::families::{prepare_all, PackedData};
-use super::keys::{check_key_count, push_aligned};
+use super::keys::{aligned, check_key_count};
 use super::knots::{check_explicit_knots, check_order, knots_are_uniform};
 use super::{Batch, PackedTrack};
 use crate::curve::{Curve, CurveSpec};
@@ -16,6 +16,18 @@ pub(super) const EXTEND_CHUNK: usize = 1 << 14;
 
 /// Tracks one core prepares together (a multiple of the solve's four lanes).
 const LANE_GROUP: usize = 64;
+
+/// An open B-spline as evaluators read it ([`BatchBuilder::extend_splines`]): its name, its
+/// control points and its knot vector.
+#[derive(Clone, Copy, Debug)]
+pub struct Spline<'a> {
+    /// For messages, as a track's name.
+    pub name: Option<&'a str>,
+    /// Control points `x, y, z, w` (normalized and made sign-continuous as keys are).
+    pub points: &'a [[f64; 4]],
+    /// The knot vector: `points.len() + k` knots for order `k`.
+    pub knots: &'a [f64],
+}
 
 /// Builds a [`Batch`] track by track or slice by slice; tracks may use different curve specs.
 #[derive(Debug)]
@@ -59,62 +71,128 @@ impl BatchBuilder {
     }
 
     /// Validates and appends an open B-spline given as evaluators read it: control points
-    /// `points` on the knot vector `knots`, of the order their counts make
-    /// ([`CurveSpec::open_bspline`] of `knots.len() - points.len()`), checked as a [`Track`]
-    /// with explicit knots is and packed as it would be. Straight into the packed arrays, with
-    /// no track and no copy per step: a fitted container's channels built through tracks cost
-    /// more than evaluating them. Returns the track's index in the batch.
+    /// `points` on the knot vector `knots` ([`BatchBuilder::extend_splines`] of one).
     ///
     /// # Errors
     /// As [`BatchBuilder::add`] for that track; the builder is unchanged then.
     pub fn add_spline(&mut self, name: Option<&str>, points: &[[f64; 4]], knots: &[f64]) -> Result<usize> {
+        self.extend_splines(&[Spline { name, points, knots }]).map(|range| range.start)
+    }
+
+    /// Validates and appends open B-splines given as evaluators read them, each of the order
+    /// its counts make ([`CurveSpec::open_bspline`] of `knots.len() - points.len()`), checked
+    /// as a [`Track`] with explicit knots is and packed as it would be, on every core. Straight
+    /// into the packed arrays, with no track and no copy per step: a fitted container's
+    /// channels built through tracks cost more than evaluating them. Returns their indices.
+    ///
+    /// # Errors
+    /// As [`BatchBuilder::extend`] for those tracks (the first rule broken, in slice order);
+    /// the builder is unchanged then.
+    pub fn extend_splines(&mut self, splines: &[Spline<'_>]) -> Result<std::ops::Range<usize>> {
+        use rayon::prelude::*;
         let b = &mut self.batch;
-        let index = b.tracks.len();
-        let id = TrackId { index, name: name.map(str::to_owned) };
-        let order = knots.len().saturating_sub(points.len());
-        let spec = CurveSpec::open_bspline(order);
-        let (point_offset, coef_offset) = (b.points.len(), b.coefs.len());
-        let checked = check_key_count(&id, &spec, points.len())
-            .and_then(|()| push_aligned(&id, points, &mut b.points))
-            .and_then(|()| check_order(&id, order))
-            .and_then(|()| check_explicit_knots(&id, knots, order, points.len() - 1));
-        if let Err(e) = checked {
-            b.points.truncate(point_offset);
-            return Err(e);
+        let first = b.tracks.len();
+        // Where each goes, and which knots it shares with the track before it (as `append_all`
+        // shares them): decided in order, before any work.
+        let mut last_knots: Option<&[f64]> = b.tracks.last().map(|t| &b.knots[t.knot_offset..][..t.knot_count]);
+        let mut own = Vec::with_capacity(splines.len());
+        for spline in splines {
+            own.push(last_knots != Some(spline.knots));
+            last_knots = Some(spline.knots);
         }
-        let steps = b.points[point_offset..].windows(2).map(|w| {
-            let v = relative_log(w[0], w[1]);
-            [v.x, v.y, v.z, 0.0]
+        let lengths = |s: &Spline<'_>, own: bool| {
+            [s.points.len(), s.points.len().saturating_sub(1), if own { s.knots.len() } else { 0 }]
+        };
+        let totals = splines.iter().zip(&own).fold([0; 3], |sum, (s, &own)| {
+            let [p, c, k] = lengths(s, own);
+            [sum[0] + p, sum[1] + c, sum[2] + k]
         });
-        b.coefs.extend(steps);
-        // Shared with the last track's knots when equal, as `append_all` shares them.
-        let shared = b
-            .tracks
-            .last()
-            .filter(|last| b.knots[last.knot_offset..][..last.knot_count] == *knots)
-            .map(|last| (last.knot_offset, last.uniform_knots));
-        let (knot_offset, uniform_knots) = shared.unwrap_or_else(|| {
-            b.knots.extend_from_slice(knots);
-            (b.knots.len() - knots.len(), knots_are_uniform(knots))
-        });
-        let last = points.len() - 1;
-        b.tracks.push(PackedTrack {
-            curve: Curve::BSpline,
-            order,
-            bezier_degree: 0,
-            blend: spec.blend,
-            point_offset,
-            point_count: points.len(),
-            coef_offset,
-            coef_count: last,
-            knot_offset,
-            knot_count: knots.len(),
-            domain: [knots[order - 1], knots[last + 1]],
-            looping: false,
-            uniform_knots,
-        });
-        b.names.push(name);
-        Ok(index)
+        b.points.reserve(totals[0]);
+        b.coefs.reserve(totals[1]);
+        b.knots.reserve(totals[2]);
+        let (mut points, mut coefs, mut knots) = (
+            &mut b.points.spare_capacity_mut()[..totals[0]],
+            &mut b.coefs.spare_capacity_mut()[..totals[1]],
+            &mut b.knots.spare_capacity_mut()[..totals[2]],
+        );
+        let mut slots = Vec::with_capacity(splines.len());
+        for (s, &own) in splines.iter().zip(&own) {
+            let [p, c, k] = lengths(s, own);
+            let (these, rest) = std::mem::take(&mut points).split_at_mut(p);
+            points = rest;
+            let (their_coefs, rest) = std::mem::take(&mut coefs).split_at_mut(c);
+            coefs = rest;
+            let (their_knots, rest) = std::mem::take(&mut knots).split_at_mut(k);
+            knots = rest;
+            slots.push((these, their_coefs, their_knots));
+        }
+        let checked: Vec<Result<()>> = splines
+            .par_iter()
+            .zip(slots)
+            .enumerate()
+            .with_min_len(8)
+            .map(|(i, (spline, (points, coefs, knots)))| {
+                let id = TrackId { index: first + i, name: spline.name.map(str::to_owned) };
+                let order = spline.knots.len().saturating_sub(spline.points.len());
+                check_key_count(&id, &CurveSpec::open_bspline(order), spline.points.len())?;
+                let mut prev = None;
+                for (j, q) in aligned(&id, spline.points).enumerate() {
+                    let q = q?;
+                    points[j].write(q);
+                    if let Some(prev) = prev {
+                        let v = relative_log(prev, q);
+                        coefs[j - 1].write([v.x, v.y, v.z, 0.0]);
+                    }
+                    prev = Some(q);
+                }
+                check_order(&id, order)?;
+                check_explicit_knots(&id, spline.knots, order, spline.points.len() - 1)?;
+                for (slot, &knot) in knots.iter_mut().zip(spline.knots) {
+                    slot.write(knot);
+                }
+                Ok(())
+            })
+            .collect();
+        checked.into_iter().collect::<Result<()>>()?;
+        // SAFETY: the slots split the first `totals` spare elements of each array into the
+        // splines' lengths, and every spline that checked (all of them, here) wrote every
+        // element of its slots: each point, a step between each two, its own knots.
+        unsafe {
+            b.points.set_len(b.points.len() + totals[0]);
+            b.coefs.set_len(b.coefs.len() + totals[1]);
+            b.knots.set_len(b.knots.len() + totals[2]);
+        }
+        let (mut point_offset, mut coef_offset) = (b.points.len() - totals[0], b.coefs.len() - totals[1]);
+        let mut knot_at = b.knots.len() - totals[2];
+        for (spline, &own) in splines.iter().zip(&own) {
+            let (knot_offset, uniform_knots) = match b.tracks.last() {
+                Some(last) if !own => (last.knot_offset, last.uniform_knots),
+                _ => {
+                    knot_at += spline.knots.len();
+                    (knot_at - spline.knots.len(), knots_are_uniform(spline.knots))
+                }
+            };
+            let (order, last) = (spline.knots.len() - spline.points.len(), spline.points.len() - 1);
+            b.tracks.push(PackedTrack {
+                curve: Curve::BSpline,
+                order,
+                bezier_degree: 0,
+                blend: CurveSpec::open_bspline(order).blend,
+                point_offset,
+                point_count: spline.points.len(),
+                coef_offset,
+                coef_count: last,
+                knot_offset,
+                knot_count: spline.knots.len(),
+                domain: [spline.knots[order - 1], spline.knots[last + 1]],
+                looping: false,
+                uniform_knots,
+            });
+            b.names.push(spline.name);
+            point_offset += spline.points.len();
+            coef_offset += last;
+        }
+        Ok(first..b.tracks.len())
     }
 
     /// Validates and appends `tracks`, track `i` of the slice with curve `spec(i)`, preparing

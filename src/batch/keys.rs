@@ -38,9 +38,7 @@ pub(super) fn curve_label(spec: &CurveSpec) -> String {
 /// Normalizes keys and makes them sign-continuous (DESIGN section 1).
 pub(super) fn aligned_keys(id: &TrackId, rotations: &[[f64; 4]], spec: &CurveSpec) -> Result<Vec<QuatF64>> {
     check_key_count(id, spec, rotations.len())?;
-    let mut keys: Vec<QuatF64> = Vec::with_capacity(rotations.len());
-    push_aligned(id, rotations, &mut keys)?;
-    Ok(keys)
+    aligned(id, rotations).collect()
 }
 
 /// At least the keys `spec` needs.
@@ -52,17 +50,16 @@ pub(super) fn check_key_count(id: &TrackId, spec: &CurveSpec, found: usize) -> R
     Ok(())
 }
 
-/// Appends `rotations` to `out`, normalized, each in the hemisphere of the one before it (the
-/// first as it is); on an error, `out` keeps the keys before the bad one.
-pub(super) fn push_aligned(id: &TrackId, rotations: &[[f64; 4]], out: &mut Vec<QuatF64>) -> Result<()> {
+/// `rotations` normalized, each in the hemisphere of the one before it (the first as it is);
+/// a bad key is its error in its place.
+pub(super) fn aligned<'a>(id: &'a TrackId, rotations: &'a [[f64; 4]]) -> impl Iterator<Item = Result<QuatF64>> + 'a {
     let mut prev: Option<QuatF64> = None;
-    for (key, &value) in rotations.iter().enumerate() {
+    rotations.iter().enumerate().map(move |(key, &value)| {
         let q = normalized_key(id, key, value)?;
         let q = prev.map_or(q, |prev| q.aligned_with(prev));
-        out.push(q);
         prev = Some(q);
-    }
-    Ok(())
+        Ok(q)
+    })
 }
 
 /// Key `key` of track `id` as a unit quaternion: finite and not (near) zero. The one check of

@@ -129,19 +129,22 @@ pub(super) fn check_explicit_knots(id: &TrackId, knots: &[f64], k: usize, n: usi
             continue;
         }
         let multiplicity = knot - run_start;
-        let value = knots[run_start];
-        let inside = value > start && value < end;
-        let (max, place) = if inside { (k - 1, "inside the domain") } else { (k, "at or outside the domain ends") };
-        if multiplicity > max {
-            return Err(Error::KnotMultiplicity {
-                track: id.clone(),
-                knot: run_start,
-                value,
-                multiplicity,
-                max,
-                order: k,
-                place,
-            });
+        // A knot on its own is within every bound (k - 1 >= 1): only runs are looked at.
+        if multiplicity > 1 {
+            let value = knots[run_start];
+            let inside = value > start && value < end;
+            let (max, place) = if inside { (k - 1, "inside the domain") } else { (k, "at or outside the domain ends") };
+            if multiplicity > max {
+                return Err(Error::KnotMultiplicity {
+                    track: id.clone(),
+                    knot: run_start,
+                    value,
+                    multiplicity,
+                    max,
+                    order: k,
+                    place,
+                });
+            }
         }
         run_start = knot;
     }

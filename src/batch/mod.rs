@@ -30,7 +30,7 @@ mod families;
 mod keys;
 mod knots;
 
-pub use builder::BatchBuilder;
+pub use builder::{BatchBuilder, Spline};
 pub use families::MIN_TURN_AXIS;
 pub(crate) use families::{catmull_rom_velocities, squad_points};
 pub(crate) use keys::{key_times, normalized_key};
@@ -345,7 +345,7 @@ pub struct TrackView<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::{BatchBuilder, TrackId};
+    use super::{BatchBuilder, Spline, TrackId};
     use crate::curve::{Curve, CurveSpec};
     use crate::track::Track;
 
@@ -417,6 +417,11 @@ mod tests {
         let got = builder.build().unwrap();
         assert_eq!(got, want);
         assert_eq!(got.knots().len(), cubic.len() + keys.len(), "the second cubic shares the first's knots");
+        let splines: Vec<Spline<'_>> =
+            inputs.iter().map(|&(name, knots)| Spline { name, points: &points, knots }).collect();
+        let mut builder = BatchBuilder::new();
+        assert_eq!(builder.extend_splines(&splines).unwrap(), 0..3);
+        assert_eq!(builder.build().unwrap(), want, "all at once");
 
         let mut bad_point = points.clone();
         bad_point[4] = [0.0; 4];
@@ -443,6 +448,12 @@ mod tests {
             builder.add(&tracks[0], &CurveSpec::open_bspline(4)).unwrap();
             let want = builder.add(&track, &spec).unwrap_err();
             assert_eq!(builder.add_spline(Some("t"), points, knots).unwrap_err(), want);
+            // Among good ones it is the error it is as the third track, and none of them is kept.
+            let good = Spline { name: Some("a"), points: &tracks[0].rotations, knots: &cubic };
+            let among = [good, Spline { name: Some("t"), points, knots }, good];
+            let mut third = BatchBuilder::new();
+            third.extend(&tracks[..2], |_| CurveSpec::open_bspline(4)).unwrap();
+            assert_eq!(builder.extend_splines(&among).unwrap_err(), third.add(&track, &spec).unwrap_err());
             assert_eq!(
                 builder.build().unwrap(),
                 super::Batch::from_tracks_each(&tracks[..1], |_| CurveSpec::open_bspline(4)).unwrap()
