@@ -158,6 +158,23 @@ impl Device {
             },
         }
     }
+
+    /// [`Device::evaluate_f32`] into `data` (resized to the rows): the CPU path writes into the
+    /// caller's buffer, so that one kept from job to job is not allocated and faulted in again.
+    ///
+    /// # Errors
+    /// As [`Device::evaluate`].
+    pub fn evaluate_f32_into(&self, job: &EvalJob<'_>, data: &mut Vec<f32>) -> Result<String, DeviceError> {
+        if let Device::Cpu(c) = self {
+            data.clear();
+            data.resize(job.times.total() * job.options.row().channels(), 0.0);
+            c.evaluate_into(job, data)?;
+            return Ok(self.name());
+        }
+        let (out, name) = self.evaluate_f32(job)?;
+        *data = out.data;
+        Ok(name)
+    }
 }
 
 /// The GPU path's errors as a device's: a batch the kernel cannot take (including one too large

@@ -38,6 +38,7 @@ pub use job::BakeJob;
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
+use crate::batch::{BatchBuilder, Spline};
 use crate::curve::{Curve, CurveSpec};
 use crate::device::Device;
 use crate::error::TrackId;
@@ -552,9 +553,45 @@ pub fn bake_each(
     loops: LoopMode,
     device: &Device,
 ) -> Result<Baked, InputError> {
+    bake_reusing(animation, spec, rates, loops, device, &mut Reuse::default())
+}
+
+/// The large buffers of one bake, kept for the next ([`bake_reusing`]): the packed batch's
+/// arrays and the device's output. Fresh ones are allocated and faulted in page by page at
+/// every bake; decompressing clip after clip, that was a fifth of the time.
+#[derive(Debug, Default)]
+pub struct Reuse {
+    batch: Option<crate::batch::Batch>,
+    rotations: Vec<f32>,
+}
+
+impl Reuse {
+    /// Keeps `baked`'s output for the next bake.
+    pub fn keep(&mut self, baked: Baked) {
+        self.rotations = baked.rotations;
+    }
+}
+
+/// [`bake_each`] into the buffers `reuse` kept ([`Reuse::keep`] gives a result's back).
+///
+/// # Errors
+/// As [`bake`].
+///
+/// # Panics
+/// When `rates` has not one rate per clip.
+pub fn bake_reusing(
+    animation: &Animation,
+    spec: &CurveSpec,
+    rates: &[ClipRate],
+    loops: LoopMode,
+    device: &Device,
+    reuse: &mut Reuse,
+) -> Result<Baked, InputError> {
     assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
     let (mut clips, grids) = plan_clips(animation, spec, rates, loops)?;
     let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut splines = Vec::new();
+    let mut builder = reuse.batch.take().map_or_else(BatchBuilder::new, BatchBuilder::reusing);
     for (c, prepared) in prepare_channels(animation, spec, &clips) {
         clips[c].frames.push(match prepared? {
             ChannelWork::Host(values) => {
@@ -567,15 +604,29 @@ pub fn bake_each(
                 track_clips.push(c);
                 Frames::Device(0, 0)
             }
+            ChannelWork::Spline { name, points, knots } => {
+                // The tracks before it first, so that the batch keeps the channels' order (only
+                // a fitted animation has splines, and it needs no tracks kept for key_error).
+                builder.extend(&std::mem::take(&mut tracks), |i| specs[i])?;
+                specs.clear();
+                splines.push((name, points, knots));
+                track_clips.push(c);
+                Frames::Device(0, 0)
+            }
         });
+        if !tracks.is_empty() {
+            extend_splines(&mut builder, &mut splines)?;
+        }
     }
     let mut baked =
         Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host, in_place: Vec::new() };
-    if tracks.is_empty() {
+    if track_clips.is_empty() {
         return Ok(baked);
     }
-    // ChannelWork on every core (bspline-interp solves a system per track).
-    let batch = crate::batch::Batch::from_tracks_each(&tracks, |i| specs[i])?;
+    // Each on every core (bspline-interp solves a system per track).
+    extend_splines(&mut builder, &mut splines)?;
+    builder.extend(&tracks, |i| specs[i])?;
+    let batch = builder.build()?;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
     let clips = &baked.clips;
@@ -585,7 +636,8 @@ pub fn bake_each(
         let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
         Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grids[c]) })
     })?;
-    let (out, name) = device.evaluate_f32(&EvalJob::new(&batch, &times))?;
+    let mut rotations = std::mem::take(&mut reuse.rotations);
+    let name = device.evaluate_f32_into(&EvalJob::new(&batch, &times), &mut rotations)?;
     let mut next = 0;
     for clip in &mut baked.clips {
         for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
@@ -593,13 +645,28 @@ pub fn bake_each(
             next += 1;
         }
     }
-    baked.rotations = out.data;
+    baked.rotations = rotations;
     baked.device = Some(name);
     // A fitted clip's control points are not keys the curve passes through.
     if interpolates(spec) && !animation.is_fitted() {
         baked.max_key_error = Some(key_error(&tracks, &batch, device)?);
     }
+    reuse.batch = Some(batch);
     Ok(baked)
+}
+
+/// A fitted rotation channel on its way into the batch: its name, control points and knots.
+type PendingSpline<'a> = (String, &'a [[f64; 4]], &'a [f64]);
+
+/// Appends `splines` to `builder` on every core, and empties it.
+fn extend_splines(builder: &mut BatchBuilder, splines: &mut Vec<PendingSpline<'_>>) -> Result<(), InputError> {
+    if !splines.is_empty() {
+        let batch: Vec<Spline<'_>> =
+            splines.iter().map(|(name, points, knots)| Spline { name: Some(name), points, knots }).collect();
+        builder.extend_splines(&batch)?;
+        splines.clear();
+    }
+    Ok(())
 }
 
 /// Per clip: whether it loops and its frame grid, within the sample budget, which is counted
@@ -643,18 +710,18 @@ fn plan_clips(
 /// Every channel, prepared on every core, with its clip's index: rotations with two keys or
 /// more become device tracks, the rest is evaluated here. The results are in channel order, so
 /// that the first error reported is the first channel's.
-fn prepare_channels(
-    animation: &Animation,
+fn prepare_channels<'a>(
+    animation: &'a Animation,
     spec: &CurveSpec,
     clips: &[BakedClip],
-) -> Vec<(usize, Result<ChannelWork, InputError>)> {
+) -> Vec<(usize, Result<ChannelWork<'a>, InputError>)> {
     let channels: Vec<(usize, usize)> = animation
         .clips
         .iter()
         .enumerate()
         .flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k)))
         .collect();
-    let prepare = |c: usize, k: usize| -> Result<ChannelWork, InputError> {
+    let prepare = |c: usize, k: usize| -> Result<ChannelWork<'a>, InputError> {
         let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
         let spec = CurveSpec { looping: clips[c].looping, ..*spec };
         let name = animation.label(clip, channel);
@@ -685,19 +752,23 @@ fn prepare_channels(
 /// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
 /// curve family of the order they make ([`crate::fit::spline_spec`]); rotations on the device,
 /// vectors here.
-fn fitted_channel(channel: &Channel, knots: &[f64], id: TrackId, frames: &[f64]) -> Result<ChannelWork, InputError> {
-    let spec = crate::fit::spline_spec(crate::fit::order_of(knots.len(), channel.values.len()));
+fn fitted_channel<'a>(
+    channel: &'a Channel,
+    knots: &'a [f64],
+    id: TrackId,
+    frames: &[f64],
+) -> Result<ChannelWork<'a>, InputError> {
     if channel.property == Property::Rotation {
-        let track =
-            Track { name: id.name, knots: Some(knots.to_vec()), rotations: channel.values.clone(), ..Track::default() };
-        return Ok(ChannelWork::Track(track, spec));
+        let name = id.name.unwrap_or_default();
+        return Ok(ChannelWork::Spline { name, points: &channel.values, knots });
     }
+    let spec = crate::fit::spline_spec(crate::fit::order_of(knots.len(), channel.values.len()));
     let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
     Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
 }
 
 /// A vector curve at `frames`, `x, y, z, 0`, for the host's rows.
-fn host_vectors(curve: &VectorCurve, frames: &[f64]) -> ChannelWork {
+fn host_vectors(curve: &VectorCurve, frames: &[f64]) -> ChannelWork<'static> {
     ChannelWork::Host(
         frames
             .iter()
@@ -707,9 +778,12 @@ fn host_vectors(curve: &VectorCurve, frames: &[f64]) -> ChannelWork {
     )
 }
 
-/// A channel ready to evaluate: a device track, or its frames computed here.
-enum ChannelWork {
+/// A channel ready to evaluate: a device track, a fitted rotation's spline (control points
+/// and knots as the animation holds them, packed with no track between), or its frames
+/// computed here.
+enum ChannelWork<'a> {
     Track(Track, CurveSpec),
+    Spline { name: String, points: &'a [[f64; 4]], knots: &'a [f64] },
     Host(Vec<[f32; 4]>),
 }
 

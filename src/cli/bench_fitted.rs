@@ -1,10 +1,11 @@
 //! `quatcurve bench --fitted`: decompression speed. Fitted containers' clips (copied to make a
 //! batch) baked in memory at each clip's source rate on each device, as a bake evaluates them:
 //! rotations in the packed batch, vectors beside it. A bone-pose is one joint's transform at one
-//! frame (ACL's unit; its published single-core figure is 30-45 ns per bone-pose).
+//! frame (ACL's unit; its published single-core figure is 30-45 ns per bone-pose). The CPU path
+//! is timed on every thread and on one.
 
 use super::{print_stdout, Failure};
-use quatcurve::bake::{self, Animation, ClipRate, LoopMode};
+use quatcurve::bake::{self, Animation, ClipRate, LoopMode, Reuse};
 use quatcurve::fit::container::Container;
 use quatcurve::{CurveSpec, Device, DeviceChoice};
 use serde::Serialize;
@@ -32,8 +33,6 @@ struct FittedTiming {
     seconds: f64,
     poses_per_s: f64,
     ns_per_bone_pose: f64,
-    /// `ns_per_bone_pose` times the threads: the figure to set beside a one-core one.
-    core_ns_per_bone_pose: f64,
 }
 
 /// Times the decompression of `files`' clips, each `copies` times, on `devices`.
@@ -56,15 +55,18 @@ pub fn measure(
     }
     // The curve a bake would use for keys; every fitted channel uses the fit's own.
     let spec = CurveSpec::new(quatcurve::curve::DEFAULT_CURVE);
-    // Poses and bone-poses decompressed.
-    let bake_all = |device: &Device| -> Result<(usize, usize), Failure> {
+    // Poses and bone-poses decompressed; each container's buffers kept from run to run, as a
+    // decoder keeps them from clip to clip.
+    let mut reuse: Vec<Reuse> = animations.iter().map(|_| Reuse::default()).collect();
+    let mut bake_all = |device: &Device| -> Result<(usize, usize), Failure> {
         let (mut poses, mut bone_poses) = (0, 0);
-        for (animation, rates) in &animations {
-            let baked = bake::bake_each(animation, &spec, rates, LoopMode::Off, device)
+        for ((animation, rates), reuse) in animations.iter().zip(&mut reuse) {
+            let baked = bake::bake_reusing(animation, &spec, rates, LoopMode::Off, device, reuse)
                 .map_err(|e| Failure::Internal(e.to_string()))?;
             let frames: usize = baked.clips.iter().map(|c| c.times.len()).sum();
             poses += frames;
             bone_poses += frames * animation.joints.len();
+            reuse.keep(baked);
         }
         Ok((poses, bone_poses))
     };
@@ -72,10 +74,9 @@ pub fn measure(
     let devices = devices.map_or_else(|| vec![DeviceChoice::Cpu, DeviceChoice::Gpu], <[DeviceChoice]>::to_vec);
     let (mut poses, mut bone_poses) = (0, 0);
     let mut results = Vec::new();
-    for choice in devices {
-        let Some(device) = super::bench::open_bench_device(choice, explicit)? else { continue };
+    let mut time = |device: &Device| -> Result<(), Failure> {
         let seconds = super::bench::median_seconds(runs, || {
-            (poses, bone_poses) = bake_all(&device)?;
+            (poses, bone_poses) = bake_all(device)?;
             Ok(())
         })?;
         let threads = if matches!(device, Device::Reference) { 1 } else { rayon::current_num_threads() };
@@ -85,8 +86,20 @@ pub fn measure(
             seconds,
             poses_per_s: poses as f64 / seconds,
             ns_per_bone_pose: seconds * 1e9 / bone_poses as f64,
-            core_ns_per_bone_pose: seconds * 1e9 * threads as f64 / bone_poses as f64,
         });
+        Ok(())
+    };
+    for choice in devices {
+        let Some(device) = super::bench::open_bench_device(choice, explicit)? else { continue };
+        time(&device)?;
+        // The CPU path on one thread as well: the figure to set beside a one-core one.
+        if matches!(device, Device::Cpu(_)) && rayon::current_num_threads() > 1 {
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .map_err(|e| Failure::Internal(format!("a one-thread pool: {e}")))?;
+            one.install(|| time(&device))?;
+        }
     }
     Ok(FittedReport {
         files: files.iter().map(|f| f.display().to_string()).collect(),
@@ -115,16 +128,12 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         report.acl_ns_per_bone_pose[0],
         report.acl_ns_per_bone_pose[1]
     )?;
-    writeln!(
-        w,
-        "{:<44} {:>8} {:>10} {:>14} {:>12} {:>16}",
-        "device", "threads", "seconds", "poses/s", "ns/bone-pose", "core-ns/bone-pose"
-    )?;
+    writeln!(w, "{:<44} {:>8} {:>10} {:>14} {:>12}", "device", "threads", "seconds", "poses/s", "ns/bone-pose")?;
     for r in &report.results {
         writeln!(
             w,
-            "{:<44} {:>8} {:>10.4} {:>14.0} {:>12.2} {:>16.2}",
-            r.device, r.threads, r.seconds, r.poses_per_s, r.ns_per_bone_pose, r.core_ns_per_bone_pose
+            "{:<44} {:>8} {:>10.4} {:>14.0} {:>12.2}",
+            r.device, r.threads, r.seconds, r.poses_per_s, r.ns_per_bone_pose
         )?;
     }
     Ok(())

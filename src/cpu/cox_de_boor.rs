@@ -150,9 +150,9 @@ impl CoxDeBoor {
             }
             self.origin[lane] = knots[span];
         }
-        for i in 0..2 * k {
-            for lane in 0..LANES {
-                self.rel[i][lane] = raw[i][lane] - self.origin[lane];
+        for (rel, raw) in self.rel.iter_mut().zip(&raw).take(2 * k) {
+            for ((rel, &knot), &origin) in rel.iter_mut().zip(raw).zip(&self.origin) {
+                *rel = knot - origin;
             }
         }
         // Level m, entry r: knots j = span - m + r and j + m, rel entries k - 1 - m + r and

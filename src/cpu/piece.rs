@@ -42,6 +42,9 @@ impl<'a> Shared<'a> {
     }
 }
 
+/// A segment's first point and its `F` coefficients, in f32 ([`Segments::rows`]).
+pub(super) type Rows<const F: usize> = ([f32; 4], [[f32; 4]; F]);
+
 /// Where one track's segments lie in the batch: segment `span` starts at point
 /// `point + span - shift`, and its factors are the coefficients from
 /// `coef + stride * span - shift` on (a B-spline's span `k - 1` is its first segment).
@@ -71,7 +74,7 @@ impl Segments {
     /// f32 as stored: loads and conversions only, per lane; axes and angles come later,
     /// eight lanes at once ([`Factor8::from_rows`]).
     #[inline(always)]
-    pub(super) fn rows<const F: usize>(self, shared: &Shared<'_>, span: usize) -> ([f32; 4], [[f32; 4]; F]) {
+    pub(super) fn rows<const F: usize>(self, shared: &Shared<'_>, span: usize) -> Rows<F> {
         let coef = self.coef + self.stride * span - self.shift;
         let mut start = shared.point(self.point + span - self.shift);
         if self.hermite {
@@ -121,7 +124,7 @@ impl<const F: usize> LaneRows<F> {
 
     /// Lane `lane`: time `t` in the span `[k0, k1)` whose rows are `rows`.
     #[inline(always)]
-    pub(super) fn set(&mut self, lane: usize, t: f64, [k0, k1]: [f64; 2], (start, coefs): ([f32; 4], [[f32; 4]; F])) {
+    pub(super) fn set(&mut self, lane: usize, t: f64, [k0, k1]: [f64; 2], (start, coefs): Rows<F>) {
         (self.t[lane], self.k0[lane], self.k1[lane], self.starts[lane]) = (t, k0, k1, start);
         for (f, coef) in coefs.into_iter().enumerate() {
             self.coefs[f][lane] = coef;
@@ -374,7 +377,7 @@ impl Piece<'_> {
                 (S::new(u), S::splat(inv_len as f32))
             } else {
                 // Neighbouring lanes mostly share a span: its rows are read once.
-                let mut read: Option<(usize, ([f32; 4], [[f32; 4]; F]))> = None;
+                let mut read: Option<(usize, Rows<F>)> = None;
                 for lane in 0..LANES {
                     let (span, tl) = locate_from(&mut hint, knots, first, last, t[lane], inv_step);
                     (spans[lane], t[lane]) = (span, tl);

@@ -6,7 +6,7 @@
 use super::{bake, data_dir, stderr};
 use assert_cmd::Command;
 use quatcurve::analysis::vertex_error::{pose_errors, Transform};
-use quatcurve::bake::{bvh, Animation, Property};
+use quatcurve::bake::{self as bake_lib, bvh, Animation, ClipRate, LoopMode, Property, Reuse};
 use quatcurve::fit::container::Container;
 use quatcurve::fit::fitted::{Fitted, Form};
 use std::path::Path;
@@ -239,6 +239,22 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     assert_eq!(timed["bone_poses"].as_u64(), Some(3 * 61 * 2));
     for row in timed["results"].as_array().unwrap() {
         assert!(row["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{row}");
+    }
+    let one_thread =
+        |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
+    assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");
+    // Buffers kept from bake to bake (a decoder's) give what fresh ones give: the fitted clip,
+    // then its source's keys (another kind of batch, of other sizes), then the fitted clip again.
+    let fitted = Container::from_bytes(&bytes).unwrap().animation();
+    let keyed = bvh::read(&source).unwrap().animation("bend");
+    let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
+    let (spec, rates) = (quatcurve::CurveSpec::default(), [ClipRate::Fit(30.0)]);
+    let mut reuse = Reuse::default();
+    for animation in [&fitted, &keyed, &fitted] {
+        let fresh = bake_lib::bake_each(animation, &spec, &rates, LoopMode::Off, &device).unwrap();
+        let kept = bake_lib::bake_reusing(animation, &spec, &rates, LoopMode::Off, &device, &mut reuse).unwrap();
+        assert_eq!(kept, fresh);
+        reuse.keep(kept);
     }
     // Fitted clips are open curves of control points: no loop, no rate budget over keys.
     let baked = dir.path().join("baked");
