@@ -23,7 +23,16 @@ pub struct FittedReport {
     bone_poses: usize,
     runs: usize,
     acl_ns_per_bone_pose: [f64; 2],
+    /// Reading the containers' bytes, once per copy: before any decode.
+    load: FittedLoad,
     results: Vec<FittedTiming>,
+}
+
+#[derive(Serialize)]
+struct FittedLoad {
+    seconds: f64,
+    /// Per bone-pose of one decode of every clip.
+    ns_per_bone_pose: f64,
 }
 
 #[derive(Serialize)]
@@ -43,10 +52,12 @@ pub fn measure(
     devices: Option<&[DeviceChoice]>,
 ) -> Result<FittedReport, Failure> {
     let mut animations: Vec<(Animation, Vec<ClipRate>)> = Vec::new();
+    let mut files_bytes = Vec::with_capacity(files.len());
     for file in files {
         let input = |e: String| Failure::Input(format!("bench --fitted {}: {e}", file.display()));
         let bytes = std::fs::read(file).map_err(|e| input(e.to_string()))?;
         let container = Container::from_bytes(&bytes).map_err(|e| input(format!("fitted container {e}")))?;
+        files_bytes.push(bytes);
         let mut animation = container.animation();
         let rates: Vec<ClipRate> = container.clips.iter().map(|c| ClipRate::Fit(c.source_rate())).collect();
         animation.clips = animation.clips.iter().cycle().take(animation.clips.len() * copies).cloned().collect();
@@ -101,7 +112,19 @@ pub fn measure(
             one.install(|| time(&device))?;
         }
     }
+    // Loading: the container's bytes read into the model a bake starts from (codes unpacked,
+    // control points dequantized), on one thread, once per copy.
+    let load_seconds = super::bench::median_seconds(runs, || {
+        for bytes in &files_bytes {
+            for _ in 0..copies {
+                let container = Container::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
+                std::hint::black_box(container.animation());
+            }
+        }
+        Ok(())
+    })?;
     Ok(FittedReport {
+        load: FittedLoad { seconds: load_seconds, ns_per_bone_pose: load_seconds * 1e9 / bone_poses as f64 },
         files: files.iter().map(|f| f.display().to_string()).collect(),
         copies,
         clips: animations.iter().map(|(a, _)| a.clips.len()).sum(),
@@ -127,6 +150,11 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         report.runs,
         report.acl_ns_per_bone_pose[0],
         report.acl_ns_per_bone_pose[1]
+    )?;
+    writeln!(
+        w,
+        "loading the containers (bytes to control points, one thread): {:.4} s, {:.2} ns a bone-pose; then decoding:",
+        report.load.seconds, report.load.ns_per_bone_pose
     )?;
     writeln!(w, "{:<44} {:>8} {:>10} {:>14} {:>12}", "device", "threads", "seconds", "poses/s", "ns/bone-pose")?;
     for r in &report.results {

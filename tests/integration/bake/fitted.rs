@@ -240,6 +240,7 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     for row in timed["results"].as_array().unwrap() {
         assert!(row["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{row}");
     }
+    assert!(timed["load"]["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{timed}");
     let one_thread =
         |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
     assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");
