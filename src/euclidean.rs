@@ -13,9 +13,9 @@
 //! periodic curve through `p_i - D (tau_i - tau_0) / T`, so velocity is periodic and
 //! `p(t + T) = p(t) + D`.
 
-use crate::basis::{bernstein_cumulative, bspline_cumulative};
+use crate::basis::{bernstein_cumulative, bspline_cumulative_into};
 use crate::batch::{bspline_knots, catmull_rom_velocities, key_times, squad_points};
-use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER};
 use crate::error::{Error, Result, TrackId};
 use crate::quat::Vec3F64;
 use crate::segment::key_segment;
@@ -175,8 +175,13 @@ impl VectorCurve {
                 let m = points.len() - 1;
                 let (l, t) = locate(knots, k - 1, m, t);
                 let first = l + 2 - k;
-                let basis = bspline_cumulative(knots, k, l, t);
-                sum(points[l + 1 - k], &mut basis.into_iter().enumerate().map(|(j, b)| (coefs[first + j - 1], b[0])))
+                // On the stack: a bake evaluates a vector channel at every frame.
+                let mut basis = [[0.0; 3]; MAX_ORDER - 1];
+                bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
+                sum(
+                    points[l + 1 - k],
+                    &mut basis[..k - 1].iter().enumerate().map(|(j, b)| (coefs[first + j - 1], b[0])),
+                )
             }
             Curve::Squad => {
                 let (i, t, len) = key_segment(knots, t);

@@ -64,11 +64,15 @@ impl Quantized {
     /// The components the codes stand for.
     #[must_use]
     pub fn values(&self) -> Vec<[f64; 3]> {
+        self.decoded().collect()
+    }
+
+    /// [`Quantized::values`] one at a time.
+    fn decoded(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
         let levels = f64::from((1u32 << self.bits) - 1);
         self.codes
             .iter()
-            .map(|code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
-            .collect()
+            .map(move |code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
     }
 }
 
@@ -118,8 +122,7 @@ impl QuantizedRotations {
     #[must_use]
     pub fn values(&self) -> Vec<QuatF64> {
         self.smallest
-            .values()
-            .iter()
+            .decoded()
             .zip(&self.largest)
             .map(|(rest, &largest)| {
                 let largest = usize::from(largest);
