@@ -599,14 +599,16 @@ pub fn bake_reusing(
                 Frames::Host(host.len() - 1)
             }
             ChannelWork::Track(track, spec) => {
+                // The splines before it first, so that the batch keeps the channels' order.
+                extend_splines(&mut builder, &mut splines)?;
                 tracks.push(track);
                 specs.push(spec);
                 track_clips.push(c);
                 Frames::Device(0, 0)
             }
             ChannelWork::Spline { name, points, knots } => {
-                // The tracks before it first, so that the batch keeps the channels' order (only
-                // a fitted animation has splines, and it needs no tracks kept for key_error).
+                // Likewise the tracks before it (only a fitted animation has splines, and it
+                // needs no tracks kept for key_error).
                 builder.extend(&std::mem::take(&mut tracks), |i| specs[i])?;
                 specs.clear();
                 splines.push((name, points, knots));
@@ -614,9 +616,6 @@ pub fn bake_reusing(
                 Frames::Device(0, 0)
             }
         });
-        if !tracks.is_empty() {
-            extend_splines(&mut builder, &mut splines)?;
-        }
     }
     let mut baked =
         Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host, in_place: Vec::new() };
