@@ -464,14 +464,13 @@ const BLOCK: usize = 16;
 /// Bits of a block's residual width.
 const WIDTH_BITS: u32 = 5;
 
-/// Each code's prediction from the ones before it: the previous code for the second point,
-/// the line through the two before it after that (a smooth curve's control points lie
-/// nearly on one), nothing for the first.
-fn predicted(codes: &[[u32; 3]], i: usize, c: usize) -> i64 {
-    match i {
-        0 => 0,
-        1 => i64::from(codes[0][c]),
-        _ => 2 * i64::from(codes[i - 1][c]) - i64::from(codes[i - 2][c]),
+/// Each code's prediction from the points before it: the previous code for the second point
+/// (`two_back` is `None`), the line through the two before it after that (a smooth curve's
+/// control points lie nearly on one). The first point is stored whole.
+fn predicted(two_back: Option<&[u32; 3]>, last: &[u32; 3], c: usize) -> i64 {
+    match two_back {
+        None => i64::from(last[c]),
+        Some(two_back) => 2 * i64::from(last[c]) - i64::from(two_back[c]),
     }
 }
 
@@ -483,7 +482,7 @@ fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
     let Some(first) = codes.first() else { return out.finish() };
     first.iter().for_each(|&c| out.push(u64::from(c), bits));
     let zigzag = |i: usize, c: usize| {
-        let r = i64::from(codes[i][c]) - predicted(codes, i, c);
+        let r = i64::from(codes[i][c]) - predicted(i.checked_sub(2).map(|b| &codes[b]), &codes[i - 1], c);
         ((r << 1) ^ (r >> 63)) as u64
     };
     for block in (1..codes.len()).step_by(BLOCK) {
@@ -507,6 +506,8 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
     let mut codes: Vec<[u32; 3]> = Vec::with_capacity(n);
     let most = (1i64 << bits) - 1;
     let mut widths = [0; 3];
+    // The two points before the next, kept out of `codes` so that they stay in registers.
+    let (mut two_back, mut last): (Option<[u32; 3]>, [u32; 3]) = (None, [0; 3]);
     for i in 0..n {
         if i % BLOCK == 1 {
             for w in &mut widths {
@@ -520,7 +521,7 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
             } else {
                 let z = take(widths[c])?;
                 let r = (z >> 1) as i64 ^ -((z & 1) as i64);
-                predicted(&codes, i, c).wrapping_add(r)
+                predicted(two_back.as_ref(), &last, c).wrapping_add(r)
             };
             if !(0..=most).contains(&value) {
                 return Err(format!("control point {i} component {c} decodes to {value}, outside {bits} bits"));
@@ -528,6 +529,10 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
             point[c] = value as u32;
         }
         codes.push(point);
+        if i > 0 {
+            two_back = Some(last);
+        }
+        last = point;
     }
     Ok(codes)
 }

@@ -127,11 +127,18 @@ impl QuantizedRotations {
             .map(|(rest, &largest)| {
                 let largest = usize::from(largest);
                 let mut c = [0.0; 4];
-                for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
-                    c[i] = rest[slot];
+                for (&i, value) in SMALLEST[largest].iter().zip(rest) {
+                    c[i] = value;
                 }
-                c[largest] = (1.0 - rest.iter().map(|v| v * v).sum::<f64>()).max(0.0).sqrt();
-                QuatF64::from_array(c).normalize()
+                let rest_squared = rest.iter().map(|v| v * v).sum::<f64>();
+                c[largest] = (1.0 - rest_squared).max(0.0).sqrt();
+                // Unit to rounding unless rounding pushed the three past 1.
+                let q = QuatF64::from_array(c);
+                if rest_squared > 1.0 {
+                    q.normalize()
+                } else {
+                    q
+                }
             })
             .collect()
     }
@@ -146,14 +153,14 @@ fn smallest_three(controls: &[QuatF64]) -> (Vec<[f64; 3]>, Vec<u8>) {
             let c = q.normalize().to_array();
             let largest = (0..4).max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs())).unwrap_or(3);
             let sign = c[largest].signum();
-            let mut rest = [0.0; 3];
-            for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
-                rest[slot] = c[i] * sign;
-            }
-            (rest, largest as u8)
+            (SMALLEST[largest].map(|i| c[i] * sign), largest as u8)
         })
         .unzip()
 }
+
+/// Per index of the largest component, the other three in `x, y, z, w` order: where a rotation's
+/// three stored components go.
+const SMALLEST: [[usize; 3]; 4] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
 
 /// Rotation control points quantized within `angle` radians each, as their three smallest
 /// components (moving those by `d` moves the unit quaternion by at most `2 d`, as the largest is
