@@ -16,9 +16,9 @@
 //! Both rules give the same curve whenever those endpoints stay within a quarter turn, which
 //! covers ordinary animation data.
 
-use crate::basis::{bernstein_cumulative, bspline_cumulative, BasisJet};
+use crate::basis::{bernstein_cumulative, bspline_cumulative_into, BasisJet};
 use crate::batch::TrackView;
-use crate::curve::Curve;
+use crate::curve::{Curve, MAX_ORDER};
 use crate::quat::{QuatF64, Quaternion, Vec3F64, Vector3};
 use crate::real::{Jet, Real};
 use crate::segment::{key_segment, locate, wrap};
@@ -49,16 +49,24 @@ pub struct Factor {
 /// with `W = q^-1 q'`, so `omega = 2 W` and `alpha = 2 W'` (DESIGN section 2).
 #[must_use]
 pub fn cumulative_product(start: QuatF64, factors: impl IntoIterator<Item = Factor>) -> Sample {
+    product::<true>(start, factors)
+}
+
+/// [`cumulative_product`]; without `DERIVATIVES` the rotation alone (the same bits), its
+/// velocity and acceleration left zero.
+fn product<const DERIVATIVES: bool>(start: QuatF64, factors: impl IntoIterator<Item = Factor>) -> Sample {
     let mut q = start;
     let mut w = Vec3F64::zero();
     let mut w_dot = Vec3F64::zero();
     for Factor { v, b } in factors {
         let a = QuatF64::exp(v.scale(b[0]));
-        let a_inv = a.conjugate();
-        let carried = a_inv.rotate(w);
-        let spin = v.scale(b[1]);
-        w_dot = a_inv.rotate(w_dot) + carried.cross(spin).scale(2.0) + v.scale(b[2]);
-        w = carried + spin;
+        if DERIVATIVES {
+            let a_inv = a.conjugate();
+            let carried = a_inv.rotate(w);
+            let spin = v.scale(b[1]);
+            w_dot = a_inv.rotate(w_dot) + carried.cross(spin).scale(2.0) + v.scale(b[2]);
+            w = carried + spin;
+        }
         q = q * a;
     }
     Sample { rotation: q, angular_velocity: w.scale(2.0), angular_acceleration: w_dot.scale(2.0) }
@@ -93,20 +101,26 @@ pub(crate) fn per_time(b: BasisJet, len: f64) -> BasisJet {
 /// Evaluates one packed track at time `t` (clamped to its domain, or wrapped when looping).
 #[must_use]
 pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
+    evaluate_kks::<true>(view, t)
+}
+
+/// [`evaluate`]; without `DERIVATIVES` the KKS families' rotation alone (the same bits, a
+/// third of the work), squad and Nam-Kim as with them.
+fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample {
     let TrackView { track, points, coefs, knots } = view;
     let t = if track.looping() { wrap(t, track.domain()) } else { t };
     match track.curve() {
         Curve::Slerp => {
             let (i, t, len) = key_segment(knots, t);
             let u = (t - knots[i]) / len;
-            cumulative_product(points[i], [Factor { v: coef_vec(coefs[i]), b: [u, 1.0 / len, 0.0] }])
+            product::<DERIVATIVES>(points[i], [Factor { v: coef_vec(coefs[i]), b: [u, 1.0 / len, 0.0] }])
         }
         Curve::Bezier => {
             let (_, t, len) = key_segment(knots, t);
             let u = (t - knots[0]) / len;
             let basis = bernstein_cumulative(track.bezier_degree(), u);
             let factors = coefs.iter().zip(basis).map(|(&c, b)| Factor { v: coef_vec(c), b: per_time(b, len) });
-            cumulative_product(points[0], factors)
+            product::<DERIVATIVES>(points[0], factors)
         }
         Curve::Hermite => {
             let (i, t, len) = key_segment(knots, t);
@@ -115,17 +129,20 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
             let seg = &coefs[3 * i..3 * i + 3];
             let start_sign = seg[1][3];
             let factors = seg.iter().zip(basis).map(|(&c, b)| Factor { v: coef_vec(c), b: per_time(b, len) });
-            cumulative_product(points[i].mul_scalar(start_sign), factors)
+            product::<DERIVATIVES>(points[i].mul_scalar(start_sign), factors)
         }
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
             let k = track.order();
             let m = points.len() - 1;
             let (l, t) = locate(knots, k - 1, m, t);
-            let basis = bspline_cumulative(knots, k, l, t);
+            // On the stack: every sample of every B-spline track comes here.
+            let mut basis = [[0.0; 3]; MAX_ORDER - 1];
+            bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
             let first = l + 2 - k;
-            let factors = basis.into_iter().enumerate().map(|(j, b)| Factor { v: coef_vec(coefs[first + j - 1]), b });
-            cumulative_product(points[l + 1 - k], factors)
+            let factors =
+                basis[..k - 1].iter().enumerate().map(|(j, &b)| Factor { v: coef_vec(coefs[first + j - 1]), b });
+            product::<DERIVATIVES>(points[l + 1 - k], factors)
         }
         Curve::Squad => {
             let (i, t, len) = key_segment(knots, t);
@@ -138,8 +155,8 @@ pub fn evaluate(view: TrackView<'_>, t: f64) -> Sample {
     }
 }
 
-/// The rotation alone at time `t`: as [`evaluate`], but squad and Nam-Kim skip the jets
-/// (a third of the work) when no derivative is wanted.
+/// The rotation alone at time `t`: as [`evaluate`], but no derivatives: the KKS families skip
+/// their recursion, squad and Nam-Kim the jets (each about a third of the work).
 #[must_use]
 pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> QuatF64 {
     match view.track.curve() {
@@ -153,7 +170,7 @@ pub fn evaluate_rotation(view: TrackView<'_>, t: f64) -> QuatF64 {
                 nam_kim(view, i, h)
             }
         }
-        _ => evaluate(view, t).rotation,
+        _ => evaluate_kks::<false>(view, t).rotation,
     }
 }
 
