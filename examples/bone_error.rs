@@ -5,9 +5,10 @@
 //!
 //! Run: `cargo run --release --example bone_error -- ../shared/data [CHART.png]`.
 
+use quatcurve::anim::Animation;
 use quatcurve::bake::budget::{self, ErrorBudget, Setting};
 use quatcurve::bake::texture::{Precision, TextureKind};
-use quatcurve::bake::{bvh, gltf, Animation, LoopMode};
+use quatcurve::bake::{bvh, gltf, LoopMode};
 use quatcurve::plot::{self, Line};
 use quatcurve::{CurveSpec, Device, DeviceChoice};
 use std::path::Path;

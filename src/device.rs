@@ -2,11 +2,11 @@
 //! `bake` and `bench` choose and name devices the same way.
 
 use crate::cpu::CpuEvaluator;
-use crate::curve::names;
 #[cfg(feature = "gpu")]
 use crate::gpu::{GpuError, GpuEvaluator};
 use crate::job::EvalJob;
 use crate::output::{FloatOutput, Output};
+use quatcurve_core::curve::names;
 use std::fmt;
 
 /// What the user asked for (`--device`).

@@ -13,13 +13,13 @@
 //! periodic curve through `p_i - D (tau_i - tau_0) / T`, so velocity is periodic and
 //! `p(t + T) = p(t) + D`.
 
-use crate::basis::{bernstein_cumulative, bspline_cumulative_into};
 use crate::batch::{bspline_knots, catmull_rom_velocities, key_times, squad_points};
-use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::Vec3F64;
-use crate::segment::key_segment;
-use crate::segment::{locate, wrap};
+use quatcurve_core::basis::{bernstein_cumulative, bspline_cumulative_into};
+use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER};
+use quatcurve_core::quat::Vec3F64;
+use quatcurve_core::segment::key_segment;
+use quatcurve_core::segment::{locate, wrap};
 
 /// A vector curve ready to evaluate: points, per-family coefficients and knots, laid out as
 /// the rotation batch lays them out (see [`crate::batch`]).
@@ -114,15 +114,16 @@ impl VectorCurve {
             Curve::BSplineInterp => {
                 // The natural (or periodic) cubic spline, as a cubic B-spline on the same
                 // knots as the rotation curve.
-                let (points, knots) = crate::interp::solve_vectors(&curve.points, times, looping).ok_or_else(|| {
-                    Error::NoConvergence {
-                        track: id.clone(),
-                        key: 0,
-                        error: f64::NAN,
-                        iterations: 1,
-                        tolerance: crate::interp::KEY_TOLERANCE,
-                    }
-                })?;
+                let (points, knots) =
+                    quatcurve_core::interp::solve_vectors(&curve.points, times, looping).ok_or_else(|| {
+                        Error::NoConvergence {
+                            track: id.clone(),
+                            key: 0,
+                            error: f64::NAN,
+                            iterations: 1,
+                            tolerance: quatcurve_core::interp::KEY_TOLERANCE,
+                        }
+                    })?;
                 curve.curve = Curve::BSpline;
                 curve.order = 4;
                 curve.coefs = steps(&points);

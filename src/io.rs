@@ -2,9 +2,9 @@
 //! and the built-in demo input.
 
 use crate::output::Output;
-use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::SampleTimes;
 use crate::track::{Track, TrackFile};
+use quatcurve_core::quat::{QuatF64, Vec3F64};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;

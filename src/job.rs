@@ -4,9 +4,9 @@
 use crate::batch::Batch;
 use crate::error::{Error, JobError, Result};
 use crate::output::{Layout, Output, Row};
-use crate::quat::Vec3F64;
 use crate::reference;
 use crate::sampling::{SampleTimes, TrackTimes};
+use quatcurve_core::quat::Vec3F64;
 
 /// What to evaluate besides rotations, and in which order: one set of options that the
 /// reference, the CPU path and the GPU all read.

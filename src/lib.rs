@@ -35,21 +35,18 @@
 //! ```
 
 pub mod analysis;
+pub mod anim;
 pub mod arrays;
 pub mod bake;
-pub(crate) mod basis;
 pub mod batch;
 pub mod cpu;
-pub mod curve;
 pub mod device;
 pub mod error;
 pub mod euclidean;
 pub mod fit;
 #[cfg(feature = "gpu")]
 pub mod gpu;
-pub mod interp;
 pub mod io;
-pub mod isa;
 pub mod job;
 pub mod output;
 // Charts, synthetic tracks and the demo input serve the CLI, benches and tests; they are not
@@ -57,27 +54,27 @@ pub mod output;
 #[cfg(feature = "plot")]
 #[doc(hidden)]
 pub mod plot;
-pub mod quat;
-pub mod real;
 pub mod reference;
 pub mod sampling;
-pub(crate) mod segment;
 #[doc(hidden)]
 pub mod synthetic;
 pub mod track;
 #[cfg(feature = "view")]
 pub mod view;
 
+// The maths, from quatcurve-core (no I/O): the same modules at the same paths.
+pub use quatcurve_core::{curve, interp, isa, quat, real};
+
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;
-pub use curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
 pub use device::{Device, DeviceChoice, DeviceError};
 pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
 pub use gpu::GpuEvaluator;
 pub use job::{EvalJob, EvalOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
-pub use quat::{QuatF64, Quaternion, Vec3F64, Vector3};
+pub use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
+pub use quatcurve_core::quat::{QuatF64, Quaternion, Vec3F64, Vector3};
 pub use reference::{evaluate, Sample};
 pub use sampling::{SampleTimes, Sampling, DEFAULT_RATE};
 pub use track::{Track, TrackFile};

@@ -3,8 +3,8 @@
 //! One definition of the row, read by the CPU kernels, the GPU's host side, the CLI's files
 //! and Python.
 
-use crate::quat::QuatF64;
 use crate::sampling::SampleTimes;
+use quatcurve_core::quat::QuatF64;
 use std::ops::Range;
 
 /// Order of samples in the output arrays.

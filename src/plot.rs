@@ -107,7 +107,7 @@ pub fn skeleton(
     title: &str,
     model: &[f32],
     picks: &[usize],
-    animation: &crate::bake::Animation,
+    animation: &crate::anim::Animation,
 ) -> Result<(), String> {
     let joints = animation.joints.len();
     let picks = picks.to_vec();

@@ -5,7 +5,7 @@
 //! and share [`cumulative_product`], whose derivatives are the closed-form recursion of
 //! DESIGN section 2. Squad and Nam-Kim are compositions of shortest-path slerps; their
 //! derivatives come from evaluating the same closed form on [`Jet`]s (exact differentiation by
-//! the chain rule, see [`crate::real`]).
+//! the chain rule, see [`quatcurve_core::real`]).
 //!
 //! Squad's three slerps and Nam-Kim's blend use the *unfolded* geodesic
 //! ([`Quaternion::geodesic`]), as Shoemake and NK eq. 3 write them (`log` with `th = arccos w in
@@ -16,12 +16,12 @@
 //! Both rules give the same curve whenever those endpoints stay within a quarter turn, which
 //! covers ordinary animation data.
 
-use crate::basis::{bernstein_cumulative, bspline_cumulative_into, BasisJet};
 use crate::batch::TrackView;
-use crate::curve::{Curve, MAX_ORDER};
-use crate::quat::{QuatF64, Quaternion, Vec3F64, Vector3};
-use crate::real::{Jet, Real};
-use crate::segment::{key_segment, locate, wrap};
+use quatcurve_core::basis::{bernstein_cumulative, bspline_cumulative_into, BasisJet};
+use quatcurve_core::curve::{Curve, MAX_ORDER};
+use quatcurve_core::quat::{QuatF64, Quaternion, Vec3F64, Vector3};
+use quatcurve_core::real::{Jet, Real};
+use quatcurve_core::segment::{key_segment, locate, wrap};
 
 /// One evaluated sample: rotation and physical body-frame derivatives.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -151,7 +151,7 @@ impl SampleTimes {
                     if track.looping() {
                         // Evaluators see times inside the period (DESIGN section 3, "Loops");
                         // outputs echo the track's own list.
-                        out.explicit.extend(own.iter().map(|&t| crate::segment::wrap(t, track.domain())));
+                        out.explicit.extend(own.iter().map(|&t| quatcurve_core::segment::wrap(t, track.domain())));
                     } else {
                         out.explicit.extend_from_slice(own);
                     }

@@ -3,11 +3,11 @@
 //! its tests (no randomness crate needed).
 
 use crate::batch::{Batch, BatchBuilder};
-use crate::curve::CurveSpec;
 use crate::error::Result;
-use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::{SampleTimes, Sampling};
 use crate::track::Track;
+use quatcurve_core::curve::CurveSpec;
+use quatcurve_core::quat::{QuatF64, Vec3F64};
 use std::ops::Range;
 
 /// `tracks` tracks of `keys` keys each at `rate` keys per second: each joint swings about a

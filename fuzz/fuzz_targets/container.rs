@@ -4,7 +4,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::bake::{self, bvh, LoopMode};
-use quatcurve::fit::container::Container;
+use quatcurve::anim::qcf::Container;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {

@@ -13,11 +13,11 @@
 
 use super::{analyze, AnalysisError, AnalysisOptions, Metrics};
 use crate::batch::Batch;
-use crate::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use crate::device::Device;
-use crate::quat::QuatF64;
 use crate::synthetic::SplitMix;
 use crate::track::Track;
+use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+use quatcurve_core::quat::QuatF64;
 
 /// The curves compared, Shoemake's squad first (the baseline).
 pub const CURVES: [(Curve, &str); 5] = [

@@ -8,10 +8,12 @@
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
-use super::{bake, Animation, ClipRate, InputError, LoopMode};
-use crate::curve::CurveSpec;
+use super::{bake, ClipRate, LoopMode};
+use crate::anim::error::InputError;
+use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::device::Device;
 use crate::error::Number;
+use quatcurve_core::curve::CurveSpec;
 use serde::Serialize;
 
 /// Points of each frame interval where the error is measured (the interval's start included,
@@ -27,8 +29,8 @@ pub const BUDGET_MARGIN: f64 = 0.01;
 /// refused, naming the error there.
 pub const DEFAULT_MAX_RATE: f64 = 480.0;
 
-/// Millimetres per model unit of glTF (metres), the default of `--unit-mm`.
-pub const GLTF_UNIT_MM: f64 = 1000.0;
+/// Millimetres per model unit of glTF ([`GLTF_UNIT_CM`]), the default of `--unit-mm`.
+pub const GLTF_UNIT_MM: f64 = 10.0 * GLTF_UNIT_CM;
 
 /// What an interpolated texture may differ from the continuous curve by.
 #[derive(Clone, Copy, Debug, PartialEq)]

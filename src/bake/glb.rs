@@ -4,8 +4,17 @@
 //! which holds only bytes a kept buffer view covers. A file that uses an extension this writer
 //! does not know might refer to anything by index, so there nothing is removed or renumbered.
 
-use super::{Baked, Clip, InputError, Property};
+use super::Baked;
+
+use crate::anim::Clip;
+
+use crate::anim::error::InputError;
+
+use crate::anim::Property;
 use serde_json::{json, Value};
+
+/// The first bytes of a GLB file.
+pub(super) const GLB_MAGIC: &[u8; 4] = b"glTF";
 
 /// Extensions known to hold no index of an accessor, buffer view or buffer (they refer to
 /// textures, images, materials, nodes, or nothing).
@@ -347,7 +356,7 @@ pub(super) fn assemble(json: &Value, bin: Vec<u8>, too_large: &str) -> Result<Ve
     }
     let text = serde_json::to_vec(json).map_err(|e| InputError::Internal(e.to_string()))?;
     let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *super::gltf::GLB_MAGIC, version: 2, length: 0 },
+        header: gltf::binary::Header { magic: *GLB_MAGIC, version: 2, length: 0 },
         json: text.into(),
         bin: Some(bin.into()),
     };

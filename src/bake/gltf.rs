@@ -6,9 +6,15 @@
 //! was: all buffers are gathered into the GLB's one BIN buffer (buffer views re-pointed), the
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
-
-use super::InputError;
-use super::{Animation, Baked, Channel, Clip, Joint, Property, Skin};
+use super::glb::GLB_MAGIC;
+use super::Baked;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
+use crate::anim::Channel;
+use crate::anim::Clip;
+use crate::anim::Joint;
+use crate::anim::Property;
+use crate::anim::Skin;
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;
@@ -92,9 +98,6 @@ pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile,
     }
     Ok(GltfFile { animation, json, buffers, samplers })
 }
-
-/// The first bytes of a GLB file.
-pub(super) const GLB_MAGIC: &[u8; 4] = b"glTF";
 
 /// A GLB starts with [`GLB_MAGIC`], glTF JSON with `{`: anything else (an image or archive
 /// renamed `.glb`) is named as what it looks like, not reported as a JSON syntax error.

@@ -4,7 +4,6 @@
 //! OpenEXR (half or float) or 16-bit PNG (each channel remapped to its own range, recorded
 //! in the sidecar as OpenVAT does). A vertex texture's images hold positions in their box
 //! and octahedral normals instead (DESIGN section 5d), both in `0..1`.
-
 use super::texture::TextureKind;
 use super::vertex_encoding::{encode_normal, Bounds};
 use serde::Serialize;
@@ -43,7 +42,7 @@ pub enum Format {
     Png16,
 }
 
-crate::curve::names!(Format, "format", Npy => "npy", Exr => "exr", Png16 => "png16");
+quatcurve_core::curve::names!(Format, "format", Npy => "npy", Exr => "exr", Png16 => "png16");
 
 impl Format {
     /// The file-name extension.

@@ -2,8 +2,10 @@
 //! their output stems (two inputs may not write the same outputs), and each file read into the
 //! common model with what it needs to write itself back (`Source`): glTF, BVH or a fitted container.
 
-use super::error::{BakeError, InputError};
-use super::{bvh, gltf, Animation};
+use super::error::BakeError;
+use super::{bvh, gltf};
+use crate::anim::error::InputError;
+use crate::anim::Animation;
 use std::path::{Path, PathBuf};
 
 /// A source read into the common model, with what it needs to write itself back.
@@ -16,7 +18,7 @@ pub(super) enum Source {
 }
 
 /// The extensions a bake reads, lower case.
-pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", crate::fit::container::EXTENSION];
+pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", crate::anim::qcf::EXTENSION];
 
 /// `path`'s extension, lower case.
 pub(crate) fn extension(path: &Path) -> Option<String> {
@@ -35,8 +37,8 @@ impl Source {
                 let animation = file.animation(&name);
                 Ok(Source::Bvh(file, animation))
             }
-            Some(crate::fit::container::EXTENSION) => {
-                let container = crate::fit::container::Container::read(path)?;
+            Some(crate::anim::qcf::EXTENSION) => {
+                let container = crate::anim::qcf::Container::read(path)?;
                 let animation = container.animation();
                 match &container.bvh {
                     Some(skeleton) => Ok(Source::Bvh(bvh::skeleton(skeleton, &animation)?, animation)),

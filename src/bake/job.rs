@@ -7,7 +7,7 @@
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
 use super::budget::{self, ChosenRate, ErrorBudget};
-use super::error::{BakeError, InputError};
+use super::error::BakeError;
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::inputs::{expand, output_stems, Source};
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
@@ -21,10 +21,12 @@ use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
-use super::{crowd, gltf, mesh, vertex_glb, Animation, Baked, ClipRate, LoopMode};
-use crate::curve::CurveSpec;
+use super::{crowd, gltf, mesh, vertex_glb, Baked, ClipRate, LoopMode};
+use crate::anim::error::InputError;
+use crate::anim::Animation;
 use crate::device::{Device, DeviceChoice};
 use crate::io::write_atomic;
+use quatcurve_core::curve::CurveSpec;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -87,7 +89,7 @@ pub struct BakeJob {
 
 impl BakeJob {
     /// The defaults of `quatcurve bake`: [`crate::sampling::DEFAULT_RATE`],
-    /// [`crate::curve::DEFAULT_CURVE`], loops detected, local f32 textures, one job.
+    /// [`quatcurve_core::curve::DEFAULT_CURVE`], loops detected, local f32 textures, one job.
     #[must_use]
     pub fn new(inputs: Vec<PathBuf>, output: impl Into<PathBuf>) -> Self {
         Self {
@@ -95,7 +97,7 @@ impl BakeJob {
             output: output.into(),
             rate: crate::sampling::DEFAULT_RATE,
             exact_rate: false,
-            spec: CurveSpec::new(crate::curve::DEFAULT_CURVE),
+            spec: CurveSpec::new(quatcurve_core::curve::DEFAULT_CURVE),
             looping: LoopMode::Auto,
             device: DeviceChoice::Auto,
             allow_external_uris: false,
@@ -335,7 +337,7 @@ impl BakeJob {
                         true
                     }
                     // A container of a BVH source bakes to BVH again.
-                    Some("bvh" | crate::fit::container::EXTENSION) => {
+                    Some("bvh" | crate::anim::qcf::EXTENSION) => {
                         names.push(format!("{stem}.bvh"));
                         false
                     }

@@ -4,7 +4,7 @@
 //! meshes are broken still bakes bone textures.
 
 use super::gltf::{check_accessor, Element, GltfFile};
-use super::InputError;
+use crate::anim::error::InputError;
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
 /// normalized (they are divided by their sum either way); normalized-integer weights are also

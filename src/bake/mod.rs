@@ -32,191 +32,27 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
-use error::InputError as E;
-pub use error::{BakeError, InputError};
+use crate::anim::error::InputError;
+use crate::anim::error::InputError as E;
+use crate::anim::{Animation, Channel, Clip, Property};
+pub use error::BakeError;
 pub use job::BakeJob;
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
 use crate::batch::{BatchBuilder, Spline};
-use crate::curve::{Curve, CurveSpec};
 use crate::device::Device;
 use crate::error::TrackId;
 use crate::euclidean::VectorCurve;
 use crate::job::EvalJob;
-use crate::quat::QuatF64;
 use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use crate::track::Track;
+use quatcurve_core::curve::{Curve, CurveSpec};
+use quatcurve_core::quat::QuatF64;
 use rayon::prelude::*;
-
-/// What a channel animates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Property {
-    /// Unit quaternion `x, y, z, w`.
-    Rotation,
-    /// Vector `x, y, z` (the fourth value is unused).
-    Translation,
-    /// Vector `x, y, z` (the fourth value is unused).
-    Scale,
-}
-
-/// One keyed property of one joint.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Channel {
-    /// Index into [`Animation::joints`].
-    pub joint: usize,
-    /// What it animates.
-    pub property: Property,
-    /// Key times in seconds, strictly increasing.
-    pub times: Vec<f64>,
-    /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
-    pub values: Vec<[f64; 4]>,
-    /// A fitted channel's knots ([`crate::fit`]): then `values` are the control points of a
-    /// clamped B-spline on them (the KKS cumulative form for rotations; its order is the knot
-    /// count less the control point count), not keys, and `times` their Greville abscissae;
-    /// `None` for keys.
-    pub knots: Option<Vec<f64>>,
-}
-
-/// One clip: channels sharing a time line.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Clip {
-    /// Name for messages and sidecars.
-    pub name: String,
-    /// The keyed channels.
-    pub channels: Vec<Channel>,
-}
-
-impl Clip {
-    /// `[first key, last key]` over every channel.
-    #[must_use]
-    pub fn span(&self) -> [f64; 2] {
-        let first = self.channels.iter().filter_map(|c| c.times.first()).copied().fold(f64::INFINITY, f64::min);
-        let last = self.channels.iter().filter_map(|c| c.times.last()).copied().fold(f64::NEG_INFINITY, f64::max);
-        if first <= last {
-            [first, last]
-        } else {
-            [0.0, 0.0]
-        }
-    }
-}
-
-/// A joint (glTF node, BVH joint) and its rest pose, used where a clip does not animate it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Joint {
-    /// Name (glTF node name or `node<i>`; BVH joint name).
-    pub name: String,
-    /// The parent joint, `None` for a root of the scene.
-    pub parent: Option<usize>,
-    /// Rest rotation `x, y, z, w`.
-    pub rotation: [f64; 4],
-    /// Rest translation.
-    pub translation: [f64; 3],
-    /// Rest scale.
-    pub scale: [f64; 3],
-}
-
-impl Joint {
-    /// A joint at rest with the identity rotation and unit scale.
-    #[must_use]
-    pub fn at(name: String, parent: Option<usize>, translation: [f64; 3]) -> Self {
-        Self { name, parent, rotation: [0.0, 0.0, 0.0, 1.0], translation, scale: [1.0; 3] }
-    }
-}
-
-/// A glTF skin: the joints a mesh is bound to and their inverse bind matrices.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Skin {
-    /// Name (the skin's, or `skin<k>`).
-    pub name: String,
-    /// Joint indices into [`Animation::joints`], in the skin's order.
-    pub joints: Vec<usize>,
-    /// One per joint: the inverse bind matrix as 3x4 row-major (its last row is `0 0 0 1`).
-    pub inverse_bind: Vec<[f64; 12]>,
-}
-
-/// A source file read into the common model.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Animation {
-    /// The joints the clips refer to, each with its parent.
-    pub joints: Vec<Joint>,
-    /// The clips.
-    pub clips: Vec<Clip>,
-    /// glTF skins (none for BVH and the crowd).
-    pub skins: Vec<Skin>,
-}
 
 /// The curve a sidecar names for a fitted input: its own B-splines, whatever `--curve` says.
 pub const FITTED_CURVE: &str = "fitted-bspline";
-
-impl Animation {
-    /// Whether any channel is fitted ([`Channel::knots`]): control points, not keys.
-    #[must_use]
-    pub fn is_fitted(&self) -> bool {
-        self.clips.iter().flat_map(|c| &c.channels).any(|c| c.knots.is_some())
-    }
-
-    /// Joint indices with every parent before its children (the order forward kinematics
-    /// walks).
-    ///
-    /// # Errors
-    /// [`InputError::Animation`] for a parent index out of range or a cycle, naming a joint on it.
-    pub fn parents_first(&self) -> Result<Vec<usize>, InputError> {
-        let n = self.joints.len();
-        // Depth by walking up; a chain longer than the joint count is a cycle.
-        let mut depth = vec![usize::MAX; n];
-        for start in 0..n {
-            let mut chain = Vec::new();
-            let mut at = start;
-            while depth[at] == usize::MAX {
-                chain.push(at);
-                match self.joints[at].parent {
-                    None => break,
-                    Some(p) if p >= n => {
-                        return Err(E::Animation(format!(
-                            "joint {at} ({}): parent {p} does not exist",
-                            self.joints[at].name
-                        )))
-                    }
-                    Some(_) if chain.len() > n => {
-                        return Err(E::Animation(format!(
-                            "joint {at} ({}) is its own ancestor: the hierarchy has a cycle",
-                            self.joints[at].name
-                        )))
-                    }
-                    Some(p) => at = p,
-                }
-            }
-            let mut d = if depth[at] == usize::MAX { 0 } else { depth[at] + 1 };
-            for &j in chain.iter().rev() {
-                if depth[j] == usize::MAX {
-                    depth[j] = d;
-                    d += 1;
-                }
-            }
-        }
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by_key(|&j| depth[j]);
-        Ok(order)
-    }
-
-    /// Total keys over every channel of every clip.
-    #[must_use]
-    pub fn key_count(&self) -> usize {
-        self.clips.iter().flat_map(|c| &c.channels).map(|c| c.times.len()).sum()
-    }
-
-    /// `clip '<clip>', <joint> <property>`, naming a channel in messages.
-    #[must_use]
-    pub fn label(&self, clip: &Clip, channel: &Channel) -> String {
-        let property = match channel.property {
-            Property::Rotation => "rotation",
-            Property::Translation => "translation",
-            Property::Scale => "scale",
-        };
-        format!("clip '{}', {} {property}", clip.name, self.joints[channel.joint].name)
-    }
-}
 
 /// Consecutive rotation keys more than this many degrees apart (at the source's own rate) are
 /// flagged as probably broken source data: a joint of a motion capture that turns more than a
@@ -287,7 +123,7 @@ pub enum LoopMode {
     Off,
 }
 
-crate::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
+quatcurve_core::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
 
 /// A resampled clip: frame times, and where each channel's frames lie in [`Baked`].
 #[derive(Clone, Debug, PartialEq)]
@@ -749,7 +585,7 @@ fn prepare_channels<'a>(
 }
 
 /// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
-/// curve family of the order they make ([`crate::fit::spline_spec`]); rotations on the device,
+/// curve family of the order they make ([`crate::anim::qcf::fitted::spline_spec`]); rotations on the device,
 /// vectors here.
 fn fitted_channel<'a>(
     channel: &'a Channel,
@@ -761,7 +597,8 @@ fn fitted_channel<'a>(
         let name = id.name.unwrap_or_default();
         return Ok(ChannelWork::Spline { name, points: &channel.values, knots });
     }
-    let spec = crate::fit::spline_spec(crate::fit::order_of(knots.len(), channel.values.len()));
+    let spec =
+        crate::anim::qcf::fitted::spline_spec(crate::anim::qcf::fitted::order_of(knots.len(), channel.values.len()));
     let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
     Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
 }

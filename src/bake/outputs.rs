@@ -1,10 +1,10 @@
 //! Where a bake writes: the output directory (proven writable before the work, removed again
 //! if the job left it empty), one input's files so far (taken away if it fails), and the rule
 //! that a baked file never replaces its input.
-
 use super::budget::ChosenRate;
-use super::error::{BakeError, InputError};
+use super::error::BakeError;
 use super::texture_file::{TextureFile, Written};
+use crate::anim::error::InputError;
 use crate::io::AtomicFile;
 use std::path::{Path, PathBuf};
 
@@ -83,7 +83,7 @@ pub(crate) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<()
 /// Each clip's name as it appears in its files' names (`Fox.Walk.npy`): letters, digits, `-`
 /// and `_` kept, any other character `_`; an empty name is `clip<index>`, and a name that
 /// two clips would share (ignoring case, as some file systems do) gets `-<index>`.
-pub(super) fn clip_file_names(animation: &super::Animation) -> Vec<String> {
+pub(super) fn clip_file_names(animation: &crate::anim::Animation) -> Vec<String> {
     let safe: Vec<String> = animation
         .clips
         .iter()

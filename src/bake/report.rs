@@ -1,12 +1,12 @@
 //! What a bake reports: to its caller as it runs ([`Progress`]), per input when it is done
 //! ([`InputReport`], [`BakeReport`]), and to the manifest ([`input_record`]).
-
 use super::budget::ChosenRate;
-use super::error::InputError;
 use super::manifest::{FileRecord, InputRecord};
 use super::shard::Shard;
 use super::texture_file::Written;
-use super::{Animation, Baked};
+use super::Baked;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
 use std::path::{Path, PathBuf};
 
 /// What a running job tells its caller (a progress bar, a log); every method has a default

@@ -5,7 +5,10 @@
 //! `model = Root(t) * model_in_place`, `Root(t) = translate(x, 0, z) * rotate_y(heading)`.
 
 use super::texture::{self, Affine, LOCAL_CHANNELS};
-use super::{Animation, Baked, InputError, Property};
+use super::Baked;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
+use crate::anim::Property;
 use serde::Serialize;
 
 /// What `--root-motion` does with the root's horizontal motion.
@@ -18,7 +21,7 @@ pub enum RootMotion {
     Extract,
 }
 
-crate::curve::names!(RootMotion, "root motion", Keep => "keep", Extract => "extract");
+quatcurve_core::curve::names!(RootMotion, "root motion", Keep => "keep", Extract => "extract");
 
 /// A clip's root track and the scene roots' local rows with the track taken out (every joint's
 /// model transform is then `Root(t)^-1 * model`).

@@ -1,7 +1,6 @@
 //! Which share of a job this process runs (DESIGN section 7): `I/N` given, or the array index
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
-
 use super::error::BakeError;
 use std::path::PathBuf;
 

@@ -8,7 +8,8 @@ use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
 use super::vertex_texture::VertexSheets;
-use super::{Animation, Baked};
+use super::Baked;
+use crate::anim::Animation;
 use serde::Serialize;
 
 /// The job's options a sidecar records, and the device that ran the input.

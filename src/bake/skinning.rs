@@ -2,7 +2,6 @@
 //! the oracle the GPU's `shaders/skin_mesh.wgsl` is held to. A vertex's matrix is the weighted
 //! sum of its joints' skinning matrices (`model * inverse_bind`, a skin texture's rows); its
 //! normal is turned by that matrix and renormalized, as `shaders/skin_vertex.wgsl` does.
-
 use super::mesh::SkinnedPrimitive;
 use crate::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use rayon::prelude::*;

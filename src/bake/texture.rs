@@ -14,8 +14,11 @@
 //! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
 //! value), frames on every core.
 
-use super::InputError;
-use super::{Animation, Baked, Property, Skin};
+use super::Baked;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
+use crate::anim::Property;
+use crate::anim::Skin;
 use crate::device::Device;
 use rayon::prelude::*;
 
@@ -39,7 +42,7 @@ pub enum TextureKind {
     Vertex,
 }
 
-crate::curve::names!(TextureKind, "texture",
+quatcurve_core::curve::names!(TextureKind, "texture",
     Local => "local", Model => "model", Skin => "skin", ModelTrs => "model-trs", SkinTrs => "skin-trs",
     Vertex => "vertex");
 
@@ -107,7 +110,7 @@ pub enum Precision {
     F16,
 }
 
-crate::curve::names!(Precision, "precision", F32 => "f32", F16 => "f16");
+quatcurve_core::curve::names!(Precision, "precision", F32 => "f32", F16 => "f16");
 
 impl Precision {
     /// The `.npy` element type written.

@@ -3,12 +3,11 @@
 //! as the next is computed (the final sync then waits for little), or an image gathered and encoded
 //! at the end ([`TextureFile`]), while the next block is computed ([`stream`]); what each input
 //! wrote, with its hash ([`Written`]).
-
-use super::error::InputError;
 use super::image::{self, Format, Grid, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
-use super::Animation;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
 use crate::io::{npy_header, AtomicFile, NpyElement};
 use sha2::{Digest, Sha256};
 use std::io::Write;

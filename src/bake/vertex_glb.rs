@@ -3,10 +3,10 @@
 //! positions and normals kept (what an engine draws when no texture is bound) and a
 //! `TEXCOORD_0` that addresses each vertex's texel within a frame.
 
-use super::error::InputError;
 use super::image::Grid;
 use super::mesh::SkinnedPrimitive;
 use super::texture::TextureKind;
+use crate::anim::error::InputError;
 use serde_json::{json, Value};
 
 /// glTF's `ARRAY_BUFFER` and `ELEMENT_ARRAY_BUFFER` buffer-view targets.

@@ -4,12 +4,13 @@
 //! position sheet and (when the primitive has normals) a normal sheet, which the image
 //! encodes once its rows are complete (the positions' box is known only then).
 
-use super::error::InputError;
 use super::image::Texels;
 use super::mesh::SkinnedPrimitive;
 use super::texture::{self, Sheet, TextureKind, VERTEX_CHANNELS};
 use super::texture_file::SheetSpec;
-use super::{Animation, Baked};
+use super::Baked;
+use crate::anim::error::InputError;
+use crate::anim::Animation;
 use crate::device::Device;
 use std::sync::Mutex;
 use std::time::Instant;

@@ -6,10 +6,10 @@ use super::families::{prepare_all, PackedData};
 use super::keys::{aligned, check_key_count};
 use super::knots::{check_explicit_knots, check_order, knots_are_uniform};
 use super::{Batch, PackedTrack};
-use crate::curve::{Curve, CurveSpec};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::relative_log;
 use crate::track::Track;
+use quatcurve_core::curve::{Curve, CurveSpec};
+use quatcurve_core::quat::relative_log;
 
 /// Tracks [`BatchBuilder::extend`] prepares at once.
 pub(super) const EXTEND_CHUNK: usize = 1 << 14;

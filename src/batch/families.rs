@@ -7,11 +7,11 @@
 
 use super::keys::{aligned_keys, check_loop, key_times};
 use super::knots::bspline_knots;
-use crate::curve::{Curve, CurveSpec, KnotMode, Tangents};
 use crate::error::{Error, Result, TrackId};
-use crate::interp;
-use crate::quat::{relative_log, QuatF64, Vec3F64};
 use crate::track::Track;
+use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, Tangents};
+use quatcurve_core::interp;
+use quatcurve_core::quat::{relative_log, QuatF64, Vec3F64};
 use std::f64::consts::PI;
 
 /// Below this length Hermite's middle coefficient has no axis for extra turns.

@@ -1,9 +1,9 @@
 //! The rules every rotation key and key time meets (DESIGN sections 1 and 3): finite,
 //! non-zero keys made unit and sign-continuous, strictly increasing times, closing loops.
 
-use crate::curve::{Curve, CurveSpec};
 use crate::error::{Error, Result, TrackId};
-use crate::quat::QuatF64;
+use quatcurve_core::curve::{Curve, CurveSpec};
+use quatcurve_core::quat::QuatF64;
 
 /// Keys with a norm below this are errors (they carry no direction).
 pub const MIN_KEY_NORM: f64 = 1e-6;

@@ -1,8 +1,8 @@
 //! Knot vectors: the full knot vector of a B-spline for each knot mode (shared with the
 //! Euclidean analogue, so both use one basis), the uniform-times rule, explicit knots checked.
 
-use crate::curve::{CurveSpec, KnotMode, MAX_ORDER, MIN_ORDER};
 use crate::error::{Error, Result, TrackId};
+use quatcurve_core::curve::{CurveSpec, KnotMode, MAX_ORDER, MIN_ORDER};
 
 /// Relative tolerance on key spacing for knot modes that need uniform times.
 pub const UNIFORM_TIME_TOLERANCE: f64 = 1e-3;

@@ -20,7 +20,7 @@
 //! | nam-kim | keys              | key times               | `a, b` per segment (half angle per unit segment parameter) |
 //! | bspline | control points    | full knot vector (n+k+1) | `w_i`, i = 1..=m over control points  |
 //!
-//! `bspline-interp` is packed as a cubic `bspline` on explicit knots once [`crate::interp`] has
+//! `bspline-interp` is packed as a cubic `bspline` on explicit knots once [`quatcurve_core::interp`] has
 //! solved its control points. Looping tracks (`CurveSpec::looping`) are packed like open ones
 //! with their seam neighbours built in (tangents, auxiliary and phantom points, periodic control
 //! points) and [`PackedTrack::looping`] set, so that evaluators wrap sample times.
@@ -38,10 +38,10 @@ pub use keys::{LOOP_TOLERANCE, MIN_KEY_NORM};
 pub(crate) use knots::bspline_knots;
 pub use knots::{knots_are_uniform, UNIFORM_KNOT_TOLERANCE, UNIFORM_TIME_TOLERANCE};
 
-use crate::curve::{Blend, Curve, CurveSpec};
 use crate::error::{Result, TrackId};
-use crate::quat::QuatF64;
 use crate::track::Track;
+use quatcurve_core::curve::{Blend, Curve, CurveSpec};
+use quatcurve_core::quat::QuatF64;
 
 /// One track's slice of the packed arrays and its parameters, as [`BatchBuilder`] made it
 /// (read-only: the offsets and counts always lie inside the batch's arrays).
@@ -346,8 +346,8 @@ pub struct TrackView<'a> {
 #[cfg(test)]
 mod tests {
     use super::{BatchBuilder, Spline, TrackId};
-    use crate::curve::{Curve, CurveSpec};
     use crate::track::Track;
+    use quatcurve_core::curve::{Curve, CurveSpec};
 
     fn named(name: Option<&str>, key_norm: f64) -> Track {
         Track {
@@ -389,7 +389,7 @@ mod tests {
     /// the same track and key, with the builder left as it was.
     #[test]
     fn a_spline_packs_and_fails_as_its_track_does() {
-        use crate::curve::CurveSpec;
+        use quatcurve_core::curve::CurveSpec;
         let point = |i: usize| {
             let a = 0.3 * i as f64;
             let sign = if i % 3 == 1 { -2.0 } else { 0.5 };

@@ -238,7 +238,7 @@ enum Fault {
 }
 
 impl Fault {
-    fn of(e: &quatcurve::bake::InputError) -> Self {
+    fn of(e: &quatcurve::anim::error::InputError) -> Self {
         if e.is_internal_failure() {
             Fault::Device
         } else if e.is_output_failure() {
@@ -279,8 +279,7 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
     } else {
         format!("{} Hz (fitted per clip)", args.rate)
     };
-    let fitted =
-        report.inputs.iter().any(|i| i.source.ends_with(&format!(".{}", quatcurve::fit::container::EXTENSION)));
+    let fitted = report.inputs.iter().any(|i| i.source.ends_with(&format!(".{}", quatcurve::anim::qcf::EXTENSION)));
     let curve =
         if fitted { format!("{} (fitted inputs: their own B-splines)", args.curve) } else { args.curve.to_string() };
     writeln!(w, "baked at {rate} with {curve} on {} -> {}", report.device, args.output.display())?;

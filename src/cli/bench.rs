@@ -1,6 +1,7 @@
 //! `quatcurve bench`: one synthetic batch through every requested device in one process,
 //! median samples per second side by side (DESIGN section 5).
 
+use super::measure::{median_seconds, open_bench_device};
 use super::{names, print_stdout, CurveArgs, Failure};
 use clap::Args;
 use quatcurve::{
@@ -8,7 +9,6 @@ use quatcurve::{
     KnotMode, SampleTimes, Sampling,
 };
 use serde::Serialize;
-use std::time::Instant;
 
 #[derive(Args, Debug, Clone)]
 pub struct BenchArgs {
@@ -277,33 +277,6 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
         results,
     };
     Ok(report)
-}
-
-/// Device `choice` for a bench: `None` (skipped, said on stderr) when it is missing and the
-/// devices were not named; an error when they were.
-pub fn open_bench_device(choice: DeviceChoice, explicit: bool) -> Result<Option<Device>, Failure> {
-    match (choice, super::open_device(choice, "--devices")) {
-        (DeviceChoice::Auto, _) => Err(Failure::Input("bench: name devices (reference, cpu, gpu), not auto".into())),
-        (_, Ok(device)) => Ok(Some(device)),
-        (_, Err(e)) if explicit => Err(e),
-        (_, Err(Failure::Input(e) | Failure::Internal(e))) => {
-            eprintln!("skipped {choice}: {e}");
-            Ok(None)
-        }
-    }
-}
-
-/// Median wall time of `runs` calls after one warm-up.
-pub fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
-    f()?;
-    let mut seconds = Vec::with_capacity(runs);
-    for _ in 0..runs {
-        let start = Instant::now();
-        f()?;
-        seconds.push(start.elapsed().as_secs_f64());
-    }
-    seconds.sort_by(f64::total_cmp);
-    Ok(seconds[runs / 2])
 }
 
 /// The reference times the batch's first tracks (the synthetic batch is a pure function of

@@ -4,9 +4,11 @@
 //! frame (ACL's unit; its published single-core figure is 30-45 ns per bone-pose). The CPU path
 //! is timed on every thread and on one.
 
+use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
-use quatcurve::bake::{self, Animation, ClipRate, LoopMode, Reuse};
-use quatcurve::fit::container::Container;
+use quatcurve::anim::qcf::Container;
+use quatcurve::anim::Animation;
+use quatcurve::bake::{self, ClipRate, LoopMode, Reuse};
 use quatcurve::{CurveSpec, Device, DeviceChoice};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -88,7 +90,7 @@ pub fn measure(
     let (mut poses, mut bone_poses) = (0, 0);
     let mut results = Vec::new();
     let mut time = |device: &Device| -> Result<(), Failure> {
-        let seconds = super::bench::median_seconds(runs, || {
+        let seconds = median_seconds(runs, || {
             (poses, bone_poses) = bake_all(device)?;
             Ok(())
         })?;
@@ -103,7 +105,7 @@ pub fn measure(
         Ok(())
     };
     for choice in devices {
-        let Some(device) = super::bench::open_bench_device(choice, explicit)? else { continue };
+        let Some(device) = open_bench_device(choice, explicit)? else { continue };
         time(&device)?;
         // The CPU path on one thread as well: the figure to set beside a one-core one.
         if matches!(device, Device::Cpu(_)) && rayon::current_num_threads() > 1 {
@@ -116,7 +118,7 @@ pub fn measure(
     }
     // Loading: the container's bytes read into the model a bake starts from (codes unpacked,
     // control points dequantized), on one thread, once per copy.
-    let load_seconds = super::bench::median_seconds(runs, || {
+    let load_seconds = median_seconds(runs, || {
         for bytes in &files_bytes {
             for _ in 0..copies {
                 let container = Container::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;

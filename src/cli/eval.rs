@@ -85,7 +85,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = if fitted {
         // Each fitted track's order is its own (a cubic, or keys slerped between).
-        Batch::from_tracks_each(&tracks, |i| quatcurve::fit::track_spec(&tracks[i]))
+        Batch::from_tracks_each(&tracks, |i| quatcurve::anim::qcf::fitted::track_spec(&tracks[i]))
     } else {
         Batch::from_tracks(&tracks, &spec)
     }
@@ -146,10 +146,10 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A fitted container's curves are its own ([`quatcurve::fit::spline_spec`], cubic or keys
+/// A fitted container's curves are its own ([`quatcurve::anim::qcf::fitted::spline_spec`], cubic or keys
 /// per channel): a curve option that would change them is refused.
 fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
-    let spec = quatcurve::fit::spline_spec(quatcurve::fit::ORDER);
+    let spec = quatcurve::anim::qcf::fitted::spline_spec(quatcurve::anim::qcf::fitted::ORDER);
     let refused = [
         (args.curve.is_some_and(|c| c != spec.curve), "--curve"),
         (args.options.order != spec.order, "--order"),
@@ -162,7 +162,7 @@ fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
             "{flag}: a fitted container's curves are its own ({} on its knots, of order {} or {} per channel)",
             spec.curve,
             spec.order,
-            quatcurve::fit::fitted::KEYS_ORDER
+            quatcurve::anim::qcf::fitted::KEYS_ORDER
         ))),
         None => Ok(spec),
     }

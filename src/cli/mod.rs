@@ -7,6 +7,7 @@ pub mod bench;
 pub mod bench_fitted;
 pub mod eval;
 pub mod fit;
+mod measure;
 pub mod shaders;
 pub mod view;
 
@@ -144,18 +145,18 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
 /// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in
 /// demo without one; with the name messages give the source.
 /// Every clip's rotation channels of the fitted container at `path`, as tracks
-/// ([`quatcurve::fit::container::Container::rotation_tracks`]).
+/// ([`quatcurve::anim::qcf::Container::rotation_tracks`]).
 pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {
     let source = path.display().to_string();
     let container =
-        quatcurve::fit::container::Container::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
+        quatcurve::anim::qcf::Container::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
     Ok((source, container.rotation_tracks()))
 }
 
 /// Whether `input` is a fitted container, by its extension.
 pub fn is_container(input: Option<&Path>) -> bool {
     let extension = input.and_then(|p| p.extension()).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    extension.as_deref() == Some(quatcurve::fit::container::EXTENSION)
+    extension.as_deref() == Some(quatcurve::anim::qcf::EXTENSION)
 }
 
 pub fn read_tracks(input: Option<&Path>, key_rate: Option<f64>) -> Result<(String, Vec<quatcurve::Track>), Failure> {

@@ -9,10 +9,10 @@
 use super::lanes::{write_columns, LANES, Q8};
 use super::simd::{Isa, Lanes};
 use crate::batch::TrackView;
-use crate::curve::{Blend, Curve};
-use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::SampleTimes;
-use crate::segment::locate;
+use quatcurve_core::curve::{Blend, Curve};
+use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_core::segment::locate;
 
 /// The great arc `start * exp(x v)`, written `cos(x theta) start + sin(x theta) lead` with
 /// `lead = start * (axis, 0)`: no quaternion product per sample.
@@ -183,7 +183,7 @@ fn evaluate_lanes<S: Lanes>(
     }
 }
 
-/// Nam-Kim's blend ratio `f(s)`, as [`crate::curve::Blend::ratio`].
+/// Nam-Kim's blend ratio `f(s)`, as [`quatcurve_core::curve::Blend::ratio`].
 #[inline(always)]
 fn blend_weight<S: Lanes>(kind: Blend, s: S) -> S {
     match kind {
@@ -198,7 +198,7 @@ fn blend_weight<S: Lanes>(kind: Blend, s: S) -> S {
 #[cfg(test)]
 mod tests {
     use super::{geodesic, Q8};
-    use crate::quat::QuatF64;
+    use quatcurve_core::quat::QuatF64;
     use wide::f32x8;
 
     /// Where the log has no axis, the SIMD geodesic does what the reference's does: stays

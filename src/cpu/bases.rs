@@ -5,8 +5,8 @@
 
 use super::lanes::MAX_FACTORS;
 use super::simd::Lanes;
-use crate::basis::{bernstein_polynomials, fit_polynomials, uniform_bspline_polynomials};
-use crate::curve::{MAX_ORDER, MIN_ORDER};
+use quatcurve_core::basis::{bernstein_polynomials, fit_polynomials, uniform_bspline_polynomials};
+use quatcurve_core::curve::{MAX_ORDER, MIN_ORDER};
 
 /// A cumulative basis that is a fixed polynomial of the segment parameter `u in [0, 1]`:
 /// `count` functions of degree `len - 1 < 8`, f32 coefficients lowest first.
@@ -75,7 +75,7 @@ pub(super) enum Basis<'a> {
 }
 
 /// The cumulative Bernstein basis of degree `F` and its `u` derivatives, eight parameters at
-/// a time: the SIMD twin of [`crate::basis::bernstein_cumulative`] (de Casteljau rows `F - 2`,
+/// a time: the SIMD twin of [`quatcurve_core::basis::bernstein_cumulative`] (de Casteljau rows `F - 2`,
 /// `F - 1`, `F`; sums from the top).
 #[inline(always)]
 pub(super) fn bernstein_cumulative_lanes<S: Lanes, const F: usize>(u: S, out: &mut [[S; 3]; F]) {

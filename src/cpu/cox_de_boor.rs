@@ -1,5 +1,5 @@
 //! The cumulative B-spline basis on unequal knots, eight samples at a time: the SIMD twin of
-//! [`crate::basis::bspline_cumulative_into`]. Each lane has its own span: fitted curves have a
+//! [`quatcurve_core::basis::bspline_cumulative_into`]. Each lane has its own span: fitted curves have a
 //! knot every frame or two, so a group of eight samples straddles several spans, and one
 //! triangle with each lane's knot constants costs what one span's did. [`CoxDeBoor`] computes
 //! the constants for all lanes at once (reciprocals, zero for repeated knots as in the
@@ -8,7 +8,7 @@
 use super::lanes::LANES;
 use super::lanes::MAX_FACTORS;
 use super::simd::Lanes;
-use crate::curve::MAX_ORDER;
+use quatcurve_core::curve::MAX_ORDER;
 
 /// Per lane, `1 / (b - a)`, or 0 for a zero-length interval (the reference's convention).
 #[inline(always)]

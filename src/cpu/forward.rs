@@ -9,12 +9,12 @@
 //! evaluation. Values only: derivative requests take the direct path.
 
 use crate::batch::TrackView;
-use crate::curve::Curve;
 use crate::job::EvalOptions;
-use crate::quat::{QuatF64, Vec3F64};
 use crate::sampling::{SampleTimes, TrackTimes};
-use crate::segment::locate;
 use glam::{Quat, Vec4};
+use quatcurve_core::curve::Curve;
+use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_core::segment::locate;
 use std::ops::Range;
 
 /// Whether track `index` can use the generator: slerp or Nam-Kim, uniform times, no

@@ -8,7 +8,7 @@ use super::simd::{sin_cos_small, Lanes};
 pub const LANES: usize = 8;
 
 /// Most factors in one product: a B-spline of the highest order.
-pub const MAX_FACTORS: usize = crate::curve::MAX_ORDER - 1;
+pub const MAX_FACTORS: usize = quatcurve_core::curve::MAX_ORDER - 1;
 
 /// Eight 3-vectors.
 #[derive(Clone, Copy, Debug)]

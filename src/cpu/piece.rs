@@ -6,11 +6,11 @@ use super::cox_de_boor::CoxDeBoor;
 use super::lanes::{axis_angle, cumulative_product, write_columns, AngleRange, Factor8, LANES, Q8, V8};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::{Batch, PackedTrack, TrackView};
-use crate::curve::Curve;
 use crate::job::EvalOptions;
 use crate::output::Row;
 use crate::sampling::{SampleTimes, TrackTimes};
-use crate::segment::locate;
+use quatcurve_core::curve::Curve;
+use quatcurve_core::segment::locate;
 
 /// What every piece of one evaluation shares: the evaluator's bases and lane type, and the
 /// batch, whose f64 points and coefficients the kernels convert to f32 where they read them.

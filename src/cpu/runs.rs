@@ -17,9 +17,9 @@ use super::lanes::{cumulative_product, AngleRange, LANES};
 use super::piece::{inv_step, locate_from, locate_uniform_in, spans, write_group, LaneRows, Segments, Shared};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::Batch;
-use crate::curve::{Curve, MIN_ORDER};
 use crate::job::EvalOptions;
 use crate::sampling::{SampleTimes, TrackTimes};
+use quatcurve_core::curve::{Curve, MIN_ORDER};
 use std::ops::Range;
 
 /// Most samples a track of a run has. Measured on 32-key tracks (`bench`'s): runs take about
@@ -146,7 +146,7 @@ struct Cursor<'a> {
 
 impl Cursor<'_> {
     /// The next sample's time, clamped to the domain, and its span, as
-    /// [`crate::segment::locate`] finds them.
+    /// [`quatcurve_core::segment::locate`] finds them.
     #[inline(always)]
     fn next(&mut self, times: &SampleTimes) -> (f64, usize) {
         let j = self.j;

@@ -67,7 +67,7 @@ pub trait Lanes:
     fn all(self) -> bool;
 }
 
-pub use crate::isa::Isa;
+pub use quatcurve_core::isa::Isa;
 
 impl Lanes for wide::f32x8 {
     const ZERO: Self = wide::f32x8::ZERO;

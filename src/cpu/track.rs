@@ -8,10 +8,10 @@ use super::bases::Basis;
 use super::lanes::MAX_FACTORS;
 use super::piece::{spans, Piece, Shared};
 use crate::batch::TrackView;
-use crate::curve::{Curve, MIN_ORDER};
 use crate::job::EvalOptions;
 use crate::reference;
 use crate::sampling::SampleTimes;
+use quatcurve_core::curve::{Curve, MIN_ORDER};
 use std::ops::Range;
 
 /// Evaluates samples `range` of track `index` into `out` (`range.len()` [`crate::output::Row`]s).
@@ -58,7 +58,7 @@ pub fn evaluate(
                 let t = times.time(index, j);
                 if options.derivatives {
                     let s = reference::evaluate(view, t);
-                    let f = |v: crate::quat::Vec3F64| v.to_array().map(|c| c as f32);
+                    let f = |v: quatcurve_core::quat::Vec3F64| v.to_array().map(|c| c as f32);
                     row.write(
                         dst,
                         s.rotation.to_array().map(|v| v as f32),

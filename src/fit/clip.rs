@@ -3,16 +3,17 @@
 //! virtual vertices ([`crate::analysis::vertex_error`]) stays within a budget at every source
 //! frame; then measured at every frame and at points between frames against the source's own
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
-//! against the clip's bytes in the container ([`super::container`]).
+//! against the clip's bytes in the container ([`crate::anim::qcf`]).
 
-use super::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
-use super::quantize::{self, Quantized};
-use super::timeline::{Timeline, BETWEEN_POINTS};
-use super::{bracket, fit_rotations, fit_vectors, ORDER};
+use super::{bracket, fit_rotations, fit_vectors};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
-use crate::bake::{Animation, Channel, Property};
+use crate::anim::qcf::fitted::ORDER;
+use crate::anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
+use crate::anim::qcf::quantize::{self, Quantized};
+use crate::anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
+use crate::anim::{Animation, Channel, Property};
 use crate::error::Number;
-use crate::quat::{QuatF64, Vec3F64};
+use quatcurve_core::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
@@ -68,7 +69,7 @@ pub struct ClipFit {
     pub frames: usize,
     /// [`RAW_BYTES_PER_JOINT_FRAME`] per joint per frame.
     pub raw_bytes: usize,
-    /// The clip's bytes in the container ([`super::container::clip_bytes`]).
+    /// The clip's bytes in the container ([`crate::anim::qcf::clip_bytes`]).
     pub fitted_bytes: usize,
 }
 
@@ -184,7 +185,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             timelines: timelines.clone(),
             channels: fitted,
         };
-        let fitted_bytes = super::container::clip_bytes(&fitted);
+        let fitted_bytes = crate::anim::qcf::clip_bytes(&fitted);
         if room >= 1.0 && best.as_ref().map_or(true, |b| fitted_bytes < b.fitted_bytes) {
             kept.clone_from(&scales);
             best = Some(ClipFit {
@@ -330,7 +331,7 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
             quantize::fewest_bits(start, curve, within)
         })
         .min_by_key(|curve| {
-            super::container::channel_bytes(&FittedChannel {
+            crate::anim::qcf::channel_bytes(&FittedChannel {
                 joint: channel.joint,
                 property: channel.property,
                 curve: curve.clone(),
@@ -512,7 +513,7 @@ fn subtree_worst(parents: &[Option<usize>], order: &[usize], mut errors: Vec<f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{Clip, Joint};
+    use crate::anim::{Clip, Joint};
 
     /// A three-joint arm (10 cm bones) waving smoothly for two seconds at 120 Hz, its root
     /// also moving.

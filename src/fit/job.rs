@@ -4,17 +4,16 @@
 //! input); a failed input is reported and the others still finish.
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
-use super::container::{BvhSkeleton, Container, EXTENSION};
+use crate::anim::error::InputError;
+use crate::anim::qcf::{BvhSkeleton, Container, EXTENSION};
+use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::bake::inputs::{expand, extension, output_stems};
 use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
-use crate::bake::{bvh, gltf, Animation, BakeError, InputError};
+use crate::bake::{bvh, gltf, BakeError};
 use crate::error::Number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Centimetres in a glTF unit: glTF lengths are metres.
-pub const GLTF_UNIT_CM: f64 = 100.0;
 
 /// The extensions a fit reads (sources with keys; a container holds control points).
 pub const FIT_EXTENSIONS: [&str; 3] = ["gltf", "glb", "bvh"];

@@ -14,118 +14,19 @@
 
 pub mod banded;
 pub mod clip;
-pub mod container;
-pub mod fitted;
 pub mod job;
-pub mod quantize;
-pub mod timeline;
 
-use crate::basis::bspline_cumulative;
-use crate::batch::BatchBuilder;
-use crate::curve::CurveSpec;
-use crate::error::TrackId;
-use crate::euclidean::VectorCurve;
-use crate::quat::{QuatF64, Vec3F64};
-use crate::segment::locate;
-use crate::track::Track;
+use crate::anim::qcf::fitted::{clamped, Fit, ORDER};
 use banded::Banded;
-
-/// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
-pub const ORDER: usize = 4;
+use quatcurve_core::basis::bspline_cumulative;
+use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_core::segment::locate;
 
 /// Levenberg-Marquardt steps at most per knot vector.
 const STEPS: usize = 60;
 
 /// Damping values tried (each ten times the last) before a step is given up.
 const DAMPING_TRIES: usize = 8;
-
-/// A fitted channel: the knot vector (clamped: [`ORDER`] copies of each end) and the control
-/// points, with the largest error over the samples and where.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Fit<T> {
-    /// `controls.len() + ORDER` knots.
-    pub knots: Vec<f64>,
-    /// The control points.
-    pub controls: Vec<T>,
-    /// The largest error over the samples: radians for rotations, the values' units for vectors.
-    pub worst: f64,
-    /// The sample where it is.
-    pub worst_at: usize,
-}
-
-/// The curve family of a fit of `order` ([`ORDER`] for a cubic, 2 for keys slerped or
-/// lerped between): a clamped B-spline on explicit knots, open.
-#[must_use]
-pub fn spline_spec(order: usize) -> CurveSpec {
-    CurveSpec::open_bspline(order)
-}
-
-/// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
-/// fitted channel's knot vector says of its curve.
-#[must_use]
-pub fn order_of(knots: usize, controls: usize) -> usize {
-    knots.saturating_sub(controls)
-}
-
-/// The spec of a fitted track of explicit knots ([`Fit::track`], a container's
-/// [`fitted::FittedClip::rotation_tracks`]): the order its knots and control points make.
-#[must_use]
-pub fn track_spec(track: &Track) -> CurveSpec {
-    spline_spec(order_of(track.knots.as_ref().map_or(0, Vec::len), track.rotations.len()))
-}
-
-impl<T> Fit<T> {
-    /// The curve's B-spline order ([`order_of`]).
-    #[must_use]
-    pub fn order(&self) -> usize {
-        order_of(self.knots.len(), self.controls.len())
-    }
-}
-
-impl Fit<QuatF64> {
-    /// The fitted curve as a track of explicit knots, and its spec.
-    #[must_use]
-    pub fn track(&self) -> (Track, CurveSpec) {
-        let track = Track {
-            rotations: self.controls.iter().map(|q| q.to_array()).collect(),
-            knots: Some(self.knots.clone()),
-            ..Track::default()
-        };
-        (track, spline_spec(self.order()))
-    }
-
-    /// The curve at `times`, by the reference evaluator.
-    ///
-    /// # Errors
-    /// The batch builder's, for a knot vector it refuses (a fit never makes one).
-    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<QuatF64>> {
-        let (track, spec) = self.track();
-        let mut builder = BatchBuilder::new();
-        builder.add(&track, &spec)?;
-        let batch = builder.build()?;
-        Ok(times.iter().map(|&t| crate::reference::evaluate_rotation(batch.view(0), t)).collect())
-    }
-}
-
-impl Fit<[f64; 3]> {
-    /// The curve at `times`, by the vector evaluator ([`VectorCurve`], the Euclidean analogue).
-    ///
-    /// # Errors
-    /// The evaluator's, for a knot vector it refuses (a fit never makes one).
-    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
-        let id = TrackId { index: 0, name: None };
-        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec(self.order()))?;
-        Ok(times.iter().map(|&t| curve.evaluate(t)).collect())
-    }
-}
-
-/// `[start; order]`, `interior`, `[end; order]`.
-fn clamped(order: usize, start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
-    let mut knots = vec![start; order];
-    knots.extend_from_slice(interior);
-    knots.extend(std::iter::repeat(end).take(order));
-    knots
-}
 
 /// Per sample time, the first control point it depends on and the [`ORDER`] basis values
 /// `B_i(t)` from there, derived from the cumulative basis (`B_i = B~_i - B~_{i+1}`).

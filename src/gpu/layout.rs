@@ -5,9 +5,9 @@
 //! test compares their offsets with naga's layout, so neither side can drift.
 
 use crate::batch::Batch;
-use crate::curve::{Blend, Curve};
 use crate::sampling::{SampleTimes, TrackTimes};
 use bytemuck::{Pod, Zeroable};
+use quatcurve_core::curve::{Blend, Curve};
 
 /// One track as the kernel reads it (WGSL `GpuTrack`).
 #[repr(C)]
@@ -285,9 +285,9 @@ pub const POLY_HERMITE: u32 = 28;
 /// memory (half the kernel's time).
 #[must_use]
 pub fn polynomial_table() -> Vec<[f32; 4]> {
-    let functions = (crate::curve::MIN_ORDER..=crate::curve::MAX_ORDER)
-        .flat_map(crate::basis::uniform_bspline_polynomials)
-        .chain(crate::basis::bernstein_polynomials(3));
+    let functions = (quatcurve_core::curve::MIN_ORDER..=quatcurve_core::curve::MAX_ORDER)
+        .flat_map(quatcurve_core::basis::uniform_bspline_polynomials)
+        .chain(quatcurve_core::basis::bernstein_polynomials(3));
     functions.flat_map(|c| [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]]].map(|v| v.map(|x| x as f32))).collect()
 }
 

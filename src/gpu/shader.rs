@@ -131,7 +131,7 @@ pub enum Program {
     Vertex,
 }
 
-crate::curve::names!(Program, "shader program", Bones => "bones", Vertex => "vertex");
+quatcurve_core::curve::names!(Program, "shader program", Bones => "bones", Vertex => "vertex");
 
 impl Program {
     /// The WGSL files, in order.
@@ -172,7 +172,7 @@ pub enum Language {
     Hlsl,
 }
 
-crate::curve::names!(Language, "shader language", Wgsl => "wgsl", Glsl => "glsl", GlslEs => "glsl-es", Hlsl => "hlsl");
+quatcurve_core::curve::names!(Language, "shader language", Wgsl => "wgsl", Glsl => "glsl", GlslEs => "glsl-es", Hlsl => "hlsl");
 
 impl Language {
     /// The usual file-name extension of a vertex shader in this language.

@@ -5,7 +5,8 @@
 //!   helpers they share in [`common`] (tracks, specs, generators) and [`fast`] (comparisons);
 //! - [`shaders`]: the WGSL program without a GPU (naga) and the facts Rust shares with it;
 //! - [`cli`], [`bake`]: the command line end to end, real files and hostile ones;
-//! - [`architecture`]: the layer map of `ARCHITECTURE.md`, checked against the imports.
+//! - [`architecture`]: `ARCHITECTURE.md`'s crates, layers and orders, checked against the
+//!   manifests and the imports.
 
 #[allow(dead_code)]
 mod common;

@@ -3,7 +3,7 @@
 
 use quatcurve::gpu::layout::{self, GpuTrack, Params};
 use quatcurve::gpu::shader;
-use quatcurve::{Blend, Curve};
+use quatcurve::{real, Blend, Curve};
 
 #[test]
 fn every_shader_file_parses_and_the_program_validates() {
@@ -296,4 +296,30 @@ fn bind_group_layouts_come_from_the_shaders() {
         }
     }
     assert!(shader::Resources::of(&eval).unwrap().binding("nothing").is_err());
+}
+
+/// The shader's Taylor coefficients, typed as decimals in `shaders/real.wgsl`
+/// (`horner_step(acc, x, c)`, highest power first), are the core's tables (`quatcurve::real`) rounded to f32.
+#[test]
+fn shader_series_are_these_series() {
+    let wgsl = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/real.wgsl")).unwrap();
+    let coefficients = |function: &str| -> Vec<f64> {
+        let body = &wgsl[wgsl.find(&format!("fn {function}(")).unwrap_or_else(|| panic!("no fn {function}"))..];
+        let body = &body[..body.find("\n}\n").expect("function end")];
+        body.split("horner_step(acc, x, ")
+            .skip(1)
+            .map(|rest| rest[..rest.find(')').expect(")")].parse().expect("a number"))
+            .collect()
+    };
+    for (function, series) in [
+        ("cos_sqrt", &real::COS_SERIES[..]),
+        ("sinc_sqrt", &real::SINC_SERIES[..]),
+        ("atanc_sqrt", &real::ATANC_SERIES[..]),
+    ] {
+        let shader = coefficients(function);
+        assert!(shader.len() >= 7, "{function}: {shader:?}");
+        for (k, &c) in shader.iter().rev().enumerate() {
+            assert_eq!(c as f32, series[k] as f32, "{function}: coefficient of x^{k}");
+        }
+    }
 }

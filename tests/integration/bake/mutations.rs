@@ -9,7 +9,8 @@
 
 use super::{data_dir, tiny_gltf};
 use proptest::prelude::*;
-use quatcurve::bake::{self, bvh, gltf, InputError, LoopMode};
+use quatcurve::anim::error::InputError;
+use quatcurve::bake::{self, bvh, gltf, LoopMode};
 use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, SampleTimes, Sampling, TrackFile};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -103,8 +104,8 @@ fn seeds() -> &'static [Seed] {
 
 /// The container `quatcurve fit` writes for a BVH text (1 cm units).
 fn fitted_container(text: &str) -> Vec<u8> {
+    use quatcurve::anim::qcf::{BvhSkeleton, Container};
     use quatcurve::fit::clip::{fit_clip, Budget};
-    use quatcurve::fit::container::{BvhSkeleton, Container};
     let file = bvh::parse(text).unwrap();
     let animation = file.animation("clip");
     let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
@@ -278,7 +279,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Container => {
-            let container = quatcurve::fit::container::Container::from_bytes(bytes)?;
+            let container = quatcurve::anim::qcf::Container::from_bytes(bytes)?;
             let animation = container.animation();
             if animation.clips.is_empty() {
                 return Ok(Reached::Skipped("no clip"));

@@ -84,9 +84,8 @@ fn an_output_that_fails_during_the_job_is_reported_as_an_output_failure() {
 /// screen that spares most steps the exact angle must not move the limit.
 #[test]
 fn source_steps_just_over_the_warning_limit_are_counted_and_those_just_under_are_not() {
-    use quatcurve::bake::{
-        source_step_warnings, Animation, Channel, Clip, Joint, Property, SOURCE_STEP_WARNING_DEGREES,
-    };
+    use quatcurve::anim::{Animation, Channel, Clip, Joint, Property};
+    use quatcurve::bake::{source_step_warnings, SOURCE_STEP_WARNING_DEGREES};
     let about_z = |degrees: f64| {
         let half = degrees.to_radians() / 2.0;
         [0.0, 0.0, half.sin(), half.cos()]

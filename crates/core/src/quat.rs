@@ -260,7 +260,7 @@ impl<R: Real> Quaternion<R> {
 
     /// The geodesic `self * exp(h log(self^-1 end))` with no hemisphere fold: it ends exactly
     /// on `end` (not `-end`) and varies continuously when `end` moves across the equator of
-    /// `self`. Squad and Nam-Kim blend with it (see [`crate::reference`]).
+    /// `self`. Squad and Nam-Kim blend with it (`quatcurve::reference`).
     ///
     /// Past the middle it is evaluated from the other end, `end * exp((1 - h) log(end^-1 self))`
     /// (the same curve, NK eq. 4), so the log, ill-conditioned when the endpoints are far apart,

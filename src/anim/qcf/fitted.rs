@@ -4,10 +4,104 @@
 
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
-use super::{clamped, Fit, ORDER};
-use crate::bake::{Channel, Clip, Joint, Property};
-use crate::quat::QuatF64;
+use crate::anim::{Channel, Clip, Joint, Property};
+use crate::batch::BatchBuilder;
+use crate::error::TrackId;
+use crate::euclidean::VectorCurve;
 use crate::track::Track;
+use quatcurve_core::curve::CurveSpec;
+use quatcurve_core::quat::{QuatF64, Vec3F64};
+
+/// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
+pub const ORDER: usize = 4;
+
+/// A fitted channel: the knot vector (clamped: [`ORDER`] copies of each end) and the control
+/// points, with the largest error over the samples and where.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit<T> {
+    /// `controls.len() + ORDER` knots.
+    pub knots: Vec<f64>,
+    /// The control points.
+    pub controls: Vec<T>,
+    /// The largest error over the samples: radians for rotations, the values' units for vectors.
+    pub worst: f64,
+    /// The sample where it is.
+    pub worst_at: usize,
+}
+
+/// The curve family of a fit of `order` ([`ORDER`] for a cubic, 2 for keys slerped or
+/// lerped between): a clamped B-spline on explicit knots, open.
+#[must_use]
+pub fn spline_spec(order: usize) -> CurveSpec {
+    CurveSpec::open_bspline(order)
+}
+
+/// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
+/// fitted channel's knot vector says of its curve.
+#[must_use]
+pub fn order_of(knots: usize, controls: usize) -> usize {
+    knots.saturating_sub(controls)
+}
+
+/// The spec of a fitted track of explicit knots ([`Fit::track`], a container's
+/// [`FittedClip::rotation_tracks`]): the order its knots and control points make.
+#[must_use]
+pub fn track_spec(track: &Track) -> CurveSpec {
+    spline_spec(order_of(track.knots.as_ref().map_or(0, Vec::len), track.rotations.len()))
+}
+
+impl<T> Fit<T> {
+    /// The curve's B-spline order ([`order_of`]).
+    #[must_use]
+    pub fn order(&self) -> usize {
+        order_of(self.knots.len(), self.controls.len())
+    }
+}
+
+impl Fit<QuatF64> {
+    /// The fitted curve as a track of explicit knots, and its spec.
+    #[must_use]
+    pub fn track(&self) -> (Track, CurveSpec) {
+        let track = Track {
+            rotations: self.controls.iter().map(|q| q.to_array()).collect(),
+            knots: Some(self.knots.clone()),
+            ..Track::default()
+        };
+        (track, spline_spec(self.order()))
+    }
+
+    /// The curve at `times`, by the reference evaluator.
+    ///
+    /// # Errors
+    /// The batch builder's, for a knot vector it refuses (a fit never makes one).
+    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<QuatF64>> {
+        let (track, spec) = self.track();
+        let mut builder = BatchBuilder::new();
+        builder.add(&track, &spec)?;
+        let batch = builder.build()?;
+        Ok(times.iter().map(|&t| crate::reference::evaluate_rotation(batch.view(0), t)).collect())
+    }
+}
+
+impl Fit<[f64; 3]> {
+    /// The curve at `times`, by the vector evaluator ([`VectorCurve`], the Euclidean analogue).
+    ///
+    /// # Errors
+    /// The evaluator's, for a knot vector it refuses (a fit never makes one).
+    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
+        let id = TrackId { index: 0, name: None };
+        let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec(self.order()))?;
+        Ok(times.iter().map(|&t| curve.evaluate(t)).collect())
+    }
+}
+
+/// `[start; order]`, `interior`, `[end; order]`.
+pub fn clamped(order: usize, start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
+    let mut knots = vec![start; order];
+    knots.extend_from_slice(interior);
+    knots.extend(std::iter::repeat(end).take(order));
+    knots
+}
 
 /// The B-spline order of a [`Form::Keys`] curve.
 pub const KEYS_ORDER: usize = 2;
@@ -64,7 +158,7 @@ impl Between for [f64; 3] {
 
 impl<T> Spline<T> {
     /// The curve of `controls` in `form` on interior `knots` of `timeline` (clamped at its ends).
-    pub(super) fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
+    pub(crate) fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
         let line = &timelines[timeline];
         let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
         let (order, interior): (usize, Vec<f64>) = match form {
@@ -158,7 +252,7 @@ impl Fitted {
                 (s.fit.knots.clone(), s.fit.controls.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect())
             }
         };
-        let order = super::order_of(knots.len(), values.len());
+        let order = order_of(knots.len(), values.len());
         let greville = (0..values.len()).map(|i| knots[i + 1..i + order].iter().sum::<f64>() / (order - 1) as f64);
         Channel { joint, property, times: greville.collect(), values, knots: Some(knots) }
     }
@@ -196,7 +290,7 @@ impl FittedClip {
         self.timelines.iter().map(|l| (l.keys() - 1) as f64 / (l.key(l.keys() - 1) - l.key(0))).fold(1.0, f64::max)
     }
 
-    /// The clip's rotation channels as tracks of explicit knots ([`super::spline_spec`]),
+    /// The clip's rotation channels as tracks of explicit knots ([`spline_spec`]),
     /// named `<clip>/<joint>`: what `eval` evaluates. A constant is [`ORDER`] equal control
     /// points over the clip's span, so that every track shares the clip's domain.
     #[must_use]
@@ -230,7 +324,7 @@ impl FittedClip {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::quat::Vec3F64;
+    use quatcurve_core::quat::Vec3F64;
 
     #[test]
     fn a_keyed_curve_is_its_keys_slerped_and_lerped_between_them() {

@@ -6,7 +6,7 @@
 //! points sign-continuous again). Ranges are `f32` values, as the container stores them, so a
 //! fit's decoded control points are the container's to the bit.
 
-use crate::quat::QuatF64;
+use quatcurve_core::quat::QuatF64;
 
 /// The most bits a component takes.
 pub const MAX_BITS: u32 = 24;
@@ -203,7 +203,7 @@ pub fn fewest_bits<Q>(start: u32, codes: impl Fn(u32) -> Q, fits: impl Fn(&Q) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::quat::Vec3F64;
+    use quatcurve_core::quat::Vec3F64;
 
     #[test]
     fn codes_decode_within_the_error_asked_in_the_fewest_bits() {

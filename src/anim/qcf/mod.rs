@@ -3,13 +3,17 @@
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
 //! is an error naming it and its byte offset.
 
-use super::fitted::{Fitted, FittedChannel, FittedClip, Form};
-use super::quantize::{Quantized, QuantizedRotations, MAX_BITS};
-use super::timeline::{Timeline, BETWEEN_POINTS};
-use super::ORDER;
-use crate::bake::{Animation, InputError, Joint, Property};
+pub mod fitted;
+pub mod quantize;
+pub mod timeline;
+
+use crate::anim::error::{ContainerError, InputError};
+use crate::anim::{Animation, Joint, Property};
 use crate::batch::MIN_KEY_NORM;
 use crate::error::Number;
+use fitted::{Fitted, FittedChannel, FittedClip, Form, ORDER};
+use quantize::{Quantized, QuantizedRotations, MAX_BITS};
+use timeline::{Timeline, BETWEEN_POINTS};
 
 /// The first bytes of a container.
 pub const MAGIC: [u8; 8] = *b"QCURVFIT";
@@ -44,18 +48,6 @@ pub struct BvhSkeleton {
     pub hierarchy: String,
     /// Seconds per source frame.
     pub frame_time: f64,
-}
-
-/// A field of a container that is missing, truncated or out of its range.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("byte {offset}: {field}: {reason}")]
-pub struct ContainerError {
-    /// Where the field starts.
-    pub offset: usize,
-    /// Which field (`clip 0 'walk', channel 3, knot 2`).
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
 }
 
 impl Container {
@@ -780,8 +772,8 @@ impl<'a> BitReader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::quantize;
-    use crate::quat::{QuatF64, Vec3F64};
+    use crate::anim::qcf::quantize;
+    use quatcurve_core::quat::{QuatF64, Vec3F64};
 
     /// Two joints: a rotation curve, a vector curve with a knot of multiplicity 3, a constant.
     fn container() -> Container {

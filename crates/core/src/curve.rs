@@ -107,7 +107,7 @@ impl CurveSpec {
     }
 
     /// An open B-spline of `order` on explicit knots: the curve of a fitted channel
-    /// ([`crate::batch::BatchBuilder::add_spline`]).
+    /// (`quatcurve::BatchBuilder::add_spline`).
     #[must_use]
     pub fn open_bspline(order: usize) -> Self {
         Self { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..Self::default() }
@@ -156,7 +156,10 @@ impl CurveSpec {
     }
 }
 
-/// Names as the CLI and JSON spell them.
+/// Names as the CLI and JSON spell them: `NAMES`, `name()`, `Display` and `FromStr` for an
+/// enum of unit variants (quatcurve's choices: curves, devices, texture kinds, formats).
+#[doc(hidden)]
+#[macro_export]
 macro_rules! names {
     ($ty:ty, $what:literal, $($variant:ident => $name:literal),+ $(,)?) => {
         impl $ty {
@@ -185,7 +188,7 @@ macro_rules! names {
         }
     };
 }
-pub(crate) use names;
+pub use names;
 
 names!(Curve, "curve",
     Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim",

@@ -2,7 +2,7 @@
 //! than when the crate is built, so that dependents, portable binaries and Python wheels built
 //! once get AVX2 wherever it exists, without build flags.
 
-/// Which lane types run: the CPU evaluator's eight `f32` lanes (`crate::cpu`) and the C2
+/// Which lane types run: quatcurve's CPU evaluator's eight `f32` lanes (`quatcurve::cpu`) and the C2
 /// solve's four `f64` lanes (`crate::interp`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Isa {

@@ -1,0 +1,76 @@
+//! Why one input could not be read or baked ([`InputError`]): the job goes on with the other
+//! inputs and reports it.
+
+use crate::device::DeviceError;
+
+/// Why one input could not be baked. Every kind but a failing device is the input's (the
+/// command line's exit code 2; a device failure is exit code 1).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum InputError {
+    /// The file could not be read.
+    #[error("cannot read: {0}")]
+    Read(std::io::Error),
+    /// Not one of [`crate::bake::inputs::INPUT_EXTENSIONS`].
+    #[error("unknown format: expected .gltf, .glb, .bvh or .qcf (a fitted container)")]
+    UnknownFormat,
+    /// A fitted container ([`crate::anim::qcf`]) with a field truncated or out of range.
+    #[error("fitted container {0}")]
+    Container(#[from] ContainerError),
+    /// A glTF file that is corrupt or breaks a rule of the format; the message names the node,
+    /// accessor, skin or buffer.
+    #[error("{0}")]
+    Gltf(String),
+    /// A malformed BVH hierarchy or motion section.
+    #[error("line {line}: {reason}")]
+    Bvh {
+        /// 1-based line of the file.
+        line: usize,
+        /// What is wrong there.
+        reason: String,
+    },
+    /// An animation that cannot be baked as asked: nothing animated, a joint hierarchy with a
+    /// cycle, a loop that does not close, more samples than a bake may hold, a skin texture
+    /// for a file without skins. The message names the clip, joint or channel.
+    #[error("{0}")]
+    Animation(String),
+    /// Keys the curve builder rejects (the one key validation of the library), naming the
+    /// channel as the track and the key.
+    #[error(transparent)]
+    Keys(#[from] crate::error::Error),
+    /// An output that could not be written or assembled.
+    #[error("{0}")]
+    Output(String),
+    /// The evaluating device refused the work or failed.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// quatcurve itself failed (a worker thread that stopped).
+    #[error("{0}")]
+    Internal(String),
+}
+
+impl InputError {
+    /// Whether the device or quatcurve itself failed, rather than the input being at fault.
+    #[must_use]
+    pub fn is_internal_failure(&self) -> bool {
+        matches!(self, Self::Internal(_)) || matches!(self, Self::Device(e) if e.is_device_failure())
+    }
+
+    /// Whether an output could not be written (the input itself was fine).
+    #[must_use]
+    pub fn is_output_failure(&self) -> bool {
+        matches!(self, Self::Output(_))
+    }
+}
+
+/// A field of a fitted container ([`crate::anim::qcf`]) that is missing, truncated or out of its range.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("byte {offset}: {field}: {reason}")]
+pub struct ContainerError {
+    /// Where the field starts.
+    pub offset: usize,
+    /// Which field (`clip 0 'walk', channel 3, knot 2`).
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}

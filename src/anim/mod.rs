@@ -1,0 +1,180 @@
+//! The animation model every source is read into and every product starts from: joints with
+//! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
+//! scale as keys or as a fitted B-spline ([`Channel::knots`]). Importers fill it
+//! ([`crate::bake::gltf`], [`crate::bake::bvh`], [`crate::bake::crowd`], fitted containers
+//! through [`qcf`]); the bake resamples it and the fit compresses it.
+
+pub mod error;
+pub mod qcf;
+
+use error::InputError;
+use error::InputError as E;
+
+/// Centimetres in a glTF unit: glTF lengths are metres.
+pub const GLTF_UNIT_CM: f64 = 100.0;
+
+/// What a channel animates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Property {
+    /// Unit quaternion `x, y, z, w`.
+    Rotation,
+    /// Vector `x, y, z` (the fourth value is unused).
+    Translation,
+    /// Vector `x, y, z` (the fourth value is unused).
+    Scale,
+}
+
+/// One keyed property of one joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// Index into [`Animation::joints`].
+    pub joint: usize,
+    /// What it animates.
+    pub property: Property,
+    /// Key times in seconds, strictly increasing.
+    pub times: Vec<f64>,
+    /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
+    pub values: Vec<[f64; 4]>,
+    /// A fitted channel's knots ([`crate::fit`]): then `values` are the control points of a
+    /// clamped B-spline on them (the KKS cumulative form for rotations; its order is the knot
+    /// count less the control point count), not keys, and `times` their Greville abscissae;
+    /// `None` for keys.
+    pub knots: Option<Vec<f64>>,
+}
+
+/// One clip: channels sharing a time line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    /// Name for messages and sidecars.
+    pub name: String,
+    /// The keyed channels.
+    pub channels: Vec<Channel>,
+}
+
+impl Clip {
+    /// `[first key, last key]` over every channel.
+    #[must_use]
+    pub fn span(&self) -> [f64; 2] {
+        let first = self.channels.iter().filter_map(|c| c.times.first()).copied().fold(f64::INFINITY, f64::min);
+        let last = self.channels.iter().filter_map(|c| c.times.last()).copied().fold(f64::NEG_INFINITY, f64::max);
+        if first <= last {
+            [first, last]
+        } else {
+            [0.0, 0.0]
+        }
+    }
+}
+
+/// A joint (glTF node, BVH joint) and its rest pose, used where a clip does not animate it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// Name (glTF node name or `node<i>`; BVH joint name).
+    pub name: String,
+    /// The parent joint, `None` for a root of the scene.
+    pub parent: Option<usize>,
+    /// Rest rotation `x, y, z, w`.
+    pub rotation: [f64; 4],
+    /// Rest translation.
+    pub translation: [f64; 3],
+    /// Rest scale.
+    pub scale: [f64; 3],
+}
+
+impl Joint {
+    /// A joint at rest with the identity rotation and unit scale.
+    #[must_use]
+    pub fn at(name: String, parent: Option<usize>, translation: [f64; 3]) -> Self {
+        Self { name, parent, rotation: [0.0, 0.0, 0.0, 1.0], translation, scale: [1.0; 3] }
+    }
+}
+
+/// A glTF skin: the joints a mesh is bound to and their inverse bind matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skin {
+    /// Name (the skin's, or `skin<k>`).
+    pub name: String,
+    /// Joint indices into [`Animation::joints`], in the skin's order.
+    pub joints: Vec<usize>,
+    /// One per joint: the inverse bind matrix as 3x4 row-major (its last row is `0 0 0 1`).
+    pub inverse_bind: Vec<[f64; 12]>,
+}
+
+/// A source file read into the common model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animation {
+    /// The joints the clips refer to, each with its parent.
+    pub joints: Vec<Joint>,
+    /// The clips.
+    pub clips: Vec<Clip>,
+    /// glTF skins (none for BVH and the crowd).
+    pub skins: Vec<Skin>,
+}
+
+impl Animation {
+    /// Whether any channel is fitted ([`Channel::knots`]): control points, not keys.
+    #[must_use]
+    pub fn is_fitted(&self) -> bool {
+        self.clips.iter().flat_map(|c| &c.channels).any(|c| c.knots.is_some())
+    }
+
+    /// Joint indices with every parent before its children (the order forward kinematics
+    /// walks).
+    ///
+    /// # Errors
+    /// [`InputError::Animation`] for a parent index out of range or a cycle, naming a joint on it.
+    pub fn parents_first(&self) -> Result<Vec<usize>, InputError> {
+        let n = self.joints.len();
+        // Depth by walking up; a chain longer than the joint count is a cycle.
+        let mut depth = vec![usize::MAX; n];
+        for start in 0..n {
+            let mut chain = Vec::new();
+            let mut at = start;
+            while depth[at] == usize::MAX {
+                chain.push(at);
+                match self.joints[at].parent {
+                    None => break,
+                    Some(p) if p >= n => {
+                        return Err(E::Animation(format!(
+                            "joint {at} ({}): parent {p} does not exist",
+                            self.joints[at].name
+                        )))
+                    }
+                    Some(_) if chain.len() > n => {
+                        return Err(E::Animation(format!(
+                            "joint {at} ({}) is its own ancestor: the hierarchy has a cycle",
+                            self.joints[at].name
+                        )))
+                    }
+                    Some(p) => at = p,
+                }
+            }
+            let mut d = if depth[at] == usize::MAX { 0 } else { depth[at] + 1 };
+            for &j in chain.iter().rev() {
+                if depth[j] == usize::MAX {
+                    depth[j] = d;
+                    d += 1;
+                }
+            }
+        }
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&j| depth[j]);
+        Ok(order)
+    }
+
+    /// Total keys over every channel of every clip.
+    #[must_use]
+    pub fn key_count(&self) -> usize {
+        self.clips.iter().flat_map(|c| &c.channels).map(|c| c.times.len()).sum()
+    }
+
+    /// `clip '<clip>', <joint> <property>`, naming a channel in messages.
+    #[must_use]
+    pub fn label(&self, clip: &Clip, channel: &Channel) -> String {
+        let property = match channel.property {
+            Property::Rotation => "rotation",
+            Property::Translation => "translation",
+            Property::Scale => "scale",
+        };
+        format!("clip '{}', {} {property}", clip.name, self.joints[channel.joint].name)
+    }
+}
