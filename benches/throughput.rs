@@ -23,8 +23,8 @@ const SAMPLES: usize = 1_000;
 
 fn workloads() -> Vec<(&'static str, CurveSpec)> {
     vec![
-        ("bspline4_uniform", CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() }),
-        ("bspline5_clamped", CurveSpec { knots: KnotMode::Clamped, order: 5, ..CurveSpec::default() }),
+        ("bspline4_uniform", CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) }),
+        ("bspline5_clamped", CurveSpec { knots: KnotMode::Clamped, order: 5, ..CurveSpec::new(Curve::BSpline) }),
         ("hermite", CurveSpec::new(Curve::Hermite)),
         ("squad", CurveSpec::new(Curve::Squad)),
     ]

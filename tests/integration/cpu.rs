@@ -5,7 +5,7 @@ use crate::common::*;
 use crate::fast::*;
 use quatcurve::cpu::{CpuEvaluator, Isa};
 use quatcurve::FloatOutput;
-use quatcurve::{Batch, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
+use quatcurve::{Batch, Curve, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
 use quatcurve::{EvalJob, EvalOptions};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
@@ -108,8 +108,7 @@ fn sizes_that_are_not_multiples_of_the_simd_width() {
 #[test]
 fn bezier_curves_of_every_degree() {
     // Degrees 1..=7 take the SIMD de Casteljau basis, 8 and 9 the reference per sample.
-    use quatcurve::Curve;
-    let spec = CurveSpec { curve: Curve::Bezier, ..CurveSpec::default() };
+    let spec = CurveSpec::new(Curve::Bezier);
     let mut all = Worst::default();
     for (degree, kind) in
         (1..=9).zip([Kind::Random, Kind::NearIdentical, Kind::NearAntipodal, Kind::SignFlipped].into_iter().cycle())
@@ -145,7 +144,7 @@ fn long_clips_keep_full_time_precision() {
 fn tracks_longer_than_one_work_piece_and_matrices() {
     // 10,000 samples per track cross several parallel pieces; the matrix columns must be the
     // rotation's own matrix, frame-major must be the transpose of track-major.
-    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
+    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) };
     let batch = batch_for(3, &spec, Kind::Random, 3);
     let times = SampleTimes::uniform(&batch, Sampling::Count(10_000)).unwrap();
     let cpu = CpuEvaluator::new();
@@ -182,7 +181,7 @@ fn tracks_longer_than_one_work_piece_and_matrices() {
 
 #[test]
 fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
-    use quatcurve::{Curve, Track};
+    use quatcurve::Track;
     let cpu = CpuEvaluator::new();
     let fd = |batch: &Batch, times: &SampleTimes, layout: Layout, reseed: usize| {
         cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions {

@@ -244,7 +244,7 @@ pub fn bspline_batch(orders: &[usize], knot_modes: &[KnotMode]) -> (Batch, Sampl
 
 /// Batch sizes and sample counts that are not multiples of a workgroup or SIMD width.
 pub fn odd_sizes(eval: Eval<'_>) {
-    let spec = CurveSpec::default();
+    let spec = CurveSpec::new(Curve::BSpline);
     for (tracks, samples) in [(1usize, 1usize), (1, 7), (1, 9), (1, 63), (1, 65), (3, 21), (7, 129), (13, 1)] {
         let batch = batch_for(tracks as u64, &spec, Kind::Random, tracks);
         let times = SampleTimes::uniform(&batch, Sampling::Count(samples)).unwrap();
@@ -283,7 +283,7 @@ pub fn long_clip(eval: Eval<'_>) -> Worst {
     for spec in [
         CurveSpec::new(Curve::Hermite),
         CurveSpec::new(Curve::Squad),
-        CurveSpec { knots: KnotMode::Uniform, order: 6, ..CurveSpec::default() },
+        CurveSpec { knots: KnotMode::Uniform, order: 6, ..CurveSpec::new(Curve::BSpline) },
     ] {
         let batch = Batch::from_tracks(std::slice::from_ref(&t), &spec).unwrap();
         let times = SampleTimes::uniform(&batch, Sampling::Rate(119.3)).unwrap();
@@ -315,7 +315,7 @@ pub fn interp_and_loops(eval: Eval<'_>) -> Worst {
         CurveSpec { looping: true, tangents: Tangents::Zero, ..CurveSpec::new(Curve::Hermite) },
         CurveSpec { looping: true, ..CurveSpec::new(Curve::NamKim) },
         CurveSpec { looping: true, blend: Blend::Quadratic, ..CurveSpec::new(Curve::NamKim) },
-        CurveSpec { looping: true, ..CurveSpec::default() },
+        CurveSpec { looping: true, ..CurveSpec::new(Curve::BSpline) },
     ];
     let mut all = Worst::default();
     for (k, kind) in KINDS.into_iter().enumerate() {

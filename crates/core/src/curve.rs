@@ -60,9 +60,9 @@ pub const MIN_ORDER: usize = 2;
 /// tables are sized for it; the shader's `MAX_ORDER` is checked against it by a test.
 pub const MAX_ORDER: usize = 8;
 
-/// The curve every front end uses when none is named (`eval`, `bake`, Python's `evaluate`,
-/// `Curve` and `bake`): C2 and through every key, on any key times. The library's
-/// [`CurveSpec::default`] is the phantom B-spline of KKS's appendix.
+/// The curve used when none is named, by every front end (`eval`, `bake`, Python's
+/// `evaluate`, `Curve` and `bake`) and by [`CurveSpec::default`]: C2 and through every key, on
+/// any key times.
 pub const DEFAULT_CURVE: Curve = Curve::BSplineInterp;
 
 /// Everything that selects and shapes a curve, besides the track data itself.
@@ -85,11 +85,11 @@ pub struct CurveSpec {
 }
 
 impl Default for CurveSpec {
-    /// The library defaults: phantom cubic B-spline, Catmull-Rom tangents, cubic blend, open.
-    /// (The front ends' default curve is [`DEFAULT_CURVE`].)
+    /// The front ends' defaults: [`DEFAULT_CURVE`]; for the families that take them, order 4,
+    /// phantom knots, Catmull-Rom tangents, the cubic blend; open.
     fn default() -> Self {
         Self {
-            curve: Curve::BSpline,
+            curve: DEFAULT_CURVE,
             order: 4,
             knots: KnotMode::Phantom,
             tangents: Tangents::CatmullRom,
@@ -213,5 +213,17 @@ impl Blend {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A spec made without naming a curve is the one every front end uses.
+    #[test]
+    fn the_default_spec_is_the_front_ends_curve() {
+        assert_eq!(CurveSpec::default().curve, DEFAULT_CURVE);
+        assert_eq!(CurveSpec::default(), CurveSpec::new(DEFAULT_CURVE));
     }
 }

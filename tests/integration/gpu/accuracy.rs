@@ -102,8 +102,8 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     let Some(full) = gpu() else { return };
     let small = gpu().unwrap().share_device().with_binding_limit(32 * 1024);
     for spec in [
-        CurveSpec::default(),
-        CurveSpec { knots: KnotMode::Explicit, order: 5, ..CurveSpec::default() },
+        CurveSpec::new(Curve::BSpline),
+        CurveSpec { knots: KnotMode::Explicit, order: 5, ..CurveSpec::new(Curve::BSpline) },
         CurveSpec::new(Curve::NamKim),
     ] {
         let batch = batch_for(3, &spec, Kind::Random, 40);
@@ -122,7 +122,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     // uniform times (rate), uniform with the exact last sample (count), explicit times, in
     // both layouts.
     let pieces = gpu().unwrap().share_device().with_binding_limit(4096);
-    let batch = batch_for(3, &CurveSpec::default(), Kind::Random, 6);
+    let batch = batch_for(3, &CurveSpec::new(Curve::BSpline), Kind::Random, 6);
     let explicit: Vec<f64> = (0..700).map(|i| 0.05 + f64::from(i) * 0.0007).collect();
     let overrides = vec![Some(&explicit[..]); 3];
     for (times, layout) in [
@@ -144,7 +144,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     }
     // A track whose keys alone overflow a binding is an error naming it, not a crash.
     let tiny = gpu().unwrap().share_device().with_binding_limit(64);
-    let batch = batch_for(1, &CurveSpec::default(), Kind::Random, 1);
+    let batch = batch_for(1, &CurveSpec::new(Curve::BSpline), Kind::Random, 1);
     let times = SampleTimes::uniform(&batch, Sampling::Count(100)).unwrap();
     let err = tiny.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("binding"), "{err}");
@@ -163,7 +163,7 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
     // first run's times come back last, apart. Key counts - 1 are prime to the 6 sample steps,
     // so no inner sample lands on a key (where slerp's angular velocity jumps).
     let runs = [(3, 8, 0.0, 0.5), (4200, 12, 0.35, 0.3), (2, 6, -2.0, 0.7), (5, 8, 0.0, 0.5)];
-    for spec in [CurveSpec::default(), CurveSpec::new(Curve::Slerp)] {
+    for spec in [CurveSpec::new(Curve::BSpline), CurveSpec::new(Curve::Slerp)] {
         let mut builder = quatcurve::BatchBuilder::new();
         for &(tracks, keys, start, step) in &runs {
             let times: Vec<f64> = (0..keys).map(|j| start + step * j as f64).collect();
@@ -200,7 +200,7 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
 fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
     let Some(gpu) = gpu() else { return };
     // 65,535 x 64 = 4,194,240 samples fit one dimension; go past it.
-    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::default() };
+    let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) };
     let batch = batch_for(8, &spec, Kind::Random, 2);
     let times = SampleTimes::uniform(&batch, Sampling::Count(2_150_000)).unwrap();
     let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap();

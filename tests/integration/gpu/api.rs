@@ -16,7 +16,7 @@ fn small_batch(spec: &CurveSpec) -> Batch {
 #[test]
 fn evaluate_into_a_caller_buffer_without_readback() {
     let Some(gpu) = gpu() else { return };
-    let batch = small_batch(&CurveSpec::default());
+    let batch = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&batch, Sampling::Count(33)).unwrap();
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
     let expected = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
@@ -191,7 +191,7 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
 #[test]
 fn reused_input_buffers_give_the_same_samples_as_fresh_ones() {
     let Some(_) = gpu() else { return };
-    let small = crate::fast::batch_for(4, &CurveSpec::default(), Kind::Random, 5);
+    let small = crate::fast::batch_for(4, &CurveSpec::new(Curve::BSpline), Kind::Random, 5);
     let large = crate::fast::batch_for(9, &CurveSpec::new(Curve::Hermite), Kind::Random, 60);
     let times = |batch: &Batch| SampleTimes::uniform(batch, Sampling::Count(33)).unwrap();
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
@@ -216,7 +216,7 @@ fn reused_input_buffers_give_the_same_samples_as_fresh_ones() {
 fn the_roofline_kernel_writes_every_output_float() {
     let Some(gpu) = gpu() else { return };
     let evaluator = gpu.share_device().with_binding_limit(4096);
-    let batch = small_batch(&CurveSpec::default());
+    let batch = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&batch, Sampling::Count(70)).unwrap();
     let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
     let prepared = evaluator.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap();
@@ -254,7 +254,7 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     let job = quatcurve::EvalJob::new(&batch, &times).layout(Layout::Track).derivatives(false);
     let (_, name) = device.evaluate_named(&job).unwrap();
     assert!(name.starts_with("cpu:"), "{name}");
-    let small = small_batch(&CurveSpec::default());
+    let small = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&small, Sampling::Count(5)).unwrap();
     let (_, name) = device
         .evaluate_named(&quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false))

@@ -152,7 +152,7 @@ fn order_out_of_range() {
 
 #[test]
 fn empty_batch() {
-    let err = Batch::from_tracks(&[], &CurveSpec::default()).unwrap_err();
+    let err = Batch::from_tracks(&[], &CurveSpec::new(Curve::BSpline)).unwrap_err();
     assert_eq!(err, Error::EmptyBatch);
 }
 
