@@ -8,7 +8,6 @@ pub mod error;
 pub mod qcf;
 
 use error::InputError;
-use error::InputError as E;
 
 /// Centimetres in a glTF unit: glTF lengths are metres.
 pub const GLTF_UNIT_CM: f64 = 100.0;
@@ -134,13 +133,13 @@ impl Animation {
                 match self.joints[at].parent {
                     None => break,
                     Some(p) if p >= n => {
-                        return Err(E::Animation(format!(
+                        return Err(InputError::Animation(format!(
                             "joint {at} ({}): parent {p} does not exist",
                             self.joints[at].name
                         )))
                     }
                     Some(_) if chain.len() > n => {
-                        return Err(E::Animation(format!(
+                        return Err(InputError::Animation(format!(
                             "joint {at} ({}) is its own ancestor: the hierarchy has a cycle",
                             self.joints[at].name
                         )))

@@ -9,11 +9,7 @@
 
 use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::Channel;
-use crate::anim::Clip;
-use crate::anim::Joint;
-use crate::anim::Property;
+use crate::anim::{Animation, Channel, Clip, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use std::fmt::Write as _;
 use std::path::Path;

@@ -2,15 +2,8 @@
 //! grid walking forward, each joint swinging in a looping gait with per-character variety.
 //! Deterministic (a hash of the indices, no random numbers), so runs are comparable.
 
-use crate::anim::Animation;
+use crate::anim::{Animation, Channel, Clip, Joint, Property};
 
-use crate::anim::Channel;
-
-use crate::anim::Clip;
-
-use crate::anim::Joint;
-
-use crate::anim::Property;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;
 use std::f64::consts::TAU;

@@ -6,11 +6,10 @@
 
 use super::Baked;
 
-use crate::anim::Clip;
+use crate::anim::{Clip, Property};
 
 use crate::anim::error::InputError;
 
-use crate::anim::Property;
 use serde_json::{json, Value};
 
 /// The first bytes of a GLB file.

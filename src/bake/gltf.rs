@@ -9,12 +9,7 @@
 use super::glb::GLB_MAGIC;
 use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::Channel;
-use crate::anim::Clip;
-use crate::anim::Joint;
-use crate::anim::Property;
-use crate::anim::Skin;
+use crate::anim::{Animation, Channel, Clip, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;

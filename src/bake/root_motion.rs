@@ -7,8 +7,7 @@
 use super::texture::{self, Affine, LOCAL_CHANNELS};
 use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::Property;
+use crate::anim::{Animation, Property};
 use serde::Serialize;
 
 /// What `--root-motion` does with the root's horizontal motion.

@@ -16,9 +16,7 @@
 
 use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::Property;
-use crate::anim::Skin;
+use crate::anim::{Animation, Property, Skin};
 use crate::device::Device;
 use rayon::prelude::*;
 
