@@ -3,6 +3,7 @@
 //! its body derivatives, the twin of [`crate::reference::cumulative_product`].
 
 use super::simd::{sin_cos_small, Lanes};
+use quatcurve_core::quat::hamilton;
 
 /// Samples per SIMD group.
 pub const LANES: usize = 8;
@@ -101,15 +102,11 @@ impl<S: Lanes> Q8<S> {
 impl<S: Lanes> std::ops::Mul for Q8<S> {
     type Output = Self;
 
-    /// Hamilton product `self * o`.
+    /// Hamilton product `self * o` ([`hamilton`]).
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        Self {
-            x: self.w * o.x + self.x * o.w + self.y * o.z - self.z * o.y,
-            y: self.w * o.y - self.x * o.z + self.y * o.w + self.z * o.x,
-            z: self.w * o.z + self.x * o.y - self.y * o.x + self.z * o.w,
-            w: self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
-        }
+        let [x, y, z, w] = hamilton([self.x, self.y, self.z, self.w], [o.x, o.y, o.z, o.w]);
+        Self { x, y, z, w }
     }
 }
 

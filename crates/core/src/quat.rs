@@ -400,16 +400,30 @@ impl From<Vec3F64> for glam::DVec3 {
     }
 }
 
+/// The Hamilton product `a * b` of quaternions written `[x, y, z, w]`, over any scalar with
+/// `+`, `-` and `*`: reals and jets here, SIMD lanes in the CPU path and the C2 solve, so every
+/// Rust path multiplies quaternions by this one formula (and in the same order of operations,
+/// so the same inputs give the same bits).
+#[inline(always)]
+pub fn hamilton<T>(a: [T; 4], b: [T; 4]) -> [T; 4]
+where
+    T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>,
+{
+    let ([x, y, z, w], [ox, oy, oz, ow]) = (a, b);
+    [
+        w * ox + x * ow + y * oz - z * oy,
+        w * oy - x * oz + y * ow + z * ox,
+        w * oz + x * oy - y * ox + z * ow,
+        w * ow - x * ox - y * oy - z * oz,
+    ]
+}
+
 impl<R: Real> Mul for Quaternion<R> {
     type Output = Self;
-    /// Hamilton product.
+    /// Hamilton product ([`hamilton`]).
     fn mul(self, o: Self) -> Self {
-        Self::from_xyzw(
-            self.w * o.x + self.x * o.w + self.y * o.z - self.z * o.y,
-            self.w * o.y - self.x * o.z + self.y * o.w + self.z * o.x,
-            self.w * o.z + self.x * o.y - self.y * o.x + self.z * o.w,
-            self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
-        )
+        let [x, y, z, w] = hamilton([self.x, self.y, self.z, self.w], [o.x, o.y, o.z, o.w]);
+        Self::from_xyzw(x, y, z, w)
     }
 }
 

@@ -8,6 +8,7 @@
 //! (Cephes' `sin`, `cos` and `atan` coefficients) with the branches of their range reduction
 //! taken per lane by masks, so every lane runs the same instructions.
 
+use crate::quat::hamilton;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 use std::fmt::Debug;
 use std::ops::{Add, AddAssign, BitAnd, BitOr, Div, Mul, Neg, Not, Sub, SubAssign};
@@ -609,12 +610,8 @@ impl<L: Lanes64> Mul for Q4<L> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        Q4 {
-            x: self.w * o.x + self.x * o.w + self.y * o.z - self.z * o.y,
-            y: self.w * o.y - self.x * o.z + self.y * o.w + self.z * o.x,
-            z: self.w * o.z + self.x * o.y - self.y * o.x + self.z * o.w,
-            w: self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
-        }
+        let [x, y, z, w] = hamilton([self.x, self.y, self.z, self.w], [o.x, o.y, o.z, o.w]);
+        Q4 { x, y, z, w }
     }
 }
 
