@@ -64,15 +64,22 @@ def _rotations(name, value, rotation_type, ranks):
         value, rotation_type = value.as_quat(), "quat"
     array = _float64(name, value, range(1, 6))
     if rotation_type == "auto":
-        # Trailing (3, 3) are matrices, a last axis of 4 quaternions, of 3 rotation vectors.
+        # Trailing (3, 3) are matrices, a last axis of 4 quaternions. Three numbers are not
+        # guessed: rotation vectors and Euler angles look alike, and a guess would be silent.
         if array.ndim >= 3 and array.shape[-2:] == (3, 3):
             rotation_type = "matrix"
-        elif array.shape[-1] in (3, 4):
-            rotation_type = "rotvec" if array.shape[-1] == 3 else "quat"
+        elif array.shape[-1] == 4:
+            rotation_type = "quat"
+        elif array.shape[-1] == 3:
+            raise ValueError(
+                f"{name} end in 3 numbers (shape {array.shape}): say rotation_type='rotvec' for rotation vectors "
+                f"(axis times angle, radians); rotation_type='auto' reads only quaternions (..., 4) and matrices "
+                f"(..., 3, 3), since 3 numbers could as well be Euler angles, which quatcurve does not read"
+            )
         else:
             raise ValueError(
-                f"{name} must end in 4 (quaternions x, y, z, w), 3 (rotation vectors) or 3 x 3 (matrices), "
-                f"got shape {array.shape}"
+                f"{name} must end in 4 (quaternions x, y, z, w), 3 (rotation vectors, with "
+                f"rotation_type='rotvec') or 3 x 3 (matrices), got shape {array.shape}"
             )
     if rotation_type not in _WIDTHS:
         raise ValueError(f"rotation_type must be auto, quat, rotvec or matrix, got {rotation_type!r}")
@@ -134,9 +141,9 @@ def evaluate(
         Also return body angular velocity and acceleration.
     rotation_type : str, default ``"auto"``
         How ``rotations`` are written: ``quat``, ``rotvec`` or ``matrix``. ``auto`` reads it
-        from the shape: trailing ``(3, 3)`` are matrices, a last axis of 4 quaternions, of 3
-        rotation vectors (so a batch of rotation vectors with 3 keys per track needs
-        ``rotation_type="rotvec"``).
+        from the shape: trailing ``(3, 3)`` are matrices, a last axis of 4 quaternions. A
+        last axis of 3 is refused under ``auto``: rotation vectors and Euler angles look
+        alike, so rotation vectors are named, ``rotation_type="rotvec"``.
     output : str, default ``"quat"``
         ``quat`` (``x, y, z, w``), ``rotvec`` (angle in ``[0, pi]``, as scipy's
         ``as_rotvec``) or ``matrix`` (``(..., 3, 3)``).

@@ -31,12 +31,19 @@ def test_rotation_vectors_in_agree_with_scipy():
     rotvecs[4] = [1e-9, -2e-9, 5e-10]
     times = np.arange(12.0)
     # Sampled at the keys, slerp returns the keys: scipy's quaternions of the same vectors.
-    q = quatcurve.evaluate(rotvecs, times, times, curve="slerp", device="reference")
+    q = quatcurve.evaluate(rotvecs, times, times, curve="slerp", device="reference", rotation_type="rotvec")
     assert angle(q, Rotation.from_rotvec(rotvecs).as_quat()).max() < 1e-12
     # In between too, rotvec in and quaternions in are the same curve.
     t = np.linspace(0.0, 11.0, 97)
     from_quat = quatcurve.evaluate(Rotation.from_rotvec(rotvecs).as_quat(), times, t, device="reference")
-    np.testing.assert_allclose(quatcurve.evaluate(rotvecs, times, t, device="reference"), from_quat, atol=1e-12)
+    np.testing.assert_allclose(
+        quatcurve.evaluate(rotvecs, times, t, device="reference", rotation_type="rotvec"), from_quat, atol=1e-12
+    )
+    # Not guessed: three numbers could as well be Euler angles.
+    with pytest.raises(ValueError, match=r"end in 3 numbers \(shape \(12, 3\)\): say rotation_type='rotvec'"):
+        quatcurve.evaluate(rotvecs, times, t)
+    with pytest.raises(ValueError, match="say rotation_type='rotvec'"):
+        quatcurve.Curve(times, rotvecs)
 
 
 def test_rotation_vectors_and_matrices_out_agree_with_scipy():
@@ -71,10 +78,10 @@ def test_ambiguous_and_wrong_shapes_are_explained():
         quatcurve.evaluate(rotvecs, samples=4)  # read as matrices, which these are not
     q = quatcurve.evaluate(rotvecs, samples=4, rotation_type="rotvec", device="reference")
     assert q.shape == (3, 4, 4)
-    with pytest.raises(ValueError, match=r"must end in 4 \(quaternions x, y, z, w\), 3 \(rotation vectors\) or 3 x 3"):
+    with pytest.raises(ValueError, match=r"must end in 4 \(quaternions x, y, z, w\), 3 \(rotation vectors, with"):
         quatcurve.evaluate(np.zeros((5, 6)), samples=3)
     with pytest.raises(ValueError, match="output must be quat, rotvec or matrix"):
-        quatcurve.evaluate(rotvecs[0], samples=3, output="euler")
+        quatcurve.evaluate(rotvecs[0], samples=3, output="euler", rotation_type="rotvec")
 
 
 def test_tracks_of_their_own_lengths_evaluate_in_one_batch():
@@ -90,10 +97,12 @@ def test_tracks_of_their_own_lengths_evaluate_in_one_batch():
     # Rotation vectors in, per-track sample lists, derivatives, rotation vectors out.
     rotvecs = [Rotation.from_quat(k).as_rotvec() for k in tracks]
     sample_lists = [np.linspace(t[0], t[-1], m) for t, m in zip(times, [3, 1, 8, 4])]
-    q, omega, alpha = quatcurve.evaluate(rotvecs, times, sample_lists, derivatives=True, output="rotvec", device="cpu")
+    q, omega, alpha = quatcurve.evaluate(
+        rotvecs, times, sample_lists, derivatives=True, output="rotvec", device="cpu", rotation_type="rotvec"
+    )
     assert [a.shape for a in q] == [(3, 3), (1, 3), (8, 3), (4, 3)] and [a.shape for a in omega] == [(3, 3), (1, 3), (8, 3), (4, 3)]
     for rv, t, s, got in zip(rotvecs, times, sample_lists, q):
-        alone = quatcurve.evaluate(rv, t, s, output="rotvec", device="cpu")
+        alone = quatcurve.evaluate(rv, t, s, output="rotvec", device="cpu", rotation_type="rotvec")
         np.testing.assert_array_equal(got, alone)
     # A track that breaks a rule is named by its index in the list.
     bad = [tracks[0], np.zeros((3, 4))]
