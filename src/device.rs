@@ -1,11 +1,14 @@
-//! Which evaluator runs a job: the one place that maps `--device` to a path, so `eval`,
-//! `bake` and `bench` choose and name devices the same way.
+//! Which path runs the work: the one place that maps a device choice to a path, so `eval`,
+//! `bake` and `bench` choose and name devices the same way, and the one value that
+//! evaluates curves, runs forward kinematics and skins meshes, so no caller matches on
+//! which path it holds.
 
 use crate::cpu::CpuEvaluator;
 #[cfg(feature = "gpu")]
 use crate::gpu::{GpuError, GpuEvaluator};
 use crate::job::EvalJob;
 use crate::output::{FloatOutput, Output};
+use crate::skeleton::{self, SkinnedMesh};
 use quatcurve_core::curve::names;
 use std::fmt;
 
@@ -175,6 +178,49 @@ impl Device {
         let (out, name) = self.evaluate_f32(job)?;
         *data = out.data;
         Ok(name)
+    }
+}
+
+impl Device {
+    /// Forward kinematics: model rows `[frames, joints, 12]` of local rows `[frames, joints,
+    /// 10]` (`parents[j]` is joint `j`'s parent, `order` lists parents first). The GPU's in
+    /// f32 (`shaders/fk.wgsl`); the CPU path and the reference in f64 from the f32 rows
+    /// ([`skeleton::forward_kinematics`]), which is all the reference could add.
+    ///
+    /// # Errors
+    /// [`DeviceError::Device`] for the GPU's failures (a frame larger than a storage binding
+    /// among them).
+    pub fn forward_kinematics(
+        &self,
+        parents: &[Option<usize>],
+        order: &[usize],
+        local: &[f32],
+    ) -> Result<Vec<f32>, DeviceError> {
+        match self {
+            #[cfg(feature = "gpu")]
+            Device::Gpu(g) | Device::Auto(g, _) => g
+                .forward_kinematics(parents, order, local)
+                .map_err(|e| DeviceError::Device(format!("forward kinematics: {e}"))),
+            Device::Cpu(_) | Device::Reference => Ok(skeleton::forward_kinematics(parents, order, local)),
+        }
+    }
+
+    /// `mesh` skinned at every frame of `matrices` (`[frames, skin joints, 12]`, 3x4 row-major
+    /// skinning matrices): `[frames, vertices, 6]`, position and normal, in f32. The GPU's
+    /// `shaders/skin_mesh.wgsl`; the CPU path and the reference [`skeleton::skin`] in f64.
+    ///
+    /// # Errors
+    /// [`DeviceError::Device`] for the GPU's failures.
+    pub fn skin(&self, mesh: &SkinnedMesh, skin_joints: usize, matrices: &[f32]) -> Result<Vec<f32>, DeviceError> {
+        match self {
+            #[cfg(feature = "gpu")]
+            Device::Gpu(g) | Device::Auto(g, _) => g
+                .skin_mesh(&crate::gpu::skinning::BindMesh::of(mesh), skin_joints, matrices)
+                .map_err(|e| DeviceError::Device(format!("skinning: {e}"))),
+            Device::Cpu(_) | Device::Reference => {
+                Ok(skeleton::skin(mesh, skin_joints, matrices).into_iter().map(|v| v as f32).collect())
+            }
+        }
     }
 }
 

@@ -56,6 +56,7 @@ pub mod output;
 pub mod plot;
 pub mod reference;
 pub mod sampling;
+pub mod skeleton;
 #[doc(hidden)]
 pub mod synthetic;
 pub mod track;

@@ -294,6 +294,11 @@ def test_bake_errors_name_the_option_or_the_input(tmp_path):
         quatcurve.bake(output=tmp_path / "a", rate=-1)
     with pytest.raises(ValueError, match="texture: unknown texture 'pretty'"):
         quatcurve.bake(output=tmp_path / "a", texture="pretty")
+    # Options by their Python names, never as command-line flags.
+    with pytest.raises(ValueError, match="^max_texture_size must be at least 1 texel$"):
+        quatcurve.bake(output=tmp_path / "a", max_texture_size=0)
+    with pytest.raises(ValueError, match="^exact_rate cannot be set with an error budget"):
+        quatcurve.bake(output=tmp_path / "a", max_error=1, exact_rate=True)
     with pytest.raises(ValueError, match="shard 3/2: shard 3 of 2 does not exist"):
         quatcurve.bake(output=tmp_path / "a", shard="3/2")
     with pytest.raises(ValueError, match="errors must be"):
@@ -331,7 +336,7 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
     (row,) = quatcurve.bake(tmp_path / "py" / "CesiumMan.qcf", tmp_path / "baked", device="cpu", texture="model")
     assert row["status"] == "ok", row
     assert json.loads((tmp_path / "baked" / "CesiumMan.json").read_text())["curve"] == "fitted-bspline"
-    with pytest.raises(ValueError, match="unit-cm is needed for"):
+    with pytest.raises(ValueError, match="unit_cm is needed for"):
         quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
-    with pytest.raises(ValueError, match="max-error is 0; it must be a positive length"):
+    with pytest.raises(ValueError, match="max_error is 0; it must be a positive length"):
         quatcurve.fit(inputs, tmp_path / "zero", max_error=0)

@@ -7,7 +7,7 @@
 //! 0.01 cm. Poses compose as matrices, so a non-uniform scale's shear counts (ACL's `qvvf`
 //! composition drops it; without non-uniform scale the two agree).
 
-use glam::{DAffine3, DQuat, DVec3};
+use crate::skeleton::{self, Affine};
 
 /// ACL's default virtual vertex distance, in cm.
 pub const ACL_VERTEX_DISTANCE_CM: f64 = 3.0;
@@ -24,12 +24,8 @@ pub struct Transform {
 }
 
 impl Transform {
-    fn affine(&self) -> DAffine3 {
-        DAffine3::from_scale_rotation_translation(
-            DVec3::from(self.scale),
-            DQuat::from_array(self.rotation).normalize(),
-            DVec3::from(self.translation),
-        )
+    fn affine(&self) -> Affine {
+        skeleton::trs(self.rotation, self.translation, self.scale)
     }
 
     /// Whether the scale is other than 1 on some axis.
@@ -42,32 +38,24 @@ impl Transform {
 /// Object-space transforms of one pose: `parents[j]` is joint `j`'s parent, `order` lists
 /// parents before children.
 #[must_use]
-pub fn object_space(parents: &[Option<usize>], order: &[usize], local: &[Transform]) -> Vec<DAffine3> {
-    let mut object = vec![DAffine3::IDENTITY; local.len()];
-    for &j in order {
-        let own = local[j].affine();
-        object[j] = match parents[j] {
-            Some(p) => object[p] * own,
-            None => own,
-        };
-    }
-    object
+pub fn object_space(parents: &[Option<usize>], order: &[usize], local: &[Transform]) -> Vec<Affine> {
+    skeleton::pose(parents, order, |j| local[j].affine())
 }
 
 /// Per joint, the largest distance between its virtual vertices (at `distance` on its axes;
 /// the third axis only when `scales`) in the two object-space poses.
 #[must_use]
-pub fn joint_errors(raw: &[DAffine3], lossy: &[DAffine3], distance: f64, scales: bool) -> Vec<f64> {
-    let axes = [DVec3::X, DVec3::Y, DVec3::Z];
+pub fn joint_errors(raw: &[Affine], lossy: &[Affine], distance: f64, scales: bool) -> Vec<f64> {
     let used = if scales { 3 } else { 2 };
     raw.iter()
         .zip(lossy)
         .map(|(r, l)| {
-            axes[..used]
-                .iter()
-                .map(|&axis| {
-                    let p = axis * distance;
-                    r.transform_point3(p).distance(l.transform_point3(p))
+            (0..used)
+                .map(|axis| {
+                    let mut p = [0.0; 3];
+                    p[axis] = distance;
+                    let (a, b) = (skeleton::transform_point(r, p), skeleton::transform_point(l, p));
+                    a.iter().zip(&b).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
                 })
                 .fold(0.0, f64::max)
         })

@@ -116,6 +116,12 @@ impl Animation {
         self.clips.iter().flat_map(|c| &c.channels).any(|c| c.knots.is_some())
     }
 
+    /// Each joint's parent, in joint order.
+    #[must_use]
+    pub fn parents(&self) -> Vec<Option<usize>> {
+        self.joints.iter().map(|j| j.parent).collect()
+    }
+
     /// Joint indices with every parent before its children (the order forward kinematics
     /// walks).
     ///

@@ -13,8 +13,9 @@ use crate::anim::error::InputError;
 use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::device::Device;
 use crate::error::Number;
+use crate::skeleton;
 use quatcurve_core::curve::CurveSpec;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Points of each frame interval where the error is measured (the interval's start included,
 /// its end being the next interval's start).
@@ -48,7 +49,7 @@ pub struct ErrorBudget {
 }
 
 /// Where an error is largest.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Worst {
     /// Degrees, or millimetres.
     pub value: f64,
@@ -59,7 +60,7 @@ pub struct Worst {
 }
 
 /// The error of one clip's frames against its continuous curve, between frames.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Measured {
     /// The clip's own rate (Hz) these frames are at.
     pub rate: f64,
@@ -72,7 +73,7 @@ pub struct Measured {
 }
 
 /// The rate an error budget chose for one clip.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ChosenRate {
     /// The clip's name.
     pub clip: String,
@@ -108,10 +109,10 @@ impl ErrorBudget {
     fn describe(&self) -> String {
         let mut parts = Vec::new();
         if let Some(d) = self.degrees {
-            parts.push(format!("--max-error {} degrees", Number(d)));
+            parts.push(format!("{} degrees", Number(d)));
         }
         if let Some(mm) = self.millimetres {
-            parts.push(format!("--max-error-mm {}", Number(mm)));
+            parts.push(format!("{} mm", Number(mm)));
         }
         parts.join(" and ")
     }
@@ -269,7 +270,7 @@ fn joint_names(animation: &Animation, kind: TextureKind, suffix: &str) -> Vec<St
 fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: &str, rows: &[f32]) -> Vec<[f64; 3]> {
     let translation = |m: &[f64]| [m[3], m[7], m[11]];
     match kind {
-        TextureKind::Local => texture::model(animation, order, rows)
+        TextureKind::Local => skeleton::forward_kinematics(&animation.parents(), order, rows)
             .chunks_exact(texture::MATRIX_CHANNELS)
             .map(|m| translation(&m.iter().map(|&v| f64::from(v)).collect::<Vec<_>>()))
             .collect(),
@@ -278,11 +279,7 @@ fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: 
             let bind: Vec<[f64; 3]> = animation.skins[k].inverse_bind.iter().map(bind_position).collect();
             rows.chunks_exact(LOCAL_CHANNELS)
                 .enumerate()
-                .map(|(i, row)| {
-                    let m = texture::trs(row);
-                    let b = bind[i % bind.len()];
-                    std::array::from_fn(|r| m[4 * r] * b[0] + m[4 * r + 1] * b[1] + m[4 * r + 2] * b[2] + m[4 * r + 3])
-                })
+                .map(|(i, row)| skeleton::transform_point(&skeleton::trs_row(row), bind[i % bind.len()]))
                 .collect()
         }
         _ => rows.chunks_exact(LOCAL_CHANNELS).map(|r| [4, 5, 6].map(|c| f64::from(r[c]))).collect(),
@@ -291,7 +288,7 @@ fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: 
 
 /// Where a joint is in bind space: the point its inverse bind matrix takes to the origin.
 fn bind_position(ibm: &[f64; 12]) -> [f64; 3] {
-    texture::inverse(ibm).map_or([0.0; 3], |m| [m[3], m[7], m[11]])
+    skeleton::inverse(ibm).map_or([0.0; 3], |m| [m[3], m[7], m[11]])
 }
 
 /// Per clip, the lowest rate whose frames keep within `budget` ([`measure`]), with what it
@@ -309,7 +306,7 @@ pub fn choose_rates(
     if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(|c| c.knots.is_some())) {
         return Err(InputError::Animation(format!(
             "clip '{}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it \
-                at a --rate",
+                at a fixed rate",
             clip.name
         )));
     }
@@ -330,7 +327,7 @@ pub fn choose_rates(
             }
             if high >= most {
                 return Err(InputError::Animation(format!(
-                    "clip '{}': no rate up to --max-rate {} Hz keeps within {}: at {} Hz the worst error is {:.3} degrees \
+                    "clip '{}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the worst error is {:.3} degrees \
                      (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s)",
                     clip.name,
                     Number(budget.max_rate),

@@ -5,8 +5,8 @@
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum BakeError {
-    /// An option outside its rules; `option` is its name (`rate`, `shard`, `output`, ...),
-    /// which the command line shows as its flag.
+    /// An option outside its rules; `option` is its library name (`rate`, `max_texture_size`,
+    /// `inputs`, ...), which is also its Python keyword; the command line shows its flag.
     #[error("{option} {reason}")]
     Option {
         /// The option's name.

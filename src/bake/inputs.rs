@@ -77,12 +77,12 @@ pub fn expand(inputs: &[PathBuf], known: &[&str]) -> Result<Vec<PathBuf>, BakeEr
     for input in inputs {
         if input.is_dir() {
             let entries = std::fs::read_dir(input)
-                .map_err(|e| BakeError::option("input", format!("{}: cannot list: {e}", input.display())))?;
+                .map_err(|e| BakeError::option("inputs", format!("{}: cannot list: {e}", input.display())))?;
             let found: Vec<PathBuf> =
                 entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && known(p)).collect();
             if found.is_empty() {
                 return Err(BakeError::option(
-                    "input",
+                    "inputs",
                     format!("{}: the directory holds no file of {listed}", input.display()),
                 ));
             }

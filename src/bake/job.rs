@@ -146,10 +146,10 @@ impl BakeJob {
             ));
         }
         let budget = &self.max_error;
-        for (flag, value) in [("max-error", budget.degrees), ("max-error-mm", budget.millimetres)] {
+        for (option, value) in [("max_error", budget.degrees), ("max_error_mm", budget.millimetres)] {
             if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
                 return Err(BakeError::option(
-                    flag,
+                    option,
                     format!("must be a positive number, not {}", value.unwrap_or(0.0)),
                 ));
             }
@@ -157,39 +157,39 @@ impl BakeJob {
         if budget.is_set() {
             if !(budget.max_rate.is_finite() && budget.max_rate > 0.0) {
                 return Err(BakeError::option(
-                    "max-rate",
+                    "max_rate",
                     format!("must be a positive number of Hz, not {}", budget.max_rate),
                 ));
             }
             if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
-                return Err(BakeError::option("unit-mm", format!("must be a positive number, not {}", budget.unit_mm)));
+                return Err(BakeError::option("unit_mm", format!("must be a positive number, not {}", budget.unit_mm)));
             }
             if self.texture == TextureKind::Vertex {
                 return Err(BakeError::option(
-                    "max-error",
+                    "max_error",
                     "measures joints blended between frames, not a vertex texture's positions; bake vertex textures at a \
-                     --rate",
+                     fixed rate",
                 ));
             }
             if !matches!(self.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
                 return Err(BakeError::option(
-                    "max-error",
+                    "max_error",
                     format!(
                         "measures what a shader interpolates between frames, which a {} texture's matrices do not \
-                         hold without shearing; bake --texture local, model-trs or skin-trs",
+                         hold without shearing; bake a local, model-trs or skin-trs texture",
                         self.texture
                     ),
                 ));
             }
             if self.exact_rate {
                 return Err(BakeError::option(
-                    "exact-rate",
-                    "a budget chooses each clip's rate; leave out --exact-rate",
+                    "exact_rate",
+                    "cannot be set with an error budget, which chooses each clip's rate",
                 ));
             }
         }
         if self.max_texture_size == 0 {
-            return Err(BakeError::option("max-texture-size", "must be at least 1 texel"));
+            return Err(BakeError::option("max_texture_size", "must be at least 1 texel"));
         }
         if self.preview && !cfg!(feature = "plot") {
             return Err(BakeError::option(

@@ -5,6 +5,7 @@
 
 use super::gltf::{check_accessor, Element, GltfFile};
 use crate::anim::error::InputError;
+use crate::skeleton::SkinnedMesh;
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
 /// normalized (they are divided by their sum either way); normalized-integer weights are also
@@ -28,16 +29,10 @@ pub struct SkinnedPrimitive {
     pub primitive: usize,
     /// Index into [`super::Animation::skins`].
     pub skin: usize,
-    /// Bind-space positions, morph targets applied at their default weights.
-    pub positions: Vec<[f64; 3]>,
-    /// Bind-space normals (as the positions), when the primitive has them.
-    pub normals: Option<Vec<[f64; 3]>>,
-    /// Influences per vertex: four per `JOINTS_n`/`WEIGHTS_n` set.
-    pub influences: usize,
-    /// Per vertex, [`Self::influences`] indices into the skin's joints.
-    pub joints: Vec<u32>,
-    /// Per vertex, [`Self::influences`] weights, summing to 1.
-    pub weights: Vec<f64>,
+    /// What skinning needs of it: bind-space positions and normals (morph targets applied at
+    /// their default weights), and per vertex four influences per `JOINTS_n`/`WEIGHTS_n` set,
+    /// weights summing to 1.
+    pub bind: SkinnedMesh,
     /// Vertices whose weights were off 1 by more than [`WEIGHT_SUM_TOLERANCE`] (normalized).
     pub normalized: usize,
     /// The primitive's vertex indices, each checked to be a vertex; `None`: drawn in order.
@@ -50,7 +45,7 @@ impl SkinnedPrimitive {
     /// Vertices.
     #[must_use]
     pub fn vertices(&self) -> usize {
-        self.positions.len()
+        self.bind.vertices()
     }
 }
 
@@ -368,11 +363,7 @@ fn read_primitive(
         mesh,
         primitive: primitive.index(),
         skin,
-        positions,
-        normals,
-        influences,
-        joints,
-        weights,
+        bind: SkinnedMesh { positions, normals, influences, joints, weights },
         normalized,
         indices,
         mode,

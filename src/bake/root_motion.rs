@@ -4,11 +4,12 @@
 //! the character. The track composed with the in-place textures gives the kept clip back:
 //! `model = Root(t) * model_in_place`, `Root(t) = translate(x, 0, z) * rotate_y(heading)`.
 
-use super::texture::{self, Affine, LOCAL_CHANNELS};
+use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::{Animation, Property};
-use serde::Serialize;
+use crate::skeleton::{self, Affine};
+use serde::{Deserialize, Serialize};
 
 /// What `--root-motion` does with the root's horizontal motion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -36,13 +37,13 @@ pub struct InPlace {
 }
 
 /// One clip's root track, frame by frame (the sidecar's `root_motion`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RootTrack {
     /// The joint whose motion it is: the first joint, parents first, with a translation
     /// channel in the clip.
     pub joint: String,
     /// The up axis the heading turns about and the plane the position moves in.
-    pub up: &'static str,
+    pub up: String,
     /// Per frame: `[x, z]` in model units.
     pub position: Vec<[f64; 2]>,
     /// Per frame: radians about +Y, continuous (unwrapped) from frame to frame.
@@ -59,7 +60,7 @@ pub struct RootTrack {
 }
 
 /// What one cycle of a loop moves the root by.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Cycle {
     /// `[dx, dz]`, model units.
     pub displacement: [f64; 2],
@@ -76,7 +77,7 @@ pub fn root_matrix(position: [f64; 2], heading: f64) -> Affine {
 
 /// The heading of a model-space transform: its rotation's twist about +Y (`2 atan2(q_y, q_w)`).
 fn heading(m: &Affine) -> f64 {
-    let (trs, _) = texture::rigid(m);
+    let (trs, _) = skeleton::rigid(m);
     2.0 * trs[1].atan2(trs[3])
 }
 
@@ -114,8 +115,8 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
             let names: Vec<String> =
                 moving.iter().take(3).map(|&r| format!("'{}'", animation.joints[r].name)).collect();
             return Err(InputError::Animation(format!(
-                "clip '{}': {} scene roots move ({}{}): --root-motion extract takes one character per input; \
-                 bake them apart or with --root-motion keep",
+                "clip '{}': {} scene roots move ({}{}): root motion is extracted from one character per input; \
+                 bake them apart, or keep the root motion in the textures",
                 clip.name,
                 moving.len(),
                 names.join(", "),
@@ -124,7 +125,7 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
         }
         let joints = animation.joints.len();
         let local = texture::local(animation, baked, c);
-        let model = texture::model(animation, &order, &local);
+        let model = skeleton::forward_kinematics(&animation.parents(), &order, &local);
         let frames = baked.clips[c].times.len();
         let mut position = Vec::with_capacity(frames);
         let mut headings: Vec<f64> = Vec::with_capacity(frames);
@@ -138,11 +139,12 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
             if let Some(&before) = headings.last() {
                 h -= std::f64::consts::TAU * ((h - before) / std::f64::consts::TAU).round();
             }
-            let undo = texture::inverse(&root_matrix(p, h)).expect("a rigid transform inverts");
+            let undo = skeleton::inverse(&root_matrix(p, h)).expect("a rigid transform inverts");
             for &r in &roots {
                 let at = (frame * joints + r) * LOCAL_CHANNELS;
                 // A rigid transform times T * R * S is T' * R' * S: rotation, translation and scale.
-                let (row, _) = texture::rigid(&texture::compose(&undo, &texture::trs(&local[at..at + LOCAL_CHANNELS])));
+                let (row, _) =
+                    skeleton::rigid(&skeleton::compose(&undo, &skeleton::trs_row(&local[at..at + LOCAL_CHANNELS])));
                 rows.push(row.map(|v| v as f32));
             }
             position.push(p);
@@ -156,7 +158,7 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
         let (velocity, turn_rate) = rates(&position, &headings, baked.clips[c].rate, per_cycle.as_ref());
         let track = RootTrack {
             joint: animation.joints[joint].name.clone(),
-            up: "+y",
+            up: "+y".into(),
             position,
             heading: headings,
             velocity,

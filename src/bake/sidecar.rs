@@ -1,6 +1,8 @@
 //! The sidecar JSON beside an input's textures (DESIGN section 5b): what a renderer needs to
 //! read them alone (joints, parents, rest pose, skins with their inverse bind matrices,
-//! per-clip files, rows, rates and loops, and for image textures where each texel is).
+//! per-clip files, rows, rates and loops, and for image textures where each texel is). The
+//! types here write it and read it back (the viewer reads bakes through them); reading is
+//! lenient, as for a file an older build wrote: a field it lacks takes its default.
 
 use super::budget::{ChosenRate, ErrorBudget, SUBSTEPS};
 use super::image::{Format, Grid};
@@ -10,7 +12,7 @@ use super::texture_file::Written;
 use super::vertex_texture::VertexSheets;
 use super::Baked;
 use crate::anim::Animation;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The job's options a sidecar records, and the device that ran the input.
 pub(super) struct SidecarOptions<'a> {
@@ -25,167 +27,217 @@ pub(super) struct SidecarOptions<'a> {
 }
 
 /// The sidecar JSON next to the animation textures (DESIGN section 5b).
-#[derive(Serialize)]
-pub(super) struct Sidecar<'a> {
-    source: &'a str,
-    curve: &'a str,
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Sidecar {
+    /// The baked input's file name (or the built-in crowd's name).
+    pub source: String,
+    /// The curve family the clips were baked with.
+    pub curve: String,
     /// The rate asked for; each clip's own rate is its `rate` (fitted to its span).
-    requested_rate: f64,
-    device: &'a str,
-    texture: &'a str,
-    channels: &'static [&'static str],
-    precision: &'a str,
-    format: &'a str,
-    layout: String,
+    pub requested_rate: f64,
+    /// The device that evaluated the curves.
+    pub device: String,
+    /// The texture kind (`local`, `model`, `skin`, `model-trs`, `skin-trs`, `vertex`).
+    pub texture: String,
+    /// The names of a row's floats, in order.
+    pub channels: Vec<String>,
+    /// The element type of the files (`f32`, `f16`, `u16`).
+    pub precision: String,
+    /// The file format (`npy`, `exr`, `png16`).
+    pub format: String,
+    /// The files' layout in words.
+    pub layout: String,
     /// Image textures (EXR, PNG16): how a joint's floats fill its texels (`channels` names per
     /// texel, empty where a texel channel is unused), and where texel `t` of joint `j` in row
     /// `r` of a file is (`address`, with each file's numbers in `textures`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    texels: Option<Vec<Vec<&'static str>>>,
+    pub texels: Option<Vec<Vec<String>>>,
+    /// See [`Self::texels`].
     #[serde(skip_serializing_if = "Option::is_none")]
-    address: Option<&'static str>,
+    pub address: Option<String>,
+    /// Each image file's grid (and ranges, for PNG16 and vertex positions).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    textures: Vec<ImageRecord>,
-    max_key_error_rad: Option<f64>,
-    /// `--max-error`, `--max-error-mm`: the budget each clip's rate was chosen for, and how it
-    /// was measured (each clip's result is its `between_frames`).
+    pub textures: Vec<ImageRecord>,
+    /// The largest angle (radians) between a key and the baked curve at its time, over every
+    /// rotation key.
+    pub max_key_error_rad: Option<f64>,
+    /// The error budget each clip's rate was chosen for, and how it was measured (each clip's
+    /// result is its `between_frames`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    max_error: Option<BudgetRecord>,
-    baked_file: Option<String>,
-    joints: Vec<&'a str>,
+    pub max_error: Option<BudgetRecord>,
+    /// The baked glTF beside the textures (none for BVH inputs and the crowd).
+    pub baked_file: Option<String>,
+    /// Joint names.
+    pub joints: Vec<String>,
     /// Parent joint index, -1 for a root.
-    parents: Vec<i64>,
-    rest: Vec<Rest>,
-    skins: Vec<SidecarSkin<'a>>,
+    pub parents: Vec<i64>,
+    /// Each joint's rest pose.
+    pub rest: Vec<Rest>,
+    /// The glTF skins.
+    pub skins: Vec<SidecarSkin>,
     /// Vertex textures: the mesh they play and each primitive's sheets.
     #[serde(skip_serializing_if = "Option::is_none")]
-    vertex: Option<VertexRecord>,
-    clips: Vec<SidecarClip>,
+    pub vertex: Option<VertexRecord>,
+    /// The baked clips.
+    pub clips: Vec<SidecarClip>,
 }
 
 /// How a vertex texture's files are read (DESIGN section 5d).
-#[derive(Serialize)]
-pub(super) struct VertexRecord {
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VertexRecord {
     /// The GLB of the skinned primitives as plain meshes, `TEXCOORD_0` each vertex's address.
-    mesh_file: String,
+    pub mesh_file: String,
     /// How a `.pos` texel decodes (with its file's `low` and `span` in `textures`).
-    position: &'static str,
+    pub position: String,
     /// How a `.nrm` texel decodes.
-    normal: &'static str,
+    pub normal: String,
     /// Where vertex `v`'s texel of frame `frame` is, from its `TEXCOORD_0` `(u, v)`.
-    texcoord: &'static str,
-    primitives: Vec<VertexPrimitive>,
+    pub texcoord: String,
+    /// The skinned primitives, in the order of their sheets.
+    pub primitives: Vec<VertexPrimitive>,
 }
 
 /// One skinned primitive of a vertex texture.
-#[derive(Serialize)]
-struct VertexPrimitive {
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VertexPrimitive {
     /// `node 'N', mesh 'M', primitive p`.
-    name: String,
-    node: usize,
-    mesh: usize,
-    primitive: usize,
-    skin: usize,
-    vertices: usize,
-    influences: usize,
-    normals: bool,
+    pub name: String,
+    /// The glTF node that draws it.
+    pub node: usize,
+    /// The node's mesh.
+    pub mesh: usize,
+    /// The primitive's index in the mesh.
+    pub primitive: usize,
+    /// Its skin, an index into `skins`.
+    pub skin: usize,
+    /// Vertices.
+    pub vertices: usize,
+    /// Influences per vertex.
+    pub influences: usize,
+    /// Whether it has normals (and so `.nrm` sheets).
+    pub normals: bool,
     /// Vertices whose weights did not sum to 1 and were divided by their sum.
-    normalized: usize,
+    pub normalized: usize,
     /// The file-name suffix of its sheets (before `.pos`/`.nrm` for images), and its mesh
     /// in `mesh_file`.
-    suffix: String,
-    mesh_in_file: usize,
+    pub suffix: String,
+    /// See [`Self::suffix`].
+    pub mesh_in_file: usize,
 }
 
 /// A joint's rest pose, parent-relative.
-#[derive(Serialize)]
-pub(super) struct Rest {
-    translation: [f64; 3],
-    rotation: [f64; 4],
-    scale: [f64; 3],
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Rest {
+    /// Translation.
+    pub translation: [f64; 3],
+    /// Rotation `x, y, z, w`.
+    pub rotation: [f64; 4],
+    /// Scale.
+    pub scale: [f64; 3],
 }
 
-#[derive(Serialize)]
-pub(super) struct SidecarSkin<'a> {
-    name: &'a str,
+/// A glTF skin.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SidecarSkin {
+    /// The skin's name.
+    pub name: String,
     /// Joint indices in the skin's order (the rows of its skin texture).
-    joints: &'a [usize],
+    pub joints: Vec<usize>,
     /// Per joint, its inverse bind matrix, 3x4 row-major (the last row `0 0 0 1`): what a
     /// `local` or `model` texture is multiplied by for skinning.
-    inverse_bind: &'a [[f64; 12]],
+    pub inverse_bind: Vec<[f64; 12]>,
 }
 
 /// One image texture file and where its texels are ([`Grid`]).
-#[derive(Serialize)]
-pub(super) struct ImageRecord {
-    file: String,
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageRecord {
+    /// The file's name, beside the sidecar.
+    pub file: String,
     /// Joints per frame.
-    joints: usize,
+    pub joints: usize,
+    /// Where each texel is.
     #[serde(flatten)]
-    grid: Grid,
+    pub grid: Grid,
     /// PNG16: per texel slot and channel, the `[min, max]` that 0 and 65535 stand for.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    remap: Option<Vec<[[f32; 2]; 4]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub remap: Option<Vec<[[f32; 2]; 4]>>,
     /// A vertex texture's positions: `position = low + texel.xyz * span`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    low: Option<[f64; 3]>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    span: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub low: Option<[f64; 3]>,
+    /// See [`Self::low`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub span: Option<[f64; 3]>,
 }
 
 /// The budget a bake chose its rates for.
-#[derive(Serialize)]
-struct BudgetRecord {
-    degrees: Option<f64>,
-    millimetres: Option<f64>,
-    unit_mm: f64,
-    max_rate: f64,
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BudgetRecord {
+    /// The rotation budget, degrees.
+    pub degrees: Option<f64>,
+    /// The position budget, millimetres.
+    pub millimetres: Option<f64>,
+    /// Millimetres per unit of the input's positions.
+    pub unit_mm: f64,
+    /// The highest rate the budget could choose, Hz.
+    pub max_rate: f64,
     /// Points of each frame interval the error was measured at.
-    substeps: usize,
+    pub substeps: usize,
     /// How the frames are blended: `bone_pose` of `quatcurve shaders`.
-    interpolation: &'static str,
+    pub interpolation: String,
 }
 
-#[derive(Serialize)]
-pub(super) struct SidecarClip {
-    pub(super) name: String,
+/// One baked clip.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SidecarClip {
+    /// The clip's name.
+    pub name: String,
     /// The texture (for `skin`, skin 0's).
-    pub(super) file: String,
+    pub file: String,
     /// Every texture of the clip: one, or for `skin` one per glTF skin.
-    pub(super) files: Vec<String>,
+    pub files: Vec<String>,
     /// First row (frame) of the clip in `file`: 0, or its place in the atlas texture.
-    pub(super) first_row: usize,
-    pub(super) frames: usize,
-    pub(super) start: f64,
-    pub(super) end: f64,
+    pub first_row: usize,
+    /// Frames (rows).
+    pub frames: usize,
+    /// The clip's first frame's time in the source, seconds.
+    pub start: f64,
+    /// Its last frame's.
+    pub end: f64,
     /// Frames per second: the job's rate fitted to the clip's span (its first and last frames
     /// are its first and last keys), or with an exact rate the job's rate (open clips).
-    pub(super) rate: f64,
+    pub rate: f64,
     /// Baked as a loop: periodic curves, continuous across the seam. A loop's last row is the
     /// seam and equals its first: its period is `frames - 1` rows.
     #[serde(rename = "loop")]
-    pub(super) looping: bool,
+    pub looping: bool,
+    /// Its skeleton preview's file name.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub(super) preview: Option<String>,
+    pub preview: Option<String>,
     /// With an error budget: the worst rotation (degrees) and model-space position (mm)
-    /// errors between this clip's frames, where and when, and its bytes against `--rate`'s.
+    /// errors between this clip's frames, where and when, and its bytes against the fixed
+    /// rate's.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub(super) between_frames: Option<ChosenRate>,
-    /// With `--root-motion extract`: the root's horizontal motion and heading per frame, taken
-    /// out of the textures (`model = Root(t) * model in place`).
+    pub between_frames: Option<ChosenRate>,
+    /// With the root motion extracted: the root's horizontal motion and heading per frame,
+    /// taken out of the textures (`model = Root(t) * model in place`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub(super) root_motion: Option<RootTrack>,
+    pub root_motion: Option<RootTrack>,
 }
 
-impl<'a> Sidecar<'a> {
+impl Sidecar {
     /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
     /// textures.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
-        options: &SidecarOptions<'a>,
-        animation: &'a Animation,
+        options: &SidecarOptions<'_>,
+        animation: &Animation,
         baked: &Baked,
-        source: &'a str,
+        source: &str,
         baked_file: Option<String>,
         clips: Vec<SidecarClip>,
         written: &[Written],
@@ -194,7 +246,7 @@ impl<'a> Sidecar<'a> {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
-        let precision = if format == Format::Png16 { "u16" } else { precision.name() };
+        let precision = if format == Format::Png16 { "u16" } else { precision.name() }.to_string();
         let layout = match (atlas, texture) {
             (false, TextureKind::Vertex) => {
                 format!("per clip and skinned primitive: [frames, vertices, {channels}] {precision}: {names}")
@@ -210,8 +262,8 @@ impl<'a> Sidecar<'a> {
         };
         let image = format != Format::Npy;
         let names_of = |range: &std::ops::Range<usize>| {
-            let mut slot: Vec<&'static str> = texture.channel_names()[range.clone()].to_vec();
-            slot.resize(4, "");
+            let mut slot: Vec<String> = texture.channel_names()[range.clone()].iter().map(|c| c.to_string()).collect();
+            slot.resize(4, String::new());
             slot
         };
         let textures = written
@@ -237,17 +289,17 @@ impl<'a> Sidecar<'a> {
             (false, _) => layout,
         };
         Sidecar {
-            source,
-            curve,
+            source: source.to_string(),
+            curve: curve.to_string(),
             requested_rate: rate,
-            device,
-            texture: texture.name(),
-            channels: texture.channel_names(),
+            device: device.to_string(),
+            texture: texture.name().to_string(),
+            channels: texture.channel_names().iter().map(|c| c.to_string()).collect(),
             precision,
-            format: format.name(),
+            format: format.name().to_string(),
             layout,
             texels: (image && texture != TextureKind::Vertex).then(|| texture.texels().iter().map(names_of).collect()),
-            address: image.then_some(super::image::ADDRESS),
+            address: image.then(|| super::image::ADDRESS.to_string()),
             textures,
             max_key_error_rad: baked.max_key_error,
             max_error: max_error.map(|b| BudgetRecord {
@@ -256,10 +308,11 @@ impl<'a> Sidecar<'a> {
                 unit_mm: b.unit_mm,
                 max_rate: b.max_rate,
                 substeps: SUBSTEPS,
-                interpolation: "nlerp of rotations on the shorter arc, lerp of translations and scales (bone_pose)",
+                interpolation: "nlerp of rotations on the shorter arc, lerp of translations and scales (bone_pose)"
+                    .into(),
             }),
             baked_file,
-            joints: animation.joints.iter().map(|j| j.name.as_str()).collect(),
+            joints: animation.joints.iter().map(|j| j.name.clone()).collect(),
             parents: animation.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect(),
             rest: animation
                 .joints
@@ -269,13 +322,17 @@ impl<'a> Sidecar<'a> {
             skins: animation
                 .skins
                 .iter()
-                .map(|s| SidecarSkin { name: &s.name, joints: &s.joints, inverse_bind: &s.inverse_bind })
+                .map(|s| SidecarSkin {
+                    name: s.name.clone(),
+                    joints: s.joints.clone(),
+                    inverse_bind: s.inverse_bind.clone(),
+                })
                 .collect(),
             vertex: vertex.map(|(sheets, mesh_file)| VertexRecord {
                 mesh_file,
-                position: POSITION_DECODING,
-                normal: NORMAL_DECODING,
-                texcoord: TEXCOORD_ADDRESS,
+                position: POSITION_DECODING.into(),
+                normal: NORMAL_DECODING.into(),
+                texcoord: TEXCOORD_ADDRESS.into(),
                 primitives: sheets
                     .primitives
                     .iter()
@@ -287,8 +344,8 @@ impl<'a> Sidecar<'a> {
                         primitive: p.primitive,
                         skin: p.skin,
                         vertices: p.vertices(),
-                        influences: p.influences,
-                        normals: p.normals.is_some(),
+                        influences: p.bind.influences,
+                        normals: p.bind.normals.is_some(),
                         normalized: p.normalized,
                         suffix: super::vertex_texture::suffix(k),
                         mesh_in_file: k,

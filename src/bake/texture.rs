@@ -2,7 +2,7 @@
 //! frame-major so that one frame of every joint is one contiguous row.
 //!
 //! - [`local`]: each joint's rotation, translation and scale relative to its parent;
-//! - [`model`]: forward kinematics over the hierarchy, each joint's transform relative to the
+//! - model: forward kinematics over the hierarchy, each joint's transform relative to the
 //!   scene root as a 3x4 matrix (glTF node semantics: `parent * T * R * S`);
 //! - [`skin`]: `model(joint) * inverseBindMatrix(joint)` in a glTF skin's joint order, the
 //!   matrices a vertex shader multiplies skinned vertices by;
@@ -10,14 +10,15 @@
 //!   ([`rigid`]), quaternions sign-continuous along frames ([`Signs`]): what a shader can
 //!   interpolate between frames without shearing a joint, which lerped matrices do.
 //!
-//! Forward kinematics runs where the curves ran ([`model_on`]): on the GPU in f32
-//! (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per stored
-//! value), frames on every core.
+//! Forward kinematics runs where the curves ran ([`Device::forward_kinematics`]): on the GPU
+//! in f32 (`shaders/fk.wgsl`), on the CPU in f64 from the f32 local rows (one rounding per
+//! stored value), frames on every core.
 
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::{Animation, Property, Skin};
 use crate::device::Device;
+use crate::skeleton::{compose, rigid, Affine};
 use rayon::prelude::*;
 
 /// Which texture `bake --texture` writes.
@@ -163,118 +164,6 @@ pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[u
     data
 }
 
-/// A 3x4 row-major affine matrix (its last row is `0 0 0 1`).
-pub type Affine = [f64; 12];
-
-/// `T * R * S` of a local row (`x, y, z, w`, translation, scale). The rotation is normalized
-/// first: an f32 quaternion is unit only to ~1e-7.
-#[must_use]
-pub fn trs(row: &[f32]) -> Affine {
-    let [x, y, z, w] = [row[0], row[1], row[2], row[3]].map(f64::from);
-    let n = (x * x + y * y + z * z + w * w).sqrt();
-    let (x, y, z, w) = (x / n, y / n, z / n, w / n);
-    let [tx, ty, tz, sx, sy, sz] = [row[4], row[5], row[6], row[7], row[8], row[9]].map(f64::from);
-    let r = [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
-    ];
-    [
-        r[0][0] * sx,
-        r[0][1] * sy,
-        r[0][2] * sz,
-        tx,
-        r[1][0] * sx,
-        r[1][1] * sy,
-        r[1][2] * sz,
-        ty,
-        r[2][0] * sx,
-        r[2][1] * sy,
-        r[2][2] * sz,
-        tz,
-    ]
-}
-
-/// The inverse of an affine matrix; `None` when it is singular.
-#[must_use]
-pub fn inverse(m: &Affine) -> Option<Affine> {
-    let a = |r: usize, c: usize| m[4 * r + c];
-    let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
-        + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
-    if !det.is_normal() {
-        return None;
-    }
-    // The adjugate over the determinant: A^-1; the translation is -A^-1 t.
-    let inv = [
-        [
-            a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1),
-            a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2),
-            a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1),
-        ],
-        [
-            a(1, 2) * a(2, 0) - a(1, 0) * a(2, 2),
-            a(0, 0) * a(2, 2) - a(0, 2) * a(2, 0),
-            a(0, 2) * a(1, 0) - a(0, 0) * a(1, 2),
-        ],
-        [
-            a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0),
-            a(0, 1) * a(2, 0) - a(0, 0) * a(2, 1),
-            a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0),
-        ],
-    ]
-    .map(|row| row.map(|v| v / det));
-    let t = [m[3], m[7], m[11]];
-    let mut out = [0.0; 12];
-    for r in 0..3 {
-        out[4 * r..4 * r + 3].copy_from_slice(&inv[r]);
-        out[4 * r + 3] = -(inv[r][0] * t[0] + inv[r][1] * t[1] + inv[r][2] * t[2]);
-    }
-    Some(out)
-}
-
-/// `a * b` for affine matrices.
-#[must_use]
-pub fn compose(a: &Affine, b: &Affine) -> Affine {
-    let mut out = [0.0; 12];
-    for i in 0..3 {
-        for j in 0..4 {
-            let mut v = a[4 * i] * b[j] + a[4 * i + 1] * b[4 + j] + a[4 * i + 2] * b[8 + j];
-            if j == 3 {
-                v += a[4 * i + 3];
-            }
-            out[4 * i + j] = v;
-        }
-    }
-    out
-}
-
-/// Forward kinematics: the model texture `[frames, joints, 12]` of a local texture
-/// (`[frames, joints, 10]`), joints composed in `order` (parents first,
-/// [`Animation::parents_first`]).
-#[must_use]
-pub fn model(animation: &Animation, order: &[usize], local: &[f32]) -> Vec<f32> {
-    let joints = animation.joints.len();
-    let frames = local.len() / (joints * LOCAL_CHANNELS).max(1);
-    let mut data = vec![0.0f32; frames * joints * MATRIX_CHANNELS];
-    data.par_chunks_mut((joints * MATRIX_CHANNELS).max(1)).enumerate().for_each_init(
-        || vec![[0.0; 12]; joints],
-        |world, (frame, out)| {
-            let rows = &local[frame * joints * LOCAL_CHANNELS..(frame + 1) * joints * LOCAL_CHANNELS];
-            for &j in order {
-                let own = trs(&rows[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]);
-                world[j] = match animation.joints[j].parent {
-                    Some(p) => compose(&world[p], &own),
-                    None => own,
-                };
-                for (o, &v) in out[j * MATRIX_CHANNELS..(j + 1) * MATRIX_CHANNELS].iter_mut().zip(&world[j]) {
-                    *o = v as f32;
-                }
-            }
-        },
-    );
-    data
-}
-
 /// A skin texture `[frames, skin joints, 12]` from a model texture: `model(joint) *
 /// inverseBindMatrix(joint)` in the skin's joint order.
 #[must_use]
@@ -318,7 +207,7 @@ pub fn layout(animation: &Animation, kind: TextureKind) -> Vec<(String, usize)> 
 }
 
 /// The textures of one clip for `kind` ([`layout`]). `order` is [`Animation::parents_first`];
-/// forward kinematics runs on `device` ([`model_on`]).
+/// forward kinematics runs on `device` ([`Device::forward_kinematics`]).
 ///
 /// # Errors
 /// The GPU's, when forward kinematics runs there.
@@ -361,7 +250,7 @@ pub fn sheet_rows(
     if kind == TextureKind::Local {
         return Ok(vec![Sheet { suffix: String::new(), width: animation.joints.len(), data: local }]);
     }
-    let model = model_on(device, animation, order, &local)?;
+    let model = device.forward_kinematics(&animation.parents(), order, &local)?;
     let (matrices, joints): (Vec<Vec<f32>>, Vec<Vec<usize>>) = if !kind.is_skin() || animation.skins.is_empty() {
         (vec![model], vec![(0..animation.joints.len()).collect()])
     } else {
@@ -376,7 +265,7 @@ pub fn sheet_rows(
                 InputError::Animation(format!(
                     "clip '{}', frame {}: joint '{}' is sheared (a {kind} texture's rotation and scale would be off by \
                      {residual:.1e}, over SHEAR_TOLERANCE = {SHEAR_TOLERANCE:e}), which rotation, translation and scale \
-                     cannot hold; bake --texture {} (matrices) instead",
+                     cannot hold; bake a {} texture (matrices) instead",
                     animation.clips[clip].name,
                     frames[row],
                     animation.joints[joints[k]].name,
@@ -394,48 +283,6 @@ pub fn sheet_rows(
 /// rotated under a non-uniform scale), and only a matrix texture holds it. f32 matrices of
 /// rigid transforms come within about 1e-6.
 pub const SHEAR_TOLERANCE: f64 = 1e-4;
-
-/// A 3x4 matrix as rotation `x, y, z, w` (`w >= 0`), translation and scale (`T * R * S`, as
-/// glTF nodes), with the difference between the matrix and that transform's relative to the
-/// largest scale. A mirroring matrix (negative determinant) takes a negative uniform sign on
-/// the scale.
-#[must_use]
-pub fn rigid(m: &Affine) -> ([f64; 10], f64) {
-    let column = |c: usize| [m[c], m[4 + c], m[8 + c]];
-    let [c0, c1, c2] = [column(0), column(1), column(2)];
-    let det = c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c0[1] * (c1[0] * c2[2] - c1[2] * c2[0])
-        + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0]);
-    let sign = if det < 0.0 { -1.0 } else { 1.0 };
-    let scale = [c0, c1, c2].map(|c| sign * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
-    let largest = scale.iter().fold(0.0f64, |a, s| a.max(s.abs()));
-    if scale.iter().any(|s| !s.is_normal()) {
-        return ([0.0, 0.0, 0.0, 1.0, m[3], m[7], m[11], scale[0], scale[1], scale[2]], f64::INFINITY);
-    }
-    // The rotation's entries r[row][col] = m[row][col] / scale[col].
-    let r = |i: usize, j: usize| m[4 * i + j] / scale[j];
-    let trace = r(0, 0) + r(1, 1) + r(2, 2);
-    // Shepperd's method: divide by the largest of the four candidates.
-    let q = if trace > 0.0 {
-        let s = 2.0 * (1.0 + trace).sqrt();
-        [(r(2, 1) - r(1, 2)) / s, (r(0, 2) - r(2, 0)) / s, (r(1, 0) - r(0, 1)) / s, s / 4.0]
-    } else if r(0, 0) > r(1, 1) && r(0, 0) > r(2, 2) {
-        let s = 2.0 * (1.0 + r(0, 0) - r(1, 1) - r(2, 2)).sqrt();
-        [s / 4.0, (r(0, 1) + r(1, 0)) / s, (r(0, 2) + r(2, 0)) / s, (r(2, 1) - r(1, 2)) / s]
-    } else if r(1, 1) > r(2, 2) {
-        let s = 2.0 * (1.0 + r(1, 1) - r(0, 0) - r(2, 2)).sqrt();
-        [(r(0, 1) + r(1, 0)) / s, s / 4.0, (r(1, 2) + r(2, 1)) / s, (r(0, 2) - r(2, 0)) / s]
-    } else {
-        let s = 2.0 * (1.0 + r(2, 2) - r(0, 0) - r(1, 1)).sqrt();
-        [(r(0, 2) + r(2, 0)) / s, (r(1, 2) + r(2, 1)) / s, s / 4.0, (r(1, 0) - r(0, 1)) / s]
-    };
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let flip = if q[3] < 0.0 { -1.0 } else { 1.0 };
-    let q = q.map(|v| flip * v / n);
-    let out = [q[0], q[1], q[2], q[3], m[3], m[7], m[11], scale[0], scale[1], scale[2]];
-    let back = trs(&out.map(|v| v as f32));
-    let residual = (0..12).filter(|i| i % 4 != 3).map(|i| (back[i] - m[i]).abs()).fold(0.0, f64::max) / largest;
-    (out, residual)
-}
 
 /// [`rigid`] over matrix rows `[frames, joints, 12]`, to `[frames, joints, 10]`.
 ///
@@ -495,28 +342,6 @@ impl Signs {
     }
 }
 
-/// [`model`] where the curves run: the GPU kernel (`shaders/fk.wgsl`) on a device with a GPU,
-/// else the CPU (f64, every core).
-///
-/// # Errors
-/// The GPU's (a device failure, a frame larger than a storage binding).
-pub fn model_on(
-    device: &Device,
-    animation: &Animation,
-    order: &[usize],
-    local: &[f32],
-) -> Result<Vec<f32>, InputError> {
-    match device {
-        #[cfg(feature = "gpu")]
-        Device::Gpu(g) | Device::Auto(g, _) => {
-            let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
-            g.forward_kinematics(&parents, order, local)
-                .map_err(|e| InputError::Device(crate::device::DeviceError::Device(format!("forward kinematics: {e}"))))
-        }
-        Device::Cpu(_) | Device::Reference => Ok(model(animation, order, local)),
-    }
-}
-
 /// Frames a skeleton preview overlays.
 pub const PREVIEW_FRAMES: usize = 5;
 
@@ -538,6 +363,7 @@ pub fn position(model: &[f32], joints: usize, frame: usize, j: usize) -> [f32; 3
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::skeleton::trs_row;
 
     /// A rotation `x, y, z, w` from a seed, not normalized.
     fn rotation(seed: u64) -> [f32; 4] {
@@ -553,7 +379,7 @@ mod tests {
             let sign = if seed % 7 == 0 { -1.0 } else { 1.0 };
             let s = [0.5 + (seed % 5) as f32 * 0.3, 1.0, 2.0].map(|v| v * sign);
             let row = [q[0], q[1], q[2], q[3], 1.0, -2.0, 3.0, s[0], s[1], s[2]];
-            let (back, residual) = rigid(&trs(&row));
+            let (back, residual) = rigid(&trs_row(&row));
             assert!(residual < 1e-6, "seed {seed}: residual {residual}");
             // The same rotation up to sign, w >= 0; the scale's sign is uniform.
             let side = if q[3] < 0.0 { -1.0 } else { 1.0 };
@@ -569,10 +395,10 @@ mod tests {
 
     #[test]
     fn a_sheared_or_flat_matrix_is_not_rigid() {
-        let mut m = trs(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        let mut m = trs_row(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
         m[1] = 0.3;
         assert!(rigid(&m).1 > SHEAR_TOLERANCE);
-        let flat = trs(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0]);
+        let flat = trs_row(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0]);
         assert!(rigid(&flat).1 > SHEAR_TOLERANCE);
     }
 

@@ -50,7 +50,7 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
             .map_err(|e| InputError::Animation(format!("{}: {e}", p.name)))?
             .frame_width;
         let count = p.vertices();
-        let positions: Vec<[f32; 3]> = p.positions.iter().map(|v| v.map(|c| c as f32)).collect();
+        let positions: Vec<[f32; 3]> = p.bind.positions.iter().map(|v| v.map(|c| c as f32)).collect();
         let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         for v in &positions {
             for c in 0..3 {
@@ -66,7 +66,7 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
             json!({"componentType": FLOAT, "count": count, "type": "VEC3", "min": min, "max": max}),
         );
         let mut attributes = json!({"POSITION": position});
-        if let Some(normals) = &p.normals {
+        if let Some(normals) = &p.bind.normals {
             let normal = push(
                 &mut bin,
                 floats(&mut normals.iter().flatten().map(|&c| c as f32)),

@@ -11,7 +11,7 @@ use super::texture_file::SheetSpec;
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::Animation;
-use crate::device::Device;
+use crate::device::{Device, DeviceError};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -29,9 +29,6 @@ pub struct VertexSheets {
     pub primitives: Vec<SkinnedPrimitive>,
     /// Position and normal images (EXR, PNG16) rather than raw `.npy` rows.
     images: bool,
-    /// Each primitive in the GPU kernel's layout, made when first skinned there.
-    #[cfg(feature = "gpu")]
-    bound: Vec<std::sync::OnceLock<crate::gpu::skinning::BindMesh>>,
     /// Vertex-frames skinned and seconds spent skinning them.
     work: Mutex<(u64, f64)>,
 }
@@ -40,13 +37,7 @@ impl VertexSheets {
     /// The sheets of `primitives`, as images or as `.npy` rows.
     #[must_use]
     pub fn new(primitives: Vec<SkinnedPrimitive>, images: bool) -> Self {
-        Self {
-            #[cfg(feature = "gpu")]
-            bound: primitives.iter().map(|_| std::sync::OnceLock::new()).collect(),
-            primitives,
-            images,
-            work: Mutex::new((0, 0.0)),
-        }
+        Self { primitives, images, work: Mutex::new((0, 0.0)) }
     }
 
     /// The files of each clip's (or the atlas's) texture, in the order [`Self::rows`] makes
@@ -66,7 +57,7 @@ impl VertexSheets {
                 continue;
             }
             out.push(sheet(format!("{}.pos", suffix(k)), "positions", Texels::Positions));
-            if p.normals.is_some() {
+            if p.bind.normals.is_some() {
                 out.push(sheet(format!("{}.nrm", suffix(k)), "normals", Texels::Normals));
             }
         }
@@ -75,8 +66,7 @@ impl VertexSheets {
 
     /// The sheets of [`Self::layout`] for clip `clip`'s `frames`: the skins' matrices
     /// ([`texture::sheet_rows`], forward kinematics on `device`), then every primitive skinned
-    /// on `device` (`shaders/skin_mesh.wgsl` on a GPU, [`super::skinning::skin`] in f64 on
-    /// the CPU).
+    /// on `device` ([`Device::skin`]).
     ///
     /// # Errors
     /// The GPU's.
@@ -94,7 +84,9 @@ impl VertexSheets {
         for (k, p) in self.primitives.iter().enumerate() {
             let joints = animation.skins[p.skin].joints.len();
             let start = Instant::now();
-            let data = self.skin_on(device, k, joints, &skins[p.skin].data)?;
+            let data = device
+                .skin(&p.bind, joints, &skins[p.skin].data)
+                .map_err(|e| InputError::Device(DeviceError::Device(format!("{}: {e}", p.name))))?;
             {
                 let mut work = self.work.lock().unwrap_or_else(|e| e.into_inner());
                 work.0 += (frames.len() * p.vertices()) as u64;
@@ -109,7 +101,7 @@ impl VertexSheets {
                 data.chunks_exact(VERTEX_CHANNELS).flat_map(|v| v[range.clone()].iter().copied()).collect()
             };
             out.push(Sheet { suffix: format!("{}.pos", suffix(k)), width, data: part(0..3) });
-            if p.normals.is_some() {
+            if p.bind.normals.is_some() {
                 out.push(Sheet { suffix: format!("{}.nrm", suffix(k)), width, data: part(3..6) });
             }
         }
@@ -121,22 +113,5 @@ impl VertexSheets {
     #[must_use]
     pub fn work(&self) -> (u64, f64) {
         *self.work.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    /// Primitive `k` skinned by `matrices` (`[frames, joints, 12]`) on `device`, in f32.
-    fn skin_on(&self, device: &Device, k: usize, joints: usize, matrices: &[f32]) -> Result<Vec<f32>, InputError> {
-        let primitive = &self.primitives[k];
-        match device {
-            #[cfg(feature = "gpu")]
-            Device::Gpu(g) | Device::Auto(g, _) => {
-                let bound = self.bound[k].get_or_init(|| super::skinning::bind_mesh(primitive));
-                g.skin_mesh(bound, joints, matrices).map_err(|e| {
-                    InputError::Device(crate::device::DeviceError::Device(format!("skinning {}: {e}", primitive.name)))
-                })
-            }
-            Device::Cpu(_) | Device::Reference => {
-                Ok(super::skinning::skin(primitive, joints, matrices).into_iter().map(|v| v as f32).collect())
-            }
-        }
     }
 }

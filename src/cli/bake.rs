@@ -4,7 +4,7 @@
 //! its outputs atomically; a failed input is reported and the others still finish); this
 //! file draws the progress bar, prints the summary and exits non-zero if any input failed.
 
-use super::{names, print_stdout, CurveArgs, DeviceArgs, Failure};
+use super::{flag, names, print_stdout, CurveArgs, DeviceArgs, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use quatcurve::bake::budget::ErrorBudget;
@@ -114,10 +114,11 @@ pub struct BakeArgs {
 }
 
 impl From<BakeError> for Failure {
-    /// Option errors name the option as its flag (`rate must ...` becomes `--rate must ...`).
+    /// Option errors name the option as its flag (`max_rate must ...` becomes `--max-rate
+    /// must ...`).
     fn from(e: BakeError) -> Self {
         match e {
-            BakeError::Option { .. } => Failure::Input(format!("--{e}")),
+            BakeError::Option { option, reason } => Failure::Input(format!("{} {reason}", flag(option))),
             BakeError::Manifest(_) => Failure::Internal(e.to_string()),
             _ => Failure::Input(e.to_string()),
         }

@@ -425,7 +425,8 @@ struct SkinningTiming {
 /// Skins every skinned primitive of `file` at `args.samples` frames of its first clip (the
 /// skin matrices baked once, before the timing) on the CPU and the GPU.
 fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, Failure> {
-    use quatcurve::bake::{self, gltf, mesh, skinning, texture};
+    use quatcurve::bake::{self, gltf, mesh, texture};
+    use quatcurve::skeleton;
     let input = |e: String| Failure::Input(format!("bench --skinning {}: {e}", file.display()));
     let source = gltf::read(file, gltf::UriPolicy::default()).map_err(|e| input(e.to_string()))?;
     let animation = &source.animation;
@@ -437,7 +438,7 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
     let baked = bake::bake(animation, &spec, bake::ClipRate::Fit(rate), bake::LoopMode::Auto, &Device::Reference)
         .map_err(|e| input(e.to_string()))?;
     let order = animation.parents_first().map_err(|e| input(e.to_string()))?;
-    let model = texture::model(animation, &order, &texture::local(animation, &baked, 0));
+    let model = skeleton::forward_kinematics(&animation.parents(), &order, &texture::local(animation, &baked, 0));
     let skins: Vec<Vec<f32>> =
         animation.skins.iter().map(|s| texture::skin(s, animation.joints.len(), &model)).collect();
     let frames = baked.clips[0].times.len();
@@ -460,27 +461,17 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
                 continue;
             }
         };
-        let (name, adapter, seconds) = match &device {
-            Device::Gpu(gpu) | Device::Auto(gpu, _) => {
-                let bound: Vec<_> = primitives.iter().map(skinning::bind_mesh).collect();
-                let seconds = median_seconds(args.runs, || {
-                    for (p, mesh) in primitives.iter().zip(&bound) {
-                        gpu.skin_mesh(mesh, joints(p), &skins[p.skin])
-                            .map_err(|e| Failure::Internal(format!("gpu: {e}")))?;
-                    }
-                    Ok(())
-                })?;
-                ("gpu", gpu.adapter_name().to_string(), seconds)
+        let seconds = median_seconds(args.runs, || {
+            for p in &primitives {
+                device
+                    .skin(&p.bind, joints(p), &skins[p.skin])
+                    .map_err(|e| Failure::Internal(format!("{choice}: {e}")))?;
             }
-            Device::Cpu(_) | Device::Reference => {
-                let seconds = median_seconds(args.runs, || {
-                    for p in &primitives {
-                        drop(skinning::skin(p, joints(p), &skins[p.skin]));
-                    }
-                    Ok(())
-                })?;
-                ("cpu", format!("f64, {} threads", rayon::current_num_threads()), seconds)
-            }
+            Ok(())
+        })?;
+        let (name, adapter) = match choice {
+            DeviceChoice::Gpu => ("gpu", device.name().trim_start_matches("gpu: ").to_string()),
+            _ => ("cpu", format!("f64, {} threads", rayon::current_num_threads())),
         };
         let vertex_frames = vertices * frames;
         results.push(SkinningTiming {

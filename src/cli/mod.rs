@@ -43,6 +43,15 @@ impl Failure {
     }
 }
 
+/// The flag of an option the library names (`max_texture_size` is `--max-texture-size`; the
+/// jobs' `inputs` is `--input`, given once per file).
+pub fn flag(option: &str) -> String {
+    match option {
+        "inputs" => "--input".into(),
+        _ => format!("--{}", option.replace('_', "-")),
+    }
+}
+
 /// `--loop`'s help: what looping means and which curves do (from the library's rule).
 pub fn loop_help() -> String {
     format!(

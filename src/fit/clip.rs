@@ -230,10 +230,8 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
 fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budget: &Budget) -> Vec<f64> {
     let joints = &animation.joints;
     let parents: Vec<Option<usize>> = joints.iter().map(|j| j.parent).collect();
-    let at: Vec<Vec3F64> = object_space(&parents, order, &rest_pose(animation))
-        .iter()
-        .map(|m| Vec3F64::new(m.translation.x, m.translation.y, m.translation.z))
-        .collect();
+    let at: Vec<Vec3F64> =
+        object_space(&parents, order, &rest_pose(animation)).iter().map(|m| Vec3F64::new(m[3], m[7], m[11])).collect();
     // Reach: the farthest joint it carries, plus the vertex distance.
     let mut reach = vec![budget.vertex_distance; joints.len()];
     // Animated channels on the way from a root down to each joint, itself included.

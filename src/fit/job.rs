@@ -37,8 +37,8 @@ pub struct FitJob {
     pub unit_cm: Option<f64>,
 }
 
-/// Between-frame error a fit defaults to, cm (the issue's bound: the source's interpolation
-/// within 0.3 cm).
+/// Between-frame error a fit defaults to, cm: the curve within 0.3 cm of the source's own
+/// interpolation.
 pub const DEFAULT_BETWEEN_ERROR_CM: f64 = 0.3;
 
 /// Virtual-vertex distance a fit defaults to, cm (ACL's).
@@ -125,24 +125,24 @@ impl FitJob {
     /// takes no file, two inputs with one stem, a container that would replace its input.
     pub fn run(&self, progress: &dyn Fn(&str, &ClipReport)) -> Result<FitReport, BakeError> {
         for (option, value) in [
-            ("max-error", Some(self.max_error_cm)),
-            ("between-error", self.between_error_cm),
-            ("vertex-distance", Some(self.vertex_distance_cm)),
-            ("unit-cm", self.unit_cm),
+            ("max_error", Some(self.max_error_cm)),
+            ("between_error", self.between_error_cm),
+            ("vertex_distance", Some(self.vertex_distance_cm)),
+            ("unit_cm", self.unit_cm),
         ] {
             if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
                 return Err(BakeError::option(option, format!("is {v}; it must be a positive length")));
             }
         }
         if self.inputs.is_empty() {
-            return Err(BakeError::option("input", "names no file: give the glTF or BVH files to fit"));
+            return Err(BakeError::option("inputs", "names no file: give the glTF or BVH files to fit"));
         }
         let inputs = expand(&self.inputs, &FIT_EXTENSIONS)?;
         for input in &inputs {
             match extension(input).as_deref() {
                 Some("bvh") if self.unit_cm.is_none() => {
                     return Err(BakeError::option(
-                        "unit-cm",
+                        "unit_cm",
                         format!(
                             "is needed for {}: a BVH file does not say its unit (CMU's is 5.644 cm); nothing was \
                              fitted",
@@ -184,15 +184,15 @@ impl FitJob {
     fn over_budget(&self, clip: &str, at: &WorstReport, between: &WorstReport) -> String {
         let between_budget = self.between_error_cm.map_or_else(
             || "unchecked between them".into(),
-            |cm| format!("--between-error {} cm between them", Number(cm)),
+            |cm| format!("{} cm between them (the between-frames error)", Number(cm)),
         );
-        let loosen = "; a larger --between-error or --no-between-check loosens the check between frames";
+        let loosen = "; a larger between-frames error, or none, loosens the check between frames";
         let hint = match self.between_error_cm {
             Some(cm) if between.error_cm > cm => loosen,
             _ => "",
         };
         format!(
-            "clip '{clip}': no fit within --max-error {} cm at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
+            "clip '{clip}': no fit within {} cm (the maximum error) at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
             Number(self.max_error_cm),
             Number(at.error_cm),
             at.joint,

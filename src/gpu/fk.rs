@@ -1,5 +1,5 @@
 //! Forward kinematics on the GPU for bake's model textures (`shaders/fk.wgsl`), the twin of
-//! [`crate::bake::texture::model`]: local rows `[frames, joints, 10]` in, 3x4 model rows
+//! [`crate::skeleton::forward_kinematics`]: local rows `[frames, joints, 10]` in, 3x4 model rows
 //! `[frames, joints, 12]` out. One dispatch per level of the hierarchy, all levels of a chunk
 //! of frames in one pass; frames are split into chunks that fit a storage binding.
 

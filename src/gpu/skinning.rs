@@ -1,5 +1,5 @@
 //! Linear blend skinning on the GPU for vertex textures (`shaders/skin_mesh.wgsl`), the twin of
-//! [`crate::bake::skinning::skin`]: bind-space vertices, their influences and skinning matrices
+//! [`crate::skeleton::skin`]: bind-space vertices, their influences and skinning matrices
 //! `[frames, joints, 12]` in, skinned vertices `[frames, vertices, 6]` out. Frames are split
 //! into chunks whose matrices and output each fit a storage binding.
 
@@ -7,6 +7,7 @@ use super::context::{ErrorScope, GpuContext};
 use super::shader::{self, Compiled};
 use super::GpuError;
 use crate::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
+use crate::skeleton::SkinnedMesh;
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `SkinMeshJob` (32 bytes).
@@ -37,6 +38,23 @@ pub struct BindMesh {
     pub influences: usize,
     /// Per vertex, `influences` pairs: joint index, weight's bits.
     pub pairs: Vec<u32>,
+}
+
+impl BindMesh {
+    /// `mesh` in the shader's layout.
+    #[must_use]
+    pub fn of(mesh: &SkinnedMesh) -> Self {
+        let normals = mesh.normals.as_deref();
+        let vertices = (0..mesh.vertices())
+            .flat_map(|v| {
+                let n = normals.map_or([0.0; 3], |n| n[v]);
+                let p = mesh.positions[v];
+                [p[0], p[1], p[2], n[0], n[1], n[2]].map(|c| c as f32)
+            })
+            .collect();
+        let pairs = mesh.joints.iter().zip(&mesh.weights).flat_map(|(&j, &w)| [j, (w as f32).to_bits()]).collect();
+        Self { vertices, influences: mesh.influences, pairs }
+    }
 }
 
 /// The mesh-skinning program on one device.

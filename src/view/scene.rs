@@ -2,20 +2,22 @@
 //! for one clip of one bake a scene: the shipped crowd shaders in GLSL ES with the names their
 //! resources took, and per mesh primitive its vertex inputs (by the locations the WGSL
 //! declares), the textures to sample and the uniform blocks' bytes, built from the sidecar's
-//! numbers as an engine would build them. The page itself knows no file format.
+//! numbers as an engine would build them (the sidecar read through the types that write it).
+//! The page itself knows no file format.
 
 use super::files::url_path;
 use super::texels::Texels;
 use crate::bake::gltf::{self, UriPolicy};
 use crate::bake::image::{Format, Grid};
 use crate::bake::mesh::{self, SkinnedPrimitive};
-use crate::bake::texture::{self, TextureKind};
-use crate::bake::{skinning, vertex_encoding::Bounds};
+use crate::bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
+use crate::bake::texture::TextureKind;
+use crate::bake::vertex_encoding::Bounds;
 use crate::gpu::shader::{self, Glsl, Language, Program};
 use crate::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
+use crate::skeleton;
 use naga::ShaderStage;
 use serde::Serialize;
-use serde_json::Value;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -43,13 +45,13 @@ impl Playback {
     /// How a bake of `texture` in `format` plays, or why it cannot.
     fn of(texture: &str, format: &str) -> Result<Self, String> {
         if !matches!(format.parse::<Format>(), Ok(Format::Exr | Format::Png16)) {
-            return Err(format!("its textures are {format}; the page samples images: bake with --format exr or png16"));
+            return Err(format!("its textures are {format}; the page samples images: bake exr or png16 textures"));
         }
         match texture.parse::<TextureKind>() {
             Ok(TextureKind::SkinTrs) => Ok(Playback::Bones),
             Ok(TextureKind::Vertex) => Ok(Playback::Vertex),
             _ => Err(format!(
-                "--texture {texture}; the page plays skin-trs bone textures (GPU skinning) or vertex textures"
+                "its textures are {texture}; the page plays skin-trs bone textures (GPU skinning) or vertex textures"
             )),
         }
     }
@@ -97,16 +99,15 @@ pub struct Clip {
 }
 
 impl Clip {
-    fn of(clip: &Value) -> Result<Self, String> {
-        let frames = field(clip, "frames")?.as_u64().ok_or("clip `frames` is not a count")?;
-        let rate = number(clip, "rate")?;
-        Ok(Self {
-            name: field(clip, "name")?.as_str().unwrap_or_default().to_string(),
+    fn of(clip: &SidecarClip) -> Self {
+        let frames = clip.frames as u64;
+        Self {
+            name: clip.name.clone(),
             frames,
-            rate,
-            looping: clip.get("loop").and_then(Value::as_bool).unwrap_or(false),
-            duration: frames.saturating_sub(1) as f64 / rate,
-        })
+            rate: clip.rate,
+            looping: clip.looping,
+            duration: frames.saturating_sub(1) as f64 / clip.rate,
+        }
     }
 }
 
@@ -142,19 +143,18 @@ pub fn bakes(root: &Path) -> Listing {
     Listing { bakes, left_out: found.len() - read }
 }
 
-/// The bake whose sidecar `path` is, or `None` for a JSON file that is not a sidecar.
+/// The bake whose sidecar `path` is, or `None` for a JSON file that is not a sidecar (one
+/// that names no texture kind).
 fn bake(root: &Path, path: &Path) -> Option<Bake> {
-    let sidecar = read_json(path).ok()?;
-    let text = |k: &str| sidecar.get(k).and_then(Value::as_str).map(str::to_string);
-    let clips = sidecar.get("clips")?.as_array()?.iter().map(Clip::of).collect::<Result<_, _>>().ok()?;
-    let (texture, format) = (text("texture")?, text("format").unwrap_or_else(|| "npy".into()));
-    let playback = Playback::of(&texture, &format);
+    let sidecar = read_sidecar(path).ok().filter(|s| !s.texture.is_empty())?;
+    let format = if sidecar.format.is_empty() { "npy".to_string() } else { sidecar.format };
+    let playback = Playback::of(&sidecar.texture, &format);
     Some(Bake {
         sidecar: url_path(root, path),
-        source: text("source").unwrap_or_default(),
-        texture,
+        source: sidecar.source,
+        texture: sidecar.texture,
         format,
-        clips,
+        clips: sidecar.clips.iter().map(Clip::of).collect(),
         refusal: playback.as_ref().err().cloned(),
         playback: playback.ok(),
     })
@@ -329,14 +329,13 @@ impl Shaders {
 /// # Errors
 /// What in the bake the page cannot play, naming the file, clip or primitive.
 pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, String> {
-    let sidecar = read_json(sidecar_path)?;
+    let sidecar = read_sidecar(sidecar_path)?;
     let dir = sidecar_path.parent().unwrap_or(root);
-    let text = |k: &str| sidecar.get(k).and_then(Value::as_str).unwrap_or_default();
-    let playback = Playback::of(text("texture"), text("format"))?;
-    let clips = field(&sidecar, "clips")?.as_array().ok_or("`clips` is not a list")?;
-    let clip_json = clips.get(clip).ok_or_else(|| format!("no clip {clip}: the bake has {}", clips.len()))?;
+    let playback = Playback::of(&sidecar.texture, &sidecar.format)?;
+    let clips = &sidecar.clips;
+    let chosen = clips.get(clip).ok_or_else(|| format!("no clip {clip}: the bake has {}", clips.len()))?;
     let shaders = Shaders::of(playback.program())?;
-    let mut bake = Assembly { root, dir, sidecar: &sidecar, clip: clip_json, shaders: &shaders, notes: Vec::new() };
+    let mut bake = Assembly { root, dir, sidecar: &sidecar, clip: chosen, shaders: &shaders, notes: Vec::new() };
     let (draws, bounds) = match playback {
         Playback::Bones => bake.bones()?,
         Playback::Vertex => bake.vertex()?,
@@ -344,7 +343,7 @@ pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, Str
     let camera = shaders.vertex.bindings.iter().find(|b| b.group == 0 && !b.sampler).ok_or("no camera block")?;
     Ok(Scene {
         playback,
-        clip: Clip::of(clip_json)?,
+        clip: Clip::of(chosen),
         vertex_shader: shaders.vertex.text.clone(),
         fragment_shader: shaders.fragment.text.clone(),
         camera: camera.glsl.clone(),
@@ -364,23 +363,22 @@ pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, Str
 struct Assembly<'a> {
     root: &'a Path,
     dir: &'a Path,
-    sidecar: &'a Value,
-    clip: &'a Value,
+    sidecar: &'a Sidecar,
+    clip: &'a SidecarClip,
     shaders: &'a Shaders,
     notes: Vec<String>,
 }
 
 impl<'a> Assembly<'a> {
     /// The sidecar's `textures` record of `file`, its grid, and the file's texel URL.
-    fn texture(&self, file: &str) -> Result<(&'a Value, Grid, PathBuf), String> {
-        let sidecar: &'a Value = self.sidecar;
-        let record = field(sidecar, "textures")?
-            .as_array()
-            .and_then(|t| t.iter().find(|r| r.get("file").and_then(Value::as_str) == Some(file)))
+    fn texture(&self, file: &str) -> Result<(&'a ImageRecord, Grid, PathBuf), String> {
+        let sidecar: &'a Sidecar = self.sidecar;
+        let record = sidecar
+            .textures
+            .iter()
+            .find(|r| r.file == file)
             .ok_or_else(|| format!("the sidecar's `textures` has no record of {file}"))?;
-        let grid: Grid =
-            serde_json::from_value(record.clone()).map_err(|e| format!("textures record of {file}: {e}"))?;
-        Ok((record, grid, self.dir.join(file)))
+        Ok((record, record.grid, self.dir.join(file)))
     }
 
     fn binding(&self, wgsl: &str, path: &Path, grid: &Grid) -> Result<TextureBinding, String> {
@@ -394,16 +392,15 @@ impl<'a> Assembly<'a> {
 
     /// The clip as `BoneClip` words at index 0 of a layout's `clips` array of `max` entries.
     fn clip_words(&self, max: usize) -> Result<Vec<u32>, String> {
-        let count = |k: &str| -> Result<u32, String> {
-            let v = field(self.clip, k)?.as_u64().ok_or_else(|| format!("clip `{k}` is not a count"))?;
+        let count = |k: &str, v: usize| -> Result<u32, String> {
             u32::try_from(v).map_err(|_| format!("clip `{k}` {v} does not fit the shader's u32"))
         };
-        let looping = self.clip.get("loop").and_then(Value::as_bool).unwrap_or(false);
+        let clip = self.clip;
         let mut words = vec![
-            count("first_row")?,
-            count("frames")?,
-            u32::from(looping),
-            (number(self.clip, "rate")? as f32).to_bits(),
+            count("first_row", clip.first_row)?,
+            count("frames", clip.frames)?,
+            u32::from(clip.looping),
+            (clip.rate as f32).to_bits(),
         ];
         words.resize(4 * max, 0);
         Ok(words)
@@ -412,11 +409,11 @@ impl<'a> Assembly<'a> {
     /// Every skinned primitive of the baked glTF, skinned by `bone_texture.wgsl` from its
     /// skin's `skin-trs` texture of the clip.
     fn bones(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
-        let baked = field(self.sidecar, "baked_file")?.as_str().ok_or("the sidecar names no baked glTF")?;
+        let baked = self.sidecar.baked_file.as_deref().ok_or("the sidecar names no baked glTF")?;
         let path = self.dir.join(baked);
         let file = gltf::read(&path, UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
         let primitives = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
-        let files = field(self.clip, "files")?.as_array().ok_or("clip `files` is not a list")?;
+        let files = &self.clip.files;
         let max_clips = self.shaders.max_clips("BONE_MAX_CLIPS")?;
         let mut texels: HashMap<PathBuf, Texels> = HashMap::new();
         let (mut draws, mut corners) = (Vec::new(), Vec::new());
@@ -425,10 +422,7 @@ impl<'a> Assembly<'a> {
                 self.notes.push(format!("{}: mode {} is not a triangle list; not drawn", p.name, p.mode));
                 continue;
             }
-            let name = files
-                .get(p.skin)
-                .and_then(Value::as_str)
-                .ok_or_else(|| format!("{}: no texture of skin {}", p.name, p.skin))?;
+            let name = files.get(p.skin).ok_or_else(|| format!("{}: no texture of skin {}", p.name, p.skin))?;
             let (record, grid, image) = self.texture(name)?;
             let remap = remap(record)?;
             let mut words = vec![grid.texels_per_joint, grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
@@ -439,7 +433,7 @@ impl<'a> Assembly<'a> {
             words.extend(remap.iter().flat_map(|slot| slot.map(|(_, span)| span.to_bits())));
             words.extend(self.clip_words(max_clips)?);
             let block = self.shaders.block("bone_layout", "BoneLayout", words)?;
-            let joints = field(record, "joints")?.as_u64().unwrap_or(0) as usize;
+            let joints = record.joints;
             if !texels.contains_key(&image) {
                 let read = Texels::read(&image).map_err(|e| format!("{name}: {e}"))?;
                 texels.insert(image.clone(), read);
@@ -461,24 +455,24 @@ impl<'a> Assembly<'a> {
     /// Positions, normals, and the [`SHADER_INFLUENCES`] largest joints and weights.
     fn bone_attributes(&mut self, p: &SkinnedPrimitive) -> Result<Vec<Attribute>, String> {
         let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
-        let normals = match &p.normals {
+        let normals = match &p.bind.normals {
             Some(n) => flat(n),
             None => {
                 self.notes.push(format!("{}: no normals; lit as facing +y", p.name));
                 [0.0, 1.0, 0.0].repeat(p.vertices())
             }
         };
-        if p.influences > SHADER_INFLUENCES {
+        if p.bind.influences > SHADER_INFLUENCES {
             self.notes.push(format!(
                 "{}: {} influences per vertex; the shader reads {SHADER_INFLUENCES}, the largest, renormalized",
-                p.name, p.influences
+                p.name, p.bind.influences
             ));
         }
         let (mut joints, mut weights) = (Vec::new(), Vec::new());
         for v in 0..p.vertices() {
-            let range = v * p.influences..(v + 1) * p.influences;
+            let range = v * p.bind.influences..(v + 1) * p.bind.influences;
             let mut pairs: Vec<(u32, f64)> =
-                p.joints[range.clone()].iter().copied().zip(p.weights[range].iter().copied()).collect();
+                p.bind.joints[range.clone()].iter().copied().zip(p.bind.weights[range].iter().copied()).collect();
             pairs.sort_by(|a, b| b.1.total_cmp(&a.1));
             pairs.resize(SHADER_INFLUENCES, (0, 0.0));
             let sum: f64 = pairs.iter().map(|(_, w)| w).sum();
@@ -486,14 +480,14 @@ impl<'a> Assembly<'a> {
             weights.extend(pairs.iter().map(|&(_, w)| if sum > 0.0 { w / sum } else { 0.0 }));
         }
         Ok(vec![
-            self.shaders.attribute("position", 3, false, flat(&p.positions))?,
+            self.shaders.attribute("position", 3, false, flat(&p.bind.positions))?,
             self.shaders.attribute("normal", 3, false, normals)?,
             self.shaders.attribute("joints", 4, true, joints)?,
             self.shaders.attribute("weights", 4, false, weights)?,
         ])
     }
 
-    /// The box of `p` skinned on the CPU ([`skinning::skin`]) at [`BOX_FRAMES`] frames of the
+    /// The box of `p` skinned on the CPU ([`skeleton::skin`]) at [`BOX_FRAMES`] frames of the
     /// clip, from the texture's own texels.
     fn skinned_box(
         &self,
@@ -503,8 +497,7 @@ impl<'a> Assembly<'a> {
         remap: &[[(f32, f32); 4]; 3],
         joints: usize,
     ) -> Result<Vec<[f64; 3]>, String> {
-        let first_row = field(self.clip, "first_row")?.as_u64().unwrap_or(0) as usize;
-        let frames = field(self.clip, "frames")?.as_u64().unwrap_or(1).max(1) as usize;
+        let (first_row, frames) = (self.clip.first_row, self.clip.frames.max(1));
         let slots = TextureKind::SkinTrs.texels();
         let mut matrices = Vec::new();
         for f in (0..BOX_FRAMES).map(|i| i * (frames - 1) / (BOX_FRAMES - 1)) {
@@ -523,47 +516,35 @@ impl<'a> Assembly<'a> {
                         row[r] = remap[t][c].0 + texel[c] * remap[t][c].1;
                     }
                 }
-                matrices.extend(texture::trs(&row).map(|v| v as f32));
+                matrices.extend(skeleton::trs_row(&row).map(|v| v as f32));
             }
         }
         debug_assert_eq!(matrices.len(), BOX_FRAMES * joints * MATRIX_CHANNELS);
-        let skinned = skinning::skin(p, joints, &matrices);
+        let skinned = skeleton::skin(&p.bind, joints, &matrices);
         Ok(skinned.chunks_exact(VERTEX_CHANNELS).map(|v| [v[0], v[1], v[2]]).collect())
     }
 
     /// Every primitive of the bake's mesh file, its vertices read from its `.pos` (and
     /// `.nrm`) texture of the clip at its `TEXCOORD_0`.
     fn vertex(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
-        let vertex = field(self.sidecar, "vertex")?;
-        let mesh_file = field(vertex, "mesh_file")?.as_str().ok_or("`vertex.mesh_file` is not a name")?;
+        let vertex = self.sidecar.vertex.as_ref().ok_or("the sidecar has no `vertex` record")?;
+        let mesh_file = &vertex.mesh_file;
         let bytes = std::fs::read(self.dir.join(mesh_file)).map_err(|e| format!("{mesh_file}: {e}"))?;
         let glb = ::gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{mesh_file}: {e}"))?;
         let blob = glb.blob.as_deref().ok_or_else(|| format!("{mesh_file}: no binary chunk"))?;
-        let files: Vec<&str> = field(self.clip, "files")?
-            .as_array()
-            .ok_or("clip `files` is not a list")?
-            .iter()
-            .filter_map(Value::as_str)
-            .collect();
-        let format = field(self.sidecar, "format")?.as_str().unwrap_or_default();
-        let ext = format.parse::<Format>()?.extension();
+        let files = &self.clip.files;
+        let ext = self.sidecar.format.parse::<Format>()?.extension();
         let max_clips = self.shaders.max_clips("VERTEX_MAX_CLIPS")?;
         let (mut draws, mut corners) = (Vec::new(), Vec::new());
-        for p in field(vertex, "primitives")?.as_array().ok_or("`vertex.primitives` is not a list")? {
-            let name = field(p, "name")?.as_str().unwrap_or_default().to_string();
-            let suffix = field(p, "suffix")?.as_str().unwrap_or_default();
-            let find = |what: &str| files.iter().find(|f| f.ends_with(&format!("{suffix}.{what}.{ext}"))).copied();
+        for p in &vertex.primitives {
+            let (name, suffix) = (p.name.clone(), &p.suffix);
+            let find = |what: &str| files.iter().find(|f| f.ends_with(&format!("{suffix}.{what}.{ext}")));
             let positions = find("pos").ok_or_else(|| format!("{name}: the clip lists no {suffix}.pos.{ext}"))?;
             let (record, grid, pos_path) = self.texture(positions)?;
             let normals = find("nrm").map(|file| self.texture(file)).transpose()?;
-            let vec3 = |k: &str| -> Result<[f64; 3], String> {
-                let v = field(record, k)?
-                    .as_array()
-                    .filter(|v| v.len() == 3)
-                    .ok_or_else(|| format!("{positions}: `{k}` is not 3 numbers"))?;
-                Ok(std::array::from_fn(|i| v[i].as_f64().unwrap_or(f64::NAN)))
+            let (Some(low), Some(span)) = (record.low, record.span) else {
+                return Err(format!("{positions}: its `textures` record has no `low` and `span`"));
             };
-            let (low, span) = (vec3("low")?, vec3("span")?);
             corners.push(low);
             corners.push(std::array::from_fn(|i| low[i] + span[i]));
             let mut words = vec![grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
@@ -576,9 +557,8 @@ impl<'a> Assembly<'a> {
                 words.push(0);
             }
             words.extend(self.clip_words(max_clips)?);
-            let mesh_index = field(p, "mesh_in_file")?.as_u64().unwrap_or(0) as usize;
             let (addresses, indices) =
-                mesh_addresses(&glb, blob, mesh_index).map_err(|e| format!("{mesh_file}: {e}"))?;
+                mesh_addresses(&glb, blob, p.mesh_in_file).map_err(|e| format!("{mesh_file}: {e}"))?;
             // Without normals the layout says so, and the positions stand in for the binding.
             let normal_path = normals.as_ref().map_or(&pos_path, |(_, _, path)| path);
             if normals.is_none() {
@@ -621,34 +601,24 @@ fn mesh_addresses(glb: &::gltf::Gltf, blob: &[u8], mesh: usize) -> Result<(Vec<f
 }
 
 /// A bone texture's `(low, span)` per texel slot and channel: PNG16's `remap`, else `(0, 1)`.
-fn remap(record: &Value) -> Result<[[(f32, f32); 4]; 3], String> {
+fn remap(record: &ImageRecord) -> Result<[[(f32, f32); 4]; 3], String> {
     let mut out = [[(0.0, 1.0); 4]; 3];
-    if let Some(remap) = record.get("remap") {
-        for (t, slot) in out.iter_mut().enumerate() {
-            for (c, pair) in slot.iter_mut().enumerate() {
-                let range = &remap[t][c];
-                let (lo, hi) = (range[0].as_f64(), range[1].as_f64());
-                let (Some(lo), Some(hi)) = (lo, hi) else {
-                    return Err(format!("`remap[{t}][{c}]` is not a [min, max] pair"));
-                };
-                *pair = (lo as f32, (hi - lo) as f32);
+    if let Some(remap) = &record.remap {
+        if remap.len() < out.len() {
+            return Err(format!("{}: `remap` has {} texel slots, not {}", record.file, remap.len(), out.len()));
+        }
+        for (slot, ranges) in out.iter_mut().zip(remap) {
+            for (pair, &[lo, hi]) in slot.iter_mut().zip(ranges) {
+                *pair = (lo, (f64::from(hi) - f64::from(lo)) as f32);
             }
         }
     }
     Ok(out)
 }
 
-fn read_json(path: &Path) -> Result<Value, String> {
+fn read_sidecar(path: &Path) -> Result<Sidecar, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-fn field<'v>(value: &'v Value, key: &str) -> Result<&'v Value, String> {
-    value.get(key).ok_or_else(|| format!("no `{key}`"))
-}
-
-fn number(value: &Value, key: &str) -> Result<f64, String> {
-    field(value, key)?.as_f64().ok_or_else(|| format!("`{key}` is not a number"))
 }
 
 #[cfg(test)]
@@ -667,6 +637,6 @@ mod tests {
         assert_eq!((listing.bakes.len(), listing.left_out), (MAX_LISTED, 2));
         assert_eq!(listing.bakes[0].sidecar, "00000.json");
         let refusal = listing.bakes[0].refusal.as_deref().unwrap();
-        assert!(refusal.contains("npy") && refusal.contains("--format exr or png16"), "{refusal}");
+        assert!(refusal.contains("npy") && refusal.contains("exr or png16 textures"), "{refusal}");
     }
 }

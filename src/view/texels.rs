@@ -40,7 +40,7 @@ impl Texels {
                     height: buffer.height() as usize,
                     rgba: buffer.pixels().map(|p| p.0.map(|v| f32::from(v) / 65535.0)).collect(),
                 }),
-                other => Err(format!("a {:?} PNG, not the 16-bit RGBA of --format png16", other.color())),
+                other => Err(format!("a {:?} PNG, not the 16-bit RGBA a png16 bake writes", other.color())),
             }
         }
     }

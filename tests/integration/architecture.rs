@@ -5,7 +5,9 @@
 //! - no module imports from a layer above its own, in any crate;
 //! - inside each directory no file names a sibling listed after it (`mod.rs` last unless listed);
 //! - no circle of imports between files (re-exports, `pub use`, are a module's face, not a use);
-//! - modules import an item from the module that defines it, not through a crate root.
+//! - modules import an item from the module that defines it, not through a crate root;
+//! - the library's code (messages included) spells no command-line flag: it names options by
+//!   their library names, and the command line shows them as its flags.
 //!
 //! Imports are read from code with comments and strings blanked: `use` trees, grouped ones
 //! (`use super::{a, b::C}`) expanded, and paths written inline (`crate::x::f()`), each resolved
@@ -643,4 +645,30 @@ fn modules_import_from_the_module_that_defines_an_item_not_a_crate_root() {
         }
     }
     assert!(through_root.is_empty(), "imports through a crate root's re-exports:\n{}", through_root.join("\n"));
+}
+
+/// Python users read the library's messages too, and never typed a flag: outside the command
+/// line's own code (`src/main.rs`, `src/cli/`), no line of code or string literal holds
+/// `--` followed by a letter (comments may: they document the command line).
+#[test]
+fn the_library_spells_no_command_line_flag() {
+    let mut found = Vec::new();
+    for dir in ["src", "crates", "python/src"] {
+        for path in sources(&root().join(dir)) {
+            let relative = path.strip_prefix(root()).unwrap();
+            if relative.starts_with("src/cli") || relative == Path::new("src/main.rs") {
+                continue;
+            }
+            for (n, line) in read(&path).lines().enumerate() {
+                let code = line.split("//").next().unwrap_or_default();
+                let spelled = code
+                    .match_indices("--")
+                    .any(|(i, _)| code[i + 2..].chars().next().is_some_and(|c| c.is_ascii_lowercase()));
+                if spelled && !line.trim_start().starts_with("//") {
+                    found.push(format!("{}:{}: {}", relative.display(), n + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(found.is_empty(), "library code spelling command-line flags:\n{}", found.join("\n"));
 }

@@ -209,10 +209,10 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let result = fit(&[&["--input", src, "--output", dst, "--unit-cm", "1"][..], &tight].concat());
     assert_eq!(result.status.code(), Some(2));
     for part in [
-        "bend.bvh: clip 'bend': no fit within --max-error 1e-9 cm at every frame and --between-error 1e-9 cm between \
-         them; the closest came to ",
+        "bend.bvh: clip 'bend': no fit within 1e-9 cm (the maximum error) at every frame and 1e-9 cm between them \
+         (the between-frames error); the closest came to ",
         " cm at frames (knee at ",
-        "; a larger --between-error or --no-between-check loosens the check between frames",
+        "; a larger between-frames error, or none, loosens the check between frames",
     ] {
         assert!(stderr(&result).contains(part), "{}\nlacks: {part}", stderr(&result));
     }

@@ -65,6 +65,30 @@ fn fitted_frames(start: f64, end: f64, rate: f64) -> usize {
     ((end - start) * rate).round().max(1.0) as usize + 1
 }
 
+/// The viewer reads sidecars through the types that write them: every field a bake writes
+/// (budgets, root tracks, PNG16 ranges, vertex records) reads back and writes again to the
+/// same bytes.
+#[test]
+fn sidecars_read_back_through_the_types_that_write_them() {
+    let Some(data) = data_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let input = data.join("CesiumMan.glb");
+    let cases: [&[&str]; 2] = [
+        &["--texture", "skin-trs", "--format", "png16", "--max-error", "2", "--root-motion", "extract"],
+        &["--texture", "vertex", "--format", "exr", "--rate", "5"],
+    ];
+    for (k, extra) in cases.iter().enumerate() {
+        let dir = out.path().join(k.to_string());
+        let args = [&["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap(), "--device", "cpu"], *extra];
+        let result = bake(&args.concat());
+        assert!(result.status.success(), "{extra:?}: {}", stderr(&result));
+        let text = std::fs::read_to_string(dir.join("CesiumMan.json")).unwrap();
+        let sidecar: quatcurve::bake::sidecar::Sidecar = serde_json::from_str(&text).unwrap();
+        assert!(sidecar.clips.iter().all(|c| c.frames > 1), "{extra:?}");
+        assert_eq!(serde_json::to_string_pretty(&sidecar).unwrap(), text, "{extra:?}");
+    }
+}
+
 #[test]
 fn real_files_bake_to_files_that_read_back() {
     let Some(data) = data_dir() else { return };

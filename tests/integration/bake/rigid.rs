@@ -7,7 +7,7 @@ use super::{bake, data_dir, json, read_npy, stderr};
 
 /// 3x4 row-major `T * R * S` of a rigid row (`x, y, z, w`, translation, scale), in f64.
 fn matrix(row: &[f32]) -> [f64; 12] {
-    quatcurve::bake::texture::trs(row)
+    quatcurve::skeleton::trs_row(row)
 }
 
 /// Every file of `sidecar`'s clips (one per clip, or one per clip and skin).
@@ -77,7 +77,8 @@ fn sheared_joints_are_refused_by_the_rigid_kinds_and_nothing_is_written() {
         let result = bake(&[&args[..], &["--rate", "4", "--texture", kind]].concat());
         assert!(!result.status.success(), "{kind}: a sheared joint was baked");
         let message = stderr(&result);
-        for needle in ["clip 'wave'", "frame ", "sheared", "SHEAR_TOLERANCE", "--texture"] {
+        let instead = format!("bake a {} texture (matrices) instead", kind.trim_end_matches("-trs"));
+        for needle in ["clip 'wave'", "frame ", "sheared", "SHEAR_TOLERANCE", &instead] {
             assert!(message.contains(needle), "{kind}: {needle:?} missing from: {message}");
         }
         let written: Vec<String> = std::fs::read_dir(&out)

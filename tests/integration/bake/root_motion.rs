@@ -9,7 +9,7 @@ use super::{data_dir, read_npy};
 fn root_times(position: [f64; 2], heading: f64, m: &[f32]) -> [f64; 12] {
     let r = quatcurve::bake::root_motion::root_matrix(position, heading);
     let m: Vec<f64> = m.iter().map(|&v| f64::from(v)).collect();
-    quatcurve::bake::texture::compose(&r, &m.try_into().unwrap())
+    quatcurve::skeleton::compose(&r, &m.try_into().unwrap())
 }
 
 #[test]
@@ -86,6 +86,9 @@ fn root_motion_of_several_characters_in_one_input_is_refused() {
     ]);
     assert_eq!(result.status.code(), Some(2), "{}", super::stderr(&result));
     let message = super::stderr(&result);
-    assert!(message.contains("2 scene roots move") && message.contains("--root-motion keep"), "{message}");
+    assert!(
+        message.contains("2 scene roots move") && message.contains("keep the root motion in the textures"),
+        "{message}"
+    );
     assert!(!out.join("crowd.json").exists(), "nothing written for that input");
 }

@@ -817,7 +817,8 @@ fn a_budget_no_rate_meets_and_a_budget_on_matrices_are_refused_with_nothing_writ
     let out_arg = out.to_str().unwrap();
     let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.01", "--max-rate", "10"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
-    for needle in ["clip 'Survey'", "no rate up to --max-rate 10 Hz", "--max-error 0.01 degrees", "joint '"] {
+    for needle in ["clip 'Survey'", "no rate up to 10 Hz (the highest a budget may choose)", "0.01 degrees", "joint '"]
+    {
         assert!(stderr(&result).contains(needle), "{needle:?} missing from: {}", stderr(&result));
     }
     let written: Vec<_> =
@@ -829,4 +830,13 @@ fn a_budget_no_rate_meets_and_a_budget_on_matrices_are_refused_with_nothing_writ
     let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-mm", "-1"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(stderr(&result).contains("--max-error-mm must be a positive number"), "{}", stderr(&result));
+    // The library names the option by its own name; the command line shows its flag.
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.5", "--exact-rate"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    assert!(
+        stderr(&result)
+            .contains("error: --exact-rate cannot be set with an error budget, which chooses each clip's rate"),
+        "{}",
+        stderr(&result)
+    );
 }

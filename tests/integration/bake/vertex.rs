@@ -7,12 +7,12 @@ use super::data_dir;
 use glam::{DMat4, DQuat, DVec3};
 use quatcurve::bake::gltf::{self, UriPolicy};
 use quatcurve::bake::mesh::{skinned_primitives, SkinnedPrimitive};
-use quatcurve::bake::skinning;
 use quatcurve::bake::vertex_encoding::Bounds;
 use quatcurve::bake::{texture, ClipRate, LoopMode};
 use quatcurve::curve::{Curve, CurveSpec};
 use quatcurve::device::Device;
 use quatcurve::output::VERTEX_CHANNELS;
+use quatcurve::skeleton;
 
 /// Positions agree within this fraction of the mesh's bounding-box diagonal.
 const POSITION_BOUND: f64 = 1e-4;
@@ -145,10 +145,11 @@ pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, 
         // the file's own bounds in `draco_vertices_...`); the skinning here stays independent.
         None => (0..primitive.vertices())
             .map(|v| {
-                let n = primitive.influences;
-                let pairs =
-                    (v * n..(v + 1) * n).map(|i| (primitive.joints[i] as usize, primitive.weights[i])).collect();
-                (primitive.positions[v], primitive.normals.as_ref().map(|n| n[v]), pairs)
+                let n = primitive.bind.influences;
+                let pairs = (v * n..(v + 1) * n)
+                    .map(|i| (primitive.bind.joints[i] as usize, primitive.bind.weights[i]))
+                    .collect();
+                (primitive.bind.positions[v], primitive.bind.normals.as_ref().map(|n| n[v]), pairs)
             })
             .collect(),
     };
@@ -171,7 +172,7 @@ fn skin_matrices(animation: &quatcurve::anim::Animation, clip: usize) -> (Vec<Ve
     let baked =
         quatcurve::bake::bake(animation, &spec, ClipRate::Fit(30.0), LoopMode::Auto, &Device::Reference).unwrap();
     let order = animation.parents_first().unwrap();
-    let model = texture::model(animation, &order, &texture::local(animation, &baked, clip));
+    let model = skeleton::forward_kinematics(&animation.parents(), &order, &texture::local(animation, &baked, clip));
     let skins = animation.skins.iter().map(|s| texture::skin(s, animation.joints.len(), &model)).collect();
     (skins, baked.clips[clip].times.clone())
 }
@@ -190,10 +191,10 @@ fn skinned_vertices_match_an_independent_skinning_at_keys_and_the_gpu_kernel_at_
         let (mut worst_key, mut worst_gpu) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
         for primitive in &primitives {
             let joints = animation.skins[primitive.skin].joints.len();
-            let ours = skinning::skin(primitive, joints, &matrices[primitive.skin]);
+            let ours = skeleton::skin(&primitive.bind, joints, &matrices[primitive.skin]);
             let frame_len = primitive.vertices() * VERTEX_CHANNELS;
             assert_eq!(ours.len(), frames * frame_len, "{name}");
-            let has_normals = primitive.normals.is_some();
+            let has_normals = primitive.bind.normals.is_some();
             for frame in [0, frames - 1] {
                 let theirs = independent(&path, primitive, 0, times[frame]);
                 let scale = Bounds::of(&theirs).unwrap().diagonal();
@@ -207,7 +208,9 @@ fn skinned_vertices_match_an_independent_skinning_at_keys_and_the_gpu_kernel_at_
                 );
             }
             let Some(gpu) = gpu else { continue };
-            let got = gpu.skin_mesh(&skinning::bind_mesh(primitive), joints, &matrices[primitive.skin]).unwrap();
+            let got = gpu
+                .skin_mesh(&quatcurve::gpu::skinning::BindMesh::of(&primitive.bind), joints, &matrices[primitive.skin])
+                .unwrap();
             assert_eq!(got.len(), ours.len());
             for frame in 0..frames {
                 let range = frame * frame_len..(frame + 1) * frame_len;
@@ -326,7 +329,7 @@ fn bad_skinned_meshes_are_refused_naming_the_primitive_vertex_and_rule() {
     // Weights that do not sum to 1 are normalized, and counted.
     let halves = read(skinned_triangle(true, joints, Some([[0.5, 0.0, 0.0, 0.0]; 3]), 3)).unwrap();
     assert_eq!(halves[0].normalized, 3);
-    assert!(halves[0].weights.chunks_exact(4).all(|w| (w.iter().sum::<f64>() - 1.0).abs() < 1e-15));
+    assert!(halves[0].bind.weights.chunks_exact(4).all(|w| (w.iter().sum::<f64>() - 1.0).abs() < 1e-15));
 }
 
 /// A unit normal from an octahedral texel, as the sidecar's `vertex.normal` states it (written
@@ -460,7 +463,7 @@ fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_d
                         // clip, as DESIGN section 5d states their precision); npy: against
                         // this frame's box, which is smaller.
                         let scale = animated.unwrap_or_else(|| Bounds::of(&theirs).unwrap().diagonal());
-                        let (p, n) = worst(&ours, &theirs, scale, primitive.normals.is_some());
+                        let (p, n) = worst(&ours, &theirs, scale, primitive.bind.normals.is_some());
                         largest = (largest.0.max(p), largest.1.max(n));
                         assert!(
                             p <= position_bound && n <= normal_bound,
@@ -486,7 +489,7 @@ fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind(
     let cases: [(Vec<String>, &str); 5] = [
         (vec!["--input".into(), input("cmu_131_01.bvh")], "a BVH file has no mesh"),
         (vec![], "vertex skins a glTF's meshes, and the built-in crowd has none"),
-        (vec!["--input".into(), input("CesiumMan.glb"), "--max-error".into(), "1".into()], "bake vertex textures at a --rate"),
+        (vec!["--input".into(), input("CesiumMan.glb"), "--max-error".into(), "1".into()], "bake vertex textures at a fixed rate"),
         // 11,751 frames (1.958 s at 6 kHz) of 3,273 vertices, 28 bytes each (three floats
         // gathered, one RGBA texel): 1,028 MiB of position image in memory.
         (
@@ -573,12 +576,12 @@ fn draco_vertices_match_the_bounds_counts_and_weights_the_file_states() {
         let bound = |key: &str| -> [f64; 3] { std::array::from_fn(|c| accessor[key][c].as_f64().unwrap()) };
         let (min, max) = (bound("min"), bound("max"));
         let diagonal = (0..3).map(|c| (max[c] - min[c]).powi(2)).sum::<f64>().sqrt();
-        let decoded = Bounds::of_positions(p.positions.iter().copied()).unwrap();
+        let decoded = Bounds::of_positions(p.bind.positions.iter().copied()).unwrap();
         for c in 0..3 {
             let off = (decoded.low[c] - min[c]).abs().max((decoded.high[c] - max[c]).abs()) / diagonal;
             worst_box = worst_box.max(off);
         }
-        for n in p.normals.as_ref().unwrap() {
+        for n in p.bind.normals.as_ref().unwrap() {
             worst_normal = worst_normal.max((n.iter().map(|c| c * c).sum::<f64>().sqrt() - 1.0).abs());
         }
         normalized += p.normalized;

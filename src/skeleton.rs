@@ -1,0 +1,266 @@
+//! The skeleton's maths in f64, once for every user: affine transforms (`T * R * S`, composed,
+//! inverted, taken apart again), forward kinematics down a joint hierarchy, and linear blend
+//! skinning. It is the CPU path of [`crate::device::Device::forward_kinematics`] and
+//! [`crate::device::Device::skin`] and the oracle their GPU kernels (`shaders/fk.wgsl`,
+//! `shaders/skin_mesh.wgsl`) are held to; the bake's textures, its error budgets, root motion
+//! and the fit's virtual-vertex error all compose transforms through it.
+
+use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS, VERTEX_CHANNELS};
+use rayon::prelude::*;
+
+/// A 3x4 row-major affine matrix (its last row is `0 0 0 1`).
+pub type Affine = [f64; 12];
+
+/// `T * R * S` (glTF's and BVH's order) of a rotation `x, y, z, w`, a translation and a scale.
+/// The rotation is normalized first: an f32 quaternion is unit only to ~1e-7.
+#[must_use]
+pub fn trs(rotation: [f64; 4], translation: [f64; 3], scale: [f64; 3]) -> Affine {
+    let [x, y, z, w] = rotation;
+    let n = (x * x + y * y + z * z + w * w).sqrt();
+    let (x, y, z, w) = (x / n, y / n, z / n, w / n);
+    let ([tx, ty, tz], [sx, sy, sz]) = (translation, scale);
+    let r = [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+    ];
+    [
+        r[0][0] * sx,
+        r[0][1] * sy,
+        r[0][2] * sz,
+        tx,
+        r[1][0] * sx,
+        r[1][1] * sy,
+        r[1][2] * sz,
+        ty,
+        r[2][0] * sx,
+        r[2][1] * sy,
+        r[2][2] * sz,
+        tz,
+    ]
+}
+
+/// [`trs`] of a local row ([`LOCAL_CHANNELS`] floats: `x, y, z, w`, translation, scale).
+#[must_use]
+pub fn trs_row(row: &[f32]) -> Affine {
+    let v = |i: usize| f64::from(row[i]);
+    trs([v(0), v(1), v(2), v(3)], [v(4), v(5), v(6)], [v(7), v(8), v(9)])
+}
+
+/// The inverse of an affine matrix; `None` when it is singular.
+#[must_use]
+pub fn inverse(m: &Affine) -> Option<Affine> {
+    let a = |r: usize, c: usize| m[4 * r + c];
+    let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
+        + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
+    if !det.is_normal() {
+        return None;
+    }
+    // The adjugate over the determinant: A^-1; the translation is -A^-1 t.
+    let inv = [
+        [
+            a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1),
+            a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2),
+            a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1),
+        ],
+        [
+            a(1, 2) * a(2, 0) - a(1, 0) * a(2, 2),
+            a(0, 0) * a(2, 2) - a(0, 2) * a(2, 0),
+            a(0, 2) * a(1, 0) - a(0, 0) * a(1, 2),
+        ],
+        [
+            a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0),
+            a(0, 1) * a(2, 0) - a(0, 0) * a(2, 1),
+            a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0),
+        ],
+    ]
+    .map(|row| row.map(|v| v / det));
+    let t = [m[3], m[7], m[11]];
+    let mut out = [0.0; 12];
+    for r in 0..3 {
+        out[4 * r..4 * r + 3].copy_from_slice(&inv[r]);
+        out[4 * r + 3] = -(inv[r][0] * t[0] + inv[r][1] * t[1] + inv[r][2] * t[2]);
+    }
+    Some(out)
+}
+
+/// `a * b` for affine matrices.
+#[must_use]
+pub fn compose(a: &Affine, b: &Affine) -> Affine {
+    let mut out = [0.0; 12];
+    for i in 0..3 {
+        for j in 0..4 {
+            let mut v = a[4 * i] * b[j] + a[4 * i + 1] * b[4 + j] + a[4 * i + 2] * b[8 + j];
+            if j == 3 {
+                v += a[4 * i + 3];
+            }
+            out[4 * i + j] = v;
+        }
+    }
+    out
+}
+
+/// `point` transformed by `m`.
+#[must_use]
+pub fn transform_point(m: &Affine, point: [f64; 3]) -> [f64; 3] {
+    let [x, y, z] = point;
+    std::array::from_fn(|r| m[4 * r] * x + m[4 * r + 1] * y + m[4 * r + 2] * z + m[4 * r + 3])
+}
+
+/// One pose's object-space transforms into `object`: joint `j`'s is its parent's times
+/// `local(j)` (a root's is `local(j)`), joints taken in `order` (parents first,
+/// `anim::Animation::parents_first`).
+pub fn pose_into(parents: &[Option<usize>], order: &[usize], local: impl Fn(usize) -> Affine, object: &mut [Affine]) {
+    for &j in order {
+        let own = local(j);
+        object[j] = match parents[j] {
+            Some(p) => compose(&object[p], &own),
+            None => own,
+        };
+    }
+}
+
+/// [`pose_into`] a new list.
+#[must_use]
+pub fn pose(parents: &[Option<usize>], order: &[usize], local: impl Fn(usize) -> Affine) -> Vec<Affine> {
+    let mut object = vec![[0.0; 12]; parents.len()];
+    pose_into(parents, order, local, &mut object);
+    object
+}
+
+/// Forward kinematics of every frame: model rows `[frames, joints, 12]` (3x4 row-major) from
+/// local rows `[frames, joints, 10]`, in f64 from the f32 rows (one rounding per stored value),
+/// frames on every core.
+#[must_use]
+pub fn forward_kinematics(parents: &[Option<usize>], order: &[usize], local: &[f32]) -> Vec<f32> {
+    let joints = parents.len();
+    let frames = local.len() / (joints * LOCAL_CHANNELS).max(1);
+    let mut data = vec![0.0f32; frames * joints * MATRIX_CHANNELS];
+    data.par_chunks_mut((joints * MATRIX_CHANNELS).max(1)).enumerate().for_each_init(
+        || vec![[0.0; 12]; joints],
+        |object, (frame, out)| {
+            let rows = &local[frame * joints * LOCAL_CHANNELS..(frame + 1) * joints * LOCAL_CHANNELS];
+            pose_into(parents, order, |j| trs_row(&rows[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]), object);
+            for (o, &v) in out.iter_mut().zip(object.iter().flatten()) {
+                *o = v as f32;
+            }
+        },
+    );
+    data
+}
+
+/// A 3x4 matrix as rotation `x, y, z, w` (`w >= 0`), translation and scale (`T * R * S`, as
+/// glTF nodes), with the difference between the matrix and that transform's relative to the
+/// largest scale. A mirroring matrix (negative determinant) takes a negative uniform sign on
+/// the scale.
+#[must_use]
+pub fn rigid(m: &Affine) -> ([f64; 10], f64) {
+    let column = |c: usize| [m[c], m[4 + c], m[8 + c]];
+    let [c0, c1, c2] = [column(0), column(1), column(2)];
+    let det = c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c0[1] * (c1[0] * c2[2] - c1[2] * c2[0])
+        + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0]);
+    let sign = if det < 0.0 { -1.0 } else { 1.0 };
+    let scale = [c0, c1, c2].map(|c| sign * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
+    let largest = scale.iter().fold(0.0f64, |a, s| a.max(s.abs()));
+    if scale.iter().any(|s| !s.is_normal()) {
+        return ([0.0, 0.0, 0.0, 1.0, m[3], m[7], m[11], scale[0], scale[1], scale[2]], f64::INFINITY);
+    }
+    // The rotation's entries r[row][col] = m[row][col] / scale[col].
+    let r = |i: usize, j: usize| m[4 * i + j] / scale[j];
+    let trace = r(0, 0) + r(1, 1) + r(2, 2);
+    // Shepperd's method: divide by the largest of the four candidates.
+    let q = if trace > 0.0 {
+        let s = 2.0 * (1.0 + trace).sqrt();
+        [(r(2, 1) - r(1, 2)) / s, (r(0, 2) - r(2, 0)) / s, (r(1, 0) - r(0, 1)) / s, s / 4.0]
+    } else if r(0, 0) > r(1, 1) && r(0, 0) > r(2, 2) {
+        let s = 2.0 * (1.0 + r(0, 0) - r(1, 1) - r(2, 2)).sqrt();
+        [s / 4.0, (r(0, 1) + r(1, 0)) / s, (r(0, 2) + r(2, 0)) / s, (r(2, 1) - r(1, 2)) / s]
+    } else if r(1, 1) > r(2, 2) {
+        let s = 2.0 * (1.0 + r(1, 1) - r(0, 0) - r(2, 2)).sqrt();
+        [(r(0, 1) + r(1, 0)) / s, s / 4.0, (r(1, 2) + r(2, 1)) / s, (r(0, 2) - r(2, 0)) / s]
+    } else {
+        let s = 2.0 * (1.0 + r(2, 2) - r(0, 0) - r(1, 1)).sqrt();
+        [(r(0, 2) + r(2, 0)) / s, (r(1, 2) + r(2, 1)) / s, s / 4.0, (r(1, 0) - r(0, 1)) / s]
+    };
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let flip = if q[3] < 0.0 { -1.0 } else { 1.0 };
+    let q = q.map(|v| flip * v / n);
+    let out = [q[0], q[1], q[2], q[3], m[3], m[7], m[11], scale[0], scale[1], scale[2]];
+    let back = trs_row(&out.map(|v| v as f32));
+    let residual = (0..12).filter(|i| i % 4 != 3).map(|i| (back[i] - m[i]).abs()).fold(0.0, f64::max) / largest;
+    (out, residual)
+}
+
+/// What linear blend skinning needs of a mesh: bind-space vertices and each one's joints and
+/// weights.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SkinnedMesh {
+    /// Bind-space positions.
+    pub positions: Vec<[f64; 3]>,
+    /// Bind-space normals, when the mesh has them.
+    pub normals: Option<Vec<[f64; 3]>>,
+    /// Influences per vertex.
+    pub influences: usize,
+    /// Per vertex, [`Self::influences`] indices into the skin's joints.
+    pub joints: Vec<u32>,
+    /// Per vertex, [`Self::influences`] weights, summing to 1.
+    pub weights: Vec<f64>,
+}
+
+impl SkinnedMesh {
+    /// Vertices.
+    #[must_use]
+    pub fn vertices(&self) -> usize {
+        self.positions.len()
+    }
+}
+
+/// Every vertex of `mesh` at every frame of `matrices` (`[frames, skin joints, 12]`, 3x4
+/// row-major skinning matrices of the mesh's skin, as `bake::texture::skin` makes them):
+/// `[frames, vertices, VERTEX_CHANNELS]`. A mesh without normals gets zero normals.
+///
+/// # Panics
+/// When `matrices` is not whole frames of the skin's joints, or a joint index is out of range
+/// (both checked when the mesh was read).
+#[must_use]
+pub fn skin(mesh: &SkinnedMesh, skin_joints: usize, matrices: &[f32]) -> Vec<f64> {
+    let frame = skin_joints * MATRIX_CHANNELS;
+    assert!(frame > 0 && matrices.len() % frame == 0, "skinning matrices are whole frames of the skin's joints");
+    let vertices = mesh.vertices();
+    let mut out = vec![0.0; matrices.len() / frame * vertices * VERTEX_CHANNELS];
+    out.par_chunks_mut((vertices * VERTEX_CHANNELS).max(1)).zip(matrices.par_chunks(frame)).for_each(|(out, m)| {
+        for (v, o) in out.chunks_exact_mut(VERTEX_CHANNELS).enumerate() {
+            let blended = blend(mesh, v, m);
+            let [x, y, z] = mesh.positions[v];
+            let row = |r: usize| &blended[4 * r..4 * r + 4];
+            for (r, o) in o[..3].iter_mut().enumerate() {
+                *o = row(r)[0] * x + row(r)[1] * y + row(r)[2] * z + row(r)[3];
+            }
+            if let Some(normals) = &mesh.normals {
+                let [x, y, z] = normals[v];
+                let n: [f64; 3] = std::array::from_fn(|r| row(r)[0] * x + row(r)[1] * y + row(r)[2] * z);
+                let length = n.iter().map(|c| c * c).sum::<f64>().sqrt();
+                for (o, n) in o[3..].iter_mut().zip(n) {
+                    *o = if length > 0.0 { n / length } else { 0.0 };
+                }
+            }
+        }
+    });
+    out
+}
+
+/// The weighted sum of vertex `v`'s joints' matrices in one frame's `matrices`.
+fn blend(mesh: &SkinnedMesh, v: usize, matrices: &[f32]) -> [f64; MATRIX_CHANNELS] {
+    let n = mesh.influences;
+    let mut sum = [0.0; MATRIX_CHANNELS];
+    for (&joint, &weight) in mesh.joints[v * n..(v + 1) * n].iter().zip(&mesh.weights[v * n..(v + 1) * n]) {
+        if weight == 0.0 {
+            continue;
+        }
+        let m = &matrices[joint as usize * MATRIX_CHANNELS..(joint as usize + 1) * MATRIX_CHANNELS];
+        for (s, &c) in sum.iter_mut().zip(m) {
+            *s += weight * f64::from(c);
+        }
+    }
+    sum
+}
