@@ -51,6 +51,7 @@ pub mod job;
 pub mod output;
 // Charts, synthetic tracks and the demo input serve the CLI, benches and tests; they are not
 // part of the library's API.
+pub mod options;
 #[cfg(feature = "plot")]
 #[doc(hidden)]
 pub mod plot;

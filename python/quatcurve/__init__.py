@@ -16,26 +16,29 @@ body frame (``omega = 2 vec(q^-1 q')``), rad/s and rad/s^2.
 
 from __future__ import annotations
 
+import json
+import math
 import os
 
 import numpy as np
 
 from ._quatcurve import (
-    DEFAULT_BETWEEN_ERROR_CM,
-    DEFAULT_CHARACTERS,
+    BAKE_OPTIONS as _BAKE_OPTIONS,
     DEFAULT_CURVE,
-    DEFAULT_MAX_TEXTURE_SIZE,
-    DEFAULT_MAX_RATE,
-    GLTF_UNIT_MM,
     DEFAULT_RATE,
-    DEFAULT_VERTEX_DISTANCE_CM,
+    FIT_OPTIONS as _FIT_OPTIONS,
     __version__,
     bake_files,
     evaluate_tracks,
     fit_files,
 )
 
-__all__ = ["evaluate", "bake", "fit", "Curve", "__version__"]
+__all__ = ["evaluate", "bake", "fit", "Curve", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
+
+# The bake's and the fit's options by name with the library's defaults (what :func:`bake` and
+# :func:`fit` take as keywords).
+BAKE_OPTIONS = json.loads(_BAKE_OPTIONS)
+FIT_OPTIONS = json.loads(_FIT_OPTIONS)
 
 
 def _float64(name, value, ndims):
@@ -296,39 +299,28 @@ class Curve:
         return value[0] if scalar else value
 
 
-def bake(
-    inputs=None,
-    output="baked",
-    *,
-    rate=DEFAULT_RATE,
-    exact_rate=False,
-    curve=DEFAULT_CURVE,
-    order=4,
-    knots="phantom",
-    tangents="catmull-rom",
-    blend="cubic",
-    loop="auto",
-    texture="local",
-    precision="f32",
-    format="npy",
-    max_texture_size=DEFAULT_MAX_TEXTURE_SIZE,
-    atlas=False,
-    preview=False,
-    characters=DEFAULT_CHARACTERS,
-    shard=None,
-    resume=False,
-    jobs=1,
-    allow_external_uris=False,
-    device="auto",
-    errors="raise",
-    max_error=None,
-    max_error_mm=None,
-    unit_mm=GLTF_UNIT_MM,
-    max_rate=DEFAULT_MAX_RATE,
-    root_motion="keep",
-):
+def _named(options):
+    """Keyword options as the JSON object the library reads them from (numpy scalars as
+    Python's; NaN and infinities, which JSON has no word for, refused here)."""
+    given = {}
+    for name, value in options.items():
+        value = value.item() if isinstance(value, np.generic) else value
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"{name} must be a finite number, got {value!r}")
+        if not (value is None or isinstance(value, (bool, int, float, str))):
+            raise ValueError(f"{name}: {value!r} is not a number, a string, a bool or None")
+        given[name] = value
+    return json.dumps(given)
+
+
+def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, errors="raise", **options):
     """Resamples animation files at a fixed rate into animation textures, as ``quatcurve bake``
     does (DESIGN section 5b), and returns one summary row per input.
+
+    The options (every keyword below but ``shard``, ``resume``, ``jobs`` and ``errors``) are
+    the library's bake options by name, each at the library's default when not given
+    (``BAKE_OPTIONS`` holds the defaults); an unknown name or a value its option does not
+    take is a ``ValueError`` naming it.
 
     Parameters
     ----------
@@ -348,7 +340,7 @@ def bake(
         last key); a clip's end off that grid is not baked, and the row's ``warnings`` say
         how much. Loops always fit.
     curve, order, knots, tangents, blend
-        As :func:`evaluate`; the default is C2 through every key.
+        As :func:`evaluate` (knots None: phantom); the default is C2 through every key.
     loop : str
         ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
     texture : str
@@ -367,6 +359,11 @@ def bake(
         Largest side of an image texture, in texels.
     atlas, preview : bool
         Stack every clip of an input in one texture; draw a skeleton PNG per clip.
+    characters : int
+        Characters in the built-in crowd, baked when no input is named.
+    allow_external_uris : bool
+        Read glTF buffers from anywhere their URIs point, not only data URIs and files
+        beside the input.
     shard : str, optional
         ``"I/N"``: bake only inputs ``k`` with ``k % N == I`` (default: the share a Slurm,
         Kubernetes, AWS Batch or Google Batch array task is given, else all).
@@ -419,16 +416,9 @@ def bake(
     elif isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
     paths = [os.fspath(p) for p in inputs]
-    for name, value in (("order", order), ("characters", characters), ("jobs", jobs)):
-        if isinstance(value, bool) or int(value) != value or value < 0:
-            raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
-    rows = bake_files(
-        paths, os.fspath(output), float(rate), bool(exact_rate), str(curve), int(order), str(knots), str(tangents), str(blend),
-        str(loop), str(texture), str(precision), str(format), int(max_texture_size), bool(atlas), bool(preview), int(characters),
-        None if shard is None else str(shard), bool(resume), int(jobs), bool(allow_external_uris), str(device),
-        None if max_error is None else float(max_error), None if max_error_mm is None else float(max_error_mm),
-        float(unit_mm), float(max_rate), str(root_motion),
-    )
+    if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 0:
+        raise ValueError(f"jobs must be a non-negative integer, got {jobs!r}")
+    rows = bake_files(paths, os.fspath(output), _named(options), None if shard is None else str(shard), bool(resume), int(jobs))
     failed = [row for row in rows if row["status"] == "failed"]
     if failed and errors == "raise":
         lines = "; ".join(f"{row['source']}: {row['error']}" for row in failed)
@@ -438,19 +428,12 @@ def bake(
     return rows
 
 
-def fit(
-    inputs,
-    output="fitted",
-    *,
-    max_error=0.01,
-    between_error=DEFAULT_BETWEEN_ERROR_CM,
-    vertex_distance=DEFAULT_VERTEX_DISTANCE_CM,
-    unit_cm=None,
-    errors="raise",
-):
+def fit(inputs, output="fitted", *, errors="raise", **options):
     """Fits every clip of glTF/BVH files as quantized B-splines within an error budget, one
     ``<stem>.qcf`` container per input, as ``quatcurve fit`` does (DESIGN section 10).
-    :func:`bake` reads the containers as it reads their sources.
+    :func:`bake` reads the containers as it reads their sources. The options (every keyword
+    below but ``errors``) are the library's fit options by name, each at the library's default
+    when not given (``FIT_OPTIONS`` holds the defaults).
 
     Parameters
     ----------
@@ -489,19 +472,11 @@ def fit(
         ``unit_cm``, an output that cannot be written), or with ``errors="raise"`` any input
         that failed.
     """
-    import json
-
     if errors not in ("raise", "report"):
         raise ValueError(f"errors must be 'raise' or 'report', got {errors!r}")
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
-    report = json.loads(
-        fit_files(
-            [os.fspath(p) for p in inputs], os.fspath(output), float(max_error),
-            None if between_error is None else float(between_error), float(vertex_distance),
-            None if unit_cm is None else float(unit_cm),
-        )
-    )
+    report = json.loads(fit_files([os.fspath(p) for p in inputs], os.fspath(output), _named(options)))
     failed = [row for row in report["inputs"] if row["error"] is not None]
     if failed and errors == "raise":
         lines = "; ".join(f"{row['input']}: {row['error']}" for row in failed)

@@ -6,6 +6,8 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+BAKE_OPTIONS: dict[str, Any]
+FIT_OPTIONS: dict[str, Any]
 
 CurveName = Literal["slerp", "squad", "bezier", "hermite", "nam-kim", "bspline", "bspline-interp"]
 DeviceName = Literal["auto", "gpu", "cpu", "reference"]
@@ -74,28 +76,28 @@ def bake(
     exact_rate: bool = False,
     curve: CurveName = "bspline-interp",
     order: int = 4,
-    knots: Literal["phantom", "uniform", "clamped"] = "phantom",
+    knots: Literal["phantom", "uniform", "clamped"] | None = None,
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
     blend: Literal["cubic", "quadratic"] = "cubic",
     loop: Literal["auto", "on", "off"] = "auto",
-    texture: Literal["local", "model", "skin", "model-trs", "skin-trs"] = "local",
+    texture: Literal["local", "model", "skin", "model-trs", "skin-trs", "vertex"] = "local",
     precision: Literal["f32", "f16"] = "f32",
     format: Literal["npy", "exr", "png16"] = "npy",
     max_texture_size: int = 4096,
     atlas: bool = False,
     preview: bool = False,
     characters: int = 1000,
-    shard: str | None = None,
-    resume: bool = False,
-    jobs: int = 1,
     allow_external_uris: bool = False,
     device: DeviceName = "auto",
-    errors: Literal["raise", "report"] = "raise",
     max_error: float | None = None,
     max_error_mm: float | None = None,
     unit_mm: float = 1000.0,
     max_rate: float = 480.0,
     root_motion: Literal["keep", "extract"] = "keep",
+    shard: str | None = None,
+    resume: bool = False,
+    jobs: int = 1,
+    errors: Literal["raise", "report"] = "raise",
 ) -> list[BakeRow]: ...
 
 def fit(

@@ -12,9 +12,9 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUnty
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use quatcurve::bake::budget::{ChosenRate, ErrorBudget, Worst};
-use quatcurve::bake::{BakeJob, Shard};
-use quatcurve::fit::job::FitJob;
+use quatcurve::bake::budget::{ChosenRate, Worst};
+use quatcurve::bake::{BakeJob, BakeOptions, Shard};
+use quatcurve::fit::job::{FitJob, FitOptions};
 use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64};
 use std::path::PathBuf;
 use std::str::FromStr;
@@ -291,75 +291,32 @@ enum Samples {
 }
 
 /// Bakes `inputs` (glTF/GLB/BVH files or directories; none: the built-in crowd) into `output`
-/// as `quatcurve bake` does, with the GIL released. Returns one dictionary per input of this
-/// shard: `source, clips, channels, keys, samples, seconds, max_key_error, status` (`ok`,
-/// `resumed`, `failed`), `error`, `files`, `warnings`, `rates` (with an error budget: per
-/// clip, [`chosen_rate`]) and `skinning` (vertex textures: `{vertex_frames, seconds}`, else
-/// `None`). See `quatcurve.bake`.
+/// as `quatcurve bake` does, with the GIL released. `options` is a JSON object of the
+/// library's bake options by name (`quatcurve::bake::BakeOptions`: the keywords of
+/// `quatcurve.bake`), each one not given at its default. Returns one dictionary per input of
+/// this shard: `source, clips, channels, keys, samples, seconds, max_key_error, status`
+/// (`ok`, `resumed`, `failed`), `error`, `files`, `warnings`, `rates` (with an error budget:
+/// per clip, [`chosen_rate`]) and `skinning` (vertex textures: `{vertex_frames, seconds}`,
+/// else `None`). See `quatcurve.bake`.
 #[pyfunction]
-#[pyo3(signature = (
-    inputs, output, rate, exact_rate, curve, order, knots, tangents, blend, looping, texture, precision, format,
-    max_texture_size, atlas, preview, characters, shard, resume, jobs, allow_external_uris, device, max_error,
-    max_error_mm, unit_mm, max_rate, root_motion
-))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (inputs, output, options, shard, resume, jobs))]
 fn bake_files<'py>(
     py: Python<'py>,
     inputs: Vec<PathBuf>,
     output: PathBuf,
-    rate: f64,
-    exact_rate: bool,
-    curve: &str,
-    order: usize,
-    knots: &str,
-    tangents: &str,
-    blend: &str,
-    looping: &str,
-    texture: &str,
-    precision: &str,
-    format: &str,
-    max_texture_size: usize,
-    atlas: bool,
-    preview: bool,
-    characters: usize,
+    options: &str,
     shard: Option<&str>,
     resume: bool,
     jobs: usize,
-    allow_external_uris: bool,
-    device: &str,
-    max_error: Option<f64>,
-    max_error_mm: Option<f64>,
-    unit_mm: f64,
-    max_rate: f64,
-    root_motion: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let choice: DeviceChoice = parse("device", device)?;
+    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
+    let options: BakeOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let choice = options.device;
     let job = BakeJob {
-        rate,
-        exact_rate,
-        spec: CurveSpec {
-            curve: parse("curve", curve)?,
-            order,
-            knots: parse("knots", knots)?,
-            tangents: parse("tangents", tangents)?,
-            blend: parse("blend", blend)?,
-            looping: false,
-        },
-        looping: parse("loop", looping)?,
-        device: choice,
-        allow_external_uris,
-        texture: parse("texture", texture)?,
-        precision: parse("precision", precision)?,
-        format: parse("format", format)?,
-        max_texture_size,
-        atlas,
-        preview,
-        characters,
+        options,
         shard: shard.map(Shard::parse).transpose().map_err(value_error)?,
         resume,
         jobs,
-        max_error: ErrorBudget { degrees: max_error, millimetres: max_error_mm, unit_mm, max_rate },
-        root_motion: parse("root_motion", root_motion)?,
         ..BakeJob::new(inputs, output)
     };
     job.validate().map_err(value_error)?;
@@ -424,20 +381,16 @@ fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDi
     Ok(d)
 }
 
-/// `quatcurve fit` in-process (DESIGN section 10): the report as JSON text (the Python side
-/// parses it), or `ValueError` for a job refused before the work.
+/// `quatcurve fit` in-process (DESIGN section 10): `options` a JSON object of the library's
+/// fit options by name (`quatcurve::fit::job::FitOptions`: the keywords of `quatcurve.fit`);
+/// the report as JSON text (the Python side parses it), or `ValueError` for a job refused
+/// before the work.
 #[pyfunction]
-#[pyo3(signature = (inputs, output, max_error_cm, between_error_cm, vertex_distance_cm, unit_cm))]
-fn fit_files(
-    py: Python<'_>,
-    inputs: Vec<PathBuf>,
-    output: PathBuf,
-    max_error_cm: f64,
-    between_error_cm: Option<f64>,
-    vertex_distance_cm: f64,
-    unit_cm: Option<f64>,
-) -> PyResult<String> {
-    let job = FitJob { inputs, output, max_error_cm, between_error_cm, vertex_distance_cm, unit_cm };
+#[pyo3(signature = (inputs, output, options))]
+fn fit_files(py: Python<'_>, inputs: Vec<PathBuf>, output: PathBuf, options: &str) -> PyResult<String> {
+    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
+    let options: FitOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let job = FitJob { inputs, output, options };
     let report = py.detach(|| job.run(&|_, _| {})).map_err(value_error)?;
     serde_json::to_string(&report).map_err(value_error)
 }
@@ -452,11 +405,8 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The front ends' defaults, from the library (the Python signatures use these).
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;
     m.add("DEFAULT_RATE", quatcurve::DEFAULT_RATE)?;
-    m.add("DEFAULT_CHARACTERS", quatcurve::bake::crowd::CHARACTERS)?;
-    m.add("DEFAULT_MAX_TEXTURE_SIZE", quatcurve::bake::image::DEFAULT_MAX_TEXTURE_SIZE)?;
-    m.add("DEFAULT_MAX_RATE", quatcurve::bake::budget::DEFAULT_MAX_RATE)?;
-    m.add("GLTF_UNIT_MM", quatcurve::bake::budget::GLTF_UNIT_MM)?;
-    m.add("DEFAULT_BETWEEN_ERROR_CM", quatcurve::fit::job::DEFAULT_BETWEEN_ERROR_CM)?;
-    m.add("DEFAULT_VERTEX_DISTANCE_CM", quatcurve::fit::job::DEFAULT_VERTEX_DISTANCE_CM)?;
+    // The bake's options by name with their defaults, as JSON (`quatcurve.BAKE_OPTIONS`).
+    m.add("BAKE_OPTIONS", serde_json::to_string(&BakeOptions::DEFAULT).map_err(value_error)?)?;
+    m.add("FIT_OPTIONS", serde_json::to_string(&FitOptions::DEFAULT).map_err(value_error)?)?;
     Ok(())
 }

@@ -289,11 +289,39 @@ def test_bake_of_the_built_in_crowd_is_a_texture_per_clip(tmp_path):
     assert again[0]["status"] == "resumed" and again[0]["samples"] == 0
 
 
+def test_bake_and_fit_take_the_library_options_and_their_stubs_and_docstrings_say_each_with_its_default():
+    import ast
+    import pathlib
+
+    assert quatcurve.BAKE_OPTIONS["rate"] == quatcurve.DEFAULT_RATE
+    assert quatcurve.BAKE_OPTIONS["curve"] == quatcurve.DEFAULT_CURVE
+    assert quatcurve.FIT_OPTIONS["max_error"] == 0.01
+    stub = ast.parse((pathlib.Path(quatcurve.__file__).parent / "__init__.pyi").read_text())
+    for function, options, job in [
+        (quatcurve.bake, quatcurve.BAKE_OPTIONS, {"shard", "resume", "jobs", "errors"}),
+        (quatcurve.fit, quatcurve.FIT_OPTIONS, {"errors"}),
+    ]:
+        (signature,) = [f for f in stub.body if isinstance(f, ast.FunctionDef) and f.name == function.__name__]
+        stubbed = {a.arg: ast.literal_eval(d) for a, d in zip(signature.args.kwonlyargs, signature.args.kw_defaults)}
+        assert set(stubbed) - job == set(options), function.__name__
+        assert {name: stubbed[name] for name in options} == options, function.__name__
+        documented = set()
+        for line in function.__doc__.splitlines():
+            names = line.strip().partition(" :")[0].split(",")
+            if line.startswith("    ") and not line.startswith("     ") and all(n.strip().isidentifier() for n in names):
+                documented.update(n.strip() for n in names)
+        assert set(options) | job <= documented, (function.__name__, (set(options) | job) - documented)
+
+
 def test_bake_errors_name_the_option_or_the_input(tmp_path):
     with pytest.raises(ValueError, match="rate must be a positive number of Hz, not -1"):
         quatcurve.bake(output=tmp_path / "a", rate=-1)
     with pytest.raises(ValueError, match="texture: unknown texture 'pretty'"):
         quatcurve.bake(output=tmp_path / "a", texture="pretty")
+    with pytest.raises(ValueError, match="unknown option 'colour' \\(the options are allow_external_uris, atlas, "):
+        quatcurve.bake(output=tmp_path / "a", colour="red")
+    with pytest.raises(ValueError, match="characters: invalid value: integer `-3`"):
+        quatcurve.bake(output=tmp_path / "a", characters=-3)
     # Options by their Python names, never as command-line flags.
     with pytest.raises(ValueError, match="^max_texture_size must be at least 1 texel$"):
         quatcurve.bake(output=tmp_path / "a", max_texture_size=0)

@@ -6,11 +6,12 @@
 //! One input failing is reported in its [`InputReport`] and the others still finish; only a
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
-use super::budget::{self, ChosenRate, ErrorBudget};
+use super::budget::{self, ChosenRate};
 use super::error::BakeError;
-use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
+use super::image::Format;
 use super::inputs::{expand, output_stems, Source};
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
+use super::options::BakeOptions;
 use super::outputs::clip_file_names;
 use super::outputs::{refuse_overwriting_input, OutputDir, Outputs};
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
@@ -21,55 +22,26 @@ use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
-use super::{crowd, gltf, mesh, vertex_glb, Baked, ClipRate, LoopMode};
+use super::{crowd, gltf, mesh, vertex_glb, Baked, ClipRate};
 use crate::anim::error::InputError;
 use crate::anim::Animation;
-use crate::device::{Device, DeviceChoice};
+use crate::device::Device;
 use crate::io::write_atomic;
-use quatcurve_core::curve::CurveSpec;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-/// Everything a bake reads: the inputs, where the outputs go, and how they are made. Fill it
-/// with [`BakeJob::new`] and field updates, then [`BakeJob::run`] (which validates first).
+/// Everything a bake reads: the inputs, where the outputs go, which share of them this process
+/// takes, and how they are made ([`BakeOptions`]). Fill it with [`BakeJob::new`] and field
+/// updates, then [`BakeJob::run`] (which validates first).
 #[derive(Clone, Debug)]
 pub struct BakeJob {
     /// `.gltf`, `.glb` and `.bvh` files, or directories of them; none: the built-in crowd.
     pub inputs: Vec<PathBuf>,
     /// Output directory (created if missing, removed again if the job wrote nothing).
     pub output: PathBuf,
-    /// Output frame rate in Hz, fitted per clip so that its first and last frames are its
-    /// first and last keys (DESIGN section 5b) unless [`BakeJob::exact_rate`].
-    pub rate: f64,
-    /// Bake open clips at exactly [`BakeJob::rate`]: frames `start + i / rate` while not past
-    /// the last key, so the end of a clip off the grid is not baked (each input's report
-    /// warns how much). Loops always fit.
-    pub exact_rate: bool,
-    /// Curve and its options (`looping` is ignored: [`BakeJob::looping`] decides per clip).
-    pub spec: CurveSpec,
-    /// Which clips loop.
-    pub looping: LoopMode,
-    /// The device the job is recorded as using (the one [`BakeJob::run`] is given was opened
-    /// from it); part of the options that `resume` compares.
-    pub device: DeviceChoice,
-    /// Read glTF buffers from anywhere their URIs point, not only data URIs and files beside
-    /// the input.
-    pub allow_external_uris: bool,
-    /// Texture per clip: local, model or skin (DESIGN 5b).
-    pub texture: TextureKind,
-    /// Texture element type (`.npy` and EXR; PNG16 is 16-bit integers).
-    pub precision: Precision,
-    /// Texture file format: `.npy` arrays, or 2D RGBA images engines import (EXR, PNG16).
-    pub format: Format,
-    /// Largest side of an image texture, in texels (EXR and PNG16).
-    pub max_texture_size: usize,
-    /// One texture per input with every clip stacked along frames.
-    pub atlas: bool,
-    /// Also draw each clip's skeleton to `<stem>.<clip>.preview.png` (cargo feature `plot`).
-    pub preview: bool,
-    /// Characters in the built-in crowd.
-    pub characters: usize,
+    /// How the outputs are made: what the manifest records and `resume` compares.
+    pub options: BakeOptions,
     /// This process's share of the inputs; `None`: the share a scheduler's environment names
     /// (Slurm, Kubernetes, AWS Batch, Google Batch), else the whole job.
     pub shard: Option<Shard>,
@@ -78,42 +50,14 @@ pub struct BakeJob {
     pub resume: bool,
     /// Inputs read, baked and written at once (each bake also uses every core).
     pub jobs: usize,
-    /// Each clip at the lowest rate whose frames, interpolated as the shipped shader does,
-    /// stay within this budget of the curve (in place of [`BakeJob::rate`]); no budget set:
-    /// every clip at [`BakeJob::rate`].
-    pub max_error: ErrorBudget,
-    /// Keep the root's horizontal motion in the textures, or extract it into the sidecar's
-    /// per-clip root track (the textures play in place).
-    pub root_motion: RootMotion,
 }
 
 impl BakeJob {
-    /// The defaults of `quatcurve bake`: [`crate::sampling::DEFAULT_RATE`],
-    /// [`quatcurve_core::curve::DEFAULT_CURVE`], loops detected, local f32 textures, one job.
+    /// A job over `inputs` into `output` with every option at its default
+    /// ([`BakeOptions::DEFAULT`]), the whole job in this process, one input at a time.
     #[must_use]
     pub fn new(inputs: Vec<PathBuf>, output: impl Into<PathBuf>) -> Self {
-        Self {
-            inputs,
-            output: output.into(),
-            rate: crate::sampling::DEFAULT_RATE,
-            exact_rate: false,
-            spec: CurveSpec::new(quatcurve_core::curve::DEFAULT_CURVE),
-            looping: LoopMode::Auto,
-            device: DeviceChoice::Auto,
-            allow_external_uris: false,
-            texture: TextureKind::Local,
-            precision: Precision::F32,
-            format: Format::Npy,
-            max_texture_size: DEFAULT_MAX_TEXTURE_SIZE,
-            atlas: false,
-            preview: false,
-            characters: crowd::CHARACTERS,
-            shard: None,
-            resume: false,
-            jobs: 1,
-            max_error: ErrorBudget::none(),
-            root_motion: RootMotion::Keep,
-        }
+        Self { inputs, output: output.into(), options: BakeOptions::DEFAULT, shard: None, resume: false, jobs: 1 }
     }
 
     /// Checks the options that do not need the inputs.
@@ -121,31 +65,34 @@ impl BakeJob {
     /// # Errors
     /// [`BakeError::Option`] naming the option.
     pub fn validate(&self) -> Result<(), BakeError> {
-        if !(self.rate.is_finite() && self.rate > 0.0) {
-            return Err(BakeError::option("rate", format!("must be a positive number of Hz, not {}", self.rate)));
+        if !(self.options.rate.is_finite() && self.options.rate > 0.0) {
+            return Err(BakeError::option(
+                "rate",
+                format!("must be a positive number of Hz, not {}", self.options.rate),
+            ));
         }
         if self.jobs == 0 {
             return Err(BakeError::option("jobs", "must be at least 1"));
         }
-        if self.inputs.is_empty() && self.characters == 0 {
+        if self.inputs.is_empty() && self.options.characters == 0 {
             return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
         }
-        if self.inputs.is_empty() && self.texture == TextureKind::Vertex {
+        if self.inputs.is_empty() && self.options.texture == TextureKind::Vertex {
             return Err(BakeError::option(
                 "texture",
                 "vertex skins a glTF's meshes, and the built-in crowd has none; name glTF inputs, or bake a bone texture",
             ));
         }
-        if self.format == Format::Png16 && self.precision == Precision::F16 {
+        if self.options.format == Format::Png16 && self.options.precision == Precision::F16 {
             return Err(BakeError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
         }
-        if self.format == Format::Png16 && !cfg!(feature = "plot") {
+        if self.options.format == Format::Png16 && !cfg!(feature = "plot") {
             return Err(BakeError::option(
                 "format",
                 "png16 needs the `plot` cargo feature, which this build leaves out",
             ));
         }
-        let budget = &self.max_error;
+        let budget = self.options.budget();
         for (option, value) in [("max_error", budget.degrees), ("max_error_mm", budget.millimetres)] {
             if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
                 return Err(BakeError::option(
@@ -164,34 +111,34 @@ impl BakeJob {
             if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
                 return Err(BakeError::option("unit_mm", format!("must be a positive number, not {}", budget.unit_mm)));
             }
-            if self.texture == TextureKind::Vertex {
+            if self.options.texture == TextureKind::Vertex {
                 return Err(BakeError::option(
                     "max_error",
                     "measures joints blended between frames, not a vertex texture's positions; bake vertex textures at a \
                      fixed rate",
                 ));
             }
-            if !matches!(self.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
+            if !matches!(self.options.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
                 return Err(BakeError::option(
                     "max_error",
                     format!(
                         "measures what a shader interpolates between frames, which a {} texture's matrices do not \
                          hold without shearing; bake a local, model-trs or skin-trs texture",
-                        self.texture
+                        self.options.texture
                     ),
                 ));
             }
-            if self.exact_rate {
+            if self.options.exact_rate {
                 return Err(BakeError::option(
                     "exact_rate",
                     "cannot be set with an error budget, which chooses each clip's rate",
                 ));
             }
         }
-        if self.max_texture_size == 0 {
+        if self.options.max_texture_size == 0 {
             return Err(BakeError::option("max_texture_size", "must be at least 1 texel"));
         }
-        if self.preview && !cfg!(feature = "plot") {
+        if self.options.preview && !cfg!(feature = "plot") {
             return Err(BakeError::option(
                 "preview",
                 "needs the `plot` cargo feature, which this build of quatcurve leaves out",
@@ -202,35 +149,28 @@ impl BakeJob {
 
     /// How this job writes its textures.
     fn texture_options(&self) -> TextureOptions {
-        TextureOptions { format: self.format, precision: self.precision, max_size: self.max_texture_size }
+        TextureOptions {
+            format: self.options.format,
+            precision: self.options.precision,
+            max_size: self.options.max_texture_size,
+        }
     }
 
     /// The files of each clip's (or the atlas's) texture.
     fn sheets(&self, animation: &Animation, vertex: Option<&VertexSheets>) -> Vec<SheetSpec> {
         match vertex {
             Some(vertex) => vertex.layout(),
-            None => texture_file::bone_sheets(animation, self.texture),
+            None => texture_file::bone_sheets(animation, self.options.texture),
         }
     }
 
     /// The options that decide the outputs (the manifest's `options`; `resume` redoes every
     /// input when they differ).
     fn record(&self) -> serde_json::Value {
-        let s = &self.spec;
-        serde_json::json!({
-            "curve": s.curve.name(), "order": s.order, "knots": s.knots.name(), "tangents": s.tangents.name(),
-            "blend": s.blend.name(), "loop": self.looping.name(), "rate": self.rate, "exact_rate": self.exact_rate,
-            "device": self.device.name(), "allow_external_uris": self.allow_external_uris,
-            "characters": self.characters, "texture": self.texture.name(), "precision": self.precision.name(), "format": self.format.name(),
-            "max_texture_size": self.max_texture_size,
-            "atlas": self.atlas, "preview": self.preview,
-            "max_error": self.max_error.degrees, "max_error_mm": self.max_error.millimetres,
-            "unit_mm": self.max_error.unit_mm, "max_rate": self.max_error.max_rate,
-            "root_motion": self.root_motion.name(),
-        })
+        serde_json::to_value(&self.options).unwrap_or_else(|e| unreachable!("options serialize: {e}"))
     }
 
-    /// Bakes this shard's inputs on `device` (opened from [`BakeJob::device`]; a caller baking
+    /// Bakes this shard's inputs on `device` (opened from [`BakeOptions::device`]; a caller baking
     /// repeatedly keeps one open), telling `progress` as inputs start and finish.
     ///
     /// # Errors
@@ -265,7 +205,7 @@ impl BakeJob {
         };
         // This shard's inputs: (name, stem, path); the built-in crowd is input 0 of its job.
         let crowd_name =
-            format!("built-in crowd: {} x {} joints, {} s", self.characters, crowd::JOINTS, crowd::SECONDS);
+            format!("built-in crowd: {} x {} joints, {} s", self.options.characters, crowd::JOINTS, crowd::SECONDS);
         let all: Vec<(String, &str, Option<&Path>)> = if self.inputs.is_empty() {
             vec![(crowd_name, "crowd", None)]
         } else {
@@ -288,10 +228,12 @@ impl BakeJob {
             let (report, written) = match (kept, path) {
                 (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
                 (None, Some(path)) => {
-                    let uris = gltf::UriPolicy { allow_external: self.allow_external_uris };
+                    let uris = gltf::UriPolicy { allow_external: self.options.allow_external_uris };
                     self.bake_one(name, stem, || Source::read(path, uris), device)
                 }
-                (None, None) => self.bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(self.characters))), device),
+                (None, None) => {
+                    self.bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(self.options.characters))), device)
+                }
             };
             let record = input_record(&report, &written, fingerprint, kept);
             progress.finish(&report);
@@ -343,7 +285,7 @@ impl BakeJob {
                     }
                     _ => false,
                 };
-                if gltf && self.texture == TextureKind::Vertex {
+                if gltf && self.options.texture == TextureKind::Vertex {
                     names.push(format!("{stem}{MESH_GLB_SUFFIX}"));
                 }
                 for baked in &names[1..] {
@@ -365,20 +307,20 @@ impl BakeJob {
     }
 
     /// Per clip, what the budget chose and measured, and the texture bytes against
-    /// [`BakeJob::rate`]'s (frames times joints times channels times the element's bytes).
+    /// [`BakeOptions::rate`]'s (frames times joints times channels times the element's bytes).
     fn chosen_rates(
         &self,
         animation: &Animation,
         baked: &Baked,
         measured: Vec<budget::Measured>,
     ) -> Result<Vec<ChosenRate>, InputError> {
-        let joints: usize = texture::layout(animation, self.texture).iter().map(|(_, width)| width).sum();
-        let element = if self.format == Format::Png16 { 2 } else { self.precision.element().size() };
-        let frame_bytes = joints * self.texture.channels() * element;
+        let joints: usize = texture::layout(animation, self.options.texture).iter().map(|(_, width)| width).sum();
+        let element = if self.options.format == Format::Png16 { 2 } else { self.options.precision.element().size() };
+        let frame_bytes = joints * self.options.texture.channels() * element;
         let mut chosen = Vec::with_capacity(measured.len());
         for ((clip, result), measured) in animation.clips.iter().zip(&baked.clips).zip(measured) {
             let [start, end] = clip.span();
-            let (grid, _) = super::clip_frame_grid(start, end, ClipRate::Fit(self.rate), result.looping)?;
+            let (grid, _) = super::clip_frame_grid(start, end, ClipRate::Fit(self.options.rate), result.looping)?;
             chosen.push(ChosenRate {
                 clip: clip.name.clone(),
                 bytes: result.times.len() * frame_bytes,
@@ -409,9 +351,9 @@ impl BakeJob {
             }
             report.warnings = super::source_step_warnings(animation);
             // Checked before the curves are baked.
-            let vertex = match (&src, self.texture) {
+            let vertex = match (&src, self.options.texture) {
                 (Source::Gltf(file), TextureKind::Vertex) => {
-                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.format != Format::Npy))
+                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.options.format != Format::Npy))
                 }
                 (other, TextureKind::Vertex) => {
                     return Err(InputError::Animation(format!(
@@ -421,24 +363,29 @@ impl BakeJob {
                 }
                 _ => None,
             };
-            let rate = if self.exact_rate { ClipRate::Exact(self.rate) } else { ClipRate::Fit(self.rate) };
-            let mut baked = if self.max_error.is_set() {
+            let rate = if self.options.exact_rate {
+                ClipRate::Exact(self.options.rate)
+            } else {
+                ClipRate::Fit(self.options.rate)
+            };
+            let (spec, budget) = (self.options.spec(), self.options.budget());
+            let mut baked = if budget.is_set() {
                 let setting = budget::Setting {
-                    spec: &self.spec,
-                    looping: self.looping,
-                    kind: self.texture,
-                    precision: self.precision,
+                    spec: &spec,
+                    looping: self.options.looping,
+                    kind: self.options.texture,
+                    precision: self.options.precision,
                     device,
                 };
-                let measured = budget::choose_rates(animation, &self.max_error, &setting)?;
+                let measured = budget::choose_rates(animation, &budget, &setting)?;
                 let rates: Vec<ClipRate> = measured.iter().map(|m| ClipRate::Fit(m.rate)).collect();
-                let baked = super::bake_each(animation, &self.spec, &rates, self.looping, device)?;
+                let baked = super::bake_each(animation, &spec, &rates, self.options.looping, device)?;
                 report.rates = self.chosen_rates(animation, &baked, measured)?;
                 baked
             } else {
-                super::bake(animation, &self.spec, rate, self.looping, device)?
+                super::bake(animation, &spec, rate, self.options.looping, device)?
             };
-            if self.root_motion == RootMotion::Extract {
+            if self.options.root_motion == RootMotion::Extract {
                 root_motion::extract(animation, &mut baked)?;
             }
             report.warnings.extend(unbaked_ends(animation, &baked));
@@ -513,7 +460,7 @@ impl BakeJob {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
         let order = animation.parents_first()?;
-        if self.texture.is_skin() && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+        if self.options.texture.is_skin() && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
             return Err(InputError::Animation(
                 "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
             ));
@@ -528,7 +475,7 @@ impl BakeJob {
         let mesh_file = match vertex {
             Some(vertex) => Some((
                 format!("{stem}{MESH_GLB_SUFFIX}"),
-                vertex_glb::write(&vertex.primitives, self.max_texture_size)?,
+                vertex_glb::write(&vertex.primitives, self.options.max_texture_size)?,
             )),
             None => None,
         };
@@ -539,8 +486,8 @@ impl BakeJob {
             out.written.push(path.into());
         }
         // An atlas stacks every clip's frames in one file per sheet, opened with its whole shape.
-        let extension = self.format.extension();
-        if self.atlas {
+        let extension = self.options.format.extension();
+        if self.options.atlas {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
             let sheets = self.sheets(animation, vertex);
             out.atlas =
@@ -553,15 +500,16 @@ impl BakeJob {
             .map(|index| self.write_clip(out, animation, baked, &order, index, fk_device, vertex))
             .collect::<Result<Vec<_>, _>>()?;
         texture_file::finish_all(std::mem::take(&mut out.atlas), &mut out.written)?;
+        let budget = self.options.budget();
         let options = SidecarOptions {
             device,
-            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.spec.curve.name() },
-            rate: self.rate,
-            texture: self.texture,
-            precision: self.precision,
-            format: self.format,
-            atlas: self.atlas,
-            max_error: self.max_error.is_set().then_some(&self.max_error),
+            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.options.curve.name() },
+            rate: self.options.rate,
+            texture: self.options.texture,
+            precision: self.options.precision,
+            format: self.options.format,
+            atlas: self.options.atlas,
+            max_error: budget.is_set().then_some(&budget),
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
@@ -588,7 +536,7 @@ impl BakeJob {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
         let file_name = out.clip_names[index].clone();
         let frames = result.times.len();
-        let preview = if self.preview {
+        let preview = if self.options.preview {
             // Forward kinematics of the drawn frames alone.
             let picks = texture::preview_frames(frames);
             let model = texture::sheet_rows(animation, order, baked, index, TextureKind::Model, fk_device, &picks)?
@@ -612,18 +560,19 @@ impl BakeJob {
         let rows = |frames: &[usize]| match vertex {
             Some(vertex) => vertex.rows(animation, order, baked, index, fk_device, frames),
             None => {
-                let mut sheets = texture::sheet_rows(animation, order, baked, index, self.texture, fk_device, frames)?;
-                signs.follow(self.texture, &mut sheets);
+                let mut sheets =
+                    texture::sheet_rows(animation, order, baked, index, self.options.texture, fk_device, frames)?;
+                signs.follow(self.options.texture, &mut sheets);
                 Ok(sheets)
             }
         };
-        let (files, first_row) = if self.atlas {
+        let (files, first_row) = if self.options.atlas {
             texture_file::stream(frames, rows, &mut out.atlas)?;
             out.rows += frames;
             (out.atlas.iter().map(TextureFile::name).collect::<Vec<_>>(), out.rows - frames)
         } else {
             let what = format!("clip '{}'", clip.name);
-            let extension = self.format.extension();
+            let extension = self.options.format.extension();
             let sheets = self.sheets(animation, vertex);
             let mut textures = texture_file::open(&sheets, &self.texture_options(), frames, &what, |suffix| {
                 dir.join(format!("{stem}.{file_name}{suffix}.{extension}"))

@@ -19,6 +19,7 @@ pub mod inputs;
 pub mod job;
 pub mod manifest;
 pub mod mesh;
+pub mod options;
 pub(crate) mod outputs;
 mod report;
 pub mod root_motion;
@@ -36,6 +37,7 @@ use crate::anim::error::InputError as E;
 use crate::anim::{Animation, Channel, Clip, Property};
 pub use error::BakeError;
 pub use job::BakeJob;
+pub use options::BakeOptions;
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 

@@ -1,7 +1,7 @@
 //! `quatcurve analyze`: energy, torque and smoothness of several curves through the same keys
 //! (DESIGN section 8), and `--paper`, the rerun of KKS section 6.1.
 
-use super::{names, print_stdout, read_tracks, CurveArgs, Failure};
+use super::{names, print_stdout, read_tracks, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::analysis::paper::{self, PaperSetup, RegimeTable, KKS_CURVES};
 use quatcurve::analysis::{analyze, profile, AnalysisError, AnalysisOptions, Metrics};
@@ -31,7 +31,7 @@ pub struct AnalyzeArgs {
     #[arg(long = "loop", conflicts_with = "paper")]
     looping: bool,
     #[command(flatten)]
-    options: CurveArgs,
+    options: CurveOptions,
     /// Principal moments of inertia of the body, for the torque tau = I alpha + omega x (I omega).
     #[arg(
         long,

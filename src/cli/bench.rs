@@ -2,7 +2,7 @@
 //! median samples per second side by side (DESIGN section 5).
 
 use super::measure::{median_seconds, open_bench_device};
-use super::{names, print_stdout, CurveArgs, Failure};
+use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::{
     synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator,
@@ -25,7 +25,7 @@ pub struct BenchArgs {
     #[arg(long, default_value = "bspline", value_parser = names::<Curve>())]
     curve: Curve,
     #[command(flatten)]
-    options: CurveArgs,
+    options: CurveOptions,
     /// Also compute angular velocity and acceleration.
     #[arg(long)]
     derivatives: bool,

@@ -1,6 +1,6 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{names, print_stdout, read_tracks, CurveArgs, DeviceArgs, Failure};
+use super::{names, print_stdout, read_tracks, CurveOptions, DeviceArgs, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{write_atomic, write_npy, ResultFile};
 use quatcurve::{Batch, Curve, Device, EvalJob, FloatOutput, KnotMode, Layout, Output, SampleTimes, Sampling};
@@ -29,7 +29,7 @@ pub struct EvalArgs {
     #[arg(long = "loop", help = super::loop_help())]
     looping: bool,
     #[command(flatten)]
-    options: CurveArgs,
+    options: CurveOptions,
     #[command(flatten)]
     device: DeviceArgs,
     /// N samples per track from domain start to end, both included.

@@ -3,7 +3,7 @@
 
 use super::{print_stdout, Failure};
 use clap::Args;
-use quatcurve::fit::job::{FitJob, FitReport, DEFAULT_BETWEEN_ERROR_CM, DEFAULT_VERTEX_DISTANCE_CM};
+use quatcurve::fit::job::{FitJob, FitOptions, FitReport};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -15,37 +15,23 @@ pub struct FitArgs {
     /// Output directory (created if missing): one `<stem>.qcf` per input.
     #[arg(long, default_value = "fitted")]
     output: PathBuf,
-    /// The largest distance, in cm, a virtual vertex may move at any source frame (ACL's
-    /// metric: object space, so a parent's error counts in its children's).
-    #[arg(long, value_name = "CM", default_value_t = 0.01, allow_negative_numbers = true)]
-    max_error: f64,
-    /// The largest between source frames, in cm, against the source's own interpolation.
-    #[arg(long, value_name = "CM", default_value_t = DEFAULT_BETWEEN_ERROR_CM, allow_negative_numbers = true)]
-    between_error: f64,
-    /// Fit the source frames alone: the curve may swing between them (reported all the same).
+    #[command(flatten)]
+    options: FitOptions,
+    /// Fit the source frames alone: the curve may swing between them (reported all the same);
+    /// the command line's spelling of no between-frames error.
     #[arg(long, conflicts_with = "between_error")]
     no_between_check: bool,
-    /// The virtual vertices' distance from each joint, cm.
-    #[arg(long, value_name = "CM", default_value_t = DEFAULT_VERTEX_DISTANCE_CM, allow_negative_numbers = true)]
-    vertex_distance: f64,
-    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files do not say
-    /// theirs, so a BVH input needs it (CMU's is 5.644).
-    #[arg(long, value_name = "CM", allow_negative_numbers = true)]
-    unit_cm: Option<f64>,
     /// Print the report as JSON (DESIGN section 10) instead of a table.
     #[arg(long)]
     json: bool,
 }
 
 pub fn run(args: &FitArgs) -> Result<(), Failure> {
-    let job = FitJob {
-        inputs: args.input.clone(),
-        output: args.output.clone(),
-        max_error_cm: args.max_error,
-        between_error_cm: (!args.no_between_check).then_some(args.between_error),
-        vertex_distance_cm: args.vertex_distance,
-        unit_cm: args.unit_cm,
-    };
+    let mut options = args.options.clone();
+    if args.no_between_check {
+        options.between_error = None;
+    }
+    let job = FitJob { inputs: args.input.clone(), output: args.output.clone(), options };
     let report = job.run(&|input, clip| {
         eprintln!("{input}: clip '{}' {:.1}:1 in {:.1} s", clip.clip, clip.ratio, clip.seconds);
     })?;

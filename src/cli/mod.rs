@@ -12,7 +12,7 @@ pub mod shaders;
 pub mod view;
 
 use clap::Args;
-use quatcurve::{Blend, Curve, CurveSpec, Device, DeviceChoice, DeviceError, KnotMode, Tangents};
+use quatcurve::{Device, DeviceChoice, DeviceError};
 use std::io::Write;
 use std::path::Path;
 
@@ -70,74 +70,16 @@ pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> 
     })
 }
 
-/// A type the command line names by one of a fixed list of words.
-pub trait Named: std::str::FromStr<Err = String> + Clone + Send + Sync + 'static {
-    /// Every accepted name.
-    const NAMES: &'static [&'static str];
-}
+pub use quatcurve::options::{names, CurveOptions};
 
-macro_rules! named {
-    ($($ty:ty),+) => {
-        $(impl Named for $ty {
-            const NAMES: &'static [&'static str] = <$ty>::NAMES;
-        })+
-    };
-}
-named!(
-    Curve,
-    KnotMode,
-    Tangents,
-    Blend,
-    DeviceChoice,
-    quatcurve::bake::LoopMode,
-    quatcurve::bake::texture::TextureKind,
-    quatcurve::bake::texture::Precision,
-    quatcurve::bake::image::Format,
-    quatcurve::gpu::shader::Language,
-    quatcurve::gpu::shader::Program,
-    quatcurve::bake::root_motion::RootMotion
-);
-
-/// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").
-pub fn names<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::TypedValueParser;
-    // Only listed names reach the map, and each of them parses.
-    clap::builder::PossibleValuesParser::new(T::NAMES)
-        .map(|name| name.parse::<T>().unwrap_or_else(|_| unreachable!("{name} is listed")))
-}
-
-/// The curve options every subcommand shares.
-#[derive(Args, Debug, Clone)]
-pub struct CurveArgs {
-    /// B-spline order k (degree k - 1), 2..=8.
-    #[arg(long, default_value_t = 4)]
-    pub order: usize,
-    /// B-spline knot mode (default: phantom; bench: uniform).
-    #[arg(long, value_parser = names::<KnotMode>())]
-    pub knots: Option<KnotMode>,
-    /// Tangent source for hermite and nam-kim.
-    #[arg(long, default_value = "catmull-rom", value_parser = names::<Tangents>())]
-    pub tangents: Tangents,
-    /// Nam-Kim blend function.
-    #[arg(long, default_value = "cubic", value_parser = names::<Blend>())]
-    pub blend: Blend,
-}
-
-/// The device option of `eval` and `bake` (`bench` names several with `--devices`).
+/// The device option of `eval` (`bake`'s is one of its options; `bench` names several with
+/// `--devices`).
 #[derive(Args, Debug, Clone)]
 pub struct DeviceArgs {
     /// Evaluation device: auto is a hardware GPU if any, else the fast CPU path (also over a
     /// software adapter such as lavapipe; gpu still takes one).
     #[arg(long, default_value = "auto", value_parser = names::<DeviceChoice>())]
     pub device: DeviceChoice,
-}
-
-impl CurveArgs {
-    /// The spec for `curve` with these options; `knots` when none was given.
-    pub fn spec(&self, curve: Curve, knots: KnotMode, looping: bool) -> CurveSpec {
-        let knots = self.knots.unwrap_or(knots);
-        CurveSpec { curve, order: self.order, knots, tangents: self.tangents, blend: self.blend, looping }
-    }
 }
 
 /// Writes a finished text document to standard output; a reader that stops early (`| head`)

@@ -18,23 +18,62 @@ use std::time::Instant;
 /// The extensions a fit reads (sources with keys; a container holds control points).
 pub const FIT_EXTENSIONS: [&str; 3] = ["gltf", "glb", "bvh"];
 
-/// What to fit and within what, lengths in centimetres.
+/// What to fit, where to, and within what ([`FitOptions`]).
 #[derive(Clone, Debug)]
 pub struct FitJob {
     /// Files or directories of them ([`FIT_EXTENSIONS`]).
     pub inputs: Vec<PathBuf>,
     /// Where `<stem>.qcf` goes.
     pub output: PathBuf,
-    /// The largest virtual-vertex error at any source frame, cm.
-    pub max_error_cm: f64,
-    /// The largest between source frames, cm, against the source's interpolation; `None`:
-    /// not checked (the curve may swing between frames).
-    pub between_error_cm: Option<f64>,
+    /// The error budget and the file unit, lengths in centimetres.
+    pub options: FitOptions,
+}
+
+/// The options of a fit, each defined once (as [`crate::options`] says), lengths in
+/// centimetres.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct FitOptions {
+    /// The largest distance, in cm, a virtual vertex may move at any source frame (ACL's
+    /// metric: object space, so a parent's error counts in its children's).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.max_error, allow_negative_numbers = true))]
+    pub max_error: f64,
+    /// The largest between source frames, in cm, against the source's own interpolation;
+    /// none: not checked (the curve may swing between frames; reported all the same).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value = default_between_error(), allow_negative_numbers = true))]
+    pub between_error: Option<f64>,
     /// The virtual vertices' distance from each joint, cm.
-    pub vertex_distance_cm: f64,
-    /// The length of one file unit in cm; `None`: glTF's metre, and an error for BVH, whose
-    /// files do not say theirs.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.vertex_distance, allow_negative_numbers = true))]
+    pub vertex_distance: f64,
+    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files do not say
+    /// theirs, so a BVH input needs it (CMU's is 5.644).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", allow_negative_numbers = true))]
     pub unit_cm: Option<f64>,
+}
+
+impl FitOptions {
+    /// Every option's default: ACL's threshold and vertex distance.
+    pub const DEFAULT: Self = Self {
+        max_error: 0.01,
+        between_error: Some(DEFAULT_BETWEEN_ERROR_CM),
+        vertex_distance: DEFAULT_VERTEX_DISTANCE_CM,
+        unit_cm: None,
+    };
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// [`DEFAULT_BETWEEN_ERROR_CM`] as the flag's default text (clap shows an optional value's
+/// default as text).
+#[cfg(feature = "cli")]
+fn default_between_error() -> &'static str {
+    static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TEXT.get_or_init(|| DEFAULT_BETWEEN_ERROR_CM.to_string())
 }
 
 /// Between-frame error a fit defaults to, cm: the curve within 0.3 cm of the source's own
@@ -100,9 +139,9 @@ pub struct InputFit {
 pub struct FitReport {
     /// The budget, cm.
     pub max_error_cm: f64,
-    /// See [`FitJob::between_error_cm`].
+    /// See [`FitOptions::between_error`].
     pub between_error_cm: Option<f64>,
-    /// See [`FitJob::vertex_distance_cm`].
+    /// See [`FitOptions::vertex_distance`].
     pub vertex_distance_cm: f64,
     /// Per input, in path order.
     pub inputs: Vec<InputFit>,
@@ -121,14 +160,14 @@ impl FitJob {
     ///
     /// # Errors
     /// What is wrong before any input is read: a length that is not positive, a BVH input
-    /// without [`FitJob::unit_cm`], an input of another format, an output directory that
+    /// without [`FitOptions::unit_cm`], an input of another format, an output directory that
     /// takes no file, two inputs with one stem, a container that would replace its input.
     pub fn run(&self, progress: &dyn Fn(&str, &ClipReport)) -> Result<FitReport, BakeError> {
         for (option, value) in [
-            ("max_error", Some(self.max_error_cm)),
-            ("between_error", self.between_error_cm),
-            ("vertex_distance", Some(self.vertex_distance_cm)),
-            ("unit_cm", self.unit_cm),
+            ("max_error", Some(self.options.max_error)),
+            ("between_error", self.options.between_error),
+            ("vertex_distance", Some(self.options.vertex_distance)),
+            ("unit_cm", self.options.unit_cm),
         ] {
             if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
                 return Err(BakeError::option(option, format!("is {v}; it must be a positive length")));
@@ -140,7 +179,7 @@ impl FitJob {
         let inputs = expand(&self.inputs, &FIT_EXTENSIONS)?;
         for input in &inputs {
             match extension(input).as_deref() {
-                Some("bvh") if self.unit_cm.is_none() => {
+                Some("bvh") if self.options.unit_cm.is_none() => {
                     return Err(BakeError::option(
                         "unit_cm",
                         format!(
@@ -173,27 +212,27 @@ impl FitJob {
         }
         let inputs = inputs.iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();
         Ok(FitReport {
-            max_error_cm: self.max_error_cm,
-            between_error_cm: self.between_error_cm,
-            vertex_distance_cm: self.vertex_distance_cm,
+            max_error_cm: self.options.max_error,
+            between_error_cm: self.options.between_error,
+            vertex_distance_cm: self.options.vertex_distance,
             inputs,
         })
     }
 
     /// A clip no fit held within the budget: how close the closest came, and what loosens it.
     fn over_budget(&self, clip: &str, at: &WorstReport, between: &WorstReport) -> String {
-        let between_budget = self.between_error_cm.map_or_else(
+        let between_budget = self.options.between_error.map_or_else(
             || "unchecked between them".into(),
             |cm| format!("{} cm between them (the between-frames error)", Number(cm)),
         );
         let loosen = "; a larger between-frames error, or none, loosens the check between frames";
-        let hint = match self.between_error_cm {
+        let hint = match self.options.between_error {
             Some(cm) if between.error_cm > cm => loosen,
             _ => "",
         };
         format!(
             "clip '{clip}': no fit within {} cm (the maximum error) at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
-            Number(self.max_error_cm),
+            Number(self.options.max_error),
             Number(at.error_cm),
             at.joint,
             at.time,
@@ -206,7 +245,7 @@ impl FitJob {
     fn fit_one(&self, input: &Path, stem: &str, progress: &dyn Fn(&str, &ClipReport)) -> InputFit {
         let name = input.display().to_string();
         let bvh = extension(input).as_deref() == Some("bvh");
-        let unit_cm = self.unit_cm.unwrap_or(GLTF_UNIT_CM);
+        let unit_cm = self.options.unit_cm.unwrap_or(GLTF_UNIT_CM);
         let mut report =
             InputFit { input: name.clone(), output: None, unit_cm, container_bytes: 0, clips: Vec::new(), error: None };
         let result = (|| -> Result<(String, usize), String> {
@@ -222,9 +261,9 @@ impl FitJob {
                 return Err("no rotation, translation or scale animation to fit".into());
             }
             let budget = Budget {
-                max_error: self.max_error_cm / unit_cm,
-                between_error: self.between_error_cm.map_or(f64::INFINITY, |cm| cm / unit_cm),
-                vertex_distance: self.vertex_distance_cm / unit_cm,
+                max_error: self.options.max_error / unit_cm,
+                between_error: self.options.between_error.map_or(f64::INFINITY, |cm| cm / unit_cm),
+                vertex_distance: self.options.vertex_distance / unit_cm,
             };
             let mut clips = Vec::with_capacity(animation.clips.len());
             for c in 0..animation.clips.len() {
@@ -277,5 +316,28 @@ fn clip_report(animation: &Animation, fit: &ClipFit, unit_cm: f64, seconds: f64)
         at_frames: worst(&fit.at_frames),
         between_frames: worst(&fit.between_frames),
         seconds,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every fit option is a flag of the command line, spelled from its name, and reads back
+    /// by name as Python gives it.
+    #[cfg(feature = "cli")]
+    #[test]
+    fn every_option_is_a_flag_named_after_it_and_reads_by_name() {
+        use clap::Args;
+        let command = FitOptions::augment_args(clap::Command::new("fit"));
+        let mut flags: Vec<String> = command.get_arguments().filter_map(|a| a.get_long().map(str::to_string)).collect();
+        let serde_json::Value::Object(names) = serde_json::to_value(FitOptions::DEFAULT).unwrap() else { panic!() };
+        let mut names: Vec<String> = names.keys().map(|n| n.replace('_', "-")).collect();
+        names.sort();
+        flags.sort();
+        assert_eq!(flags, names);
+        let given = serde_json::from_str(r#"{"between_error": null, "unit_cm": 5.644}"#).unwrap();
+        let options: FitOptions = crate::options::from_named(&given).unwrap();
+        assert_eq!(options, FitOptions { between_error: None, unit_cm: Some(5.644), ..FitOptions::DEFAULT });
     }
 }

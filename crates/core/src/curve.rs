@@ -85,21 +85,24 @@ pub struct CurveSpec {
 }
 
 impl Default for CurveSpec {
-    /// The front ends' defaults: [`DEFAULT_CURVE`]; for the families that take them, order 4,
-    /// phantom knots, Catmull-Rom tangents, the cubic blend; open.
+    /// [`CurveSpec::DEFAULT`].
     fn default() -> Self {
-        Self {
-            curve: DEFAULT_CURVE,
-            order: 4,
-            knots: KnotMode::Phantom,
-            tangents: Tangents::CatmullRom,
-            blend: Blend::Cubic,
-            looping: false,
-        }
+        Self::DEFAULT
     }
 }
 
 impl CurveSpec {
+    /// The front ends' defaults: [`DEFAULT_CURVE`]; for the families that take them, order 4,
+    /// phantom knots, Catmull-Rom tangents, the cubic blend; open.
+    pub const DEFAULT: Self = Self {
+        curve: DEFAULT_CURVE,
+        order: 4,
+        knots: KnotMode::Phantom,
+        tangents: Tangents::CatmullRom,
+        blend: Blend::Cubic,
+        looping: false,
+    };
+
     /// A spec for `curve` with every other option at its default.
     #[must_use]
     pub fn new(curve: Curve) -> Self {
@@ -156,12 +159,34 @@ impl CurveSpec {
     }
 }
 
-/// Names as the CLI and JSON spell them: `NAMES`, `name()`, `Display` and `FromStr` for an
-/// enum of unit variants (quatcurve's choices: curves, devices, texture kinds, formats).
+/// A type named by one of a fixed list of words: how its values are written on the command
+/// line, in Python and in files ([`names!`] implements it).
+pub trait Named: std::str::FromStr<Err = String> + std::fmt::Display + Clone + Send + Sync + 'static {
+    /// Every accepted name, in order.
+    const NAMES: &'static [&'static str];
+}
+
+/// Names as the CLI and JSON spell them: `NAMES`, `name()`, `Display`, `FromStr`, [`Named`]
+/// and serde (as the name; the calling crate depends on `serde`) for an enum of unit variants
+/// (quatcurve's choices: curves, devices, texture kinds, formats).
 #[doc(hidden)]
 #[macro_export]
 macro_rules! names {
     ($ty:ty, $what:literal, $($variant:ident => $name:literal),+ $(,)?) => {
+        impl $crate::curve::Named for $ty {
+            const NAMES: &'static [&'static str] = &[$($name),+];
+        }
+        impl ::serde::Serialize for $ty {
+            fn serialize<S: ::serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(self.name())
+            }
+        }
+        impl<'de> ::serde::Deserialize<'de> for $ty {
+            fn deserialize<D: ::serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                let name = <String as ::serde::Deserialize>::deserialize(d)?;
+                name.parse().map_err(<D::Error as ::serde::de::Error>::custom)
+            }
+        }
         impl $ty {
             /// Every accepted name, in order.
             pub const NAMES: &'static [&'static str] = &[$($name),+];

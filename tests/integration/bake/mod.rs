@@ -79,7 +79,8 @@ fn sidecars_read_back_through_the_types_that_write_them() {
     ];
     for (k, extra) in cases.iter().enumerate() {
         let dir = out.path().join(k.to_string());
-        let args = [&["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap(), "--device", "cpu"], *extra];
+        let args =
+            [&["--input", input.to_str().unwrap(), "--output", dir.to_str().unwrap(), "--device", "cpu"], *extra];
         let result = bake(&args.concat());
         assert!(result.status.success(), "{extra:?}: {}", stderr(&result));
         let text = std::fs::read_to_string(dir.join("CesiumMan.json")).unwrap();
