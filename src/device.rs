@@ -179,9 +179,7 @@ impl Device {
         *data = out.data;
         Ok(name)
     }
-}
 
-impl Device {
     /// Forward kinematics: model rows `[frames, joints, 12]` of local rows `[frames, joints,
     /// 10]` (`parents[j]` is joint `j`'s parent, `order` lists parents first). The GPU's in
     /// f32 (`shaders/fk.wgsl`); the CPU path and the reference in f64 from the f32 rows
