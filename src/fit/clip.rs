@@ -111,7 +111,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         }
     }
     let order = animation.parents_first().map_err(|e| FitClipError::Input(e.to_string()))?;
-    let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+    let parents = animation.parents();
     let source = animation
         .clips
         .get(clip)
@@ -229,7 +229,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
 /// rest) by that share, a scale's likewise, a translation's the share itself.
 fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budget: &Budget) -> Vec<f64> {
     let joints = &animation.joints;
-    let parents: Vec<Option<usize>> = joints.iter().map(|j| j.parent).collect();
+    let parents = animation.parents();
     let at: Vec<Vec3F64> =
         object_space(&parents, order, &rest_pose(animation)).iter().map(|m| Vec3F64::new(m[3], m[7], m[11])).collect();
     // Reach: the farthest joint it carries, plus the vertex distance.
@@ -567,7 +567,7 @@ mod tests {
         // Measured again here, at every frame, from the fitted curves and the keys.
         let channels = &animation.clips[0].channels;
         let order = animation.parents_first().unwrap();
-        let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+        let parents = animation.parents();
         let again =
             worst_error(&animation, &parents, &order, channels, &fit.clip.channels, &channels[0].times, &budget);
         assert_eq!(again.0, fit.at_frames);

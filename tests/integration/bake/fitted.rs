@@ -59,7 +59,7 @@ fn pose(animation: &Animation, f: usize) -> Vec<Transform> {
 
 /// The worst virtual-vertex error (file units) over the frames of `decoded` against `source`.
 fn worst_error(source: &Animation, decoded: &Animation, distance: f64) -> f64 {
-    let parents: Vec<Option<usize>> = source.joints.iter().map(|j| j.parent).collect();
+    let parents = source.parents();
     let order = source.parents_first().unwrap();
     let frames = source.clips[0].channels[0].times.len();
     assert_eq!(decoded.clips[0].channels[0].times.len(), frames, "every source frame decoded");

@@ -293,7 +293,7 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     .unwrap();
     let order = animation.parents_first().unwrap();
     let local = texture::local(&animation, &baked, 0);
-    let parents: Vec<Option<usize>> = animation.joints.iter().map(|j| j.parent).collect();
+    let parents = animation.parents();
     let cpu = quatcurve::skeleton::forward_kinematics(&parents, &order, &local);
     let on_gpu = gpu.forward_kinematics(&parents, &order, &local).unwrap();
     assert_eq!(on_gpu.len(), cpu.len());
