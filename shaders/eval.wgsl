@@ -1,4 +1,4 @@
-// The batch evaluation kernel: the twin of src/reference.rs. One invocation per sample.
+// The batch evaluation kernel: the twin of crates/eval/src/reference.rs. One invocation per sample.
 // The packed batch is the reference's, converted to f32 (times and knots as 32.32 fixed
 // point, see segment.wgsl).
 //

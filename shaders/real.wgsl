@@ -10,7 +10,7 @@ const HALF_PI: f32 = 1.57079632679490;
 const QUARTER_PI: f32 = 0.785398163397448;
 const TAN_EIGHTH_PI: f32 = 0.414213562373095;
 // pi/2 split for Cody-Waite reduction: k * HALF_PI_1 is exact for |k| < 2^16 (HALF_PI_PARTS
-// in src/cpu/simd.rs, tied by a test).
+// in crates/eval/src/cpu/simd.rs, tied by a test).
 const TWO_OVER_PI: f32 = 0.636619772367581;
 const HALF_PI_1: f32 = 1.5703125;
 const HALF_PI_2: f32 = 4.837512969970703125e-4;

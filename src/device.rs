@@ -3,13 +3,13 @@
 //! evaluates curves, runs forward kinematics and skins meshes, so no caller matches on
 //! which path it holds.
 
-use crate::cpu::CpuEvaluator;
 #[cfg(feature = "gpu")]
 use crate::gpu::{GpuError, GpuEvaluator};
-use crate::job::EvalJob;
-use crate::output::{FloatOutput, Output};
-use crate::skeleton::{self, SkinnedMesh};
 use quatcurve_core::curve::names;
+use quatcurve_eval::cpu::CpuEvaluator;
+use quatcurve_eval::job::EvalJob;
+use quatcurve_eval::output::{FloatOutput, Output};
+use quatcurve_eval::skeleton::{self, SkinnedMesh};
 use std::fmt;
 
 /// What the user asked for (`--device`).
@@ -36,7 +36,7 @@ pub enum DeviceError {
     /// The job breaks a rule ([`EvalJob::validate`]: sample lists that do not match the batch,
     /// non-finite sample times, a frame-major layout with unequal sample counts).
     #[error(transparent)]
-    Job(#[from] crate::error::Error),
+    Job(#[from] quatcurve_eval::error::Error),
     /// The GPU kernel cannot take this batch (a Bezier curve above its degree limit, one
     /// track's keys larger than a storage binding): `auto` hands such a batch to the CPU path.
     #[error("{0}")]

@@ -38,34 +38,25 @@ pub mod analysis;
 pub mod anim;
 pub mod arrays;
 pub mod bake;
-pub mod batch;
-pub mod cpu;
 pub mod device;
-pub mod error;
-pub mod euclidean;
 pub mod fit;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod io;
-pub mod job;
-pub mod output;
-// Charts, synthetic tracks and the demo input serve the CLI, benches and tests; they are not
-// part of the library's API.
 pub mod options;
+// Charts serve the CLI; they are not part of the library's API.
 #[cfg(feature = "plot")]
 #[doc(hidden)]
 pub mod plot;
-pub mod reference;
-pub mod sampling;
-pub mod skeleton;
-#[doc(hidden)]
-pub mod synthetic;
-pub mod track;
 #[cfg(feature = "view")]
 pub mod view;
 
-// The maths, from quatcurve-core (no I/O): the same modules at the same paths.
+// The maths, from quatcurve-core (no I/O), and evaluation without a GPU, from quatcurve-eval:
+// one library at one root.
 pub use quatcurve_core::{curve, interp, isa, quat, real};
+#[doc(hidden)]
+pub use quatcurve_eval::synthetic;
+pub use quatcurve_eval::{batch, cpu, error, euclidean, job, output, reference, sampling, skeleton, track};
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;

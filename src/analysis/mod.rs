@@ -16,12 +16,12 @@
 pub mod paper;
 pub mod vertex_error;
 
-use crate::batch::{Batch, TrackView};
 use crate::device::{Device, DeviceError};
-use crate::error::Number;
-use crate::job::EvalJob;
-use crate::output::Output;
-use crate::sampling::{PerTrack, SampleTimes};
+use quatcurve_eval::batch::{Batch, TrackView};
+use quatcurve_eval::error::Number;
+use quatcurve_eval::job::EvalJob;
+use quatcurve_eval::output::Output;
+use quatcurve_eval::sampling::{PerTrack, SampleTimes};
 
 /// Simpson steps per span when no step is given: 1/1000 of the shortest span.
 pub const DEFAULT_STEPS_PER_SPAN: f64 = 1000.0;
@@ -72,7 +72,7 @@ pub enum AnalysisError {
     },
     /// The tracks or sample times break a rule of the builder (named track and key).
     #[error(transparent)]
-    Keys(#[from] crate::error::Error),
+    Keys(#[from] quatcurve_eval::error::Error),
     /// The device rejected the job or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),

@@ -12,12 +12,12 @@
 //! left out of every curve's figures, so all ratios compare the same sequences.
 
 use super::{analyze, AnalysisError, AnalysisOptions, Metrics};
-use crate::batch::Batch;
 use crate::device::Device;
-use crate::synthetic::SplitMix;
-use crate::track::Track;
 use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use quatcurve_core::quat::QuatF64;
+use quatcurve_eval::batch::Batch;
+use quatcurve_eval::synthetic::SplitMix;
+use quatcurve_eval::track::Track;
 
 /// The curves compared, Shoemake's squad first (the baseline).
 pub const CURVES: [(Curve, &str); 5] = [

@@ -7,7 +7,7 @@
 //! 0.01 cm. Poses compose as matrices, so a non-uniform scale's shear counts (ACL's `qvvf`
 //! composition drops it; without non-uniform scale the two agree).
 
-use crate::skeleton::{self, Affine};
+use quatcurve_eval::skeleton::{self, Affine};
 
 /// ACL's default virtual vertex distance, in cm.
 pub const ACL_VERTEX_DISTANCE_CM: f64 = 3.0;

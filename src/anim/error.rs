@@ -37,7 +37,7 @@ pub enum InputError {
     /// Keys the curve builder rejects (the one key validation of the library), naming the
     /// channel as the track and the key.
     #[error(transparent)]
-    Keys(#[from] crate::error::Error),
+    Keys(#[from] quatcurve_eval::error::Error),
     /// An output that could not be written or assembled.
     #[error("{0}")]
     Output(String),

@@ -12,9 +12,9 @@ use super::{bake, ClipRate, LoopMode};
 use crate::anim::error::InputError;
 use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::device::Device;
-use crate::error::Number;
-use crate::skeleton;
 use quatcurve_core::curve::CurveSpec;
+use quatcurve_eval::error::Number;
+use quatcurve_eval::skeleton;
 use serde::{Deserialize, Serialize};
 
 /// Points of each frame interval where the error is measured (the interval's start included,

@@ -5,7 +5,7 @@
 
 use super::gltf::{check_accessor, Element, GltfFile};
 use crate::anim::error::InputError;
-use crate::skeleton::SkinnedMesh;
+use quatcurve_eval::skeleton::SkinnedMesh;
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
 /// normalized (they are divided by their sum either way); normalized-integer weights are also

@@ -1,6 +1,6 @@
 //! Baking: resample keyed animation (glTF, BVH, a synthetic crowd) at a fixed rate with any
 //! curve, rotations through an evaluation [`Device`] and translations/scales through their
-//! Euclidean analogue ([`crate::euclidean`]).
+//! Euclidean analogue ([`quatcurve_eval::euclidean`]).
 //!
 //! Every source is read into one model, [`Animation`]: joints with rest poses, and clips of
 //! keyed [`Channel`]s. [`bake`] resamples the clips; the format modules write the results
@@ -41,15 +41,15 @@ pub use options::BakeOptions;
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
-use crate::batch::{BatchBuilder, Spline};
 use crate::device::Device;
-use crate::error::TrackId;
-use crate::euclidean::VectorCurve;
-use crate::job::EvalJob;
-use crate::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
-use crate::track::Track;
 use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::QuatF64;
+use quatcurve_eval::batch::{BatchBuilder, Spline};
+use quatcurve_eval::error::TrackId;
+use quatcurve_eval::euclidean::VectorCurve;
+use quatcurve_eval::job::EvalJob;
+use quatcurve_eval::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
+use quatcurve_eval::track::Track;
 use rayon::prelude::*;
 
 /// The curve a sidecar names for a fitted input: its own B-splines, whatever `--curve` says.
@@ -104,8 +104,8 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
             if steps.len() == 1 { "" } else { "s" },
             if steps.len() == 1 { "s" } else { "" },
             first + 1,
-            crate::error::Number(channel.times[first + 1]),
-            crate::error::Number(angle.to_degrees()),
+            quatcurve_eval::error::Number(channel.times[first + 1]),
+            quatcurve_eval::error::Number(angle.to_degrees()),
         ))
     };
     channels.par_iter().with_min_len(64).filter_map(warning).collect()
@@ -115,7 +115,7 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LoopMode {
     /// A clip loops when every rotation channel's last key is the same rotation as its first
-    /// (within [`crate::batch::LOOP_TOLERANCE`]) and the curve can loop.
+    /// (within [`quatcurve_eval::batch::LOOP_TOLERANCE`]) and the curve can loop.
     #[default]
     Auto,
     /// Every clip loops; a channel that does not close is an error naming it.
@@ -234,7 +234,7 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
             QuatF64::from_array(c.values[c.values.len() - 1]).normalize(),
         );
         let angle = first.angle_to(last);
-        (angle.is_nan() || angle > crate::batch::LOOP_TOLERANCE).then_some(angle)
+        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
     };
     let rotations = || clip.channels.iter().filter(|c| c.property == Property::Rotation && c.values.len() > 1);
     if clip.channels.iter().any(|c| c.knots.is_some()) {
@@ -264,8 +264,8 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
                     "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
                         is {} rad from its first (at most {})",
                     animation.label(clip, c),
-                    crate::error::Number(angle),
-                    crate::error::Number(crate::batch::LOOP_TOLERANCE)
+                    quatcurve_eval::error::Number(angle),
+                    quatcurve_eval::error::Number(quatcurve_eval::batch::LOOP_TOLERANCE)
                 )));
             }
             Ok(true)
@@ -398,7 +398,7 @@ pub fn bake_each(
 /// every bake; decompressing clip after clip, that was a fifth of the time.
 #[derive(Debug, Default)]
 pub struct Reuse {
-    batch: Option<crate::batch::Batch>,
+    batch: Option<quatcurve_eval::batch::Batch>,
     rotations: Vec<f32>,
 }
 
@@ -528,9 +528,9 @@ fn plan_clips(
                 "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input \
                     past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
                 clip.name,
-                crate::error::Number(end - start),
-                crate::error::Number(frames - 1.0),
-                crate::error::Number(hz),
+                quatcurve_eval::error::Number(end - start),
+                quatcurve_eval::error::Number(frames - 1.0),
+                quatcurve_eval::error::Number(hz),
                 clip.channels.len(),
                 animation.joints.len()
             )));
@@ -628,7 +628,7 @@ enum ChannelWork<'a> {
 /// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
 /// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
 /// per key.
-fn key_error(tracks: &[Track], batch: &crate::batch::Batch, device: &Device) -> Result<f64, InputError> {
+fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &Device) -> Result<f64, InputError> {
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
     let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
     let (out, _) = device.evaluate_f32(&EvalJob::new(batch, &times))?;
@@ -659,11 +659,11 @@ fn key_error(tracks: &[Track], batch: &crate::batch::Batch, device: &Device) -> 
 fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 4]>, InputError> {
     let value = channel.values[0];
     let value = if channel.property == Property::Rotation {
-        crate::batch::normalized_key(id, 0, value)?.to_array()
+        quatcurve_eval::batch::normalized_key(id, 0, value)?.to_array()
     } else if value.iter().all(|v| v.is_finite()) {
         value
     } else {
-        return Err(crate::error::Error::NonFiniteValue {
+        return Err(quatcurve_eval::error::Error::NonFiniteValue {
             track: id.clone(),
             key: 0,
             value: [value[0], value[1], value[2]],

@@ -103,7 +103,7 @@ pub struct BakeOptions {
 impl BakeOptions {
     /// Every option's default.
     pub const DEFAULT: Self = Self {
-        rate: crate::sampling::DEFAULT_RATE,
+        rate: quatcurve_eval::sampling::DEFAULT_RATE,
         exact_rate: false,
         curve: DEFAULT_CURVE,
         curve_options: CurveOptions::DEFAULT,

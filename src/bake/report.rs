@@ -105,7 +105,7 @@ impl InputReport {
 
 /// A warning per clip whose end an exact rate left unbaked ([`super::BakedClip::unbaked_end`]).
 pub(super) fn unbaked_ends(animation: &Animation, baked: &Baked) -> Vec<String> {
-    let number = crate::error::Number;
+    let number = quatcurve_eval::error::Number;
     animation
         .clips
         .iter()

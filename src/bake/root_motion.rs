@@ -8,7 +8,7 @@ use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::{Animation, Property};
-use crate::skeleton::{self, Affine};
+use quatcurve_eval::skeleton::{self, Affine};
 use serde::{Deserialize, Serialize};
 
 /// What `--root-motion` does with the root's horizontal motion.

@@ -18,7 +18,7 @@ use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::{Animation, Property, Skin};
 use crate::device::Device;
-use crate::skeleton::{compose, rigid, Affine};
+use quatcurve_eval::skeleton::{compose, rigid, Affine};
 use rayon::prelude::*;
 
 /// Which texture `bake --texture` writes.
@@ -45,7 +45,7 @@ quatcurve_core::curve::names!(TextureKind, "texture",
     Local => "local", Model => "model", Skin => "skin", ModelTrs => "model-trs", SkinTrs => "skin-trs",
     Vertex => "vertex");
 
-pub use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS, VERTEX_CHANNELS};
+pub use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS, VERTEX_CHANNELS};
 
 impl TextureKind {
     /// Floats per joint and frame.
@@ -363,11 +363,11 @@ pub fn position(model: &[f32], joints: usize, frame: usize, j: usize) -> [f32; 3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::skeleton::trs_row;
+    use quatcurve_eval::skeleton::trs_row;
 
     /// A rotation `x, y, z, w` from a seed, not normalized.
     fn rotation(seed: u64) -> [f32; 4] {
-        let mut rng = crate::synthetic::SplitMix::new(seed);
+        let mut rng = quatcurve_eval::synthetic::SplitMix::new(seed);
         std::array::from_fn(|_| (rng.unit() * 2.0 - 1.0) as f32)
     }
 

@@ -4,7 +4,7 @@
 //! unfolded to a square (`0..1` in two channels; Cigolle et al. 2014). Each has its decoder
 //! here, the formula a shader applies.
 
-use crate::output::VERTEX_CHANNELS;
+use quatcurve_eval::output::VERTEX_CHANNELS;
 
 /// The box skinned positions are remapped to: per axis the smallest and largest coordinate
 /// over every vertex and frame.

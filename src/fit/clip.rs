@@ -12,8 +12,8 @@ use crate::anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form,
 use crate::anim::qcf::quantize::{self, Quantized};
 use crate::anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
 use crate::anim::{Animation, Channel, Property};
-use crate::error::Number;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_eval::error::Number;
 use rayon::prelude::*;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.

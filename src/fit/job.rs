@@ -10,7 +10,7 @@ use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::bake::inputs::{expand, extension, output_stems};
 use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
 use crate::bake::{bvh, gltf, BakeError};
-use crate::error::Number;
+use quatcurve_eval::error::Number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,12 +1,12 @@
 //! Forward kinematics on the GPU for bake's model textures (`shaders/fk.wgsl`), the twin of
-//! [`crate::skeleton::forward_kinematics`]: local rows `[frames, joints, 10]` in, 3x4 model rows
+//! [`quatcurve_eval::skeleton::forward_kinematics`]: local rows `[frames, joints, 10]` in, 3x4 model rows
 //! `[frames, joints, 12]` out. One dispatch per level of the hierarchy, all levels of a chunk
 //! of frames in one pass; frames are split into chunks that fit a storage binding.
 
 use super::context::{ErrorScope, GpuContext};
 use super::shader::{self, Compiled};
 use super::GpuError;
-use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
+use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `FkLevel` (32 bytes).

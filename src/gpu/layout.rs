@@ -4,10 +4,10 @@
 //! `GpuTrack` and `Params` mirror the WGSL structs of `shaders/eval.wgsl` field by field; a
 //! test compares their offsets with naga's layout, so neither side can drift.
 
-use crate::batch::Batch;
-use crate::sampling::{SampleTimes, TrackTimes};
 use bytemuck::{Pod, Zeroable};
 use quatcurve_core::curve::{Blend, Curve};
+use quatcurve_eval::batch::Batch;
+use quatcurve_eval::sampling::{SampleTimes, TrackTimes};
 
 /// One track as the kernel reads it (WGSL `GpuTrack`).
 #[repr(C)]
@@ -83,7 +83,7 @@ pub const FLAG_EXPLICIT_TIMES: u32 = 1;
 /// `FLAG_HAS_LAST` in the shader.
 pub const FLAG_HAS_LAST: u32 = 2;
 /// `FLAG_UNIFORM_KNOTS` in the shader: knots (a B-spline's, or the key times) equally spaced
-/// ([`crate::batch::PackedTrack::uniform_knots`]), so the kernel finds spans by arithmetic
+/// ([`quatcurve_eval::batch::PackedTrack::uniform_knots`]), so the kernel finds spans by arithmetic
 /// and a B-spline takes the fixed polynomial span bases.
 pub const FLAG_UNIFORM_KNOTS: u32 = 4;
 
@@ -547,7 +547,7 @@ fn piece_range(plan: &ChunkPlan, times: &SampleTimes, index: usize) -> std::ops:
 /// The kernel's record of samples `range` of track `index` (the whole track, or one piece),
 /// its entries from `at` in the chunk's arrays and its knots from `knot_offset`.
 fn track_entry(
-    view: &crate::batch::TrackView<'_>,
+    view: &quatcurve_eval::batch::TrackView<'_>,
     times: &SampleTimes,
     index: usize,
     range: std::ops::Range<usize>,

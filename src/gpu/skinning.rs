@@ -1,13 +1,13 @@
 //! Linear blend skinning on the GPU for vertex textures (`shaders/skin_mesh.wgsl`), the twin of
-//! [`crate::skeleton::skin`]: bind-space vertices, their influences and skinning matrices
+//! [`quatcurve_eval::skeleton::skin`]: bind-space vertices, their influences and skinning matrices
 //! `[frames, joints, 12]` in, skinned vertices `[frames, vertices, 6]` out. Frames are split
 //! into chunks whose matrices and output each fit a storage binding.
 
 use super::context::{ErrorScope, GpuContext};
 use super::shader::{self, Compiled};
 use super::GpuError;
-use crate::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
-use crate::skeleton::SkinnedMesh;
+use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
+use quatcurve_eval::skeleton::SkinnedMesh;
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `SkinMeshJob` (32 bytes).

@@ -5,12 +5,12 @@
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
 use crate::anim::{Channel, Clip, Joint, Property};
-use crate::batch::BatchBuilder;
-use crate::error::TrackId;
-use crate::euclidean::VectorCurve;
-use crate::track::Track;
 use quatcurve_core::curve::CurveSpec;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_eval::batch::BatchBuilder;
+use quatcurve_eval::error::TrackId;
+use quatcurve_eval::euclidean::VectorCurve;
+use quatcurve_eval::track::Track;
 
 /// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
 pub const ORDER: usize = 4;
@@ -74,12 +74,12 @@ impl Fit<QuatF64> {
     ///
     /// # Errors
     /// The batch builder's, for a knot vector it refuses (a fit never makes one).
-    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<QuatF64>> {
+    pub fn evaluate(&self, times: &[f64]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
         let (track, spec) = self.track();
         let mut builder = BatchBuilder::new();
         builder.add(&track, &spec)?;
         let batch = builder.build()?;
-        Ok(times.iter().map(|&t| crate::reference::evaluate_rotation(batch.view(0), t)).collect())
+        Ok(times.iter().map(|&t| quatcurve_eval::reference::evaluate_rotation(batch.view(0), t)).collect())
     }
 }
 
@@ -88,7 +88,7 @@ impl Fit<[f64; 3]> {
     ///
     /// # Errors
     /// The evaluator's, for a knot vector it refuses (a fit never makes one).
-    pub fn evaluate(&self, times: &[f64]) -> crate::error::Result<Vec<Vec3F64>> {
+    pub fn evaluate(&self, times: &[f64]) -> quatcurve_eval::error::Result<Vec<Vec3F64>> {
         let id = TrackId { index: 0, name: None };
         let curve = VectorCurve::new(&id, None, &self.controls, Some(&self.knots), &spline_spec(self.order()))?;
         Ok(times.iter().map(|&t| curve.evaluate(t)).collect())

@@ -9,10 +9,10 @@ pub mod timeline;
 
 use crate::anim::error::{ContainerError, InputError};
 use crate::anim::{Animation, Joint, Property};
-use crate::batch::MIN_KEY_NORM;
-use crate::error::Number;
 use fitted::{Fitted, FittedChannel, FittedClip, Form, ORDER};
 use quantize::{Quantized, QuantizedRotations, MAX_BITS};
+use quatcurve_eval::batch::MIN_KEY_NORM;
+use quatcurve_eval::error::Number;
 use timeline::{Timeline, BETWEEN_POINTS};
 
 /// The first bytes of a container.
@@ -73,7 +73,7 @@ impl Container {
 
     /// Every clip's rotation channels as tracks ([`FittedClip::rotation_tracks`]).
     #[must_use]
-    pub fn rotation_tracks(&self) -> Vec<crate::track::Track> {
+    pub fn rotation_tracks(&self) -> Vec<quatcurve_eval::track::Track> {
         self.clips.iter().flat_map(|c| c.rotation_tracks(&self.joints)).collect()
     }
 

@@ -1,7 +1,7 @@
 //! The skeleton's maths in f64, once for every user: affine transforms (`T * R * S`, composed,
 //! inverted, taken apart again), forward kinematics down a joint hierarchy, and linear blend
-//! skinning. It is the CPU path of [`crate::device::Device::forward_kinematics`] and
-//! [`crate::device::Device::skin`] and the oracle their GPU kernels (`shaders/fk.wgsl`,
+//! skinning. It is the CPU path of `Device::forward_kinematics` and `Device::skin` (in
+//! `quatcurve`) and the oracle their GPU kernels (`shaders/fk.wgsl`,
 //! `shaders/skin_mesh.wgsl`) are held to; the bake's textures, its error budgets, root motion
 //! and the fit's virtual-vertex error all compose transforms through it.
 

@@ -64,7 +64,7 @@ pub(super) fn aligned<'a>(id: &'a TrackId, rotations: &'a [[f64; 4]]) -> impl It
 
 /// Key `key` of track `id` as a unit quaternion: finite and not (near) zero. The one check of
 /// a rotation key, also for the keys bake holds constant.
-pub(crate) fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<QuatF64> {
+pub fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<QuatF64> {
     let q = QuatF64::from_array(value);
     if !q.is_finite() {
         return Err(Error::NonFiniteKey { track: id.clone(), key, value });
