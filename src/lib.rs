@@ -38,10 +38,7 @@ pub mod analysis;
 pub mod anim;
 pub mod arrays;
 pub mod bake;
-pub mod device;
 pub mod fit;
-#[cfg(feature = "gpu")]
-pub mod gpu;
 pub mod io;
 pub mod options;
 // Charts serve the CLI; they are not part of the library's API.
@@ -51,12 +48,16 @@ pub mod plot;
 #[cfg(feature = "view")]
 pub mod view;
 
-// The maths, from quatcurve-core (no I/O), and evaluation without a GPU, from quatcurve-eval:
-// one library at one root.
+// The lower crates' modules at one root, so users see one library: the maths (quatcurve-core,
+// no I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu) and the
+// device over them (quatcurve-device).
 pub use quatcurve_core::{curve, interp, isa, quat, real};
+pub use quatcurve_device as device;
 #[doc(hidden)]
 pub use quatcurve_eval::synthetic;
 pub use quatcurve_eval::{batch, cpu, error, euclidean, job, output, reference, sampling, skeleton, track};
+#[cfg(feature = "gpu")]
+pub use quatcurve_gpu as gpu;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;

@@ -16,7 +16,7 @@
 pub mod paper;
 pub mod vertex_error;
 
-use crate::device::{Device, DeviceError};
+use quatcurve_device::{Device, DeviceError};
 use quatcurve_eval::batch::{Batch, TrackView};
 use quatcurve_eval::error::Number;
 use quatcurve_eval::job::EvalJob;

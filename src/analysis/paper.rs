@@ -12,9 +12,9 @@
 //! left out of every curve's figures, so all ratios compare the same sequences.
 
 use super::{analyze, AnalysisError, AnalysisOptions, Metrics};
-use crate::device::Device;
 use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
 use quatcurve_core::quat::QuatF64;
+use quatcurve_device::Device;
 use quatcurve_eval::batch::Batch;
 use quatcurve_eval::synthetic::SplitMix;
 use quatcurve_eval::track::Track;

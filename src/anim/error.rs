@@ -1,7 +1,7 @@
 //! Why one input could not be read or baked ([`InputError`]): the job goes on with the other
 //! inputs and reports it.
 
-use crate::device::DeviceError;
+use quatcurve_device::DeviceError;
 
 /// Why one input could not be baked. Every kind but a failing device is the input's (the
 /// command line's exit code 2; a device failure is exit code 1).

@@ -41,9 +41,9 @@ pub use options::BakeOptions;
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
-use crate::device::Device;
 use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::QuatF64;
+use quatcurve_device::Device;
 use quatcurve_eval::batch::{BatchBuilder, Spline};
 use quatcurve_eval::error::TrackId;
 use quatcurve_eval::euclidean::VectorCurve;

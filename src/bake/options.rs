@@ -8,11 +8,11 @@ use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::LoopMode;
-use crate::device::DeviceChoice;
 #[cfg(feature = "cli")]
 use crate::options::names;
 use crate::options::CurveOptions;
 use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, DEFAULT_CURVE};
+use quatcurve_device::DeviceChoice;
 use serde::{Deserialize, Serialize};
 
 /// The options of a bake (DESIGN section 5b).

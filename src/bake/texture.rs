@@ -17,7 +17,7 @@
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::{Animation, Property, Skin};
-use crate::device::Device;
+use quatcurve_device::Device;
 use quatcurve_eval::skeleton::{compose, rigid, Affine};
 use rayon::prelude::*;
 

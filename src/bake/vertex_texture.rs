@@ -11,7 +11,7 @@ use super::texture_file::SheetSpec;
 use super::Baked;
 use crate::anim::error::InputError;
 use crate::anim::Animation;
-use crate::device::{Device, DeviceError};
+use quatcurve_device::{Device, DeviceError};
 use std::sync::Mutex;
 use std::time::Instant;
 

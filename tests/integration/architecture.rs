@@ -136,6 +136,10 @@ struct Crate {
     package: String,
     ident: String,
     dir: PathBuf,
+    /// The module its root is, when its name after `quatcurve-` is one of the layer table's
+    /// modules (`quatcurve-gpu` is the module `gpu`: `src/lib.rs` is `gpu/mod.rs`, `src/fk.rs`
+    /// `gpu/fk.rs`); empty for a crate whose root only declares modules.
+    module: Vec<String>,
     /// A library (`src/lib.rs`), or a package's binary (`src/main.rs` and the modules it
     /// declares), which uses its library through the public API like any user.
     library: bool,
@@ -143,6 +147,7 @@ struct Crate {
 
 /// The crate table's rows `| `package` | `path` | ... |`, in order.
 fn crate_table(doc: &str) -> Vec<Crate> {
+    let layers = layers(doc);
     let section = doc.split("## Crates").nth(1).expect("ARCHITECTURE.md has a `## Crates` section");
     let section = section.split("\n## ").next().unwrap();
     section
@@ -151,7 +156,14 @@ fn crate_table(doc: &str) -> Vec<Crate> {
             let cells: Vec<&str> = line.split('|').map(str::trim).collect();
             let package = quoted(cells.get(1)?).first()?.to_string();
             let path = quoted(cells.get(2)?).first()?.to_string();
-            Some(Crate { ident: package.replace('-', "_"), package, dir: root().join(path), library: true })
+            let module = package.strip_prefix("quatcurve-").filter(|m| layers.contains_key(*m)).map(String::from);
+            Some(Crate {
+                ident: package.replace('-', "_"),
+                module: module.into_iter().collect(),
+                package,
+                dir: root().join(path),
+                library: true,
+            })
         })
         .collect()
 }
@@ -370,13 +382,14 @@ impl Workspace {
                 Vec::new()
             };
             let bin = main.is_file().then(|| {
-                crates.push(Crate { ident: String::new(), library: false, ..crates[k].clone() });
+                crates.push(Crate { ident: String::new(), library: false, module: Vec::new(), ..crates[k].clone() });
                 crates.len() - 1
             });
             for path in sources(&src) {
-                let module = module_of(path.strip_prefix(&src).unwrap());
-                let in_bin = path == main || module.first().is_some_and(|m| bin_modules.contains(m));
+                let own = module_of(path.strip_prefix(&src).unwrap());
+                let in_bin = path == main || own.first().is_some_and(|m| bin_modules.contains(m));
                 let krate = if in_bin { bin.unwrap() } else { k };
+                let module = [crates[krate].module.clone(), own].concat();
                 files.push(File { krate, code: code_of(&read(&path)), path, module });
             }
         }
@@ -406,7 +419,7 @@ impl Workspace {
         let path = &named.path;
         let first = path.first()?.as_str();
         match first {
-            "crate" => Some((file.krate, path[1..].to_vec())),
+            "crate" => Some((file.krate, [&self.crates[file.krate].module[..], &path[1..]].concat())),
             "super" | "self" => {
                 let mut scope = named.scope.clone();
                 let mut rest = &path[..];
@@ -421,7 +434,7 @@ impl Workspace {
             }
             _ => {
                 if let Some(k) = self.crates.iter().position(|c| c.ident == first) {
-                    return Some((k, path[1..].to_vec()));
+                    return Some((k, [&self.crates[k].module[..], &path[1..]].concat()));
                 }
                 // A child module of the scope named without `self::`.
                 let mut child = named.scope.clone();

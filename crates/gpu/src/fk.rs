@@ -81,7 +81,7 @@ impl ForwardKinematics {
 
     /// Model matrices of every joint and frame from local rows (see the module docs):
     /// `parents[j]` is joint `j`'s parent, `order` lists parents before children
-    /// ([`crate::anim::Animation::parents_first`]). Computed in f32 (the CPU twin composes
+    /// (`Animation::parents_first` in `quatcurve::anim`). Computed in f32 (the CPU twin composes
     /// in f64).
     ///
     /// # Errors

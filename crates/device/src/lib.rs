@@ -3,13 +3,13 @@
 //! evaluates curves, runs forward kinematics and skins meshes, so no caller matches on
 //! which path it holds.
 
-#[cfg(feature = "gpu")]
-use crate::gpu::{GpuError, GpuEvaluator};
 use quatcurve_core::curve::names;
 use quatcurve_eval::cpu::CpuEvaluator;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, Output};
 use quatcurve_eval::skeleton::{self, SkinnedMesh};
+#[cfg(feature = "gpu")]
+use quatcurve_gpu::{GpuError, GpuEvaluator};
 use std::fmt;
 
 /// What the user asked for (`--device`).
@@ -213,7 +213,7 @@ impl Device {
         match self {
             #[cfg(feature = "gpu")]
             Device::Gpu(g) | Device::Auto(g, _) => g
-                .skin_mesh(&crate::gpu::skinning::BindMesh::of(mesh), skin_joints, matrices)
+                .skin_mesh(&quatcurve_gpu::skinning::BindMesh::of(mesh), skin_joints, matrices)
                 .map_err(|e| DeviceError::Device(format!("skinning: {e}"))),
             Device::Cpu(_) | Device::Reference => {
                 Ok(skeleton::skin(mesh, skin_joints, matrices).into_iter().map(|v| v as f32).collect())

@@ -4,58 +4,58 @@
 /// The shader files in the order they are concatenated into one module. WGSL has no
 /// `#include`; module-scope declarations are order-independent, so order is only for reading.
 pub const FILES: [(&str, &str); 5] = [
-    ("real.wgsl", include_str!("../../shaders/real.wgsl")),
-    ("quat.wgsl", include_str!("../../shaders/quat.wgsl")),
-    ("basis.wgsl", include_str!("../../shaders/basis.wgsl")),
-    ("segment.wgsl", include_str!("../../shaders/segment.wgsl")),
-    ("eval.wgsl", include_str!("../../shaders/eval.wgsl")),
+    ("real.wgsl", include_str!("../../../shaders/real.wgsl")),
+    ("quat.wgsl", include_str!("../../../shaders/quat.wgsl")),
+    ("basis.wgsl", include_str!("../../../shaders/basis.wgsl")),
+    ("segment.wgsl", include_str!("../../../shaders/segment.wgsl")),
+    ("eval.wgsl", include_str!("../../../shaders/eval.wgsl")),
 ];
 
 /// The forward-kinematics program of bake's model textures: the quaternion helpers it shares
 /// with the evaluator, then its kernel.
 pub const FK_FILES: [(&str, &str); 3] = [
-    ("real.wgsl", include_str!("../../shaders/real.wgsl")),
-    ("quat.wgsl", include_str!("../../shaders/quat.wgsl")),
-    ("fk.wgsl", include_str!("../../shaders/fk.wgsl")),
+    ("real.wgsl", include_str!("../../../shaders/real.wgsl")),
+    ("quat.wgsl", include_str!("../../../shaders/quat.wgsl")),
+    ("fk.wgsl", include_str!("../../../shaders/fk.wgsl")),
 ];
 
 /// The mesh-skinning program of vertex textures: self-contained.
-pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../shaders/skin_mesh.wgsl"))];
+pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../../shaders/skin_mesh.wgsl"))];
 
 /// The bone-texture library a renderer includes (`quatcurve shaders`): self-contained, read
 /// with the bake's textures of `--format exr|png16` (DESIGN section 5c).
-pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../../shaders/bone_texture.wgsl"))];
+pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../../../shaders/bone_texture.wgsl"))];
 
 /// The minimal skinned vertex shader over the bone library: what `quatcurve shaders` ships and
 /// what the GLSL and HLSL are generated from.
 pub const SKIN_VERTEX_FILES: [(&str, &str); 2] =
-    [BONE_FILES[0], ("skin_vertex.wgsl", include_str!("../../shaders/skin_vertex.wgsl"))];
+    [BONE_FILES[0], ("skin_vertex.wgsl", include_str!("../../../shaders/skin_vertex.wgsl"))];
 
 /// The bone library's test and error probe: its functions at given (clip, joint, time) queries
 /// in a compute pass, so the host measures the shader a renderer runs.
 pub const BONE_PROBE_FILES: [(&str, &str); 2] =
-    [BONE_FILES[0], ("bone_probe.wgsl", include_str!("../../shaders/bone_probe.wgsl"))];
+    [BONE_FILES[0], ("bone_probe.wgsl", include_str!("../../../shaders/bone_probe.wgsl"))];
 
 /// The vertex-texture library (composed after the bone library, whose frame rule it shares)
 /// and its minimal crowd vertex shader: what `quatcurve shaders --program vertex` ships
 /// (DESIGN section 5d).
 pub const VERTEX_TEXTURE_FILES: [(&str, &str); 3] = [
     BONE_FILES[0],
-    ("vertex_texture.wgsl", include_str!("../../shaders/vertex_texture.wgsl")),
-    ("vertex_texture_vertex.wgsl", include_str!("../../shaders/vertex_texture_vertex.wgsl")),
+    ("vertex_texture.wgsl", include_str!("../../../shaders/vertex_texture.wgsl")),
+    ("vertex_texture_vertex.wgsl", include_str!("../../../shaders/vertex_texture_vertex.wgsl")),
 ];
 
 /// The vertex-texture library's test probe: its functions at given (clip, vertex, time)
 /// queries in a compute pass.
 pub const VERTEX_PROBE_FILES: [(&str, &str); 3] = [
     BONE_FILES[0],
-    ("vertex_texture.wgsl", include_str!("../../shaders/vertex_texture.wgsl")),
-    ("vertex_probe.wgsl", include_str!("../../shaders/vertex_probe.wgsl")),
+    ("vertex_texture.wgsl", include_str!("../../../shaders/vertex_texture.wgsl")),
+    ("vertex_probe.wgsl", include_str!("../../../shaders/vertex_probe.wgsl")),
 ];
 
 /// The fragment shader of `quatcurve view`'s page: a fixed light on the crowd shaders' normal.
 pub const VIEWER_FRAGMENT_FILES: [(&str, &str); 1] =
-    [("viewer_fragment.wgsl", include_str!("../../shaders/viewer_fragment.wgsl"))];
+    [("viewer_fragment.wgsl", include_str!("../../../shaders/viewer_fragment.wgsl"))];
 
 /// Name of the viewer's fragment entry point.
 pub const VIEWER_FRAGMENT_ENTRY_POINT: &str = "viewer_fragment";
