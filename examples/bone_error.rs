@@ -6,9 +6,10 @@
 //! Run: `cargo run --release --example bone_error -- ../shared/data [CHART.png]`.
 
 use quatcurve::anim::Animation;
+use quatcurve::anim::{bvh, gltf};
 use quatcurve::bake::budget::{self, ErrorBudget, Setting};
 use quatcurve::bake::texture::{Precision, TextureKind};
-use quatcurve::bake::{bvh, gltf, LoopMode};
+use quatcurve::bake::LoopMode;
 use quatcurve::plot::{self, Line};
 use quatcurve::{CurveSpec, Device, DeviceChoice};
 use std::path::Path;

@@ -2,7 +2,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::bake::{self, bvh, LoopMode};
+use quatcurve::anim::bvh;
+use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {
@@ -20,7 +21,7 @@ fuzz_target!(|bytes: &[u8]| {
         LoopMode::Auto,
         &device,
     ) {
-        let _ = file.to_text(&animation.clips[0], &baked);
+        let _ = file.to_text(&animation.clips[0], &baked.frames()[0]);
         if let Ok(order) = animation.parents_first() {
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, &device);
         }

@@ -3,7 +3,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::bake::{self, bvh, LoopMode};
+use quatcurve::anim::bvh;
+use quatcurve::bake::{self, LoopMode};
 use quatcurve::anim::qcf::Container;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
@@ -22,7 +23,7 @@ fuzz_target!(|bytes: &[u8]| {
         &device,
     ) {
         if let Some(skeleton) = &container.bvh {
-            let _ = bvh::skeleton(skeleton, &animation).map(|file| file.to_text(&animation.clips[0], &baked));
+            let _ = bvh::skeleton(skeleton, &animation).map(|file| file.to_text(&animation.clips[0], &baked.frames()[0]));
         }
         if let Ok(order) = animation.parents_first() {
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, &device);

@@ -3,7 +3,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::bake::{self, gltf, LoopMode};
+use quatcurve::anim::gltf;
+use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 use std::path::Path;
 
@@ -19,7 +20,7 @@ fuzz_target!(|bytes: &[u8]| {
         LoopMode::Auto,
         &device,
     ) {
-        let _ = file.to_glb(&baked);
+        let _ = file.to_glb(&baked.frames());
         let Ok(order) = file.animation.parents_first() else { return };
         for clip in 0..baked.clips.len() {
             let _ =

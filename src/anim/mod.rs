@@ -1,13 +1,32 @@
 //! The animation model every source is read into and every product starts from: joints with
 //! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
-//! scale as keys or as a fitted B-spline ([`Channel::knots`]). Importers fill it
-//! ([`crate::bake::gltf`], [`crate::bake::bvh`], [`crate::bake::crowd`], fitted containers
-//! through [`qcf`]); the bake resamples it and the fit compresses it.
+//! scale as keys or as a fitted B-spline ([`Channel::knots`]). Importers fill it ([`gltf`],
+//! [`bvh`], [`crowd`], fitted containers through [`qcf`]); the bake resamples it, the fit
+//! compresses it, and the formats write baked frames back ([`ClipFrames`]).
 
+pub mod bvh;
+pub mod crowd;
+mod draco;
 pub mod error;
+pub mod glb;
+pub mod gltf;
+pub mod mesh;
 pub mod qcf;
 
 use error::InputError;
+
+/// One clip resampled on a uniform grid of frames: what the format writers write back
+/// ([`gltf::GltfFile::to_glb`], [`bvh::BvhFile::to_text`]), as the bake leaves it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClipFrames<'a> {
+    /// The frames' times in seconds, uniform, from the clip's first key.
+    pub times: &'a [f64],
+    /// Frames per second of `times`.
+    pub rate: f64,
+    /// Per channel, in the clip's order: one value per frame (`x, y, z, w`; a vector's `w`
+    /// unused).
+    pub values: Vec<&'a [[f32; 4]]>,
+}
 
 /// Centimetres in a glTF unit: glTF lengths are metres.
 pub const GLTF_UNIT_CM: f64 = 100.0;

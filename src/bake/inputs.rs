@@ -3,9 +3,9 @@
 //! common model with what it needs to write itself back (`Source`): glTF, BVH or a fitted container.
 
 use super::error::BakeError;
-use super::{bvh, gltf};
 use crate::anim::error::InputError;
 use crate::anim::Animation;
+use crate::anim::{bvh, gltf};
 use std::path::{Path, PathBuf};
 
 /// A source read into the common model, with what it needs to write itself back.

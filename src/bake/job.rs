@@ -22,9 +22,10 @@ use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
-use super::{crowd, gltf, mesh, vertex_glb, Baked, ClipRate};
+use super::{vertex_glb, Baked, ClipRate};
 use crate::anim::error::InputError;
 use crate::anim::Animation;
+use crate::anim::{crowd, gltf, mesh};
 use crate::io::write_atomic;
 use quatcurve_device::Device;
 use std::path::{Path, PathBuf};
@@ -466,9 +467,9 @@ impl BakeJob {
             ));
         }
         let baked_file = match src {
-            Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(baked)?)),
+            Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(&baked.frames())?)),
             Source::Bvh(file, animation) => {
-                Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], baked).into_bytes()))
+                Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
             }
             Source::Crowd(_) | Source::Fitted(_) => None,
         };

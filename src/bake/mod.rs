@@ -2,23 +2,17 @@
 //! curve, rotations through an evaluation [`Device`] and translations/scales through their
 //! Euclidean analogue ([`quatcurve_eval::euclidean`]).
 //!
-//! Every source is read into one model, [`Animation`]: joints with rest poses, and clips of
-//! keyed [`Channel`]s. [`bake`] resamples the clips; the format modules write the results
-//! back ([`gltf`], [`bvh`]) and [`texture`] lays them out as animation textures (local,
-//! model-space by forward kinematics, skin matrices).
+//! Every source is read into one model, [`Animation`] (`crate::anim`): joints with rest poses,
+//! and clips of keyed [`Channel`]s. [`bake`] resamples the clips; the formats write the
+//! results back ([`Baked::frames`]) and [`texture`] lays them out as animation textures
+//! (local, model-space by forward kinematics, skin matrices).
 
 pub mod budget;
-pub mod bvh;
-pub mod crowd;
-mod draco;
 pub mod error;
-mod glb;
-pub mod gltf;
 pub mod image;
 pub mod inputs;
 pub mod job;
 pub mod manifest;
-pub mod mesh;
 pub mod options;
 pub(crate) mod outputs;
 mod report;
@@ -34,7 +28,7 @@ mod workers;
 
 use crate::anim::error::InputError;
 use crate::anim::error::InputError as E;
-use crate::anim::{Animation, Channel, Clip, Property};
+use crate::anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use error::BakeError;
 pub use job::BakeJob;
 pub use options::BakeOptions;
@@ -189,6 +183,15 @@ impl Baked {
     #[must_use]
     pub fn in_place(&self, clip: usize) -> Option<&root_motion::InPlace> {
         self.in_place.get(clip).and_then(Option::as_ref)
+    }
+
+    /// Every clip's frames, in order: what the format writers write back
+    /// ([`crate::anim::gltf::GltfFile::to_glb`], [`crate::anim::bvh::BvhFile::to_text`]).
+    #[must_use]
+    pub fn frames(&self) -> Vec<ClipFrames<'_>> {
+        (0..self.clips.len())
+            .map(|c| ClipFrames { times: &self.clips[c].times, rate: self.clips[c].rate, values: self.values(c) })
+            .collect()
     }
 
     /// Clip `clip`'s channels (in the clip's order), one value per frame: rotations

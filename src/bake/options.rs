@@ -3,11 +3,11 @@
 //! Which inputs, where to, which shard and how many at once are the job's ([`super::BakeJob`]).
 
 use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
-use super::crowd;
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::LoopMode;
+use crate::anim::crowd;
 #[cfg(feature = "cli")]
 use crate::options::names;
 use crate::options::CurveOptions;

@@ -4,9 +4,9 @@
 //! `TEXCOORD_0` that addresses each vertex's texel within a frame.
 
 use super::image::Grid;
-use super::mesh::SkinnedPrimitive;
 use super::texture::TextureKind;
 use crate::anim::error::InputError;
+use crate::anim::mesh::SkinnedPrimitive;
 use serde_json::{json, Value};
 
 /// glTF's `ARRAY_BUFFER` and `ELEMENT_ARRAY_BUFFER` buffer-view targets.
@@ -109,5 +109,5 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    super::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
+    crate::anim::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
 }

@@ -425,7 +425,8 @@ struct SkinningTiming {
 /// Skins every skinned primitive of `file` at `args.samples` frames of its first clip (the
 /// skin matrices baked once, before the timing) on the CPU and the GPU.
 fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, Failure> {
-    use quatcurve::bake::{self, gltf, mesh, texture};
+    use quatcurve::anim::{gltf, mesh};
+    use quatcurve::bake::{self, texture};
     use quatcurve::skeleton;
     let input = |e: String| Failure::Input(format!("bench --skinning {}: {e}", file.display()));
     let source = gltf::read(file, gltf::UriPolicy::default()).map_err(|e| input(e.to_string()))?;

@@ -6,10 +6,11 @@
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use crate::anim::error::InputError;
 use crate::anim::qcf::{BvhSkeleton, Container, EXTENSION};
+use crate::anim::{bvh, gltf};
 use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::bake::inputs::{expand, extension, output_stems};
 use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
-use crate::bake::{bvh, gltf, BakeError};
+use crate::bake::BakeError;
 use quatcurve_eval::error::Number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

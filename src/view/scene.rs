@@ -7,9 +7,9 @@
 
 use super::files::url_path;
 use super::texels::Texels;
-use crate::bake::gltf::{self, UriPolicy};
+use crate::anim::gltf::{self, UriPolicy};
+use crate::anim::mesh::{self, SkinnedPrimitive};
 use crate::bake::image::{Format, Grid};
-use crate::bake::mesh::{self, SkinnedPrimitive};
 use crate::bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
 use crate::bake::texture::TextureKind;
 use crate::bake::vertex_encoding::Bounds;

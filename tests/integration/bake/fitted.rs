@@ -6,10 +6,11 @@
 use super::{bake, data_dir, stderr};
 use assert_cmd::Command;
 use quatcurve::analysis::vertex_error::{pose_errors, Transform};
+use quatcurve::anim::bvh;
 use quatcurve::anim::qcf::fitted::{Fitted, Form};
 use quatcurve::anim::qcf::Container;
 use quatcurve::anim::{Animation, Property};
-use quatcurve::bake::{self as bake_lib, bvh, ClipRate, LoopMode, Reuse};
+use quatcurve::bake::{self as bake_lib, ClipRate, LoopMode, Reuse};
 use std::path::Path;
 
 /// CMU's BVH unit in cm.

@@ -20,7 +20,7 @@ mod viewer;
 
 use assert_cmd::Command;
 use base64::Engine;
-use quatcurve::bake::bvh::{self, BvhChannel};
+use quatcurve::anim::bvh::{self, BvhChannel};
 use quatcurve::QuatF64;
 use std::path::{Path, PathBuf};
 

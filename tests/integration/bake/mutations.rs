@@ -10,7 +10,8 @@
 use super::{data_dir, tiny_gltf};
 use proptest::prelude::*;
 use quatcurve::anim::error::InputError;
-use quatcurve::bake::{self, bvh, gltf, LoopMode};
+use quatcurve::anim::{bvh, gltf};
+use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, SampleTimes, Sampling, TrackFile};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -251,7 +252,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
                 return Ok(Reached::Skipped("no clip"));
             }
             let baked = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
-            file.to_glb(&baked)?;
+            file.to_glb(&baked.frames())?;
             let order = file.animation.parents_first()?;
             for clip in 0..baked.clips.len() {
                 let _ = bake::texture::sheets(
@@ -273,7 +274,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
                 return Ok(Reached::Skipped("no clip"));
             }
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
-            let _ = file.to_text(&animation.clips[0], &baked);
+            let _ = file.to_text(&animation.clips[0], &baked.frames()[0]);
             let order = animation.parents_first()?;
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
             Ok(Reached::Baked(baked.sample_count()))
@@ -286,7 +287,8 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             }
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
             if let Some(skeleton) = &container.bvh {
-                let _ = bvh::skeleton(skeleton, &animation).map(|file| file.to_text(&animation.clips[0], &baked));
+                let _ = bvh::skeleton(skeleton, &animation)
+                    .map(|file| file.to_text(&animation.clips[0], &baked.frames()[0]));
             }
             let order = animation.parents_first()?;
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());

@@ -5,8 +5,8 @@
 
 use super::data_dir;
 use glam::{DMat4, DQuat, DVec3};
-use quatcurve::bake::gltf::{self, UriPolicy};
-use quatcurve::bake::mesh::{skinned_primitives, SkinnedPrimitive};
+use quatcurve::anim::gltf::{self, UriPolicy};
+use quatcurve::anim::mesh::{skinned_primitives, SkinnedPrimitive};
 use quatcurve::bake::vertex_encoding::Bounds;
 use quatcurve::bake::{texture, ClipRate, LoopMode};
 use quatcurve::curve::{Curve, CurveSpec};

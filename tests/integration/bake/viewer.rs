@@ -8,8 +8,8 @@
 use super::vertex::{independent, open};
 use super::{bake, data_dir, json, stderr};
 use glam::{DMat4, DVec3, DVec4};
-use quatcurve::bake::gltf::{self, UriPolicy};
-use quatcurve::bake::mesh::skinned_primitives;
+use quatcurve::anim::gltf::{self, UriPolicy};
+use quatcurve::anim::mesh::skinned_primitives;
 use quatcurve::output::VERTEX_CHANNELS;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};

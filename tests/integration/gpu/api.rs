@@ -271,8 +271,9 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
 #[test]
 fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     let Some(gpu) = gpu() else { return };
+    use quatcurve::anim::crowd;
     use quatcurve::anim::Joint;
-    use quatcurve::bake::{crowd, texture};
+    use quatcurve::bake::texture;
     let mut animation = crowd::crowd(3);
     // A 40-joint chain under the crowd's first root, scaled unevenly, not animated.
     for k in 0..40 {

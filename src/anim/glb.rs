@@ -4,9 +4,7 @@
 //! which holds only bytes a kept buffer view covers. A file that uses an extension this writer
 //! does not know might refer to anything by index, so there nothing is removed or renumbered.
 
-use super::Baked;
-
-use crate::anim::{Clip, Property};
+use crate::anim::{Clip, ClipFrames, Property};
 
 use crate::anim::error::InputError;
 
@@ -225,7 +223,7 @@ pub(super) fn write(
     buffers: &[Vec<u8>],
     clips: &[Clip],
     samplers: &[Vec<(usize, usize)>],
-    baked: &Baked,
+    frames: &[ClipFrames<'_>],
 ) -> Result<Vec<u8>, InputError> {
     let mut json = json.clone();
     let old_views: Vec<Value> = json["bufferViews"].as_array().cloned().unwrap_or_default();
@@ -317,11 +315,11 @@ pub(super) fn write(
         accessors.push(accessor);
         accessors.len() - 1
     };
-    for (index, ((clip, sources), result)) in clips.iter().zip(samplers).zip(&baked.clips).enumerate() {
-        let times: Vec<f32> = result.times.iter().map(|&t| t as f32).collect();
+    for ((clip, sources), frames) in clips.iter().zip(samplers).zip(frames) {
+        let times: Vec<f32> = frames.times.iter().map(|&t| t as f32).collect();
         let bounds = (times[0], times[times.len() - 1]);
         let input_accessor = push(&mut bin, &times, "SCALAR", times.len(), Some(bounds));
-        for ((channel, &(anim, sampler)), values) in clip.channels.iter().zip(sources).zip(baked.values(index)) {
+        for ((channel, &(anim, sampler)), values) in clip.channels.iter().zip(sources).zip(&frames.values) {
             let (data, kind): (Vec<f32>, _) = match channel.property {
                 Property::Rotation => (values.iter().flatten().copied().collect(), "VEC4"),
                 _ => (values.iter().flat_map(|v| [v[0], v[1], v[2]]).collect(), "VEC3"),
@@ -349,7 +347,7 @@ pub(super) fn write(
 ///
 /// # Errors
 /// [`InputError::Animation`] saying `too_large`.
-pub(super) fn assemble(json: &Value, bin: Vec<u8>, too_large: &str) -> Result<Vec<u8>, InputError> {
+pub fn assemble(json: &Value, bin: Vec<u8>, too_large: &str) -> Result<Vec<u8>, InputError> {
     if u32::try_from(bin.len() + (1 << 20)).is_err() {
         return Err(InputError::Animation(too_large.into()));
     }

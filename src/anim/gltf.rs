@@ -7,9 +7,8 @@
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 use super::glb::GLB_MAGIC;
-use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::{Animation, Channel, Clip, Joint, Property, Skin};
+use crate::anim::{Animation, Channel, Clip, ClipFrames, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;
@@ -521,7 +520,7 @@ impl GltfFile {
     ///
     /// # Errors
     /// [`InputError::Animation`] if the GLB would exceed 4 GiB.
-    pub fn to_glb(&self, baked: &Baked) -> Result<Vec<u8>, InputError> {
-        super::glb::write(&self.json, &self.buffers, &self.animation.clips, &self.samplers, baked)
+    pub fn to_glb(&self, frames: &[ClipFrames<'_>]) -> Result<Vec<u8>, InputError> {
+        super::glb::write(&self.json, &self.buffers, &self.animation.clips, &self.samplers, frames)
     }
 }

@@ -7,9 +7,8 @@
 //! the hierarchy text byte for byte and converts each resampled rotation to the joint's own
 //! channel order, unwrapping angles to the previous frame so curves stay continuous.
 
-use super::Baked;
 use crate::anim::error::InputError;
-use crate::anim::{Animation, Channel, Clip, Joint, Property};
+use crate::anim::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -370,12 +369,11 @@ impl BvhFile {
 
     /// BVH text of the baked clip at its baked rate: the original hierarchy, new frames.
     #[must_use]
-    pub fn to_text(&self, clip: &Clip, baked: &Baked) -> String {
-        let (result, values) = (&baked.clips[0], baked.values(0));
-        let frames = result.times.len();
+    pub fn to_text(&self, clip: &Clip, baked: &ClipFrames<'_>) -> String {
+        let (frames, values) = (baked.times.len(), &baked.values);
         let mut out = self.hierarchy.clone();
         // Shortest text that reads back as the same f64 (`{}`), so the rate round-trips.
-        let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {}\n", 1.0 / result.rate);
+        let _ = write!(out, "MOTION\nFrames: {frames}\nFrame Time: {}\n", 1.0 / baked.rate);
         // Per joint: its baked rotation and translation series, if any.
         let series = |joint: usize, property: Property| {
             clip.channels.iter().position(|c| c.joint == joint && c.property == property).map(|i| values[i])
