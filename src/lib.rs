@@ -35,7 +35,6 @@
 //! ```
 
 pub mod analysis;
-pub mod anim;
 pub mod arrays;
 pub mod bake;
 pub mod fit;
@@ -49,8 +48,10 @@ pub mod plot;
 pub mod view;
 
 // The lower crates' modules at one root, so users see one library: the maths (quatcurve-core,
-// no I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu) and the
-// device over them (quatcurve-device).
+// no I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu), the
+// device over them (quatcurve-device) and the animation model with its formats
+// (quatcurve-anim).
+pub use quatcurve_anim as anim;
 pub use quatcurve_core::{curve, interp, isa, quat, real};
 pub use quatcurve_device as device;
 #[doc(hidden)]

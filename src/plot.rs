@@ -107,7 +107,7 @@ pub fn skeleton(
     title: &str,
     model: &[f32],
     picks: &[usize],
-    animation: &crate::anim::Animation,
+    animation: &quatcurve_anim::Animation,
 ) -> Result<(), String> {
     let joints = animation.joints.len();
     let picks = picks.to_vec();

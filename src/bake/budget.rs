@@ -9,8 +9,8 @@
 
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
 use super::{bake, ClipRate, LoopMode};
-use crate::anim::error::InputError;
-use crate::anim::{Animation, GLTF_UNIT_CM};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_core::curve::CurveSpec;
 use quatcurve_device::Device;
 use quatcurve_eval::error::Number;

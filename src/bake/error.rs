@@ -1,5 +1,5 @@
 //! What can go wrong in a bake job as a whole ([`BakeError`]); one input's failure is an
-//! [`InputError`](crate::anim::error::InputError) and the job goes on with the others.
+//! [`InputError`](quatcurve_anim::error::InputError) and the job goes on with the others.
 
 /// Why a bake job could not start, or could not keep its manifest.
 #[derive(Debug, thiserror::Error)]

@@ -3,9 +3,9 @@
 //! common model with what it needs to write itself back (`Source`): glTF, BVH or a fitted container.
 
 use super::error::BakeError;
-use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::{bvh, gltf};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::Animation;
+use quatcurve_anim::{bvh, gltf};
 use std::path::{Path, PathBuf};
 
 /// A source read into the common model, with what it needs to write itself back.
@@ -18,7 +18,7 @@ pub(super) enum Source {
 }
 
 /// The extensions a bake reads, lower case.
-pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", crate::anim::qcf::EXTENSION];
+pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", quatcurve_anim::qcf::EXTENSION];
 
 /// `path`'s extension, lower case.
 pub(crate) fn extension(path: &Path) -> Option<String> {
@@ -37,8 +37,8 @@ impl Source {
                 let animation = file.animation(&name);
                 Ok(Source::Bvh(file, animation))
             }
-            Some(crate::anim::qcf::EXTENSION) => {
-                let container = crate::anim::qcf::Container::read(path)?;
+            Some(quatcurve_anim::qcf::EXTENSION) => {
+                let container = quatcurve_anim::qcf::Container::read(path)?;
                 let animation = container.animation();
                 match &container.bvh {
                     Some(skeleton) => Ok(Source::Bvh(bvh::skeleton(skeleton, &animation)?, animation)),

@@ -23,10 +23,10 @@ use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written}
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
 use super::{vertex_glb, Baked, ClipRate};
-use crate::anim::error::InputError;
-use crate::anim::Animation;
-use crate::anim::{crowd, gltf, mesh};
 use crate::io::write_atomic;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::Animation;
+use quatcurve_anim::{crowd, gltf, mesh};
 use quatcurve_device::Device;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -280,7 +280,7 @@ impl BakeJob {
                         true
                     }
                     // A container of a BVH source bakes to BVH again.
-                    Some("bvh" | crate::anim::qcf::EXTENSION) => {
+                    Some("bvh" | quatcurve_anim::qcf::EXTENSION) => {
                         names.push(format!("{stem}.bvh"));
                         false
                     }

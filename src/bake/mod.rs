@@ -2,7 +2,7 @@
 //! curve, rotations through an evaluation [`Device`] and translations/scales through their
 //! Euclidean analogue ([`quatcurve_eval::euclidean`]).
 //!
-//! Every source is read into one model, [`Animation`] (`crate::anim`): joints with rest poses,
+//! Every source is read into one model, [`Animation`] (`quatcurve_anim`): joints with rest poses,
 //! and clips of keyed [`Channel`]s. [`bake`] resamples the clips; the formats write the
 //! results back ([`Baked::frames`]) and [`texture`] lays them out as animation textures
 //! (local, model-space by forward kinematics, skin matrices).
@@ -26,12 +26,12 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
-use crate::anim::error::InputError;
-use crate::anim::error::InputError as E;
-use crate::anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use error::BakeError;
 pub use job::BakeJob;
 pub use options::BakeOptions;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::InputError as E;
+use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
@@ -186,7 +186,7 @@ impl Baked {
     }
 
     /// Every clip's frames, in order: what the format writers write back
-    /// ([`crate::anim::gltf::GltfFile::to_glb`], [`crate::anim::bvh::BvhFile::to_text`]).
+    /// ([`quatcurve_anim::gltf::GltfFile::to_glb`], [`quatcurve_anim::bvh::BvhFile::to_text`]).
     #[must_use]
     pub fn frames(&self) -> Vec<ClipFrames<'_>> {
         (0..self.clips.len())
@@ -589,7 +589,7 @@ fn prepare_channels<'a>(
 }
 
 /// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
-/// curve family of the order they make ([`crate::anim::qcf::fitted::spline_spec`]); rotations on the device,
+/// curve family of the order they make ([`quatcurve_anim::qcf::fitted::spline_spec`]); rotations on the device,
 /// vectors here.
 fn fitted_channel<'a>(
     channel: &'a Channel,
@@ -601,8 +601,10 @@ fn fitted_channel<'a>(
         let name = id.name.unwrap_or_default();
         return Ok(ChannelWork::Spline { name, points: &channel.values, knots });
     }
-    let spec =
-        crate::anim::qcf::fitted::spline_spec(crate::anim::qcf::fitted::order_of(knots.len(), channel.values.len()));
+    let spec = quatcurve_anim::qcf::fitted::spline_spec(quatcurve_anim::qcf::fitted::order_of(
+        knots.len(),
+        channel.values.len(),
+    ));
     let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
     Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
 }

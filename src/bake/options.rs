@@ -7,10 +7,10 @@ use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::LoopMode;
-use crate::anim::crowd;
 #[cfg(feature = "cli")]
 use crate::options::names;
 use crate::options::CurveOptions;
+use quatcurve_anim::crowd;
 use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, DEFAULT_CURVE};
 use quatcurve_device::DeviceChoice;
 use serde::{Deserialize, Serialize};

@@ -4,8 +4,8 @@
 use super::budget::ChosenRate;
 use super::error::BakeError;
 use super::texture_file::{TextureFile, Written};
-use crate::anim::error::InputError;
 use crate::io::AtomicFile;
+use quatcurve_anim::error::InputError;
 use std::path::{Path, PathBuf};
 
 /// The output directory, created for the job; if this job created it (and any missing
@@ -83,7 +83,7 @@ pub(crate) fn refuse_overwriting_input(output: &Path, source: &str) -> Result<()
 /// Each clip's name as it appears in its files' names (`Fox.Walk.npy`): letters, digits, `-`
 /// and `_` kept, any other character `_`; an empty name is `clip<index>`, and a name that
 /// two clips would share (ignoring case, as some file systems do) gets `-<index>`.
-pub(super) fn clip_file_names(animation: &crate::anim::Animation) -> Vec<String> {
+pub(super) fn clip_file_names(animation: &quatcurve_anim::Animation) -> Vec<String> {
     let safe: Vec<String> = animation
         .clips
         .iter()

@@ -5,8 +5,8 @@ use super::manifest::{FileRecord, InputRecord};
 use super::shard::Shard;
 use super::texture_file::Written;
 use super::Baked;
-use crate::anim::error::InputError;
-use crate::anim::Animation;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::Animation;
 use std::path::{Path, PathBuf};
 
 /// What a running job tells its caller (a progress bar, a log); every method has a default

@@ -6,8 +6,8 @@
 
 use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
-use crate::anim::error::InputError;
-use crate::anim::{Animation, Property};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Property};
 use quatcurve_eval::skeleton::{self, Affine};
 use serde::{Deserialize, Serialize};
 

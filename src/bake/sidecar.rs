@@ -11,7 +11,7 @@ use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
 use super::vertex_texture::VertexSheets;
 use super::Baked;
-use crate::anim::Animation;
+use quatcurve_anim::Animation;
 use serde::{Deserialize, Serialize};
 
 /// The job's options a sidecar records, and the device that ran the input.

@@ -15,8 +15,8 @@
 //! stored value), frames on every core.
 
 use super::Baked;
-use crate::anim::error::InputError;
-use crate::anim::{Animation, Property, Skin};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::Device;
 use quatcurve_eval::skeleton::{compose, rigid, Affine};
 use rayon::prelude::*;

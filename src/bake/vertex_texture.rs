@@ -8,9 +8,9 @@ use super::image::Texels;
 use super::texture::{self, Sheet, TextureKind, VERTEX_CHANNELS};
 use super::texture_file::SheetSpec;
 use super::Baked;
-use crate::anim::error::InputError;
-use crate::anim::mesh::SkinnedPrimitive;
-use crate::anim::Animation;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::mesh::SkinnedPrimitive;
+use quatcurve_anim::Animation;
 use quatcurve_device::{Device, DeviceError};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -25,7 +25,7 @@ pub fn suffix(k: usize) -> String {
 /// The skinned primitives of one input and how their sheets are laid out; counts the
 /// skinning work done, for the bake's report.
 pub struct VertexSheets {
-    /// The primitives, in [`crate::anim::mesh::skinned_primitives`] order.
+    /// The primitives, in [`quatcurve_anim::mesh::skinned_primitives`] order.
     pub primitives: Vec<SkinnedPrimitive>,
     /// Position and normal images (EXR, PNG16) rather than raw `.npy` rows.
     images: bool,

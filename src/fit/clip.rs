@@ -3,15 +3,15 @@
 //! virtual vertices ([`crate::analysis::vertex_error`]) stays within a budget at every source
 //! frame; then measured at every frame and at points between frames against the source's own
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
-//! against the clip's bytes in the container ([`crate::anim::qcf`]).
+//! against the clip's bytes in the container ([`quatcurve_anim::qcf`]).
 
 use super::{bracket, fit_rotations, fit_vectors};
 use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
-use crate::anim::qcf::fitted::ORDER;
-use crate::anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
-use crate::anim::qcf::quantize::{self, Quantized};
-use crate::anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
-use crate::anim::{Animation, Channel, Property};
+use quatcurve_anim::qcf::fitted::ORDER;
+use quatcurve_anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
+use quatcurve_anim::qcf::quantize::{self, Quantized};
+use quatcurve_anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
+use quatcurve_anim::{Animation, Channel, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::error::Number;
 use rayon::prelude::*;
@@ -69,7 +69,7 @@ pub struct ClipFit {
     pub frames: usize,
     /// [`RAW_BYTES_PER_JOINT_FRAME`] per joint per frame.
     pub raw_bytes: usize,
-    /// The clip's bytes in the container ([`crate::anim::qcf::clip_bytes`]).
+    /// The clip's bytes in the container ([`quatcurve_anim::qcf::clip_bytes`]).
     pub fitted_bytes: usize,
 }
 
@@ -185,7 +185,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             timelines: timelines.clone(),
             channels: fitted,
         };
-        let fitted_bytes = crate::anim::qcf::clip_bytes(&fitted);
+        let fitted_bytes = quatcurve_anim::qcf::clip_bytes(&fitted);
         if room >= 1.0 && best.as_ref().map_or(true, |b| fitted_bytes < b.fitted_bytes) {
             kept.clone_from(&scales);
             best = Some(ClipFit {
@@ -329,7 +329,7 @@ fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [toleranc
             quantize::fewest_bits(start, curve, within)
         })
         .min_by_key(|curve| {
-            crate::anim::qcf::channel_bytes(&FittedChannel {
+            quatcurve_anim::qcf::channel_bytes(&FittedChannel {
                 joint: channel.joint,
                 property: channel.property,
                 curve: curve.clone(),
@@ -511,7 +511,7 @@ fn subtree_worst(parents: &[Option<usize>], order: &[usize], mut errors: Vec<f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::anim::{Clip, Joint};
+    use quatcurve_anim::{Clip, Joint};
 
     /// A three-joint arm (10 cm bones) waving smoothly for two seconds at 120 Hz, its root
     /// also moving.

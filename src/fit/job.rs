@@ -4,13 +4,13 @@
 //! input); a failed input is reported and the others still finish.
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
-use crate::anim::error::InputError;
-use crate::anim::qcf::{BvhSkeleton, Container, EXTENSION};
-use crate::anim::{bvh, gltf};
-use crate::anim::{Animation, GLTF_UNIT_CM};
 use crate::bake::inputs::{expand, extension, output_stems};
 use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
 use crate::bake::BakeError;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::qcf::{BvhSkeleton, Container, EXTENSION};
+use quatcurve_anim::{bvh, gltf};
+use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

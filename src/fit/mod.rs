@@ -16,8 +16,8 @@ pub mod banded;
 pub mod clip;
 pub mod job;
 
-use crate::anim::qcf::fitted::{clamped, Fit, ORDER};
 use banded::Banded;
+use quatcurve_anim::qcf::fitted::{clamped, Fit, ORDER};
 use quatcurve_core::basis::bspline_cumulative;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_core::segment::locate;

@@ -7,8 +7,8 @@
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 use super::glb::GLB_MAGIC;
-use crate::anim::error::InputError;
-use crate::anim::{Animation, Channel, Clip, ClipFrames, Joint, Property, Skin};
+use crate::error::InputError;
+use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;

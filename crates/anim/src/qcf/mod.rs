@@ -7,8 +7,8 @@ pub mod fitted;
 pub mod quantize;
 pub mod timeline;
 
-use crate::anim::error::{ContainerError, InputError};
-use crate::anim::{Animation, Joint, Property};
+use crate::error::{ContainerError, InputError};
+use crate::{Animation, Joint, Property};
 use fitted::{Fitted, FittedChannel, FittedClip, Form, ORDER};
 use quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use quatcurve_eval::batch::MIN_KEY_NORM;
@@ -772,7 +772,7 @@ impl<'a> BitReader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::anim::qcf::quantize;
+    use crate::qcf::quantize;
     use quatcurve_core::quat::{QuatF64, Vec3F64};
 
     /// Two joints: a rotation curve, a vector curve with a knot of multiplicity 3, a constant.

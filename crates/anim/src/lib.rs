@@ -53,7 +53,7 @@ pub struct Channel {
     pub times: Vec<f64>,
     /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
     pub values: Vec<[f64; 4]>,
-    /// A fitted channel's knots ([`crate::fit`]): then `values` are the control points of a
+    /// A fitted channel's knots (`quatcurve::fit`): then `values` are the control points of a
     /// clamped B-spline on them (the KKS cumulative form for rotations; its order is the knot
     /// count less the control point count), not keys, and `times` their Greville abscissae;
     /// `None` for keys.

@@ -11,10 +11,10 @@ pub enum InputError {
     /// The file could not be read.
     #[error("cannot read: {0}")]
     Read(std::io::Error),
-    /// Not one of [`crate::bake::inputs::INPUT_EXTENSIONS`].
+    /// Not one of the extensions a bake reads (`INPUT_EXTENSIONS` in `quatcurve::bake::inputs`).
     #[error("unknown format: expected .gltf, .glb, .bvh or .qcf (a fitted container)")]
     UnknownFormat,
-    /// A fitted container ([`crate::anim::qcf`]) with a field truncated or out of range.
+    /// A fitted container ([`crate::qcf`]) with a field truncated or out of range.
     #[error("fitted container {0}")]
     Container(#[from] ContainerError),
     /// A glTF file that is corrupt or breaks a rule of the format; the message names the node,
@@ -63,7 +63,7 @@ impl InputError {
     }
 }
 
-/// A field of a fitted container ([`crate::anim::qcf`]) that is missing, truncated or out of its range.
+/// A field of a fitted container ([`crate::qcf`]) that is missing, truncated or out of its range.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("byte {offset}: {field}: {reason}")]
 pub struct ContainerError {

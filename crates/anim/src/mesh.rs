@@ -4,7 +4,7 @@
 //! meshes are broken still bakes bone textures.
 
 use super::gltf::{check_accessor, Element, GltfFile};
-use crate::anim::error::InputError;
+use crate::error::InputError;
 use quatcurve_eval::skeleton::SkinnedMesh;
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be

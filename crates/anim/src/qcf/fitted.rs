@@ -4,7 +4,7 @@
 
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
-use crate::anim::{Channel, Clip, Joint, Property};
+use crate::{Channel, Clip, Joint, Property};
 use quatcurve_core::curve::CurveSpec;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::batch::BatchBuilder;
@@ -158,7 +158,7 @@ impl Between for [f64; 3] {
 
 impl<T> Spline<T> {
     /// The curve of `controls` in `form` on interior `knots` of `timeline` (clamped at its ends).
-    pub(crate) fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
+    pub fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
         let line = &timelines[timeline];
         let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
         let (order, interior): (usize, Vec<f64>) = match form {

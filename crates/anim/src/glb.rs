@@ -4,9 +4,9 @@
 //! which holds only bytes a kept buffer view covers. A file that uses an extension this writer
 //! does not know might refer to anything by index, so there nothing is removed or renumbered.
 
-use crate::anim::{Clip, ClipFrames, Property};
+use crate::{Clip, ClipFrames, Property};
 
-use crate::anim::error::InputError;
+use crate::error::InputError;
 
 use serde_json::{json, Value};
 
