@@ -38,7 +38,6 @@ pub mod analysis;
 pub mod arrays;
 pub mod bake;
 pub mod fit;
-pub mod io;
 pub mod options;
 // Charts serve the CLI; they are not part of the library's API.
 #[cfg(feature = "plot")]
@@ -56,7 +55,7 @@ pub use quatcurve_core::{curve, interp, isa, quat, real};
 pub use quatcurve_device as device;
 #[doc(hidden)]
 pub use quatcurve_eval::synthetic;
-pub use quatcurve_eval::{batch, cpu, error, euclidean, job, output, reference, sampling, skeleton, track};
+pub use quatcurve_eval::{batch, cpu, error, euclidean, io, job, output, reference, sampling, skeleton, track};
 #[cfg(feature = "gpu")]
 pub use quatcurve_gpu as gpu;
 

@@ -4,9 +4,9 @@
 //! Labels use DejaVu Sans embedded in the binary (the `dejavu` crate), so a chart renders the
 //! same on a server without fonts (SVG names the family and leaves drawing text to the viewer).
 
-use crate::io::write_atomic;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use quatcurve_eval::io::write_atomic;
 use std::path::Path;
 
 /// One line of the chart: `|omega|` and `|alpha|` of one curve at `times`.

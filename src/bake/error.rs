@@ -20,7 +20,7 @@ pub enum BakeError {
     Job(String),
     /// The manifest could not be written.
     #[error(transparent)]
-    Manifest(#[from] crate::io::IoError),
+    Manifest(#[from] quatcurve_eval::io::IoError),
 }
 
 impl BakeError {

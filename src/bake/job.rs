@@ -23,11 +23,11 @@ use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written}
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
 use super::{vertex_glb, Baked, ClipRate};
-use crate::io::write_atomic;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use quatcurve_anim::{crowd, gltf, mesh};
 use quatcurve_device::Device;
+use quatcurve_eval::io::write_atomic;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;

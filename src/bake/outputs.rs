@@ -4,8 +4,8 @@
 use super::budget::ChosenRate;
 use super::error::BakeError;
 use super::texture_file::{TextureFile, Written};
-use crate::io::AtomicFile;
 use quatcurve_anim::error::InputError;
+use quatcurve_eval::io::AtomicFile;
 use std::path::{Path, PathBuf};
 
 /// The output directory, created for the job; if this job created it (and any missing
@@ -31,7 +31,7 @@ impl OutputDir {
         if let Err(e) = AtomicFile::create(&dir.join("probe")) {
             this.remove_if_unused();
             let e = match e {
-                crate::io::IoError::Write { source, .. } => source,
+                quatcurve_eval::io::IoError::Write { source, .. } => source,
                 other => std::io::Error::other(other.to_string()),
             };
             return Err(refuse("cannot write into the directory", e));

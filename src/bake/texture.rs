@@ -114,10 +114,10 @@ quatcurve_core::curve::names!(Precision, "precision", F32 => "f32", F16 => "f16"
 impl Precision {
     /// The `.npy` element type written.
     #[must_use]
-    pub fn element(self) -> crate::io::NpyElement {
+    pub fn element(self) -> quatcurve_eval::io::NpyElement {
         match self {
-            Precision::F32 => crate::io::NpyElement::F32,
-            Precision::F16 => crate::io::NpyElement::F16,
+            Precision::F32 => quatcurve_eval::io::NpyElement::F32,
+            Precision::F16 => quatcurve_eval::io::NpyElement::F16,
         }
     }
 }

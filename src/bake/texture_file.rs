@@ -6,9 +6,9 @@
 use super::image::{self, Format, Grid, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
-use crate::io::{npy_header, AtomicFile, NpyElement};
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
+use quatcurve_eval::io::{npy_header, AtomicFile, NpyElement};
 use sha2::{Digest, Sha256};
 use std::io::Write;
 use std::path::PathBuf;

@@ -287,7 +287,7 @@ impl FitJob {
             }
             let bytes = Container { joints: animation.joints, bvh: skeleton, clips }.to_bytes();
             let path = self.output.join(format!("{stem}.{EXTENSION}"));
-            crate::io::write_atomic(&path, |w| w.write_all(&bytes)).map_err(|e| e.to_string())?;
+            quatcurve_eval::io::write_atomic(&path, |w| w.write_all(&bytes)).map_err(|e| e.to_string())?;
             Ok((path.display().to_string(), bytes.len()))
         })();
         match result {

@@ -3,7 +3,8 @@
 //! Evaluation without a GPU: user [`track::Track`]s, the packed [`batch::Batch`] and its
 //! builder (the only maker of one), sample times, the one [`job::EvalJob`] every device runs,
 //! the rows it writes ([`output`]), the f64 reference (the oracle), the SIMD CPU path, and the
-//! skeleton's maths (affine transforms, forward kinematics, skinning).
+//! skeleton's maths (affine transforms, forward kinematics, skinning), and their files in and
+//! out ([`io`]: track files, results, `.npy` arrays, written atomically).
 //!
 //! The `quatcurve` crate re-exports these modules at its root (`quatcurve::batch`, ...) and
 //! adds the GPU path and the one device value over all three.
@@ -12,6 +13,7 @@ pub mod batch;
 pub mod cpu;
 pub mod error;
 pub mod euclidean;
+pub mod io;
 pub mod job;
 pub mod output;
 pub mod reference;

@@ -2,9 +2,9 @@
 //! and the built-in demo input.
 
 use quatcurve_core::quat::{QuatF64, Vec3F64};
-use quatcurve_eval::output::Output;
-use quatcurve_eval::sampling::SampleTimes;
-use quatcurve_eval::track::{Track, TrackFile};
+use crate::output::Output;
+use crate::sampling::SampleTimes;
+use crate::track::{Track, TrackFile};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
