@@ -7,13 +7,11 @@
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
 use super::budget::{self, ChosenRate};
-use super::error::BakeError;
 use super::image::Format;
-use super::inputs::{expand, output_stems, Source};
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
 use super::options::BakeOptions;
 use super::outputs::clip_file_names;
-use super::outputs::{refuse_overwriting_input, OutputDir, Outputs};
+use super::outputs::Outputs;
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::root_motion::{self, RootMotion};
 use super::shard::Shard;
@@ -24,6 +22,10 @@ use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
 use super::{vertex_glb, Baked, ClipRate};
 use quatcurve_anim::error::InputError;
+use quatcurve_anim::files::FileJobError;
+use quatcurve_anim::files::{expand, output_stems};
+use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
+use quatcurve_anim::source::Source;
 use quatcurve_anim::Animation;
 use quatcurve_anim::{crowd, gltf, mesh};
 use quatcurve_device::Device;
@@ -64,31 +66,31 @@ impl BakeJob {
     /// Checks the options that do not need the inputs.
     ///
     /// # Errors
-    /// [`BakeError::Option`] naming the option.
-    pub fn validate(&self) -> Result<(), BakeError> {
+    /// [`FileJobError::Option`] naming the option.
+    pub fn validate(&self) -> Result<(), FileJobError> {
         if !(self.options.rate.is_finite() && self.options.rate > 0.0) {
-            return Err(BakeError::option(
+            return Err(FileJobError::option(
                 "rate",
                 format!("must be a positive number of Hz, not {}", self.options.rate),
             ));
         }
         if self.jobs == 0 {
-            return Err(BakeError::option("jobs", "must be at least 1"));
+            return Err(FileJobError::option("jobs", "must be at least 1"));
         }
         if self.inputs.is_empty() && self.options.characters == 0 {
-            return Err(BakeError::option("characters", "must be at least 1 for the built-in crowd"));
+            return Err(FileJobError::option("characters", "must be at least 1 for the built-in crowd"));
         }
         if self.inputs.is_empty() && self.options.texture == TextureKind::Vertex {
-            return Err(BakeError::option(
+            return Err(FileJobError::option(
                 "texture",
                 "vertex skins a glTF's meshes, and the built-in crowd has none; name glTF inputs, or bake a bone texture",
             ));
         }
         if self.options.format == Format::Png16 && self.options.precision == Precision::F16 {
-            return Err(BakeError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
+            return Err(FileJobError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
         }
         if self.options.format == Format::Png16 && !cfg!(feature = "plot") {
-            return Err(BakeError::option(
+            return Err(FileJobError::option(
                 "format",
                 "png16 needs the `plot` cargo feature, which this build leaves out",
             ));
@@ -96,7 +98,7 @@ impl BakeJob {
         let budget = self.options.budget();
         for (option, value) in [("max_error", budget.degrees), ("max_error_mm", budget.millimetres)] {
             if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     option,
                     format!("must be a positive number, not {}", value.unwrap_or(0.0)),
                 ));
@@ -104,23 +106,26 @@ impl BakeJob {
         }
         if budget.is_set() {
             if !(budget.max_rate.is_finite() && budget.max_rate > 0.0) {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     "max_rate",
                     format!("must be a positive number of Hz, not {}", budget.max_rate),
                 ));
             }
             if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
-                return Err(BakeError::option("unit_mm", format!("must be a positive number, not {}", budget.unit_mm)));
+                return Err(FileJobError::option(
+                    "unit_mm",
+                    format!("must be a positive number, not {}", budget.unit_mm),
+                ));
             }
             if self.options.texture == TextureKind::Vertex {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     "max_error",
                     "measures joints blended between frames, not a vertex texture's positions; bake vertex textures at a \
                      fixed rate",
                 ));
             }
             if !matches!(self.options.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     "max_error",
                     format!(
                         "measures what a shader interpolates between frames, which a {} texture's matrices do not \
@@ -130,17 +135,17 @@ impl BakeJob {
                 ));
             }
             if self.options.exact_rate {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     "exact_rate",
                     "cannot be set with an error budget, which chooses each clip's rate",
                 ));
             }
         }
         if self.options.max_texture_size == 0 {
-            return Err(BakeError::option("max_texture_size", "must be at least 1 texel"));
+            return Err(FileJobError::option("max_texture_size", "must be at least 1 texel"));
         }
         if self.options.preview && !cfg!(feature = "plot") {
-            return Err(BakeError::option(
+            return Err(FileJobError::option(
                 "preview",
                 "needs the `plot` cargo feature, which this build of quatcurve leaves out",
             ));
@@ -177,13 +182,13 @@ impl BakeJob {
     /// # Errors
     /// A job that cannot start or cannot write its manifest. Inputs that fail are not errors
     /// here: see [`BakeReport::failed`].
-    pub fn run(&self, device: &Device, progress: &dyn Progress) -> Result<BakeReport, BakeError> {
+    pub fn run(&self, device: &Device, progress: &dyn Progress) -> Result<BakeReport, FileJobError> {
         self.validate()?;
         let shard = match &self.shard {
             Some(shard) => shard.clone(),
             None => Shard::from_env(&|name| std::env::var(name).ok())?,
         };
-        let inputs = expand(&self.inputs, &super::inputs::INPUT_EXTENSIONS)?;
+        let inputs = expand(&self.inputs, &quatcurve_anim::source::INPUT_EXTENSIONS)?;
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
         let output = OutputDir::create(&self.output, "baked")?;
@@ -268,13 +273,13 @@ impl BakeJob {
 
     /// The output faults that can be found before any input is baked: a baked file that would
     /// replace its input, a directory where an input's baked file or sidecar goes.
-    fn check_output_names(&self, inputs: &[PathBuf], stems: &[String]) -> Result<(), BakeError> {
+    fn check_output_names(&self, inputs: &[PathBuf], stems: &[String]) -> Result<(), FileJobError> {
         let stems: Vec<&str> =
             if inputs.is_empty() { vec!["crowd"] } else { stems.iter().map(String::as_str).collect() };
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
-                let gltf = match super::inputs::extension(input).as_deref() {
+                let gltf = match quatcurve_anim::source::extension(input).as_deref() {
                     Some("gltf" | "glb") => {
                         names.push(format!("{stem}.glb"));
                         true
@@ -291,11 +296,11 @@ impl BakeJob {
                 }
                 for baked in &names[1..] {
                     refuse_overwriting_input(&self.output.join(baked), &input.display().to_string())
-                        .map_err(|e| BakeError::Job(format!("{e} (nothing was baked)")))?;
+                        .map_err(|e| FileJobError::Job(format!("{e} (nothing was baked)")))?;
                 }
             }
             if let Some(dir) = names.iter().map(|n| self.output.join(n)).find(|p| p.is_dir()) {
-                return Err(BakeError::option(
+                return Err(FileJobError::option(
                     "output",
                     format!(
                         "{}: a directory is where a baked file goes; move it away (nothing was baked)",
@@ -621,8 +626,8 @@ fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Res
 /// (skinned primitives as plain meshes, DESIGN section 5d).
 pub const MESH_GLB_SUFFIX: &str = ".mesh.glb";
 
-fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), BakeError> {
+fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), FileJobError> {
     manifest.updated = super::manifest::now();
     write_atomic(path, |w| serde_json::to_writer_pretty(&mut *w, manifest).map_err(std::io::Error::from))
-        .map_err(BakeError::Manifest)
+        .map_err(FileJobError::Manifest)
 }

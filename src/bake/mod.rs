@@ -8,9 +8,7 @@
 //! (local, model-space by forward kinematics, skin matrices).
 
 pub mod budget;
-pub mod error;
 pub mod image;
-pub mod inputs;
 pub mod job;
 pub mod manifest;
 pub mod options;
@@ -26,7 +24,6 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
-pub use error::BakeError;
 pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::error::InputError;

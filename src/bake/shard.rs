@@ -1,7 +1,7 @@
 //! Which share of a job this process runs (DESIGN section 7): `I/N` given, or the array index
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
-use super::error::BakeError;
+use quatcurve_anim::files::FileJobError;
 use std::path::PathBuf;
 
 /// This process's share: inputs `k` with `k mod count == index`.
@@ -29,9 +29,9 @@ impl Shard {
     /// `I/N`, as `--shard` and Python's `shard=` give it.
     ///
     /// # Errors
-    /// [`BakeError::Option`] (`shard`): not two whole numbers, or no such shard.
-    pub fn parse(text: &str) -> Result<Self, BakeError> {
-        let bad = |reason: String| BakeError::option("shard", format!("{text}: {reason}"));
+    /// [`FileJobError::Option`] (`shard`): not two whole numbers, or no such shard.
+    pub fn parse(text: &str) -> Result<Self, FileJobError> {
+        let bad = |reason: String| FileJobError::option("shard", format!("{text}: {reason}"));
         let (index, count) = text.split_once('/').ok_or_else(|| bad("expected I/N, e.g. 0/4".into()))?;
         let number =
             |what: &str, n: &str| n.trim().parse().map_err(|_| bad(format!("the {what} {n:?} is not a whole number")));
@@ -45,9 +45,9 @@ impl Shard {
     /// The first scheduler whose index variable `env` has, else the whole job.
     ///
     /// # Errors
-    /// [`BakeError::Job`]: an index without its count, a value that is not a whole number, or
+    /// [`FileJobError::Job`]: an index without its count, a value that is not a whole number, or
     /// a shard that does not exist.
-    pub fn from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Self, BakeError> {
+    pub fn from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Self, FileJobError> {
         // (scheduler, index variable, minimum variable to subtract, count variable)
         let schedulers: [(&str, &str, Option<&str>, &str); 4] = [
             ("Slurm", "SLURM_ARRAY_TASK_ID", Some("SLURM_ARRAY_TASK_MIN"), "SLURM_ARRAY_TASK_COUNT"),
@@ -77,7 +77,7 @@ impl Shard {
         Ok(Self::whole())
     }
 
-    fn new(index: usize, count: usize, source: String) -> Result<Self, BakeError> {
+    fn new(index: usize, count: usize, source: String) -> Result<Self, FileJobError> {
         if count == 0 || index >= count {
             return Err(bad(format!("{source}: shard {index} of {count} does not exist (need 0 <= index < count)")));
         }
@@ -90,11 +90,11 @@ impl Shard {
     }
 }
 
-fn bad(msg: String) -> BakeError {
-    BakeError::Job(msg)
+fn bad(msg: String) -> FileJobError {
+    FileJobError::Job(msg)
 }
 
-fn number(what: &str, text: &str) -> Result<usize, BakeError> {
+fn number(what: &str, text: &str) -> Result<usize, FileJobError> {
     text.trim().parse().map_err(|_| bad(format!("{what}: {text:?} is not a whole number")))
 }
 
@@ -129,10 +129,10 @@ mod tests {
             vec![("BATCH_TASK_INDEX", "0")],
             vec![("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")],
         ] {
-            assert!(matches!(Shard::from_env(&env(&pairs)), Err(BakeError::Job(_))), "{pairs:?}");
+            assert!(matches!(Shard::from_env(&env(&pairs)), Err(FileJobError::Job(_))), "{pairs:?}");
         }
         for text in ["4/4", "0/0", "1", "a/2"] {
-            assert!(matches!(Shard::parse(text), Err(BakeError::Option { option: "shard", .. })), "{text}");
+            assert!(matches!(Shard::parse(text), Err(FileJobError::Option { option: "shard", .. })), "{text}");
         }
     }
 }

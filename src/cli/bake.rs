@@ -9,7 +9,8 @@
 use super::{flag, print_stdout, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use quatcurve::bake::{BakeError, BakeJob, BakeOptions, BakeReport, InputReport, Progress, Shard};
+use quatcurve::anim::files::FileJobError;
+use quatcurve::bake::{BakeJob, BakeOptions, BakeReport, InputReport, Progress, Shard};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -39,13 +40,13 @@ pub struct BakeArgs {
     jobs: usize,
 }
 
-impl From<BakeError> for Failure {
+impl From<FileJobError> for Failure {
     /// Option errors name the option as its flag (`max_rate must ...` becomes `--max-rate
     /// must ...`).
-    fn from(e: BakeError) -> Self {
+    fn from(e: FileJobError) -> Self {
         match e {
-            BakeError::Option { option, reason } => Failure::Input(format!("{} {reason}", flag(option))),
-            BakeError::Manifest(_) => Failure::Internal(e.to_string()),
+            FileJobError::Option { option, reason } => Failure::Input(format!("{} {reason}", flag(option))),
+            FileJobError::Manifest(_) => Failure::Internal(e.to_string()),
             _ => Failure::Input(e.to_string()),
         }
     }

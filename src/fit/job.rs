@@ -4,11 +4,12 @@
 //! input); a failed input is reported and the others still finish.
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
-use crate::bake::inputs::{expand, extension, output_stems};
-use crate::bake::outputs::{refuse_overwriting_input, OutputDir};
-use crate::bake::BakeError;
 use quatcurve_anim::error::InputError;
+use quatcurve_anim::files::FileJobError;
+use quatcurve_anim::files::{expand, output_stems};
+use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
 use quatcurve_anim::qcf::{BvhSkeleton, Container, EXTENSION};
+use quatcurve_anim::source::extension;
 use quatcurve_anim::{bvh, gltf};
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
@@ -163,7 +164,7 @@ impl FitJob {
     /// What is wrong before any input is read: a length that is not positive, a BVH input
     /// without [`FitOptions::unit_cm`], an input of another format, an output directory that
     /// takes no file, two inputs with one stem, a container that would replace its input.
-    pub fn run(&self, progress: &dyn Fn(&str, &ClipReport)) -> Result<FitReport, BakeError> {
+    pub fn run(&self, progress: &dyn Fn(&str, &ClipReport)) -> Result<FitReport, FileJobError> {
         for (option, value) in [
             ("max_error", Some(self.options.max_error)),
             ("between_error", self.options.between_error),
@@ -171,17 +172,17 @@ impl FitJob {
             ("unit_cm", self.options.unit_cm),
         ] {
             if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(BakeError::option(option, format!("is {v}; it must be a positive length")));
+                return Err(FileJobError::option(option, format!("is {v}; it must be a positive length")));
             }
         }
         if self.inputs.is_empty() {
-            return Err(BakeError::option("inputs", "names no file: give the glTF or BVH files to fit"));
+            return Err(FileJobError::option("inputs", "names no file: give the glTF or BVH files to fit"));
         }
         let inputs = expand(&self.inputs, &FIT_EXTENSIONS)?;
         for input in &inputs {
             match extension(input).as_deref() {
                 Some("bvh") if self.options.unit_cm.is_none() => {
-                    return Err(BakeError::option(
+                    return Err(FileJobError::option(
                         "unit_cm",
                         format!(
                             "is needed for {}: a BVH file does not say its unit (CMU's is 5.644 cm); nothing was \
@@ -192,7 +193,7 @@ impl FitJob {
                 }
                 Some(e) if FIT_EXTENSIONS.contains(&e) => {}
                 _ => {
-                    return Err(BakeError::option(
+                    return Err(FileJobError::option(
                         "input",
                         format!("{}: not a file to fit: expected .gltf, .glb or .bvh", input.display()),
                     ))
@@ -208,7 +209,7 @@ impl FitJob {
                 .or_else(|| path.is_dir().then(|| InputError::Output(format!("{}: is a directory", path.display()))));
             if let Some(e) = refused {
                 output.remove_if_unused();
-                return Err(BakeError::Job(format!("{e} (nothing was fitted)")));
+                return Err(FileJobError::Job(format!("{e} (nothing was fitted)")));
             }
         }
         let inputs = inputs.iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();

@@ -11,7 +11,7 @@ pub enum InputError {
     /// The file could not be read.
     #[error("cannot read: {0}")]
     Read(std::io::Error),
-    /// Not one of the extensions a bake reads (`INPUT_EXTENSIONS` in `quatcurve::bake::inputs`).
+    /// Not one of [`crate::source::INPUT_EXTENSIONS`].
     #[error("unknown format: expected .gltf, .glb, .bvh or .qcf (a fitted container)")]
     UnknownFormat,
     /// A fitted container ([`crate::qcf`]) with a field truncated or out of range.

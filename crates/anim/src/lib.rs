@@ -8,10 +8,12 @@ pub mod bvh;
 pub mod crowd;
 mod draco;
 pub mod error;
+pub mod files;
 pub mod glb;
 pub mod gltf;
 pub mod mesh;
 pub mod qcf;
+pub mod source;
 
 use error::InputError;
 

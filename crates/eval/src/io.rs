@@ -1,10 +1,10 @@
 //! Reading track files and writing results: JSON formats of DESIGN section 5, atomic writes,
 //! and the built-in demo input.
 
-use quatcurve_core::quat::{QuatF64, Vec3F64};
 use crate::output::Output;
 use crate::sampling::SampleTimes;
 use crate::track::{Track, TrackFile};
+use quatcurve_core::quat::{QuatF64, Vec3F64};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
