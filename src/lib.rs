@@ -34,30 +34,29 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub mod analysis;
-pub mod arrays;
-pub mod bake;
-pub mod fit;
-pub mod options;
-// Charts serve the CLI; they are not part of the library's API.
-#[cfg(feature = "plot")]
-#[doc(hidden)]
-pub mod plot;
-#[cfg(feature = "view")]
-pub mod view;
-
-// The lower crates' modules at one root, so users see one library: the maths (quatcurve-core,
-// no I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu), the
-// device over them (quatcurve-device) and the animation model with its formats
-// (quatcurve-anim).
+// The workspace's crates at one root, so users see one library: the maths (quatcurve-core, no
+// I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu), the device
+// over them (quatcurve-device), the animation model with its formats (quatcurve-anim), and
+// the products: analysis, the bake, the fit, the viewer.
+pub use quatcurve_analysis as analysis;
 pub use quatcurve_anim as anim;
+pub use quatcurve_bake as bake;
 pub use quatcurve_core::{curve, interp, isa, quat, real};
 pub use quatcurve_device as device;
 #[doc(hidden)]
 pub use quatcurve_eval::synthetic;
-pub use quatcurve_eval::{batch, cpu, error, euclidean, io, job, output, reference, sampling, skeleton, track};
+pub use quatcurve_eval::{
+    arrays, batch, cpu, error, euclidean, io, job, options, output, reference, sampling, skeleton, track,
+};
+pub use quatcurve_fit as fit;
 #[cfg(feature = "gpu")]
 pub use quatcurve_gpu as gpu;
+// Charts serve the CLI; they are not part of the library's API.
+#[cfg(feature = "plot")]
+#[doc(hidden)]
+pub use quatcurve_plot as plot;
+#[cfg(feature = "view")]
+pub use quatcurve_view as view;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;

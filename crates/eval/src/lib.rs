@@ -4,17 +4,20 @@
 //! builder (the only maker of one), sample times, the one [`job::EvalJob`] every device runs,
 //! the rows it writes ([`output`]), the f64 reference (the oracle), the SIMD CPU path, and the
 //! skeleton's maths (affine transforms, forward kinematics, skinning), and their files in and
-//! out ([`io`]: track files, results, `.npy` arrays, written atomically).
+//! out ([`io`]: track files, results, `.npy` arrays, written atomically; [`arrays`]: tracks
+//! from numpy arrays).
 //!
 //! The `quatcurve` crate re-exports these modules at its root (`quatcurve::batch`, ...) and
 //! adds the GPU path and the one device value over all three.
 
+pub mod arrays;
 pub mod batch;
 pub mod cpu;
 pub mod error;
 pub mod euclidean;
 pub mod io;
 pub mod job;
+pub mod options;
 pub mod output;
 pub mod reference;
 pub mod sampling;

@@ -264,3 +264,11 @@ fn blend(mesh: &SkinnedMesh, v: usize, matrices: &[f32]) -> [f64; MATRIX_CHANNEL
     }
     sum
 }
+
+/// The translation column of joint `j` in frame `frame` of model rows `[frames, joints, 12]`
+/// (3x4 row-major, [`forward_kinematics`]'s): where the joint is.
+#[must_use]
+pub fn position(model: &[f32], joints: usize, frame: usize, j: usize) -> [f32; 3] {
+    let at = (frame * joints + j) * MATRIX_CHANNELS;
+    [model[at + 3], model[at + 7], model[at + 11]]
+}

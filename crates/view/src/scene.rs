@@ -7,13 +7,13 @@
 
 use super::files::url_path;
 use super::texels::Texels;
-use crate::bake::image::{Format, Grid};
-use crate::bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
-use crate::bake::texture::TextureKind;
-use crate::bake::vertex_encoding::Bounds;
 use naga::ShaderStage;
 use quatcurve_anim::gltf::{self, UriPolicy};
 use quatcurve_anim::mesh::{self, SkinnedPrimitive};
+use quatcurve_bake::image::{Format, Grid};
+use quatcurve_bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
+use quatcurve_bake::texture::TextureKind;
+use quatcurve_bake::vertex_encoding::Bounds;
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton;
 use quatcurve_gpu::shader::{self, Glsl, Language, Program};

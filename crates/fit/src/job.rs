@@ -31,7 +31,7 @@ pub struct FitJob {
     pub options: FitOptions,
 }
 
-/// The options of a fit, each defined once (as [`crate::options`] says), lengths in
+/// The options of a fit, each defined once (as [`quatcurve_eval::options`] says), lengths in
 /// centimetres.
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 #[serde(default)]
@@ -339,7 +339,7 @@ mod tests {
         flags.sort();
         assert_eq!(flags, names);
         let given = serde_json::from_str(r#"{"between_error": null, "unit_cm": 5.644}"#).unwrap();
-        let options: FitOptions = crate::options::from_named(&given).unwrap();
+        let options: FitOptions = quatcurve_eval::options::from_named(&given).unwrap();
         assert_eq!(options, FitOptions { between_error: None, unit_cm: Some(5.644), ..FitOptions::DEFAULT });
     }
 }

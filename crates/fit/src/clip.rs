@@ -1,12 +1,12 @@
 //! A whole clip fitted within ACL's error: every channel as a B-spline ([`super`]), with
 //! tolerances shared down the hierarchy so that the object-space error of every joint's
-//! virtual vertices ([`crate::analysis::vertex_error`]) stays within a budget at every source
+//! virtual vertices ([`quatcurve_analysis::vertex_error`]) stays within a budget at every source
 //! frame; then measured at every frame and at points between frames against the source's own
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
 //! against the clip's bytes in the container ([`quatcurve_anim::qcf`]).
 
 use super::{bracket, fit_rotations, fit_vectors};
-use crate::analysis::vertex_error::{object_space, pose_errors, Transform};
+use quatcurve_analysis::vertex_error::{object_space, pose_errors, Transform};
 use quatcurve_anim::qcf::fitted::ORDER;
 use quatcurve_anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
 use quatcurve_anim::qcf::quantize::{self, Quantized};

@@ -353,13 +353,6 @@ pub fn preview_frames(frames: usize) -> Vec<usize> {
     (0..count).map(|i| if count > 1 { i * (frames - 1) / (count - 1) } else { 0 }).collect()
 }
 
-/// The translation column of joint `j` in frame `frame` of a model texture: where the joint is.
-#[must_use]
-pub fn position(model: &[f32], joints: usize, frame: usize, j: usize) -> [f32; 3] {
-    let at = (frame * joints + j) * MATRIX_CHANNELS;
-    [model[at + 3], model[at + 7], model[at + 11]]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,8 +6,8 @@
 //! Shapes come from the file, so none sizes an allocation before it is checked against the
 //! bytes present (a crafted header could announce any shape).
 
+use crate::track::Track;
 use npyz::{DType, NpyFile, TypeChar};
-use quatcurve_eval::track::Track;
 use std::io::Read;
 use std::path::Path;
 

@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_ADDRESS: &str = "127.0.0.1:8765";
 
 /// The page and its script, embedded: the binary serves them with nothing else installed.
-const PAGE: &str = include_str!("../../viewer/index.html");
-const SCRIPT: &str = include_str!("../../viewer/viewer.js");
+const PAGE: &str = include_str!("../../../viewer/index.html");
+const SCRIPT: &str = include_str!("../../../viewer/viewer.js");
 
 /// An HTTP response.
 #[derive(Debug)]

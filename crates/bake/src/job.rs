@@ -613,7 +613,7 @@ fn draw_preview(
     picks: &[usize],
     animation: &Animation,
 ) -> Result<(), InputError> {
-    crate::plot::skeleton(path, title, model, picks, animation).map_err(InputError::Output)
+    quatcurve_plot::skeleton(path, title, model, picks, animation).map_err(InputError::Output)
 }
 
 #[cfg(not(feature = "plot"))]

@@ -96,7 +96,7 @@ impl Figure for LogLog<'_> {
 }
 
 /// Draws a skeleton (a line from each joint to its parent) at the clip's frames `picks`
-/// ([`crate::bake::texture::preview_frames`]), given the model texture rows of those frames
+/// (`preview_frames` in `quatcurve::bake::texture`), given the model texture rows of those frames
 /// alone, front view (x, y) beside side view (z, y), one colour per frame, to `path` (`.png`
 /// or `.svg`).
 ///
@@ -112,7 +112,7 @@ pub fn skeleton(
     let joints = animation.joints.len();
     let picks = picks.to_vec();
     // `k`: the frame's place in `picks` (and its row in `model`).
-    let at = |k: usize, j: usize| crate::bake::texture::position(model, joints, k, j).map(f64::from);
+    let at = |k: usize, j: usize| quatcurve_eval::skeleton::position(model, joints, k, j).map(f64::from);
     // Bones of every picked frame: (frame's place in picks, from, to).
     let bones: Vec<(usize, [f64; 3], [f64; 3])> = (0..picks.len())
         .flat_map(|k| {

@@ -28,7 +28,7 @@ pub struct Manifest {
     pub inputs: Vec<InputRecord>,
 }
 
-/// Which share of the job ran ([`crate::bake::Shard`]).
+/// Which share of the job ran ([`crate::Shard`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ShardRecord {
     /// This shard's index, from 0.

@@ -1,4 +1,4 @@
-//! What a bake can be asked, each option once ([`BakeOptions`], as [`crate::options`] says):
+//! What a bake can be asked, each option once ([`BakeOptions`], as [`quatcurve_eval::options`] says):
 //! the options that decide a bake's outputs, which the manifest records and `resume` compares.
 //! Which inputs, where to, which shard and how many at once are the job's ([`super::BakeJob`]).
 
@@ -7,12 +7,12 @@ use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::LoopMode;
-#[cfg(feature = "cli")]
-use crate::options::names;
-use crate::options::CurveOptions;
 use quatcurve_anim::crowd;
 use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, DEFAULT_CURVE};
 use quatcurve_device::DeviceChoice;
+#[cfg(feature = "cli")]
+use quatcurve_eval::options::names;
+use quatcurve_eval::options::CurveOptions;
 use serde::{Deserialize, Serialize};
 
 /// The options of a bake (DESIGN section 5b).
@@ -151,7 +151,7 @@ impl Default for BakeOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::options::{from_named, OptionError};
+    use quatcurve_eval::options::{from_named, OptionError};
 
     fn given(json: &str) -> Result<BakeOptions, OptionError> {
         from_named(&serde_json::from_str(json).unwrap())
