@@ -60,7 +60,7 @@ pub use quatcurve_view as view;
 
 pub use batch::{Batch, BatchBuilder, PackedTrack, TrackView};
 pub use cpu::CpuEvaluator;
-pub use device::{Device, DeviceChoice, DeviceError};
+pub use device::{Device, DeviceChoice, DeviceError, EvalOutput};
 pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
 pub use gpu::GpuEvaluator;

@@ -15,7 +15,9 @@ use pyo3::types::PyDict;
 use quatcurve::bake::budget::{ChosenRate, Worst};
 use quatcurve::bake::{BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
-use quatcurve::{Batch, CurveSpec, Device, DeviceChoice, EvalJob, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64};
+use quatcurve::{
+    Batch, CurveSpec, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64,
+};
 use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::OnceLock;
@@ -255,7 +257,9 @@ fn evaluate_tracks<'py>(
             let samples = if choice == DeviceChoice::Reference {
                 Samples::F64(job.run().map_err(|e| e.to_string())?.to_rows())
             } else {
-                Samples::F32(device.evaluate_f32(&job).map_err(|e| e.to_string())?.0.data)
+                let mut rows = FloatOutput::default();
+                device.evaluate_into(&job, &mut rows).map_err(|e| e.to_string())?;
+                Samples::F32(rows.data)
             };
             // Quaternions stay in the evaluator's buffer; other forms are written anew.
             Ok((

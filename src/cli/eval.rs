@@ -112,7 +112,8 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let job = EvalJob::new(&batch, &times).layout(layout).derivatives(args.derivatives);
     job.validate().map_err(input_err)?;
     let device = super::open_device(args.device.device, "--device")?;
-    let (out, device_name) = device.evaluate_named(&job).map_err(|e| Failure::from(e).context(&source))?;
+    let mut out = Output::default();
+    let device_name = device.evaluate_into(&job, &mut out).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
     let device = device_name;
     let json = || ResultFile::new(spec.curve.name(), &device, &tracks, &times, &out, f32);

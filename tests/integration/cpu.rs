@@ -67,7 +67,7 @@ fn repeated_knots_and_mixed_families_in_one_batch() {
 }
 
 /// `evaluate_into` writes every float of the caller's buffer (a kept buffer is not cleared
-/// between jobs, `Device::evaluate_f32_into`): into NaNs, every family in both layouts, with
+/// between jobs, `Device::evaluate_into`): into NaNs, every family in both layouts, with
 /// and without derivatives, short tracks and tracks split into pieces, it equals a fresh output
 /// to the bit.
 #[test]

@@ -1,8 +1,9 @@
 //! The animation model every source is read into and every product starts from: joints with
 //! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
 //! scale as keys or as a fitted B-spline ([`Channel::knots`]). Importers fill it ([`gltf`],
-//! [`bvh`], [`crowd`], fitted containers through [`qcf`]); the bake resamples it, the fit
-//! compresses it, and the formats write baked frames back ([`ClipFrames`]).
+//! [`bvh`], [`crowd`], fitted containers through [`qcf`]; [`source`] picks one by the file's
+//! extension); the bake resamples it, the fit compresses it, and the formats write baked
+//! frames back ([`ClipFrames`]). Jobs over files (the bake, the fit) share [`files`].
 
 pub mod bvh;
 pub mod crowd;

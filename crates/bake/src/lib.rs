@@ -2,8 +2,8 @@
 //! curve, rotations through an evaluation [`Device`] and translations/scales through their
 //! Euclidean analogue ([`quatcurve_eval::euclidean`]).
 //!
-//! Every source is read into one model, [`Animation`] (`quatcurve_anim`): joints with rest poses,
-//! and clips of keyed [`Channel`]s. [`bake`] resamples the clips; the formats write the
+//! Every source is read into one model, [`Animation`] (`quatcurve_anim`): joints with rest
+//! poses, and clips of keyed [`Channel`]s. [`bake`] resamples the clips; the formats write the
 //! results back ([`Baked::frames`]) and [`texture`] lays them out as animation textures
 //! (local, model-space by forward kinematics, skin matrices).
 
@@ -39,6 +39,7 @@ use quatcurve_eval::batch::{BatchBuilder, Spline};
 use quatcurve_eval::error::TrackId;
 use quatcurve_eval::euclidean::VectorCurve;
 use quatcurve_eval::job::EvalJob;
+use quatcurve_eval::output::FloatOutput;
 use quatcurve_eval::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
 use quatcurve_eval::track::Track;
 use rayon::prelude::*;
@@ -162,7 +163,7 @@ pub struct Baked {
     /// For curves that interpolate their keys: the largest angle (rad) between a rotation
     /// key and the curve evaluated at that key's time on the same device.
     pub max_key_error: Option<f64>,
-    /// The device that evaluated the rotations ([`Device::evaluate_named`]); `None` when
+    /// The device that evaluated the rotations ([`Device::evaluate_into`]); `None` when
     /// there was no rotation channel to evaluate.
     pub device: Option<String>,
     /// The device's output, kept as it came (rows `x, y, z, w`, track after track): the
@@ -472,8 +473,8 @@ pub fn bake_reusing(
         let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
         Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grids[c]) })
     })?;
-    let mut rotations = std::mem::take(&mut reuse.rotations);
-    let name = device.evaluate_f32_into(&EvalJob::new(&batch, &times), &mut rotations)?;
+    let mut rotations = FloatOutput { channels: 4, data: std::mem::take(&mut reuse.rotations) };
+    let name = device.evaluate_into(&EvalJob::new(&batch, &times), &mut rotations)?;
     let mut next = 0;
     for clip in &mut baked.clips {
         for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
@@ -481,7 +482,7 @@ pub fn bake_reusing(
             next += 1;
         }
     }
-    baked.rotations = rotations;
+    baked.rotations = rotations.data;
     baked.device = Some(name);
     // A fitted clip's control points are not keys the curve passes through.
     if interpolates(spec) && !animation.is_fitted() {
@@ -633,7 +634,8 @@ enum ChannelWork<'a> {
 fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &Device) -> Result<f64, InputError> {
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
     let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
-    let (out, _) = device.evaluate_f32(&EvalJob::new(batch, &times))?;
+    let mut out = FloatOutput::default();
+    device.evaluate_into(&EvalJob::new(batch, &times), &mut out)?;
     let rows: &[[f32; 4]] = bytemuck::cast_slice(&out.data);
     let chord = |key: QuatF64, q: QuatF64| {
         let s = if key.dot(q) < 0.0 { -1.0 } else { 1.0 };

@@ -54,6 +54,47 @@ impl DeviceError {
     }
 }
 
+/// What a device evaluates into: the output type is the caller's choice of precision. The
+/// reference computes in f64 and the fast paths in f32; each output takes either, converted
+/// once.
+pub trait EvalOutput {
+    /// Takes the fast paths' float32 rows of `job`.
+    fn take_rows(&mut self, rows: FloatOutput, job: &EvalJob<'_>);
+    /// Takes the reference's f64 results of `job`.
+    fn take_output(&mut self, out: Output, job: &EvalJob<'_>);
+    /// Float32 rows the CPU path may write in place, for an output that keeps them.
+    fn rows_in_place(&mut self) -> Option<&mut FloatOutput> {
+        None
+    }
+}
+
+/// f64 results, the fast paths' rows widened.
+impl EvalOutput for Output {
+    fn take_rows(&mut self, rows: FloatOutput, job: &EvalJob<'_>) {
+        *self = rows.to_output(job.options.derivatives);
+    }
+
+    fn take_output(&mut self, out: Output, _: &EvalJob<'_>) {
+        *self = out;
+    }
+}
+
+/// Float32 rows, for consumers that store f32 anyway (the bake), which then skip widening
+/// every sample to f64 and narrowing it back; the reference's results rounded.
+impl EvalOutput for FloatOutput {
+    fn take_rows(&mut self, rows: FloatOutput, _: &EvalJob<'_>) {
+        *self = rows;
+    }
+
+    fn take_output(&mut self, out: Output, job: &EvalJob<'_>) {
+        *self = FloatOutput::from_output(&out, job.options.matrix);
+    }
+
+    fn rows_in_place(&mut self) -> Option<&mut FloatOutput> {
+        Some(self)
+    }
+}
+
 /// An opened evaluator.
 pub enum Device {
     /// The f64 reference ([`EvalJob::run`]).
@@ -65,7 +106,7 @@ pub enum Device {
     Cpu(CpuEvaluator),
     /// `auto` with a hardware adapter: the GPU, and the CPU path for a batch the kernel cannot take
     /// (a Bezier above degree 32, one track's keys larger than a binding), so `auto` never
-    /// fails where `cpu` works. [`Device::evaluate_named`] says which one ran.
+    /// fails where `cpu` works. [`Device::evaluate_into`] says which one ran.
     #[cfg(feature = "gpu")]
     Auto(Box<GpuEvaluator>, CpuEvaluator),
 }
@@ -115,69 +156,58 @@ impl Device {
         }
     }
 
-    /// Evaluates a job in its layout; results in f64 whatever the device computed in.
+    /// Evaluates a job in its layout; results in f64 whatever the device computed in
+    /// ([`Device::evaluate_into`] lets the caller choose the precision and names the device).
     ///
     /// # Errors
     /// [`DeviceError::Job`] for a job that breaks a rule, [`DeviceError::Unsupported`] for a
     /// batch the GPU kernel cannot take, [`DeviceError::Device`] for device failures.
     pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
-        self.evaluate_named(job).map(|(out, _)| out)
+        let mut out = Output::default();
+        self.evaluate_into(job, &mut out)?;
+        Ok(out)
     }
 
-    /// [`Device::evaluate`], with the name of the device that ran it ([`Device::name`], or
-    /// for `auto` the CPU path's when the GPU kernel could not take the batch).
+    /// Evaluates a job into `out`, whose type is the caller's choice of precision
+    /// ([`EvalOutput`]: f64 [`Output`] or the fast paths' own float32 [`FloatOutput`], which
+    /// the CPU path fills in place, so one kept from job to job is not allocated again), and
+    /// returns the name of the device that ran it ([`Device::name`], or for `auto` the CPU
+    /// path's when the GPU kernel could not take the batch).
     ///
     /// # Errors
     /// As [`Device::evaluate`].
-    pub fn evaluate_named(&self, job: &EvalJob<'_>) -> Result<(Output, String), DeviceError> {
-        if let Device::Reference = self {
-            return Ok((job.run()?, self.name()));
-        }
-        let (rows, name) = self.evaluate_f32(job)?;
-        Ok((rows.to_output(job.options.derivatives), name))
-    }
-
-    /// [`Device::evaluate_named`] in the fast paths' own float32 rows (the reference's f64
-    /// results rounded to f32): for consumers that store f32 anyway (bake), which then skip
-    /// widening every sample to f64 and narrowing it back.
-    ///
-    /// # Errors
-    /// As [`Device::evaluate`].
-    pub fn evaluate_f32(&self, job: &EvalJob<'_>) -> Result<(FloatOutput, String), DeviceError> {
-        // First, so that a job breaking a rule is the same typed error on every device.
-        job.validate()?;
-        match self {
-            Device::Reference => {
-                let out = job.run()?;
-                Ok((FloatOutput::from_output(&out, job.options.matrix), self.name()))
-            }
-            Device::Cpu(c) => Ok((on_cpu(c, job)?, self.name())),
-            #[cfg(feature = "gpu")]
-            Device::Gpu(g) => Ok((on_gpu(g, job)?, self.name())),
-            #[cfg(feature = "gpu")]
-            Device::Auto(g, c) => match on_gpu(g, job) {
-                Err(DeviceError::Unsupported(_)) => Ok((on_cpu(c, job)?, format!("cpu: {}", c.name()))),
-                other => Ok((other?, self.name())),
-            },
-        }
-    }
-
-    /// [`Device::evaluate_f32`] into `data` (resized to the rows): the CPU path writes into the
-    /// caller's buffer, so that one kept from job to job is not allocated and faulted in again.
-    ///
-    /// # Errors
-    /// As [`Device::evaluate`].
-    pub fn evaluate_f32_into(&self, job: &EvalJob<'_>, data: &mut Vec<f32>) -> Result<String, DeviceError> {
-        if let Device::Cpu(c) = self {
-            // Not cleared: the CPU path writes every float (zeroing the kept buffer cost a
-            // fiftieth of a decode).
-            data.resize(job.times.total() * job.options.row().channels(), 0.0);
-            c.evaluate_into(job, data)?;
+    pub fn evaluate_into(&self, job: &EvalJob<'_>, out: &mut impl EvalOutput) -> Result<String, DeviceError> {
+        // A kept buffer (one with room already) is written in place; a new one is allocated
+        // by the CPU path, on huge pages where the OS offers them.
+        if let (Device::Cpu(c), Some(rows)) = (self, out.rows_in_place().filter(|r| r.data.capacity() > 0)) {
+            // Not cleared: the CPU path writes every float (zeroing a kept buffer cost a
+            // fiftieth of a decode); it checks the job's rules itself.
+            rows.channels = job.options.row().channels();
+            rows.data.resize(job.times.total() * rows.channels, 0.0);
+            c.evaluate_into(job, &mut rows.data)?;
             return Ok(self.name());
         }
-        let (out, name) = self.evaluate_f32(job)?;
-        *data = out.data;
-        Ok(name)
+        // First, so that a job breaking a rule is the same typed error on every device.
+        job.validate()?;
+        let rows = match self {
+            Device::Reference => {
+                out.take_output(job.run()?, job);
+                return Ok(self.name());
+            }
+            Device::Cpu(c) => on_cpu(c, job)?,
+            #[cfg(feature = "gpu")]
+            Device::Gpu(g) => on_gpu(g, job)?,
+            #[cfg(feature = "gpu")]
+            Device::Auto(g, c) => match on_gpu(g, job) {
+                Err(DeviceError::Unsupported(_)) => {
+                    out.take_rows(on_cpu(c, job)?, job);
+                    return Ok(format!("cpu: {}", c.name()));
+                }
+                other => other?,
+            },
+        };
+        out.take_rows(rows, job);
+        Ok(self.name())
     }
 
     /// Forward kinematics: model rows `[frames, joints, 12]` of local rows `[frames, joints,

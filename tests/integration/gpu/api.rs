@@ -159,7 +159,8 @@ fn knots_closer_than_the_gpu_time_resolution_are_refused() {
         let err = gpu.evaluate(&EvalJob::new(&batch, &times)).unwrap_err().to_string();
         assert!(err.contains("tiny") && err.contains("time resolution"), "{curve}: {err}");
         let device = quatcurve::Device::Auto(Box::new(gpu.share_device()), quatcurve::cpu::CpuEvaluator::new());
-        let (out, name) = device.evaluate_named(&EvalJob::new(&batch, &times)).unwrap();
+        let mut out = quatcurve::Output::default();
+        let name = device.evaluate_into(&EvalJob::new(&batch, &times), &mut out).unwrap();
         assert!(name.starts_with("cpu:") && out.rotations.iter().flatten().all(|v| v.is_finite()), "{curve}: {name}");
     }
 }
@@ -252,13 +253,12 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
     let batch = Batch::from_tracks(&[quatcurve::Track::from_rotations(keys)], &CurveSpec::new(Curve::Bezier)).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(5)).unwrap();
     let job = quatcurve::EvalJob::new(&batch, &times).layout(Layout::Track).derivatives(false);
-    let (_, name) = device.evaluate_named(&job).unwrap();
+    let name = device.evaluate_into(&job, &mut quatcurve::Output::default()).unwrap();
     assert!(name.starts_with("cpu:"), "{name}");
     let small = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&small, Sampling::Count(5)).unwrap();
-    let (_, name) = device
-        .evaluate_named(&quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false))
-        .unwrap();
+    let job = quatcurve::EvalJob::new(&small, &times).layout(Layout::Track).derivatives(false);
+    let name = device.evaluate_into(&job, &mut quatcurve::Output::default()).unwrap();
     assert!(name.starts_with("gpu:"), "{name}");
     // lavapipe is a software adapter: plain `auto` opens the CPU path there.
     if software {
