@@ -21,8 +21,9 @@ fn main() {
     let animation = bvh::read(Path::new(input)).unwrap_or_else(|e| panic!("{input}: {e}")).animation("clip");
     let (joints, clip) = (&animation.joints, &animation.clips[0]);
     // A BVH clip keys every animated channel at every frame.
-    let frames = clip.channels.iter().map(|c| c.times.len()).max().expect("an animated channel");
-    let times = &clip.channels.iter().find(|c| c.times.len() == frames).expect("a full channel").times;
+    let keys: Vec<(&[f64], &[[f64; 4]])> = clip.channels.iter().map(|c| c.keyed().expect("BVH keys")).collect();
+    let frames = keys.iter().map(|(times, _)| times.len()).max().expect("an animated channel");
+    let times = keys.iter().find(|(times, _)| times.len() == frames).expect("a full channel").0;
     let rate = (frames - 1) as f64 / (times[frames - 1] - times[0]);
     // Rest pose first, then the animated channels over it.
     let mut poses: Vec<[f64; 7]> = (0..frames)
@@ -34,14 +35,14 @@ fn main() {
             })
         })
         .collect();
-    for channel in &clip.channels {
-        assert_eq!(channel.times.len(), frames, "{input}: a channel keyed at some frames only");
+    for (channel, (times, values)) in clip.channels.iter().zip(keys) {
+        assert_eq!(times.len(), frames, "{input}: a channel keyed at some frames only");
         let columns = match channel.property {
             Property::Rotation => 0..4,
             Property::Translation => 4..7,
             Property::Scale => continue,
         };
-        for (f, value) in channel.values.iter().enumerate() {
+        for (f, value) in values.iter().enumerate() {
             poses[f * joints.len() + channel.joint][columns.clone()].copy_from_slice(&value[..columns.len()]);
         }
     }

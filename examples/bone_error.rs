@@ -22,7 +22,8 @@ fn source_rate(animation: &Animation, clip: usize) -> f64 {
     let mut steps: Vec<f64> = animation.clips[clip]
         .channels
         .iter()
-        .flat_map(|c| c.times.windows(2).map(|w| w[1] - w[0]))
+        .filter_map(|c| c.keyed())
+        .flat_map(|(times, _)| times.windows(2).map(|w| w[1] - w[0]))
         .filter(|s| *s > 1e-9)
         .collect();
     steps.sort_by(f64::total_cmp);

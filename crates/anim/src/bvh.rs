@@ -330,13 +330,7 @@ impl BvhFile {
                 |f: &dyn Fn(&[f64]) -> [f64; 4]| self.frames.iter().map(|row| f(&row[range.clone()])).collect();
             if joint.channels.iter().any(|c| matches!(c, BvhChannel::Rotation(_))) {
                 let values = values(&|row| euler_to_quat(&joint.channels, row).to_array());
-                channels.push(Channel {
-                    joint: index,
-                    property: Property::Rotation,
-                    times: times.clone(),
-                    values,
-                    knots: None,
-                });
+                channels.push(Channel::keys(index, Property::Rotation, times.clone(), values));
             }
             if joint.channels.iter().any(|c| matches!(c, BvhChannel::Position(_))) {
                 let values = values(&|row| {
@@ -348,13 +342,7 @@ impl BvhFile {
                     }
                     p
                 });
-                channels.push(Channel {
-                    joint: index,
-                    property: Property::Translation,
-                    times: times.clone(),
-                    values,
-                    knots: None,
-                });
+                channels.push(Channel::keys(index, Property::Translation, times.clone(), values));
             }
         }
         let joints = self.joints.iter().map(|j| Joint::at(j.name.clone(), j.parent, j.offset)).collect();

@@ -90,7 +90,7 @@ fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>)
                 QuatF64::exp(Vec3F64::new(swing, 0.3 * swing * (2.0 * a).cos(), 0.5 * lean)).to_array()
             })
             .collect();
-        channels.push(Channel { joint, property: Property::Rotation, times: times.to_vec(), values, knots: None });
+        channels.push(Channel::keys(joint, Property::Rotation, times.to_vec(), values));
         if j == 0 {
             let speed = 1.2 * vigour;
             let values = times
@@ -100,13 +100,7 @@ fn character(c: usize, side: usize, times: &[f64]) -> (Vec<Joint>, Vec<Channel>)
                     [origin[0], 0.95 + bob, origin[2] + speed * t, 0.0]
                 })
                 .collect();
-            channels.push(Channel {
-                joint,
-                property: Property::Translation,
-                times: times.to_vec(),
-                values,
-                knots: None,
-            });
+            channels.push(Channel::keys(joint, Property::Translation, times.to_vec(), values));
         }
     }
     (joints, channels)

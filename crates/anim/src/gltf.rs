@@ -245,8 +245,7 @@ fn read_channel(
         Checked::Invalid => return Err(unknown("interpolation")),
     };
     let joint = channel.target().node().index();
-    let mut keyed = Channel { joint, property, times: Vec::new(), values: Vec::new(), knots: None };
-    let label = animation.label(clip, &keyed);
+    let label = animation.label(clip, &Channel::keys(joint, property, Vec::new(), Vec::new()));
     // The crate's readers trust accessor counts (and allocate from them): check every
     // accessor against the bytes present first.
     let sampler = channel.sampler();
@@ -258,7 +257,7 @@ fn read_channel(
             .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
     }
     let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-    keyed.times = reader
+    let times: Vec<f64> = reader
         .read_inputs()
         .ok_or_else(|| input(format!("{label}: key times cannot be read")))?
         .map(f64::from)
@@ -272,11 +271,11 @@ fn read_channel(
             gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
         };
     // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
-    keyed.values = if cubic { values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect() } else { values };
-    if keyed.values.len() != keyed.times.len() || keyed.times.is_empty() {
-        return Err(input(format!("{label}: {} key times but {} key values", keyed.times.len(), keyed.values.len())));
+    let values = if cubic { values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect() } else { values };
+    if values.len() != times.len() || times.is_empty() {
+        return Err(input(format!("{label}: {} key times but {} key values", times.len(), values.len())));
     }
-    Ok(Some(keyed))
+    Ok(Some(Channel::keys(joint, property, times, values)))
 }
 
 /// The crate's validation, run here so that a known panic in it is avoided first: its

@@ -1,6 +1,6 @@
 //! The animation model every source is read into and every product starts from: joints with
 //! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
-//! scale as keys or as a fitted B-spline ([`Channel::knots`]). Importers fill it ([`gltf`],
+//! scale as keys or as a fitted B-spline ([`ChannelCurve`]). Importers fill it ([`gltf`],
 //! [`bvh`], [`crowd`], fitted containers through [`qcf`]; [`source`] picks one by the file's
 //! extension); the bake resamples it, the fit compresses it, and the formats write baked
 //! frames back ([`ClipFrames`]). Jobs over files (the bake, the fit) share [`files`].
@@ -45,22 +45,85 @@ pub enum Property {
     Scale,
 }
 
-/// One keyed property of one joint.
+/// One animated property of one joint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Channel {
     /// Index into [`Animation::joints`].
     pub joint: usize,
     /// What it animates.
     pub property: Property,
-    /// Key times in seconds, strictly increasing.
-    pub times: Vec<f64>,
-    /// Key values (`x, y, z, w` for rotations; `x, y, z, 0` for vectors).
-    pub values: Vec<[f64; 4]>,
-    /// A fitted channel's knots (`quatcurve::fit`): then `values` are the control points of a
-    /// clamped B-spline on them (the KKS cumulative form for rotations; its order is the knot
-    /// count less the control point count), not keys, and `times` their Greville abscissae;
-    /// `None` for keys.
-    pub knots: Option<Vec<f64>>,
+    /// Its keys or its fitted spline.
+    pub curve: ChannelCurve,
+}
+
+/// What a channel holds. Keys lie on the motion and are interpolated by the job's curve
+/// family; a fitted spline's control points do not, and it is evaluated as it is: the two are
+/// read differently, so every consumer says which it takes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ChannelCurve {
+    /// Keys on the motion.
+    Keys {
+        /// Seconds, strictly increasing.
+        times: Vec<f64>,
+        /// One per time: `x, y, z, w` for rotations, `x, y, z, 0` for vectors.
+        values: Vec<[f64; 4]>,
+    },
+    /// A fitted channel (`quatcurve::fit`): a clamped B-spline, the KKS cumulative form for
+    /// rotations, its order the knot count less the control point count.
+    Spline {
+        /// Knots in seconds, ascending, each end repeated to the order.
+        knots: Vec<f64>,
+        /// Control points, as `values` of keys.
+        controls: Vec<[f64; 4]>,
+    },
+}
+
+impl Channel {
+    /// A channel of keys.
+    #[must_use]
+    pub fn keys(joint: usize, property: Property, times: Vec<f64>, values: Vec<[f64; 4]>) -> Self {
+        Self { joint, property, curve: ChannelCurve::Keys { times, values } }
+    }
+
+    /// Its key times and values; `None` for a fitted spline.
+    #[must_use]
+    pub fn keyed(&self) -> Option<(&[f64], &[[f64; 4]])> {
+        match &self.curve {
+            ChannelCurve::Keys { times, values } => Some((times, values)),
+            ChannelCurve::Spline { .. } => None,
+        }
+    }
+
+    /// Whether it is a fitted spline.
+    #[must_use]
+    pub fn is_spline(&self) -> bool {
+        matches!(self.curve, ChannelCurve::Spline { .. })
+    }
+
+    /// `[start, end]` of its keys or of its spline's domain; `None` with no key.
+    #[must_use]
+    pub fn span(&self) -> Option<[f64; 2]> {
+        let points = match &self.curve {
+            ChannelCurve::Keys { times, .. } => times,
+            ChannelCurve::Spline { knots, .. } => knots,
+        };
+        Some([*points.first()?, *points.last()?])
+    }
+
+    /// Its keys, or its spline's control points: what it stores.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match &self.curve {
+            ChannelCurve::Keys { values, .. } => values.len(),
+            ChannelCurve::Spline { controls, .. } => controls.len(),
+        }
+    }
+
+    /// Whether it stores nothing.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
 }
 
 /// One clip: channels sharing a time line.
@@ -68,16 +131,17 @@ pub struct Channel {
 pub struct Clip {
     /// Name for messages and sidecars.
     pub name: String,
-    /// The keyed channels.
+    /// Its channels.
     pub channels: Vec<Channel>,
 }
 
 impl Clip {
-    /// `[first key, last key]` over every channel.
+    /// `[first key, last key]` over every channel (a spline's domain for a fitted one).
     #[must_use]
     pub fn span(&self) -> [f64; 2] {
-        let first = self.channels.iter().filter_map(|c| c.times.first()).copied().fold(f64::INFINITY, f64::min);
-        let last = self.channels.iter().filter_map(|c| c.times.last()).copied().fold(f64::NEG_INFINITY, f64::max);
+        let spans = || self.channels.iter().filter_map(Channel::span);
+        let first = spans().map(|[s, _]| s).fold(f64::INFINITY, f64::min);
+        let last = spans().map(|[_, e]| e).fold(f64::NEG_INFINITY, f64::max);
         if first <= last {
             [first, last]
         } else {
@@ -132,10 +196,10 @@ pub struct Animation {
 }
 
 impl Animation {
-    /// Whether any channel is fitted ([`Channel::knots`]): control points, not keys.
+    /// Whether any channel is a fitted spline ([`ChannelCurve::Spline`]).
     #[must_use]
     pub fn is_fitted(&self) -> bool {
-        self.clips.iter().flat_map(|c| &c.channels).any(|c| c.knots.is_some())
+        self.clips.iter().flat_map(|c| &c.channels).any(Channel::is_spline)
     }
 
     /// Each joint's parent, in joint order.
@@ -188,10 +252,10 @@ impl Animation {
         Ok(order)
     }
 
-    /// Total keys over every channel of every clip.
+    /// Total keys (and control points) over every channel of every clip.
     #[must_use]
     pub fn key_count(&self) -> usize {
-        self.clips.iter().flat_map(|c| &c.channels).map(|c| c.times.len()).sum()
+        self.clips.iter().flat_map(|c| &c.channels).map(Channel::len).sum()
     }
 
     /// `clip '<clip>', <joint> <property>`, naming a channel in messages.

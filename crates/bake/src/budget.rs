@@ -303,7 +303,7 @@ pub fn choose_rates(
     budget: &ErrorBudget,
     setting: &Setting<'_>,
 ) -> Result<Vec<Measured>, InputError> {
-    if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(|c| c.knots.is_some())) {
+    if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(quatcurve_anim::Channel::is_spline)) {
         return Err(InputError::Animation(format!(
             "clip '{}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it \
                 at a fixed rate",

@@ -28,7 +28,7 @@ pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::error::InputError as E;
-use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
+use quatcurve_anim::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
@@ -64,17 +64,12 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     let channels: Vec<(&Clip, &Channel)> = animation
         .clips
         .iter()
-        .flat_map(|clip| {
-            // A fitted channel's values are control points, not keys.
-            clip.channels
-                .iter()
-                .filter(|c| c.property == Property::Rotation && c.knots.is_none())
-                .map(move |c| (clip, c))
-        })
+        .flat_map(|clip| clip.channels.iter().filter(|c| c.property == Property::Rotation).map(move |c| (clip, c)))
         .collect();
     let warning = |&(clip, channel): &(&Clip, &Channel)| -> Option<String> {
-        let steps: Vec<(usize, f64)> = channel
-            .values
+        // A fitted channel's control points are not keys: it has no steps between keys.
+        let (times, values) = channel.keyed()?;
+        let steps: Vec<(usize, f64)> = values
             .windows(2)
             .enumerate()
             .filter_map(|(i, w)| {
@@ -96,7 +91,7 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
             if steps.len() == 1 { "" } else { "s" },
             if steps.len() == 1 { "s" } else { "" },
             first + 1,
-            quatcurve_eval::error::Number(channel.times[first + 1]),
+            quatcurve_eval::error::Number(times[first + 1]),
             quatcurve_eval::error::Number(angle.to_degrees()),
         ))
     };
@@ -229,16 +224,7 @@ pub fn interpolates(spec: &CurveSpec) -> bool {
 /// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
 /// key is not its first rotation, named.
 pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, InputError> {
-    let open = |c: &Channel| {
-        let (first, last) = (
-            QuatF64::from_array(c.values[0]).normalize(),
-            QuatF64::from_array(c.values[c.values.len() - 1]).normalize(),
-        );
-        let angle = first.angle_to(last);
-        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
-    };
-    let rotations = || clip.channels.iter().filter(|c| c.property == Property::Rotation && c.values.len() > 1);
-    if clip.channels.iter().any(|c| c.knots.is_some()) {
+    if clip.channels.iter().any(Channel::is_spline) {
         // A fitted clip is the open curve it was fitted as.
         return match mode {
             LoopMode::On => Err(E::Animation(format!(
@@ -248,9 +234,22 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
             _ => Ok(false),
         };
     }
+    let open = |values: &[[f64; 4]]| {
+        let (first, last) =
+            (QuatF64::from_array(values[0]).normalize(), QuatF64::from_array(values[values.len() - 1]).normalize());
+        let angle = first.angle_to(last);
+        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
+    };
+    let rotations = || {
+        clip.channels
+            .iter()
+            .filter(|c| c.property == Property::Rotation)
+            .filter_map(|c| c.keyed().map(|(_, values)| (c, values)))
+            .filter(|(_, values)| values.len() > 1)
+    };
     match mode {
         LoopMode::Off => Ok(false),
-        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|c| open(c).is_none())),
+        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())),
         LoopMode::On => {
             if !spec.can_loop() {
                 return Err(E::Animation(format!(
@@ -260,7 +259,7 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
                     CurveSpec::looping_curves()
                 )));
             }
-            if let Some((c, angle)) = rotations().find_map(|c| open(c).map(|a| (c, a))) {
+            if let Some((c, angle)) = rotations().find_map(|(c, v)| open(v).map(|a| (c, a))) {
                 return Err(E::Animation(format!(
                     "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
                         is {} rad from its first (at most {})",
@@ -563,47 +562,45 @@ fn prepare_channels<'a>(
         let spec = CurveSpec { looping: clips[c].looping, ..*spec };
         let name = animation.label(clip, channel);
         let frames = &clips[c].times;
-        if let Some(knots) = &channel.knots {
-            return fitted_channel(channel, knots, TrackId { index: k, name: Some(name) }, frames);
-        }
-        Ok(match (channel.property, channel.values.len()) {
-            (_, 1) => ChannelWork::Host(constant(&TrackId { index: k, name: Some(name) }, channel, frames.len())?),
+        let id = TrackId { index: k, name: Some(name) };
+        let (times, values) = match &channel.curve {
+            ChannelCurve::Keys { times, values } => (times, values),
+            ChannelCurve::Spline { knots, controls } => {
+                return fitted_channel(channel.property, knots, controls, id, frames)
+            }
+        };
+        Ok(match (channel.property, values.len()) {
+            (_, 1) => ChannelWork::Host(constant(&id, channel.property, values[0], frames.len())?),
             (Property::Rotation, _) => ChannelWork::Track(
-                Track {
-                    name: Some(name),
-                    times: Some(channel.times.clone()),
-                    ..Track::from_rotations(channel.values.clone())
-                },
+                Track { name: id.name, times: Some(times.clone()), ..Track::from_rotations(values.clone()) },
                 spec,
             ),
             _ => {
-                let id = TrackId { index: k, name: Some(name) };
-                let keys: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                host_vectors(&VectorCurve::new(&id, Some(&channel.times), &keys, None, &spec)?, frames)
+                let keys: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+                host_vectors(&VectorCurve::new(&id, Some(times), &keys, None, &spec)?, frames)
             }
         })
     };
     channels.par_iter().with_min_len(16).map(|&(c, k)| (c, prepare(c, k))).collect()
 }
 
-/// A fitted channel ([`Channel::knots`]): its control points on its knots, as the fit's
-/// curve family of the order they make ([`quatcurve_anim::qcf::fitted::spline_spec`]); rotations on the device,
-/// vectors here.
+/// A fitted channel ([`ChannelCurve::Spline`]): its control points on its knots, as the fit's
+/// curve family of the order they make ([`quatcurve_anim::qcf::fitted::spline_spec`]);
+/// rotations on the device, vectors here.
 fn fitted_channel<'a>(
-    channel: &'a Channel,
+    property: Property,
     knots: &'a [f64],
+    controls: &'a [[f64; 4]],
     id: TrackId,
     frames: &[f64],
 ) -> Result<ChannelWork<'a>, InputError> {
-    if channel.property == Property::Rotation {
+    if property == Property::Rotation {
         let name = id.name.unwrap_or_default();
-        return Ok(ChannelWork::Spline { name, points: &channel.values, knots });
+        return Ok(ChannelWork::Spline { name, points: controls, knots });
     }
-    let spec = quatcurve_anim::qcf::fitted::spline_spec(quatcurve_anim::qcf::fitted::order_of(
-        knots.len(),
-        channel.values.len(),
-    ));
-    let controls: Vec<[f64; 3]> = channel.values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+    let spec =
+        quatcurve_anim::qcf::fitted::spline_spec(quatcurve_anim::qcf::fitted::order_of(knots.len(), controls.len()));
+    let controls: Vec<[f64; 3]> = controls.iter().map(|v| [v[0], v[1], v[2]]).collect();
     Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
 }
 
@@ -660,9 +657,8 @@ fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &De
 }
 
 /// A one-key channel held for every frame (checked like any key).
-fn constant(id: &TrackId, channel: &Channel, frames: usize) -> Result<Vec<[f32; 4]>, InputError> {
-    let value = channel.values[0];
-    let value = if channel.property == Property::Rotation {
+fn constant(id: &TrackId, property: Property, value: [f64; 4], frames: usize) -> Result<Vec<[f32; 4]>, InputError> {
+    let value = if property == Property::Rotation {
         quatcurve_eval::batch::normalized_key(id, 0, value)?.to_array()
     } else if value.iter().all(|v| v.is_finite()) {
         value

@@ -116,13 +116,18 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         .clips
         .get(clip)
         .ok_or_else(|| FitClipError::Input(format!("no clip {clip}: the animation has {}", animation.clips.len())))?;
-    let channels = &source.channels;
-    if let Some(c) = channels.iter().find(|c| c.knots.is_some()) {
-        return Err(FitClipError::Input(format!(
-            "{} is fitted already: it holds control points, not keys",
-            animation.label(source, c)
-        )));
-    }
+    let channels = &source
+        .channels
+        .iter()
+        .map(|c| {
+            Keyed::of(c).ok_or_else(|| {
+                FitClipError::Input(format!(
+                    "{} is fitted already: it holds control points, not keys",
+                    animation.label(source, c)
+                ))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
     frames.sort_by(f64::total_cmp);
     frames.dedup();
@@ -138,7 +143,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             if c.times.len() < 2 {
                 return 0;
             }
-            let line = Timeline::of(&c.times);
+            let line = Timeline::of(c.times);
             timelines.iter().position(|l| *l == line).unwrap_or_else(|| {
                 timelines.push(line);
                 timelines.len() - 1
@@ -227,7 +232,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
 /// Each channel's tolerance: the budget split evenly over the animated channels of the longest
 /// chain from a root, a rotation's as the angle that moves the farthest vertex it carries (at
 /// rest) by that share, a scale's likewise, a translation's the share itself.
-fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budget: &Budget) -> Vec<f64> {
+fn tolerances(animation: &Animation, order: &[usize], channels: &[Keyed], budget: &Budget) -> Vec<f64> {
     let joints = &animation.joints;
     let parents = animation.parents();
     let at: Vec<Vec3F64> =
@@ -259,7 +264,7 @@ fn tolerances(animation: &Animation, order: &[usize], channels: &[Channel], budg
 /// between them), within `tolerance[0]` at keys and `tolerance[1]` between them,
 /// against its own interpolation; a channel whose every key is within `tolerance` of its first
 /// is stored once.
-fn fit_channel(channel: &Channel, timelines: &[Timeline], line: usize, [tolerance, between]: [f64; 2]) -> Fitted {
+fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance, between]: [f64; 2]) -> Fitted {
     let first = channel.values[0];
     let rotation = channel.property == Property::Rotation;
     let off = |v: &[f64; 4]| {
@@ -427,6 +432,22 @@ fn kept_keys(property: Property, values: &[[f64; 4]], times: &[f64], tolerances:
 }
 
 /// Every joint's rest transform.
+/// A source channel as the fit reads it: its keys (a fitted channel is refused).
+struct Keyed<'a> {
+    joint: usize,
+    property: Property,
+    times: &'a [f64],
+    values: &'a [[f64; 4]],
+}
+
+impl<'a> Keyed<'a> {
+    /// `channel`'s keys; `None` for a fitted spline.
+    fn of(channel: &'a Channel) -> Option<Self> {
+        let (times, values) = channel.keyed()?;
+        Some(Keyed { joint: channel.joint, property: channel.property, times, values })
+    }
+}
+
 fn rest_pose(animation: &Animation) -> Vec<Transform> {
     animation
         .joints
@@ -436,11 +457,11 @@ fn rest_pose(animation: &Animation) -> Vec<Transform> {
 }
 
 /// The source's value of `channel` at `t`: keys slerped (rotations) or lerped, held outside.
-fn source_at(channel: &Channel, t: f64) -> [f64; 4] {
+fn source_at(channel: &Keyed, t: f64) -> [f64; 4] {
     if channel.times.len() < 2 {
         return channel.values[0];
     }
-    let (j, h) = bracket(&channel.times, t);
+    let (j, h) = bracket(channel.times, t);
     let (a, b) = (channel.values[j], channel.values[j + 1]);
     if channel.property == Property::Rotation {
         QuatF64::from_array(a).slerp(QuatF64::from_array(b).aligned_with(QuatF64::from_array(a)), h).to_array()
@@ -455,7 +476,7 @@ fn worst_error(
     animation: &Animation,
     parents: &[Option<usize>],
     order: &[usize],
-    channels: &[Channel],
+    channels: &[Keyed],
     fitted: &[FittedChannel],
     times: &[f64],
     budget: &Budget,
@@ -522,11 +543,8 @@ mod tests {
             Joint::at("hand".into(), Some(1), [10.0, 0.0, 0.0]),
         ];
         let times: Vec<f64> = (0..=240).map(|f| f64::from(f) / 120.0).collect();
-        let turn = |joint: usize, speed: f64| Channel {
-            joint,
-            property: Property::Rotation,
-            times: times.clone(),
-            values: times
+        let turn = |joint: usize, speed: f64| {
+            let values = times
                 .iter()
                 .map(|&t| {
                     QuatF64::from_rotation_vector(Vec3F64::new(
@@ -536,23 +554,16 @@ mod tests {
                     ))
                     .to_array()
                 })
-                .collect(),
-            knots: None,
+                .collect();
+            Channel::keys(joint, Property::Rotation, times.clone(), values)
         };
-        let slide = Channel {
-            joint: 0,
-            property: Property::Translation,
-            times: times.clone(),
-            values: times.iter().map(|&t| [5.0 * t, (3.0 * t).sin(), 0.0, 0.0]).collect(),
-            knots: None,
-        };
-        let still = Channel {
-            joint: 2,
-            property: Property::Rotation,
-            times: times.clone(),
-            values: vec![[0.0, 0.0, 0.0, 1.0]; times.len()],
-            knots: None,
-        };
+        let slide = Channel::keys(
+            0,
+            Property::Translation,
+            times.clone(),
+            times.iter().map(|&t| [5.0 * t, (3.0 * t).sin(), 0.0, 0.0]).collect(),
+        );
+        let still = Channel::keys(2, Property::Rotation, times.clone(), vec![[0.0, 0.0, 0.0, 1.0]; times.len()]);
         let clip = Clip { name: "wave".into(), channels: vec![turn(0, 2.0), turn(1, 3.0), slide, still] };
         Animation { joints, clips: vec![clip], skins: Vec::new() }
     }
@@ -565,11 +576,11 @@ mod tests {
         assert!(fit.at_frames.error <= budget.max_error, "{:?}", fit.at_frames);
         assert!(fit.between_frames.error <= budget.between_error, "{:?}", fit.between_frames);
         // Measured again here, at every frame, from the fitted curves and the keys.
-        let channels = &animation.clips[0].channels;
+        let channels: Vec<Keyed> = animation.clips[0].channels.iter().map(|c| Keyed::of(c).unwrap()).collect();
         let order = animation.parents_first().unwrap();
         let parents = animation.parents();
         let again =
-            worst_error(&animation, &parents, &order, channels, &fit.clip.channels, &channels[0].times, &budget);
+            worst_error(&animation, &parents, &order, &channels, &fit.clip.channels, channels[0].times, &budget);
         assert_eq!(again.0, fit.at_frames);
         assert!(matches!(fit.clip.channels[3].curve, Fitted::Constant(_)), "the still hand is stored once");
         assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
@@ -610,8 +621,10 @@ mod tests {
         // Five keys over two seconds, each channel's interpolation linear between them.
         for channel in &mut animation.clips[0].channels {
             let keep = |i: &usize| i % 60 == 0;
-            channel.times = channel.times.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &t)| t).collect();
-            channel.values = channel.values.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &v)| v).collect();
+            let (times, values) = channel.keyed().unwrap();
+            let times = times.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &t)| t).collect();
+            let values = values.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &v)| v).collect();
+            *channel = Channel::keys(channel.joint, channel.property, times, values);
         }
         let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
         let fit = fit_clip(&animation, 0, &budget).unwrap();

@@ -321,13 +321,12 @@ fn clip_report(animation: &Animation, fit: &ClipFit, unit_cm: f64, seconds: f64)
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "cli"))]
 mod tests {
     use super::*;
 
     /// Every fit option is a flag of the command line, spelled from its name, and reads back
     /// by name as Python gives it.
-    #[cfg(feature = "cli")]
     #[test]
     fn every_option_is_a_flag_named_after_it_and_reads_by_name() {
         use clap::Args;

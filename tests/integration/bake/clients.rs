@@ -156,7 +156,8 @@ fn channels(path: &Path) -> (Channels, HashMap<String, [f64; 2]>) {
     for clip in &file.animation.clips {
         spans.insert(clip.name.clone(), clip.span());
         for c in &clip.channels {
-            channels.insert((clip.name.clone(), c.joint, c.property), (c.times.clone(), c.values.clone()));
+            let (times, values) = c.keyed().expect("a source's keys");
+            channels.insert((clip.name.clone(), c.joint, c.property), (times.to_vec(), values.to_vec()));
         }
     }
     (channels, spans)

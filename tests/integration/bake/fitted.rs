@@ -48,7 +48,7 @@ fn pose(animation: &Animation, f: usize) -> Vec<Transform> {
         .map(|j| Transform { rotation: j.rotation, translation: j.translation, scale: j.scale })
         .collect();
     for c in &animation.clips[0].channels {
-        let v = c.values[f];
+        let v = c.keyed().expect("keys").1[f];
         match c.property {
             Property::Rotation => local[c.joint].rotation = v,
             Property::Translation => local[c.joint].translation = [v[0], v[1], v[2]],
@@ -62,8 +62,8 @@ fn pose(animation: &Animation, f: usize) -> Vec<Transform> {
 fn worst_error(source: &Animation, decoded: &Animation, distance: f64) -> f64 {
     let parents = source.parents();
     let order = source.parents_first().unwrap();
-    let frames = source.clips[0].channels[0].times.len();
-    assert_eq!(decoded.clips[0].channels[0].times.len(), frames, "every source frame decoded");
+    let frames = source.clips[0].channels[0].len();
+    assert_eq!(decoded.clips[0].channels[0].len(), frames, "every source frame decoded");
     (0..frames)
         .map(|f| pose_errors(&parents, &order, &pose(source, f), &pose(decoded, f), distance))
         .flat_map(|errors| errors.into_iter())
@@ -306,7 +306,7 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
     let result = bake(&["--input", container.to_str().unwrap(), "--rate", "30", "--output", baked.to_str().unwrap()]);
     assert!(result.status.success(), "{}", stderr(&result));
     let decoded = bvh::read(&baked.join("bend.bvh")).unwrap().animation("bend");
-    let frames = decoded.clips[0].channels[0].times.len();
+    let frames = decoded.clips[0].channels[0].len();
     assert_eq!(frames, 61);
     let devices: &[&str] =
         if crate::shared_gpu().is_some() { &["cpu", "gpu", "reference"] } else { &["cpu", "reference"] };
@@ -325,14 +325,15 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
                 .channels
                 .iter()
                 .find(|c| c.joint == joint && c.property == Property::Rotation)
-                .unwrap();
+                .and_then(|c| c.keyed())
+                .unwrap()
+                .1;
             for (f, q) in track["rotations"].as_array().unwrap().iter().enumerate() {
                 let q: Vec<f64> = q.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-                let dot: f64 = q.iter().zip(channel.values[f]).map(|(a, b)| a * b).sum();
-                let off =
-                    q.iter().zip(channel.values[f]).map(|(a, b)| (a - b * dot.signum()).abs()).fold(0.0, f64::max);
+                let dot: f64 = q.iter().zip(channel[f]).map(|(a, b)| a * b).sum();
+                let off = q.iter().zip(channel[f]).map(|(a, b)| (a - b * dot.signum()).abs()).fold(0.0, f64::max);
                 // Both are f32 samples of one curve (the BVH's Euler angles printed to 1e-6 degrees).
-                assert!(off < 1e-6, "{device}: joint {joint} frame {f}: {q:?} vs {:?}", channel.values[f]);
+                assert!(off < 1e-6, "{device}: joint {joint} frame {f}: {q:?} vs {:?}", channel[f]);
             }
         }
     }

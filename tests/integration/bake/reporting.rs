@@ -92,8 +92,7 @@ fn source_steps_just_over_the_warning_limit_are_counted_and_those_just_under_are
     };
     let (under, over) = (SOURCE_STEP_WARNING_DEGREES - 1e-6, SOURCE_STEP_WARNING_DEGREES + 1e-6);
     let values = vec![about_z(0.0), about_z(under), about_z(0.0), about_z(over), about_z(0.0), about_z(-under)];
-    let channel =
-        Channel { joint: 0, property: Property::Rotation, times: (0..6).map(f64::from).collect(), values, knots: None };
+    let channel = Channel::keys(0, Property::Rotation, (0..6).map(f64::from).collect(), values);
     let animation = Animation {
         joints: vec![Joint::at("bone".into(), None, [0.0; 3])],
         clips: vec![Clip { name: "edge".into(), channels: vec![channel] }],

@@ -4,7 +4,7 @@
 
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
-use crate::{Channel, Clip, Joint, Property};
+use crate::{Channel, ChannelCurve, Clip, Joint, Property};
 use quatcurve_core::curve::CurveSpec;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::batch::BatchBuilder;
@@ -236,25 +236,21 @@ impl Fitted {
         }
     }
 
-    /// Knots and control points as a [`Channel`] of the common model: `times` are the control
-    /// points' Greville abscissae (strictly increasing, spanning the curve's domain), `values`
-    /// the control points. A constant is one key at `span`'s start, or two when the span is
-    /// not empty.
+    /// The curve as a [`Channel`] of the common model: its knots and control points, or a
+    /// constant as one key at `span`'s start (two when the span is not empty).
     fn channel(&self, joint: usize, property: Property, span: [f64; 2]) -> Channel {
-        let (knots, values): (Vec<f64>, Vec<[f64; 4]>) = match self {
+        let (knots, controls): (Vec<f64>, Vec<[f64; 4]>) = match self {
             Fitted::Constant(v) => {
                 let times = if span[1] > span[0] { vec![span[0], span[1]] } else { vec![span[0]] };
                 let values = vec![*v; times.len()];
-                return Channel { joint, property, times, values, knots: None };
+                return Channel::keys(joint, property, times, values);
             }
             Fitted::Rotation(s, _) => (s.fit.knots.clone(), s.fit.controls.iter().map(|q| q.to_array()).collect()),
             Fitted::Vector(s, _) => {
                 (s.fit.knots.clone(), s.fit.controls.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect())
             }
         };
-        let order = order_of(knots.len(), values.len());
-        let greville = (0..values.len()).map(|i| knots[i + 1..i + order].iter().sum::<f64>() / (order - 1) as f64);
-        Channel { joint, property, times: greville.collect(), values, knots: Some(knots) }
+        Channel { joint, property, curve: ChannelCurve::Spline { knots, controls } }
     }
 }
 
@@ -312,8 +308,8 @@ impl FittedClip {
         self.channels.iter().filter_map(track).collect()
     }
 
-    /// The clip in the common model, for baking: each curve channel carries its knots and
-    /// its control points ([`Channel::knots`]), each constant its value.
+    /// The clip in the common model, for baking: each curve channel its spline
+    /// ([`ChannelCurve::Spline`]), each constant its value as keys.
     #[must_use]
     pub fn to_clip(&self) -> Clip {
         let channels = self.channels.iter().map(|c| c.curve.channel(c.joint, c.property, self.span)).collect();
