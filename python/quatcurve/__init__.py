@@ -26,6 +26,7 @@ from ._quatcurve import (
     BAKE_OPTIONS as _BAKE_OPTIONS,
     DEFAULT_CURVE,
     DEFAULT_RATE,
+    EVAL_OPTIONS as _EVAL_OPTIONS,
     FIT_OPTIONS as _FIT_OPTIONS,
     __version__,
     bake_files,
@@ -33,10 +34,11 @@ from ._quatcurve import (
     fit_files,
 )
 
-__all__ = ["evaluate", "bake", "fit", "Curve", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
+__all__ = ["evaluate", "bake", "fit", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
 
-# The bake's and the fit's options by name with the library's defaults (what :func:`bake` and
-# :func:`fit` take as keywords).
+# Each job's options by name with the library's defaults (what :func:`evaluate`, :func:`bake`
+# and :func:`fit` take as keywords).
+EVAL_OPTIONS = json.loads(_EVAL_OPTIONS)
 BAKE_OPTIONS = json.loads(_BAKE_OPTIONS)
 FIT_OPTIONS = json.loads(_FIT_OPTIONS)
 
@@ -99,21 +101,17 @@ def evaluate(
     times=None,
     sample_times=None,
     *,
-    rate=None,
-    samples=None,
-    curve=DEFAULT_CURVE,
-    order=4,
-    knots="phantom",
-    tangents="catmull-rom",
-    blend="cubic",
-    loop=False,
     angular_velocities=None,
-    derivatives=False,
     rotation_type="auto",
     output="quat",
-    device="auto",
+    **options,
 ):
     """Evaluates rotation curves through keys (DESIGN section 9).
+
+    The options (every keyword below but ``angular_velocities``, ``rotation_type`` and
+    ``output``) are the library's eval options by name, each at the library's default when
+    not given (``EVAL_OPTIONS`` holds the defaults); an unknown name or a value its option
+    does not take is a ``ValueError`` naming it.
 
     Parameters
     ----------
@@ -129,15 +127,17 @@ def evaluate(
     sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, or a list, optional
         Where to evaluate. Otherwise ``samples`` (N per track from domain start to end) or
         ``rate`` (Hz from the domain start); one of the three is required.
+    rate, samples : float, int
+        Samples per second, or samples per track (not both).
     curve : str, default ``"bspline-interp"``
         ``bspline-interp`` (the default of every front end: C2 and through every key, on any
         key times), ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim`` or ``bspline``
         (KKS order-k B-spline with the keys as control points, ``knots``
         phantom/uniform/clamped: it approximates the keys, passing only through the ends).
     order, knots, tangents, blend
-        B-spline order, knot mode, tangent source of hermite/nam-kim (``catmull-rom``,
-        ``zero``, ``given`` with ``angular_velocities`` ``(…, keys, 3)`` body rad/s), Nam-Kim
-        blend (``cubic``, ``quadratic``).
+        B-spline order, knot mode (phantom when not given), tangent source of hermite/nam-kim
+        (``catmull-rom``, ``zero``, ``given`` with ``angular_velocities``), Nam-Kim blend
+        (``cubic``, ``quadratic``).
     loop : bool
         Periodic curves; the last key must be the first rotation.
     derivatives : bool
@@ -153,6 +153,8 @@ def evaluate(
     device : str
         ``auto`` (a hardware GPU if any, else the CPU path), ``gpu``, ``cpu`` or
         ``reference`` (f64).
+    angular_velocities : array_like, ``(…, keys, 3)``, optional
+        Body rad/s at each key, for ``tangents="given"``.
 
     Returns
     -------
@@ -227,15 +229,15 @@ def evaluate(
             lists = list(shared) if shared.ndim == 2 else [shared] * tracks
         s = np.ascontiguousarray(np.concatenate(lists)) if lists else np.zeros(0)
         s_offsets = np.concatenate([[0], np.cumsum([len(v) for v in lists])]).astype(np.int64)
-    elif rate is None and samples is None:
+    elif options.get("rate") is None and options.get("samples") is None:
         raise ValueError("give sample_times, samples=N or rate=HZ")
-    if samples is not None and (int(samples) != samples or samples < 1):
-        raise ValueError(f"samples must be a positive integer, got {samples}")
-    data, offsets = evaluate_tracks(
-        flat, kind, key_offsets, t, s, s_offsets, None if rate is None else float(rate),
-        None if samples is None else int(samples), str(curve), int(order), str(knots), str(tangents), str(blend),
-        bool(loop), w, bool(derivatives), str(output), not ragged, str(device),
-    )
+    samples = options.get("samples")
+    if samples is not None:
+        if isinstance(samples, bool) or int(samples) != samples or samples < 1:
+            raise ValueError(f"samples must be a positive integer, got {samples}")
+        options["samples"] = int(samples)
+    derivatives = bool(options.get("derivatives", EVAL_OPTIONS["derivatives"]))
+    data, offsets = evaluate_tracks(flat, kind, key_offsets, t, s, s_offsets, w, str(output), not ragged, _named(options))
     width, trailing = _WIDTHS[output]
 
     def shaped(block):

@@ -6,6 +6,7 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+EVAL_OPTIONS: dict[str, Any]
 BAKE_OPTIONS: dict[str, Any]
 FIT_OPTIONS: dict[str, Any]
 
@@ -19,19 +20,19 @@ def evaluate(
     times: Any = None,
     sample_times: Any = None,
     *,
-    rate: float | None = None,
-    samples: int | None = None,
+    angular_velocities: npt.ArrayLike | None = None,
+    rotation_type: RotationType = "auto",
+    output: Literal["quat", "rotvec", "matrix"] = "quat",
     curve: CurveName = "bspline-interp",
     order: int = 4,
-    knots: Literal["phantom", "uniform", "clamped"] = "phantom",
+    knots: Literal["phantom", "uniform", "clamped"] | None = None,
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
     blend: Literal["cubic", "quadratic"] = "cubic",
     loop: bool = False,
-    angular_velocities: npt.ArrayLike | None = None,
-    derivatives: Literal[False] = False,
-    rotation_type: RotationType = "auto",
-    output: Literal["quat", "rotvec", "matrix"] = "quat",
     device: DeviceName = "auto",
+    samples: int | None = None,
+    rate: float | None = None,
+    derivatives: Literal[False] = False,
 ) -> npt.NDArray[np.floating[Any]] | list[npt.NDArray[np.floating[Any]]]: ...
 @overload
 def evaluate(
@@ -39,19 +40,19 @@ def evaluate(
     times: Any = None,
     sample_times: Any = None,
     *,
-    rate: float | None = None,
-    samples: int | None = None,
+    angular_velocities: npt.ArrayLike | None = None,
+    rotation_type: RotationType = "auto",
+    output: Literal["quat", "rotvec", "matrix"] = "quat",
     curve: CurveName = "bspline-interp",
     order: int = 4,
-    knots: Literal["phantom", "uniform", "clamped"] = "phantom",
+    knots: Literal["phantom", "uniform", "clamped"] | None = None,
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
     blend: Literal["cubic", "quadratic"] = "cubic",
     loop: bool = False,
-    angular_velocities: npt.ArrayLike | None = None,
-    derivatives: Literal[True],
-    rotation_type: RotationType = "auto",
-    output: Literal["quat", "rotvec", "matrix"] = "quat",
     device: DeviceName = "auto",
+    samples: int | None = None,
+    rate: float | None = None,
+    derivatives: Literal[True],
 ) -> tuple[Any, Any, Any]: ...
 
 class BakeRow(TypedDict):

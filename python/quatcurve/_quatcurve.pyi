@@ -6,6 +6,7 @@ import numpy.typing as npt
 __version__: str
 DEFAULT_CURVE: str
 DEFAULT_RATE: float
+EVAL_OPTIONS: str
 BAKE_OPTIONS: str
 FIT_OPTIONS: str
 
@@ -16,19 +17,10 @@ def evaluate_tracks(
     times: npt.NDArray[np.float64] | None,
     sample_times: npt.NDArray[np.float64] | None,
     sample_offsets: npt.NDArray[np.int64] | None,
-    rate: float | None,
-    samples: int | None,
-    curve: str,
-    order: int,
-    knots: str,
-    tangents: str,
-    blend: str,
-    looping: bool,
     angular_velocities: npt.NDArray[np.float64] | None,
-    derivatives: bool,
     output: str,
     equal_counts: bool,
-    device: str,
+    options: str,
 ) -> tuple[npt.NDArray[np.floating[Any]], npt.NDArray[np.int64]]: ...
 
 def bake_files(

@@ -15,19 +15,13 @@ use pyo3::types::PyDict;
 use quatcurve::bake::budget::{ChosenRate, Worst};
 use quatcurve::bake::{BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
-use quatcurve::{
-    Batch, CurveSpec, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Sampling, Track, Vec3F64,
-};
+use quatcurve::options::EvalOptions;
+use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
 use std::path::PathBuf;
-use std::str::FromStr;
 use std::sync::OnceLock;
 
 fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
-}
-
-fn parse<T: FromStr<Err = String>>(what: &str, text: &str) -> PyResult<T> {
-    text.parse().map_err(|e| value_error(format!("{what}: {e}")))
 }
 
 /// The device for `choice`, opened once per process: creating a GPU device takes a good
@@ -150,15 +144,17 @@ fn rewrite<T: Copy + Into<f64>>(rows: &[T], channels: usize, form: Form, from: i
 /// Evaluates tracks given flat: track `i`'s keys are rows `key_offsets[i]..key_offsets[i + 1]`
 /// of `rotations` (written as `rotation_type`), its key times the same entries of `times`
 /// (default `0, 1, ...`), its samples the entries `sample_offsets[i]..` of `sample_times`, or
-/// a uniform grid (`rate` Hz or `samples` per track). Returns the samples `[total, C]`, rows
-/// of the rotation in `output` form (4, 3 or 9 floats) then with derivatives body omega and
-/// alpha (float64 from the reference, float32 from the fast paths), and each track's rows as
-/// offsets. With `equal_counts`, tracks whose sample counts differ are an error (a rectangular
-/// array). See `quatcurve.evaluate`.
+/// the uniform grid the options give (`rate` Hz or `samples` per track). `options` is a JSON
+/// object of the library's eval options by name (`quatcurve::options::EvalOptions`: the
+/// keywords of `quatcurve.evaluate`), each one not given at its default. Returns the samples
+/// `[total, C]`, rows of the rotation in `output` form (4, 3 or 9 floats) then with derivatives
+/// body omega and alpha (float64 from the reference, float32 from the fast paths), and each
+/// track's rows as offsets. With `equal_counts`, tracks whose sample counts differ are an error
+/// (a rectangular array). See `quatcurve.evaluate`.
 #[pyfunction]
 #[pyo3(signature = (
-    rotations, rotation_type, key_offsets, times, sample_times, sample_offsets, rate, samples, curve, order,
-    knots, tangents, blend, looping, angular_velocities, derivatives, output, equal_counts, device
+    rotations, rotation_type, key_offsets, times, sample_times, sample_offsets, angular_velocities, output,
+    equal_counts, options
 ))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate_tracks<'py>(
@@ -169,30 +165,15 @@ fn evaluate_tracks<'py>(
     times: Option<PyReadonlyArray1<'py, f64>>,
     sample_times: Option<PyReadonlyArray1<'py, f64>>,
     sample_offsets: Option<PyReadonlyArray1<'py, i64>>,
-    rate: Option<f64>,
-    samples: Option<usize>,
-    curve: &str,
-    order: usize,
-    knots: &str,
-    tangents: &str,
-    blend: &str,
-    looping: bool,
     angular_velocities: Option<PyReadonlyArray2<'py, f64>>,
-    derivatives: bool,
     output: &str,
     equal_counts: bool,
-    device: &str,
+    options: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let spec = CurveSpec {
-        curve: parse("curve", curve)?,
-        order,
-        knots: parse("knots", knots)?,
-        tangents: parse("tangents", tangents)?,
-        blend: parse("blend", blend)?,
-        looping,
-    };
+    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
+    let options: EvalOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let (spec, derivatives, choice) = (options.spec(), options.derivatives, options.device);
     let (form, out_form) = (Form::parse("rotation_type", rotation_type)?, Form::parse("output", output)?);
-    let choice: DeviceChoice = parse("device", device)?;
     let device = self::device(choice)?;
     let width = rotations.shape()[1];
     if width != form.width() {
@@ -231,11 +212,8 @@ fn evaluate_tracks<'py>(
     if sampled.as_ref().is_some_and(|(_, r)| r.len() != tracks.len()) {
         return Err(value_error("sample_times need one list per track"));
     }
-    let sampling = match (rate, samples) {
-        (_, Some(n)) => Sampling::Count(n),
-        (Some(hz), None) => Sampling::Rate(hz),
-        (None, None) => Sampling::Count(0),
-    };
+    // Sample times given for every track replace the grid.
+    let sampling = options.sampling().map_err(value_error)?;
     let channels = Row { derivatives, matrix: false }.channels();
     let (out, offsets) = py
         .detach(|| -> Result<(Samples, Vec<i64>), String> {
@@ -409,7 +387,8 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The front ends' defaults, from the library (the Python signatures use these).
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;
     m.add("DEFAULT_RATE", quatcurve::DEFAULT_RATE)?;
-    // The bake's options by name with their defaults, as JSON (`quatcurve.BAKE_OPTIONS`).
+    // Each job's options by name with their defaults, as JSON (`quatcurve.EVAL_OPTIONS`, ...).
+    m.add("EVAL_OPTIONS", serde_json::to_string(&EvalOptions::DEFAULT).map_err(value_error)?)?;
     m.add("BAKE_OPTIONS", serde_json::to_string(&BakeOptions::DEFAULT).map_err(value_error)?)?;
     m.add("FIT_OPTIONS", serde_json::to_string(&FitOptions::DEFAULT).map_err(value_error)?)?;
     Ok(())

@@ -206,10 +206,14 @@ def test_errors_are_value_errors_naming_track_and_key():
         quatcurve.evaluate(good, np.arange(5.0), samples=3)
     with pytest.raises(ValueError, match="key 2 .* not greater"):
         quatcurve.evaluate(good[0], [0.0, 1.0, 1.0, 2.0], samples=3)
-    with pytest.raises(ValueError, match="curve"):
+    with pytest.raises(ValueError, match="^curve: unknown curve 'spiral'"):
         quatcurve.evaluate(good, samples=3, curve="spiral")
     with pytest.raises(ValueError, match="sample_times, samples=N or rate"):
         quatcurve.evaluate(good)
+    with pytest.raises(ValueError, match="^unknown option 'colour' \\(the options are blend, curve, "):
+        quatcurve.evaluate(good, samples=3, colour="red")
+    with pytest.raises(ValueError, match="^samples: give samples or rate, not both$"):
+        quatcurve.evaluate(good, samples=3, rate=30)
 
 
 DATA = REPO.parent / "shared" / "data"
@@ -289,19 +293,22 @@ def test_bake_of_the_built_in_crowd_is_a_texture_per_clip(tmp_path):
     assert again[0]["status"] == "resumed" and again[0]["samples"] == 0
 
 
-def test_bake_and_fit_take_the_library_options_and_their_stubs_and_docstrings_say_each_with_its_default():
+def test_evaluate_bake_and_fit_take_the_library_options_and_their_stubs_and_docstrings_say_each_with_its_default():
     import ast
     import pathlib
 
     assert quatcurve.BAKE_OPTIONS["rate"] == quatcurve.DEFAULT_RATE
     assert quatcurve.BAKE_OPTIONS["curve"] == quatcurve.DEFAULT_CURVE
     assert quatcurve.FIT_OPTIONS["max_error"] == 0.01
+    assert quatcurve.EVAL_OPTIONS["curve"] == quatcurve.DEFAULT_CURVE
     stub = ast.parse((pathlib.Path(quatcurve.__file__).parent / "__init__.pyi").read_text())
     for function, options, job in [
+        (quatcurve.evaluate, quatcurve.EVAL_OPTIONS, {"angular_velocities", "rotation_type", "output"}),
         (quatcurve.bake, quatcurve.BAKE_OPTIONS, {"shard", "resume", "jobs", "errors"}),
         (quatcurve.fit, quatcurve.FIT_OPTIONS, {"errors"}),
     ]:
-        (signature,) = [f for f in stub.body if isinstance(f, ast.FunctionDef) and f.name == function.__name__]
+        # The first of evaluate's overloads shows every default.
+        signature = next(f for f in stub.body if isinstance(f, ast.FunctionDef) and f.name == function.__name__)
         stubbed = {a.arg: ast.literal_eval(d) for a, d in zip(signature.args.kwonlyargs, signature.args.kw_defaults)}
         assert set(stubbed) - job == set(options), function.__name__
         assert {name: stubbed[name] for name in options} == options, function.__name__

@@ -1,9 +1,10 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{names, print_stdout, read_tracks, CurveOptions, DeviceArgs, Failure};
+use super::{flag, print_stdout, read_tracks, Failure};
 use clap::{Args, ValueEnum};
 use quatcurve::io::{write_atomic, write_npy, ResultFile};
-use quatcurve::{Batch, Curve, Device, EvalJob, FloatOutput, KnotMode, Layout, Output, SampleTimes, Sampling};
+use quatcurve::options::{EvalOptions, OptionError};
+use quatcurve::{Batch, Device, EvalJob, FloatOutput, Layout, Output, SampleTimes};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -22,25 +23,8 @@ pub struct EvalArgs {
     /// Output file, .json or .npy (float32); without it, JSON goes to standard output.
     #[arg(long)]
     output: Option<PathBuf>,
-    /// Curve family [default: bspline-interp, C2 and through every key; a fitted container's
-    /// own B-splines for .qcf input].
-    #[arg(long, value_parser = names::<Curve>())]
-    curve: Option<Curve>,
-    #[arg(long = "loop", help = super::loop_help())]
-    looping: bool,
     #[command(flatten)]
-    options: CurveOptions,
-    #[command(flatten)]
-    device: DeviceArgs,
-    /// N samples per track from domain start to end, both included.
-    #[arg(long, conflicts_with = "rate")]
-    samples: Option<usize>,
-    /// Samples per second from the domain start (default 30).
-    #[arg(long, allow_negative_numbers = true)]
-    rate: Option<f64>,
-    /// Also output body angular velocity and acceleration.
-    #[arg(long)]
-    derivatives: bool,
+    options: EvalOptions,
     /// Sample order of .npy output: [tracks, samples, C] or [samples, tracks, C]. JSON is
     /// always track-major.
     #[arg(long, value_enum, default_value_t = LayoutArg::Track)]
@@ -78,8 +62,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         }
         input => {
             let (source, tracks) = read_tracks(input.as_deref(), args.key_rate)?;
-            let curve = args.curve.unwrap_or(quatcurve::DEFAULT_CURVE);
-            (source, tracks, args.options.spec(curve, KnotMode::Phantom, args.looping), false)
+            (source, tracks, args.options.spec(), false)
         }
     };
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
@@ -90,15 +73,15 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         Batch::from_tracks(&tracks, &spec)
     }
     .map_err(input_err)?;
-    let sampling = match (args.samples, args.rate) {
-        (Some(n), _) => Sampling::Count(n),
-        (None, rate) => Sampling::Rate(rate.unwrap_or(quatcurve::DEFAULT_RATE)),
-    };
+    let sampling = args.options.sampling().map_err(|e| match e {
+        OptionError::Value { name, reason } => Failure::Input(format!("{}: {reason}", flag(&name))),
+        other => Failure::Input(other.to_string()),
+    })?;
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.sample_times.as_deref()).collect();
-    // The library's sampling errors name no flag; say which one.
-    let flag = if args.samples.is_some() { "--samples" } else { "--rate" };
+    // The library's sampling errors name no option; say which flag.
+    let given = if args.options.samples.is_some() { "--samples" } else { "--rate" };
     let times = SampleTimes::new(&batch, &overrides, sampling).map_err(|e| match e {
-        quatcurve::Error::BadSampling(msg) => Failure::Input(format!("{flag}: {msg}")),
+        quatcurve::Error::BadSampling(msg) => Failure::Input(format!("{given}: {msg}")),
         other => input_err(other),
     })?;
     // JSON is always track-major (DESIGN section 5); --layout shapes .npy output.
@@ -109,9 +92,9 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     if format == Format::Npy {
         times.equal_counts(&batch, ".npy output").map_err(|e| input_err(e.into()))?;
     }
-    let job = EvalJob::new(&batch, &times).layout(layout).derivatives(args.derivatives);
+    let job = EvalJob::new(&batch, &times).layout(layout).derivatives(args.options.derivatives);
     job.validate().map_err(input_err)?;
-    let device = super::open_device(args.device.device, "--device")?;
+    let device = super::open_device(args.options.device, "--device")?;
     let mut out = Output::default();
     let device_name = device.evaluate_into(&job, &mut out).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
@@ -148,14 +131,16 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
 }
 
 /// A fitted container's curves are its own ([`quatcurve::anim::qcf::fitted::spline_spec`], cubic or keys
-/// per channel): a curve option that would change them is refused.
+/// per channel): a curve option that would change them is refused (the default curve stands for
+/// them).
 fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
     let spec = quatcurve::anim::qcf::fitted::spline_spec(quatcurve::anim::qcf::fitted::ORDER);
+    let (options, curve) = (&args.options.curve_options, args.options.curve);
     let refused = [
-        (args.curve.is_some_and(|c| c != spec.curve), "--curve"),
-        (args.options.order != spec.order, "--order"),
-        (args.options.knots.is_some_and(|k| k != spec.knots), "--knots"),
-        (args.looping, "--loop"),
+        (curve != spec.curve && curve != EvalOptions::DEFAULT.curve, "--curve"),
+        (options.order != spec.order, "--order"),
+        (options.knots.is_some_and(|k| k != spec.knots), "--knots"),
+        (args.options.looping, "--loop"),
         (args.key_rate.is_some(), "--key-rate"),
     ];
     match refused.iter().find(|(given, _)| *given) {

@@ -11,7 +11,6 @@ mod measure;
 pub mod shaders;
 pub mod view;
 
-use clap::Args;
 use quatcurve::{Device, DeviceChoice, DeviceError};
 use std::io::Write;
 use std::path::Path;
@@ -52,15 +51,6 @@ pub fn flag(option: &str) -> String {
     }
 }
 
-/// `--loop`'s help: what looping means and which curves do (from the library's rule).
-pub fn loop_help() -> String {
-    format!(
-        "Periodic curves: each track's last key closes onto its first, the curve keeps its continuity across that \
-         seam and sample times wrap by the period ({})",
-        quatcurve::CurveSpec::looping_curves()
-    )
-}
-
 /// Opens the device `choice`; the library's message (`gpu: no adapter ...`) gets the flag
 /// that chose it in front (`--device gpu: no adapter ...`).
 pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> {
@@ -71,16 +61,6 @@ pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> 
 }
 
 pub use quatcurve::options::{names, CurveOptions};
-
-/// The device option of `eval` (`bake`'s is one of its options; `bench` names several with
-/// `--devices`).
-#[derive(Args, Debug, Clone)]
-pub struct DeviceArgs {
-    /// Evaluation device: auto is a hardware GPU if any, else the fast CPU path (also over a
-    /// software adapter such as lavapipe; gpu still takes one).
-    #[arg(long, default_value = "auto", value_parser = names::<DeviceChoice>())]
-    pub device: DeviceChoice,
-}
 
 /// Writes a finished text document to standard output; a reader that stops early (`| head`)
 /// is not a failure of ours.
@@ -93,8 +73,6 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
     }
 }
 
-/// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in
-/// demo without one; with the name messages give the source.
 /// Every clip's rotation channels of the fitted container at `path`, as tracks
 /// ([`quatcurve::anim::qcf::Container::rotation_tracks`]).
 pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {
@@ -110,6 +88,8 @@ pub fn is_container(input: Option<&Path>) -> bool {
     extension.as_deref() == Some(quatcurve::anim::qcf::EXTENSION)
 }
 
+/// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in
+/// demo without one; with the name messages give the source.
 pub fn read_tracks(input: Option<&Path>, key_rate: Option<f64>) -> Result<(String, Vec<quatcurve::Track>), Failure> {
     let Some(path) = input else {
         return Ok(("built-in demo".to_string(), quatcurve::io::demo_tracks()));

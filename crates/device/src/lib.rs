@@ -3,31 +3,14 @@
 //! evaluates curves, runs forward kinematics and skins meshes, so no caller matches on
 //! which path it holds.
 
-use quatcurve_core::curve::names;
 use quatcurve_eval::cpu::CpuEvaluator;
 use quatcurve_eval::job::EvalJob;
+pub use quatcurve_eval::options::DeviceChoice;
 use quatcurve_eval::output::{FloatOutput, Output};
 use quatcurve_eval::skeleton::{self, SkinnedMesh};
 #[cfg(feature = "gpu")]
 use quatcurve_gpu::{GpuError, GpuEvaluator};
 use std::fmt;
-
-/// What the user asked for (`--device`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum DeviceChoice {
-    /// A hardware GPU when there is one, else the fast CPU path (also over a software
-    /// adapter such as lavapipe, which runs the kernel on the same CPU cores many times slower).
-    #[default]
-    Auto,
-    /// The GPU; no adapter is an error, never a silent fallback.
-    Gpu,
-    /// The fast f32 SIMD CPU path.
-    Cpu,
-    /// The f64 reference.
-    Reference,
-}
-
-names!(DeviceChoice, "device", Auto => "auto", Gpu => "gpu", Cpu => "cpu", Reference => "reference");
 
 /// Why a device could not be opened, refused a job, or failed while evaluating.
 #[derive(Debug, thiserror::Error)]

@@ -4,7 +4,8 @@
 //! The command line's flags are derived from these types (clap, with the `cli` feature) and
 //! Python's keywords and the manifests are read and written through them (serde).
 
-use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents};
+use crate::sampling::{Sampling, DEFAULT_RATE};
+use quatcurve_core::curve::{names, Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
 use serde::{Deserialize, Serialize};
 
 /// The curve families' own options (the family is each job's option).
@@ -47,6 +48,109 @@ impl Default for CurveOptions {
     fn default() -> Self {
         Self::DEFAULT
     }
+}
+
+/// Which device evaluates (the option `device`; `quatcurve_device::Device::open` opens it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeviceChoice {
+    /// A hardware GPU when there is one, else the fast CPU path (also over a software
+    /// adapter such as lavapipe, which runs the kernel on the same CPU cores many times slower).
+    #[default]
+    Auto,
+    /// The GPU; no adapter is an error, never a silent fallback.
+    Gpu,
+    /// The fast f32 SIMD CPU path.
+    Cpu,
+    /// The f64 reference.
+    Reference,
+}
+
+names!(DeviceChoice, "device", Auto => "auto", Gpu => "gpu", Cpu => "cpu", Reference => "reference");
+
+/// The options of an evaluation (`quatcurve eval`, Python's `evaluate`; DESIGN sections 5
+/// and 9): the curve through the keys, where it is sampled, on which device. The tracks and
+/// where the samples go are the caller's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct EvalOptions {
+    /// Curve family; the default, bspline-interp, is C2 and passes through every key (a fitted
+    /// container's curves are its own B-splines).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = EvalOptions::DEFAULT.curve, value_parser = names::<Curve>()))]
+    pub curve: Curve,
+    /// The family's options (knots: phantom unless given).
+    #[serde(flatten)]
+    #[cfg_attr(feature = "cli", command(flatten))]
+    pub curve_options: CurveOptions,
+    /// Periodic curves: each track's last key closes onto its first rotation, the curve keeps
+    /// its continuity across that seam and sample times wrap by the period.
+    #[serde(rename = "loop")]
+    #[cfg_attr(feature = "cli", arg(long = "loop", help = loop_help()))]
+    pub looping: bool,
+    /// Evaluation device: auto is a hardware GPU if any, else the fast CPU path (also over a
+    /// software adapter such as lavapipe; gpu still takes one).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = EvalOptions::DEFAULT.device, value_parser = names::<DeviceChoice>()))]
+    pub device: DeviceChoice,
+    /// N samples per track from its domain's start to its end, both included.
+    #[cfg_attr(feature = "cli", arg(long, conflicts_with = "rate"))]
+    pub samples: Option<usize>,
+    /// Samples per second from each track's domain start (30 when neither this nor samples is
+    /// given).
+    #[cfg_attr(feature = "cli", arg(long, allow_negative_numbers = true))]
+    pub rate: Option<f64>,
+    /// Also the body angular velocity and acceleration at each sample.
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub derivatives: bool,
+}
+
+impl EvalOptions {
+    /// Every option at its default.
+    pub const DEFAULT: Self = Self {
+        curve: DEFAULT_CURVE,
+        curve_options: CurveOptions::DEFAULT,
+        looping: false,
+        device: DeviceChoice::Auto,
+        samples: None,
+        rate: None,
+        derivatives: false,
+    };
+
+    /// The curve these options ask for (B-spline knots phantom unless given).
+    #[must_use]
+    pub fn spec(&self) -> CurveSpec {
+        self.curve_options.spec(self.curve, KnotMode::Phantom, self.looping)
+    }
+
+    /// Where each track is sampled when no sample times are given: `samples` per domain, or
+    /// `rate` Hz ([`DEFAULT_RATE`] when neither is given).
+    ///
+    /// # Errors
+    /// [`OptionError::Value`] when both are given.
+    pub fn sampling(&self) -> Result<Sampling, OptionError> {
+        match (self.samples, self.rate) {
+            (Some(_), Some(_)) => {
+                Err(OptionError::Value { name: "samples".into(), reason: "give samples or rate, not both".into() })
+            }
+            (Some(n), None) => Ok(Sampling::Count(n)),
+            (None, rate) => Ok(Sampling::Rate(rate.unwrap_or(DEFAULT_RATE))),
+        }
+    }
+}
+
+impl Default for EvalOptions {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// The help of `--loop` for `eval`: the doc comment, with the curves that loop.
+#[cfg(feature = "cli")]
+fn loop_help() -> String {
+    format!(
+        "Periodic curves: each track's last key closes onto its first rotation, the curve keeps its continuity \
+         across that seam and sample times wrap by the period ({})",
+        CurveSpec::looping_curves()
+    )
 }
 
 /// Parses one of `T`'s names; `--help` and errors list them ("possible values: ...").
@@ -107,4 +211,43 @@ where
     }
     serde_json::from_value(serde_json::Value::Object(given.clone()))
         .map_err(|e| OptionError::Value { name: "options".into(), reason: e.to_string() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every eval option is a flag of the command line, spelled from its name, and reads back
+    /// by name as Python gives it.
+    #[cfg(feature = "cli")]
+    #[test]
+    fn every_eval_option_is_a_flag_named_after_it_and_reads_by_name() {
+        use clap::Args;
+        let command = EvalOptions::augment_args(clap::Command::new("eval"));
+        let mut flags: Vec<String> = command.get_arguments().filter_map(|a| a.get_long().map(str::to_string)).collect();
+        let serde_json::Value::Object(names) = serde_json::to_value(EvalOptions::DEFAULT).unwrap() else { panic!() };
+        let mut names: Vec<String> = names.keys().map(|n| n.replace('_', "-")).collect();
+        names.sort();
+        flags.sort();
+        assert_eq!(flags, names);
+        let given = serde_json::from_str(r#"{"curve": "squad", "loop": true, "samples": 7, "device": "cpu"}"#).unwrap();
+        let options: EvalOptions = from_named(&given).unwrap();
+        let expected = EvalOptions {
+            curve: Curve::Squad,
+            looping: true,
+            samples: Some(7),
+            device: DeviceChoice::Cpu,
+            ..EvalOptions::DEFAULT
+        };
+        assert_eq!(options, expected);
+    }
+
+    #[test]
+    fn sampling_is_samples_or_rate_and_never_both() {
+        let with = |samples, rate| EvalOptions { samples, rate, ..EvalOptions::DEFAULT }.sampling();
+        assert_eq!(with(None, None), Ok(Sampling::Rate(DEFAULT_RATE)));
+        assert_eq!(with(Some(5), None), Ok(Sampling::Count(5)));
+        assert_eq!(with(None, Some(12.0)), Ok(Sampling::Rate(12.0)));
+        assert_eq!(with(Some(5), Some(12.0)).unwrap_err().to_string(), "samples: give samples or rate, not both");
+    }
 }
