@@ -16,7 +16,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use quatcurve::cpu::CpuEvaluator;
 use quatcurve::gpu::GpuEvaluator;
-use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, EvalOptions, KnotMode};
+use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, JobOptions, KnotMode};
 
 const TRACKS: usize = 10_000;
 const SAMPLES: usize = 1_000;
@@ -57,7 +57,7 @@ fn paths(c: &mut Criterion) {
                 let prepared = gpu.prepare(&job).unwrap();
                 group.bench_function("gpu_dispatch_only", |b| b.iter(|| gpu.dispatch(&prepared).unwrap()));
                 if name == "bspline4_uniform" {
-                    let generic = gpu.prepare(&job.with(EvalOptions { generic_kernel: true, ..job.options })).unwrap();
+                    let generic = gpu.prepare(&job.with(JobOptions { generic_kernel: true, ..job.options })).unwrap();
                     group.bench_function("gpu_dispatch_only_generic_kernel", |b| {
                         b.iter(|| gpu.dispatch(&generic).unwrap())
                     });

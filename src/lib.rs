@@ -64,7 +64,7 @@ pub use device::{Device, DeviceChoice, DeviceError, EvalOutput};
 pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
 pub use gpu::GpuEvaluator;
-pub use job::{EvalJob, EvalOptions};
+pub use job::{EvalJob, JobOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
 pub use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
 pub use quatcurve_core::quat::{QuatF64, Quaternion, Vec3F64, Vector3};

@@ -5,7 +5,7 @@ use super::measure::{median_seconds, open_bench_device};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::{
-    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, EvalOptions, GpuEvaluator,
+    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, GpuEvaluator, JobOptions,
     KnotMode, SampleTimes, Sampling,
 };
 use serde::Serialize;
@@ -338,10 +338,10 @@ fn device_pieces(batch: &Batch, times: &SampleTimes, channels: usize, chunk: u64
 }
 
 fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
-    let options = EvalOptions {
+    let options = JobOptions {
         derivatives: args.derivatives,
         forward_difference: args.forward_difference,
-        ..EvalOptions::default()
+        ..JobOptions::default()
     };
     let job = EvalJob::new(batch, times).with(options);
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());

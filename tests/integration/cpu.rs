@@ -6,18 +6,17 @@ use crate::fast::*;
 use quatcurve::cpu::{CpuEvaluator, Isa};
 use quatcurve::FloatOutput;
 use quatcurve::{Batch, Curve, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
-use quatcurve::{EvalJob, EvalOptions};
+use quatcurve::{EvalJob, JobOptions};
 
 fn on_cpu(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
     CpuEvaluator::new()
-        .evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() }))
+        .evaluate(&EvalJob::new(batch, times).with(JobOptions { layout, derivatives, ..JobOptions::default() }))
         .unwrap()
 }
 
 fn on_portable_lanes(batch: &Batch, times: &SampleTimes, layout: Layout, derivatives: bool) -> FloatOutput {
     let cpu = CpuEvaluator::with_isa(Isa::Portable).expect("the baseline runs everywhere");
-    cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() }))
-        .unwrap()
+    cpu.evaluate(&EvalJob::new(batch, times).with(JobOptions { layout, derivatives, ..JobOptions::default() })).unwrap()
 }
 
 /// The lane type is chosen at run time (AVX2 where the CPU has it): the suites above run the
@@ -84,8 +83,7 @@ fn evaluate_into_writes_every_float_of_the_buffer() {
     for (times, layouts) in runs {
         for &layout in layouts {
             for derivatives in [false, true] {
-                let job =
-                    EvalJob::new(&batch, times).with(EvalOptions { layout, derivatives, ..EvalOptions::default() });
+                let job = EvalJob::new(&batch, times).with(JobOptions { layout, derivatives, ..JobOptions::default() });
                 let fresh = cpu.evaluate(&job).unwrap();
                 let mut kept = vec![f32::NAN; fresh.data.len()];
                 cpu.evaluate_into(&job, &mut kept).unwrap();
@@ -149,19 +147,19 @@ fn tracks_longer_than_one_work_piece_and_matrices() {
     let times = SampleTimes::uniform(&batch, Sampling::Count(10_000)).unwrap();
     let cpu = CpuEvaluator::new();
     let by_track = cpu
-        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+        .evaluate(&EvalJob::new(&batch, &times).with(JobOptions {
             layout: Layout::Track,
             derivatives: true,
             matrix: true,
-            ..EvalOptions::default()
+            ..JobOptions::default()
         }))
         .unwrap();
     let by_frame = cpu
-        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+        .evaluate(&EvalJob::new(&batch, &times).with(JobOptions {
             layout: Layout::Frame,
             derivatives: true,
             matrix: true,
-            ..EvalOptions::default()
+            ..JobOptions::default()
         }))
         .unwrap();
     assert_eq!(by_track.channels, 19);
@@ -184,10 +182,10 @@ fn forward_differences_match_the_reference_and_reseeding_bounds_their_drift() {
     use quatcurve::Track;
     let cpu = CpuEvaluator::new();
     let fd = |batch: &Batch, times: &SampleTimes, layout: Layout, reseed: usize| {
-        cpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions {
+        cpu.evaluate(&EvalJob::new(batch, times).with(JobOptions {
             layout,
             forward_difference: Some(reseed),
-            ..EvalOptions::default()
+            ..JobOptions::default()
         }))
         .unwrap()
     };
@@ -291,7 +289,7 @@ fn many_short_tracks_with_their_own_sample_times_match_the_reference() {
     let overrides: Vec<Option<&[f64]>> = ragged.iter().map(|l| Some(l.as_slice())).collect();
     let times = SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap();
     let out = CpuEvaluator::new()
-        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() }))
+        .evaluate(&EvalJob::new(&batch, &times).with(JobOptions { matrix: true, ..JobOptions::default() }))
         .unwrap();
     for row in out.data.chunks_exact(out.channels) {
         let m = QuatF64::from_array(std::array::from_fn(|c| f64::from(row[c]))).to_mat3();

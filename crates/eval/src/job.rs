@@ -1,4 +1,4 @@
-//! The evaluation job every device runs: borrowed inputs and [`EvalOptions`], `validate()`,
+//! The evaluation job every device runs: borrowed inputs and [`JobOptions`], `validate()`,
 //! then the reference's `run()` or a device's `evaluate` (the ozz-animation shape).
 
 use crate::batch::Batch;
@@ -11,7 +11,7 @@ use quatcurve_core::quat::Vec3F64;
 /// What to evaluate besides rotations, and in which order: one set of options that the
 /// reference, the CPU path and the GPU all read.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct EvalOptions {
+pub struct JobOptions {
     /// Output order.
     pub layout: Layout,
     /// Also the body angular velocity and acceleration.
@@ -29,7 +29,7 @@ pub struct EvalOptions {
     pub generic_kernel: bool,
 }
 
-impl EvalOptions {
+impl JobOptions {
     /// The float32 row these options ask for.
     #[must_use]
     pub fn row(&self) -> Row {
@@ -46,37 +46,37 @@ pub struct EvalJob<'a> {
     /// Per-track sample times.
     pub times: &'a SampleTimes,
     /// What to write, in which order.
-    pub options: EvalOptions,
+    pub options: JobOptions,
 }
 
 impl<'a> EvalJob<'a> {
-    /// Rotations only, track-major ([`EvalOptions::default`]).
+    /// Rotations only, track-major ([`JobOptions::default`]).
     #[must_use]
     pub fn new(batch: &'a Batch, times: &'a SampleTimes) -> Self {
-        Self { batch, times, options: EvalOptions::default() }
+        Self { batch, times, options: JobOptions::default() }
     }
 
     /// The same job in `layout`.
     #[must_use]
     pub fn layout(self, layout: Layout) -> Self {
-        Self { options: EvalOptions { layout, ..self.options }, ..self }
+        Self { options: JobOptions { layout, ..self.options }, ..self }
     }
 
     /// The same job with (or without) derivatives.
     #[must_use]
     pub fn derivatives(self, derivatives: bool) -> Self {
-        Self { options: EvalOptions { derivatives, ..self.options }, ..self }
+        Self { options: JobOptions { derivatives, ..self.options }, ..self }
     }
 
     /// The same job with (or without) rotation matrices.
     #[must_use]
     pub fn matrix(self, matrix: bool) -> Self {
-        Self { options: EvalOptions { matrix, ..self.options }, ..self }
+        Self { options: JobOptions { matrix, ..self.options }, ..self }
     }
 
     /// The same job with other options.
     #[must_use]
-    pub fn with(self, options: EvalOptions) -> Self {
+    pub fn with(self, options: JobOptions) -> Self {
         Self { options, ..self }
     }
 
@@ -122,7 +122,7 @@ impl<'a> EvalJob<'a> {
         self.validate()?;
         let total = self.times.total();
         let tracks = self.batch.len();
-        let EvalOptions { layout, derivatives, .. } = self.options;
+        let JobOptions { layout, derivatives, .. } = self.options;
         let mut out = Output { rotations: vec![[0.0; 4]; total], ..Output::default() };
         if derivatives {
             out.angular_velocity = vec![[0.0; 3]; total];

@@ -8,7 +8,7 @@ use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, ANY_CURVE, 
 use super::shader;
 use super::GpuError;
 use quatcurve_core::curve::Curve;
-use quatcurve_eval::job::{EvalJob, EvalOptions};
+use quatcurve_eval::job::{EvalJob, JobOptions};
 use quatcurve_eval::output::{FloatOutput, Layout};
 use quatcurve_eval::sampling::SampleTimes;
 use std::collections::HashMap;
@@ -75,7 +75,7 @@ impl PipelineKey {
     /// The narrowest kernel that evaluates every track of `tracks` (the generic one when
     /// `options.generic_kernel` asks for it). On a software adapter every branch of the
     /// kernel runs, so what a chunk never takes is best compiled out.
-    fn for_chunk(tracks: &[GpuTrack], options: &EvalOptions) -> Self {
+    fn for_chunk(tracks: &[GpuTrack], options: &JobOptions) -> Self {
         let first = tracks.first().copied().unwrap_or_default();
         let specialize = !options.generic_kernel && !tracks.is_empty();
         let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));

@@ -7,10 +7,10 @@ use crate::shared_gpu as gpu;
 use quatcurve::gpu::GpuEvaluator;
 use quatcurve::FloatOutput;
 use quatcurve::{Batch, Curve, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
-use quatcurve::{EvalJob, EvalOptions};
+use quatcurve::{EvalJob, JobOptions};
 
 /// Evaluates `batch` on the GPU and compares with the reference.
-pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: EvalOptions, label: &str) -> Worst {
+pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: JobOptions, label: &str) -> Worst {
     let out = gpu.evaluate(&EvalJob::new(batch, times).with(options)).unwrap();
     compare_output(&out, batch, times, options.layout, options.derivatives, label)
 }
@@ -18,11 +18,11 @@ pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: 
 /// The GPU as a fast path under test.
 fn on_gpu(gpu: &GpuEvaluator, generic_kernel: bool) -> impl Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput + '_ {
     move |batch, times, layout, derivatives| {
-        gpu.evaluate(&EvalJob::new(batch, times).with(EvalOptions {
+        gpu.evaluate(&EvalJob::new(batch, times).with(JobOptions {
             layout,
             derivatives,
             generic_kernel,
-            ..EvalOptions::default()
+            ..JobOptions::default()
         }))
         .unwrap()
     }
@@ -111,7 +111,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
             (SampleTimes::uniform(&batch, Sampling::Rate(40.0)).unwrap(), Layout::Track),
             (SampleTimes::uniform(&batch, Sampling::Count(50)).unwrap(), Layout::Frame),
         ] {
-            let options = EvalOptions { layout, derivatives: true, ..EvalOptions::default() };
+            let options = JobOptions { layout, derivatives: true, ..JobOptions::default() };
             let one = full.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
             let many = small.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
             assert_eq!(one, many, "{layout:?}: chunked result differs");
@@ -131,7 +131,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
         (SampleTimes::uniform(&batch, Sampling::Count(777)).unwrap(), Layout::Frame),
         (SampleTimes::new(&batch, &overrides, Sampling::Count(1)).unwrap(), Layout::Track),
     ] {
-        let options = EvalOptions { layout, derivatives: true, ..EvalOptions::default() };
+        let options = JobOptions { layout, derivatives: true, ..JobOptions::default() };
         assert!(
             pieces.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 3 * 5,
             "{layout:?}: tracks were not cut"
@@ -146,7 +146,7 @@ fn batches_forced_through_many_chunks_match_one_chunk() {
     let tiny = gpu().unwrap().share_device().with_binding_limit(64);
     let batch = batch_for(1, &CurveSpec::new(Curve::BSpline), Kind::Random, 1);
     let times = SampleTimes::uniform(&batch, Sampling::Count(100)).unwrap();
-    let err = tiny.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap_err().to_string();
+    let err = tiny.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("binding"), "{err}");
 }
 
@@ -179,7 +179,7 @@ fn tracks_sharing_knot_vectors_read_their_own_in_every_chunk() {
         let vectors: std::collections::BTreeSet<usize> = batch.tracks().iter().map(|t| t.knot_offset()).collect();
         assert_eq!(vectors.len(), runs.len(), "{}: one knot vector per run", describe(&spec));
         let times = SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap();
-        let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+        let options = JobOptions { derivatives: true, ..JobOptions::default() };
         assert!(
             small.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap().chunk_count() > 10,
             "the small limit cuts the runs"
@@ -203,7 +203,7 @@ fn dispatches_beyond_65535_workgroups_use_two_dimensions() {
     let spec = CurveSpec { knots: KnotMode::Uniform, ..CurveSpec::new(Curve::BSpline) };
     let batch = batch_for(8, &spec, Kind::Random, 2);
     let times = SampleTimes::uniform(&batch, Sampling::Count(2_150_000)).unwrap();
-    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap();
+    let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap();
     assert_eq!(out.data.len(), 4_300_000 * 4);
     let mut worst = 0.0f64;
     for slot in (0..4_300_000).step_by(997).chain([4_299_999]) {
@@ -236,14 +236,14 @@ fn a_track_longer_than_a_binding_is_evaluated_in_pieces() {
         Batch::from_tracks(&quatcurve::synthetic::walk_tracks(1, 64, 10.0), &CurveSpec::new(Curve::BSplineInterp))
             .unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(20_000_000)).unwrap();
-    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let options = JobOptions { derivatives: true, ..JobOptions::default() };
     let out = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
     assert!(out.data.len() * 4 > 7 * (100 << 20), "the output must overflow seven bindings");
     drop(gpu);
     let cpu = quatcurve::cpu::CpuEvaluator::new()
         .evaluate(
             &quatcurve::EvalJob::new(&batch, &times)
-                .with(quatcurve::EvalOptions { derivatives: true, ..Default::default() }),
+                .with(quatcurve::JobOptions { derivatives: true, ..Default::default() }),
         )
         .unwrap();
     let (mut rotation, mut omega) = (0.0f32, 0.0f32);

@@ -5,7 +5,7 @@ use crate::common::*;
 use crate::shared_gpu as gpu;
 use quatcurve::gpu::{GpuError, GpuEvaluator};
 use quatcurve::{Batch, Curve, CurveSpec, Layout, SampleTimes, Sampling};
-use quatcurve::{EvalJob, EvalOptions};
+use quatcurve::{EvalJob, JobOptions};
 
 fn small_batch(spec: &CurveSpec) -> Batch {
     let mut g = Gen::new(2);
@@ -18,7 +18,7 @@ fn evaluate_into_a_caller_buffer_without_readback() {
     let Some(gpu) = gpu() else { return };
     let batch = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&batch, Sampling::Count(33)).unwrap();
-    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let options = JobOptions { derivatives: true, ..JobOptions::default() };
     let expected = gpu.evaluate(&EvalJob::new(&batch, &times).with(options)).unwrap();
     let bytes = (expected.data.len() * 4) as u64;
     let target = gpu.device().create_buffer(&wgpu::BufferDescriptor {
@@ -65,14 +65,14 @@ fn with_device_embeds_in_an_existing_application() {
     assert_eq!(evaluator.adapter_name(), "host application");
     let batch = small_batch(&CurveSpec::new(Curve::Squad));
     let times = SampleTimes::uniform(&batch, Sampling::Count(9)).unwrap();
-    let out = evaluator.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap();
+    let out = evaluator.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap();
     assert_eq!(out.data.len(), times.total() * 4);
     // A device without MAPPABLE_PRIMARY_BUFFERS reads back through a staging copy; where
     // `GpuEvaluator::new` mapped its outputs directly (unified memory, as lavapipe), the
     // two paths must agree bit for bit, also over several chunks.
-    assert_eq!(out.data, gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap().data);
+    assert_eq!(out.data, gpu.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap().data);
     let evaluator = evaluator.with_binding_limit(1024);
-    let frame = EvalOptions { layout: Layout::Frame, derivatives: true, ..EvalOptions::default() };
+    let frame = JobOptions { layout: Layout::Frame, derivatives: true, ..JobOptions::default() };
     assert!(evaluator.prepare(&EvalJob::new(&batch, &times).with(frame)).unwrap().chunk_count() > 1);
     assert_eq!(
         evaluator.evaluate(&EvalJob::new(&batch, &times).with(frame)).unwrap().data,
@@ -87,13 +87,13 @@ fn specialized_and_generic_kernels_agree() {
         let batch = small_batch(&spec);
         let times = SampleTimes::uniform(&batch, Sampling::Rate(17.0)).unwrap();
         let special = gpu
-            .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { derivatives: true, ..EvalOptions::default() }))
+            .evaluate(&EvalJob::new(&batch, &times).with(JobOptions { derivatives: true, ..JobOptions::default() }))
             .unwrap();
         let generic = gpu
-            .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions {
+            .evaluate(&EvalJob::new(&batch, &times).with(JobOptions {
                 derivatives: true,
                 generic_kernel: true,
-                ..EvalOptions::default()
+                ..JobOptions::default()
             }))
             .unwrap();
         // Same code, different specialization: allow only f32 rounding differences.
@@ -112,9 +112,8 @@ fn matrix_output_matches_the_rotation() {
     let Some(gpu) = gpu() else { return };
     let batch = small_batch(&CurveSpec::new(Curve::Hermite));
     let times = SampleTimes::uniform(&batch, Sampling::Count(11)).unwrap();
-    let out = gpu
-        .evaluate(&EvalJob::new(&batch, &times).with(EvalOptions { matrix: true, ..EvalOptions::default() }))
-        .unwrap();
+    let out =
+        gpu.evaluate(&EvalJob::new(&batch, &times).with(JobOptions { matrix: true, ..JobOptions::default() })).unwrap();
     assert_eq!(out.channels, 13);
     for row in out.data.chunks_exact(13) {
         let q = quatcurve::QuatF64::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
@@ -135,7 +134,7 @@ fn unsupported_batches_are_errors_naming_the_track() {
     let track = track(&mut g, &spec, 40, Kind::Random);
     let batch = Batch::from_tracks(&[track], &spec).unwrap();
     let times = SampleTimes::uniform(&batch, Sampling::Count(3)).unwrap();
-    let err = gpu.evaluate(&EvalJob::new(&batch, &times).with(EvalOptions::default())).unwrap_err().to_string();
+    let err = gpu.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap_err().to_string();
     assert!(err.contains("track 0") && err.contains("degree 39"), "{err}");
 }
 
@@ -175,7 +174,7 @@ fn a_reused_output_buffer_gives_the_same_samples_as_a_fresh_one() {
         SampleTimes::uniform(&batch, Sampling::Count(500)).unwrap(),
         SampleTimes::uniform(&batch, Sampling::Count(7)).unwrap(),
     );
-    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let options = JobOptions { derivatives: true, ..JobOptions::default() };
     let fresh = evaluator.evaluate(&EvalJob::new(&batch, &small).with(options)).unwrap();
     evaluator.evaluate(&EvalJob::new(&batch, &big).with(options)).unwrap();
     // Now the kept buffer is larger than this output and holds the big batch's samples.
@@ -195,7 +194,7 @@ fn reused_input_buffers_give_the_same_samples_as_fresh_ones() {
     let small = crate::fast::batch_for(4, &CurveSpec::new(Curve::BSpline), Kind::Random, 5);
     let large = crate::fast::batch_for(9, &CurveSpec::new(Curve::Hermite), Kind::Random, 60);
     let times = |batch: &Batch| SampleTimes::uniform(batch, Sampling::Count(33)).unwrap();
-    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let options = JobOptions { derivatives: true, ..JobOptions::default() };
     for limit in [u64::MAX, 8 * 1024] {
         let fresh = gpu()
             .unwrap()
@@ -219,7 +218,7 @@ fn the_roofline_kernel_writes_every_output_float() {
     let evaluator = gpu.share_device().with_binding_limit(4096);
     let batch = small_batch(&CurveSpec::new(Curve::BSpline));
     let times = SampleTimes::uniform(&batch, Sampling::Count(70)).unwrap();
-    let options = EvalOptions { derivatives: true, ..EvalOptions::default() };
+    let options = JobOptions { derivatives: true, ..JobOptions::default() };
     let prepared = evaluator.prepare(&EvalJob::new(&batch, &times).with(options)).unwrap();
     assert!(prepared.chunk_count() > 1);
     evaluator.roofline(&prepared).unwrap();

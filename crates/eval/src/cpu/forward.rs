@@ -9,7 +9,7 @@
 //! evaluation. Values only: derivative requests take the direct path.
 
 use crate::batch::TrackView;
-use crate::job::EvalOptions;
+use crate::job::JobOptions;
 use crate::sampling::{SampleTimes, TrackTimes};
 use glam::{Quat, Vec4};
 use quatcurve_core::curve::Curve;
@@ -20,7 +20,7 @@ use std::ops::Range;
 /// Whether track `index` can use the generator: slerp or Nam-Kim, uniform times, no
 /// derivatives.
 #[must_use]
-pub fn applies(view: TrackView<'_>, times: &SampleTimes, index: usize, options: &EvalOptions) -> bool {
+pub fn applies(view: TrackView<'_>, times: &SampleTimes, index: usize, options: &JobOptions) -> bool {
     matches!(view.track.curve(), Curve::Slerp | Curve::NamKim)
         && matches!(times.tracks()[index], TrackTimes::Uniform { .. })
         && !options.derivatives
@@ -76,7 +76,7 @@ pub fn evaluate(
     times: &SampleTimes,
     index: usize,
     range: Range<usize>,
-    options: &EvalOptions,
+    options: &JobOptions,
     out: &mut [f32],
 ) {
     let layout = options.row();

@@ -6,7 +6,7 @@ use super::cox_de_boor::CoxDeBoor;
 use super::lanes::{axis_angle, cumulative_product, write_columns, AngleRange, Factor8, LANES, Q8, V8};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::{Batch, PackedTrack, TrackView};
-use crate::job::EvalOptions;
+use crate::job::JobOptions;
 use crate::output::Row;
 use crate::sampling::{SampleTimes, TrackTimes};
 use quatcurve_core::curve::Curve;
@@ -272,7 +272,7 @@ pub(super) struct Piece<'a> {
     pub(super) index: usize,
     /// First sample of the piece.
     pub(super) from: usize,
-    pub(super) options: &'a EvalOptions,
+    pub(super) options: &'a JobOptions,
     pub(super) basis: Basis<'a>,
     /// Factors per sample.
     pub(super) factors: usize,

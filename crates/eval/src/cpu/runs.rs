@@ -17,7 +17,7 @@ use super::lanes::{cumulative_product, AngleRange, LANES};
 use super::piece::{inv_step, locate_from, locate_uniform_in, spans, write_group, LaneRows, Segments, Shared};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::Batch;
-use crate::job::EvalOptions;
+use crate::job::JobOptions;
 use crate::sampling::{SampleTimes, TrackTimes};
 use quatcurve_core::curve::{Curve, MIN_ORDER};
 use std::ops::Range;
@@ -42,7 +42,7 @@ impl Kind {
     /// The kind of track `index` of `batch`, or `None` where it takes the per-track kernel:
     /// more than [`SHORT`] samples, a basis other than a fitted polynomial, or forward
     /// differences.
-    pub(super) fn of(batch: &Batch, times: &SampleTimes, index: usize, options: &EvalOptions) -> Option<Self> {
+    pub(super) fn of(batch: &Batch, times: &SampleTimes, index: usize, options: &JobOptions) -> Option<Self> {
         let track = &batch.tracks()[index];
         if times.count(index) > SHORT
             || options.forward_difference.is_some() && super::forward::applies(batch.view(index), times, index, options)
@@ -86,7 +86,7 @@ pub(super) fn evaluate(
     kind: Kind,
     times: &SampleTimes,
     tracks: Range<usize>,
-    options: &EvalOptions,
+    options: &JobOptions,
     out: &mut [f32],
 ) {
     let run = Run { shared, batch, basis: kind.basis(shared.bases), times, tracks, options };
@@ -117,7 +117,7 @@ struct Run<'a> {
     basis: &'a PolyBasis,
     times: &'a SampleTimes,
     tracks: Range<usize>,
-    options: &'a EvalOptions,
+    options: &'a JobOptions,
 }
 
 /// The track a run is reading: where its next sample is, and what its lanes need, worked

@@ -8,7 +8,7 @@ use super::bases::Basis;
 use super::lanes::MAX_FACTORS;
 use super::piece::{spans, Piece, Shared};
 use crate::batch::TrackView;
-use crate::job::EvalOptions;
+use crate::job::JobOptions;
 use crate::reference;
 use crate::sampling::SampleTimes;
 use quatcurve_core::curve::{Curve, MIN_ORDER};
@@ -21,7 +21,7 @@ pub fn evaluate(
     times: &SampleTimes,
     index: usize,
     range: Range<usize>,
-    options: &EvalOptions,
+    options: &JobOptions,
     out: &mut [f32],
 ) {
     let row = options.row();
