@@ -105,6 +105,9 @@ struct Workload {
 struct Timing {
     device: &'static str,
     adapter: String,
+    /// GPU: the driver and its version, as the adapter reports them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    driver: Option<String>,
     samples_per_s: f64,
     seconds: f64,
     samples: usize,
@@ -291,6 +294,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
     Ok(Timing {
         device: "reference",
         adapter: "f64, one thread".into(),
+        driver: None,
         samples_per_s: samples as f64 / seconds,
         seconds,
         samples,
@@ -318,6 +322,7 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleT
     Ok(Timing {
         device: "gpu",
         adapter: gpu.adapter_name().to_string(),
+        driver: Some(gpu.context().driver().to_string()),
         samples_per_s: samples as f64 / seconds,
         seconds,
         samples,
@@ -356,6 +361,7 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
             Some(n) => format!("{}, forward differences every {n}", cpu.name()),
             None => cpu.name(),
         },
+        driver: None,
         samples_per_s: samples as f64 / seconds,
         seconds,
         samples,

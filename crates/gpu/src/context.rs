@@ -13,6 +13,8 @@ pub struct GpuContext {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter_name: String,
+    /// The driver and its version as the adapter reports them; empty when unknown.
+    driver: String,
     /// The adapter rasterizes on the host's CPU (lavapipe, SwiftShader, WARP).
     software: bool,
     binding_limit: u64,
@@ -72,6 +74,7 @@ impl GpuContext {
                 let name = format!("{} ({:?})", info.name, info.backend);
                 Ok(Self {
                     software: info.device_type == wgpu::DeviceType::Cpu,
+                    driver: format!("{} {}", info.driver, info.driver_info).trim().to_string(),
                     ..Self::with_device(device, queue, name)
                 })
             })
@@ -96,6 +99,7 @@ impl GpuContext {
             device,
             queue,
             adapter_name: adapter_name.into(),
+            driver: String::new(),
             software: false,
             lost,
         }
@@ -117,6 +121,13 @@ impl GpuContext {
     #[must_use]
     pub fn adapter_name(&self) -> &str {
         &self.adapter_name
+    }
+
+    /// The driver and its version (`NVIDIA 550.54.15`, `llvmpipe Mesa 24.2.8`); empty for a
+    /// device given to [`GpuContext::with_device`].
+    #[must_use]
+    pub fn driver(&self) -> &str {
+        &self.driver
     }
 
     /// Whether the adapter is a software rasterizer running on the host's CPU (lavapipe).
