@@ -561,14 +561,15 @@ impl BakeJob {
         } else {
             None
         };
-        // The clip's sheets for a block of its frames.
-        let mut signs = texture::Signs::default();
+        // The clip's sheets for a block of its frames, and the shear they dropped.
+        let (mut signs, mut shear) = (texture::Signs::default(), 0.0f64);
         let rows = |frames: &[usize]| match vertex {
             Some(vertex) => vertex.rows(animation, order, baked, index, fk_device, frames),
             None => {
                 let mut sheets =
                     texture::sheet_rows(animation, order, baked, index, self.options.texture, fk_device, frames)?;
                 signs.follow(self.options.texture, &mut sheets);
+                shear = sheets.iter().map(|s| s.shear).fold(shear, f64::max);
                 Ok(sheets)
             }
         };
@@ -601,6 +602,7 @@ impl BakeJob {
             preview,
             between_frames: out.rates.get(index).cloned(),
             root_motion: baked.in_place(index).map(|p| p.track.clone()),
+            dropped_shear: self.options.texture.is_rigid().then_some(shear),
         })
     }
 }

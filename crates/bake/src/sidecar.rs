@@ -211,8 +211,9 @@ pub struct SidecarClip {
     /// Frames per second: the job's rate fitted to the clip's span (its first and last frames
     /// are its first and last keys), or with an exact rate the job's rate (open clips).
     pub rate: f64,
-    /// Baked as a loop: periodic curves, continuous across the seam. A loop's last row is the
-    /// seam and equals its first: its period is `frames - 1` rows.
+    /// Baked as a loop: periodic curves, continuous across the seam. Its period is `frames - 1`
+    /// rows; its last row is its first a period later (to f32 rounding, but for a travelling
+    /// translation, moved by its per-cycle offset).
     #[serde(rename = "loop")]
     pub looping: bool,
     /// Its skeleton preview's file name.
@@ -227,6 +228,12 @@ pub struct SidecarClip {
     /// taken out of the textures (`model = Root(t) * model in place`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub root_motion: Option<RootTrack>,
+    /// Rigid kinds (`model-trs`, `skin-trs`): the largest shear dropped from the clip's
+    /// matrices, relative to each one's largest scale (at most
+    /// [`crate::texture::SHEAR_TOLERANCE`], or the bake refuses): how far the texture is from
+    /// the matrices.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dropped_shear: Option<f64>,
 }
 
 impl Sidecar {

@@ -64,6 +64,13 @@ impl TextureKind {
         matches!(self, TextureKind::Model | TextureKind::Skin)
     }
 
+    /// The matrices held as rotation, translation and scale (`model-trs`, `skin-trs`), their
+    /// shear dropped.
+    #[must_use]
+    pub fn is_rigid(self) -> bool {
+        matches!(self, TextureKind::ModelTrs | TextureKind::SkinTrs)
+    }
+
     /// One texture per glTF skin (`skin`, `skin-trs`).
     #[must_use]
     pub fn is_skin(self) -> bool {
@@ -192,6 +199,9 @@ pub struct Sheet {
     pub width: usize,
     /// The floats, frame-major.
     pub data: Vec<f32>,
+    /// A rigid kind's largest shear dropped from its matrices ([`SHEAR_TOLERANCE`]'s measure);
+    /// 0 for the other kinds, which hold their values as computed.
+    pub shear: f64,
 }
 
 /// The sheets a clip's texture of `kind` has, as `(suffix, width)`: one, or for
@@ -248,7 +258,7 @@ pub fn sheet_rows(
     }
     let local = local_rows(animation, baked, clip, frames);
     if kind == TextureKind::Local {
-        return Ok(vec![Sheet { suffix: String::new(), width: animation.joints.len(), data: local }]);
+        return Ok(vec![Sheet { suffix: String::new(), width: animation.joints.len(), data: local, shear: 0.0 }]);
     }
     let model = device.forward_kinematics(&animation.parents(), order, &local)?;
     let (matrices, joints): (Vec<Vec<f32>>, Vec<Vec<usize>>) = if !kind.is_skin() || animation.skins.is_empty() {
@@ -258,8 +268,8 @@ pub fn sheet_rows(
     };
     let mut sheets = Vec::with_capacity(matrices.len());
     for (((suffix, width), data), joints) in layout(animation, kind).into_iter().zip(matrices).zip(joints) {
-        let data = if kind.is_matrix() {
-            data
+        let (data, shear) = if kind.is_matrix() {
+            (data, 0.0)
         } else {
             rigid_rows(&data, width).map_err(|(row, k, residual)| {
                 InputError::Animation(format!(
@@ -273,7 +283,7 @@ pub fn sheet_rows(
                 ))
             })?
         };
-        sheets.push(Sheet { suffix, width, data });
+        sheets.push(Sheet { suffix, width, data, shear });
     }
     Ok(sheets)
 }
@@ -284,27 +294,31 @@ pub fn sheet_rows(
 /// rigid transforms come within about 1e-6.
 pub const SHEAR_TOLERANCE: f64 = 1e-4;
 
-/// [`rigid`] over matrix rows `[frames, joints, 12]`, to `[frames, joints, 10]`.
+/// [`rigid`] over matrix rows `[frames, joints, 12]`, to `[frames, joints, 10]`, and the
+/// largest residual (the shear dropped).
 ///
 /// # Errors
 /// `(frame of the rows, joint, residual)` of the first matrix over [`SHEAR_TOLERANCE`].
-fn rigid_rows(matrices: &[f32], joints: usize) -> Result<Vec<f32>, (usize, usize, f64)> {
-    let rows: Vec<Result<Vec<f32>, (usize, usize, f64)>> = matrices
+fn rigid_rows(matrices: &[f32], joints: usize) -> Result<(Vec<f32>, f64), (usize, usize, f64)> {
+    let rows: Vec<Result<(Vec<f32>, f64), (usize, usize, f64)>> = matrices
         .par_chunks(joints.max(1) * MATRIX_CHANNELS)
         .enumerate()
         .map(|(row, frame)| {
-            let mut out = Vec::with_capacity(joints * LOCAL_CHANNELS);
+            let (mut out, mut worst) = (Vec::with_capacity(joints * LOCAL_CHANNELS), 0.0f64);
             for (k, m) in frame.chunks_exact(MATRIX_CHANNELS).enumerate() {
                 let (values, residual) = rigid(&std::array::from_fn(|i| f64::from(m[i])));
                 if residual.is_nan() || residual > SHEAR_TOLERANCE {
                     return Err((row, k, residual));
                 }
+                worst = worst.max(residual);
                 out.extend(values.map(|v| v as f32));
             }
-            Ok(out)
+            Ok((out, worst))
         })
         .collect();
-    rows.into_iter().collect::<Result<Vec<_>, _>>().map(|rows| rows.concat())
+    let rows = rows.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let worst = rows.iter().map(|(_, w)| *w).fold(0.0, f64::max);
+    Ok((rows.into_iter().flat_map(|(r, _)| r).collect(), worst))
 }
 
 /// The last quaternion of every joint of every sheet: what [`Signs::follow`] keeps the next
@@ -415,6 +429,7 @@ mod tests {
             suffix: String::new(),
             width: 1,
             data: data[rows.start * LOCAL_CHANNELS..rows.end * LOCAL_CHANNELS].to_vec(),
+            shear: 0.0,
         };
         let mut whole = vec![sheet(0..frames)];
         Signs::default().follow(TextureKind::ModelTrs, &mut whole);

@@ -94,15 +94,15 @@ impl VertexSheets {
             }
             let width = p.vertices();
             if !self.images {
-                out.push(Sheet { suffix: suffix(k), width, data });
+                out.push(Sheet { suffix: suffix(k), width, data, shear: 0.0 });
                 continue;
             }
             let part = |range: std::ops::Range<usize>| -> Vec<f32> {
                 data.chunks_exact(VERTEX_CHANNELS).flat_map(|v| v[range.clone()].iter().copied()).collect()
             };
-            out.push(Sheet { suffix: format!("{}.pos", suffix(k)), width, data: part(0..3) });
+            out.push(Sheet { suffix: format!("{}.pos", suffix(k)), width, data: part(0..3), shear: 0.0 });
             if p.bind.normals.is_some() {
-                out.push(Sheet { suffix: format!("{}.nrm", suffix(k)), width, data: part(3..6) });
+                out.push(Sheet { suffix: format!("{}.nrm", suffix(k)), width, data: part(3..6), shear: 0.0 });
             }
         }
         Ok(out)
