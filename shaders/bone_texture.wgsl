@@ -9,7 +9,7 @@
 struct BoneClip {
     first_row: u32,
     frames: u32,
-    // 1 for a loop: its last row equals its first, so its period is frames - 1 rows.
+    // 1 for a loop: its period is frames - 1 rows (its last row is its first a period later).
     looping: u32,
     // The clip's own rate in Hz (clips[i].rate), not the requested one.
     rate: f32,
