@@ -88,8 +88,10 @@ cat "$out/summary.md"
 # One Markdown row per device of a bench JSON report (a fitted report: ns per bone-pose).
 rows() {
     awk -v n="$1" -v name="$2" '
+        # A field of one flat JSON object: a string (commas and all) or a number.
         function field(s, key,    m) {
-            if (match(s, "\"" key "\":[^,}]*")) { m = substr(s, RSTART + length(key) + 3, RLENGTH - length(key) - 3); gsub(/"/, "", m); return m }
+            if (match(s, "\"" key "\":\"[^\"]*\"")) return substr(s, RSTART + length(key) + 4, RLENGTH - length(key) - 5)
+            if (match(s, "\"" key "\":[^,}]*")) return substr(s, RSTART + length(key) + 3, RLENGTH - length(key) - 3)
             return ""
         }
         function mega(v) { return v == "" ? "-" : sprintf("%.2f", v / 1e6) }
