@@ -1,6 +1,6 @@
-//! `quatcurve shaders`: the bone-texture library and its skinned vertex shader, in WGSL (the
-//! one source, `shaders/bone_texture.wgsl` and `shaders/skin_vertex.wgsl`) or in GLSL and
-//! HLSL generated from it by naga's back ends (DESIGN section 5c).
+//! `quatcurve shaders`: the bone-texture library and its skinned vertex shader, the vertex
+//! texture's, and a fragment shader for both, in WGSL (the one source, `shaders/*.wgsl`) or in
+//! GLSL and HLSL generated from it by naga's back ends (DESIGN section 5c).
 
 use super::{names, print_stdout, Failure};
 use clap::Args;
@@ -13,8 +13,10 @@ pub struct ShadersArgs {
     /// hlsl (shader model 5.1).
     #[arg(long, default_value = "wgsl", value_parser = names::<Language>())]
     lang: Language,
-    /// The program: bones (bone_texture.wgsl and a skinned vertex shader) or vertex
-    /// (vertex_texture.wgsl over it, and a vertex shader reading a `--texture vertex` bake).
+    /// The program: bones (bone_texture.wgsl and a skinned vertex shader), vertex
+    /// (vertex_texture.wgsl over it, and a vertex shader reading a `--texture vertex` bake), or
+    /// fragment (a fragment shader for either: a fixed light on the normal they pass at
+    /// location 0).
     #[arg(long, default_value = "bones", value_parser = names::<Program>())]
     program: Program,
     /// Write to this file (atomically) instead of standard output.

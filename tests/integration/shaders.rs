@@ -18,7 +18,7 @@ fn every_shader_file_parses_and_the_program_validates() {
 #[test]
 fn every_shipped_program_translates_to_every_language() {
     use shader::{Language, Program};
-    for program in [Program::Bones, Program::Vertex] {
+    for program in [Program::Bones, Program::Vertex, Program::Fragment] {
         for language in [Language::Wgsl, Language::Glsl, Language::GlslEs, Language::Hlsl] {
             let text = shader::program_in(program, language).unwrap_or_else(|e| panic!("{program} in {language}: {e}"));
             // GLSL names its one entry point main.
@@ -41,13 +41,8 @@ fn the_viewer_fragment_shader_links_to_both_crowd_vertex_shaders_in_glsl_es() {
             .map(|l| l.split_whitespace().last().unwrap().trim_end_matches(';').to_string())
             .collect()
     };
-    let fragment = shader::glsl(
-        &shader::VIEWER_FRAGMENT_FILES,
-        shader::VIEWER_FRAGMENT_ENTRY_POINT,
-        naga::ShaderStage::Fragment,
-        Language::GlslEs,
-    )
-    .unwrap();
+    let fragment = Program::Fragment;
+    let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs).unwrap();
     let inputs = varyings(&fragment.text, "in");
     assert_eq!(inputs, ["_vs2fs_location0"], "{}", fragment.text);
     for program in [Program::Bones, Program::Vertex] {

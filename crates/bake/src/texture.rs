@@ -294,13 +294,16 @@ pub fn sheet_rows(
 /// rigid transforms come within about 1e-6.
 pub const SHEAR_TOLERANCE: f64 = 1e-4;
 
+/// A matrix over [`SHEAR_TOLERANCE`]: `(frame of the rows, joint, residual)`.
+type Sheared = (usize, usize, f64);
+
 /// [`rigid`] over matrix rows `[frames, joints, 12]`, to `[frames, joints, 10]`, and the
 /// largest residual (the shear dropped).
 ///
 /// # Errors
-/// `(frame of the rows, joint, residual)` of the first matrix over [`SHEAR_TOLERANCE`].
-fn rigid_rows(matrices: &[f32], joints: usize) -> Result<(Vec<f32>, f64), (usize, usize, f64)> {
-    let rows: Vec<Result<(Vec<f32>, f64), (usize, usize, f64)>> = matrices
+/// The first matrix over [`SHEAR_TOLERANCE`], in frame order.
+fn rigid_rows(matrices: &[f32], joints: usize) -> Result<(Vec<f32>, f64), Sheared> {
+    let rows: Vec<Result<(Vec<f32>, f64), Sheared>> = matrices
         .par_chunks(joints.max(1) * MATRIX_CHANNELS)
         .enumerate()
         .map(|(row, frame)| {

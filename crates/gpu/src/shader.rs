@@ -129,9 +129,12 @@ pub enum Program {
     /// Vertex textures (`vertex_texture.wgsl`, over the bone library's frame rule) and a
     /// vertex shader that reads them (`vertex_texture_vertex.wgsl`).
     Vertex,
+    /// A fragment shader for either vertex shader (`viewer_fragment.wgsl`, the viewer's): a
+    /// fixed light on the normal they pass at location 0.
+    Fragment,
 }
 
-quatcurve_core::curve::names!(Program, "shader program", Bones => "bones", Vertex => "vertex");
+quatcurve_core::curve::names!(Program, "shader program", Bones => "bones", Vertex => "vertex", Fragment => "fragment");
 
 impl Program {
     /// The WGSL files, in order.
@@ -140,15 +143,26 @@ impl Program {
         match self {
             Program::Bones => &SKIN_VERTEX_FILES,
             Program::Vertex => &VERTEX_TEXTURE_FILES,
+            Program::Fragment => &VIEWER_FRAGMENT_FILES,
         }
     }
 
-    /// The vertex entry point.
+    /// The entry point.
     #[must_use]
     pub fn entry_point(self) -> &'static str {
         match self {
             Program::Bones => SKIN_VERTEX_ENTRY_POINT,
             Program::Vertex => VERTEX_TEXTURE_ENTRY_POINT,
+            Program::Fragment => VIEWER_FRAGMENT_ENTRY_POINT,
+        }
+    }
+
+    /// The entry point's stage.
+    #[must_use]
+    pub fn stage(self) -> naga::ShaderStage {
+        match self {
+            Program::Bones | Program::Vertex => naga::ShaderStage::Vertex,
+            Program::Fragment => naga::ShaderStage::Fragment,
         }
     }
 
@@ -199,7 +213,7 @@ pub fn program_in(program: Program, language: Language) -> Result<String, String
     match language {
         Language::Wgsl => return Ok(source),
         Language::Glsl | Language::GlslEs => {
-            let glsl = glsl(program.files(), program.entry_point(), naga::ShaderStage::Vertex, language)?;
+            let glsl = glsl(program.files(), program.entry_point(), program.stage(), language)?;
             // GLSL has no bind groups: say which generated name each WGSL resource took, after
             // the `#version` line that must come first.
             let mut names: Vec<String> = glsl

@@ -276,12 +276,8 @@ struct Shaders {
 impl Shaders {
     fn of(program: Program) -> Result<Self, String> {
         let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)?;
-        let fragment = shader::glsl(
-            &shader::VIEWER_FRAGMENT_FILES,
-            shader::VIEWER_FRAGMENT_ENTRY_POINT,
-            ShaderStage::Fragment,
-            Language::GlslEs,
-        )?;
+        let fragment = Program::Fragment;
+        let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs)?;
         let (module, _) = shader::parse(program.files())?;
         let inputs = shader::vertex_inputs(&module, program.entry_point())?;
         Ok(Self { vertex, fragment, module, inputs })

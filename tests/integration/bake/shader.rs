@@ -783,11 +783,16 @@ fn generated_glsl_and_hlsl_compile_with_glslang() {
     let Some(tool) = glslang() else { return };
     let dir = tempfile::tempdir().unwrap();
     // Each program with a function of its library that must be in the output.
-    for (program, function) in [(shader::Program::Bones, "bone_pose"), (shader::Program::Vertex, "vertex_position")] {
+    for (program, function) in [
+        (shader::Program::Bones, "bone_pose"),
+        (shader::Program::Vertex, "vertex_position"),
+        (shader::Program::Fragment, "lambert"),
+    ] {
+        let stage = if program.stage() == naga::ShaderStage::Fragment { "frag" } else { "vert" };
         for (lang, extra) in [
-            ("glsl", vec!["-S", "vert"]),
-            ("glsl-es", vec!["-S", "vert"]),
-            ("hlsl", vec!["-D", "-V", "-S", "vert", "-e", program.entry_point(), "-o", "/dev/null"]),
+            ("glsl", vec!["-S", stage]),
+            ("glsl-es", vec!["-S", stage]),
+            ("hlsl", vec!["-D", "-V", "-S", stage, "-e", program.entry_point(), "-o", "/dev/null"]),
         ] {
             let path = dir.path().join(format!("{program}.{lang}"));
             let args = ["shaders", "--program", program.name(), "--lang", lang, "--output", path.to_str().unwrap()];
