@@ -24,6 +24,16 @@ fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
+/// A job's options from the JSON object of those Python was given by name
+/// ([`quatcurve::options::from_named`]: the rest at their defaults).
+fn named<T>(options: &str) -> PyResult<T>
+where
+    T: Default + serde::Serialize + for<'de> serde::Deserialize<'de>,
+{
+    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
+    quatcurve::options::from_named(&given).map_err(value_error)
+}
+
 /// The device for `choice`, opened once per process: creating a GPU device takes a good
 /// fraction of a second, and a caller evaluating track by track should not pay it each time.
 fn device(choice: DeviceChoice) -> PyResult<&'static Device> {
@@ -170,8 +180,7 @@ fn evaluate_tracks<'py>(
     equal_counts: bool,
     options: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
-    let options: EvalOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let options: EvalOptions = named(options)?;
     let (spec, derivatives, choice) = (options.spec(), options.derivatives, options.device);
     let (form, out_form) = (Form::parse("rotation_type", rotation_type)?, Form::parse("output", output)?);
     let device = self::device(choice)?;
@@ -291,8 +300,7 @@ fn bake_files<'py>(
     resume: bool,
     jobs: usize,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
-    let options: BakeOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let options: BakeOptions = named(options)?;
     let choice = options.device;
     let job = BakeJob {
         options,
@@ -370,8 +378,7 @@ fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDi
 #[pyfunction]
 #[pyo3(signature = (inputs, output, options))]
 fn fit_files(py: Python<'_>, inputs: Vec<PathBuf>, output: PathBuf, options: &str) -> PyResult<String> {
-    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(options).map_err(value_error)?;
-    let options: FitOptions = quatcurve::options::from_named(&given).map_err(value_error)?;
+    let options: FitOptions = named(options)?;
     let job = FitJob { inputs, output, options };
     let report = py.detach(|| job.run(&|_, _| {})).map_err(value_error)?;
     serde_json::to_string(&report).map_err(value_error)

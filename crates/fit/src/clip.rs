@@ -431,7 +431,6 @@ fn kept_keys(property: Property, values: &[[f64; 4]], times: &[f64], tolerances:
     kept
 }
 
-/// Every joint's rest transform.
 /// A source channel as the fit reads it: its keys (a fitted channel is refused).
 struct Keyed<'a> {
     joint: usize,
@@ -448,6 +447,7 @@ impl<'a> Keyed<'a> {
     }
 }
 
+/// Every joint's rest transform.
 fn rest_pose(animation: &Animation) -> Vec<Transform> {
     animation
         .joints
