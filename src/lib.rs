@@ -35,7 +35,8 @@
 //! ```
 
 // The workspace's crates at one root, so users see one library: the maths (quatcurve-core, no
-// I/O), evaluation without a GPU (quatcurve-eval), the GPU path (quatcurve-gpu), the device
+// I/O), evaluation without a GPU (quatcurve-eval), the WGSL programs and their translations
+// (quatcurve-shader), the GPU path (quatcurve-gpu), the device
 // over them (quatcurve-device), the animation model with its formats (quatcurve-anim), and
 // the products: analysis, the bake, the fit, the viewer.
 pub use quatcurve_analysis as analysis;
@@ -51,6 +52,7 @@ pub use quatcurve_eval::{
 pub use quatcurve_fit as fit;
 #[cfg(feature = "gpu")]
 pub use quatcurve_gpu as gpu;
+pub use quatcurve_shader as shader;
 // Charts serve the CLI; they are not part of the library's API.
 #[cfg(feature = "plot")]
 #[doc(hidden)]

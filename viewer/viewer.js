@@ -104,8 +104,8 @@
     return buffer;
   }
 
-  // The instances' per-instance inputs: where each stands, its clip (0: the scene's one clip
-  // is the layout's first), and its time, rewritten every frame.
+  // The instances' per-instance inputs: where each stands, its clip (the scene's clip's index in
+  // the textures' layouts), and its time, rewritten every frame.
   function placeInstances() {
     const { low, high } = state.scene;
     const n = state.instances;
@@ -125,7 +125,7 @@
     for (const draw of state.draws) {
       gl.bindVertexArray(draw.vao);
       buffers.offset = attributeShared(buffers.offset, instance.offset, 3, false, state.offsets);
-      buffers.clip = attributeShared(buffers.clip, instance.clip, 1, true, new Array(n).fill(0));
+      buffers.clip = attributeShared(buffers.clip, instance.clip, 1, true, new Array(n).fill(state.scene.instance_clip));
       buffers.time = attributeShared(buffers.time, instance.time, 1, false, new Array(n).fill(0));
     }
     gl.bindVertexArray(null);

@@ -4,7 +4,7 @@
 
 use super::{names, print_stdout, Failure};
 use clap::Args;
-use quatcurve::gpu::shader::{self, Language, Program};
+use quatcurve::shader::{self, Language, Program};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -19,13 +19,28 @@ pub struct ShadersArgs {
     /// location 0).
     #[arg(long, default_value = "bones", value_parser = names::<Program>())]
     program: Program,
+    /// GLSL ES only: the library's structs, uniforms and functions without the vertex
+    /// shader's entry point, to put in a shader of an engine's own (three.js's
+    /// onBeforeCompile); uniforms by their WGSL names, a layout block as a uniform struct.
+    #[arg(long)]
+    library: bool,
     /// Write to this file (atomically) instead of standard output.
     #[arg(long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
 
 pub fn run(args: &ShadersArgs) -> Result<(), Failure> {
-    let text = shader::program_in(args.program, args.lang).map_err(Failure::Internal)?;
+    let text = match (args.library, args.lang, args.program) {
+        (false, ..) => shader::program_in(args.program, args.lang),
+        (true, Language::GlslEs, Program::Bones | Program::Vertex) => shader::library(args.program),
+        (true, Language::GlslEs, program) => {
+            return Err(Failure::Input(format!("--library: the {program} program is no library; take bones or vertex")))
+        }
+        (true, language, _) => {
+            return Err(Failure::Input(format!("--library is GLSL ES's (--lang glsl-es), not {language}'s")))
+        }
+    }
+    .map_err(Failure::Internal)?;
     match &args.output {
         Some(path) => quatcurve::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
             .map_err(|e| Failure::Input(format!("--output {e}"))),

@@ -2,7 +2,7 @@
 //! host shares with it (struct offsets, codes, limits, workgroup size) is checked against it.
 
 use quatcurve::gpu::layout::{self, GpuTrack, Params};
-use quatcurve::gpu::shader;
+use quatcurve::shader;
 use quatcurve::{real, Blend, Curve};
 
 #[test]
@@ -280,7 +280,7 @@ fn bind_group_layouts_come_from_the_shaders() {
             ][..],
         ),
     ] {
-        let resources = shader::Resources::of(module).unwrap();
+        let resources = quatcurve::gpu::program::Resources::of(module).unwrap();
         let got: Vec<(&str, &str)> = resources.iter().map(|(name, e)| (name, kind(e))).collect();
         assert_eq!(got, expected);
         // Binding numbers in order, as the layout lists them.
@@ -290,7 +290,7 @@ fn bind_group_layouts_come_from_the_shaders() {
             assert!(resources.binding(name).is_ok(), "{name}");
         }
     }
-    assert!(shader::Resources::of(&eval).unwrap().binding("nothing").is_err());
+    assert!(quatcurve::gpu::program::Resources::of(&eval).unwrap().binding("nothing").is_err());
 }
 
 /// The shader's Taylor coefficients, typed as decimals in `shaders/real.wgsl`

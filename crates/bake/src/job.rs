@@ -519,7 +519,8 @@ impl BakeJob {
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
-        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex);
+        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex)
+            .map_err(InputError::Animation)?;
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;

@@ -19,6 +19,7 @@ pub mod shard;
 pub mod sidecar;
 pub mod texture;
 mod texture_file;
+pub mod uniforms;
 pub mod vertex_encoding;
 mod vertex_glb;
 mod vertex_texture;

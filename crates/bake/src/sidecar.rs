@@ -9,9 +9,11 @@ use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
+use super::uniforms::{self, LayoutClip, LayoutOf, ShaderRecord, UniformRecord};
 use super::vertex_texture::VertexSheets;
 use super::Baked;
 use quatcurve_anim::Animation;
+use quatcurve_shader::Program;
 use serde::{Deserialize, Serialize};
 
 /// The job's options a sidecar records, and the device that ran the input.
@@ -56,9 +58,14 @@ pub struct Sidecar {
     /// See [`Self::texels`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub address: Option<String>,
-    /// Each image file's grid (and ranges, for PNG16 and vertex positions).
+    /// Each image file's grid (and ranges, for PNG16 and vertex positions), and the layout
+    /// uniform the shipped shaders read it with.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub textures: Vec<ImageRecord>,
+    /// Image textures of a kind a shipped vertex shader plays (`skin-trs`, `vertex`): that
+    /// shader, its inputs and its resources.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shader: Option<ShaderRecord>,
     /// The largest angle (radians) between a key and the baked curve at its time, over every
     /// rotation key.
     pub max_key_error_rad: Option<f64>,
@@ -170,6 +177,10 @@ pub struct ImageRecord {
     /// See [`Self::low`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub span: Option<[f64; 3]>,
+    /// The shaders' layout uniform for this file (`bone_layout` of a bone texture,
+    /// `vertex_layout` of a vertex texture's `.pos` file, which its `.nrm` file shares).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layout: Option<UniformRecord>,
 }
 
 /// The budget a bake chose its rates for.
@@ -239,6 +250,9 @@ pub struct SidecarClip {
 impl Sidecar {
     /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
     /// textures.
+    ///
+    /// # Errors
+    /// A texture's numbers that its shader layout cannot hold (a clip's first row past `u32`).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         options: &SidecarOptions<'_>,
@@ -249,7 +263,7 @@ impl Sidecar {
         clips: Vec<SidecarClip>,
         written: &[Written],
         vertex: Option<(&VertexSheets, String)>,
-    ) -> Self {
+    ) -> Result<Self, String> {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
@@ -273,7 +287,7 @@ impl Sidecar {
             slot.resize(4, String::new());
             slot
         };
-        let textures = written
+        let mut textures: Vec<ImageRecord> = written
             .iter()
             .filter_map(|w| {
                 let file = w.path.file_name()?.to_string_lossy().into_owned();
@@ -284,9 +298,20 @@ impl Sidecar {
                     remap: i.remap.clone(),
                     low: i.bounds.map(|b| b.low),
                     span: i.bounds.map(|b| b.span()),
+                    layout: None,
                 })
             })
             .collect();
+        let files: Vec<String> = textures.iter().map(|r| r.file.clone()).collect();
+        for record in &mut textures {
+            record.layout = layout_of(record, &files, &clips).map_err(|e| format!("{}: {e}", record.file))?;
+        }
+        let shader = match texture {
+            _ if !image => None,
+            TextureKind::SkinTrs => Some(uniforms::shader_record(Program::Bones)?),
+            TextureKind::Vertex => Some(uniforms::shader_record(Program::Vertex)?),
+            _ => None,
+        };
         let layout = match (image, texture) {
             (true, TextureKind::Vertex) => format!(
                 "{layout}; as {format} RGBA images, .pos (positions) and .nrm (normals) per primitive, one texel per \
@@ -295,7 +320,7 @@ impl Sidecar {
             (true, _) => format!("{layout}; as {format} RGBA images of texels: see texels, address and textures"),
             (false, _) => layout,
         };
-        Sidecar {
+        Ok(Sidecar {
             source: source.to_string(),
             curve: curve.to_string(),
             requested_rate: rate,
@@ -308,6 +333,7 @@ impl Sidecar {
             texels: (image && texture != TextureKind::Vertex).then(|| texture.texels().iter().map(names_of).collect()),
             address: image.then(|| super::image::ADDRESS.to_string()),
             textures,
+            shader,
             max_key_error_rad: baked.max_key_error,
             max_error: max_error.map(|b| BudgetRecord {
                 degrees: b.degrees,
@@ -360,8 +386,34 @@ impl Sidecar {
                     .collect(),
             }),
             clips,
-        }
+        })
     }
+}
+
+/// The layout uniform of image `record`: a bone texture's, or a vertex texture's `.pos`
+/// file's (with the `.nrm` file beside it in `files` or not); none for a `.nrm` file.
+fn layout_of(record: &ImageRecord, files: &[String], clips: &[SidecarClip]) -> Result<Option<UniformRecord>, String> {
+    let of = match (record.low, record.span) {
+        (Some(low), Some(span)) => {
+            let normals = files.contains(&record.file.replacen(".pos.", ".nrm.", 1));
+            LayoutOf::Vertex { low, span, normals }
+        }
+        _ if record.file.contains(".nrm.") => return Ok(None),
+        _ => LayoutOf::Bones { remap: record.remap.as_deref() },
+    };
+    let held: Vec<LayoutClip> = clips
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.files.contains(&record.file))
+        .map(|(index, c)| LayoutClip {
+            index,
+            first_row: c.first_row,
+            frames: c.frames,
+            looping: c.looping,
+            rate: c.rate,
+        })
+        .collect();
+    uniforms::layout(&record.grid, &of, &held).map(Some)
 }
 
 /// [`super::vertex_encoding::Bounds::decode`] in words.

@@ -164,8 +164,9 @@ impl GpuContext {
         module: &naga::Module,
         source: &str,
         entry: &str,
-    ) -> Result<super::shader::Compiled, GpuError> {
-        use super::shader::{entry_workgroup_size, Compiled, Resources};
+    ) -> Result<super::program::Compiled, GpuError> {
+        use super::program::{Compiled, Resources};
+        use quatcurve_shader::entry_workgroup_size;
         let device = &self.device;
         let workgroup_size = entry_workgroup_size(module, entry).map_err(GpuError::Shader)?;
         let scope = ErrorScope::push(device);

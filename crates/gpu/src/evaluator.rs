@@ -5,12 +5,13 @@
 use super::context::{ErrorScope, GpuContext};
 use super::fk::ForwardKinematics;
 use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
-use super::shader;
+use super::program;
 use super::GpuError;
 use quatcurve_core::curve::Curve;
 use quatcurve_eval::job::{EvalJob, JobOptions};
 use quatcurve_eval::output::{FloatOutput, Layout};
 use quatcurve_eval::sampling::SampleTimes;
+use quatcurve_shader as shader;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
@@ -99,7 +100,7 @@ struct Program {
     module: wgpu::ShaderModule,
     bind_group_layout: wgpu::BindGroupLayout,
     /// The program's buffers by name (binding numbers read from the shader).
-    resources: shader::Resources,
+    resources: program::Resources,
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: Arc<Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>>,
     workgroup_size: u32,
@@ -116,7 +117,7 @@ impl Program {
             label: Some("quatcurve eval"),
             source: wgpu::ShaderSource::Wgsl(shader::source().into()),
         });
-        let resources = shader::Resources::of(&naga_module).map_err(GpuError::Shader)?;
+        let resources = program::Resources::of(&naga_module).map_err(GpuError::Shader)?;
         let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("quatcurve eval"),
             entries: &resources.layout_entries(),

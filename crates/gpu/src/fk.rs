@@ -4,9 +4,10 @@
 //! of frames in one pass; frames are split into chunks that fit a storage binding.
 
 use super::context::{ErrorScope, GpuContext};
-use super::shader::{self, Compiled};
+use super::program::Compiled;
 use super::GpuError;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
+use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `FkLevel` (32 bytes).

@@ -1,7 +1,8 @@
 //! The GPU path: WGSL compute shaders (in `shaders/`) evaluating the same packed batch as the
 //! reference, in f32, through wgpu.
 //!
-//! - [`shader`]: the WGSL program, validated by naga; layout facts are read from it.
+//! - [`program`]: a compute program compiled on the device from naga's reflection of the WGSL
+//!   (`quatcurve-shader`).
 //! - [`layout`]: host twins of the kernel's structs; packing and chunking.
 //! - [`context`]: [`GpuContext`], one device and the calls every pass makes.
 //! - [`evaluator`]: [`GpuEvaluator`], created once and reused.
@@ -12,7 +13,7 @@ pub mod context;
 pub mod evaluator;
 pub mod fk;
 pub mod layout;
-pub mod shader;
+pub mod program;
 pub mod skinning;
 
 pub use context::GpuContext;

@@ -4,10 +4,11 @@
 //! into chunks whose matrices and output each fit a storage binding.
 
 use super::context::{ErrorScope, GpuContext};
-use super::shader::{self, Compiled};
+use super::program::Compiled;
 use super::GpuError;
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton::SkinnedMesh;
+use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
 
 /// Host twin of WGSL's `SkinMeshJob` (32 bytes).

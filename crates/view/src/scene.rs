@@ -7,6 +7,7 @@
 
 use super::files::url_path;
 use super::texels::Texels;
+use base64::Engine as _;
 use naga::ShaderStage;
 use quatcurve_anim::gltf::{self, UriPolicy};
 use quatcurve_anim::mesh::{self, SkinnedPrimitive};
@@ -16,7 +17,7 @@ use quatcurve_bake::texture::TextureKind;
 use quatcurve_bake::vertex_encoding::Bounds;
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton;
-use quatcurve_gpu::shader::{self, Glsl, Language, Program};
+use quatcurve_shader::{self as shader, Glsl, Language, Program};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -190,6 +191,9 @@ pub struct Scene {
     pub camera: String,
     /// The per-instance inputs' locations.
     pub instance: InstanceInputs,
+    /// The value of `instance_clip` that plays the clip: its index in the textures' layouts
+    /// (the sidecar's `layout.clips`).
+    pub instance_clip: usize,
     /// One draw per mesh primitive.
     pub draws: Vec<Draw>,
     /// The box the clip's vertices move in (every draw's, at the bone path's sampled frames).
@@ -314,10 +318,6 @@ impl Shaders {
         }
         Ok(BlockBinding { block: self.name(wgsl)?, words })
     }
-
-    fn max_clips(&self, name: &str) -> Result<usize, String> {
-        shader::constant_u32(&self.module, name).map(|n| n as usize).ok_or_else(|| format!("no constant `{name}`"))
-    }
 }
 
 /// Clip `clip` of the bake whose sidecar is at `sidecar` (under `root`, canonical).
@@ -331,7 +331,16 @@ pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, Str
     let clips = &sidecar.clips;
     let chosen = clips.get(clip).ok_or_else(|| format!("no clip {clip}: the bake has {}", clips.len()))?;
     let shaders = Shaders::of(playback.program())?;
-    let mut bake = Assembly { root, dir, sidecar: &sidecar, clip: chosen, shaders: &shaders, notes: Vec::new() };
+    let mut bake = Assembly {
+        root,
+        dir,
+        sidecar: &sidecar,
+        index: clip,
+        clip: chosen,
+        instance_clip: None,
+        shaders: &shaders,
+        notes: Vec::new(),
+    };
     let (draws, bounds) = match playback {
         Playback::Bones => bake.bones()?,
         Playback::Vertex => bake.vertex()?,
@@ -343,6 +352,7 @@ pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, Str
         vertex_shader: shaders.vertex.text.clone(),
         fragment_shader: shaders.fragment.text.clone(),
         camera: camera.glsl.clone(),
+        instance_clip: bake.instance_clip.unwrap_or(0),
         instance: InstanceInputs {
             offset: shaders.location("instance_offset")?,
             clip: shaders.location("instance_clip")?,
@@ -360,7 +370,10 @@ struct Assembly<'a> {
     root: &'a Path,
     dir: &'a Path,
     sidecar: &'a Sidecar,
+    /// The clip: its index in the sidecar, and the index of it in the textures' layouts.
+    index: usize,
     clip: &'a SidecarClip,
+    instance_clip: Option<usize>,
     shaders: &'a Shaders,
     notes: Vec<String>,
 }
@@ -386,20 +399,27 @@ impl<'a> Assembly<'a> {
         })
     }
 
-    /// The clip as `BoneClip` words at index 0 of a layout's `clips` array of `max` entries.
-    fn clip_words(&self, max: usize) -> Result<Vec<u32>, String> {
-        let count = |k: &str, v: usize| -> Result<u32, String> {
-            u32::try_from(v).map_err(|_| format!("clip `{k}` {v} does not fit the shader's u32"))
-        };
-        let clip = self.clip;
-        let mut words = vec![
-            count("first_row", clip.first_row)?,
-            count("frames", clip.frames)?,
-            u32::from(clip.looping),
-            (clip.rate as f32).to_bits(),
-        ];
-        words.resize(4 * max, 0);
-        Ok(words)
+    /// The std140 words of `record`'s layout uniform (the sidecar's), after checking that it
+    /// holds the scene's clip at the index every draw gives its instances.
+    fn layout_words(&mut self, record: &ImageRecord) -> Result<Vec<u32>, String> {
+        let file = &record.file;
+        let layout = record.layout.as_ref().ok_or_else(|| format!("{file}: its `textures` record has no `layout`"))?;
+        let at = layout.clips.iter().position(|&c| c == self.index).ok_or_else(|| {
+            format!("{file}: its layout does not hold clip {} (it holds clips {:?})", self.index, layout.clips)
+        })?;
+        match self.instance_clip.replace(at) {
+            Some(other) if other != at => {
+                return Err(format!("{file}: clip {} is at {at} of its layout, at {other} of another's", self.index))
+            }
+            _ => {}
+        }
+        let bytes = base64::engine::general_purpose::STANDARD
+            .decode(&layout.std140)
+            .map_err(|e| format!("{file}: its layout's `std140`: {e}"))?;
+        if bytes.len() % 4 != 0 {
+            return Err(format!("{file}: its layout's `std140` is {} bytes, not whole words", bytes.len()));
+        }
+        Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
     }
 
     /// Every skinned primitive of the baked glTF, skinned by `bone_texture.wgsl` from its
@@ -410,7 +430,6 @@ impl<'a> Assembly<'a> {
         let file = gltf::read(&path, UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
         let primitives = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
         let files = &self.clip.files;
-        let max_clips = self.shaders.max_clips("BONE_MAX_CLIPS")?;
         let mut texels: HashMap<PathBuf, Texels> = HashMap::new();
         let (mut draws, mut corners) = (Vec::new(), Vec::new());
         for p in &primitives {
@@ -421,14 +440,7 @@ impl<'a> Assembly<'a> {
             let name = files.get(p.skin).ok_or_else(|| format!("{}: no texture of skin {}", p.name, p.skin))?;
             let (record, grid, image) = self.texture(name)?;
             let remap = remap(record)?;
-            let mut words = vec![grid.texels_per_joint, grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
-                .into_iter()
-                .map(|n| u32::try_from(n).map_err(|_| format!("{name}: grid number {n} does not fit u32")))
-                .collect::<Result<Vec<u32>, String>>()?;
-            words.extend(remap.iter().flat_map(|slot| slot.map(|(low, _)| low.to_bits())));
-            words.extend(remap.iter().flat_map(|slot| slot.map(|(_, span)| span.to_bits())));
-            words.extend(self.clip_words(max_clips)?);
-            let block = self.shaders.block("bone_layout", "BoneLayout", words)?;
+            let block = self.shaders.block("bone_layout", "BoneLayout", self.layout_words(record)?)?;
             let joints = record.joints;
             if !texels.contains_key(&image) {
                 let read = Texels::read(&image).map_err(|e| format!("{name}: {e}"))?;
@@ -530,7 +542,6 @@ impl<'a> Assembly<'a> {
         let blob = glb.blob.as_deref().ok_or_else(|| format!("{mesh_file}: no binary chunk"))?;
         let files = &self.clip.files;
         let ext = self.sidecar.format.parse::<Format>()?.extension();
-        let max_clips = self.shaders.max_clips("VERTEX_MAX_CLIPS")?;
         let (mut draws, mut corners) = (Vec::new(), Vec::new());
         for p in &vertex.primitives {
             let (name, suffix) = (p.name.clone(), &p.suffix);
@@ -543,16 +554,7 @@ impl<'a> Assembly<'a> {
             };
             corners.push(low);
             corners.push(std::array::from_fn(|i| low[i] + span[i]));
-            let mut words = vec![grid.frame_width, grid.rows_per_frame, grid.frames_per_column]
-                .into_iter()
-                .map(|n| u32::try_from(n).map_err(|_| format!("{positions}: grid number {n} does not fit u32")))
-                .collect::<Result<Vec<u32>, String>>()?;
-            words.push(u32::from(normals.is_some()));
-            for v in [low, span] {
-                words.extend(v.iter().map(|&c| (c as f32).to_bits()));
-                words.push(0);
-            }
-            words.extend(self.clip_words(max_clips)?);
+            let words = self.layout_words(record)?;
             let (addresses, indices) =
                 mesh_addresses(&glb, blob, p.mesh_in_file).map_err(|e| format!("{mesh_file}: {e}"))?;
             // Without normals the layout says so, and the positions stand in for the binding.

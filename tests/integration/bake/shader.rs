@@ -4,7 +4,7 @@
 //! within the budget. The GLSL and HLSL `quatcurve shaders` generates, checked by glslang.
 
 use super::{bake, data_dir, json, read_npy, stderr};
-use quatcurve::gpu::shader;
+use quatcurve::shader;
 use std::path::Path;
 
 /// One query of `bone_probe.wgsl` (its `BoneQuery`).
@@ -55,18 +55,21 @@ pub(super) fn naga_module(source: &str) -> (naga::Module, naga::valid::ModuleInf
     (module, info)
 }
 
-/// The sidecar's record of an image texture as `bone_layout`'s bytes (`BoneLayout`: four u32,
-/// low and span per texel slot, then the clips), from the sidecar's own numbers.
-fn layout_bytes(sidecar: &serde_json::Value, record: &serde_json::Value, texels: usize) -> Vec<u8> {
+/// `BoneLayout`'s bytes (four u32, low and span per texel slot, then `clips` from index 0),
+/// packed here from the sidecar's numbers, independently of the bake's packing.
+fn layout_bytes(record: &serde_json::Value, clips: &[&serde_json::Value], texels: usize) -> Vec<u8> {
     let n = |k: &str| record[k].as_u64().unwrap() as u32;
-    let clips = sidecar["clips"].as_array().unwrap();
     let mut words: Vec<u32> =
         vec![n("texels_per_joint"), n("frame_width"), n("rows_per_frame"), n("frames_per_column")];
     let (mut low, mut span) = (Vec::new(), Vec::new());
     for t in 0..3 {
         for c in 0..4 {
             let (lo, hi) = match record.get("remap") {
-                Some(remap) if t < texels => (remap[t][c][0].as_f64().unwrap(), remap[t][c][1].as_f64().unwrap()),
+                // The sidecar's ranges are f32s.
+                Some(remap) if t < texels => {
+                    let bound = |k: usize| f64::from(remap[t][c][k].as_f64().unwrap() as f32);
+                    (bound(0), bound(1))
+                }
                 _ => (0.0, 1.0),
             };
             low.push((lo as f32).to_bits());
@@ -87,6 +90,29 @@ fn layout_bytes(sidecar: &serde_json::Value, record: &serde_json::Value, texels:
         }
     }
     bytemuck::cast_slice(&words).to_vec()
+}
+
+/// The bytes of an image record's layout uniform as the sidecar gives them (`layout.std140`),
+/// and the clips it holds (sidecar indices, in the layout's order).
+pub(super) fn sidecar_layout(record: &serde_json::Value) -> (Vec<u8>, Vec<usize>) {
+    use base64::Engine;
+    let layout = &record["layout"];
+    let file = &record["file"];
+    let bytes = base64::engine::general_purpose::STANDARD
+        .decode(layout["std140"].as_str().unwrap_or_else(|| panic!("{file}: no layout.std140")))
+        .unwrap();
+    let clips = layout["clips"].as_array().unwrap().iter().map(|c| c.as_u64().unwrap() as usize).collect();
+    (bytes, clips)
+}
+
+/// The sidecar's `bone_layout` bytes of `record`, held to [`layout_bytes`] of the clips it says
+/// it holds, and the index there of sidecar clip `clip` (an instance's `clip`).
+fn bone_layout(sidecar: &serde_json::Value, record: &serde_json::Value, texels: usize, clip: usize) -> (Vec<u8>, u32) {
+    let (bytes, held) = sidecar_layout(record);
+    let clips: Vec<&serde_json::Value> = held.iter().map(|&c| &sidecar["clips"][c]).collect();
+    assert_eq!(bytes, layout_bytes(record, &clips, texels), "{}: the sidecar's std140 bytes", record["file"]);
+    let at = held.iter().position(|&c| c == clip).unwrap_or_else(|| panic!("{}: clip {clip} not held", record["file"]));
+    (bytes, at as u32)
 }
 
 /// An image texture's texels as a renderer samples them: EXR's floats, PNG16's unorm values
@@ -308,15 +334,15 @@ fn shader_errors(dir: &Path, stem: &str, truth: &Path) -> Option<Vec<(String, f6
             let record = sidecar["textures"].as_array().unwrap().iter().find(|r| r["file"] == file).unwrap();
             let (shape, rows) = read_npy(&truth.join(dense_file.as_str().unwrap()));
             let (frames, joints) = (shape[0] as usize, shape[1] as usize);
+            let (layout, at) = bone_layout(&sidecar, record, texels, c);
             let (start, rate) = (dense_clip["start"].as_f64().unwrap(), dense_clip["rate"].as_f64().unwrap());
             let clip_start = clip["start"].as_f64().unwrap();
             let queries: Vec<Query> = (0..frames)
                 .flat_map(|f| {
                     let time = (start + f as f64 / rate - clip_start) as f32;
-                    (0..joints).map(move |j| Query::of(c, j, f64::from(time), 0))
+                    (0..joints).map(move |j| Query::of(at as usize, j, f64::from(time), 0))
                 })
                 .collect();
-            let layout = layout_bytes(&sidecar, record, texels);
             // A million queries a dispatch: within 65535 groups of 64, and 48 MB of answers
             // within the default storage binding limit (128 MiB).
             let mut answers = Vec::with_capacity(queries.len() * 12);
@@ -411,7 +437,6 @@ fn the_matrix_lerp_is_the_rows_lerped_and_loops_wrap_at_their_period() {
     run_bake(&npy, &input, &["--texture", "model", "--atlas", "--device", "cpu"]);
     let sidecar = json(&exr.join("Fox.json"));
     let record = &sidecar["textures"][0];
-    let layout = layout_bytes(&sidecar, record, 3);
     let (shape, rows) = read_npy(&npy.join("Fox.npy"));
     let joints = shape[1] as usize;
     let row = |r: usize, j: usize| &rows[(r * joints + j) * 12..(r * joints + j + 1) * 12];
@@ -440,6 +465,8 @@ fn the_matrix_lerp_is_the_rows_lerped_and_loops_wrap_at_their_period() {
             }
         }
         checked_loops += usize::from(clip["loop"].as_bool().unwrap());
+        let (layout, at) = bone_layout(&sidecar, record, 3, c);
+        assert_eq!(at as usize, c, "an atlas's layout holds every clip in the sidecar's order");
         let answers = probe(&exr.join(record["file"].as_str().unwrap()), &layout, &queries).unwrap();
         let scale = rows.iter().fold(1.0f32, |a, v| a.max(v.abs()));
         for (k, (answer, want)) in answers.chunks_exact(12).zip(&expected).enumerate() {
@@ -497,7 +524,7 @@ fn the_skinning_matrix_is_the_weighted_sum_of_the_skin_texture_s_matrices() {
     }
     let record = &sidecar["textures"][0];
     let answers =
-        probe(&trs.join(record["file"].as_str().unwrap()), &layout_bytes(&sidecar, record, 3), &queries).unwrap();
+        probe(&trs.join(record["file"].as_str().unwrap()), &bone_layout(&sidecar, record, 3, 0).0, &queries).unwrap();
     let scale = rows.iter().fold(1.0f32, |a, v| a.max(v.abs()));
     for (k, (answer, want)) in answers.chunks_exact(12).zip(&expected).enumerate() {
         let error = answer.iter().zip(want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max) / scale;
@@ -701,11 +728,11 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
     // camera; a triangle over the whole target bound to that joint, its normal towards +z.
     let rest: [[f32; 4]; 3] = [[0.0, 0.0, 0.0, 1.0], [0.0; 4], [1.0, 1.0, 1.0, 0.0]];
     let bones = bone_texture(device, queue, 3, 1, &rest);
-    let one_frame = serde_json::json!({"clips": [{"first_row": 0, "frames": 1, "loop": false, "rate": 30.0}]});
+    let one_frame = serde_json::json!({"first_row": 0, "frames": 1, "loop": false, "rate": 30.0});
     let grid =
         serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
     let camera = gpu_buffer(device, &identity_camera(), wgpu::BufferUsages::UNIFORM);
-    let bone_layout = gpu_buffer(device, &layout_bytes(&one_frame, &grid, 3), wgpu::BufferUsages::UNIFORM);
+    let bone_layout = gpu_buffer(device, &layout_bytes(&grid, &[&one_frame], 3), wgpu::BufferUsages::UNIFORM);
     let mut vertices: Vec<u8> = Vec::new();
     for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
         vertices.extend(bytemuck::cast_slice(&[x, y, 0.5, 0.0, 0.0, 1.0]));

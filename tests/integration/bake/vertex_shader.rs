@@ -7,7 +7,7 @@
 use super::shader::{bone_texture, naga_module, run_probe, ProbeTextures};
 use super::{bake, data_dir, json, read_npy, stderr};
 use glam::DVec3;
-use quatcurve::gpu::shader;
+use quatcurve::shader;
 use std::path::Path;
 
 /// One query of `vertex_probe.wgsl` (its `VertexQuery`).
@@ -19,9 +19,9 @@ struct Query {
     address: [u32; 2],
 }
 
-/// `vertex_texture.wgsl`'s `VertexLayout` for one clip: the grid, normals or not, the box, and
-/// the clip as `BoneClip` at index 0 (the rest of the 64 zero).
-fn layout_bytes(record: &serde_json::Value, clip: &serde_json::Value, has_normals: bool) -> Vec<u8> {
+/// `vertex_texture.wgsl`'s `VertexLayout`: the grid, normals or not, the box, and `clips` as
+/// `BoneClip`s from index 0 (the rest of the 64 zero), packed here independently of the bake.
+fn layout_bytes(record: &serde_json::Value, clips: &[&serde_json::Value], has_normals: bool) -> Vec<u8> {
     let n = |v: &serde_json::Value| v.as_u64().unwrap() as u32;
     let mut words: Vec<u32> = vec![
         n(&record["frame_width"]),
@@ -33,10 +33,12 @@ fn layout_bytes(record: &serde_json::Value, clip: &serde_json::Value, has_normal
         words.extend((0..3).map(|c| (record[key][c].as_f64().unwrap() as f32).to_bits()));
         words.push(0);
     }
-    let looping = u32::from(clip["loop"].as_bool().unwrap());
-    let rate = clip["rate"].as_f64().unwrap() as f32;
-    words.extend([n(&clip["first_row"]), n(&clip["frames"]), looping, rate.to_bits()]);
-    words.resize(words.len() + 63 * 4, 0);
+    for clip in clips {
+        let looping = u32::from(clip["loop"].as_bool().unwrap());
+        let rate = clip["rate"].as_f64().unwrap() as f32;
+        words.extend([n(&clip["first_row"]), n(&clip["frames"]), looping, rate.to_bits()]);
+    }
+    words.resize(words.len() + (64 - clips.len()) * 4, 0);
     bytemuck::cast_slice(&words).to_vec()
 }
 
@@ -52,7 +54,7 @@ fn the_layout_and_query_are_laid_out_as_their_wgsl_twins() {
     let record = serde_json::json!({"frame_width": 1, "rows_per_frame": 1, "frames_per_column": 1,
         "low": [0.0, 0.0, 0.0], "span": [1.0, 1.0, 1.0]});
     let clip = serde_json::json!({"first_row": 0, "frames": 1, "loop": false, "rate": 30.0});
-    assert_eq!(find("VertexLayout"), (vec![0, 4, 8, 12, 16, 32, 48], layout_bytes(&record, &clip, true).len()));
+    assert_eq!(find("VertexLayout"), (vec![0, 4, 8, 12, 16, 32, 48], layout_bytes(&record, &[&clip], true).len()));
 }
 
 /// Runs `vertex_probe` over one primitive's textures: six floats (position, normal) per query.
@@ -127,14 +129,19 @@ fn the_vertex_texture_shader_reads_every_frame_and_blends_between_them_as_the_np
                     times.extend((0..frames - 1).map(|f| (period + (f as f64 + 0.25) / rate, f, 0.25)));
                 }
                 let picked: Vec<usize> = (0..vertices).step_by((vertices / 97).max(1)).collect();
+                // The sidecar's own layout bytes, held to the packing here.
+                let (layout, held) = super::shader::sidecar_layout(record);
+                let held_clips: Vec<&serde_json::Value> = held.iter().map(|&c| &sidecar["clips"][c]).collect();
+                assert_eq!(layout, layout_bytes(record, &held_clips, normals.is_some()), "{}", record["file"]);
+                let index = sidecar["clips"].as_array().unwrap().iter().position(|c| c == clip).unwrap();
+                let clip_at = held.iter().position(|&c| c == index).unwrap() as u32;
                 let mut queries = Vec::new();
                 for &(time, _, _) in &times {
                     for &v in &picked {
                         let [x, y] = address[v].map(|c| c as u32);
-                        queries.push(Query { clip: 0, time: time as f32, address: [x, y] });
+                        queries.push(Query { clip: clip_at, time: time as f32, address: [x, y] });
                     }
                 }
-                let layout = layout_bytes(record, clip, normals.is_some());
                 let answers = probe(&positions, normals.as_deref(), &layout, &queries).unwrap();
                 for (q, (&(time, frame, blend), &v)) in
                     times.iter().flat_map(|t| picked.iter().map(move |v| (t, v))).enumerate()
@@ -179,7 +186,7 @@ fn the_vertex_texture_vertex_shader_draws_on_a_gpu_api() {
     let record = serde_json::json!({"frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1,
         "low": [-1.0, -1.0, 0.5], "span": [4.0, 4.0, 1.0]});
     let clip = serde_json::json!({"first_row": 0, "frames": 1, "loop": false, "rate": 30.0});
-    let layout = gpu_buffer(device, &layout_bytes(&record, &clip, true), wgpu::BufferUsages::UNIFORM);
+    let layout = gpu_buffer(device, &layout_bytes(&record, &[&clip], true), wgpu::BufferUsages::UNIFORM);
     let camera = gpu_buffer(device, &identity_camera(), wgpu::BufferUsages::UNIFORM);
     let (position_view, normal_view) =
         (positions.create_view(&Default::default()), normals.create_view(&Default::default()));
