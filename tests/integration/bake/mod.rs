@@ -14,6 +14,7 @@ mod root_motion;
 mod shader;
 mod shards;
 mod textures;
+mod three;
 mod vertex;
 mod vertex_shader;
 mod viewer;

@@ -131,7 +131,7 @@ fn view_refuses_a_directory_it_cannot_serve_and_an_address_it_cannot_take() {
 
 /// `tests/browser/view.mjs` when Node, its `playwright-core` and Chromium are installed; else
 /// skipped, unless `QUATCURVE_REQUIRE_BROWSER` is set.
-fn browser() -> Option<PathBuf> {
+pub(super) fn browser() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
     let chromium = std::env::var_os("QUATCURVE_CHROMIUM").map_or(PathBuf::from("/usr/bin/chromium"), PathBuf::from);
     let node = std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());

@@ -1,0 +1,71 @@
+// Opens the quatcurve-three test page (tests/browser/three/) in Debian's headless Chromium
+// (WebGL2 on SwiftShader), serving it, the package (packages/quatcurve-three/), three.js
+// (node_modules/three/) and a directory of bakes and sources (/data/) from one local origin,
+// as a user's static server would. Writes the page's result as JSON: its errors, any request
+// that left the origin (none may), and what the page measured.
+// Usage: node three.mjs DATA_DIR QUERY OUT.json [--screenshot FILE.png] [--viewport WxH]
+import { chromium } from 'playwright-core';
+import { createServer } from 'node:http';
+import { readFile, writeFile } from 'node:fs/promises';
+import { extname, join, normalize, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const [dataDir, query, out, ...rest] = process.argv.slice(2);
+const option = (name) => {
+  const i = rest.indexOf(name);
+  return i < 0 ? undefined : rest[i + 1] ?? true;
+};
+const here = fileURLToPath(new URL('.', import.meta.url));
+const roots = {
+  '/page/': join(here, 'three'),
+  '/pkg/': resolve(here, '../../packages/quatcurve-three'),
+  '/three/': join(here, 'node_modules/three'),
+  '/data/': resolve(dataDir),
+};
+const types = { '.html': 'text/html', '.js': 'text/javascript', '.json': 'application/json', '.glsl': 'text/plain' };
+
+const server = createServer(async (request, response) => {
+  const path = decodeURIComponent(new URL(request.url, 'http://x').pathname);
+  const prefix = Object.keys(roots).find((p) => path.startsWith(p));
+  const file = prefix && normalize(join(roots[prefix], path.slice(prefix.length)));
+  if (!file || !file.startsWith(roots[prefix])) {
+    response.writeHead(404).end();
+    return;
+  }
+  try {
+    const body = await readFile(file);
+    response.writeHead(200, { 'content-type': types[extname(file)] || 'application/octet-stream' }).end(body);
+  } catch {
+    response.writeHead(404).end();
+  }
+});
+await new Promise((ok) => server.listen(0, '127.0.0.1', ok));
+const origin = `http://127.0.0.1:${server.address().port}`;
+
+const [width, height] = (option('--viewport') || '512x512').split('x').map(Number);
+const browser = await chromium.launch({
+  executablePath: process.env.QUATCURVE_CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
+});
+const result = { errors: [], foreign: [] };
+try {
+  const page = await browser.newPage({ viewport: { width, height } });
+  page.on('pageerror', (e) => result.errors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error') result.errors.push(m.text()); });
+  page.on('requestfailed', (r) => result.errors.push(`${r.url()}: ${r.failure()?.errorText}`));
+  page.on('response', (r) => { if (r.status() >= 400) result.errors.push(`${r.url()}: ${r.status()}`); });
+  await page.route('**/*', (route) => {
+    if (route.request().url().startsWith(origin)) return route.continue();
+    result.foreign.push(route.request().url());
+    return route.abort();
+  });
+  await page.goto(`${origin}/page/index.html?${query}`);
+  result.page = await page.evaluate(() => window.quatcurveThreeTest);
+  if (option('--screenshot')) await page.screenshot({ path: option('--screenshot') });
+} catch (e) {
+  result.errors.push(String(e));
+} finally {
+  await browser.close();
+  server.close();
+}
+await writeFile(out, JSON.stringify(result));

@@ -1,0 +1,129 @@
+//! The three.js package (`packages/quatcurve-three/`) in Debian's headless Chromium (WebGL2 on
+//! SwiftShader, driven by `tests/browser/three.mjs`), imported as its README says: one crowd
+//! instance's silhouette against three.js's own `AnimationMixer` playing the source .glb as a
+//! `SkinnedMesh`, at four times of every clip, for EXR float, EXR half and PNG16 bone textures
+//! and an atlas played per instance; a player that ignores the row order or the time fails the
+//! same comparison; crowds of 100 draw lit and textured with no page error. And the package's
+//! shader library is what `quatcurve shaders --library` generates today.
+
+use super::viewer::browser;
+use super::{bake, data_dir, json, stderr};
+use std::path::Path;
+
+/// Silhouettes agree when the pixels inside one but not the other are at most this fraction
+/// of the pixels inside either (the 2%: between frames the bake blends two frames
+/// where three.js interpolates the keys).
+const SILHOUETTE_TOLERANCE: f64 = 0.02;
+
+/// Runs the test page at `query` over `dir` (served at `/data/`); its result, with no page
+/// error and no request outside the page's origin.
+fn page(script: &Path, dir: &Path, query: &str, extra: &[&str]) -> serde_json::Value {
+    let out = tempfile::NamedTempFile::new().unwrap();
+    let status = std::process::Command::new("node")
+        .arg(script)
+        .arg(dir)
+        .arg(query)
+        .arg(out.path())
+        .args(extra)
+        .status()
+        .unwrap();
+    assert!(status.success(), "three.mjs failed on {query}");
+    let result = json(out.path());
+    assert_eq!(result["errors"], serde_json::json!([]), "page errors on {query}");
+    assert_eq!(result["foreign"], serde_json::json!([]), "the page reached outside its origin on {query}");
+    result
+}
+
+/// `source` baked with `args` into `dir/name`, the source beside it.
+fn bake_into(dir: &Path, name: &str, source: &Path, args: &[&str]) {
+    let output = dir.join(name);
+    let out = bake(&[&["--input", source.to_str().unwrap(), "--output", output.to_str().unwrap()], args].concat());
+    assert!(out.status.success(), "{name}: {}", stderr(&out));
+    let beside = dir.join(source.file_name().unwrap());
+    if !beside.exists() {
+        std::fs::copy(source, beside).unwrap();
+    }
+}
+
+/// The silhouettes of `bake`'s clips against `source`'s: (clip, time, mismatch) each.
+fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Option<&str>) -> Vec<(String, f64, f64)> {
+    let mut query = format!("mode=silhouette&bake=/data/{bake}&source=/data/{source}");
+    if let Some(what) = broken {
+        query.push_str(&format!("&break={what}"));
+    }
+    let result = page(script, dir, &query, &[]);
+    let results = result["page"]["results"].as_array().unwrap();
+    assert!(!results.is_empty(), "{bake}: nothing compared");
+    results
+        .iter()
+        .map(|r| {
+            assert!(r["pixels"].as_u64().unwrap() > 1000, "{bake}: the character covers too little: {r}");
+            (r["clip"].as_str().unwrap().to_string(), r["time"].as_f64().unwrap(), r["mismatch"].as_f64().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let script = script.with_file_name("three.mjs");
+    let dir = tempfile::tempdir().unwrap();
+    let (man, fox) = (data.join("CesiumMan.glb"), data.join("Fox.glb"));
+    let skin = ["--texture", "skin-trs"];
+    // CesiumMan's keys are uniform, 24 Hz: the default C2 curve through them is within the
+    // budget of three.js's slerp between them. Fox's Run steps up to 85 degrees between keys,
+    // where the C2 curve and slerp part visibly (4% of its silhouette): its bakes take slerp,
+    // what three.js plays for glTF's LINEAR.
+    let bakes: [(&str, &Path, Vec<&str>); 5] = [
+        ("man-exr", &man, vec!["--format", "exr", "--max-error", "0.5"]),
+        ("man-half", &man, vec!["--format", "exr", "--precision", "f16", "--max-error", "0.5"]),
+        ("man-png16", &man, vec!["--format", "png16", "--max-error", "0.5"]),
+        ("fox-atlas", &fox, vec!["--format", "exr", "--atlas", "--curve", "slerp", "--rate", "60"]),
+        ("fox-png16", &fox, vec!["--format", "png16", "--curve", "slerp", "--rate", "60"]),
+    ];
+    for (name, source, args) in &bakes {
+        bake_into(dir.path(), name, source, &[&skin[..], args].concat());
+    }
+    let mut worst = 0.0f64;
+    for (name, source, _) in &bakes {
+        let stem = source.file_stem().unwrap().to_str().unwrap();
+        let file = source.file_name().unwrap().to_str().unwrap();
+        for (clip, time, mismatch) in silhouettes(&script, dir.path(), &format!("{name}/{stem}.json"), file, None) {
+            eprintln!("{name} '{clip}' at {time:.3} s: {:.2}% of the silhouette differs", 100.0 * mismatch);
+            assert!(mismatch <= SILHOUETTE_TOLERANCE, "{name} '{clip}' at {time} s: {mismatch} of the silhouette");
+            worst = worst.max(mismatch);
+        }
+    }
+    eprintln!("worst {:.2}% of a silhouette", 100.0 * worst);
+    // The same comparison fails for a player that reads the rows bottom-up, or ignores time.
+    for broken in ["rows", "time"] {
+        let mismatches = silhouettes(&script, dir.path(), "man-exr/CesiumMan.json", "CesiumMan.glb", Some(broken));
+        let most = mismatches.iter().map(|m| m.2).fold(0.0, f64::max);
+        eprintln!("with the {broken} broken: up to {:.1}% of the silhouette differs", 100.0 * most);
+        assert!(most > 5.0 * SILHOUETTE_TOLERANCE, "with the {broken} broken the test still passes: {mismatches:?}");
+    }
+    // Crowds of 100, every clip, lit and textured by the glTF's own materials.
+    for (name, stem) in [("man-exr", "CesiumMan"), ("fox-atlas", "Fox")] {
+        let query = format!("mode=crowd&bake=/data/{name}/{stem}.json&instances=100&frames=3");
+        let result = page(&script, dir.path(), &query, &[]);
+        assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
+    }
+}
+
+#[test]
+fn the_package_s_shader_library_is_the_one_quatcurve_shaders_generates() {
+    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("packages/quatcurve-three/src/bones.glsl");
+    let out = assert_cmd::Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["shaders", "--program", "bones", "--lang", "glsl-es", "--library"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let shipped = std::fs::read_to_string(&package).unwrap();
+    assert!(
+        shipped == String::from_utf8_lossy(&out.stdout),
+        "{} is stale: regenerate it with `quatcurve shaders --program bones --lang glsl-es --library --output {}`",
+        package.display(),
+        package.display()
+    );
+}
