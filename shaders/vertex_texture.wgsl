@@ -52,11 +52,11 @@ fn vertex_position(clip: u32, address: vec2u, time: f32) -> vec3f {
     return vertex_layout.low.xyz + mix(a, b, f.blend) * vertex_layout.span.xyz;
 }
 
-// The unit normal of the vertex at `address` at `time` seconds into clip `clip` (+z when the
-// primitive has none).
+// The unit normal of the vertex at `address` at `time` seconds into clip `clip` (zero when
+// the primitive has none: a fragment shader lights its faces, as viewer_fragment.wgsl does).
 fn vertex_normal(clip: u32, address: vec2u, time: f32) -> vec3f {
     if vertex_layout.has_normals == 0u {
-        return vec3f(0.0, 0.0, 1.0);
+        return vec3f(0.0);
     }
     let f = bone_frames(vertex_layout.clips[clip], time);
     let a = vertex_decode_normal(vertex_texel(vertex_normals, address, f.first).xy);

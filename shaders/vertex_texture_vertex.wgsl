@@ -20,7 +20,10 @@ struct TexturedVertex {
 
 struct TexturedOut {
     @builtin(position) position: vec4f,
+    // Zero for a primitive without normals, which the fragment shader lights by its faces.
     @location(0) normal: vec3f,
+    // The position lit (scene space plus the instance's offset).
+    @location(1) world: vec3f,
 }
 
 @vertex
@@ -30,5 +33,6 @@ fn vertex_texture_vertex(v: TexturedVertex) -> TexturedOut {
     let world = vertex_position(v.instance_clip, address, v.instance_time) + v.instance_offset;
     out.position = vertex_camera.view_projection * vec4f(world, 1.0);
     out.normal = vertex_normal(v.instance_clip, address, v.instance_time);
+    out.world = world;
     return out;
 }

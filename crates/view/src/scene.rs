@@ -463,11 +463,12 @@ impl<'a> Assembly<'a> {
     /// Positions, normals, and the [`SHADER_INFLUENCES`] largest joints and weights.
     fn bone_attributes(&mut self, p: &SkinnedPrimitive) -> Result<Vec<Attribute>, String> {
         let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
+        // Without normals, zeros: the fragment shader lights the faces.
         let normals = match &p.bind.normals {
             Some(n) => flat(n),
             None => {
-                self.notes.push(format!("{}: no normals; lit as facing +y", p.name));
-                [0.0, 1.0, 0.0].repeat(p.vertices())
+                self.notes.push(format!("{}: no normals; lit by its faces", p.name));
+                vec![0.0; 3 * p.vertices()]
             }
         };
         if p.bind.influences > SHADER_INFLUENCES {
@@ -560,7 +561,7 @@ impl<'a> Assembly<'a> {
             // Without normals the layout says so, and the positions stand in for the binding.
             let normal_path = normals.as_ref().map_or(&pos_path, |(_, _, path)| path);
             if normals.is_none() {
-                self.notes.push(format!("{name}: no normals; lit as facing +z"));
+                self.notes.push(format!("{name}: no normals; lit by its faces"));
             }
             draws.push(Draw {
                 name,

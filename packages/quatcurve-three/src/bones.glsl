@@ -37,10 +37,13 @@ struct SkinnedVertex {
     vec3 instance_offset;
     uint instance_clip;
     float instance_time;
+    vec2 uv;
 };
 struct SkinnedOut {
     vec4 position;
     vec3 normal;
+    vec3 world;
+    vec2 uv;
 };
 const uint BONE_MAX_CLIPS = 64u;
 const uint BONE_TEXELS = 3u;

@@ -532,13 +532,19 @@ fn the_skinning_matrix_is_the_weighted_sum_of_the_skin_texture_s_matrices() {
     }
 }
 
+/// A fragment stage `show` that draws `colour`, a WGSL expression of `v`, the vertex shader's
+/// output struct `out`: `show(out, "v.normal * 0.5 + 0.5")` shows the normal as a colour.
+pub(super) fn show(out: &str, colour: &str) -> (String, &'static str) {
+    (format!("@fragment fn show(v: {out}) -> @location(0) vec4f {{ return vec4f({colour}, 1.0); }}"), "show")
+}
+
 /// A 4x4 `Rgba8Unorm` image drawn on the shared GPU by vertex entry point `entry` of `source`
-/// (a fragment stage `show` is appended: the normal as a colour), with `groups` bound at
-/// their indices and `buffers` (layout, bytes) as vertex buffers 0, 1, ...: `vertices`
+/// with `fragment` (its WGSL, appended to `source`, and its entry point), with `groups` bound
+/// at their indices and `buffers` (layout, bytes) as vertex buffers 0, 1, ...: `vertices`
 /// vertices of one instance. Rows of 256 bytes; `None` without a GPU.
 pub(super) fn draw(
     source: &str,
-    out: &str,
+    fragment: &(String, &str),
     entry: &str,
     groups: &[(&wgpu::BindGroupLayout, &wgpu::BindGroup)],
     buffers: &[(wgpu::VertexBufferLayout<'_>, Vec<u8>)],
@@ -548,9 +554,7 @@ pub(super) fn draw(
     let gpu = crate::shared_gpu()?;
     let (device, queue) = (gpu.context().device(), gpu.context().queue());
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let source = format!(
-        "{source}\n@fragment fn show(v: {out}) -> @location(0) vec4f {{ return vec4f(v.normal * 0.5 + 0.5, 1.0); }}"
-    );
+    let source = format!("{source}\n{}", fragment.0);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(entry),
         source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -578,7 +582,7 @@ pub(super) fn draw(
         multisample: wgpu::MultisampleState::default(),
         fragment: Some(wgpu::FragmentState {
             module: &module,
-            entry_point: Some("show"),
+            entry_point: Some(fragment.1),
             compilation_options: Default::default(),
             targets: &[Some(wgpu::ColorTargetState::from(target))],
         }),
@@ -733,12 +737,17 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
         serde_json::json!({"texels_per_joint": 3, "frame_width": 3, "rows_per_frame": 1, "frames_per_column": 1});
     let camera = gpu_buffer(device, &identity_camera(), wgpu::BufferUsages::UNIFORM);
     let bone_layout = gpu_buffer(device, &layout_bytes(&grid, &[&one_frame], 3), wgpu::BufferUsages::UNIFORM);
-    let mut vertices: Vec<u8> = Vec::new();
-    for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
-        vertices.extend(bytemuck::cast_slice(&[x, y, 0.5, 0.0, 0.0, 1.0]));
-        vertices.extend(bytemuck::cast_slice(&[0u32; 4]));
-        vertices.extend(bytemuck::cast_slice(&[1.0f32, 0.0, 0.0, 0.0]));
-    }
+    // Position, normal (given or zero), joints, weights and a TEXCOORD_0 of (0.25, 0.75).
+    let vertices = |normal: [f32; 3]| -> Vec<u8> {
+        let mut bytes = Vec::new();
+        for [x, y] in [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]] {
+            bytes.extend(bytemuck::cast_slice(&[x, y, 0.5]));
+            bytes.extend(bytemuck::cast_slice(&normal));
+            bytes.extend(bytemuck::cast_slice(&[0u32; 4]));
+            bytes.extend(bytemuck::cast_slice(&[1.0f32, 0.0, 0.0, 0.0, 0.25, 0.75]));
+        }
+        bytes
+    };
     let mut instance: Vec<u8> = bytemuck::cast_slice(&[0.0f32; 3]).to_vec();
     instance.extend(bytemuck::cast_slice(&[0u32]));
     instance.extend(bytemuck::cast_slice(&[0.0f32]));
@@ -756,37 +765,50 @@ fn the_skinned_vertex_shader_draws_on_a_gpu_api() {
         attribute(1, F::Float32x3, 12),
         attribute(2, F::Uint32x4, 24),
         attribute(3, F::Float32x4, 40),
+        attribute(7, F::Float32x2, 56),
     ];
     let per_instance = [attribute(4, F::Float32x3, 0), attribute(5, F::Uint32, 12), attribute(6, F::Float32, 16)];
-    let buffers = [
-        (
-            wgpu::VertexBufferLayout {
-                array_stride: 56,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &per_vertex,
-            },
-            vertices,
-        ),
-        (
-            wgpu::VertexBufferLayout {
-                array_stride: 20,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &per_instance,
-            },
-            instance,
-        ),
-    ];
-    let pixels = draw(
-        &shader::skin_vertex_source(),
-        "SkinnedOut",
-        shader::SKIN_VERTEX_ENTRY_POINT,
-        &[(&group0.0, &group0.1), (&group1.0, &group1.1)],
-        &buffers,
-        3,
-    )
-    .unwrap();
+    let buffers = |normal: [f32; 3]| {
+        [
+            (
+                wgpu::VertexBufferLayout {
+                    array_stride: 64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &per_vertex,
+                },
+                vertices(normal),
+            ),
+            (
+                wgpu::VertexBufferLayout {
+                    array_stride: 20,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &per_instance,
+                },
+                instance.clone(),
+            ),
+        ]
+    };
+    let groups = [(&group0.0, &group0.1), (&group1.0, &group1.1)];
+    let source = shader::skin_vertex_source();
+    let entry = shader::SKIN_VERTEX_ENTRY_POINT;
+    let with =
+        |fragment: &(String, &str), normal| draw(&source, fragment, entry, &groups, &buffers(normal), 3).unwrap();
     // The normal (0, 0, 1), skinned by the joint at rest, shown as (0.5, 0.5, 1).
+    let pixels = with(&show("SkinnedOut", "v.normal * 0.5 + 0.5"), [0.0, 0.0, 1.0]);
     assert_facing_the_camera(&pixels, "the skinned vertex shader");
+    // TEXCOORD_0 passes through: (0.25, 0.75) as red and green.
+    let pixels = with(&show("SkinnedOut", "vec3f(v.uv, 0.0)"), [0.0, 0.0, 1.0]);
+    assert!(pixels[..4].iter().zip([64u8, 191, 0, 255]).all(|(p, w)| p.abs_diff(w) <= 1), "uv: {:?}", &pixels[..4]);
+    // The viewer's fragment shader: a mesh without normals (zeros) is lit by its face, which
+    // here faces the camera as the normal did, so both draw the same colour.
+    let viewer = (shader::VIEWER_FRAGMENT_FILES[0].1.to_string(), shader::VIEWER_FRAGMENT_ENTRY_POINT);
+    let lit = with(&viewer, [0.0, 0.0, 1.0]);
+    let faceted = with(&viewer, [0.0, 0.0, 0.0]);
+    for k in (0..4).flat_map(|row| (0..4).map(move |x| row * 256 + x * 4)) {
+        let (a, b) = (&lit[k..k + 4], &faceted[k..k + 4]);
+        assert!(a.iter().zip(b).all(|(a, b)| a.abs_diff(*b) <= 2), "lit {a:?}, without normals {b:?}");
+        assert!(a[..3].iter().any(|&c| c > 60), "lit: {a:?}");
+    }
 }
 
 /// glslangValidator, where installed (Debian's glslang-tools; `.ci/run` installs it and sets
@@ -837,6 +859,45 @@ fn generated_glsl_and_hlsl_compile_with_glslang() {
             );
         }
     }
+}
+
+#[test]
+fn the_libraries_compile_inside_a_vertex_shader_of_an_engine_s_own() {
+    let Some(tool) = glslang() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // What an engine writes around `--library`: its own version, inputs and main, which calls
+    // the library by its functions and reads its uniforms by their WGSL names.
+    for (program, main) in [
+        ("bones", "gl_Position = bone_skin_matrix(uint(clip), uvec4(0u), vec4(1.0, 0.0, 0.0, 0.0), 0.5) * vec4(1.0);"),
+        ("vertex", "gl_Position = vec4(vertex_position(0u, uvec2(0u), 0.5) + vertex_normal(0u, uvec2(0u), 0.5), 1.0);"),
+    ] {
+        let out = assert_cmd::Command::cargo_bin("quatcurve")
+            .unwrap()
+            .args(["shaders", "--program", program, "--lang", "glsl-es", "--library"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{program}: {}", stderr(&out));
+        let library = String::from_utf8(out.stdout).unwrap();
+        assert!(!library.contains("void main") && !library.contains("#version"), "{program}: {library}");
+        let engine = format!(
+            "#version 300 es\nprecision highp float;\nprecision highp int;\n{library}\nin float clip;\nvoid main() {{ {main} }}\n"
+        );
+        let path = dir.path().join(format!("{program}.vert"));
+        std::fs::write(&path, &engine).unwrap();
+        let result = std::process::Command::new(tool).arg(&path).output().unwrap();
+        assert!(
+            result.status.success(),
+            "{program}: glslang rejects the library in an engine's shader:\n{}\n{engine}",
+            String::from_utf8_lossy(&result.stdout)
+        );
+    }
+    let refused = assert_cmd::Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["shaders", "--lang", "hlsl", "--library"])
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(stderr(&refused).contains("--library is GLSL ES's"), "{}", stderr(&refused));
 }
 
 #[test]

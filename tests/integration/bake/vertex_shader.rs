@@ -174,7 +174,7 @@ fn the_vertex_texture_shader_reads_every_frame_and_blends_between_them_as_the_np
 
 #[test]
 fn the_vertex_texture_vertex_shader_draws_on_a_gpu_api() {
-    use super::shader::{assert_facing_the_camera, draw, gpu_buffer, identity_camera, vertex_group};
+    use super::shader::{assert_facing_the_camera, draw, gpu_buffer, identity_camera, show, vertex_group};
     use super::shader::{TEXEL_TEXTURE, UNIFORM};
     let Some(gpu) = crate::shared_gpu() else { return };
     let (device, queue) = (gpu.context().device(), gpu.context().queue());
@@ -230,6 +230,7 @@ fn the_vertex_texture_vertex_shader_draws_on_a_gpu_api() {
     ];
     let source = shader::Program::Vertex.source();
     let groups = [(&group0.0, &group0.1), (&group1.0, &group1.1), (&group2.0, &group2.1)];
-    let pixels = draw(&source, "TexturedOut", shader::VERTEX_TEXTURE_ENTRY_POINT, &groups, &buffers, 3).unwrap();
+    let fragment = show("TexturedOut", "v.normal * 0.5 + 0.5");
+    let pixels = draw(&source, &fragment, shader::VERTEX_TEXTURE_ENTRY_POINT, &groups, &buffers, 3).unwrap();
     assert_facing_the_camera(&pixels, "the vertex-texture vertex shader");
 }
