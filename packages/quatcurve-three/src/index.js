@@ -1,50 +1,81 @@
 // quatcurve-three: plays a quatcurve bake in three.js as an instanced crowd, each instance
-// with its own clip, time offset and speed, skinned on the GPU from the bake's skin-trs bone
-// textures by the shader library `quatcurve shaders --library` generates (bones.glsl, beside
-// this file), inside the user's own material. Everything the shader needs comes from the
-// bake's sidecar: the files, each texture's layout uniform by name, the clips.
+// with its own clip, time offset and speed, animated on the GPU from the bake's textures
+// (skin-trs bone textures: skinned; vertex textures: each vertex read) by the shader library
+// `quatcurve shaders --library` generates (bones.glsl, vertex.glsl, beside this file), inside
+// the user's own material. Everything the shader needs comes from the bake's sidecar: the
+// files, each texture's layout uniform by name, the clips.
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { EXRLoader } from 'three/addons/loaders/EXRLoader.js';
 import { decodePng16 } from './png16.js';
 
-const LIBRARY_URL = new URL('./bones.glsl', import.meta.url);
-
-// Declarations and the one call the library needs inside three.js's vertex shader: the
-// per-instance inputs, the crowd's clock, and the time each instance is at in its clip.
-const GLUE = /* glsl */ `
+// How each texture kind plays: its library, the declarations and calls it needs inside
+// three.js's vertex shader (at the start of main, after the normal is read, after the
+// position is read), and its layout uniform.
+const KINDS = {
+  'skin-trs': {
+    library: new URL('./bones.glsl', import.meta.url),
+    layout: 'bone_layout',
+    declarations: /* glsl */ `
 in vec4 skinIndex;
-in vec4 skinWeight;
+in vec4 skinWeight;`,
+    main: /* glsl */ `
+	mat4 quatcurveSkin = bone_skin_matrix(quatcurveClip, uvec4(skinIndex + 0.5), skinWeight, quatcurveClipTime);`,
+    normal: /* glsl */ `
+	objectNormal = (quatcurveSkin * vec4(objectNormal, 0.0)).xyz;`,
+    position: /* glsl */ `
+	transformed = (quatcurveSkin * vec4(transformed, 1.0)).xyz;`,
+  },
+  vertex: {
+    library: new URL('./vertex.glsl', import.meta.url),
+    layout: 'vertex_layout',
+    declarations: '',
+    // The mesh file's TEXCOORD_0 (three.js's `uv`) is the vertex's texel in a frame.
+    main: /* glsl */ `
+	uvec2 quatcurveAddress = uvec2(uv + 0.5);`,
+    normal: /* glsl */ `
+	if (vertex_layout.has_normals != 0u) objectNormal = vertex_normal(quatcurveClip, quatcurveAddress, quatcurveClipTime);`,
+    position: /* glsl */ `
+	transformed = vertex_position(quatcurveClip, quatcurveAddress, quatcurveClipTime);`,
+  },
+};
+
+// The per-instance inputs, the crowd's clock, and the time an instance is at in its clip;
+// LAYOUT is the kind's layout uniform.
+const INSTANCE = /* glsl */ `
 // Per instance: its clip (an index into the layout's clips), time offset (s) and speed.
 in vec3 quatcurveInstance;
 uniform float quatcurveTime;
-mat4 quatcurveSkinMatrix() {
-  uint clip = uint(quatcurveInstance.x + 0.5);
+float quatcurveTimeIn(uint clip) {
   float time = quatcurveTime * quatcurveInstance.z + quatcurveInstance.y;
 #ifdef QUATCURVE_WRAP_OPEN
-  BoneClip c = bone_layout.clips[clip];
+  BoneClip c = LAYOUT.clips[clip];
   float span = float(max(c.frames, 1u) - 1u) / c.rate;
   if (c.looping == 0u && span > 0.0) time -= floor(time / span) * span;
 #endif
-  return bone_skin_matrix(clip, uvec4(skinIndex + 0.5), skinWeight, time);
-}
-`;
+  return time;
+}`;
+const MAIN = /* glsl */ `
+	uint quatcurveClip = uint(quatcurveInstance.x + 0.5);
+	float quatcurveClipTime = quatcurveTimeIn(quatcurveClip);`;
 
 /**
  * A bake loaded: its sidecar, the baked glTF's skinned meshes and the bone textures.
  * @typedef {object} Bake
  * @property {object} sidecar the sidecar JSON as the bake wrote it
  * @property {string[]} clips clip names, in the sidecar's order
- * @property {{geometry: THREE.BufferGeometry, material: THREE.Material, skin: number, name: string}[]} meshes
- * @property {Map<string, THREE.DataTexture>} textures bone textures by file name, rows top-down
+ * @property {{geometry: THREE.BufferGeometry, material: THREE.Material, name: string}[]} meshes the
+ *   skinned meshes (bind pose) or the vertex bake's mesh file's primitives
+ * @property {Map<string, THREE.DataTexture>} textures the textures by file name, rows top-down
  * @property {(options?: CrowdOptions) => Crowd} createCrowd
  */
 
 /**
- * Loads the bake whose sidecar is at `sidecarUrl` (a `--texture skin-trs` bake of
- * `--format exr` or `png16`): the sidecar, the baked glTF (three.js's GLTFLoader) and every
- * bone texture (EXRLoader, rows put back top-down; PNG16 decoded to 16 bits).
+ * Loads the bake whose sidecar is at `sidecarUrl` (`quatcurve bake --texture skin-trs` or
+ * `--texture vertex`, of `--format exr` or `png16`): the sidecar, the mesh (the baked glTF,
+ * or a vertex bake's mesh file, through three.js's GLTFLoader) and every texture (EXRLoader,
+ * rows put back top-down; PNG16 decoded to 16 bits).
  * @param {string | URL} sidecarUrl
  * @param {{manager?: THREE.LoadingManager}} [options]
  * @returns {Promise<Bake>}
@@ -53,24 +84,26 @@ export async function loadBake(sidecarUrl, { manager } = {}) {
   const url = new URL(sidecarUrl, globalThis.location?.href);
   const sidecar = await fetchOk(url).then((r) => r.json());
   const name = url.pathname.split('/').pop();
-  if (sidecar.texture !== 'skin-trs' || !['exr', 'png16'].includes(sidecar.format)) {
+  const kind = KINDS[sidecar.texture];
+  if (!kind || !['exr', 'png16'].includes(sidecar.format)) {
     throw new Error(
       `${name}: a ${sidecar.texture} bake of ${sidecar.format} files; quatcurve-three plays ` +
-        '`quatcurve bake --texture skin-trs --format exr` (or png16) bakes',
+        '`quatcurve bake --texture skin-trs` or `--texture vertex` bakes of `--format exr` or png16',
     );
   }
-  if (!sidecar.baked_file) throw new Error(`${name}: names no baked glTF (baked_file)`);
+  const meshFile = sidecar.texture === 'vertex' ? sidecar.vertex?.mesh_file : sidecar.baked_file;
+  if (!meshFile) throw new Error(`${name}: names no mesh (baked_file, vertex.mesh_file)`);
   const [library, gltf] = await Promise.all([
-    fetchOk(LIBRARY_URL).then((r) => r.text()),
-    new GLTFLoader(manager).loadAsync(new URL(sidecar.baked_file, url).href),
+    fetchOk(kind.library).then((r) => r.text()),
+    new GLTFLoader(manager).loadAsync(new URL(meshFile, url).href),
   ]);
-  const meshes = skinnedMeshes(gltf, name);
+  const meshes = sidecar.texture === 'vertex' ? vertexMeshes(gltf, sidecar, meshFile) : skinnedMeshes(gltf, name);
   const textures = new Map();
   const loading = sidecar.textures.map(async (record) => {
-    textures.set(record.file, await boneTexture(new URL(record.file, url), record, sidecar, manager));
+    textures.set(record.file, await imageTexture(new URL(record.file, url), record, sidecar, manager));
   });
   await Promise.all(loading);
-  const bake = { sidecar, clips: sidecar.clips.map((c) => c.name), meshes, textures, library };
+  const bake = { sidecar, clips: sidecar.clips.map((c) => c.name), meshes, textures, library, kind };
   bake.createCrowd = (options) => new Crowd(bake, options);
   return bake;
 }
@@ -99,14 +132,32 @@ function skinnedMeshes(gltf, name) {
     }
     // Lit materials need normals; a mesh without them gets its bind pose's.
     if (!geometry.attributes.normal) geometry.computeVertexNormals();
-    found.push({ geometry, material: object.material, skin, name: object.name });
+    found.push({ geometry, material: object.material, name: object.name, files: (clip) => [clip.files[skin]] });
   });
   if (!found.length) throw new Error(`${name}: the baked glTF has no skinned mesh`);
   return found;
 }
 
-/** A bone texture as the library samples it: RGBA floats, texel by texel, rows top-down. */
-async function boneTexture(url, record, sidecar, manager) {
+/** Every primitive of a vertex bake's mesh file, with the sheets its clips' files name. */
+function vertexMeshes(gltf, sidecar, file) {
+  const found = [];
+  gltf.scene.traverse((object) => {
+    if (!object.isMesh) return;
+    const k = gltf.parser.associations.get(object)?.meshes;
+    const primitive = sidecar.vertex.primitives.find((p) => p.mesh_in_file === k);
+    if (!primitive) throw new Error(`${file}: mesh ${k} is no primitive of the sidecar's vertex record`);
+    const sheet = (clip, part) => clip.files.find((f) => f.includes(`${primitive.suffix}.${part}.`));
+    // The positions' file carries the layout; the normals' (when the primitive has them) goes with it.
+    const files = (clip) => [sheet(clip, 'pos'), sheet(clip, 'nrm')];
+    // Without normals three.js lights the faces (flat shading).
+    found.push({ geometry: object.geometry, material: object.material, name: primitive.name, files, normals: primitive.normals });
+  });
+  if (!found.length) throw new Error(`${file}: no mesh`);
+  return found;
+}
+
+/** A texture as the library samples it: RGBA floats, texel by texel, rows top-down. */
+async function imageTexture(url, record, sidecar, manager) {
   const file = record.file;
   let image;
   if (sidecar.format === 'exr') {
@@ -217,11 +268,11 @@ export class Crowd extends THREE.Group {
     for (const [m, mesh] of meshes.entries()) {
       for (const instance of this.instances) {
         const clip = sidecar.clips[instance.clip];
-        const file = clip.files[mesh.skin];
+        const [file, ...others] = mesh.files(clip);
         const record = sidecar.textures.find((t) => t.file === file);
         const at = record?.layout?.clips.indexOf(instance.clip) ?? -1;
         if (at < 0) throw new Error(`${file}: its layout holds no clip ${clip.name}`);
-        const part = this.part(m, mesh, record);
+        const part = this.part(m, mesh, record, others);
         const slot = slots.get(part) ?? 0;
         slots.set(part, slot + 1);
         part.mesh.setMatrixAt(slot, instance.matrix);
@@ -236,13 +287,13 @@ export class Crowd extends THREE.Group {
     this.dirty = false;
   }
 
-  part(m, mesh, record) {
+  part(m, mesh, record, others) {
     const key = `${m} ${record.file}`;
     if (!this.parts.has(key)) {
       const geometry = mesh.geometry.clone();
       const attribute = new THREE.InstancedBufferAttribute(new Float32Array(this.count * 3), 3);
       geometry.setAttribute('quatcurveInstance', attribute);
-      const material = this.skinned(this.materialFor(mesh.material), record);
+      const material = this.animated(this.materialFor(mesh.material), mesh, record, others);
       const instanced = new THREE.InstancedMesh(geometry, material, this.count);
       // The bind pose's bounds say nothing of where an animated instance is.
       instanced.frustumCulled = false;
@@ -253,33 +304,32 @@ export class Crowd extends THREE.Group {
     return this.parts.get(key);
   }
 
-  /** `material` skinned by the library from the texture of `record`. */
-  skinned(material, record) {
-    const texture = this.bake.textures.get(record.file);
-    const uniforms = {
-      bone_texture: { value: texture },
-      bone_layout: { value: layoutValue(record.layout.fields) },
-      quatcurveTime: this.time,
-    };
-    const library = this.bake.library;
+  /** `material` animated by the library from the texture of `record` (and `others`). */
+  animated(material, mesh, record, others) {
+    const { kind, library, textures } = this.bake;
+    const layout = record.layout;
+    const uniforms = { [layout.variable]: { value: layoutValue(layout.fields) }, quatcurveTime: this.time };
+    if (layout.variable === 'bone_layout') {
+      uniforms.bone_texture = { value: textures.get(record.file) };
+    } else {
+      // Without a normals' file the positions stand in for its binding (the layout says none).
+      uniforms.vertex_positions = { value: textures.get(record.file) };
+      uniforms.vertex_normals = { value: textures.get(others[0] ?? record.file) };
+      if (!mesh.normals) material.flatShading = true;
+    }
+    const instance = INSTANCE.replace('LAYOUT', kind.layout);
     const previous = material.onBeforeCompile;
     material.onBeforeCompile = (shader, renderer) => {
       previous?.call(material, shader, renderer);
       Object.assign(shader.uniforms, uniforms);
       shader.vertexShader = shader.vertexShader
-        .replace('#include <common>', `#include <common>\n${library}\n${GLUE}`)
-        .replace('void main() {', 'void main() {\n\tmat4 quatcurveSkin = quatcurveSkinMatrix();')
-        .replace(
-          '#include <beginnormal_vertex>',
-          '#include <beginnormal_vertex>\n\tobjectNormal = (quatcurveSkin * vec4(objectNormal, 0.0)).xyz;',
-        )
-        .replace(
-          '#include <begin_vertex>',
-          '#include <begin_vertex>\n\ttransformed = (quatcurveSkin * vec4(transformed, 1.0)).xyz;',
-        );
+        .replace('#include <common>', `#include <common>\n${library}\n${kind.declarations}\n${instance}`)
+        .replace('void main() {', `void main() {${MAIN}${kind.main}`)
+        .replace('#include <beginnormal_vertex>', `#include <beginnormal_vertex>${kind.normal}`)
+        .replace('#include <begin_vertex>', `#include <begin_vertex>${kind.position}`);
     };
     const key = material.customProgramCacheKey.bind(material);
-    material.customProgramCacheKey = () => `${key()} quatcurve-bones ${this.wrapOpen}`;
+    material.customProgramCacheKey = () => `${key()} quatcurve ${layout.variable} ${this.wrapOpen}`;
     if (this.wrapOpen) material.defines = { ...material.defines, QUATCURVE_WRAP_OPEN: '' };
     material.needsUpdate = true;
     return material;

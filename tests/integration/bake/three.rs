@@ -1,10 +1,11 @@
 //! The three.js package (`packages/quatcurve-three/`) in Debian's headless Chromium (WebGL2 on
 //! SwiftShader, driven by `tests/browser/three.mjs`), imported as its README says: one crowd
 //! instance's silhouette against three.js's own `AnimationMixer` playing the source .glb as a
-//! `SkinnedMesh`, at four times of every clip, for EXR float, EXR half and PNG16 bone textures
-//! and an atlas played per instance; a player that ignores the row order or the time fails the
-//! same comparison; crowds of 100 draw lit and textured with no page error. And the package's
-//! shader library is what `quatcurve shaders --library` generates today.
+//! `SkinnedMesh`, at four times of every clip, for EXR float, EXR half and PNG16 bone textures,
+//! an atlas played per instance, and vertex textures (with normals and without); a player
+//! that ignores the row order or the time fails the same comparison; crowds of 100 draw lit
+//! and textured with no page error. And the package's shader libraries are what `quatcurve
+//! shaders --library` generates today.
 
 use super::viewer::browser;
 use super::{bake, data_dir, json, stderr};
@@ -74,15 +75,23 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     // budget of three.js's slerp between them. Fox's Run steps up to 85 degrees between keys,
     // where the C2 curve and slerp part visibly (4% of its silhouette): its bakes take slerp,
     // what three.js plays for glTF's LINEAR.
-    let bakes: [(&str, &Path, Vec<&str>); 5] = [
-        ("man-exr", &man, vec!["--format", "exr", "--max-error", "0.5"]),
-        ("man-half", &man, vec!["--format", "exr", "--precision", "f16", "--max-error", "0.5"]),
-        ("man-png16", &man, vec!["--format", "png16", "--max-error", "0.5"]),
-        ("fox-atlas", &fox, vec!["--format", "exr", "--atlas", "--curve", "slerp", "--rate", "60"]),
-        ("fox-png16", &fox, vec!["--format", "png16", "--curve", "slerp", "--rate", "60"]),
+    let vertex = ["--texture", "vertex"];
+    let bakes: [(&str, &Path, Vec<&str>); 7] = [
+        ("man-exr", &man, [&skin[..], &["--format", "exr", "--max-error", "0.5"]].concat()),
+        ("man-half", &man, [&skin[..], &["--format", "exr", "--precision", "f16", "--max-error", "0.5"]].concat()),
+        ("man-png16", &man, [&skin[..], &["--format", "png16", "--max-error", "0.5"]].concat()),
+        ("fox-atlas", &fox, [&skin[..], &["--format", "exr", "--atlas", "--curve", "slerp", "--rate", "60"]].concat()),
+        ("fox-png16", &fox, [&skin[..], &["--format", "png16", "--curve", "slerp", "--rate", "60"]].concat()),
+        // Vertex textures: CesiumMan's with normals, Fox's without (lit by its faces).
+        ("man-vertex", &man, [&vertex[..], &["--format", "exr", "--rate", "30"]].concat()),
+        (
+            "fox-vertex",
+            &fox,
+            [&vertex[..], &["--format", "png16", "--atlas", "--curve", "slerp", "--rate", "60"]].concat(),
+        ),
     ];
     for (name, source, args) in &bakes {
-        bake_into(dir.path(), name, source, &[&skin[..], args].concat());
+        bake_into(dir.path(), name, source, args);
     }
     let mut worst = 0.0f64;
     for (name, source, _) in &bakes {
@@ -103,7 +112,7 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         assert!(most > 5.0 * SILHOUETTE_TOLERANCE, "with the {broken} broken the test still passes: {mismatches:?}");
     }
     // Crowds of 100, every clip, lit and textured by the glTF's own materials.
-    for (name, stem) in [("man-exr", "CesiumMan"), ("fox-atlas", "Fox")] {
+    for (name, stem) in [("man-exr", "CesiumMan"), ("fox-atlas", "Fox"), ("fox-vertex", "Fox")] {
         let query = format!("mode=crowd&bake=/data/{name}/{stem}.json&instances=100&frames=3");
         let result = page(&script, dir.path(), &query, &[]);
         assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
@@ -111,19 +120,22 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
 }
 
 #[test]
-fn the_package_s_shader_library_is_the_one_quatcurve_shaders_generates() {
-    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("packages/quatcurve-three/src/bones.glsl");
-    let out = assert_cmd::Command::cargo_bin("quatcurve")
-        .unwrap()
-        .args(["shaders", "--program", "bones", "--lang", "glsl-es", "--library"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
-    let shipped = std::fs::read_to_string(&package).unwrap();
-    assert!(
-        shipped == String::from_utf8_lossy(&out.stdout),
-        "{} is stale: regenerate it with `quatcurve shaders --program bones --lang glsl-es --library --output {}`",
-        package.display(),
-        package.display()
-    );
+fn the_package_s_shader_libraries_are_the_ones_quatcurve_shaders_generates() {
+    for program in ["bones", "vertex"] {
+        let package =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("packages/quatcurve-three/src/{program}.glsl"));
+        let out = assert_cmd::Command::cargo_bin("quatcurve")
+            .unwrap()
+            .args(["shaders", "--program", program, "--lang", "glsl-es", "--library"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        let shipped = std::fs::read_to_string(&package).unwrap();
+        assert!(
+            shipped == String::from_utf8_lossy(&out.stdout),
+            "{} is stale: regenerate it with `quatcurve shaders --program {program} --lang glsl-es --library --output {}`",
+            package.display(),
+            package.display()
+        );
+    }
 }
