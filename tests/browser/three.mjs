@@ -4,7 +4,7 @@
 // as a user's static server would. Writes the page's result as JSON: its errors, any request
 // that left the origin (none may), and what the page measured.
 // Usage: node three.mjs DATA_DIR QUERY OUT.json [--screenshot FILE.png] [--viewport WxH]
-import { chromium } from 'playwright-core';
+import { launch, watchedPage } from './chromium.mjs';
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
 import { extname, join, normalize, resolve } from 'node:path';
@@ -43,22 +43,12 @@ await new Promise((ok) => server.listen(0, '127.0.0.1', ok));
 const origin = `http://127.0.0.1:${server.address().port}`;
 
 const [width, height] = (option('--viewport') || '512x512').split('x').map(Number);
-const browser = await chromium.launch({
-  executablePath: process.env.QUATCURVE_CHROMIUM || '/usr/bin/chromium',
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
-});
+const browser = await launch();
 const result = { errors: [], foreign: [] };
 try {
-  const page = await browser.newPage({ viewport: { width, height } });
-  page.on('pageerror', (e) => result.errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') result.errors.push(m.text()); });
+  const page = await watchedPage(browser, { width, height }, origin, result);
   page.on('requestfailed', (r) => result.errors.push(`${r.url()}: ${r.failure()?.errorText}`));
   page.on('response', (r) => { if (r.status() >= 400) result.errors.push(`${r.url()}: ${r.status()}`); });
-  await page.route('**/*', (route) => {
-    if (route.request().url().startsWith(origin)) return route.continue();
-    result.foreign.push(route.request().url());
-    return route.abort();
-  });
   await page.goto(`${origin}/page/index.html?${query}`);
   result.page = await page.evaluate(() => window.quatcurveThreeTest);
   if (option('--screenshot')) await page.screenshot({ path: option('--screenshot') });

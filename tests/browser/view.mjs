@@ -3,7 +3,7 @@
 // the viewer's origin (none may), and on request a captured frame, timed frames or a
 // screenshot. Usage: node view.mjs URL OUT.json [--capture] [--measure FRAMES] [--watch SECONDS]
 // [--screenshot FILE.png] [--viewport WxH]. QUATCURVE_CHROMIUM names another browser binary.
-import { chromium } from 'playwright-core';
+import { launch, watchedPage } from './chromium.mjs';
 import { writeFileSync } from 'node:fs';
 
 const [url, out, ...rest] = process.argv.slice(2);
@@ -14,21 +14,10 @@ const option = (name) => {
 const [width, height] = (option('--viewport') || '1280x720').split('x').map(Number);
 const origin = new URL(url).origin;
 
-const browser = await chromium.launch({
-  executablePath: process.env.QUATCURVE_CHROMIUM || '/usr/bin/chromium',
-  // Root in a container has no sandbox; SwiftShader is the GPU a headless server has.
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
-});
+const browser = await launch();
 const result = { errors: [], foreign: [] };
 try {
-  const page = await browser.newPage({ viewport: { width, height } });
-  page.on('pageerror', (e) => result.errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') result.errors.push(m.text()); });
-  await page.route('**/*', (route) => {
-    if (route.request().url().startsWith(origin)) return route.continue();
-    result.foreign.push(route.request().url());
-    return route.abort();
-  });
+  const page = await watchedPage(browser, { width, height }, origin, result);
   await page.goto(url);
   await page.evaluate(() => window.quatcurveViewer.ready);
   result.renderer = await page.evaluate(() => {
