@@ -2,8 +2,10 @@
 // (WebGL2 on SwiftShader), serving it, the package (packages/quatcurve-three/), three.js
 // (node_modules/three/) and a directory of bakes and sources (/data/) from one local origin,
 // as a user's static server would. Writes the page's result as JSON: its errors, any request
-// that left the origin (none may), and what the page measured.
-// Usage: node three.mjs DATA_DIR QUERY OUT.json [--screenshot FILE.png] [--viewport WxH]
+// that left the origin (none may), and what the page measured. With --example, opens
+// examples/three/ as shipped instead, its three.js from unpkg answered from node_modules/three
+// (the version it names must be the one installed), and reports its title after a few seconds.
+// Usage: node three.mjs DATA_DIR QUERY OUT.json [--example] [--screenshot FILE.png] [--viewport WxH]
 import { launch, watchedPage } from './chromium.mjs';
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
@@ -16,9 +18,12 @@ const option = (name) => {
   return i < 0 ? undefined : rest[i + 1] ?? true;
 };
 const here = fileURLToPath(new URL('.', import.meta.url));
+const repository = resolve(here, '../..');
 const roots = {
   '/page/': join(here, 'three'),
-  '/pkg/': resolve(here, '../../packages/quatcurve-three'),
+  '/pkg/': join(repository, 'packages/quatcurve-three'),
+  '/packages/': join(repository, 'packages'),
+  '/examples/': join(repository, 'examples'),
   '/three/': join(here, 'node_modules/three'),
   '/data/': resolve(dataDir),
 };
@@ -49,8 +54,20 @@ try {
   const page = await watchedPage(browser, { width, height }, origin, result);
   page.on('requestfailed', (r) => result.errors.push(`${r.url()}: ${r.failure()?.errorText}`));
   page.on('response', (r) => { if (r.status() >= 400) result.errors.push(`${r.url()}: ${r.status()}`); });
-  await page.goto(`${origin}/page/index.html?${query}`);
-  result.page = await page.evaluate(() => window.quatcurveThreeTest);
+  if (option('--example')) {
+    // The example's CDN, answered from the installed three.js.
+    const cdn = `https://unpkg.com/three@${JSON.parse(await readFile(join(roots['/three/'], 'package.json'))).version}/`;
+    await page.route(`${cdn}**`, async (route) => {
+      const file = join(roots['/three/'], route.request().url().slice(cdn.length));
+      route.fulfill({ body: await readFile(file), contentType: 'text/javascript' });
+    });
+    await page.goto(`${origin}/examples/three/index.html?${query}`);
+    await page.waitForTimeout(4000);
+    result.title = await page.title();
+  } else {
+    await page.goto(`${origin}/page/index.html?${query}`);
+    result.page = await page.evaluate(() => window.quatcurveThreeTest);
+  }
   if (option('--screenshot')) await page.screenshot({ path: option('--screenshot') });
 } catch (e) {
   result.errors.push(String(e));

@@ -68,6 +68,8 @@ const MAIN = /* glsl */ `
  * @property {{geometry: THREE.BufferGeometry, material: THREE.Material, name: string}[]} meshes the
  *   skinned meshes (bind pose) or the vertex bake's mesh file's primitives
  * @property {Map<string, THREE.DataTexture>} textures the textures by file name, rows top-down
+ * @property {THREE.Box3} box where a character stands in the scene's units: its bind pose (a
+ *   vertex bake's: the box its first clip moves in), for spacing a crowd and framing a camera
  * @property {(options?: CrowdOptions) => Crowd} createCrowd
  */
 
@@ -103,7 +105,9 @@ export async function loadBake(sidecarUrl, { manager } = {}) {
     textures.set(record.file, await imageTexture(new URL(record.file, url), record, sidecar, manager));
   });
   await Promise.all(loading);
-  const bake = { sidecar, clips: sidecar.clips.map((c) => c.name), meshes, textures, library, kind };
+  const box = new THREE.Box3();
+  for (const mesh of meshes) box.union(mesh.box);
+  const bake = { sidecar, clips: sidecar.clips.map((c) => c.name), meshes, textures, library, kind, box };
   bake.createCrowd = (options) => new Crowd(bake, options);
   return bake;
 }
@@ -132,7 +136,10 @@ function skinnedMeshes(gltf, name) {
     }
     // Lit materials need normals; a mesh without them gets its bind pose's.
     if (!geometry.attributes.normal) geometry.computeVertexNormals();
-    found.push({ geometry, material: object.material, name: object.name, files: (clip) => [clip.files[skin]] });
+    // The bind pose in the scene: glTF skinning takes a vertex to where the mesh's node puts it.
+    geometry.computeBoundingBox();
+    const box = geometry.boundingBox.clone().applyMatrix4(object.matrixWorld);
+    found.push({ geometry, material: object.material, name: object.name, files: (clip) => [clip.files[skin]], box });
   });
   if (!found.length) throw new Error(`${name}: the baked glTF has no skinned mesh`);
   return found;
@@ -149,8 +156,12 @@ function vertexMeshes(gltf, sidecar, file) {
     const sheet = (clip, part) => clip.files.find((f) => f.includes(`${primitive.suffix}.${part}.`));
     // The positions' file carries the layout; the normals' (when the primitive has them) goes with it.
     const files = (clip) => [sheet(clip, 'pos'), sheet(clip, 'nrm')];
+    // The box every frame's positions are remapped into (its first clip's file's).
+    const record = sidecar.textures.find((t) => t.file === files(sidecar.clips[0])[0]);
+    const [low, span] = [new THREE.Vector3(...record.low), new THREE.Vector3(...record.span)];
+    const box = new THREE.Box3(low, low.clone().add(span));
     // Without normals three.js lights the faces (flat shading).
-    found.push({ geometry: object.geometry, material: object.material, name: primitive.name, files, normals: primitive.normals });
+    found.push({ geometry: object.geometry, material: object.material, name: primitive.name, files, normals: primitive.normals, box });
   });
   if (!found.length) throw new Error(`${file}: no mesh`);
   return found;

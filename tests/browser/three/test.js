@@ -131,13 +131,8 @@ async function crowd() {
   const count = Number(params.get('instances') || 100);
   const crowd = bake.createCrowd({ count, wrapOpen: true });
   // A square grid, spaced by the character's size; clips and phases by the golden ratio.
-  const box = new THREE.Box3();
-  for (const mesh of bake.meshes) {
-    mesh.geometry.computeBoundingBox();
-    box.union(mesh.geometry.boundingBox);
-  }
-  const size = box.getSize(new THREE.Vector3());
-  const step = Math.max(size.x, size.y, size.z) * 0.9;
+  const size = bake.box.getSize(new THREE.Vector3());
+  const step = 1.2 * Math.max(size.x, size.z);
   const columns = Math.ceil(Math.sqrt(count));
   for (let i = 0; i < count; i++) {
     const x = ((i % columns) - (columns - 1) / 2) * step;

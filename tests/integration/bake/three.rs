@@ -4,8 +4,8 @@
 //! `SkinnedMesh`, at four times of every clip, for EXR float, EXR half and PNG16 bone textures,
 //! an atlas played per instance, and vertex textures (with normals and without); a player
 //! that ignores the row order or the time fails the same comparison; crowds of 100 draw lit
-//! and textured with no page error. And the package's shader libraries are what `quatcurve
-//! shaders --library` generates today.
+//! and textured with no page error, and so does `examples/three/`. And the package's shader
+//! libraries are what `quatcurve shaders --library` generates today.
 
 use super::viewer::browser;
 use super::{bake, data_dir, json, stderr};
@@ -117,6 +117,9 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         let result = page(&script, dir.path(), &query, &[]);
         assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
     }
+    // examples/three/ as shipped (its three.js from the CDN it names, answered locally).
+    let result = page(&script, dir.path(), "bake=/data/fox-atlas/Fox.json", &["--example"]);
+    assert_eq!(result["title"], "100 instances playing Survey, Walk, Run", "{result}");
 }
 
 #[test]
