@@ -304,7 +304,7 @@ impl Sidecar {
             .collect();
         let files: Vec<String> = textures.iter().map(|r| r.file.clone()).collect();
         for record in &mut textures {
-            record.layout = layout_of(record, &files, &clips).map_err(|e| format!("{}: {e}", record.file))?;
+            record.layout = layout_of(record, texture, &files, &clips).map_err(|e| format!("{}: {e}", record.file))?;
         }
         let shader = match texture {
             _ if !image => None,
@@ -390,15 +390,25 @@ impl Sidecar {
     }
 }
 
-/// The layout uniform of image `record`: a bone texture's, or a vertex texture's `.pos`
-/// file's (with the `.nrm` file beside it in `files` or not); none for a `.nrm` file.
-fn layout_of(record: &ImageRecord, files: &[String], clips: &[SidecarClip]) -> Result<Option<UniformRecord>, String> {
-    let of = match (record.low, record.span) {
-        (Some(low), Some(span)) => {
-            let normals = files.contains(&record.file.replacen(".pos.", ".nrm.", 1));
+/// The layout uniform of image `record` of a `texture` bake: a bone texture's, or a vertex
+/// texture's `.pos` file's (the file with its `low` and `span`, whose `.nrm` file is in `files`
+/// or not); none for a `.nrm` file.
+fn layout_of(
+    record: &ImageRecord,
+    texture: TextureKind,
+    files: &[String],
+    clips: &[SidecarClip],
+) -> Result<Option<UniformRecord>, String> {
+    let of = match (texture, record.low, record.span) {
+        (TextureKind::Vertex, Some(low), Some(span)) => {
+            // The sheet's own part of the name is its last `.pos.` (the stem may hold one).
+            let normals = record.file.rfind(".pos.").is_some_and(|at| {
+                let nrm = format!("{}.nrm.{}", &record.file[..at], &record.file[at + ".pos.".len()..]);
+                files.contains(&nrm)
+            });
             LayoutOf::Vertex { low, span, normals }
         }
-        _ if record.file.contains(".nrm.") => return Ok(None),
+        (TextureKind::Vertex, ..) => return Ok(None),
         _ => LayoutOf::Bones { remap: record.remap.as_deref() },
     };
     let held: Vec<LayoutClip> = clips

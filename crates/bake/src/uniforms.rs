@@ -88,13 +88,13 @@ pub(super) fn layout(grid: &Grid, of: &LayoutOf<'_>, clips: &[LayoutClip]) -> Re
             let slots = |pick: fn([f32; 2]) -> f32| -> Vec<[f32; 4]> {
                 match remap {
                     Some(remap) => remap.iter().map(|slot| slot.map(pick)).collect(),
-                    None => vec![[pick([0.0, 1.0]); 4]; 3],
+                    None => vec![[pick([0.0, 1.0]); 4]; grid.texels_per_joint],
                 }
             };
             json!({
                 "texels_per_joint": grid.texels_per_joint,
                 "low": slots(|[low, _]| low),
-                // The span as f64 first: high - low in f32 would round where the viewer's did not.
+                // The span computed in f64 and rounded to f32 once.
                 "span": slots(|[low, high]| (f64::from(high) - f64::from(low)) as f32),
             })
         }
