@@ -61,7 +61,7 @@ const MAIN = /* glsl */ `
 	float quatcurveClipTime = quatcurveTimeIn(quatcurveClip);`;
 
 /**
- * A bake loaded: its sidecar, the baked glTF's skinned meshes and the bone textures.
+ * A bake loaded: its sidecar, its meshes and its textures.
  * @typedef {object} Bake
  * @property {object} sidecar the sidecar JSON as the bake wrote it
  * @property {string[]} clips clip names, in the sidecar's order
