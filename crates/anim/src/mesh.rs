@@ -106,6 +106,53 @@ pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, Inpu
     Ok(out)
 }
 
+/// A skinned primitive as the file declares it, without reading its vertices: what a renderer
+/// binds for it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeclaredPrimitive {
+    /// `node 'N', mesh 'M', primitive p`, as [`SkinnedPrimitive::name`].
+    pub name: String,
+    /// The node that draws it, its mesh, the primitive's index in the mesh and its skin.
+    pub node: usize,
+    /// See [`Self::node`].
+    pub mesh: usize,
+    /// See [`Self::node`].
+    pub primitive: usize,
+    /// See [`Self::node`].
+    pub skin: usize,
+    /// Whether it has `NORMAL` and `TEXCOORD_0`.
+    pub normals: bool,
+    /// See [`Self::normals`].
+    pub texcoords: bool,
+}
+
+/// Every primitive a skinned node draws, from the file's declarations alone (a Draco
+/// primitive declares its attributes too).
+///
+/// # Errors
+/// A file whose JSON is not glTF's.
+pub fn declared_skinned_primitives(file: &GltfFile) -> Result<Vec<DeclaredPrimitive>, InputError> {
+    let (document, _) = file.document()?;
+    let mut out = Vec::new();
+    for node in document.nodes() {
+        let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else { continue };
+        let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
+        let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+        for primitive in mesh.primitives() {
+            out.push(DeclaredPrimitive {
+                name: format!("node '{node_name}', mesh '{mesh_name}', primitive {}", primitive.index()),
+                node: node.index(),
+                mesh: mesh.index(),
+                primitive: primitive.index(),
+                skin: skin.index(),
+                normals: primitive.get(&gltf::Semantic::Normals).is_some(),
+                texcoords: primitive.get(&gltf::Semantic::TexCoords(0)).is_some(),
+            });
+        }
+    }
+    Ok(out)
+}
+
 /// Checks `accessor` (a primitive's attribute) as `kind` and that it has `count` elements.
 fn check(
     document: &gltf::Document,

@@ -519,8 +519,16 @@ impl BakeJob {
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
-        let sidecar = Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex)
-            .map_err(InputError::Animation)?;
+        // What the shipped skinned vertex shader draws of the baked glTF.
+        let skinned = match (src, self.options.texture, self.options.format) {
+            (Source::Gltf(file), TextureKind::SkinTrs, Format::Exr | Format::Png16) => {
+                mesh::declared_skinned_primitives(file)?.into_iter().map(Into::into).collect()
+            }
+            _ => Vec::new(),
+        };
+        let sidecar =
+            Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, &skinned)
+                .map_err(InputError::Animation)?;
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;

@@ -9,7 +9,7 @@ use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
-use super::uniforms::{self, LayoutClip, LayoutOf, ShaderRecord, UniformRecord};
+use super::uniforms::{self, LayoutClip, LayoutOf, ShaderPrimitive, ShaderRecord, UniformRecord};
 use super::vertex_texture::VertexSheets;
 use super::Baked;
 use quatcurve_anim::Animation;
@@ -249,7 +249,7 @@ pub struct SidecarClip {
 
 impl Sidecar {
     /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
-    /// textures.
+    /// textures; `skinned`, the skinned primitives a `skin-trs` texture's shader draws.
     ///
     /// # Errors
     /// A texture's numbers that its shader layout cannot hold (a clip's first row past `u32`).
@@ -263,6 +263,7 @@ impl Sidecar {
         clips: Vec<SidecarClip>,
         written: &[Written],
         vertex: Option<(&VertexSheets, String)>,
+        skinned: &[ShaderPrimitive],
     ) -> Result<Self, String> {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
@@ -308,8 +309,8 @@ impl Sidecar {
         }
         let shader = match texture {
             _ if !image => None,
-            TextureKind::SkinTrs => Some(uniforms::shader_record(Program::Bones)?),
-            TextureKind::Vertex => Some(uniforms::shader_record(Program::Vertex)?),
+            TextureKind::SkinTrs => Some(uniforms::shader_record(Program::Bones, skinned.to_vec())?),
+            TextureKind::Vertex => Some(uniforms::shader_record(Program::Vertex, Vec::new())?),
             _ => None,
         };
         let layout = match (image, texture) {

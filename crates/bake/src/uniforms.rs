@@ -7,6 +7,7 @@
 
 use super::image::Grid;
 use base64::Engine as _;
+use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_shader::{self as shader, Language, Program};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -129,6 +130,32 @@ pub struct ShaderRecord {
     pub inputs: Vec<ShaderInput>,
     /// Its textures and uniform blocks.
     pub resources: Vec<ShaderResource>,
+    /// `skin-trs`: the baked glTF's skinned primitives it draws, and which of the inputs
+    /// each has (a renderer binds zeros for a missing `NORMAL` or `TEXCOORD_0`; the fragment
+    /// shader then lights the faces). A vertex bake's are the sidecar's `vertex.primitives`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub primitives: Vec<ShaderPrimitive>,
+}
+
+/// A skinned primitive the shipped vertex shader draws.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ShaderPrimitive {
+    /// `node 'N', mesh 'M', primitive p`.
+    pub name: String,
+    /// The glTF node that draws it, its mesh, the primitive's index in the mesh and its skin
+    /// (an index into `skins`, whose texture it reads).
+    pub node: usize,
+    /// See [`Self::node`].
+    pub mesh: usize,
+    /// See [`Self::node`].
+    pub primitive: usize,
+    /// See [`Self::node`].
+    pub skin: usize,
+    /// Whether it has `NORMAL` and `TEXCOORD_0`.
+    pub normals: bool,
+    /// See [`Self::normals`].
+    pub texcoords: bool,
 }
 
 /// A vertex input of the shipped vertex shader.
@@ -162,6 +189,13 @@ pub struct ShaderResource {
     pub glsl: String,
 }
 
+impl From<DeclaredPrimitive> for ShaderPrimitive {
+    fn from(p: DeclaredPrimitive) -> Self {
+        let DeclaredPrimitive { name, node, mesh, primitive, skin, normals, texcoords } = p;
+        Self { name, node, mesh, primitive, skin, normals, texcoords }
+    }
+}
+
 /// Where each of the shipped vertex shaders' inputs comes from.
 fn input_source(name: &str) -> Option<&'static str> {
     Some(match name {
@@ -175,11 +209,11 @@ fn input_source(name: &str) -> Option<&'static str> {
     })
 }
 
-/// The record of `program`'s vertex shader.
+/// The record of `program`'s vertex shader drawing `primitives`.
 ///
 /// # Errors
 /// naga's, or an input this file does not know the source of (a bug: the tests bake both).
-pub(super) fn shader_record(program: Program) -> Result<ShaderRecord, String> {
+pub(super) fn shader_record(program: Program, primitives: Vec<ShaderPrimitive>) -> Result<ShaderRecord, String> {
     let entry = program.entry_point();
     let glsl = shader::glsl(program.files(), entry, program.stage(), Language::GlslEs)?;
     let (module, _) = shader::parse(program.files())?;
@@ -205,5 +239,5 @@ pub(super) fn shader_record(program: Program) -> Result<ShaderRecord, String> {
         })
         .collect();
     resources.sort_by_key(|r| (r.group, r.binding));
-    Ok(ShaderRecord { program: program.to_string(), entry_point: entry.to_string(), inputs, resources })
+    Ok(ShaderRecord { program: program.to_string(), entry_point: entry.to_string(), inputs, resources, primitives })
 }

@@ -5,6 +5,7 @@
 
 use super::{bake, data_dir, json, read_npy, stderr};
 use quatcurve::shader;
+use serde_json::json;
 use std::path::Path;
 
 /// One query of `bone_probe.wgsl` (its `BoneQuery`).
@@ -421,6 +422,42 @@ fn the_shader_between_frames_keeps_within_the_budget_the_bake_chose() {
                 );
             }
         }
+    }
+}
+
+#[test]
+fn the_sidecar_names_what_the_skinned_shader_reads_and_draws() {
+    let Some(data) = data_dir() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    // CesiumMan has normals and UVs; Fox has UVs and no normals (the crash in three.js).
+    for (name, normals) in [("CesiumMan", true), ("Fox", false)] {
+        let dir = tmp.path().join(name);
+        run_bake(&dir, &data.join(format!("{name}.glb")), &["--texture", "skin-trs", "--format", "exr"]);
+        let shader = &json(&dir.join(format!("{name}.json")))["shader"];
+        assert_eq!(shader["program"], "bones");
+        let primitives = shader["primitives"].as_array().unwrap();
+        assert_eq!(primitives.len(), 1, "{name}: {primitives:?}");
+        assert_eq!((&primitives[0]["normals"], &primitives[0]["texcoords"]), (&json!(normals), &json!(true)), "{name}");
+        let inputs: Vec<(&str, u64, &str)> = shader["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| (i["name"].as_str().unwrap(), i["location"].as_u64().unwrap(), i["from"].as_str().unwrap()))
+            .collect();
+        assert_eq!(
+            inputs,
+            [
+                ("position", 0, "POSITION"),
+                ("normal", 1, "NORMAL"),
+                ("joints", 2, "JOINTS_0"),
+                ("weights", 3, "WEIGHTS_0"),
+                ("instance_offset", 4, "instance"),
+                ("instance_clip", 5, "instance"),
+                ("instance_time", 6, "instance"),
+                ("uv", 7, "TEXCOORD_0"),
+            ],
+            "{name}"
+        );
     }
 }
 
