@@ -403,7 +403,9 @@ impl<'a> Assembly<'a> {
     /// holds the scene's clip at the index every draw gives its instances.
     fn layout_words(&mut self, record: &ImageRecord) -> Result<Vec<u32>, String> {
         let file = &record.file;
-        let layout = record.layout.as_ref().ok_or_else(|| format!("{file}: its `textures` record has no `layout`"))?;
+        let layout = record.layout.as_ref().ok_or_else(|| {
+            format!("{file}: its `textures` record has no `layout` (an older quatcurve wrote it: bake it again)")
+        })?;
         let at = layout.clips.iter().position(|&c| c == self.index).ok_or_else(|| {
             format!("{file}: its layout does not hold clip {} (it holds clips {:?})", self.index, layout.clips)
         })?;
