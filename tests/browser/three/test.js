@@ -6,6 +6,7 @@
 //   draws every instance at time 0 (a player that ignores time).
 // - mode=crowd (bake=SIDECAR, instances=N, frames=K): N instances lit and textured by their
 //   glTF materials, each with its clip and phase; K frames timed.
+// - mode=refuse (bake=SIDECAR): the message loading a bake the package cannot play throws.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { loadBake, flipRows } from 'quatcurve-three';
@@ -19,8 +20,19 @@ window.quatcurveThreeTest = (async () => {
   const mode = params.get('mode');
   if (mode === 'silhouette') return silhouettes();
   if (mode === 'crowd') return crowd();
+  if (mode === 'refuse') return refusal();
   throw new Error(`mode ${mode}?`);
 })();
+
+/** What loading a bake the package cannot play throws (mode=refuse). */
+async function refusal() {
+  try {
+    await loadBake(params.get('bake'));
+  } catch (e) {
+    return { refused: String(e.message) };
+  }
+  return { refused: null };
+}
 
 function newRenderer(width, height) {
   const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });

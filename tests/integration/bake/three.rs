@@ -117,6 +117,12 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         let result = page(&script, dir.path(), &query, &[]);
         assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
     }
+    // A bake the package cannot play is refused naming the file and what to bake.
+    bake_into(dir.path(), "man-npy", &man, &skin);
+    let result = page(&script, dir.path(), "mode=refuse&bake=/data/man-npy/CesiumMan.json", &[]);
+    let refused = result["page"]["refused"].as_str().unwrap_or_default();
+    assert!(refused.contains("CesiumMan.json: a skin-trs bake of npy files"), "{result}");
+    assert!(refused.contains("--format exr"), "{refused}");
     // examples/three/ as shipped (its three.js from the CDN it names, answered locally).
     let result = page(&script, dir.path(), "bake=/data/fox-atlas/Fox.json", &["--example"]);
     assert_eq!(result["title"], "100 instances playing Survey, Walk, Run", "{result}");
