@@ -93,13 +93,18 @@ export async function loadBake(sidecarUrl, { manager } = {}) {
         '`quatcurve bake --texture skin-trs` or `--texture vertex` bakes of `--format exr` or png16',
     );
   }
-  const meshFile = sidecar.texture === 'vertex' ? sidecar.vertex?.mesh_file : sidecar.baked_file;
+  const vertex = sidecar.texture === 'vertex';
+  const meshFile = vertex ? sidecar.vertex?.mesh_file : sidecar.baked_file;
   if (!meshFile) throw new Error(`${name}: names no mesh (baked_file, vertex.mesh_file)`);
-  const [library, gltf] = await Promise.all([
+  const loader = new GLTFLoader(manager);
+  // A vertex bake's mesh file has no materials: they, and the UVs they are mapped with, come
+  // from the baked glTF beside it (the source's meshes, vertex for vertex).
+  const [library, gltf, baked] = await Promise.all([
     fetchOk(kind.library).then((r) => r.text()),
-    new GLTFLoader(manager).loadAsync(new URL(meshFile, url).href),
+    loader.loadAsync(new URL(meshFile, url).href),
+    vertex && sidecar.baked_file ? loader.loadAsync(new URL(sidecar.baked_file, url).href) : null,
   ]);
-  const meshes = sidecar.texture === 'vertex' ? vertexMeshes(gltf, sidecar, meshFile) : skinnedMeshes(gltf, name);
+  const meshes = vertex ? vertexMeshes(gltf, sidecar, meshFile, baked) : skinnedMeshes(gltf, name);
   const textures = new Map();
   const loading = sidecar.textures.map(async (record) => {
     textures.set(record.file, await imageTexture(new URL(record.file, url), record, sidecar, manager));
@@ -146,7 +151,7 @@ function skinnedMeshes(gltf, name) {
 }
 
 /** Every primitive of a vertex bake's mesh file, with the sheets its clips' files name. */
-function vertexMeshes(gltf, sidecar, file) {
+function vertexMeshes(gltf, sidecar, file, baked) {
   const found = [];
   gltf.scene.traverse((object) => {
     if (!object.isMesh) return;
@@ -160,11 +165,43 @@ function vertexMeshes(gltf, sidecar, file) {
     const record = sidecar.textures.find((t) => t.file === files(sidecar.clips[0])[0]);
     const [low, span] = [new THREE.Vector3(...record.low), new THREE.Vector3(...record.span)];
     const box = new THREE.Box3(low, low.clone().add(span));
+    const { geometry } = object;
+    const material = baked ? texturedFrom(baked, primitive, geometry) : object.material;
     // Without normals three.js lights the faces (flat shading).
-    found.push({ geometry: object.geometry, material: object.material, name: primitive.name, files, normals: primitive.normals, box });
+    found.push({ geometry, material, name: primitive.name, files, normals: primitive.normals, box });
   });
   if (!found.length) throw new Error(`${file}: no mesh`);
   return found;
+}
+
+// The material slots three.js maps with a texture coordinate.
+const MAPS = ['map', 'alphaMap', 'aoMap', 'bumpMap', 'emissiveMap', 'lightMap', 'metalnessMap', 'normalMap', 'roughnessMap'];
+
+/**
+ * The baked glTF's material of a vertex bake's `primitive`, its textures read through the
+ * source's TEXCOORD_0 given to `geometry` as `uv1` (its `uv` is each vertex's texel address).
+ */
+function texturedFrom(baked, primitive, geometry) {
+  let source = null;
+  baked.scene.traverse((object) => {
+    const at = baked.parser.associations.get(object);
+    if (object.isMesh && at?.meshes === primitive.mesh && (at.primitives ?? 0) === primitive.primitive) source = object;
+  });
+  if (!source) throw new Error(`${primitive.name}: not in the baked glTF`);
+  const uv = source.geometry.attributes.uv;
+  const material = source.material.clone();
+  if (uv && uv.count === geometry.attributes.position.count) {
+    geometry.setAttribute('uv1', uv);
+    for (const slot of MAPS) {
+      if (material[slot]) {
+        material[slot] = material[slot].clone();
+        material[slot].channel = 1;
+      }
+    }
+  } else {
+    for (const slot of MAPS) material[slot] = null;
+  }
+  return material;
 }
 
 /** A texture as the library samples it: RGBA floats, texel by texel, rows top-down. */

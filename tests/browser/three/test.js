@@ -176,5 +176,7 @@ async function crowd() {
     times.push(performance.now() - start);
   }
   const calls = renderer.info.render.calls;
-  return { renderer: rendererName(renderer), instances: count, frame_ms: times, draw_calls: calls };
+  // Instanced meshes drawn with a base-colour texture.
+  const textured = crowd.children.filter((m) => m.material.map).length;
+  return { renderer: rendererName(renderer), instances: count, frame_ms: times, draw_calls: calls, textured };
 }

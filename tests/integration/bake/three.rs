@@ -116,6 +116,9 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         let query = format!("mode=crowd&bake=/data/{name}/{stem}.json&instances=100&frames=3");
         let result = page(&script, dir.path(), &query, &[]);
         assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
+        // Every drawn part has the glTF's base-colour texture (a vertex bake's through the
+        // baked glTF's material and UVs).
+        assert!(result["page"]["textured"].as_u64() >= Some(1), "{name}: untextured: {result}");
     }
     // A bake the package cannot play is refused naming the file and what to bake.
     bake_into(dir.path(), "man-npy", &man, &skin);
