@@ -107,8 +107,9 @@ pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, Inpu
 }
 
 /// A skinned primitive as the file declares it, without reading its vertices: what a renderer
-/// binds for it.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// binds for it (a `skin-trs` bake's sidecar lists these).
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct DeclaredPrimitive {
     /// `node 'N', mesh 'M', primitive p`, as [`SkinnedPrimitive::name`].
     pub name: String,

@@ -522,7 +522,7 @@ impl BakeJob {
         // What the shipped skinned vertex shader draws of the baked glTF.
         let skinned = match (src, self.options.texture, self.options.format) {
             (Source::Gltf(file), TextureKind::SkinTrs, Format::Exr | Format::Png16) => {
-                mesh::declared_skinned_primitives(file)?.into_iter().map(Into::into).collect()
+                mesh::declared_skinned_primitives(file)?
             }
             _ => Vec::new(),
         };

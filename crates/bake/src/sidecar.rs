@@ -9,9 +9,10 @@ use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
-use super::uniforms::{self, LayoutClip, LayoutOf, ShaderPrimitive, ShaderRecord, UniformRecord};
+use super::uniforms::{self, LayoutClip, LayoutOf, ShaderRecord, UniformRecord};
 use super::vertex_texture::VertexSheets;
 use super::Baked;
+use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::Animation;
 use quatcurve_shader::Program;
 use serde::{Deserialize, Serialize};
@@ -263,7 +264,7 @@ impl Sidecar {
         clips: Vec<SidecarClip>,
         written: &[Written],
         vertex: Option<(&VertexSheets, String)>,
-        skinned: &[ShaderPrimitive],
+        skinned: &[DeclaredPrimitive],
     ) -> Result<Self, String> {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();

@@ -134,28 +134,7 @@ pub struct ShaderRecord {
     /// each has (a renderer binds zeros for a missing `NORMAL` or `TEXCOORD_0`; the fragment
     /// shader then lights the faces). A vertex bake's are the sidecar's `vertex.primitives`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub primitives: Vec<ShaderPrimitive>,
-}
-
-/// A skinned primitive the shipped vertex shader draws.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct ShaderPrimitive {
-    /// `node 'N', mesh 'M', primitive p`.
-    pub name: String,
-    /// The glTF node that draws it, its mesh, the primitive's index in the mesh and its skin
-    /// (an index into `skins`, whose texture it reads).
-    pub node: usize,
-    /// See [`Self::node`].
-    pub mesh: usize,
-    /// See [`Self::node`].
-    pub primitive: usize,
-    /// See [`Self::node`].
-    pub skin: usize,
-    /// Whether it has `NORMAL` and `TEXCOORD_0`.
-    pub normals: bool,
-    /// See [`Self::normals`].
-    pub texcoords: bool,
+    pub primitives: Vec<DeclaredPrimitive>,
 }
 
 /// A vertex input of the shipped vertex shader.
@@ -189,13 +168,6 @@ pub struct ShaderResource {
     pub glsl: String,
 }
 
-impl From<DeclaredPrimitive> for ShaderPrimitive {
-    fn from(p: DeclaredPrimitive) -> Self {
-        let DeclaredPrimitive { name, node, mesh, primitive, skin, normals, texcoords } = p;
-        Self { name, node, mesh, primitive, skin, normals, texcoords }
-    }
-}
-
 /// Where each of the shipped vertex shaders' inputs comes from.
 fn input_source(name: &str) -> Option<&'static str> {
     Some(match name {
@@ -213,7 +185,7 @@ fn input_source(name: &str) -> Option<&'static str> {
 ///
 /// # Errors
 /// naga's, or an input this file does not know the source of (a bug: the tests bake both).
-pub(super) fn shader_record(program: Program, primitives: Vec<ShaderPrimitive>) -> Result<ShaderRecord, String> {
+pub(super) fn shader_record(program: Program, primitives: Vec<DeclaredPrimitive>) -> Result<ShaderRecord, String> {
     let entry = program.entry_point();
     let glsl = shader::glsl(program.files(), entry, program.stage(), Language::GlslEs)?;
     let (module, _) = shader::parse(program.files())?;
