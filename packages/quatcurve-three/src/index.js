@@ -251,7 +251,7 @@ export function flipRows(data, width, height) {
  */
 
 /**
- * An instanced crowd of one bake: a THREE.Group of one InstancedMesh per skinned primitive
+ * An instanced crowd of one bake: a THREE.Group of one InstancedMesh per primitive
  * and texture. Give each instance a clip, time offset, speed and transform with
  * `setInstance`; call `update(seconds)` once a frame.
  */
@@ -308,7 +308,7 @@ export class Crowd extends THREE.Group {
     if (this.dirty) this.fill();
   }
 
-  /** Each instance into the InstancedMesh of its clip's texture, for every skinned mesh. */
+  /** Each instance into the InstancedMesh of its clip's texture, for every mesh. */
   fill() {
     const { sidecar, meshes } = this.bake;
     const slots = new Map();
