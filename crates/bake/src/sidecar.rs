@@ -9,7 +9,7 @@ use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
 use super::texture_file::Written;
-use super::uniforms::{self, LayoutClip, LayoutOf, ShaderRecord, UniformRecord};
+use super::uniforms::{self, LayoutClip, LayoutOf, Layouts, ShaderRecord, UniformRecord};
 use super::vertex_texture::VertexSheets;
 use super::Baked;
 use quatcurve_anim::mesh::DeclaredPrimitive;
@@ -305,8 +305,12 @@ impl Sidecar {
             })
             .collect();
         let files: Vec<String> = textures.iter().map(|r| r.file.clone()).collect();
-        for record in &mut textures {
-            record.layout = layout_of(record, texture, &files, &clips).map_err(|e| format!("{}: {e}", record.file))?;
+        if !textures.is_empty() {
+            let layouts = Layouts::new(texture)?;
+            for record in &mut textures {
+                record.layout = layout_of(&layouts, record, texture, &files, &clips)
+                    .map_err(|e| format!("{}: {e}", record.file))?;
+            }
         }
         let shader = match texture {
             _ if !image => None,
@@ -396,6 +400,7 @@ impl Sidecar {
 /// texture's `.pos` file's (the file with its `low` and `span`, whose `.nrm` file is in `files`
 /// or not); none for a `.nrm` file.
 fn layout_of(
+    layouts: &Layouts,
     record: &ImageRecord,
     texture: TextureKind,
     files: &[String],
@@ -425,7 +430,7 @@ fn layout_of(
             rate: c.rate,
         })
         .collect();
-    uniforms::layout(&record.grid, &of, &held).map(Some)
+    layouts.layout(&record.grid, &of, &held).map(Some)
 }
 
 /// [`super::vertex_encoding::Bounds::decode`] in words.

@@ -6,6 +6,7 @@
 //! locations.
 
 use super::image::Grid;
+use super::texture::TextureKind;
 use base64::Engine as _;
 use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_shader::{self as shader, Language, Program};
@@ -60,19 +61,47 @@ impl LayoutOf<'_> {
     }
 }
 
-/// The layout uniform of a texture on `grid` holding `clips` (in the sidecar's order).
-///
-/// # Errors
-/// A number the shader's struct cannot hold, named (a bug where the shader and this disagree
-/// on a member's name).
-pub(super) fn layout(grid: &Grid, of: &LayoutOf<'_>, clips: &[LayoutClip]) -> Result<UniformRecord, String> {
-    let program = of.program();
-    let (module, _) = shader::parse(program.files())?;
+/// The shipped program whose layout uniform a bake's images take (the vertex program's for
+/// vertex textures, the bone program's else), parsed once for all of them.
+pub(super) struct Layouts {
+    program: Program,
+    module: naga::Module,
+}
+
+impl Layouts {
+    /// The layouts of a `texture` bake's images.
+    ///
+    /// # Errors
+    /// naga's (a bug: the tests parse every program).
+    pub(super) fn new(texture: TextureKind) -> Result<Self, String> {
+        let program = if texture == TextureKind::Vertex { Program::Vertex } else { Program::Bones };
+        Ok(Self { program, module: shader::parse(program.files())?.0 })
+    }
+
+    /// The layout uniform of a texture on `grid` holding `clips` (in the sidecar's order).
+    ///
+    /// # Errors
+    /// A number the shader's struct cannot hold, named (a bug where the shader and this
+    /// disagree on a member's name); a layout of the other program.
+    pub(super) fn layout(&self, grid: &Grid, of: &LayoutOf<'_>, clips: &[LayoutClip]) -> Result<UniformRecord, String> {
+        if of.program() != self.program {
+            return Err(format!("a {} layout among the {} program's", of.program(), self.program));
+        }
+        layout(&self.module, grid, of, clips)
+    }
+}
+
+fn layout(
+    module: &naga::Module,
+    grid: &Grid,
+    of: &LayoutOf<'_>,
+    clips: &[LayoutClip],
+) -> Result<UniformRecord, String> {
     let (variable, struct_name, limit) = match of {
         LayoutOf::Bones { .. } => ("bone_layout", "BoneLayout", "BONE_MAX_CLIPS"),
         LayoutOf::Vertex { .. } => ("vertex_layout", "VertexLayout", "VERTEX_MAX_CLIPS"),
     };
-    let limit = shader::constant_u32(&module, limit).ok_or_else(|| format!("the shader has no `{limit}`"))?;
+    let limit = shader::constant_u32(module, limit).ok_or_else(|| format!("the shader has no `{limit}`"))?;
     let clips = &clips[..clips.len().min(limit as usize)];
     let clip_fields: Vec<Value> = clips
         .iter()
@@ -108,12 +137,12 @@ pub(super) fn layout(grid: &Grid, of: &LayoutOf<'_>, clips: &[LayoutClip]) -> Re
     if let (Some(fields), Some(extra)) = (fields.as_object_mut(), extra.as_object()) {
         fields.extend(extra.clone());
     }
-    let bytes = shader::uniform::bytes(&module, struct_name, &fields)?;
+    let bytes = shader::uniform::bytes(module, struct_name, &fields)?;
     Ok(UniformRecord {
         variable: variable.to_string(),
         struct_name: struct_name.to_string(),
         clips: clips.iter().map(|c| c.index).collect(),
-        fields: shader::uniform::fields(&module, struct_name, &bytes)?,
+        fields: shader::uniform::fields(module, struct_name, &bytes)?,
         std140: base64::engine::general_purpose::STANDARD.encode(bytes),
     })
 }
