@@ -356,7 +356,9 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         ``f32`` or ``f16`` (``npy`` and ``exr``).
     format : str
         ``npy`` arrays, or 2D RGBA images engines import: ``exr`` (float or half) or
-        ``png16`` (each channel remapped to its range, recorded in the sidecar).
+        ``png16`` (each channel remapped to its range, recorded in the sidecar); or
+        ``babylon`` (Babylon.js's baked vertex animation JSON, of ``skin`` textures;
+        DESIGN section 5f).
     max_texture_size : int
         Largest side of an image texture, in texels.
     atlas, preview : bool

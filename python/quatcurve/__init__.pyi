@@ -83,7 +83,7 @@ def bake(
     loop: Literal["auto", "on", "off"] = "auto",
     texture: Literal["local", "model", "skin", "model-trs", "skin-trs", "vertex"] = "local",
     precision: Literal["f32", "f16"] = "f32",
-    format: Literal["npy", "exr", "png16"] = "npy",
+    format: Literal["npy", "exr", "png16", "babylon"] = "npy",
     max_texture_size: int = 4096,
     atlas: bool = False,
     preview: bool = False,

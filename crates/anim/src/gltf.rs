@@ -214,7 +214,7 @@ fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, Input
                 matrices
             }
         };
-        skins.push(Skin { name, joints, inverse_bind });
+        skins.push(Skin { name, joints, inverse_bind, skeleton: skin.skeleton().map(|n| n.index()) });
     }
     Ok(skins)
 }

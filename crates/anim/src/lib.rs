@@ -182,6 +182,8 @@ pub struct Skin {
     pub joints: Vec<usize>,
     /// One per joint: the inverse bind matrix as 3x4 row-major (its last row is `0 0 0 1`).
     pub inverse_bind: Vec<[f64; 12]>,
+    /// glTF's `skeleton`: the joint named as the skeleton's root, where the file names one.
+    pub skeleton: Option<usize>,
 }
 
 /// A source file read into the common model.

@@ -40,9 +40,11 @@ pub enum Format {
     Exr,
     /// 16-bit PNG RGBA, each channel of each texel slot remapped from its own `[min, max]`.
     Png16,
+    /// Babylon.js's baked vertex animation JSON, of `skin` textures ([`crate::babylon`]).
+    Babylon,
 }
 
-quatcurve_core::curve::names!(Format, "format", Npy => "npy", Exr => "exr", Png16 => "png16");
+quatcurve_core::curve::names!(Format, "format", Npy => "npy", Exr => "exr", Png16 => "png16", Babylon => "babylon");
 
 impl Format {
     /// The file-name extension.
@@ -52,7 +54,15 @@ impl Format {
             Format::Npy => "npy",
             Format::Exr => "exr",
             Format::Png16 => "png",
+            Format::Babylon => "json",
         }
+    }
+
+    /// An image engines import (EXR, PNG16), laid out on a [`Grid`] and recorded in the
+    /// sidecar's `textures`.
+    #[must_use]
+    pub fn is_image(self) -> bool {
+        matches!(self, Format::Exr | Format::Png16)
     }
 }
 

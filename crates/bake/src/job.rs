@@ -6,6 +6,7 @@
 //! One input failing is reported in its [`InputReport`] and the others still finish; only a
 //! job that cannot start (a bad option, an output directory that cannot be made) is an `Err`.
 
+use super::babylon;
 use super::budget::{self, ChosenRate};
 use super::image::Format;
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
@@ -25,6 +26,7 @@ use quatcurve_anim::error::InputError;
 use quatcurve_anim::files::FileJobError;
 use quatcurve_anim::files::{expand, output_stems};
 use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
+use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::source::Source;
 use quatcurve_anim::Animation;
 use quatcurve_anim::{crowd, gltf, mesh};
@@ -88,6 +90,22 @@ impl BakeJob {
         }
         if self.options.format == Format::Png16 && self.options.precision == Precision::F16 {
             return Err(FileJobError::option("precision", "f16 does not apply to png16, which stores 16-bit integers"));
+        }
+        if self.options.format == Format::Babylon && self.options.texture != TextureKind::Skin {
+            return Err(FileJobError::option(
+                "format",
+                format!(
+                    "babylon holds a skin's bone matrices as Babylon.js's VertexAnimationBaker does; bake --texture skin, \
+                     not {}",
+                    self.options.texture
+                ),
+            ));
+        }
+        if self.options.format == Format::Babylon && self.options.precision == Precision::F16 {
+            return Err(FileJobError::option(
+                "precision",
+                "f16 does not apply to babylon, whose JSON Babylon.js reads as 32-bit floats",
+            ));
         }
         if self.options.format == Format::Png16 && !cfg!(feature = "plot") {
             return Err(FileJobError::option(
@@ -162,12 +180,30 @@ impl BakeJob {
         }
     }
 
-    /// The files of each clip's (or the atlas's) texture.
-    fn sheets(&self, animation: &Animation, vertex: Option<&VertexSheets>) -> Vec<SheetSpec> {
-        match vertex {
-            Some(vertex) => vertex.layout(),
-            None => texture_file::bone_sheets(animation, self.options.texture),
+    /// The files of each clip's (or the atlas's) texture; for `--format babylon`, each skin's
+    /// in the space of the node Babylon's loader hangs its mesh from (`skinned`: the nodes
+    /// drawing skinned meshes).
+    fn sheets(
+        &self,
+        animation: &Animation,
+        vertex: Option<&VertexSheets>,
+        skinned: &[DeclaredPrimitive],
+    ) -> Result<Vec<SheetSpec>, InputError> {
+        if let Some(vertex) = vertex {
+            return Ok(vertex.layout());
         }
+        let spaces = match self.options.format {
+            Format::Babylon => babylon::mesh_parents(animation, skinned)
+                .into_iter()
+                .zip(&animation.skins)
+                .map(|(parent, skin)| {
+                    babylon::from_world(animation, parent)
+                        .map_err(|e| InputError::Animation(format!("skin '{}': {e}", skin.name)))
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+            _ => Vec::new(),
+        };
+        Ok(texture_file::bone_sheets(animation, self.options.texture, &spaces))
     }
 
     /// The options that decide the outputs (the manifest's `options`; `resume` redoes every
@@ -441,6 +477,7 @@ impl BakeJob {
             atlas: Vec::new(),
             rows: 0,
             clip_names: Vec::new(),
+            sheets: Vec::new(),
         };
         match self.write_all(&mut out, src, baked, device, fk_device, vertex) {
             Ok(()) => Ok(out.written),
@@ -471,6 +508,21 @@ impl BakeJob {
                 "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
             ));
         }
+        if self.options.format == Format::Babylon && (!matches!(src, Source::Gltf(_)) || animation.skins.is_empty()) {
+            return Err(InputError::Animation(format!(
+                "babylon plays a glTF skin's bones, and {} has no skin; bake a glTF with a skinned mesh, or \
+                 another format",
+                src.kind()
+            )));
+        }
+        // What the shipped skinned vertex shader draws of the baked glTF, and the meshes
+        // Babylon hangs from a skin's parent.
+        let skinned = match (src, self.options.texture, self.options.format) {
+            (Source::Gltf(file), TextureKind::SkinTrs, Format::Exr | Format::Png16)
+            | (Source::Gltf(file), TextureKind::Skin, Format::Babylon) => mesh::declared_skinned_primitives(file)?,
+            _ => Vec::new(),
+        };
+        out.sheets = self.sheets(animation, vertex, &skinned)?;
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(&baked.frames())?)),
             Source::Bvh(file, animation) => {
@@ -495,9 +547,8 @@ impl BakeJob {
         let extension = self.options.format.extension();
         if self.options.atlas {
             let rows = baked.clips.iter().map(|c| c.times.len()).sum();
-            let sheets = self.sheets(animation, vertex);
             out.atlas =
-                texture_file::open(&sheets, &self.texture_options(), rows, "the atlas of every clip", |suffix| {
+                texture_file::open(&out.sheets, &self.texture_options(), rows, "the atlas of every clip", |suffix| {
                     dir.join(format!("{stem}{suffix}.{extension}"))
                 })?;
         }
@@ -519,13 +570,6 @@ impl BakeJob {
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
-        // What the shipped skinned vertex shader draws of the baked glTF.
-        let skinned = match (src, self.options.texture, self.options.format) {
-            (Source::Gltf(file), TextureKind::SkinTrs, Format::Exr | Format::Png16) => {
-                mesh::declared_skinned_primitives(file)?
-            }
-            _ => Vec::new(),
-        };
         let sidecar =
             Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, &skinned)
                 .map_err(InputError::Animation)?;
@@ -589,8 +633,7 @@ impl BakeJob {
         } else {
             let what = format!("clip '{}'", clip.name);
             let extension = self.options.format.extension();
-            let sheets = self.sheets(animation, vertex);
-            let mut textures = texture_file::open(&sheets, &self.texture_options(), frames, &what, |suffix| {
+            let mut textures = texture_file::open(&out.sheets, &self.texture_options(), frames, &what, |suffix| {
                 dir.join(format!("{stem}.{file_name}{suffix}.{extension}"))
             })?;
             texture_file::stream(frames, rows, &mut textures)?;

@@ -7,6 +7,7 @@
 //! results back ([`Baked::frames`]) and [`texture`] lays them out as animation textures
 //! (local, model-space by forward kinematics, skin matrices).
 
+pub mod babylon;
 pub mod budget;
 pub mod image;
 pub mod job;

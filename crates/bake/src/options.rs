@@ -61,10 +61,11 @@ pub struct BakeOptions {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.precision, value_parser = names::<Precision>()))]
     pub precision: Precision,
     /// Texture file format: npy arrays, or 2D RGBA images engines import: exr (float, or half
-    /// with precision f16) or png16 (16-bit, each channel remapped to its range in the sidecar).
+    /// with precision f16) or png16 (16-bit, each channel remapped to its range in the sidecar);
+    /// or babylon (Babylon.js's baked vertex animation JSON, of skin textures).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.format, value_parser = names::<Format>()))]
     pub format: Format,
-    /// Largest side of an image texture in texels (exr, png16); frames that do not fit are an error.
+    /// Largest side of an image texture in texels (exr, png16, babylon); frames that do not fit are an error.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.max_texture_size, value_name = "TEXELS"))]
     pub max_texture_size: usize,
     /// One texture per input with every clip stacked along frames (`<stem>.npy`; each clip's

@@ -1,7 +1,7 @@
 //! Where a bake writes one input: its files so far (taken away if it fails), the atlas being
 //! gathered, and each clip's name in its files' names.
 use super::budget::ChosenRate;
-use super::texture_file::{TextureFile, Written};
+use super::texture_file::{SheetSpec, TextureFile, Written};
 use std::path::Path;
 
 /// Where one input's outputs go and what is written so far (taken away again if the input
@@ -18,6 +18,8 @@ pub(super) struct Outputs<'a> {
     pub(super) rows: usize,
     /// Each clip's name in its files' names ([`clip_file_names`]).
     pub(super) clip_names: Vec<String>,
+    /// The files of each clip's (or the atlas's) texture.
+    pub(super) sheets: Vec<SheetSpec>,
 }
 
 /// Each clip's name as it appears in its files' names (`Fox.Walk.npy`): letters, digits, `-`

@@ -47,7 +47,7 @@ pub struct Sidecar {
     pub channels: Vec<String>,
     /// The element type of the files (`f32`, `f16`, `u16`).
     pub precision: String,
-    /// The file format (`npy`, `exr`, `png16`).
+    /// The file format (`npy`, `exr`, `png16`, `babylon`).
     pub format: String,
     /// The files' layout in words.
     pub layout: String,
@@ -87,6 +87,9 @@ pub struct Sidecar {
     /// Vertex textures: the mesh they play and each primitive's sheets.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub vertex: Option<VertexRecord>,
+    /// `--format babylon`: how Babylon.js's `BakedVertexAnimationManager` plays the files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub babylon: Option<BabylonRecord>,
     /// The baked clips.
     pub clips: Vec<SidecarClip>,
 }
@@ -106,6 +109,22 @@ pub struct VertexRecord {
     /// The skinned primitives, in the order of their sheets.
     pub primitives: Vec<VertexPrimitive>,
 }
+
+/// How Babylon.js plays a `--format babylon` bake (DESIGN section 5f).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BabylonRecord {
+    /// Per skin, the node Babylon's glTF loader parents its meshes to, whose space at rest the
+    /// bones' matrices are in (`None`: the scene root).
+    pub mesh_parents: Vec<Option<String>>,
+    /// A clip's per-instance settings for the manager, in words.
+    pub settings: String,
+}
+
+/// [`BabylonRecord::settings`].
+const BABYLON_SETTINGS: &str = "clip k plays with Vector4(first_row, first_row + frames - 1, offset in frames, rate) as \
+    the manager's animationParameters or an instance's bakedVertexAnimationSettingsInstanced; Babylon takes the row \
+    floor(time * rate) (no blending between rows) and after the first cycle skips first_row, a loop's repeated seam row";
 
 /// One skinned primitive of a vertex texture.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -250,7 +269,8 @@ pub struct SidecarClip {
 
 impl Sidecar {
     /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
-    /// textures; `skinned`, the skinned primitives a `skin-trs` texture's shader draws.
+    /// textures; `skinned`, the skinned primitives a `skin-trs` texture's shader draws (or
+    /// that Babylon hangs from their skin's parent).
     ///
     /// # Errors
     /// A texture's numbers that its shader layout cannot hold (a clip's first row past `u32`).
@@ -283,7 +303,7 @@ impl Sidecar {
                 precision
             ),
         };
-        let image = format != Format::Npy;
+        let image = format.is_image();
         let names_of = |range: &std::ops::Range<usize>| {
             let mut slot: Vec<String> = texture.channel_names()[range.clone()].iter().map(|c| c.to_string()).collect();
             slot.resize(4, String::new());
@@ -319,6 +339,12 @@ impl Sidecar {
             _ => None,
         };
         let layout = match (image, texture) {
+            _ if format == Format::Babylon => format!(
+                "per {} and skin: Babylon.js's baked vertex animation JSON {{vertexData, width, height}}, vertexData the \
+                 base64 of f32 rows of (skin joints + 1) 4x4 column-major matrices a frame: each joint's skin matrix in \
+                 the space of its skin's mesh parent at rest (babylon.mesh_parents), then the identity",
+                if atlas { "atlas of every clip (clip rows from first_row)" } else { "clip" }
+            ),
             (true, TextureKind::Vertex) => format!(
                 "{layout}; as {format} RGBA images, .pos (positions) and .nrm (normals) per primitive, one texel per \
                  vertex (joint j = vertex, t = 0): see vertex, address and textures"
@@ -367,6 +393,13 @@ impl Sidecar {
                     inverse_bind: s.inverse_bind.clone(),
                 })
                 .collect(),
+            babylon: (format == Format::Babylon).then(|| BabylonRecord {
+                mesh_parents: super::babylon::mesh_parents(animation, skinned)
+                    .into_iter()
+                    .map(|parent| parent.map(|j| animation.joints[j].name.clone()))
+                    .collect(),
+                settings: BABYLON_SETTINGS.into(),
+            }),
             vertex: vertex.map(|(sheets, mesh_file)| VertexRecord {
                 mesh_file,
                 position: POSITION_DECODING.into(),

@@ -3,12 +3,14 @@
 //! as the next is computed (the final sync then waits for little), or an image gathered and encoded
 //! at the end ([`TextureFile`]), while the next block is computed ([`stream`]); what each input
 //! wrote, with its hash ([`Written`]).
+use super::babylon;
 use super::image::{self, Format, Grid, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use quatcurve_eval::io::{npy_header, AtomicFile, NpyElement};
+use quatcurve_eval::skeleton::Affine;
 use sha2::{Digest, Sha256};
 use std::io::Write;
 use std::path::PathBuf;
@@ -48,18 +50,23 @@ pub(super) struct SheetSpec {
     pub(super) label: String,
     pub(super) width: usize,
     pub(super) texels: Texels,
+    /// `--format babylon`: the skin matrices are written in this space
+    /// ([`babylon::from_world`] of the node Babylon hangs the mesh from).
+    pub(super) babylon: Option<Affine>,
 }
 
-/// The files of a bone texture of `kind` ([`texture::layout`]).
-pub(super) fn bone_sheets(animation: &Animation, kind: TextureKind) -> Vec<SheetSpec> {
+/// The files of a bone texture of `kind` ([`texture::layout`]); for `--format babylon`, with
+/// each skin's space (`babylon`, one per skin).
+pub(super) fn bone_sheets(animation: &Animation, kind: TextureKind, babylon: &[Affine]) -> Vec<SheetSpec> {
     texture::layout(animation, kind)
         .into_iter()
-        .map(|(suffix, width)| {
+        .enumerate()
+        .map(|(k, (suffix, width))| {
             let label = match suffix.strip_prefix('.') {
                 Some(skin) => format!("the {kind} texture of {skin}"),
                 None => format!("the {kind} texture"),
             };
-            SheetSpec { suffix, label, width, texels: Texels::Rows(kind) }
+            SheetSpec { suffix, label, width, texels: Texels::Rows(kind), babylon: babylon.get(k).copied() }
         })
         .collect()
 }
@@ -94,6 +101,8 @@ enum Content {
     Npy(NpyElement),
     /// Rows gathered for an image of `texels` on `grid`.
     Image { format: Format, texels: Texels, half: bool, grid: Grid, joints: usize, rows: Vec<f32> },
+    /// Skin matrices gathered for Babylon's JSON, written in the space `from_world`.
+    Babylon { from_world: Affine, bones: usize, rows: Vec<f32> },
 }
 
 /// How a bake's textures are written: their format, element type and largest side.
@@ -117,10 +126,19 @@ impl TextureFile {
     ) -> Result<Self, InputError> {
         let (joints, channels) = (sheet.width, sheet.texels.channels());
         let shape = [rows as u64, joints as u64, channels as u64];
+        let refuse = |e: String| InputError::Animation(format!("{what}: {e}"));
         let content = match options.format {
             Format::Npy => Content::Npy(options.precision.element()),
+            Format::Babylon => {
+                let from_world = sheet
+                    .babylon
+                    .ok_or_else(|| InputError::Internal(format!("{what}: {} has no Babylon space", sheet.label)))?;
+                if let Some(e) = babylon::too_large(joints, rows, options.max_size) {
+                    return Err(refuse(format!("{}: {e}", sheet.label)));
+                }
+                Content::Babylon { from_world, bones: joints, rows: Vec::new() }
+            }
             format => {
-                let refuse = |e: String| InputError::Animation(format!("{what}: {e}"));
                 let kind = match sheet.texels {
                     Texels::Rows(kind) => kind,
                     Texels::Positions | Texels::Normals => TextureKind::Vertex,
@@ -145,7 +163,7 @@ impl TextureFile {
         let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
         let element_bytes = match content {
             Content::Npy(element) => element.size(),
-            Content::Image { .. } => 4,
+            Content::Image { .. } | Content::Babylon { .. } => 4,
         };
         let mut texture = Self {
             file,
@@ -176,7 +194,7 @@ impl TextureFile {
                 let bytes = element.bytes(values);
                 self.write(&bytes)
             }
-            Content::Image { rows, .. } => {
+            Content::Image { rows, .. } | Content::Babylon { rows, .. } => {
                 rows.extend_from_slice(values);
                 Ok(())
             }
@@ -204,6 +222,10 @@ impl TextureFile {
         }
         let image = match std::mem::replace(&mut self.content, Content::Npy(NpyElement::F32)) {
             Content::Npy(_) => None,
+            Content::Babylon { from_world, bones, rows } => {
+                self.write(&babylon::json(&babylon::matrices(&rows, bones, &from_world), bones))?;
+                None
+            }
             Content::Image { format, texels: what, half, grid, joints, rows } => {
                 let internal = |e: String| InputError::Internal(format!("{}: {e}", path.display()));
                 let (texels, bounds) = image::encode(what, &grid, joints, &rows).map_err(internal)?;
@@ -222,7 +244,7 @@ impl TextureFile {
                     },
                     _ => {
                         return Err(InputError::Internal(format!(
-                            "{}: no encoder for {format} in this build",
+                            "{}: no image encoder for {format} in this build",
                             path.display()
                         )))
                     }

@@ -51,6 +51,7 @@ impl VertexSheets {
                 label: format!("{}'s {what}", p.name),
                 width,
                 texels,
+                babylon: None,
             };
             if !self.images {
                 out.push(sheet(suffix(k), "vertices", Texels::Rows(TextureKind::Vertex)));
