@@ -1,18 +1,21 @@
-// Opens the quatcurve-three test page (tests/browser/three/) in Debian's headless Chromium
-// (WebGL2 on SwiftShader), serving it, the package (packages/quatcurve-three/), three.js
-// (node_modules/three/) and a directory of bakes and sources (/data/) from one local origin,
-// as a user's static server would. Writes the page's result as JSON: its errors, any request
-// that left the origin (none may), and what the page measured. With --example, opens
-// examples/three/ as shipped instead, its three.js from unpkg answered from node_modules/three
-// (the version it names must be the one installed), and reports its title after a few seconds.
-// Usage: node three.mjs DATA_DIR QUERY OUT.json [--example] [--screenshot FILE.png] [--viewport WxH]
+// Opens an engine's test page (tests/browser/ENGINE/: three for the quatcurve-three package,
+// babylon for Babylon.js playing Babylon bakes) in Debian's headless Chromium (WebGL2 on
+// SwiftShader), serving it, the package (packages/quatcurve-three/), the engines
+// (node_modules/three/, node_modules/babylonjs*/) and a directory of bakes and sources
+// (/data/) from one local origin, as a user's static server would. Writes the page's result
+// as JSON: its errors, any request that left the origin (none may), and what the page
+// measured (its `window.quatcurveTest`). With --example, opens examples/ENGINE/ as shipped
+// instead, its engine's scripts from unpkg answered from node_modules (the versions it names
+// must be the ones installed), and reports its title once it sets `window.exampleReady` (or
+// after a few seconds).
+// Usage: node engines.mjs ENGINE DATA_DIR QUERY OUT.json [--example] [--screenshot FILE.png] [--viewport WxH]
 import { launch, watchedPage } from './chromium.mjs';
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
 import { extname, join, normalize, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-const [dataDir, query, out, ...rest] = process.argv.slice(2);
+const [engine, dataDir, query, out, ...rest] = process.argv.slice(2);
 const option = (name) => {
   const i = rest.indexOf(name);
   return i < 0 ? undefined : rest[i + 1] ?? true;
@@ -20,11 +23,13 @@ const option = (name) => {
 const here = fileURLToPath(new URL('.', import.meta.url));
 const repository = resolve(here, '../..');
 const roots = {
-  '/page/': join(here, 'three'),
+  '/page/': join(here, engine),
   '/pkg/': join(repository, 'packages/quatcurve-three'),
   '/packages/': join(repository, 'packages'),
   '/examples/': join(repository, 'examples'),
   '/three/': join(here, 'node_modules/three'),
+  '/babylonjs/': join(here, 'node_modules/babylonjs'),
+  '/babylonjs-loaders/': join(here, 'node_modules/babylonjs-loaders'),
   '/data/': resolve(dataDir),
 };
 const types = { '.html': 'text/html', '.js': 'text/javascript', '.json': 'application/json', '.glsl': 'text/plain' };
@@ -55,18 +60,24 @@ try {
   page.on('requestfailed', (r) => result.errors.push(`${r.url()}: ${r.failure()?.errorText}`));
   page.on('response', (r) => { if (r.status() >= 400) result.errors.push(`${r.url()}: ${r.status()}`); });
   if (option('--example')) {
-    // The example's CDN, answered from the installed three.js.
-    const cdn = `https://unpkg.com/three@${JSON.parse(await readFile(join(roots['/three/'], 'package.json'))).version}/`;
-    await page.route(`${cdn}**`, async (route) => {
-      const file = join(roots['/three/'], route.request().url().slice(cdn.length));
-      route.fulfill({ body: await readFile(file), contentType: 'text/javascript' });
+    // unpkg.com/PACKAGE@VERSION/PATH, answered from node_modules/PACKAGE when VERSION is the
+    // installed one (any other is refused, and the page errs).
+    await page.route('https://unpkg.com/**', async (route) => {
+      const [, name, version, path] = route.request().url().match(/^https:\/\/unpkg\.com\/([^@]+)@([^/]+)\/(.*)$/) ?? [];
+      const dir = join(here, 'node_modules', name ?? '');
+      const installed = name && JSON.parse(await readFile(join(dir, 'package.json')).catch(() => '{}')).version;
+      if (!name || installed !== version) {
+        result.errors.push(`${route.request().url()}: not the installed ${name}@${installed}`);
+        return route.abort();
+      }
+      route.fulfill({ body: await readFile(join(dir, path)), contentType: 'text/javascript' });
     });
-    await page.goto(`${origin}/examples/three/index.html?${query}`);
-    await page.waitForTimeout(4000);
+    await page.goto(`${origin}/examples/${engine}/index.html?${query}`);
+    await page.waitForFunction(() => window.exampleReady, null, { timeout: 60000 }).catch(() => {});
     result.title = await page.title();
   } else {
     await page.goto(`${origin}/page/index.html?${query}`);
-    result.page = await page.evaluate(() => window.quatcurveThreeTest);
+    result.page = await page.evaluate(() => window.quatcurveTest);
   }
   if (option('--screenshot')) await page.screenshot({ path: option('--screenshot') });
 } catch (e) {

@@ -16,7 +16,7 @@ const SIZE = 256;
 // The fractions of each clip's span the silhouettes are compared at.
 const FRACTIONS = [0.1, 0.35, 0.6, 0.85];
 
-window.quatcurveThreeTest = (async () => {
+window.quatcurveTest = (async () => {
   const mode = params.get('mode');
   if (mode === 'silhouette') return silhouettes();
   if (mode === 'crowd') return crowd();

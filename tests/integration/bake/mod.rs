@@ -3,6 +3,7 @@
 //! rotations; hostile files one by one ([`hostile`]) and mutated at random ([`mutations`]);
 //! sharded jobs and resume ([`shards`]).
 
+mod babylon;
 mod clients;
 mod fitted;
 mod hostile;

@@ -1,5 +1,5 @@
 //! The three.js package (`packages/quatcurve-three/`) in Debian's headless Chromium (WebGL2 on
-//! SwiftShader, driven by `tests/browser/three.mjs`), imported as its README says: one crowd
+//! SwiftShader, driven by `tests/browser/engines.mjs`), imported as its README says: one crowd
 //! instance's silhouette against three.js's own `AnimationMixer` playing the source .glb as a
 //! `SkinnedMesh`, at four times of every clip, for EXR float, EXR half and PNG16 bone textures,
 //! an atlas played per instance, and vertex textures (with normals and without); a player
@@ -14,21 +14,22 @@ use std::path::Path;
 /// Silhouettes agree when the pixels inside one but not the other are at most this fraction
 /// of the pixels inside either (the 2%: between frames the bake blends two frames
 /// where three.js interpolates the keys).
-const SILHOUETTE_TOLERANCE: f64 = 0.02;
+pub(super) const SILHOUETTE_TOLERANCE: f64 = 0.02;
 
-/// Runs the test page at `query` over `dir` (served at `/data/`); its result, with no page
-/// error and no request outside the page's origin.
-fn page(script: &Path, dir: &Path, query: &str, extra: &[&str]) -> serde_json::Value {
+/// Runs `engine`'s test page (`tests/browser/ENGINE/`) at `query` over `dir` (served at
+/// `/data/`); its result, with no page error and no request outside the page's origin.
+pub(super) fn page(script: &Path, engine: &str, dir: &Path, query: &str, extra: &[&str]) -> serde_json::Value {
     let out = tempfile::NamedTempFile::new().unwrap();
     let status = std::process::Command::new("node")
         .arg(script)
+        .arg(engine)
         .arg(dir)
         .arg(query)
         .arg(out.path())
         .args(extra)
         .status()
         .unwrap();
-    assert!(status.success(), "three.mjs failed on {query}");
+    assert!(status.success(), "engines.mjs failed on {engine} {query}");
     let result = json(out.path());
     assert_eq!(result["errors"], serde_json::json!([]), "page errors on {query}");
     assert_eq!(result["foreign"], serde_json::json!([]), "the page reached outside its origin on {query}");
@@ -36,7 +37,7 @@ fn page(script: &Path, dir: &Path, query: &str, extra: &[&str]) -> serde_json::V
 }
 
 /// `source` baked with `args` into `dir/name`, the source beside it.
-fn bake_into(dir: &Path, name: &str, source: &Path, args: &[&str]) {
+pub(super) fn bake_into(dir: &Path, name: &str, source: &Path, args: &[&str]) {
     let output = dir.join(name);
     let out = bake(&[&["--input", source.to_str().unwrap(), "--output", output.to_str().unwrap()], args].concat());
     assert!(out.status.success(), "{name}: {}", stderr(&out));
@@ -52,7 +53,7 @@ fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Opti
     if let Some(what) = broken {
         query.push_str(&format!("&break={what}"));
     }
-    let result = page(script, dir, &query, &[]);
+    let result = page(script, "three", dir, &query, &[]);
     let results = result["page"]["results"].as_array().unwrap();
     assert!(!results.is_empty(), "{bake}: nothing compared");
     results
@@ -67,7 +68,7 @@ fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Opti
 #[test]
 fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
-    let script = script.with_file_name("three.mjs");
+    let script = script.with_file_name("engines.mjs");
     let dir = tempfile::tempdir().unwrap();
     let (man, fox) = (data.join("CesiumMan.glb"), data.join("Fox.glb"));
     let skin = ["--texture", "skin-trs"];
@@ -114,7 +115,7 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     // Crowds of 100, every clip, lit and textured by the glTF's own materials.
     for (name, stem) in [("man-exr", "CesiumMan"), ("fox-atlas", "Fox"), ("fox-vertex", "Fox")] {
         let query = format!("mode=crowd&bake=/data/{name}/{stem}.json&instances=100&frames=3");
-        let result = page(&script, dir.path(), &query, &[]);
+        let result = page(&script, "three", dir.path(), &query, &[]);
         assert_eq!(result["page"]["instances"], 100, "{name}: {result}");
         // Every drawn part has the glTF's base-colour texture (a vertex bake's through the
         // baked glTF's material and UVs).
@@ -122,12 +123,12 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     }
     // A bake the package cannot play is refused naming the file and what to bake.
     bake_into(dir.path(), "man-npy", &man, &skin);
-    let result = page(&script, dir.path(), "mode=refuse&bake=/data/man-npy/CesiumMan.json", &[]);
+    let result = page(&script, "three", dir.path(), "mode=refuse&bake=/data/man-npy/CesiumMan.json", &[]);
     let refused = result["page"]["refused"].as_str().unwrap_or_default();
     assert!(refused.contains("CesiumMan.json: a skin-trs bake of npy files"), "{result}");
     assert!(refused.contains("--format exr"), "{refused}");
     // examples/three/ as shipped (its three.js from the CDN it names, answered locally).
-    let result = page(&script, dir.path(), "bake=/data/fox-atlas/Fox.json", &["--example"]);
+    let result = page(&script, "three", dir.path(), "bake=/data/fox-atlas/Fox.json", &["--example"]);
     assert_eq!(result["title"], "100 instances playing Survey, Walk, Run", "{result}");
 }
 

@@ -1,0 +1,119 @@
+//! `--format babylon` bakes in Babylon.js, in Debian's headless Chromium (WebGL2 on
+//! SwiftShader, driven by `tests/browser/engines.mjs`): Babylon's own
+//! `BakedVertexAnimationManager`, playing the bake's JSON as Babylon's own loader reads it,
+//! draws the silhouettes Babylon draws playing the source .glb, at four frames of every clip;
+//! Babylon's own `VertexAnimationBaker`, baking the same clips, gives the same matrices at the
+//! same frames; a player that ignores the time, or the space Babylon draws a skinned mesh in,
+//! fails; `examples/babylon/` plays a crowd of 100 with no page error. And what the format
+//! cannot hold is refused by name.
+
+use super::three::{bake_into, page, SILHOUETTE_TOLERANCE};
+use super::viewer::browser;
+use super::{bake, data_dir, stderr};
+use std::path::Path;
+
+/// Matrix entries agree with Babylon's baker within this (the rotation part as it is, the
+/// translation relative to the mesh's size): both are f32 slerps of the same keys composed down
+/// the same hierarchy (measured: 1.3e-6 on CesiumMan, 3.2e-7 on Fox; one frame later differs
+/// by 0.03 to 0.4).
+const MATRIX_TOLERANCE: f64 = 1e-5;
+
+/// CesiumMan one clip at a file, Fox's three clips in one atlas; slerp at 60 Hz, what
+/// Babylon plays glTF's LINEAR keys with, so that its own baker is comparable frame by frame.
+fn babylon_bakes(dir: &Path, data: &Path) -> [(&'static str, &'static str); 2] {
+    let args = ["--texture", "skin", "--format", "babylon", "--curve", "slerp", "--rate", "60", "--exact-rate"];
+    bake_into(dir, "man", &data.join("CesiumMan.glb"), &args);
+    bake_into(dir, "fox", &data.join("Fox.glb"), &[&args[..], &["--atlas"]].concat());
+    [("man/CesiumMan.json", "CesiumMan.glb"), ("fox/Fox.json", "Fox.glb")]
+}
+
+/// Silhouette mismatches (clip, time, fraction) of `bake` played by Babylon's manager against
+/// Babylon playing `source`, with `broken` broken on the played side.
+fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Option<&str>) -> Vec<(String, f64, f64)> {
+    let mut query = format!("mode=silhouette&bake=/data/{bake}&source=/data/{source}");
+    if let Some(what) = broken {
+        query.push_str(&format!("&break={what}"));
+    }
+    let result = page(script, "babylon", dir, &query, &[]);
+    let results = result["page"]["results"].as_array().unwrap();
+    assert!(!results.is_empty(), "{bake}: nothing compared");
+    results
+        .iter()
+        .map(|r| {
+            assert!(r["pixels"].as_u64().unwrap() > 1000, "{bake}: the character covers too little: {r}");
+            (r["clip"].as_str().unwrap().to_string(), r["time"].as_f64().unwrap(), r["mismatch"].as_f64().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn babylon_s_own_manager_plays_the_bake_as_babylon_plays_the_source_and_its_own_baker_agrees() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let script = script.with_file_name("engines.mjs");
+    let dir = tempfile::tempdir().unwrap();
+    for (bake, source) in babylon_bakes(dir.path(), &data) {
+        for (clip, time, mismatch) in silhouettes(&script, dir.path(), bake, source, None) {
+            eprintln!("{bake} '{clip}' at {time:.3} s: {:.2}% of the silhouette differs", 100.0 * mismatch);
+            assert!(mismatch <= SILHOUETTE_TOLERANCE, "{bake} '{clip}' at {time} s: {mismatch} of the silhouette");
+        }
+        let result =
+            page(&script, "babylon", dir.path(), &format!("mode=baker&bake=/data/{bake}&source=/data/{source}"), &[]);
+        let size = result["page"]["size"].as_f64().unwrap();
+        let clips = result["page"]["results"].as_array().unwrap();
+        assert!(!clips.is_empty(), "{bake}: Babylon's baker compared nothing: {result}");
+        for clip in clips {
+            let differs = |which: &str| {
+                let d = &clip[which];
+                d["rotation"].as_f64().unwrap().max(d["translation"].as_f64().unwrap() / size)
+            };
+            eprintln!(
+                "{bake} '{}': {} frames, Babylon's baker differs by {:.1e} (one frame later {:.1e})",
+                clip["clip"],
+                clip["frames"],
+                differs("same"),
+                differs("next")
+            );
+            assert!(differs("same") <= MATRIX_TOLERANCE, "{bake}: Babylon's baker disagrees: {clip}");
+            assert!(
+                differs("next") > 100.0 * MATRIX_TOLERANCE,
+                "{bake}: the comparison cannot tell frames apart: {clip}"
+            );
+        }
+    }
+    // A player that ignores time, or draws the skin matrices in the glTF's world rather than in
+    // the space of the node Babylon hangs the mesh from, fails the same comparison.
+    for broken in ["time", "space"] {
+        let mismatches = silhouettes(&script, dir.path(), "man/CesiumMan.json", "CesiumMan.glb", Some(broken));
+        let most = mismatches.iter().map(|m| m.2).fold(0.0, f64::max);
+        eprintln!("with the {broken} broken: up to {:.1}% of the silhouette differs", 100.0 * most);
+        assert!(most > 5.0 * SILHOUETTE_TOLERANCE, "with the {broken} broken the test still passes: {mismatches:?}");
+    }
+    // examples/babylon/ as shipped (Babylon.js from the CDN it names, answered locally).
+    let result = page(&script, "babylon", dir.path(), "bake=/data/fox/Fox.json", &["--example"]);
+    assert_eq!(result["title"], "100 instances playing Survey, Walk, Run", "{result}");
+}
+
+#[test]
+fn what_babylon_s_format_cannot_hold_is_refused_by_name() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("out");
+    let run = |input: &str, extra: &[&str]| {
+        let input = data.join(input);
+        let args =
+            [&["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--format", "babylon"], extra];
+        let out = bake(&args.concat());
+        assert_eq!(out.status.code(), Some(2), "{extra:?} was not refused");
+        stderr(&out)
+    };
+    assert!(run("CesiumMan.glb", &["--texture", "skin-trs"]).contains("bake --texture skin, not skin-trs"));
+    assert!(run("CesiumMan.glb", &["--texture", "skin", "--precision", "f16"]).contains("32-bit floats"));
+    let bvh = run("cmu_131_01.bvh", &["--texture", "skin"]);
+    assert!(bvh.contains("babylon plays a glTF skin's bones"), "{bvh}");
+    // Babylon never wraps rows: a texture wider or taller than a side is refused, naming it.
+    let wide = run("CesiumMan.glb", &["--texture", "skin", "--max-texture-size", "64"]);
+    assert!(wide.contains("80 texels wide ((bones + 1) * 4), over a side of 64"), "{wide}");
+    let tall = run("CesiumMan.glb", &["--texture", "skin", "--max-texture-size", "100", "--rate", "60"]);
+    assert!(tall.contains("rows tall (one per frame, never wrapped), over a side of 100"), "{tall}");
+    assert!(!output.exists() || std::fs::read_dir(&output).unwrap().next().is_none(), "a refused bake wrote files");
+}
