@@ -95,8 +95,8 @@ impl BakeJob {
             return Err(FileJobError::option(
                 "format",
                 format!(
-                    "babylon holds a skin's bone matrices as Babylon.js's VertexAnimationBaker does; bake --texture skin, \
-                     not {}",
+                    "babylon holds a skin's bone matrices as Babylon.js's VertexAnimationBaker does; bake a skin texture, \
+                     not a {} one",
                     self.options.texture
                 ),
             ));

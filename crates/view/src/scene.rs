@@ -45,7 +45,7 @@ pub enum Playback {
 impl Playback {
     /// How a bake of `texture` in `format` plays, or why it cannot.
     fn of(texture: &str, format: &str) -> Result<Self, String> {
-        if !matches!(format.parse::<Format>(), Ok(Format::Exr | Format::Png16)) {
+        if !format.parse::<Format>().is_ok_and(Format::is_image) {
             return Err(format!("its textures are {format}; the page samples images: bake exr or png16 textures"));
         }
         match texture.parse::<TextureKind>() {
