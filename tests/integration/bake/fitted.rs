@@ -272,7 +272,7 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     }
     // Truncated, or not a container at all: exit 2, the field named.
     for (name, cut, field) in [
-        ("cut.qcf", bytes.len() - 3, "clip 0 length: "),
+        ("cut.qcf", bytes.len() - 3, "checksum: the bytes before it hash to "),
         ("header.qcf", 9, "byte 9: version: truncated: 1 bytes needed, 0 left"),
     ] {
         let path = dir.path().join(name);

@@ -28,7 +28,7 @@ enum Kind {
     Tracks,
     /// A `.npy` of rotations `[tracks, keys, 4]` (`eval --input`).
     Npy,
-    /// A fitted container (`quatcurve fit`).
+    /// A fitted container (`quatcurve fit`), resealed after the mutation ([`attempt`]).
     Container,
 }
 
@@ -280,7 +280,11 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Container => {
-            let container = quatcurve::anim::qcf::Container::from_bytes(bytes)?;
+            // Its checksum made right again, so that the mutant reaches the fields behind it
+            // (the checksum's own refusals are the container's unit tests').
+            let mut bytes = bytes.to_vec();
+            quatcurve::anim::qcf::reseal(&mut bytes);
+            let container = quatcurve::anim::qcf::Container::from_bytes(&bytes)?;
             let animation = container.animation();
             if animation.clips.is_empty() {
                 return Ok(Reached::Skipped("no clip"));

@@ -1,5 +1,6 @@
 //! The fitted-clip container (`.qcf`, DESIGN section 10): a skeleton, the BVH hierarchy it came
-//! from when it did, and fitted clips, as versioned little-endian binary. Every count is
+//! from when it did, and fitted clips, as versioned little-endian binary ending in a checksum,
+//! so that a damaged file is refused rather than decoded into other motion. Every count is
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
 //! is an error naming it and its byte offset.
 
@@ -19,7 +20,13 @@ use timeline::{Timeline, BETWEEN_POINTS};
 pub const MAGIC: [u8; 8] = *b"QCURVFIT";
 
 /// The layout this code writes and reads.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
+
+/// Bytes of the checksum that ends a container: CRC-32 (zlib's) of every byte before it.
+pub const CHECKSUM_BYTES: usize = 4;
+
+/// Bytes before the checksum is read: the magic and the version.
+const HEADER_BYTES: usize = MAGIC.len() + 2;
 
 /// The file extension.
 pub const EXTENSION: &str = "qcf";
@@ -104,6 +111,8 @@ impl Container {
             out.count(section.len());
             out.bytes(&section);
         }
+        out.bytes(&[0; CHECKSUM_BYTES]);
+        reseal(&mut out.bytes);
         out.bytes
     }
 
@@ -129,6 +138,23 @@ impl Container {
                 format!("{version}; this quatcurve reads version {VERSION} (fit the source again)"),
             ));
         }
+        let Some(body) = bytes.len().checked_sub(CHECKSUM_BYTES).filter(|&body| body >= r.at) else {
+            return Err(
+                r.bad("checksum", format!("truncated: {CHECKSUM_BYTES} bytes needed, {} left", bytes.len() - r.at))
+            );
+        };
+        let (said, computed) = (checksum_at(bytes, body), crc32fast::hash(&bytes[..body]));
+        if said != computed {
+            return Err(r.bad_at(
+                body,
+                "checksum",
+                format!(
+                    "the bytes before it hash to {computed:08x}, the container says {said:08x}: it was damaged or \
+                     changed after it was written"
+                ),
+            ));
+        }
+        let mut r = Reader { bytes: &bytes[..body], at: r.at };
         r.expect("order", ORDER)?;
         r.expect("points between keys", BETWEEN_POINTS)?;
         // A joint takes at least a name length, a parent and 10 f64.
@@ -183,11 +209,28 @@ impl Container {
             }
             clips.push(clip);
         }
-        if r.at != bytes.len() {
-            return Err(r.bad("end", format!("{} bytes after the last clip", bytes.len() - r.at)));
+        if r.at != r.bytes.len() {
+            return Err(r.bad("end", format!("{} bytes after the last clip", r.bytes.len() - r.at)));
         }
         Ok(Container { joints, bvh, clips })
     }
+}
+
+/// Writes the checksum of a container's `bytes` again over its last [`CHECKSUM_BYTES`], for
+/// tests and fuzzing that change a container's fields on purpose and want the reader to reach
+/// them. Too short to hold a header and a checksum: left as it is.
+pub fn reseal(bytes: &mut [u8]) {
+    if let Some(body) = bytes.len().checked_sub(CHECKSUM_BYTES).filter(|&body| body >= HEADER_BYTES) {
+        let hash = crc32fast::hash(&bytes[..body]);
+        bytes[body..].copy_from_slice(&hash.to_le_bytes());
+    }
+}
+
+/// The checksum a container says it has, in its last [`CHECKSUM_BYTES`] from `body`.
+fn checksum_at(bytes: &[u8], body: usize) -> u32 {
+    let mut said = [0; CHECKSUM_BYTES];
+    said.copy_from_slice(&bytes[body..]);
+    u32::from_le_bytes(said)
 }
 
 /// A clip's bytes in the container: what compression is counted in.
@@ -888,17 +931,53 @@ mod tests {
     }
 
     #[test]
+    fn every_random_change_of_a_container_is_refused() {
+        let bytes = container().to_bytes();
+        // xorshift64: the same 300 changes every run.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |below: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % below as u64) as usize
+        };
+        let mut by_field = std::collections::BTreeMap::<String, usize>::new();
+        for _ in 0..300 {
+            let mut changed = bytes.clone();
+            let at = next(changed.len());
+            match next(4) {
+                0 => changed[at] ^= 1 << next(8),
+                1 => changed[at] = changed[at].wrapping_add(1 + next(255) as u8),
+                2 => drop(changed.drain(at..(at + 1 + next(16)).min(bytes.len()))),
+                _ => changed.splice(at..at, (0..1 + next(16)).map(|_| next(256) as u8)).for_each(drop),
+            }
+            let e = Container::from_bytes(&changed).expect_err("a changed container was read");
+            *by_field.entry(e.field).or_default() += 1;
+        }
+        eprintln!("300 random changes refused by field: {by_field:?}");
+        // Everything past the header is caught by the checksum.
+        assert!(by_field["checksum"] >= 280, "{by_field:?}");
+    }
+
+    #[test]
     fn every_truncation_and_bad_field_is_named() {
         let bytes = container().to_bytes();
         for cut in 0..bytes.len() {
             let e = Container::from_bytes(&bytes[..cut]).unwrap_err();
-            assert!(e.reason.contains("truncated") || e.reason.contains("cannot fit"), "cut at {cut}: {e}");
+            assert!(e.reason.contains("truncated") || e.field == "checksum", "cut at {cut}: {e}");
+            // With the checksum made right again, the fields say what is missing.
+            let mut resealed = bytes[..cut].to_vec();
+            reseal(&mut resealed);
+            let e = Container::from_bytes(&resealed).unwrap_err();
+            assert!(e.reason.contains("truncated") || e.reason.contains("cannot fit"), "cut at {cut}, resealed: {e}");
         }
         let mut longer = bytes.clone();
-        longer.push(0);
+        longer.insert(bytes.len() - CHECKSUM_BYTES, 0);
+        assert!(Container::from_bytes(&longer).unwrap_err().to_string().contains(": checksum: the bytes before it"));
+        reseal(&mut longer);
         assert_eq!(
             Container::from_bytes(&longer).unwrap_err().to_string(),
-            format!("byte {}: end: 1 bytes after the last clip", bytes.len())
+            format!("byte {}: end: 1 bytes after the last clip", bytes.len() - CHECKSUM_BYTES)
         );
         let mut magic = bytes.clone();
         magic[0] = b'X';
@@ -907,7 +986,7 @@ mod tests {
         version[8] = 9;
         assert_eq!(
             Container::from_bytes(&version).unwrap_err().to_string(),
-            "byte 8: version: 9; this quatcurve reads version 2 (fit the source again)"
+            "byte 8: version: 9; this quatcurve reads version 3 (fit the source again)"
         );
         // Knots a fit never makes: outside the samples, or more than ORDER - 1 at one; keys
         // outside the keys, or one kept twice.
@@ -937,6 +1016,7 @@ mod tests {
         let mut parent = bytes;
         // Joint 0's name "root" (length byte at 13, text 14..18) and then its parent.
         parent[18] = 1;
+        reseal(&mut parent);
         assert_eq!(
             Container::from_bytes(&parent).unwrap_err().to_string(),
             "byte 18: joint 0 parent: 0 is not another of the 3 joints"
