@@ -274,12 +274,12 @@ fn rotation_steps(
         for x in 0..3 {
             rhs[3 * i + x] = (0..3).map(|k| to_control[k][x] * world[i][k]).sum();
         }
-        for d in 0..ORDER.min(i + 1) {
+        for (d, &sum) in gram[i].iter().enumerate().take(i + 1) {
             let j = i - d;
             let block = (controls[i].conjugate() * controls[j]).to_mat3();
             for (x, row) in block.iter().enumerate() {
                 for (y, &value) in row.iter().enumerate().filter(|&(y, _)| d > 0 || y <= x) {
-                    normal.add(3 * i + x, 3 * j + y, gram[i][d] * value);
+                    normal.add(3 * i + x, 3 * j + y, sum * value);
                 }
             }
         }
