@@ -13,6 +13,7 @@ use quatcurve_anim::source::extension;
 use quatcurve_anim::{bvh, gltf};
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -158,13 +159,16 @@ impl FitReport {
 }
 
 impl FitJob {
-    /// Fits every input, each clip on every core, writing each container atomically.
+    /// Fits every input, the inputs side by side and each clip on every core (a clip's fit
+    /// leaves cores idle between its passes, which the next input takes), writing each container
+    /// atomically; the report lists the inputs in the order given, `progress` hears each clip as
+    /// it finishes.
     ///
     /// # Errors
     /// What is wrong before any input is read: a length that is not positive, a BVH input
     /// without [`FitOptions::unit_cm`], an input of another format, an output directory that
     /// takes no file, two inputs with one stem, a container that would replace its input.
-    pub fn run(&self, progress: &dyn Fn(&str, &ClipReport)) -> Result<FitReport, FileJobError> {
+    pub fn run(&self, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> Result<FitReport, FileJobError> {
         for (option, value) in [
             ("max_error", Some(self.options.max_error)),
             ("between_error", self.options.between_error),
@@ -212,7 +216,7 @@ impl FitJob {
                 return Err(FileJobError::Job(format!("{e} (nothing was fitted)")));
             }
         }
-        let inputs = inputs.iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();
+        let inputs = inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();
         Ok(FitReport {
             max_error_cm: self.options.max_error,
             between_error_cm: self.options.between_error,
@@ -244,7 +248,7 @@ impl FitJob {
         )
     }
 
-    fn fit_one(&self, input: &Path, stem: &str, progress: &dyn Fn(&str, &ClipReport)) -> InputFit {
+    fn fit_one(&self, input: &Path, stem: &str, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> InputFit {
         let name = input.display().to_string();
         let bvh = extension(input).as_deref() == Some("bvh");
         let unit_cm = self.options.unit_cm.unwrap_or(GLTF_UNIT_CM);
