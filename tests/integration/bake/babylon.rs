@@ -7,7 +7,7 @@
 //! fails; `examples/babylon/` plays a crowd of 100 with no page error. And what the format
 //! cannot hold is refused by name.
 
-use super::three::{bake_into, page, SILHOUETTE_TOLERANCE};
+use super::three::{bake_into, page, silhouettes, SILHOUETTE_TOLERANCE};
 use super::viewer::browser;
 use super::{bake, data_dir, stderr};
 use std::path::Path;
@@ -27,32 +27,13 @@ fn babylon_bakes(dir: &Path, data: &Path) -> [(&'static str, &'static str); 2] {
     [("man/CesiumMan.json", "CesiumMan.glb"), ("fox/Fox.json", "Fox.glb")]
 }
 
-/// Silhouette mismatches (clip, time, fraction) of `bake` played by Babylon's manager against
-/// Babylon playing `source`, with `broken` broken on the played side.
-fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Option<&str>) -> Vec<(String, f64, f64)> {
-    let mut query = format!("mode=silhouette&bake=/data/{bake}&source=/data/{source}");
-    if let Some(what) = broken {
-        query.push_str(&format!("&break={what}"));
-    }
-    let result = page(script, "babylon", dir, &query, &[]);
-    let results = result["page"]["results"].as_array().unwrap();
-    assert!(!results.is_empty(), "{bake}: nothing compared");
-    results
-        .iter()
-        .map(|r| {
-            assert!(r["pixels"].as_u64().unwrap() > 1000, "{bake}: the character covers too little: {r}");
-            (r["clip"].as_str().unwrap().to_string(), r["time"].as_f64().unwrap(), r["mismatch"].as_f64().unwrap())
-        })
-        .collect()
-}
-
 #[test]
 fn babylon_s_own_manager_plays_the_bake_as_babylon_plays_the_source_and_its_own_baker_agrees() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
     let script = script.with_file_name("engines.mjs");
     let dir = tempfile::tempdir().unwrap();
     for (bake, source) in babylon_bakes(dir.path(), &data) {
-        for (clip, time, mismatch) in silhouettes(&script, dir.path(), bake, source, None) {
+        for (clip, time, mismatch) in silhouettes(&script, "babylon", dir.path(), bake, source, None) {
             eprintln!("{bake} '{clip}' at {time:.3} s: {:.2}% of the silhouette differs", 100.0 * mismatch);
             assert!(mismatch <= SILHOUETTE_TOLERANCE, "{bake} '{clip}' at {time} s: {mismatch} of the silhouette");
         }
@@ -83,7 +64,8 @@ fn babylon_s_own_manager_plays_the_bake_as_babylon_plays_the_source_and_its_own_
     // A player that ignores time, or draws the skin matrices in the glTF's world rather than in
     // the space of the node Babylon hangs the mesh from, fails the same comparison.
     for broken in ["time", "space"] {
-        let mismatches = silhouettes(&script, dir.path(), "man/CesiumMan.json", "CesiumMan.glb", Some(broken));
+        let mismatches =
+            silhouettes(&script, "babylon", dir.path(), "man/CesiumMan.json", "CesiumMan.glb", Some(broken));
         let most = mismatches.iter().map(|m| m.2).fold(0.0, f64::max);
         eprintln!("with the {broken} broken: up to {:.1}% of the silhouette differs", 100.0 * most);
         assert!(most > 5.0 * SILHOUETTE_TOLERANCE, "with the {broken} broken the test still passes: {mismatches:?}");

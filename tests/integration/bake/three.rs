@@ -47,13 +47,21 @@ pub(super) fn bake_into(dir: &Path, name: &str, source: &Path, args: &[&str]) {
     }
 }
 
-/// The silhouettes of `bake`'s clips against `source`'s: (clip, time, mismatch) each.
-fn silhouettes(script: &Path, dir: &Path, bake: &str, source: &str, broken: Option<&str>) -> Vec<(String, f64, f64)> {
+/// The silhouettes of `bake`'s clips against `source`'s on `engine`'s test page, with `broken`
+/// broken on the played side: (clip, time, mismatch) each.
+pub(super) fn silhouettes(
+    script: &Path,
+    engine: &str,
+    dir: &Path,
+    bake: &str,
+    source: &str,
+    broken: Option<&str>,
+) -> Vec<(String, f64, f64)> {
     let mut query = format!("mode=silhouette&bake=/data/{bake}&source=/data/{source}");
     if let Some(what) = broken {
         query.push_str(&format!("&break={what}"));
     }
-    let result = page(script, "three", dir, &query, &[]);
+    let result = page(script, engine, dir, &query, &[]);
     let results = result["page"]["results"].as_array().unwrap();
     assert!(!results.is_empty(), "{bake}: nothing compared");
     results
@@ -98,7 +106,9 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     for (name, source, _) in &bakes {
         let stem = source.file_stem().unwrap().to_str().unwrap();
         let file = source.file_name().unwrap().to_str().unwrap();
-        for (clip, time, mismatch) in silhouettes(&script, dir.path(), &format!("{name}/{stem}.json"), file, None) {
+        for (clip, time, mismatch) in
+            silhouettes(&script, "three", dir.path(), &format!("{name}/{stem}.json"), file, None)
+        {
             eprintln!("{name} '{clip}' at {time:.3} s: {:.2}% of the silhouette differs", 100.0 * mismatch);
             assert!(mismatch <= SILHOUETTE_TOLERANCE, "{name} '{clip}' at {time} s: {mismatch} of the silhouette");
             worst = worst.max(mismatch);
@@ -107,7 +117,8 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     eprintln!("worst {:.2}% of a silhouette", 100.0 * worst);
     // The same comparison fails for a player that reads the rows bottom-up, or ignores time.
     for broken in ["rows", "time"] {
-        let mismatches = silhouettes(&script, dir.path(), "man-exr/CesiumMan.json", "CesiumMan.glb", Some(broken));
+        let mismatches =
+            silhouettes(&script, "three", dir.path(), "man-exr/CesiumMan.json", "CesiumMan.glb", Some(broken));
         let most = mismatches.iter().map(|m| m.2).fold(0.0, f64::max);
         eprintln!("with the {broken} broken: up to {:.1}% of the silhouette differs", 100.0 * most);
         assert!(most > 5.0 * SILHOUETTE_TOLERANCE, "with the {broken} broken the test still passes: {mismatches:?}");
