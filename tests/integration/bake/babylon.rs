@@ -49,7 +49,7 @@ fn babylon_s_own_manager_plays_the_bake_as_babylon_plays_the_source_and_its_own_
             };
             eprintln!(
                 "{bake} '{}': {} frames, Babylon's baker differs by {:.1e} (one frame later {:.1e})",
-                clip["clip"],
+                clip["clip"].as_str().unwrap_or_default(),
                 clip["frames"],
                 differs("same"),
                 differs("next")
