@@ -139,10 +139,7 @@ fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample 
             // On the stack: every sample of every B-spline track comes here.
             let mut basis = [[0.0; 3]; MAX_ORDER - 1];
             bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
-            let first = l + 2 - k;
-            let factors =
-                basis[..k - 1].iter().enumerate().map(|(j, &b)| Factor { v: coef_vec(coefs[first + j - 1]), b });
-            product::<DERIVATIVES>(points[l + 1 - k], factors)
+            bspline_product::<DERIVATIVES>(view, l, &basis[..k - 1])
         }
         Curve::Squad => {
             let (i, t, len) = key_segment(knots, t);
@@ -153,6 +150,24 @@ fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample 
             sample_from_jets(nam_kim(view, i, (Jet::variable(t) - Jet::cst(knots[i])).scale(1.0 / len)))
         }
     }
+}
+
+/// A B-spline track on span `l` with the cumulative basis `basis` there
+/// (`B~_{l-k+2..=l}` and their derivatives, as `bspline_cumulative_into` gives them): KKS's
+/// product from the span's first control point.
+fn bspline_product<const DERIVATIVES: bool>(view: TrackView<'_>, l: usize, basis: &[BasisJet]) -> Sample {
+    let k = view.track.order();
+    let first = l + 2 - k;
+    let factors = basis.iter().enumerate().map(|(j, &b)| Factor { v: coef_vec(view.coefs[first + j - 1]), b });
+    product::<DERIVATIVES>(view.points[l + 1 - k], factors)
+}
+
+/// The rotation of a B-spline track at a time whose span `l` (as `locate` finds it) and
+/// cumulative basis there (`B~_{l-k+2..=l}`, derivatives not read) the caller already has: a
+/// fit evaluating one knot vector at the same times step after step computes them once.
+#[must_use]
+pub fn bspline_rotation_at(view: TrackView<'_>, l: usize, basis: &[BasisJet]) -> QuatF64 {
+    bspline_product::<false>(view, l, basis).rotation
 }
 
 /// The rotation alone at time `t`: as [`evaluate`], but no derivatives: the KKS families skip

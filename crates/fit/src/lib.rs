@@ -18,7 +18,7 @@ pub mod job;
 
 use banded::Banded;
 use quatcurve_anim::qcf::fitted::{clamped, Fit, ORDER};
-use quatcurve_core::basis::bspline_cumulative;
+use quatcurve_core::basis::{bspline_cumulative, BasisJet};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_core::segment::locate;
 
@@ -28,15 +28,32 @@ const STEPS: usize = 60;
 /// Damping values tried (each ten times the last) before a step is given up.
 const DAMPING_TRIES: usize = 8;
 
-/// Per sample time, the first control point it depends on and the [`ORDER`] basis values
-/// `B_i(t)` from there, derived from the cumulative basis (`B_i = B~_i - B~_{i+1}`).
-fn collocation(knots: &[f64], times: &[f64]) -> Vec<(usize, [f64; ORDER])> {
+/// A sample's span `l` and the cumulative basis there ([`spans`]).
+type Span = (usize, Vec<BasisJet>);
+
+/// A sample's first control point and the [`ORDER`] basis values from there ([`collocation`]).
+type Row = (usize, [f64; ORDER]);
+
+/// Per sample time, its span `l` ([`locate`]) and the cumulative basis there
+/// (`B~_{l-k+2..=l}`, [`bspline_cumulative`]): what the reference evaluator computes for each
+/// time, computed once per knot vector.
+fn spans(knots: &[f64], times: &[f64]) -> Vec<Span> {
     let last = knots.len() - ORDER - 1;
     times
         .iter()
         .map(|&t| {
             let (l, t) = locate(knots, ORDER - 1, last, t);
-            let cumulative = bspline_cumulative(knots, ORDER, l, t);
+            (l, bspline_cumulative(knots, ORDER, l, t))
+        })
+        .collect()
+}
+
+/// Per sample time, the first control point it depends on and the [`ORDER`] basis values
+/// `B_i(t)` from there, derived from the cumulative basis of its span (`B_i = B~_i - B~_{i+1}`).
+fn collocation(spans: &[Span]) -> Vec<Row> {
+    spans
+        .iter()
+        .map(|(l, cumulative)| {
             // cumulative[m] is B~_{l-k+2+m}; B~ is 1 below that window and 0 above it.
             let at = |m: usize| {
                 if m == 0 {
@@ -53,12 +70,7 @@ fn collocation(knots: &[f64], times: &[f64]) -> Vec<(usize, [f64; ORDER])> {
 }
 
 /// The least-squares control point offsets for `residuals` on the basis `rows`, `n` controls.
-fn least_squares(
-    rows: &[(usize, [f64; ORDER])],
-    weights: &[f64],
-    residuals: &[[f64; 3]],
-    n: usize,
-) -> Option<Vec<[f64; 3]>> {
+fn least_squares(rows: &[Row], weights: &[f64], residuals: &[[f64; 3]], n: usize) -> Option<Vec<[f64; 3]>> {
     let mut normal = Banded::zeros(n, ORDER);
     let mut rhs = vec![[0.0; 3]; n];
     for (((first, b), r), &w) in rows.iter().zip(residuals).zip(weights) {
@@ -160,7 +172,7 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
     loop {
         let knots = clamped(ORDER, start, end, &interior);
         let n = knots.len() - ORDER;
-        let rows = collocation(&knots, times);
+        let rows = collocation(&spans(&knots, times));
         let controls =
             least_squares(&rows, &weights, values, n).expect("a ridge-regularized normal matrix is definite");
         let mut fit = Fit { knots, controls, worst: 0.0, worst_at: 0 };
@@ -197,7 +209,8 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -
     let mut interior = Vec::new();
     loop {
         let knots = clamped(ORDER, start, end, &interior);
-        let rows = collocation(&knots, times);
+        let spans = spans(&knots, times);
+        let rows = collocation(&spans);
         // First guess: each control point at its Greville abscissa, on the last fit (or the
         // samples, slerped).
         let greville: Vec<f64> =
@@ -207,7 +220,7 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -
             None => greville.iter().map(|&t| sampled(times, &samples, t)).collect(),
         };
         let start_fit = Fit { knots, controls, worst: f64::INFINITY, worst_at: 0 };
-        let (current, errors) = refine(start_fit, times, &samples, &rows, &weights);
+        let (current, errors) = refine(start_fit, times, &samples, &spans, &rows, &weights);
         let new = splits(&current.knots, times, &errors, tolerances);
         let done = new.is_empty();
         interior = merged(&interior, &new);
@@ -243,7 +256,7 @@ pub(crate) fn bracket(times: &[f64], t: f64) -> (usize, f64) {
 /// vector per control point are gathered (the per-sample blocks cost the fit a third of its
 /// time).
 fn rotation_steps(
-    rows: &[(usize, [f64; ORDER])],
+    rows: &[Row],
     curve: &[QuatF64],
     controls: &[QuatF64],
     weights: &[f64],
@@ -295,16 +308,19 @@ fn rotation_steps(
 
 /// Levenberg-Marquardt steps on the control points of `fit` (the sum of squared residual
 /// angles falls at every step kept; damping, a multiple of the normal matrix's mean diagonal,
-/// grows until a step helps); its worst sample, and every sample's angle to the curve.
+/// grows until a step helps); its worst sample, and every sample's angle to the curve, measured
+/// by the reference evaluator at `times`. The steps evaluate the curve at the samples' `spans`
+/// (their basis computed once), `rows` their collocation.
 fn refine(
     mut fit: Fit<QuatF64>,
     times: &[f64],
     samples: &[QuatF64],
-    rows: &[(usize, [f64; ORDER])],
+    spans: &[Span],
+    rows: &[Row],
     weights: &[f64],
 ) -> (Fit<QuatF64>, Vec<f64>) {
     let residuals_of = |controls: &Fit<QuatF64>| -> (Vec<QuatF64>, Vec<[f64; 3]>, f64) {
-        let curve = controls.evaluate(times).expect("a fitted curve evaluates");
+        let curve = controls.evaluate_spans(spans).expect("a fitted curve evaluates");
         // Body-frame residuals, in the exp/log convention of the controls' update.
         let residuals: Vec<[f64; 3]> =
             curve.iter().zip(samples).map(|(q, s)| (q.conjugate() * *s).log().to_array()).collect();
@@ -337,6 +353,7 @@ fn refine(
             break;
         }
     }
+    let curve = fit.evaluate(times).expect("a fitted curve evaluates");
     let errors: Vec<f64> = curve.iter().zip(samples).map(|(q, s)| q.angle_to(*s)).collect();
     (fit.worst_at, fit.worst) = worst(&errors);
     (fit, errors)
@@ -354,7 +371,7 @@ mod tests {
     /// the oracle of its per-control-point assembly.
     #[allow(clippy::type_complexity)]
     fn rotation_steps_per_sample(
-        rows: &[(usize, [f64; ORDER])],
+        rows: &[Row],
         curve: &[QuatF64],
         controls: &[QuatF64],
         weights: &[f64],
@@ -401,7 +418,7 @@ mod tests {
     fn the_steps_gathered_per_control_point_are_the_per_sample_normal_equations() {
         let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.45, 0.5, 0.8]);
         let times: Vec<f64> = (0..=50).map(|j| j as f64 / 50.0).collect();
-        let rows = collocation(&knots, &times);
+        let rows = collocation(&spans(&knots, &times));
         let controls: Vec<QuatF64> = (0..knots.len() - ORDER).map(|i| rotation(0.7 * i as f64)).collect();
         let fit = Fit { knots: knots.clone(), controls: controls.clone(), worst: 0.0, worst_at: 0 };
         let curve = fit.evaluate(&times).unwrap();
@@ -418,9 +435,18 @@ mod tests {
     }
 
     #[test]
+    fn a_curve_evaluated_at_its_spans_is_the_reference_evaluators_to_the_bit() {
+        let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.5, 0.5, 0.8]);
+        let controls: Vec<QuatF64> = (0..knots.len() - ORDER).map(|i| rotation(0.9 * i as f64)).collect();
+        let fit = Fit { knots: knots.clone(), controls, worst: 0.0, worst_at: 0 };
+        let times: Vec<f64> = (0..=100).map(|j| j as f64 / 100.0).collect();
+        assert_eq!(fit.evaluate_spans(&spans(&knots, &times)).unwrap(), fit.evaluate(&times).unwrap());
+    }
+
+    #[test]
     fn the_collocation_rows_are_a_partition_of_unity_on_their_controls() {
         let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.55]);
-        for (first, b) in collocation(&knots, &[0.0, 0.1, 0.2, 0.51, 0.99, 1.0]) {
+        for (first, b) in collocation(&spans(&knots, &[0.0, 0.1, 0.2, 0.51, 0.99, 1.0])) {
             assert!(first + ORDER <= knots.len() - ORDER);
             assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-12 && b.iter().all(|&v| v >= -1e-15), "{b:?}");
         }

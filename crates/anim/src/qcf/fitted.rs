@@ -5,6 +5,7 @@
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
 use crate::{Channel, ChannelCurve, Clip, Joint, Property};
+use quatcurve_core::basis::BasisJet;
 use quatcurve_core::curve::CurveSpec;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::batch::BatchBuilder;
@@ -80,6 +81,24 @@ impl Fit<QuatF64> {
         builder.add(&track, &spec)?;
         let batch = builder.build()?;
         Ok(times.iter().map(|&t| quatcurve_eval::reference::evaluate_rotation(batch.view(0), t)).collect())
+    }
+
+    /// The curve at times given by their spans and cumulative basis values
+    /// ([`quatcurve_eval::reference::bspline_rotation_at`]): [`Self::evaluate`] without
+    /// locating each time and computing its basis again, for a fit that evaluates one knot
+    /// vector at the same times step after step.
+    ///
+    /// # Errors
+    /// As [`Self::evaluate`].
+    pub fn evaluate_spans(&self, spans: &[(usize, Vec<BasisJet>)]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
+        let (track, spec) = self.track();
+        let mut builder = BatchBuilder::new();
+        builder.add(&track, &spec)?;
+        let batch = builder.build()?;
+        Ok(spans
+            .iter()
+            .map(|(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, basis))
+            .collect())
     }
 }
 
