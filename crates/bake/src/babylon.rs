@@ -11,6 +11,7 @@
 //! inverseBindMatrix(joint)`. The node at rest is what the mesh hangs from while the manager
 //! plays (the glTF's animation groups stopped), so its animation, if any, is in the bones.
 
+use quatcurve_anim::gltf::IDENTITY_3X4 as IDENTITY;
 use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::{Animation, Skin};
 use quatcurve_eval::skeleton::{compose, inverse, trs, Affine};
@@ -79,8 +80,6 @@ pub fn from_world(animation: &Animation, node: Option<usize>) -> Result<Affine, 
         )
     })
 }
-
-const IDENTITY: Affine = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
 
 /// Babylon's floats of `rows` (frame-major 3x4 row-major skin matrices of `bones` bones):
 /// per frame `(bones + 1) * 16`, each bone's `from_world * skin` column-major, then identity.
