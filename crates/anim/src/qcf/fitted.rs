@@ -71,15 +71,20 @@ impl Fit<QuatF64> {
         (track, spline_spec(self.order()))
     }
 
+    /// The curve packed as the decoders read it: a batch of its one track.
+    fn batch(&self) -> quatcurve_eval::error::Result<quatcurve_eval::batch::Batch> {
+        let (track, spec) = self.track();
+        let mut builder = BatchBuilder::new();
+        builder.add(&track, &spec)?;
+        builder.build()
+    }
+
     /// The curve at `times`, by the reference evaluator.
     ///
     /// # Errors
     /// The batch builder's, for a knot vector it refuses (a fit never makes one).
     pub fn evaluate(&self, times: &[f64]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
-        let (track, spec) = self.track();
-        let mut builder = BatchBuilder::new();
-        builder.add(&track, &spec)?;
-        let batch = builder.build()?;
+        let batch = self.batch()?;
         Ok(times.iter().map(|&t| quatcurve_eval::reference::evaluate_rotation(batch.view(0), t)).collect())
     }
 
@@ -91,10 +96,7 @@ impl Fit<QuatF64> {
     /// # Errors
     /// As [`Self::evaluate`].
     pub fn evaluate_spans(&self, spans: &[(usize, Vec<BasisJet>)]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
-        let (track, spec) = self.track();
-        let mut builder = BatchBuilder::new();
-        builder.add(&track, &spec)?;
-        let batch = builder.build()?;
+        let batch = self.batch()?;
         Ok(spans
             .iter()
             .map(|(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, basis))
