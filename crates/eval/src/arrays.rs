@@ -8,7 +8,7 @@
 
 use crate::track::Track;
 use npyz::{DType, NpyFile, TypeChar};
-use std::io::Read;
+use std::io::{Cursor, Read};
 use std::path::Path;
 
 /// Why arrays could not be read as tracks: the file, the array and the rule broken.
@@ -27,10 +27,82 @@ pub struct ArrayError {
 /// small archive cannot claim gigabytes.
 const MAX_EXPANSION: u64 = 1100;
 
+/// The most bytes an archive member of `size` bytes as its entry claims, stored in
+/// `compressed` bytes, may be read as: what deflate can expand that to, and never more.
+#[must_use]
+pub fn member_budget(size: u64, compressed: u64) -> u64 {
+    size.min(compressed.saturating_mul(MAX_EXPANSION).saturating_add(1 << 20))
+}
+
 /// A float array: shape and values in C order.
-struct Floats {
-    shape: Vec<u64>,
-    data: Vec<f64>,
+#[derive(Clone, Debug, PartialEq)]
+pub struct Floats {
+    /// The array's shape.
+    pub shape: Vec<u64>,
+    /// Its values, widened to f64.
+    pub data: Vec<f64>,
+}
+
+/// The most header bytes a `.npy` may announce (numpy writes under 100; its own reader takes
+/// at most 10,000 unless told otherwise).
+const MAX_HEADER: usize = 1 << 16;
+
+/// A `.npy` array from `reader`, its header read here first: a shape whose element count
+/// overflows is refused before npyz multiplies it out (npyz's product overflows; found by
+/// the mutation tests).
+///
+/// # Errors
+/// A short or oversized header, an overflowing shape, or npyz's own refusals.
+pub fn open_npy<R: Read>(mut reader: R) -> std::io::Result<NpyFile<std::io::Chain<Cursor<Vec<u8>>, R>>> {
+    let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidData, m);
+    // Magic (6 bytes), version (2), header length (2 bytes in version 1, 4 after).
+    let mut head = vec![0u8; 10];
+    reader.read_exact(&mut head)?;
+    let length = if head[6] == 1 {
+        usize::from(u16::from_le_bytes([head[8], head[9]]))
+    } else {
+        head.extend([0, 0]);
+        reader.read_exact(&mut head[10..])?;
+        u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as usize
+    };
+    if length > MAX_HEADER {
+        return Err(invalid(format!("a header of {length} bytes; .npy headers are under {MAX_HEADER}")));
+    }
+    let start = head.len();
+    head.resize(start + length, 0);
+    reader.read_exact(&mut head[start..])?;
+    if let Some(shape) = shape_text(&head[start..]) {
+        let dims: Option<Vec<u64>> =
+            shape.split(',').map(str::trim).filter(|d| !d.is_empty()).map(|d| d.parse().ok()).collect();
+        if dims.is_some_and(|d| d.iter().try_fold(1u64, |a, &n| a.checked_mul(n)).is_none()) {
+            return Err(invalid(format!("shape ({shape}) overflows")));
+        }
+    }
+    NpyFile::new(Cursor::new(head).chain(reader))
+}
+
+/// The text between the parentheses of a header's `'shape'` entry.
+fn shape_text(header: &[u8]) -> Option<&str> {
+    let text = std::str::from_utf8(header).ok()?;
+    let after = &text[text.find("shape")?..];
+    let open = after.find('(')?;
+    let close = after[open..].find(')')?;
+    Some(&after[open + 1..open + close])
+}
+
+/// Why an array of strings is not the floats asked for.
+const NOT_FLOATS: &str = "holds strings; expected float32 or float64";
+
+/// Reads a float32 or float64 array whose data may take at most `budget` bytes (see
+/// [`read_tracks`] for why); the message says what is wrong, for the caller to name the array.
+///
+/// # Errors
+/// Another dtype, a shape larger than the budget, or data that ends early.
+pub fn read_floats<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Floats, String> {
+    match Member::read(npy, budget)? {
+        Member::Floats(f) => Ok(f),
+        Member::Strings(..) => Err(NOT_FLOATS.into()),
+    }
 }
 
 /// Reads the tracks of a `.npy` (rotations only) or `.npz` file. Without `times`, keys are
@@ -52,11 +124,9 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
                 Ok(entry) => (entry.size(), entry.compressed_size()),
                 Err(_) => return Ok(None),
             };
-            let budget = size.min(compressed.saturating_mul(MAX_EXPANSION).saturating_add(1 << 20));
-            let npy = archive
-                .by_name(name)
-                .map_err(|e| err(name, e.to_string()))?
-                .ok_or_else(|| err(name, "cannot be opened".into()))?;
+            let budget = member_budget(size, compressed);
+            let entry = archive.zip_archive().by_name(&file_name).map_err(|e| err(name, e.to_string()))?;
+            let npy = open_npy(entry).map_err(|e| err(name, e.to_string()))?;
             Ok(Some(Member::read(npy, budget).map_err(|m| err(name, m))?))
         };
         let rotations = member("rotations")?
@@ -69,7 +139,7 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
         )
     } else {
         let size = std::fs::metadata(path).map_err(file)?.len();
-        let npy = NpyFile::new(std::io::BufReader::new(std::fs::File::open(path).map_err(file)?))
+        let npy = open_npy(std::io::BufReader::new(std::fs::File::open(path).map_err(file)?))
             .map_err(|e| err("rotations", e.to_string()))?;
         (Member::read(npy, size).map_err(|m| err("rotations", m))?.floats("rotations", path)?, None, None, None)
     };
@@ -148,6 +218,10 @@ impl Member {
             .iter()
             .try_fold(1u64, |a, &d| a.checked_mul(d))
             .ok_or_else(|| format!("shape {shape:?} overflows"))?;
+        // Fortran order would be read transposed without a word.
+        if npy.order() == npyz::Order::Fortran && shape.iter().filter(|&&d| d > 1).count() > 1 {
+            return Err("Fortran order; save it C-contiguous (numpy.ascontiguousarray)".into());
+        }
         let DType::Plain(ty) = npy.dtype() else {
             return Err("structured dtype; expected float32, float64 or unicode strings".into());
         };
@@ -179,11 +253,9 @@ impl Member {
     fn floats(self, array: &str, path: &Path) -> Result<Floats, ArrayError> {
         match self {
             Self::Floats(f) => Ok(f),
-            Self::Strings(..) => Err(ArrayError {
-                path: path.display().to_string(),
-                array: array.into(),
-                message: "holds strings; expected float32 or float64".into(),
-            }),
+            Self::Strings(..) => {
+                Err(ArrayError { path: path.display().to_string(), array: array.into(), message: NOT_FLOATS.into() })
+            }
         }
     }
 
@@ -212,4 +284,37 @@ fn collect<T>(items: impl Iterator<Item = std::io::Result<T>>, count: usize) -> 
         return Err(format!("holds {} values, its shape says {count}", out.len()));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::npy_header;
+
+    fn npy(descr: &str, shape: &[u64], data: &[f64]) -> Vec<u8> {
+        let mut bytes = npy_header(descr, shape);
+        bytes.extend(data.iter().flat_map(|v| v.to_le_bytes()));
+        bytes
+    }
+
+    #[test]
+    fn headers_are_checked_before_npyz_multiplies_the_shape_out() {
+        let read = |bytes: &[u8]| {
+            open_npy(bytes).and_then(|f| read_floats(f, bytes.len() as u64).map_err(std::io::Error::other))
+        };
+        assert_eq!(read(&npy("<f8", &[2, 1], &[1.0, 2.0])).unwrap().data, [1.0, 2.0]);
+        let overflow = read(&npy("<f8", &[1 << 32, 1 << 32, 2], &[0.0])).unwrap_err().to_string();
+        assert_eq!(overflow, "shape (4294967296, 4294967296, 2) overflows");
+        let mut huge = npy("<f8", &[1], &[0.0]);
+        huge[8..10].copy_from_slice(&u16::MAX.to_le_bytes());
+        assert!(read(&huge).is_err());
+        let mut long = b"\x93NUMPY\x02\x00".to_vec();
+        long.extend(u32::MAX.to_le_bytes());
+        assert!(read(&long).unwrap_err().to_string().contains("a header of 4294967295 bytes"));
+        let mut fortran = npy("<f8", &[2, 2], &[0.0; 4]);
+        let at = fortran.windows(5).position(|w| w == b"False").unwrap();
+        fortran[at..at + 5].copy_from_slice(b"True ");
+        let refused = read(&fortran).unwrap_err().to_string();
+        assert!(refused.contains("Fortran order"), "{refused}");
+    }
 }
