@@ -17,7 +17,7 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
-    /// Input files (.gltf, .glb, .bvh) or directories of them; without it, the built-in
+    /// Input files (.gltf, .glb, .bvh, .npz of SMPL poses, .qcf) or directories of them; without it, the built-in
     /// synthetic crowd.
     #[arg(long, num_args = 1..)]
     input: Vec<PathBuf>,
@@ -188,12 +188,14 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
     } else {
         format!("{} Hz (fitted per clip)", options.rate)
     };
-    let fitted = report.inputs.iter().any(|i| i.source.ends_with(&format!(".{}", quatcurve::anim::qcf::EXTENSION)));
-    let curve = if fitted {
-        format!("{} (fitted inputs: their own B-splines)", options.curve)
-    } else {
-        options.curve.to_string()
-    };
+    let any = |extension: &str| report.inputs.iter().any(|i| i.source.ends_with(&format!(".{extension}")));
+    let mut curve = options.curve.unwrap_or(quatcurve::DEFAULT_CURVE).to_string();
+    if options.curve.is_none() && any(quatcurve::anim::smpl::EXTENSION) {
+        curve.push_str(" (SMPL poses: slerp)");
+    }
+    if any(quatcurve::anim::qcf::EXTENSION) {
+        curve.push_str(" (fitted inputs: their own B-splines)");
+    }
     writeln!(w, "baked at {rate} with {curve} on {} -> {}", report.device, args.output.display())?;
     if shard.count > 1 {
         writeln!(

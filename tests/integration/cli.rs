@@ -1,5 +1,6 @@
 //! `quatcurve eval` end to end: files in, files out, values checked; exit codes and messages.
 
+use crate::common::{f64_bytes, npy_bytes, write_npz};
 use assert_cmd::Command;
 use quatcurve::{Batch, Curve, CurveSpec, QuatF64, Tangents, Track, TrackFile, Vec3F64};
 use std::path::Path;
@@ -350,41 +351,6 @@ fn bench_reports_every_requested_device_as_json() {
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let out = quatcurve(&["bench", "--tracks", "0"]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
-}
-
-/// A `.npy` file's bytes: version 1.0 header for `descr` and `shape`, then `data` as is.
-fn npy_bytes(descr: &str, shape: &[u64], data: &[u8]) -> Vec<u8> {
-    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
-    let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend((header.len() as u16).to_le_bytes());
-    out.extend(header.as_bytes());
-    out.extend(data);
-    out
-}
-
-fn f64_bytes(values: &[f64]) -> Vec<u8> {
-    values.iter().flat_map(|v| v.to_le_bytes()).collect()
-}
-
-/// A `.npz` (zip of `.npy` members, deflated as numpy's savez_compressed does).
-fn write_npz(path: &Path, members: &[(&str, Vec<u8>)]) {
-    use std::io::Write;
-    let mut zip = zip::ZipWriter::new(std::fs::File::create(path).unwrap());
-    for (name, bytes) in members {
-        zip.start_file(
-            format!("{name}.npy"),
-            zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated),
-        )
-        .unwrap();
-        zip.write_all(bytes).unwrap();
-    }
-    zip.finish().unwrap();
 }
 
 /// `eval --input .npz|.npy`: the same tracks as JSON give the same output; times shared,

@@ -226,3 +226,44 @@ pub fn all_specs() -> Vec<CurveSpec> {
 pub fn describe(spec: &CurveSpec) -> String {
     format!("{} k={} knots={} tangents={} blend={}", spec.curve, spec.order, spec.knots, spec.tangents, spec.blend)
 }
+
+/// A `.npy` file's bytes: version 1.0 header for `descr` and `shape`, then `data` as is.
+pub fn npy_bytes(descr: &str, shape: &[u64], data: &[u8]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
+    let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((header.len() as u16).to_le_bytes());
+    out.extend(header.as_bytes());
+    out.extend(data);
+    out
+}
+
+/// Little-endian f64 bytes, as a `<f8` array stores them.
+pub fn f64_bytes(values: &[f64]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// A `.npz` (zip of `.npy` members, deflated as numpy's savez_compressed does).
+pub fn npz_bytes(members: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    use std::io::Write;
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    for (name, bytes) in members {
+        zip.start_file(
+            format!("{name}.npy"),
+            zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated),
+        )
+        .unwrap();
+        zip.write_all(bytes).unwrap();
+    }
+    zip.finish().unwrap().into_inner()
+}
+
+/// [`npz_bytes`] written to `path`.
+pub fn write_npz(path: &std::path::Path, members: &[(&str, Vec<u8>)]) {
+    std::fs::write(path, npz_bytes(members)).unwrap();
+}

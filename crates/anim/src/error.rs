@@ -12,11 +12,20 @@ pub enum InputError {
     #[error("cannot read: {0}")]
     Read(std::io::Error),
     /// Not one of [`crate::source::INPUT_EXTENSIONS`].
-    #[error("unknown format: expected .gltf, .glb, .bvh or .qcf (a fitted container)")]
+    #[error("unknown format: expected .gltf, .glb, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)")]
     UnknownFormat,
     /// A fitted container ([`crate::qcf`]) with a field truncated or out of range.
     #[error("fitted container {0}")]
     Container(#[from] ContainerError),
+    /// An archive of numpy arrays (SMPL-family poses, [`crate::smpl`]) with a field missing, of
+    /// the wrong shape or type, or out of its range; `field` is the array (or `file`).
+    #[error("{field}: {reason}")]
+    Arrays {
+        /// The array, as the archive names it.
+        field: String,
+        /// What is wrong with it, naming the frame and joint where one is at fault.
+        reason: String,
+    },
     /// A glTF file that is corrupt or breaks a rule of the format; the message names the node,
     /// accessor, skin or buffer.
     #[error("{0}")]

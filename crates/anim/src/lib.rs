@@ -14,6 +14,7 @@ pub mod glb;
 pub mod gltf;
 pub mod mesh;
 pub mod qcf;
+pub mod smpl;
 pub mod source;
 
 use error::InputError;

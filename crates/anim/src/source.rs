@@ -1,10 +1,11 @@
 //! Every input format read by its extension into the model, with what it needs to write
-//! itself back ([`Source`]): glTF and GLB, BVH, a fitted container; the synthetic crowd is
-//! one too.
+//! itself back ([`Source`]): glTF and GLB, BVH, SMPL-family pose arrays, a fitted container;
+//! the synthetic crowd is one too.
 
 use crate::error::InputError;
 use crate::Animation;
-use crate::{bvh, gltf, qcf};
+use crate::{bvh, gltf, qcf, smpl};
+use quatcurve_core::curve::{Curve, DEFAULT_CURVE};
 use std::path::Path;
 
 /// A source read into the common model, with what it needs to write itself back.
@@ -13,6 +14,8 @@ pub enum Source {
     Gltf(Box<gltf::GltfFile>),
     /// A BVH file (or a fitted container of one), read as its one clip.
     Bvh(bvh::BvhFile, Animation),
+    /// SMPL-family pose arrays (AMASS's `.npz`), read as their one clip.
+    Smpl(Box<smpl::SmplFile>, Animation),
     /// The built-in crowd ([`crate::crowd`]).
     Crowd(Animation),
     /// A fitted container without a BVH skeleton (one with it reads as [`Source::Bvh`]).
@@ -20,7 +23,12 @@ pub enum Source {
 }
 
 /// The extensions read as inputs, lower case.
-pub const INPUT_EXTENSIONS: [&str; 4] = ["gltf", "glb", "bvh", qcf::EXTENSION];
+pub const INPUT_EXTENSIONS: [&str; 5] = ["gltf", "glb", "bvh", smpl::EXTENSION, qcf::EXTENSION];
+
+/// The one clip of a single-clip file: the file's stem.
+fn clip_name(path: &Path) -> String {
+    path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned())
+}
 
 /// `path`'s extension, lower case.
 pub fn extension(path: &Path) -> Option<String> {
@@ -35,9 +43,13 @@ impl Source {
             Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, uris)?))),
             Some("bvh") => {
                 let file = bvh::read(path)?;
-                let name = path.file_stem().map_or_else(|| "motion".into(), |s| s.to_string_lossy().into_owned());
-                let animation = file.animation(&name);
+                let animation = file.animation(&clip_name(path));
                 Ok(Source::Bvh(file, animation))
+            }
+            Some(smpl::EXTENSION) => {
+                let file = smpl::read(path)?;
+                let animation = file.animation(&clip_name(path));
+                Ok(Source::Smpl(Box::new(file), animation))
             }
             Some(qcf::EXTENSION) => {
                 let container = qcf::Container::read(path)?;
@@ -57,6 +69,7 @@ impl Source {
         match self {
             Source::Gltf(_) => "a glTF file",
             Source::Bvh(..) => "a BVH file",
+            Source::Smpl(..) => "an SMPL-family pose archive",
             Source::Crowd(_) => "the built-in crowd",
             Source::Fitted(_) => "a fitted container",
         }
@@ -67,7 +80,27 @@ impl Source {
     pub fn animation(&self) -> &Animation {
         match self {
             Source::Gltf(f) => &f.animation,
-            Source::Bvh(_, a) | Source::Crowd(a) | Source::Fitted(a) => a,
+            Source::Bvh(_, a) | Source::Smpl(_, a) | Source::Crowd(a) | Source::Fitted(a) => a,
         }
+    }
+
+    /// The curve family a bake takes when none is asked for. SMPL-family poses take slerp:
+    /// dataset pipelines check a resampling against scipy's `Slerp`, and each frame then
+    /// depends on its two neighbouring keys alone, so mocap jitter or a bad frame stays local.
+    /// Every other source takes the C2 curve ([`DEFAULT_CURVE`]).
+    #[must_use]
+    pub fn default_curve(&self) -> Curve {
+        match self {
+            Source::Smpl(..) => Curve::Slerp,
+            _ => DEFAULT_CURVE,
+        }
+    }
+
+    /// Whether its joints have their rest offsets, so that model-space products (positions
+    /// by forward kinematics) mean anything: SMPL-family arrays hold rotations alone, the
+    /// offsets being the body model's.
+    #[must_use]
+    pub fn has_offsets(&self) -> bool {
+        !matches!(self, Source::Smpl(..))
     }
 }

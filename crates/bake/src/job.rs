@@ -29,7 +29,7 @@ use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
 use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::source::Source;
 use quatcurve_anim::Animation;
-use quatcurve_anim::{crowd, gltf, mesh};
+use quatcurve_anim::{crowd, gltf, mesh, smpl};
 use quatcurve_device::Device;
 use quatcurve_eval::io::write_atomic;
 use std::path::{Path, PathBuf};
@@ -392,6 +392,9 @@ impl BakeJob {
                 return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
             }
             report.warnings = super::source_step_warnings(animation);
+            if let Source::Smpl(file, _) = &src {
+                report.warnings.extend(file.warnings.iter().cloned());
+            }
             // Checked before the curves are baked.
             let vertex = match (&src, self.options.texture) {
                 (Source::Gltf(file), TextureKind::Vertex) => {
@@ -405,12 +408,24 @@ impl BakeJob {
                 }
                 _ => None,
             };
+            if !src.has_offsets()
+                && (self.options.texture != TextureKind::Local
+                    || self.options.max_error_mm.is_some()
+                    || self.options.preview)
+            {
+                return Err(InputError::Animation(format!(
+                    "{} holds rotations alone (its joints' offsets come from the body model's shape), so positions \
+                     by forward kinematics would be wrong; bake local textures, without a millimetre budget or \
+                     previews",
+                    src.kind()
+                )));
+            }
             let rate = if self.options.exact_rate {
                 ClipRate::Exact(self.options.rate)
             } else {
                 ClipRate::Fit(self.options.rate)
             };
-            let (spec, budget) = (self.options.spec(), self.options.budget());
+            let (spec, budget) = (self.options.spec(&src), self.options.budget());
             let mut baked = if budget.is_set() {
                 let setting = budget::Setting {
                     spec: &spec,
@@ -528,6 +543,7 @@ impl BakeJob {
             Source::Bvh(file, animation) => {
                 Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
             }
+            Source::Smpl(file, _) => Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0])?)),
             Source::Crowd(_) | Source::Fitted(_) => None,
         };
         let mesh_file = match vertex {
@@ -560,7 +576,7 @@ impl BakeJob {
         let budget = self.options.budget();
         let options = SidecarOptions {
             device,
-            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.options.curve.name() },
+            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.options.curve_for(src).name() },
             rate: self.options.rate,
             texture: self.options.texture,
             precision: self.options.precision,

@@ -1,4 +1,4 @@
-//! Baking: resample keyed animation (glTF, BVH, a synthetic crowd) at a fixed rate with any
+//! Baking: resample keyed animation (glTF, BVH, SMPL-family poses, a synthetic crowd) at a fixed rate with any
 //! curve, rotations through an evaluation [`Device`] and translations/scales through their
 //! Euclidean analogue ([`quatcurve_eval::euclidean`]).
 //!
@@ -14,6 +14,7 @@ pub mod job;
 pub mod manifest;
 pub mod options;
 pub(crate) mod outputs;
+pub mod poses;
 mod report;
 pub mod root_motion;
 pub mod shard;

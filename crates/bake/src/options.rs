@@ -8,7 +8,8 @@ use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::LoopMode;
 use quatcurve_anim::crowd;
-use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, DEFAULT_CURVE};
+use quatcurve_anim::source::Source;
+use quatcurve_core::curve::{Curve, CurveSpec, KnotMode};
 use quatcurve_device::DeviceChoice;
 #[cfg(feature = "cli")]
 use quatcurve_eval::options::names;
@@ -28,9 +29,10 @@ pub struct BakeOptions {
     /// so a clip's end off that grid is not baked (the summary warns how much). Loops always fit.
     #[cfg_attr(feature = "cli", arg(long))]
     pub exact_rate: bool,
-    /// Curve family; the default, bspline-interp, is C2 and passes through every key.
-    #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.curve, value_parser = names::<Curve>()))]
-    pub curve: Curve,
+    /// Curve family; by default bspline-interp (C2, through every key), and slerp for SMPL
+    /// pose arrays (as dataset pipelines resample them).
+    #[cfg_attr(feature = "cli", arg(long, value_parser = names::<Curve>()))]
+    pub curve: Option<Curve>,
     /// The family's options (knots: phantom unless given).
     #[serde(flatten)]
     #[cfg_attr(feature = "cli", command(flatten))]
@@ -106,7 +108,7 @@ impl BakeOptions {
     pub const DEFAULT: Self = Self {
         rate: quatcurve_eval::sampling::DEFAULT_RATE,
         exact_rate: false,
-        curve: DEFAULT_CURVE,
+        curve: None,
         curve_options: CurveOptions::DEFAULT,
         looping: LoopMode::Auto,
         device: DeviceChoice::Auto,
@@ -125,10 +127,17 @@ impl BakeOptions {
         root_motion: RootMotion::Keep,
     };
 
-    /// The curve every clip is baked with (`looping` is decided per clip).
+    /// The curve family `source`'s clips are baked with: the one asked for, else the source's
+    /// own default ([`Source::default_curve`]).
     #[must_use]
-    pub fn spec(&self) -> CurveSpec {
-        self.curve_options.spec(self.curve, KnotMode::Phantom, false)
+    pub fn curve_for(&self, source: &Source) -> Curve {
+        self.curve.unwrap_or_else(|| source.default_curve())
+    }
+
+    /// The curve every clip of `source` is baked with (`looping` is decided per clip).
+    #[must_use]
+    pub fn spec(&self, source: &Source) -> CurveSpec {
+        self.curve_options.spec(self.curve_for(source), KnotMode::Phantom, false)
     }
 
     /// The error budget that chooses each clip's rate (none set: every clip at `rate`).

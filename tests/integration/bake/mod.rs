@@ -14,6 +14,7 @@ mod rigid;
 mod root_motion;
 mod shader;
 mod shards;
+mod smpl;
 mod textures;
 mod three;
 mod vertex;

@@ -1,5 +1,5 @@
 //! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, BVH, track JSON, .npy, fitted
-//! containers) and what
+//! containers, SMPL archives) and what
 //! follows it: proptest mutates seed files (the real files in `../shared/data` when present,
 //! and crafted ones) and each mutant goes through read, bake or evaluation (fast CPU path) and
 //! the writers' encoders in memory. Accepted:
@@ -8,6 +8,7 @@
 //! The open-ended run is `cargo +nightly fuzz` (see `fuzz/`).
 
 use super::{data_dir, tiny_gltf};
+use crate::common::{f64_bytes, npy_bytes, npz_bytes};
 use proptest::prelude::*;
 use quatcurve::anim::error::InputError;
 use quatcurve::anim::{bvh, gltf};
@@ -30,6 +31,11 @@ enum Kind {
     Npy,
     /// A fitted container (`quatcurve fit`), resealed after the mutation ([`attempt`]).
     Container,
+    /// An SMPL pose archive (`.npz`), mutated whole.
+    Smpl,
+    /// The `poses` array of an SMPL archive: mutated, then packed into an archive with a rate
+    /// (so the mutants reach the array reader instead of failing the zip's checksums).
+    SmplPoses,
 }
 
 struct Seed {
@@ -75,6 +81,9 @@ fn seeds() -> &'static [Seed] {
                 bytes
             }),
         ];
+        let poses = smpl_poses();
+        seeds.push(seed("smpl.npz", Kind::Smpl, smpl_archive(poses.clone())));
+        seeds.push(seed("smpl poses.npy", Kind::SmplPoses, poses));
         let fitted = fitted_container(std::str::from_utf8(TINY_BVH).unwrap());
         seeds.push(seed("tiny.qcf", Kind::Container, fitted));
         if let Some(data) = data_dir() {
@@ -101,6 +110,17 @@ fn seeds() -> &'static [Seed] {
         }
         seeds
     })
+}
+
+/// SMPL's `poses` `[4, 72]` as a `.npy`: every joint turning a little each frame.
+fn smpl_poses() -> Vec<u8> {
+    let values: Vec<f64> = (0..4 * 72).map(|i| 0.01 * (i % 72) as f64 * (i / 72) as f64).collect();
+    npy_bytes("<f8", &[4, 72], &f64_bytes(&values))
+}
+
+/// An SMPL archive of `poses` at 30 Hz.
+fn smpl_archive(poses: Vec<u8>) -> Vec<u8> {
+    npz_bytes(&[("poses", poses), ("mocap_framerate", npy_bytes("<f8", &[], &f64_bytes(&[30.0])))])
 }
 
 /// The container `quatcurve fit` writes for a BVH text (1 cm units).
@@ -296,6 +316,21 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             }
             let order = animation.parents_first()?;
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
+            Ok(Reached::Baked(baked.sample_count()))
+        }
+        Kind::Smpl | Kind::SmplPoses => {
+            let packed;
+            let bytes = if let Kind::SmplPoses = seed.kind {
+                packed = smpl_archive(bytes.to_vec());
+                &packed[..]
+            } else {
+                bytes
+            };
+            let file = quatcurve::anim::smpl::from_bytes(bytes)?;
+            let animation = file.animation("clip");
+            let spec = CurveSpec::new(Curve::Slerp);
+            let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
+            file.to_npz(&baked.frames()[0])?;
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Npy => {

@@ -1,0 +1,36 @@
+//! SMPL-family pose arrays resampled in memory by a bake's options and rules (Python's
+//! `quatcurve.resample_poses`): the curve, the frame grid and the warnings of a bake of the
+//! same arrays as an archive, without files.
+
+use super::options::BakeOptions;
+use super::report::unbaked_ends;
+use super::ClipRate;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::smpl::{Resampled, SmplFile};
+use quatcurve_anim::source::Source;
+use quatcurve_device::Device;
+
+/// `file`'s poses (and root translation) at `options.rate` (exactly, with `exact_rate`), with
+/// the warnings a bake of it would give.
+///
+/// # Errors
+/// As a bake of the file: keys the curve refuses, a clip too long for the rate, a device
+/// failure.
+pub fn resample(
+    file: SmplFile,
+    options: &BakeOptions,
+    device: &Device,
+) -> Result<(Resampled, Vec<String>), InputError> {
+    let animation = file.animation("poses");
+    let source = Source::Smpl(Box::new(file), animation);
+    let spec = options.spec(&source);
+    let Source::Smpl(file, animation) = source else {
+        return Err(InputError::Internal("an SMPL source read back as another kind".into()));
+    };
+    let rate = if options.exact_rate { ClipRate::Exact(options.rate) } else { ClipRate::Fit(options.rate) };
+    let baked = super::bake(&animation, &spec, rate, options.looping, device)?;
+    let mut warnings = super::source_step_warnings(&animation);
+    warnings.extend(file.warnings.iter().cloned());
+    warnings.extend(unbaked_ends(&animation, &baked));
+    Ok((file.resampled(&baked.frames()[0]), warnings))
+}
