@@ -3,14 +3,11 @@ workers, each of which opens its device once.
 
     python examples/ray_bake.py LIBRARY OUT [--rate 30] [--workers 2] [--device cpu] [--address ADDR]
 
-- ``.bvh``, ``.gltf``, ``.glb``: baked as ``quatcurve bake`` bakes them (the same job, so the
-  same bytes: ``OUT`` holds what ``quatcurve bake --input LIBRARY --output OUT`` writes, its
-  manifest aside).
-- ``.npz`` of axis-angle clips (``poses`` ``[frames, joints, 3]`` in radians, ``fps``, the
-  layout of AMASS-style datasets): each joint's rotations resampled with the curve through
-  every key, on a grid fitted to the clip as the bake fits it (``round(span x rate)``
-  intervals from the first frame to the last), written as ``OUT/<stem>.npz`` with ``poses``
-  and the clip's own ``fps``.
+- ``.bvh``, ``.gltf``, ``.glb``, and ``.npz`` SMPL-family poses in AMASS's layout
+  (docs/DATASETS.md): baked as ``quatcurve bake`` bakes them (the same job, so the same
+  bytes: ``OUT`` holds what ``quatcurve bake --input LIBRARY --output OUT`` writes, its
+  manifest aside); an archive comes back as ``OUT/<stem>.npz`` in its own layout at the
+  new rate.
 
 The dataset is the list of paths (``ray.data.from_items``); ``map_batches`` hands each worker
 of an actor pool (a callable class, ``Resampler``) dicts of numpy arrays of paths, and the
@@ -31,14 +28,13 @@ import numpy as np
 
 import quatcurve
 
-BAKED = (".bvh", ".gltf", ".glb")
-CLIPS = (".npz",)
+MOTION = (".bvh", ".gltf", ".glb", ".npz")
 
 
 def library(directory):
     """The motion files of `directory`, sorted by name; two with one stem would write the same
     outputs, and are refused (as `quatcurve bake` refuses them)."""
-    files = sorted(str(p) for p in pathlib.Path(directory).iterdir() if p.suffix.lower() in BAKED + CLIPS)
+    files = sorted(str(p) for p in pathlib.Path(directory).iterdir() if p.suffix.lower() in MOTION)
     stems = {}
     for f in files:
         stem = pathlib.Path(f).stem
@@ -48,29 +44,8 @@ def library(directory):
     return files
 
 
-def resample_clip(path, out_dir, rate, device):
-    """One npz of axis-angle clips resampled (module docs); returns the file written."""
-    with np.load(path) as clip:
-        poses = np.asarray(clip["poses"], dtype=np.float64)
-        fps = float(clip["fps"])
-    frames = poses.shape[0]
-    span = (frames - 1) / fps
-    intervals = max(1, round(span * rate)) if frames > 1 else 0
-    times = np.arange(frames) / fps
-    grid = np.linspace(0.0, span, intervals + 1)
-    clip_rate = intervals / span if intervals else rate
-    tracks = np.ascontiguousarray(poses.transpose(1, 0, 2))  # one track per joint
-    out = quatcurve.evaluate(tracks, times, grid, rotation_type="rotvec", output="rotvec", device=device)
-    target = pathlib.Path(out_dir) / (pathlib.Path(path).stem + ".npz")
-    # Written whole, then renamed: nothing half-written under the final name.
-    with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".clip-", suffix=".npz", delete=False) as tmp:
-        np.savez(tmp, poses=np.ascontiguousarray(out.transpose(1, 0, 2)), fps=np.float64(clip_rate))
-    os.replace(tmp.name, target)
-    return [str(target)]
-
-
 def bake_file(path, out_dir, rate, device):
-    """One BVH or glTF baked as `quatcurve bake` bakes it; returns the files written."""
+    """One motion file baked as `quatcurve bake` bakes it; returns the files written."""
     private = tempfile.mkdtemp(dir=out_dir, prefix=".bake-")
     try:
         rows = quatcurve.bake([path], private, rate=rate, device=device)
@@ -82,13 +57,6 @@ def bake_file(path, out_dir, rate, device):
         return written if rows[0]["status"] == "ok" else []
     finally:
         shutil.rmtree(private, ignore_errors=True)
-
-
-def resample(path, out_dir, rate, device):
-    """Any motion file of the library; returns the files written."""
-    if pathlib.Path(path).suffix.lower() in CLIPS:
-        return resample_clip(path, out_dir, rate, device)
-    return bake_file(path, out_dir, rate, device)
 
 
 class Resampler:
@@ -104,7 +72,7 @@ class Resampler:
         for path in batch["path"]:
             path = str(path)
             try:
-                files.append(len(resample(path, self.out_dir, self.rate, self.device)))
+                files.append(len(bake_file(path, self.out_dir, self.rate, self.device)))
                 errors.append("")
             except ValueError as e:  # the file's own fault, named by the library
                 files.append(0)

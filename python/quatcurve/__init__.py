@@ -32,9 +32,10 @@ from ._quatcurve import (
     bake_files,
     evaluate_tracks,
     fit_files,
+    resample_pose_arrays,
 )
 
-__all__ = ["evaluate", "bake", "fit", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
+__all__ = ["evaluate", "bake", "fit", "resample_poses", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
 
 # Each job's options by name with the library's defaults (what :func:`evaluate`, :func:`bake`
 # and :func:`fit` take as keywords).
@@ -327,11 +328,12 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
     Parameters
     ----------
     inputs : str, os.PathLike or a list of them, optional
-        ``.gltf``, ``.glb`` and ``.bvh`` files, or directories of them. None (or an empty
+        ``.gltf``, ``.glb``, ``.bvh``, ``.npz`` (SMPL-family poses in AMASS's layout,
+        docs/DATASETS.md) and ``.qcf`` files, or directories of them. None (or an empty
         list): the built-in synthetic crowd of ``characters`` characters.
     output : str or os.PathLike
         Output directory, created if missing. Per input ``<stem>``: the baked file
-        (``<stem>.glb`` or ``<stem>.bvh``), textures ``<stem>.<clip>.npy`` (or one
+        (``<stem>.glb``, ``<stem>.bvh`` or ``<stem>.npz``), textures ``<stem>.<clip>.npy`` (or one
         ``<stem>.npy`` with ``atlas``), the sidecar ``<stem>.json``; per shard a manifest.
     rate : float
         Frames per second, fitted per clip: each clip takes the nearest rate that puts a
@@ -342,7 +344,8 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         last key); a clip's end off that grid is not baked, and the row's ``warnings`` say
         how much. Loops always fit.
     curve, order, knots, tangents, blend
-        As :func:`evaluate` (knots None: phantom); the default is C2 through every key.
+        As :func:`evaluate` (knots None: phantom); the default (None) is C2 through every
+        key, and slerp for SMPL poses.
     loop : str
         ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
     texture : str
@@ -486,3 +489,48 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
         lines = "; ".join(f"{row['input']}: {row['error']}" for row in failed)
         raise ValueError(f"{len(failed)} of {len(report['inputs'])} inputs failed (no container written for them): {lines}")
     return report
+
+
+# The bake options that apply to arrays in memory (the rest are about files and textures).
+_POSE_OPTIONS = ("exact_rate", "curve", "order", "knots", "tangents", "blend", "loop", "device")
+
+
+def resample_poses(poses, rate, new_rate, trans=None, **options):
+    """Resamples SMPL-family poses at a new rate in memory, by the rules of :func:`bake`
+    (DESIGN section 5b; docs/DATASETS.md): what replaces a dataset pipeline's
+    ``poses[::stride]``.
+
+    Parameters
+    ----------
+    poses : array_like
+        ``[frames, joints * 3]`` axis-angle rotations (radians) relative to each joint's
+        parent, 72 (SMPL), 156 (SMPL-H, AMASS) or 165 (SMPL-X) wide.
+    rate : float
+        Their frames per second (AMASS's ``mocap_framerate``).
+    new_rate : float
+        The frames per second wanted: fitted so that the first and last frames are kept,
+        or exactly with ``exact_rate=True`` (frames ``k / new_rate``).
+    trans : array_like, optional
+        ``[frames, 3]``: the root's translation, resampled with the poses.
+    exact_rate, curve, order, knots, tangents, blend, loop, device
+        As :func:`bake`; the curve is slerp unless asked otherwise.
+
+    Returns
+    -------
+    dict
+        ``poses`` ``[new frames, joints * 3]`` (angles in ``[0, pi]``), ``trans``
+        ``[new frames, 3]`` or None, ``rate`` (the frames' rate) and ``warnings``.
+
+    Raises
+    ------
+    ValueError
+        A width no family has, a value that is not finite (naming the frame and joint), a
+        rate that is not positive, or an option outside its rules.
+    """
+    unknown = sorted(set(options) - set(_POSE_OPTIONS))
+    if unknown:
+        raise TypeError(f"resample_poses() got options it does not take: {', '.join(unknown)} (it takes {', '.join(_POSE_OPTIONS)})")
+    poses = _float64("poses", poses, (2,))
+    trans = None if trans is None else _float64("trans", trans, (2,))
+    out, out_trans, out_rate, warnings = resample_pose_arrays(poses, trans, float(rate), _named({"rate": new_rate, **options}))
+    return {"poses": out, "trans": out_trans, "rate": out_rate, "warnings": warnings}

@@ -75,7 +75,7 @@ def bake(
     *,
     rate: float = 30.0,
     exact_rate: bool = False,
-    curve: CurveName = "bspline-interp",
+    curve: CurveName | None = None,
     order: int = 4,
     knots: Literal["phantom", "uniform", "clamped"] | None = None,
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
@@ -111,6 +111,28 @@ def fit(
     unit_cm: float | None = None,
     errors: Literal["raise", "report"] = "raise",
 ) -> dict[str, Any]: ...
+
+class ResampledPoses(TypedDict):
+    poses: npt.NDArray[np.float64]
+    trans: npt.NDArray[np.float64] | None
+    rate: float
+    warnings: list[str]
+
+def resample_poses(
+    poses: npt.ArrayLike,
+    rate: float,
+    new_rate: float,
+    trans: npt.ArrayLike | None = None,
+    *,
+    exact_rate: bool = False,
+    curve: CurveName | None = None,
+    order: int = 4,
+    knots: Literal["phantom", "uniform", "clamped"] | None = None,
+    tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
+    blend: Literal["cubic", "quadratic"] = "cubic",
+    loop: Literal["auto", "on", "off"] = "auto",
+    device: DeviceName = "auto",
+) -> ResampledPoses: ...
 
 class Curve:
     rotations: npt.NDArray[np.float64]

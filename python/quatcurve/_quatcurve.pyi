@@ -37,3 +37,10 @@ def fit_files(
     output: str,
     options: str,
 ) -> str: ...
+
+def resample_pose_arrays(
+    poses: npt.NDArray[np.float64],
+    trans: npt.NDArray[np.float64] | None,
+    rate: float,
+    options: str,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None, float, list[str]]: ...

@@ -12,8 +12,9 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUnty
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use quatcurve::anim::smpl::SmplFile;
 use quatcurve::bake::budget::{ChosenRate, Worst};
-use quatcurve::bake::{BakeJob, BakeOptions, Shard};
+use quatcurve::bake::{poses, BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
 use quatcurve::options::EvalOptions;
 use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
@@ -350,6 +351,39 @@ fn bake_files<'py>(
         .collect()
 }
 
+/// SMPL-family poses `[frames, joints * 3]` (axis-angle) and optionally the root's `trans`
+/// `[frames, 3]` at `rate` frames per second, resampled by the library's bake options by name
+/// (`options`: `rate` the new rate, `exact_rate`, the curve's, `loop`, `device`), with the GIL
+/// released. Returns the poses, the translation (or `None`), the rate of the frames and the
+/// warnings a bake would give. See `quatcurve.resample_poses`.
+#[pyfunction]
+#[pyo3(signature = (poses, trans, rate, options))]
+#[allow(clippy::type_complexity)]
+fn resample_pose_arrays<'py>(
+    py: Python<'py>,
+    poses: PyReadonlyArray2<'py, f64>,
+    trans: Option<PyReadonlyArray2<'py, f64>>,
+    rate: f64,
+    options: &str,
+) -> PyResult<(Bound<'py, PyAny>, Option<Bound<'py, PyAny>>, f64, Vec<String>)> {
+    let options: BakeOptions = named(options)?;
+    let device = self::device(options.device)?;
+    let width = poses.shape()[1];
+    let file = SmplFile::from_arrays(
+        poses.as_slice().map_err(value_error)?,
+        width,
+        trans.as_ref().map(|t| t.as_slice()).transpose().map_err(value_error)?,
+        rate,
+    )
+    .map_err(value_error)?;
+    let (resampled, warnings) = py.detach(|| poses::resample(file, &options, device)).map_err(value_error)?;
+    let frames = resampled.frames;
+    let poses = PyArray1::from_vec(py, resampled.poses).reshape([frames, width])?.into_any();
+    let trans =
+        resampled.trans.map(|t| PyArray1::from_vec(py, t).reshape([frames, 3]).map(Bound::into_any)).transpose()?;
+    Ok((poses, trans, resampled.rate, warnings))
+}
+
 /// One clip's rate chosen by an error budget, as a dictionary: `clip, rate, frames, rotation`
 /// and `position` (each `{value, joint, time}`: degrees or mm), `bytes, fixed_rate_bytes`.
 fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDict>> {
@@ -390,6 +424,7 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_tracks, m)?)?;
     m.add_function(wrap_pyfunction!(bake_files, m)?)?;
     m.add_function(wrap_pyfunction!(fit_files, m)?)?;
+    m.add_function(wrap_pyfunction!(resample_pose_arrays, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // The front ends' defaults, from the library (the Python signatures use these).
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;

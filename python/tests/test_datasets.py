@@ -1,11 +1,12 @@
 """What resampling a motion dataset needs: curves that pickle, rotation vectors and matrices
-in and out as scipy's Rotation writes them, and tracks of their own lengths in one batch."""
+in and out as scipy's Rotation writes them, tracks of their own lengths in one batch, and
+SMPL-family pose archives (AMASS's layout) resampled at exact times as scipy's Slerp does."""
 
 import pickle
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 import quatcurve
 from test_quatcurve import angle, random_keys
@@ -110,3 +111,72 @@ def test_tracks_of_their_own_lengths_evaluate_in_one_batch():
         quatcurve.evaluate(bad, samples=3)
     with pytest.raises(ValueError, match=r"times\[1\] must have 3 entries"):
         quatcurve.evaluate([tracks[1][:3], tracks[1][:3]], [times[1][:3], times[0]], samples=3)
+
+
+def amass_clip(path, rng, frames=97, width=156, rate=60.0, **fields):
+    """An AMASS-layout archive (docs/DATASETS.md): smooth random poses, a root path, per-sequence fields."""
+    t = np.arange(frames)[:, None] / rate
+    poses = 1.2 * np.sin(2 * np.pi * rng.uniform(0.2, 1.5, (1, width)) * t + rng.uniform(0, 6, (1, width)))
+    trans = np.cumsum(rng.uniform(-0.02, 0.02, (frames, 3)), axis=0)
+    np.savez(path, poses=poses, trans=trans, betas=rng.normal(size=16), gender=np.array("female"), mocap_framerate=np.array(rate), **fields)
+    return poses, trans
+
+
+def slerp_each_joint(poses, rate, new_times):
+    """scipy's Slerp of every joint's axis-angles at `new_times` (seconds from the first frame)."""
+    times = np.arange(len(poses)) / rate
+    return [Slerp(times, Rotation.from_rotvec(poses[:, 3 * j:3 * j + 3]))(new_times) for j in range(poses.shape[1] // 3)]
+
+
+@pytest.mark.parametrize("width", [156, 165])
+def test_smpl_archives_bake_into_their_own_layout_at_exact_times_as_scipy_slerps_them(tmp_path, width):
+    rng = np.random.default_rng(width)
+    poses, trans = amass_clip(tmp_path / "walk.npz", rng, width=width, dmpls=rng.normal(size=(97, 8)))
+    rows = quatcurve.bake(tmp_path / "walk.npz", tmp_path / "out", rate=25, exact_rate=True, device="cpu")
+    assert rows[0]["status"] == "ok"
+    with np.load(tmp_path / "out" / "walk.npz") as baked, np.load(tmp_path / "walk.npz") as source:
+        assert list(baked.keys()) == list(source.keys())
+        new_times = np.arange(41) / 25.0  # 1.6 s at exactly 25 Hz
+        assert baked["poses"].shape == (41, width) and float(baked["mocap_framerate"]) == 25.0
+        for j, expected in enumerate(slerp_each_joint(poses, 60.0, new_times)):
+            got = Rotation.from_rotvec(baked["poses"][:, 3 * j:3 * j + 3])
+            assert (expected.inv() * got).magnitude().max() < 1e-6, j
+        assert np.linalg.norm(baked["poses"].reshape(-1, 3), axis=1).max() <= np.pi + 1e-9  # angles in [0, pi]
+        lerped = np.stack([np.interp(new_times, np.arange(97) / 60, trans[:, c]) for c in range(3)], axis=1)
+        np.testing.assert_allclose(baked["trans"], lerped, atol=1e-6)
+        np.testing.assert_array_equal(baked["betas"], source["betas"])
+        assert str(baked["gender"]) == "female"
+
+
+def test_resample_poses_in_memory_is_the_bake_of_the_same_arrays(tmp_path):
+    rng = np.random.default_rng(5)
+    poses, trans = amass_clip(tmp_path / "run.npz", rng, frames=121, width=72, rate=120.0)
+    # HumanML3D's stride line for 120 -> 20 Hz, and the same at exact times.
+    strided = poses[::6]
+    out = quatcurve.resample_poses(poses, 120.0, 20.0, trans=trans, exact_rate=True, device="cpu")
+    assert out["poses"].shape == strided.shape and out["rate"] == 20.0 and out["warnings"] == []
+    same = Rotation.from_rotvec(out["poses"].reshape(-1, 3)).inv() * Rotation.from_rotvec(strided.reshape(-1, 3))
+    assert same.magnitude().max() < 1e-6
+    # Between frames (120 -> 50 Hz) as scipy's Slerp, and as the bake of the archive writes.
+    out = quatcurve.resample_poses(poses, 120.0, 50.0, trans=trans, exact_rate=True, device="cpu")
+    for j, expected in enumerate(slerp_each_joint(poses, 120.0, np.arange(51) / 50.0)):
+        assert (expected.inv() * Rotation.from_rotvec(out["poses"][:, 3 * j:3 * j + 3])).magnitude().max() < 1e-6, j
+    quatcurve.bake(tmp_path / "run.npz", tmp_path / "out", rate=50.0, exact_rate=True, device="cpu")
+    with np.load(tmp_path / "out" / "run.npz") as baked:
+        np.testing.assert_array_equal(baked["poses"], out["poses"])
+        np.testing.assert_array_equal(baked["trans"], out["trans"])
+
+
+def test_bad_pose_arrays_are_refused_by_name():
+    poses = np.zeros((10, 156))
+    poses[4, 3 * 18 + 2] = np.nan
+    with pytest.raises(ValueError, match="poses: frame 4: left_elbow value 56 is NaN"):
+        quatcurve.resample_poses(poses, 60.0, 30.0)
+    with pytest.raises(ValueError, match="poses: shape \\[10, 150\\]; expected \\[frames, width\\] with width 72 for SMPL"):
+        quatcurve.resample_poses(np.zeros((10, 150)), 60.0, 30.0)
+    with pytest.raises(ValueError, match="mocap_framerate: -60 is not a positive number"):
+        quatcurve.resample_poses(np.zeros((10, 72)), -60.0, 30.0)
+    with pytest.raises(ValueError, match="trans: shape \\[9, 3\\]; expected \\[10, 3\\]"):
+        quatcurve.resample_poses(np.zeros((10, 72)), 60.0, 30.0, trans=np.zeros((9, 3)))
+    with pytest.raises(TypeError, match="does not take: texture"):
+        quatcurve.resample_poses(np.zeros((10, 72)), 60.0, 30.0, texture="model")
