@@ -545,7 +545,10 @@ impl SmplFile {
                 if member.deflated { zip::CompressionMethod::Deflated } else { zip::CompressionMethod::Stored };
             zip.start_file(
                 npyz::npz::file_name_from_array_name(&member.name),
-                zip::write::FileOptions::default().compression_method(method),
+                // A fixed time (the zip epoch, 1980), so that a bake's bytes do not depend on when it ran.
+                zip::write::FileOptions::default()
+                    .compression_method(method)
+                    .last_modified_time(zip::DateTime::default()),
             )
             .map_err(|e| failed(&e))?;
             zip.write_all(&bytes).map_err(|e| failed(&e))?;

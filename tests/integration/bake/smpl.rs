@@ -61,6 +61,9 @@ fn members(path: &Path) -> Vec<(String, Vec<u8>)> {
     (0..zip.len())
         .map(|i| {
             let mut entry = zip.by_index(i).unwrap();
+            // Stamped with the zip epoch, not the time of the bake: the same bake, the same bytes.
+            let stamp = entry.last_modified();
+            assert_eq!((stamp.year(), stamp.month(), stamp.day()), (1980, 1, 1), "{}", entry.name());
             let mut bytes = Vec::new();
             entry.read_to_end(&mut bytes).unwrap();
             (entry.name().trim_end_matches(".npy").to_string(), bytes)
