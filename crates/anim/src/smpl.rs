@@ -234,8 +234,9 @@ fn bad(field: &str, reason: impl std::fmt::Display) -> InputError {
 /// [`InputError::Read`] for an unreadable file; [`InputError::Arrays`] naming the field for a
 /// missing `poses` or rate, a width no family has, shapes that disagree, a rate that is not
 /// positive or disagrees with `mocap_time_length`, a value that is not finite (naming the
-/// frame and joint), a split field that is not its part of `poses`, an object array (which
-/// numpy pickles; it is never unpickled) or data shorter than its shape.
+/// frame and joint), a split field that is not its part of `poses`, an object array where a
+/// field is read (numpy pickles those; nothing is ever unpickled) or data shorter than its
+/// shape.
 pub fn read(path: &Path) -> Result<SmplFile, InputError> {
     from_bytes(&std::fs::read(path).map_err(InputError::Read)?)
 }
@@ -303,10 +304,11 @@ fn parse(raw: Vec<(String, Vec<u8>, bool)>) -> Result<SmplFile, InputError> {
         }
         None => None,
     };
-    let rate_field = RATE_FIELDS.into_iter().find(|f| find(f).is_some()).ok_or_else(|| {
-        bad(RATE_FIELDS[0], format!("missing: the archive needs its frame rate as {}", RATE_FIELDS.join(" or ")))
-    })?;
-    let rate = scalar(rate_field, &find(rate_field).expect("found above").1)?;
+    let (rate_field, rate_bytes) =
+        RATE_FIELDS.into_iter().find_map(|f| find(f).map(|(_, bytes, _)| (f, bytes))).ok_or_else(|| {
+            bad(RATE_FIELDS[0], format!("missing: the archive needs its frame rate as {}", RATE_FIELDS.join(" or ")))
+        })?;
+    let rate = scalar(rate_field, rate_bytes)?;
     if !(rate.is_finite() && rate > 0.0) {
         return Err(bad(rate_field, format!("{rate} is not a positive number of frames per second")));
     }
@@ -318,7 +320,9 @@ fn parse(raw: Vec<(String, Vec<u8>, bool)>) -> Result<SmplFile, InputError> {
     let mut warnings = Vec::new();
     let mut members = Vec::with_capacity(raw.len());
     for (name, bytes, deflated) in &raw {
-        let file = npy_of(name, bytes)?;
+        // Only the header: an array that is only copied may be an object array (numpy saves a
+        // dict or a list that way), copied as its bytes and never unpickled.
+        let file = open_npy(&bytes[..]).map_err(|e| bad(name, format!("not a .npy array: {e}")))?;
         let (leading, element) = (file.shape().first().copied(), element_of(&file));
         let stored = if name == "poses" {
             Stored::Poses
@@ -350,7 +354,7 @@ fn parse(raw: Vec<(String, Vec<u8>, bool)>) -> Result<SmplFile, InputError> {
     Ok(SmplFile { family, rate, rate_field, poses: poses.data, trans, warnings, members })
 }
 
-/// `bytes` as a `.npy` array, refusing object arrays (which numpy pickles).
+/// `bytes` as a `.npy` array to read, refusing object arrays (which numpy pickles).
 fn npy_of<'a>(name: &str, bytes: &'a [u8]) -> Result<NpyFile<impl Read + 'a>, InputError> {
     let file = open_npy(bytes).map_err(|e| bad(name, format!("not a .npy array: {e}")))?;
     if file.uses_pickled_array() {
