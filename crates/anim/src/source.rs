@@ -96,9 +96,10 @@ impl Source {
         }
     }
 
-    /// Whether its joints have their rest offsets, so that model-space products (positions
-    /// by forward kinematics) mean anything: SMPL-family arrays hold rotations alone, the
-    /// offsets being the body model's.
+    /// Whether its joints have their rest offsets and its space a known up axis, so that
+    /// model-space products (positions by forward kinematics, headings) mean anything:
+    /// SMPL-family arrays hold rotations alone, the offsets being the body model's, and say
+    /// nothing of their axes (AMASS is Z up, other SMPL-X data Y up).
     #[must_use]
     pub fn has_offsets(&self) -> bool {
         !matches!(self, Source::Smpl(..))

@@ -408,15 +408,15 @@ impl BakeJob {
                 }
                 _ => None,
             };
-            if !src.has_offsets()
-                && (self.options.texture != TextureKind::Local
-                    || self.options.max_error_mm.is_some()
-                    || self.options.preview)
-            {
+            let needs_space = self.options.texture != TextureKind::Local
+                || self.options.max_error_mm.is_some()
+                || self.options.preview
+                || self.options.root_motion == RootMotion::Extract;
+            if !src.has_offsets() && needs_space {
                 return Err(InputError::Animation(format!(
-                    "{} holds rotations alone (its joints' offsets come from the body model's shape), so positions \
-                     by forward kinematics would be wrong; bake local textures, without a millimetre budget or \
-                     previews",
+                    "{} holds rotations alone (its joints' offsets come from the body model's shape, and its up \
+                     axis is not recorded), so positions and headings would be wrong; bake local textures, without \
+                     a millimetre budget, previews or root motion extracted",
                     src.kind()
                 )));
             }
