@@ -328,8 +328,8 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
     Parameters
     ----------
     inputs : str, os.PathLike or a list of them, optional
-        ``.gltf``, ``.glb``, ``.bvh``, ``.npz`` (SMPL-family poses in AMASS's layout,
-        docs/DATASETS.md) and ``.qcf`` files, or directories of them. None (or an empty
+        ``.gltf``, ``.glb``, ``.fbx``, ``.bvh``, ``.npz`` (SMPL-family poses in AMASS's
+        layout, docs/DATASETS.md) and ``.qcf`` files, or directories of them. None (or an empty
         list): the built-in synthetic crowd of ``characters`` characters.
     output : str or os.PathLike
         Output directory, created if missing. Per input ``<stem>``: the baked file

@@ -12,7 +12,7 @@ pub enum InputError {
     #[error("cannot read: {0}")]
     Read(std::io::Error),
     /// Not one of [`crate::source::INPUT_EXTENSIONS`].
-    #[error("unknown format: expected .gltf, .glb, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)")]
+    #[error("unknown format: expected .gltf, .glb, .fbx, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)")]
     UnknownFormat,
     /// A fitted container ([`crate::qcf`]) with a field truncated or out of range.
     #[error("fitted container {0}")]
@@ -26,6 +26,9 @@ pub enum InputError {
         /// What is wrong with it, naming the frame and joint where one is at fault.
         reason: String,
     },
+    /// An FBX file ufbx cannot load, or a stack it cannot bake; the message is ufbx's.
+    #[error("{0}")]
+    Fbx(String),
     /// A glTF file that is corrupt or breaks a rule of the format; the message names the node,
     /// accessor, skin or buffer.
     #[error("{0}")]

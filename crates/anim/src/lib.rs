@@ -1,7 +1,7 @@
 //! The animation model every source is read into and every product starts from: joints with
 //! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
 //! scale as keys or as a fitted B-spline ([`ChannelCurve`]). Importers fill it ([`gltf`],
-//! [`bvh`], [`crowd`], fitted containers through [`qcf`]; [`source`] picks one by the file's
+//! [`fbx`], [`bvh`], [`smpl`], [`crowd`], fitted containers through [`qcf`]; [`source`] picks one by the file's
 //! extension); the bake resamples it, the fit compresses it, and the formats write baked
 //! frames back ([`ClipFrames`]). Jobs over files (the bake, the fit) share [`files`].
 
@@ -9,6 +9,7 @@ pub mod bvh;
 pub mod crowd;
 mod draco;
 pub mod error;
+pub mod fbx;
 pub mod files;
 pub mod glb;
 pub mod gltf;

@@ -1,10 +1,10 @@
 //! Every input format read by its extension into the model, with what it needs to write
-//! itself back ([`Source`]): glTF and GLB, BVH, SMPL-family pose arrays, a fitted container;
+//! itself back ([`Source`]): glTF and GLB, FBX, BVH, SMPL-family pose arrays, a fitted container;
 //! the synthetic crowd is one too.
 
 use crate::error::InputError;
 use crate::Animation;
-use crate::{bvh, gltf, qcf, smpl};
+use crate::{bvh, fbx, gltf, qcf, smpl};
 use quatcurve_core::curve::{Curve, DEFAULT_CURVE};
 use std::path::Path;
 
@@ -12,6 +12,8 @@ use std::path::Path;
 pub enum Source {
     /// A glTF or GLB file.
     Gltf(Box<gltf::GltfFile>),
+    /// An FBX file.
+    Fbx(Box<fbx::FbxFile>),
     /// A BVH file (or a fitted container of one), read as its one clip.
     Bvh(bvh::BvhFile, Animation),
     /// SMPL-family pose arrays (AMASS's `.npz`), read as their one clip.
@@ -23,7 +25,7 @@ pub enum Source {
 }
 
 /// The extensions read as inputs, lower case.
-pub const INPUT_EXTENSIONS: [&str; 5] = ["gltf", "glb", "bvh", smpl::EXTENSION, qcf::EXTENSION];
+pub const INPUT_EXTENSIONS: [&str; 6] = ["gltf", "glb", fbx::EXTENSION, "bvh", smpl::EXTENSION, qcf::EXTENSION];
 
 /// The one clip of a single-clip file: the file's stem.
 fn clip_name(path: &Path) -> String {
@@ -41,6 +43,7 @@ impl Source {
     pub fn read(path: &Path, uris: gltf::UriPolicy) -> Result<Self, InputError> {
         match extension(path).as_deref() {
             Some("gltf" | "glb") => Ok(Source::Gltf(Box::new(gltf::read(path, uris)?))),
+            Some(fbx::EXTENSION) => Ok(Source::Fbx(Box::new(fbx::read(path)?))),
             Some("bvh") => {
                 let file = bvh::read(path)?;
                 let animation = file.animation(&clip_name(path));
@@ -68,6 +71,7 @@ impl Source {
     pub fn kind(&self) -> &'static str {
         match self {
             Source::Gltf(_) => "a glTF file",
+            Source::Fbx(_) => "an FBX file",
             Source::Bvh(..) => "a BVH file",
             Source::Smpl(..) => "an SMPL-family pose archive",
             Source::Crowd(_) => "the built-in crowd",
@@ -80,6 +84,7 @@ impl Source {
     pub fn animation(&self) -> &Animation {
         match self {
             Source::Gltf(f) => &f.animation,
+            Source::Fbx(f) => &f.animation,
             Source::Bvh(_, a) | Source::Smpl(_, a) | Source::Crowd(a) | Source::Fitted(a) => a,
         }
     }

@@ -402,7 +402,7 @@ impl BakeJob {
                 }
                 (other, TextureKind::Vertex) => {
                     return Err(InputError::Animation(format!(
-                        "{} has no mesh, and vertex textures skin a glTF's meshes; bake a bone texture",
+                        "vertex textures skin a glTF's meshes, and this is {}; bake a bone texture",
                         other.kind()
                     )))
                 }
@@ -525,8 +525,8 @@ impl BakeJob {
         }
         if self.options.format == Format::Babylon && (!matches!(src, Source::Gltf(_)) || animation.skins.is_empty()) {
             return Err(InputError::Animation(format!(
-                "babylon plays a glTF skin's bones, and {} has no skin; bake a glTF with a skinned mesh, or \
-                 another format",
+                "babylon plays a glTF skin's bones, and this is {} without one; bake a glTF with a skinned \
+                 mesh, or another format",
                 src.kind()
             )));
         }
@@ -544,7 +544,7 @@ impl BakeJob {
                 Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
             }
             Source::Smpl(file, _) => Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0])?)),
-            Source::Crowd(_) | Source::Fitted(_) => None,
+            Source::Fbx(_) | Source::Crowd(_) | Source::Fitted(_) => None,
         };
         let mesh_file = match vertex {
             Some(vertex) => Some((

@@ -5,6 +5,7 @@
 
 mod babylon;
 mod clients;
+mod fbx;
 mod fitted;
 mod hostile;
 mod images;

@@ -1,4 +1,4 @@
-//! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, BVH, track JSON, .npy, fitted
+//! A bounded, stable-Rust fuzz run of every parser (glTF/GLB, FBX, BVH, track JSON, .npy, fitted
 //! containers, SMPL archives) and what
 //! follows it: proptest mutates seed files (the real files in `../shared/data` when present,
 //! and crafted ones) and each mutant goes through read, bake or evaluation (fast CPU path) and
@@ -31,6 +31,8 @@ enum Kind {
     Npy,
     /// A fitted container (`quatcurve fit`), resealed after the mutation ([`attempt`]).
     Container,
+    /// An FBX file (read by ufbx).
+    Fbx,
     /// An SMPL pose archive (`.npz`), mutated whole.
     Smpl,
     /// The `poses` array of an SMPL archive: mutated, then packed into an archive with a rate
@@ -96,6 +98,7 @@ fn seeds() -> &'static [Seed] {
                 bin: glb.bin.unwrap().to_vec(),
             });
             seeds.push(seed("Fox.glb", Kind::Gltf, fox));
+            seeds.push(seed("CesiumMan.fbx", Kind::Fbx, std::fs::read(data.join("CesiumMan.fbx")).unwrap()));
             seeds.push(seed("SimpleSkin.gltf", Kind::Gltf, std::fs::read(data.join("SimpleSkin.gltf")).unwrap()));
             // The first 40 frames of a CMU clip (all 31 joints), for speed.
             let text = std::fs::read_to_string(data.join("cmu_131_01.bvh")).unwrap();
@@ -316,6 +319,17 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             }
             let order = animation.parents_first()?;
             let _ = bake::texture::sheets(&animation, &order, &baked, 0, bake::texture::TextureKind::Model, device());
+            Ok(Reached::Baked(baked.sample_count()))
+        }
+        Kind::Fbx => {
+            let file = quatcurve::anim::fbx::from_bytes(bytes)?;
+            if file.animation.clips.is_empty() {
+                return Ok(Reached::Skipped("no clip"));
+            }
+            let baked = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
+            let order = file.animation.parents_first()?;
+            let kind = bake::texture::TextureKind::Skin;
+            let _ = bake::texture::sheets(&file.animation, &order, &baked, 0, kind, device());
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Smpl | Kind::SmplPoses => {

@@ -1,0 +1,21 @@
+//! FBX bytes -> ufbx's reader -> bake (fast CPU path) -> skin texture rows, in memory.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use quatcurve::anim::fbx;
+use quatcurve::bake::{self, LoopMode};
+use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
+
+fuzz_target!(|bytes: &[u8]| {
+    let Ok(file) = fbx::from_bytes(bytes) else { return };
+    if file.animation.clips.is_empty() {
+        return;
+    }
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    let spec = CurveSpec::new(Curve::BSplineInterp);
+    if let Ok(baked) = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, &device) {
+        if let Ok(order) = file.animation.parents_first() {
+            let _ = bake::texture::sheets(&file.animation, &order, &baked, 0, bake::texture::TextureKind::Skin, &device);
+        }
+    }
+});
