@@ -445,7 +445,7 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
     Parameters
     ----------
     inputs : str, os.PathLike or a list of them
-        ``.gltf``, ``.glb`` and ``.bvh`` files, or directories of them.
+        ``.gltf``, ``.glb``, ``.fbx`` and ``.bvh`` files, or directories of them.
     output : str or os.PathLike
         Output directory, created if missing.
     max_error : float

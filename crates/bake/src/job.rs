@@ -16,7 +16,7 @@ use super::outputs::Outputs;
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::root_motion::{self, RootMotion};
 use super::shard::Shard;
-use super::sidecar::{Sidecar, SidecarClip, SidecarOptions};
+use super::sidecar::{ConversionRecord, Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
@@ -586,9 +586,12 @@ impl BakeJob {
         };
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
-        let sidecar =
+        let mut sidecar =
             Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, &skinned)
                 .map_err(InputError::Animation)?;
+        if let Source::Fbx(file) = src {
+            sidecar.conversion = Some(ConversionRecord::fbx(file));
+        }
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;

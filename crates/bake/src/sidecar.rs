@@ -90,6 +90,9 @@ pub struct Sidecar {
     /// `--format babylon`: how Babylon.js's `BakedVertexAnimationManager` plays the files.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub babylon: Option<BabylonRecord>,
+    /// An input converted to glTF's space as it was read (FBX, DESIGN section 5h).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub conversion: Option<ConversionRecord>,
     /// The baked clips.
     pub clips: Vec<SidecarClip>,
 }
@@ -108,6 +111,32 @@ pub struct VertexRecord {
     pub texcoord: String,
     /// The skinned primitives, in the order of their sheets.
     pub primitives: Vec<VertexPrimitive>,
+}
+
+/// How an input was converted to glTF's space as it was read (DESIGN section 5h).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ConversionRecord {
+    /// The length of the file's unit in metres.
+    pub from_unit_metres: f64,
+    /// The file's up axis (`+Y`, `+Z`, ...).
+    pub from_up: String,
+    /// What the joints, skins and textures are in, and how they got there, in words.
+    pub to: String,
+}
+
+impl ConversionRecord {
+    /// An FBX file's conversion, as ufbx made it.
+    #[must_use]
+    pub fn fbx(file: &quatcurve_anim::fbx::FbxFile) -> Self {
+        Self {
+            from_unit_metres: file.source_unit_metres,
+            from_up: file.source_up.to_string(),
+            to: "metres, +Y up, right-handed (glTF's space), by adjusting the nodes' transforms as ufbx loads the \
+                 file; mesh data and inverse bind matrices are the file's"
+                .into(),
+        }
+    }
 }
 
 /// How Babylon.js plays a `--format babylon` bake (DESIGN section 5f).
@@ -393,6 +422,7 @@ impl Sidecar {
                     inverse_bind: s.inverse_bind.clone(),
                 })
                 .collect(),
+            conversion: None,
             babylon: (format == Format::Babylon).then(|| BabylonRecord {
                 mesh_parents: super::babylon::mesh_parents(animation, skinned)
                     .into_iter()

@@ -10,7 +10,7 @@ use quatcurve_anim::files::{expand, output_stems};
 use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
 use quatcurve_anim::qcf::{BvhSkeleton, Container, EXTENSION};
 use quatcurve_anim::source::extension;
-use quatcurve_anim::{bvh, gltf};
+use quatcurve_anim::{bvh, fbx, gltf};
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
 use rayon::prelude::*;
@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The extensions a fit reads (sources with keys; a container holds control points).
-pub const FIT_EXTENSIONS: [&str; 3] = ["gltf", "glb", "bvh"];
+pub const FIT_EXTENSIONS: [&str; 4] = ["gltf", "glb", fbx::EXTENSION, "bvh"];
 
 /// What to fit, where to, and within what ([`FitOptions`]).
 #[derive(Clone, Debug)]
@@ -259,6 +259,8 @@ impl FitJob {
                 let file = bvh::read(input).map_err(|e| e.to_string())?;
                 let skeleton = BvhSkeleton { hierarchy: file.hierarchy().to_string(), frame_time: file.frame_time };
                 (file.animation(stem), Some(skeleton))
+            } else if extension(input).as_deref() == Some(fbx::EXTENSION) {
+                (fbx::read(input).map_err(|e| e.to_string())?.animation, None)
             } else {
                 let file = gltf::read(input, gltf::UriPolicy::default()).map_err(|e| e.to_string())?;
                 (file.animation, None)

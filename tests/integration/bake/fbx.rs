@@ -78,6 +78,11 @@ fn fbx_bakes_skin_like_the_glb_it_was_exported_from() {
         let scale = diagonal(&data.join(format!("{stem}.glb")));
         let (fbx, glb) =
             (json(&out("fbx").join(format!("{stem}.json"))), json(&out("glb").join(format!("{stem}.json"))));
+        // Blender writes centimetres, +Y up; the sidecar says what they became.
+        let conversion = &fbx["conversion"];
+        assert_eq!((conversion["from_unit_metres"].as_f64(), conversion["from_up"].as_str()), (Some(0.01), Some("+Y")));
+        assert!(conversion["to"].as_str().unwrap().starts_with("metres, +Y up"), "{conversion}");
+        assert!(glb.get("conversion").is_none());
         let names = |s: &serde_json::Value| -> Vec<String> {
             s["clips"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap().to_string()).collect()
         };
