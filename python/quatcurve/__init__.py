@@ -353,7 +353,7 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         ``[frames, joints, 12]`` (3x4 matrices by forward kinematics), ``skin`` (model
         times inverse bind matrix, per glTF skin), ``model-trs`` and ``skin-trs`` (those
         transforms as rotation, translation, scale, which a shader interpolates rigidly), or
-        ``vertex`` (glTF only: every skinned mesh primitive skinned at every frame, with
+        ``vertex`` (glTF and FBX: every skinned mesh primitive skinned at every frame, with
         ``<stem>.mesh.glb`` the mesh to draw; DESIGN section 5d).
     precision : str
         ``f32`` or ``f16`` (``npy`` and ``exr``).

@@ -1,26 +1,34 @@
-//! FBX in, through ufbx (its C loader, built by the crate): every node but the scene root as a
-//! joint with its rest transform, every skin deformer as a skin (its clusters' bones, each
-//! cluster's geometry-to-bone matrix as the inverse bind matrix), every animation stack as a
-//! clip (ufbx's baked keys of each animated node).
+//! FBX in, through ufbx (its C loader, built by the crate), as the glTF scene it converts to:
+//! every node but the scene root a node (with its rest transform), every mesh a mesh of
+//! triangles (positions, normals, the first UV set, and skin weights where a skin deforms it),
+//! every skin deformer a skin (its clusters' bones, each cluster's geometry-to-bone matrix
+//! the inverse bind matrix), every animation stack an animation (ufbx's baked keys of each
+//! animated node, LINEAR). The GLB is read back by the glTF reader ([`crate::gltf`]), so an
+//! FBX bakes as a glTF does, and its baked file is that GLB with the baked frames.
 //!
 //! ufbx converts the scene to glTF's space as it loads: metres and +Y up, right-handed, by
-//! adjusting the nodes' transforms (`SpaceConversion::AdjustTransforms`), so that the
-//! geometry is untouched and the inverse bind matrices stay the file's. The file's own unit
-//! and up axis are kept ([`FbxFile::source_unit_metres`], [`FbxFile::source_up`]).
+//! adjusting the nodes' transforms (`SpaceConversion::AdjustTransforms`), so that mesh data
+//! and inverse bind matrices stay the file's. The file's own unit and up axis are kept
+//! ([`FbxFile::source_unit_metres`], [`FbxFile::source_up`]).
 
 use crate::error::InputError;
-use crate::{Animation, Channel, Clip, Joint, Property, Skin};
+use crate::gltf::{self, GltfFile, UriPolicy};
+use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::path::Path;
 
 /// The extension of FBX files.
 pub const EXTENSION: &str = "fbx";
 
-/// An FBX file read for baking.
-#[derive(Clone, Debug, PartialEq)]
+/// Skin weights a glTF vertex holds (`JOINTS_0`, `WEIGHTS_0`); an FBX vertex's heaviest four
+/// are kept, renormalized.
+const WEIGHTS_PER_VERTEX: usize = 4;
+
+/// An FBX file read for baking: the glTF scene it converts to.
+#[derive(Clone, Debug)]
 pub struct FbxFile {
-    /// The model, in metres and +Y up.
-    pub animation: Animation,
+    /// The scene as a glTF (read back from the GLB the file converts to).
+    pub gltf: GltfFile,
     /// The length of the file's unit in metres (Blender writes 0.01).
     pub source_unit_metres: f64,
     /// The file's up axis (`+Y`, `+Z`, ...).
@@ -35,7 +43,7 @@ fn bad(reason: impl std::fmt::Display) -> InputError {
 ///
 /// # Errors
 /// [`InputError::Read`] for an unreadable file; [`InputError::Fbx`] with ufbx's description
-/// for a file it cannot load, or a stack it cannot bake.
+/// for a file it cannot load, a stack it cannot bake, or a skin cluster without a bone.
 pub fn read(path: &Path) -> Result<FbxFile, InputError> {
     from_bytes(&std::fs::read(path).map_err(InputError::Read)?)
 }
@@ -55,78 +63,277 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
     };
     let scene =
         ufbx::load_memory(bytes, options).map_err(|e| bad(format!("not a readable FBX file: {}", &*e.description)))?;
-    // Joints: every node but the scene root, parents before children as ufbx lists them.
-    let mut index = HashMap::new();
-    let mut joints = Vec::new();
-    for node in scene.nodes.iter().filter(|n| !n.is_root) {
-        index.insert(node.element.typed_id, joints.len());
-        let t = &node.local_transform;
-        let parent = node.parent.as_ref().filter(|p| !p.is_root).map(|p| p.element.typed_id);
-        joints.push((node.element.name.to_string(), parent, *t));
+    let glb = to_glb(&scene)?;
+    // Only the GLB's own chunk is read: no URI is followed.
+    let gltf = gltf::from_bytes(&glb, Path::new(""), UriPolicy::default())?;
+    let settings = &scene.settings;
+    Ok(FbxFile { gltf, source_unit_metres: settings.unit_meters, source_up: axis_name(settings.axes.up) })
+}
+
+/// glTF's buffer view target of vertex attributes.
+const ARRAY_BUFFER: u32 = 34962;
+
+/// The GLB's BIN chunk and its accessors, written as they are added.
+#[derive(Default)]
+struct Buffer {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Buffer {
+    /// An accessor of `values` (`width` floats an element, glTF `kind`), with its bounds when
+    /// glTF asks for them (`bounds`).
+    fn floats(&mut self, values: &[f32], width: usize, kind: &str, bounds: bool) -> usize {
+        let count = values.len() / width;
+        let accessor = json!({"componentType": 5126, "count": count, "type": kind});
+        self.floats_with(values, width, accessor, bounds)
     }
-    let joint_of = |typed_id: u32| index.get(&typed_id).copied();
-    let joints: Vec<Joint> = joints
-        .into_iter()
-        .map(|(name, parent, t)| Joint {
-            name,
-            parent: parent.and_then(joint_of),
-            rotation: [t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w],
-            translation: [t.translation.x, t.translation.y, t.translation.z],
-            scale: [t.scale.x, t.scale.y, t.scale.z],
+
+    /// A vertex attribute's accessor ([`Buffer::floats`] with its view marked as one).
+    fn attribute(&mut self, values: &[f32], width: usize, kind: &str, bounds: bool) -> usize {
+        let accessor =
+            json!({"componentType": 5126, "count": values.len() / width, "type": kind, "target": ARRAY_BUFFER});
+        self.floats_with(values, width, accessor, bounds)
+    }
+
+    fn floats_with(&mut self, values: &[f32], width: usize, mut accessor: Value, bounds: bool) -> usize {
+        if bounds {
+            let (mut lo, mut hi) = (vec![f32::MAX; width], vec![f32::MIN; width]);
+            for element in values.chunks_exact(width) {
+                for (c, &v) in element.iter().enumerate() {
+                    lo[c] = lo[c].min(v);
+                    hi[c] = hi[c].max(v);
+                }
+            }
+            accessor["min"] = json!(lo);
+            accessor["max"] = json!(hi);
+        }
+        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
+    }
+
+    /// A vertex attribute of unsigned shorts (`JOINTS_0`).
+    fn shorts(&mut self, values: &[u16], width: usize, kind: &str) -> usize {
+        let accessor =
+            json!({"componentType": 5123, "count": values.len() / width, "type": kind, "target": ARRAY_BUFFER});
+        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
+    }
+
+    fn add(&mut self, bytes: Vec<u8>, mut accessor: Value) -> usize {
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        let mut view = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
+        if let Some(target) = accessor.as_object_mut().and_then(|a| a.remove("target")) {
+            view["target"] = target;
+        }
+        self.views.push(view);
+        self.bin.extend(bytes);
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+}
+
+/// The scene as a GLB (see the module's documentation).
+fn to_glb(scene: &ufbx::Scene) -> Result<Vec<u8>, InputError> {
+    let mut buffer = Buffer::default();
+    // Nodes: every node but the scene root, in ufbx's order (parents first).
+    let nodes: Vec<&ufbx::Node> = scene.nodes.iter().filter(|n| !n.is_root).map(|n| &**n).collect();
+    let index: HashMap<u32, usize> = nodes.iter().enumerate().map(|(i, n)| (n.element.typed_id, i)).collect();
+    let skins = skins(scene, &index, &mut buffer)?;
+    let mut meshes = Vec::new();
+    let mut mesh_of: HashMap<u32, (usize, Option<usize>)> = HashMap::new();
+    for mesh in scene.meshes.iter() {
+        let skin = mesh.skin_deformers.first().map(|d| d.element.typed_id);
+        let skin_index = skin.and_then(|id| scene.skin_deformers.iter().position(|d| d.element.typed_id == id));
+        meshes.push(mesh_json(mesh, skin_index.map(|k| &scene.skin_deformers[k]), &mut buffer));
+        mesh_of.insert(mesh.element.typed_id, (meshes.len() - 1, skin_index));
+    }
+    let mut node_json: Vec<Value> = nodes
+        .iter()
+        .map(|node| {
+            let t = &node.local_transform;
+            let mut n = json!({
+                "name": &*node.element.name,
+                "translation": [t.translation.x, t.translation.y, t.translation.z],
+                "rotation": [t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w],
+                "scale": [t.scale.x, t.scale.y, t.scale.z],
+            });
+            if let Some((mesh, skin)) = node.mesh.as_ref().and_then(|m| mesh_of.get(&m.element.typed_id)) {
+                n["mesh"] = json!(mesh);
+                if let Some(skin) = skin {
+                    n["skin"] = json!(skin);
+                }
+            }
+            n
         })
         .collect();
+    let mut roots = Vec::new();
+    for (i, node) in nodes.iter().enumerate() {
+        match node.parent.as_ref().filter(|p| !p.is_root).and_then(|p| index.get(&p.element.typed_id)) {
+            Some(&parent) => {
+                let children = node_json[parent].as_object_mut().expect("a node is an object");
+                children
+                    .entry("children")
+                    .or_insert_with(|| json!([]))
+                    .as_array_mut()
+                    .expect("an array")
+                    .push(json!(i));
+            }
+            None => roots.push(i),
+        }
+    }
+    let animations = animations(scene, &index, &mut buffer)?;
+    let mut document = json!({
+        "asset": {"version": "2.0", "generator": "quatcurve (FBX through ufbx)"},
+        "scene": 0,
+        "scenes": [{"nodes": roots}],
+        "nodes": node_json,
+    });
+    for (key, list) in [("meshes", meshes), ("skins", skins), ("animations", animations)] {
+        if !list.is_empty() {
+            document[key] = Value::Array(list);
+        }
+    }
+    document["accessors"] = Value::Array(std::mem::take(&mut buffer.accessors));
+    document["bufferViews"] = Value::Array(std::mem::take(&mut buffer.views));
+    document["buffers"] = json!([{"byteLength": buffer.bin.len()}]);
+    crate::glb::assemble(&document, buffer.bin, "the FBX's scene would exceed 4 GiB as a GLB")
+}
+
+/// Every skin deformer as a glTF skin: its clusters' bones and their geometry-to-bone
+/// matrices as inverse bind matrices (column-major 4x4).
+fn skins(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buffer) -> Result<Vec<Value>, InputError> {
     let mut skins = Vec::new();
     for deformer in scene.skin_deformers.iter() {
-        let mut skin = Skin {
-            name: deformer.element.name.to_string(),
-            joints: Vec::new(),
-            inverse_bind: Vec::new(),
-            skeleton: None,
-        };
+        let (mut joints, mut matrices) = (Vec::new(), Vec::new());
         for cluster in deformer.clusters.iter() {
-            let Some(joint) = cluster.bone_node.as_ref().and_then(|b| joint_of(b.element.typed_id)) else {
-                return Err(bad(format!("skin '{}': cluster '{}' has no bone", skin.name, &*cluster.element.name)));
+            let Some(&joint) = cluster.bone_node.as_ref().and_then(|b| index.get(&b.element.typed_id)) else {
+                return Err(bad(format!(
+                    "skin '{}': cluster '{}' has no bone",
+                    &*deformer.element.name, &*cluster.element.name
+                )));
             };
             let m = &cluster.geometry_to_bone;
-            skin.joints.push(joint);
-            skin.inverse_bind
-                .push([m.m00, m.m01, m.m02, m.m03, m.m10, m.m11, m.m12, m.m13, m.m20, m.m21, m.m22, m.m23]);
+            joints.push(joint);
+            matrices.extend(
+                [
+                    m.m00, m.m10, m.m20, 0.0, m.m01, m.m11, m.m21, 0.0, m.m02, m.m12, m.m22, 0.0, m.m03, m.m13, m.m23,
+                    1.0,
+                ]
+                .map(|x| x as f32),
+            );
         }
-        skins.push(skin);
+        let inverse_bind = buffer.floats(&matrices, 16, "MAT4", false);
+        skins.push(json!({"name": &*deformer.element.name, "joints": joints, "inverseBindMatrices": inverse_bind}));
     }
-    let names = clip_names(&scene);
-    let mut clips = Vec::new();
-    for (stack, name) in scene.anim_stacks.iter().zip(names) {
-        let baked = ufbx::bake_anim(&scene, &stack.anim, ufbx::BakeOpts::default())
-            .map_err(|e| bad(format!("animation stack '{}': {}", &*stack.element.name, &*e.description)))?;
-        let mut channels = Vec::new();
-        for node in baked.nodes.iter() {
-            let Some(joint) = joint_of(node.typed_id) else { continue };
-            if !node.constant_rotation {
-                let (times, values) =
-                    node.rotation_keys.iter().map(|k| (k.time, [k.value.x, k.value.y, k.value.z, k.value.w])).unzip();
-                channels.push(Channel::keys(joint, Property::Rotation, times, values));
+    Ok(skins)
+}
+
+/// A mesh as one glTF primitive of triangles, each corner its own vertex: positions,
+/// normals and the first UV set where the mesh has them, and with `skin` its four heaviest
+/// weights per vertex.
+fn mesh_json(mesh: &ufbx::Mesh, skin: Option<&ufbx::SkinDeformer>, buffer: &mut Buffer) -> Value {
+    let mut corners: Vec<u32> = Vec::with_capacity(mesh.num_triangles * 3);
+    let mut scratch = vec![0u32; mesh.max_face_triangles * 3];
+    for face in mesh.faces.iter() {
+        let triangles = mesh.triangulate_face(&mut scratch, *face) as usize;
+        corners.extend_from_slice(&scratch[..triangles * 3]);
+    }
+    let vec3 = |attribute: &ufbx::VertexVec3| -> Vec<f32> {
+        corners
+            .iter()
+            .flat_map(|&c| {
+                let v = attribute.values[attribute.indices[c as usize] as usize];
+                [v.x as f32, v.y as f32, v.z as f32]
+            })
+            .collect()
+    };
+    let mut attributes = json!({"POSITION": buffer.attribute(&vec3(&mesh.vertex_position), 3, "VEC3", true)});
+    if mesh.vertex_normal.exists {
+        attributes["NORMAL"] = json!(buffer.attribute(&vec3(&mesh.vertex_normal), 3, "VEC3", false));
+    }
+    if mesh.vertex_uv.exists {
+        let uv = &mesh.vertex_uv;
+        // glTF's V runs down the image, FBX's up.
+        let values: Vec<f32> = corners
+            .iter()
+            .flat_map(|&c| {
+                let v = uv.values[uv.indices[c as usize] as usize];
+                [v.x as f32, 1.0 - v.y as f32]
+            })
+            .collect();
+        attributes["TEXCOORD_0"] = json!(buffer.attribute(&values, 2, "VEC2", false));
+    }
+    if let Some(skin) = skin {
+        let (mut joints, mut weights) = (Vec::with_capacity(corners.len() * 4), Vec::with_capacity(corners.len() * 4));
+        for &c in &corners {
+            let vertex = mesh.vertex_indices[c as usize] as usize;
+            let mut influences: Vec<(u32, f64)> = skin
+                .vertices
+                .get(vertex)
+                .map(|v| {
+                    (v.weight_begin..v.weight_begin + v.num_weights)
+                        .filter_map(|w| skin.weights.get(w as usize).map(|w| (w.cluster_index, w.weight)))
+                        .collect()
+                })
+                .unwrap_or_default();
+            influences.sort_by(|a, b| b.1.total_cmp(&a.1));
+            influences.truncate(WEIGHTS_PER_VERTEX);
+            let total: f64 = influences.iter().map(|(_, w)| w).sum();
+            for k in 0..WEIGHTS_PER_VERTEX {
+                let (joint, weight) = influences.get(k).copied().unwrap_or((0, 0.0));
+                joints.push(u16::try_from(joint).unwrap_or(0));
+                weights.push(if total > 0.0 {
+                    (weight / total) as f32
+                } else if k == 0 {
+                    1.0
+                } else {
+                    0.0
+                });
             }
-            for (constant, keys, property) in [
-                (node.constant_translation, &node.translation_keys, Property::Translation),
-                (node.constant_scale, &node.scale_keys, Property::Scale),
+        }
+        attributes["JOINTS_0"] = json!(buffer.shorts(&joints, 4, "VEC4"));
+        attributes["WEIGHTS_0"] = json!(buffer.attribute(&weights, 4, "VEC4", false));
+    }
+    json!({"name": &*mesh.element.name, "primitives": [{"attributes": attributes, "mode": 4}]})
+}
+
+/// Every animation stack as a glTF animation of ufbx's baked keys (LINEAR), one sampler per
+/// animated property of each node.
+fn animations(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buffer) -> Result<Vec<Value>, InputError> {
+    let mut animations = Vec::new();
+    for (stack, name) in scene.anim_stacks.iter().zip(clip_names(scene)) {
+        let baked = ufbx::bake_anim(scene, &stack.anim, ufbx::BakeOpts::default())
+            .map_err(|e| bad(format!("animation stack '{}': {}", &*stack.element.name, &*e.description)))?;
+        let (mut samplers, mut channels) = (Vec::new(), Vec::new());
+        for node in baked.nodes.iter() {
+            let Some(&target) = index.get(&node.typed_id) else { continue };
+            let mut add = |path: &str, times: Vec<f32>, values: Vec<f32>, width: usize, kind: &str| {
+                let input = buffer.floats(&times, 1, "SCALAR", true);
+                let output = buffer.floats(&values, width, kind, false);
+                samplers.push(json!({"input": input, "output": output}));
+                channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": target, "path": path}}));
+            };
+            if !node.constant_rotation {
+                let keys = &node.rotation_keys;
+                let values = keys.iter().flat_map(|k| [k.value.x, k.value.y, k.value.z, k.value.w].map(|x| x as f32));
+                add("rotation", keys.iter().map(|k| k.time as f32).collect(), values.collect(), 4, "VEC4");
+            }
+            for (constant, keys, path) in [
+                (node.constant_translation, &node.translation_keys, "translation"),
+                (node.constant_scale, &node.scale_keys, "scale"),
             ] {
                 if !constant {
-                    let (times, values) = keys.iter().map(|k| (k.time, [k.value.x, k.value.y, k.value.z, 0.0])).unzip();
-                    channels.push(Channel::keys(joint, property, times, values));
+                    let values = keys.iter().flat_map(|k| [k.value.x, k.value.y, k.value.z].map(|x| x as f32));
+                    add(path, keys.iter().map(|k| k.time as f32).collect(), values.collect(), 3, "VEC3");
                 }
             }
         }
         if !channels.is_empty() {
-            clips.push(Clip { name, channels });
+            animations.push(json!({"name": name, "samplers": samplers, "channels": channels}));
         }
     }
-    let settings = &scene.settings;
-    Ok(FbxFile {
-        animation: Animation { joints, clips, skins },
-        source_unit_metres: settings.unit_meters,
-        source_up: axis_name(settings.axes.up),
-    })
+    Ok(animations)
 }
 
 /// Each stack's clip name: Blender names a stack `<object>|<action>`; where every stack is

@@ -12,7 +12,7 @@ use std::path::Path;
 pub enum Source {
     /// A glTF or GLB file.
     Gltf(Box<gltf::GltfFile>),
-    /// An FBX file.
+    /// An FBX file, as the glTF scene it converts to.
     Fbx(Box<fbx::FbxFile>),
     /// A BVH file (or a fitted container of one), read as its one clip.
     Bvh(bvh::BvhFile, Animation),
@@ -84,8 +84,18 @@ impl Source {
     pub fn animation(&self) -> &Animation {
         match self {
             Source::Gltf(f) => &f.animation,
-            Source::Fbx(f) => &f.animation,
+            Source::Fbx(f) => &f.gltf.animation,
             Source::Bvh(_, a) | Source::Smpl(_, a) | Source::Crowd(a) | Source::Fitted(a) => a,
+        }
+    }
+
+    /// The glTF scene of a glTF or FBX file (meshes, skins and the writer of a baked GLB).
+    #[must_use]
+    pub fn gltf(&self) -> Option<&gltf::GltfFile> {
+        match self {
+            Source::Gltf(f) => Some(f),
+            Source::Fbx(f) => Some(&f.gltf),
+            _ => None,
         }
     }
 

@@ -396,14 +396,14 @@ impl BakeJob {
                 report.warnings.extend(file.warnings.iter().cloned());
             }
             // Checked before the curves are baked.
-            let vertex = match (&src, self.options.texture) {
-                (Source::Gltf(file), TextureKind::Vertex) => {
+            let vertex = match (src.gltf(), self.options.texture) {
+                (Some(file), TextureKind::Vertex) => {
                     Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.options.format != Format::Npy))
                 }
-                (other, TextureKind::Vertex) => {
+                (None, TextureKind::Vertex) => {
                     return Err(InputError::Animation(format!(
                         "vertex textures skin a glTF's meshes, and this is {}; bake a bone texture",
-                        other.kind()
+                        src.kind()
                     )))
                 }
                 _ => None,
@@ -518,12 +518,12 @@ impl BakeJob {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
         let order = animation.parents_first()?;
-        if self.options.texture.is_skin() && matches!(src, Source::Gltf(_)) && animation.skins.is_empty() {
+        if self.options.texture.is_skin() && src.gltf().is_some() && animation.skins.is_empty() {
             return Err(InputError::Animation(
                 "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
             ));
         }
-        if self.options.format == Format::Babylon && (!matches!(src, Source::Gltf(_)) || animation.skins.is_empty()) {
+        if self.options.format == Format::Babylon && (src.gltf().is_none() || animation.skins.is_empty()) {
             return Err(InputError::Animation(format!(
                 "babylon plays a glTF skin's bones, and this is {} without one; bake a glTF with a skinned \
                  mesh, or another format",
@@ -532,19 +532,20 @@ impl BakeJob {
         }
         // What the shipped skinned vertex shader draws of the baked glTF, and the meshes
         // Babylon hangs from a skin's parent.
-        let skinned = match (src, self.options.texture, self.options.format) {
-            (Source::Gltf(file), TextureKind::SkinTrs, Format::Exr | Format::Png16)
-            | (Source::Gltf(file), TextureKind::Skin, Format::Babylon) => mesh::declared_skinned_primitives(file)?,
+        let skinned = match (src.gltf(), self.options.texture, self.options.format) {
+            (Some(file), TextureKind::SkinTrs, Format::Exr | Format::Png16)
+            | (Some(file), TextureKind::Skin, Format::Babylon) => mesh::declared_skinned_primitives(file)?,
             _ => Vec::new(),
         };
         out.sheets = self.sheets(animation, vertex, &skinned)?;
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(&baked.frames())?)),
+            Source::Fbx(file) => Some((format!("{stem}.glb"), file.gltf.to_glb(&baked.frames())?)),
             Source::Bvh(file, animation) => {
                 Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
             }
             Source::Smpl(file, _) => Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0])?)),
-            Source::Fbx(_) | Source::Crowd(_) | Source::Fitted(_) => None,
+            Source::Crowd(_) | Source::Fitted(_) => None,
         };
         let mesh_file = match vertex {
             Some(vertex) => Some((

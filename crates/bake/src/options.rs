@@ -55,7 +55,7 @@ pub struct BakeOptions {
     /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model),
     /// or model-trs and skin-trs (those transforms as rotation, translation, scale: what a
     /// shader interpolates between frames without shearing; `quatcurve shaders`), or vertex
-    /// (glTF only: every skinned mesh primitive skinned at every frame on the device, positions
+    /// (glTF and FBX: every skinned mesh primitive skinned at every frame on the device, positions
     /// and normals; images hold them encoded, and `<stem>.mesh.glb` is the mesh they play).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.texture, value_parser = names::<TextureKind>()))]
     pub texture: TextureKind,

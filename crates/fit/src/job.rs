@@ -260,7 +260,7 @@ impl FitJob {
                 let skeleton = BvhSkeleton { hierarchy: file.hierarchy().to_string(), frame_time: file.frame_time };
                 (file.animation(stem), Some(skeleton))
             } else if extension(input).as_deref() == Some(fbx::EXTENSION) {
-                (fbx::read(input).map_err(|e| e.to_string())?.animation, None)
+                (fbx::read(input).map_err(|e| e.to_string())?.gltf.animation, None)
             } else {
                 let file = gltf::read(input, gltf::UriPolicy::default()).map_err(|e| e.to_string())?;
                 (file.animation, None)

@@ -73,11 +73,11 @@ fn document(path: &Path) -> serde_json::Value {
 }
 
 /// One file's validator messages: per `(severity, code)`, each message with its pointer.
-type Messages = BTreeMap<(u64, String), Vec<String>>;
+pub(super) type Messages = BTreeMap<(u64, String), Vec<String>>;
 
 /// The validator's messages for each file; `None` when the validator is not installed and CI
 /// does not require it.
-fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
+pub(super) fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gltf-validator");
     let installed = root.join("node_modules/gltf-validator").is_dir()
         && std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());

@@ -322,11 +322,12 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Fbx => {
-            let file = quatcurve::anim::fbx::from_bytes(bytes)?;
+            let file = quatcurve::anim::fbx::from_bytes(bytes)?.gltf;
             if file.animation.clips.is_empty() {
                 return Ok(Reached::Skipped("no clip"));
             }
             let baked = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
+            file.to_glb(&baked.frames())?;
             let order = file.animation.parents_first()?;
             let kind = bake::texture::TextureKind::Skin;
             let _ = bake::texture::sheets(&file.animation, &order, &baked, 0, kind, device());
