@@ -243,7 +243,7 @@ def outputs(directory):
 ])
 def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     binary = cli()
-    inputs = data_files("CesiumMan.glb", "cmu_131_01.bvh")
+    inputs = data_files("CesiumMan.glb", "cmu_131_01.bvh", "Fox.fbx")
     subprocess.run([str(binary), "bake", "--input", *inputs, "--output", str(tmp_path / "cli"), "--device", "cpu", *options],
                    capture_output=True, text=True, check=True)
     rows = quatcurve.bake(inputs, tmp_path / "py", device="cpu", **kwargs)
@@ -253,7 +253,7 @@ def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     assert outputs(tmp_path / "py") == expected
     assert sorted(pathlib.Path(f).name for row in rows for f in row["files"]) == sorted(expected)
     manifest = json.loads((tmp_path / "py" / "manifest.0-of-1.json").read_text())
-    assert [record["status"] for record in manifest["inputs"]] == ["ok", "ok"]
+    assert [record["status"] for record in manifest["inputs"]] == ["ok", "ok", "ok"]
     if "max_error" in kwargs:
         for row in rows:
             assert row["rates"] and all(c["rotation"]["value"] <= kwargs["max_error"] for c in row["rates"]), row["rates"]

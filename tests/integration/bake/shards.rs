@@ -2,7 +2,7 @@
 //! manifests record SHA-256s, `--resume` redoes exactly what is missing or damaged, and the
 //! scheduler examples in `examples/` run as their schedulers would run them.
 
-use super::{data_dir, json, stderr};
+use super::{json, library, stderr};
 use assert_cmd::Command;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -39,7 +39,7 @@ fn statuses(manifest: &serde_json::Value) -> BTreeMap<String, String> {
 
 #[test]
 fn three_shards_equal_one_run_and_resume_redoes_only_damage() {
-    let Some(data) = data_dir() else { return };
+    let Some(data) = library() else { return };
     let dir = tempfile::tempdir().unwrap();
     let (whole, sharded) = (dir.path().join("whole"), dir.path().join("sharded"));
     let base = ["bake", "--input", data.to_str().unwrap(), "--rate", "24", "--device", "cpu"];
@@ -147,7 +147,7 @@ fn example(name: &str) -> std::path::PathBuf {
 /// variables its scheduler sets. Both together reproduce one unsharded run.
 #[test]
 fn the_scheduler_examples_run_as_their_schedulers_run_them() {
-    let Some(data) = data_dir() else { return };
+    let Some(data) = library() else { return };
     let dir = tempfile::tempdir().unwrap();
     let bin = assert_cmd::cargo::cargo_bin("quatcurve");
     let whole = dir.path().join("whole");
