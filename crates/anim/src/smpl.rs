@@ -399,19 +399,25 @@ fn scalar(field: &str, bytes: &[u8]) -> Result<f64, InputError> {
         return Err(bad(field, format!("shape {:?}; expected one number", file.shape())));
     }
     let DType::Plain(ty) = file.dtype() else { return Err(bad(field, "a structured array; expected one number")) };
-    let value = match ty.type_char() {
-        TypeChar::Float | TypeChar::Int | TypeChar::Uint => {
-            let floats = npy_of(field, bytes)?;
-            if ty.type_char() == TypeChar::Float {
-                read_floats(floats, bytes.len() as u64).map_err(|e| bad(field, e))?.data[0]
-            } else {
-                let ints: Vec<i64> = floats.into_vec().map_err(|e| bad(field, e))?;
-                ints[0] as f64
-            }
-        }
+    let read = || npy_of(field, bytes);
+    let value = match (ty.type_char(), ty.size_field()) {
+        (TypeChar::Float, _) => read_floats(read()?, bytes.len() as u64).map_err(|e| bad(field, e))?.data[0],
+        (TypeChar::Int, 1) => f64::from(first::<i8>(field, read()?)?),
+        (TypeChar::Int, 2) => f64::from(first::<i16>(field, read()?)?),
+        (TypeChar::Int, 4) => f64::from(first::<i32>(field, read()?)?),
+        (TypeChar::Int, 8) => first::<i64>(field, read()?)? as f64,
+        (TypeChar::Uint, 1) => f64::from(first::<u8>(field, read()?)?),
+        (TypeChar::Uint, 2) => f64::from(first::<u16>(field, read()?)?),
+        (TypeChar::Uint, 4) => f64::from(first::<u32>(field, read()?)?),
+        (TypeChar::Uint, 8) => first::<u64>(field, read()?)? as f64,
         _ => return Err(bad(field, format!("dtype {ty}; expected a number"))),
     };
     Ok(value)
+}
+
+/// The one value of a one-element array of `T`.
+fn first<T: npyz::Deserialize>(field: &str, npy: NpyFile<impl Read>) -> Result<T, InputError> {
+    npy.into_vec::<T>().map_err(|e| bad(field, e))?.pop().ok_or_else(|| bad(field, "holds no value"))
 }
 
 /// A duration field (seconds) must be what `frames` at `rate` last, counted either way
@@ -663,6 +669,25 @@ mod tests {
         // Past a half turn, the same rotation the short way round.
         let back = to_axis_angle(from_axis_angle([0.0, 0.0, 4.0]));
         assert!((back[2] - (4.0 - std::f64::consts::TAU)).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn a_rate_is_read_from_any_number_type() {
+        for (descr, bytes) in [
+            ("<f8", 60.0f64.to_le_bytes().to_vec()),
+            ("<f4", 59.94f32.to_le_bytes().to_vec()),
+            ("<i8", 120i64.to_le_bytes().to_vec()),
+            ("<i4", 30i32.to_le_bytes().to_vec()),
+            ("|u1", vec![25u8]),
+        ] {
+            let mut npy = npy_header(descr, &[]);
+            npy.extend(&bytes);
+            let value = scalar("mocap_frame_rate", &npy).unwrap();
+            assert!([60.0, 120.0, 30.0, 25.0].contains(&value) || (value - 59.94).abs() < 1e-5, "{descr}: {value}");
+        }
+        let mut text = npy_header("<U2", &[]);
+        text.extend("60".chars().flat_map(|c| (c as u32).to_le_bytes()));
+        assert!(scalar("mocap_framerate", &text).unwrap_err().to_string().contains("expected a number"));
     }
 
     #[test]
