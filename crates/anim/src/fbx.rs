@@ -57,6 +57,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
         target_axes: ufbx::CoordinateAxes::right_handed_y_up(),
         target_unit_meters: 1.0,
         space_conversion: ufbx::SpaceConversion::AdjustTransforms,
+        // A geometric transform (a pivot glTF has no word for) becomes a child node of its own
+        // holding the mesh, so that a mesh that is not skinned is drawn where the FBX puts it.
+        geometry_transform_handling: ufbx::GeometryTransformHandling::HelperNodes,
         // No file beside it is opened: an FBX's external references are not followed.
         load_external_files: false,
         ..Default::default()
