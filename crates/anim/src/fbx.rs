@@ -76,6 +76,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
 /// glTF's buffer view target of vertex attributes.
 const ARRAY_BUFFER: u32 = 34962;
 
+/// glTF's buffer view target of vertex indices.
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+
 /// The GLB's BIN chunk and its accessors, written as they are added.
 #[derive(Default)]
 struct Buffer {
@@ -119,6 +122,13 @@ impl Buffer {
     fn shorts(&mut self, values: &[u16], width: usize, kind: &str) -> usize {
         let accessor =
             json!({"componentType": 5123, "count": values.len() / width, "type": kind, "target": ARRAY_BUFFER});
+        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
+    }
+
+    /// A primitive's triangle indices.
+    fn indices(&mut self, values: &[u32]) -> usize {
+        let accessor =
+            json!({"componentType": 5125, "count": values.len(), "type": "SCALAR", "target": ELEMENT_ARRAY_BUFFER});
         self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
     }
 
@@ -232,15 +242,31 @@ fn skins(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buffer) 
     Ok(skins)
 }
 
-/// A mesh as one glTF primitive of triangles, each corner its own vertex: positions,
-/// normals and the first UV set where the mesh has them, and with `skin` its four heaviest
-/// weights per vertex.
+/// A mesh as one indexed glTF primitive of triangles: positions, normals and the first UV set
+/// where the mesh has them, and with `skin` its four heaviest weights per vertex.
 fn mesh_json(mesh: &ufbx::Mesh, skin: Option<&ufbx::SkinDeformer>, buffer: &mut Buffer) -> Value {
-    let mut corners: Vec<u32> = Vec::with_capacity(mesh.num_triangles * 3);
+    let mut triangles: Vec<u32> = Vec::with_capacity(mesh.num_triangles * 3);
     let mut scratch = vec![0u32; mesh.max_face_triangles * 3];
     for face in mesh.faces.iter() {
-        let triangles = mesh.triangulate_face(&mut scratch, *face) as usize;
-        corners.extend_from_slice(&scratch[..triangles * 3]);
+        let count = mesh.triangulate_face(&mut scratch, *face) as usize;
+        triangles.extend_from_slice(&scratch[..count * 3]);
+    }
+    // One glTF vertex per distinct (vertex, normal, UV) of the corners; `corners` holds a
+    // corner of each, `indices` the triangles in them.
+    let attribute = |indices: &ufbx::List<u32>, exists: bool, c: usize| if exists { indices[c] } else { u32::MAX };
+    let (mut corners, mut indices, mut seen) = (Vec::new(), Vec::with_capacity(triangles.len()), HashMap::new());
+    for &c in &triangles {
+        let i = c as usize;
+        let key = (
+            mesh.vertex_indices[i],
+            attribute(&mesh.vertex_normal.indices, mesh.vertex_normal.exists, i),
+            attribute(&mesh.vertex_uv.indices, mesh.vertex_uv.exists, i),
+        );
+        let next = u32::try_from(corners.len()).unwrap_or(u32::MAX);
+        indices.push(*seen.entry(key).or_insert_with(|| {
+            corners.push(c);
+            next
+        }));
     }
     let vec3 = |attribute: &ufbx::VertexVec3| -> Vec<f32> {
         corners
@@ -298,7 +324,8 @@ fn mesh_json(mesh: &ufbx::Mesh, skin: Option<&ufbx::SkinDeformer>, buffer: &mut 
         attributes["JOINTS_0"] = json!(buffer.shorts(&joints, 4, "VEC4"));
         attributes["WEIGHTS_0"] = json!(buffer.attribute(&weights, 4, "VEC4", false));
     }
-    json!({"name": &*mesh.element.name, "primitives": [{"attributes": attributes, "mode": 4}]})
+    let indices = buffer.indices(&indices);
+    json!({"name": &*mesh.element.name, "primitives": [{"attributes": attributes, "indices": indices, "mode": 4}]})
 }
 
 /// Every animation stack as a glTF animation of ufbx's baked keys (LINEAR), one sampler per
