@@ -99,14 +99,12 @@ impl Source {
         }
     }
 
-    /// The curve family a bake takes when none is asked for. SMPL-family poses take slerp:
-    /// dataset pipelines check a resampling against scipy's `Slerp`, and each frame then
-    /// depends on its two neighbouring keys alone, so mocap jitter or a bad frame stays local.
-    /// Every other source takes the C2 curve ([`DEFAULT_CURVE`]).
+    /// The curve family a bake takes when none is asked for: SMPL-family poses their own
+    /// ([`smpl::DEFAULT_CURVE`]), every other source the C2 curve ([`DEFAULT_CURVE`]).
     #[must_use]
     pub fn default_curve(&self) -> Curve {
         match self {
-            Source::Smpl(..) => Curve::Slerp,
+            Source::Smpl(..) => smpl::DEFAULT_CURVE,
             _ => DEFAULT_CURVE,
         }
     }

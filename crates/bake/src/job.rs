@@ -420,11 +420,7 @@ impl BakeJob {
                     src.kind()
                 )));
             }
-            let rate = if self.options.exact_rate {
-                ClipRate::Exact(self.options.rate)
-            } else {
-                ClipRate::Fit(self.options.rate)
-            };
+            let rate = self.options.clip_rate();
             let (spec, budget) = (self.options.spec(&src), self.options.budget());
             let mut baked = if budget.is_set() {
                 let setting = budget::Setting {

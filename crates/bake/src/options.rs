@@ -6,7 +6,7 @@ use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
-use super::LoopMode;
+use super::{ClipRate, LoopMode};
 use quatcurve_anim::crowd;
 use quatcurve_anim::source::Source;
 use quatcurve_core::curve::{Curve, CurveSpec, KnotMode};
@@ -137,7 +137,23 @@ impl BakeOptions {
     /// The curve every clip of `source` is baked with (`looping` is decided per clip).
     #[must_use]
     pub fn spec(&self, source: &Source) -> CurveSpec {
-        self.curve_options.spec(self.curve_for(source), KnotMode::Phantom, false)
+        self.spec_or(source.default_curve())
+    }
+
+    /// The curve every clip is baked with, `default` where none is asked for.
+    #[must_use]
+    pub fn spec_or(&self, default: Curve) -> CurveSpec {
+        self.curve_options.spec(self.curve.unwrap_or(default), KnotMode::Phantom, false)
+    }
+
+    /// How each clip's frames are laid: at the rate exactly, or fitted to the clip.
+    #[must_use]
+    pub fn clip_rate(&self) -> ClipRate {
+        if self.exact_rate {
+            ClipRate::Exact(self.rate)
+        } else {
+            ClipRate::Fit(self.rate)
+        }
     }
 
     /// The error budget that chooses each clip's rate (none set: every clip at `rate`).

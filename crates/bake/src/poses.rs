@@ -4,10 +4,8 @@
 
 use super::options::BakeOptions;
 use super::report::unbaked_ends;
-use super::ClipRate;
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::smpl::{Resampled, SmplFile};
-use quatcurve_anim::source::Source;
+use quatcurve_anim::smpl::{self, Resampled, SmplFile};
 use quatcurve_device::Device;
 
 /// `file`'s poses (and root translation) at `options.rate` (exactly, with `exact_rate`), with
@@ -22,13 +20,8 @@ pub fn resample(
     device: &Device,
 ) -> Result<(Resampled, Vec<String>), InputError> {
     let animation = file.animation("poses");
-    let source = Source::Smpl(Box::new(file), animation);
-    let spec = options.spec(&source);
-    let Source::Smpl(file, animation) = source else {
-        return Err(InputError::Internal("an SMPL source read back as another kind".into()));
-    };
-    let rate = if options.exact_rate { ClipRate::Exact(options.rate) } else { ClipRate::Fit(options.rate) };
-    let baked = super::bake(&animation, &spec, rate, options.looping, device)?;
+    let spec = options.spec_or(smpl::DEFAULT_CURVE);
+    let baked = super::bake(&animation, &spec, options.clip_rate(), options.looping, device)?;
     let mut warnings = super::source_step_warnings(&animation);
     warnings.extend(file.warnings.iter().cloned());
     warnings.extend(unbaked_ends(&animation, &baked));
