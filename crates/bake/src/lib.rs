@@ -9,6 +9,7 @@
 
 pub mod babylon;
 pub mod budget;
+pub mod curves;
 pub mod image;
 pub mod job;
 pub mod manifest;
@@ -31,16 +32,15 @@ pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::error::InputError as E;
-use quatcurve_anim::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Property};
+use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
+use curves::{ChannelEval, Curves};
 
 use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::QuatF64;
 use quatcurve_device::Device;
-use quatcurve_eval::batch::{BatchBuilder, Spline};
-use quatcurve_eval::error::TrackId;
-use quatcurve_eval::euclidean::VectorCurve;
+use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::FloatOutput;
 use quatcurve_eval::sampling::{PerTrack, SampleTimes, Sampling, TrackTimes};
@@ -429,43 +429,39 @@ pub fn bake_reusing(
 ) -> Result<Baked, InputError> {
     assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
     let (mut clips, grids) = plan_clips(animation, spec, rates, loops)?;
-    let (mut tracks, mut specs, mut track_clips, mut host) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut splines = Vec::new();
-    let mut builder = reuse.batch.take().map_or_else(BatchBuilder::new, BatchBuilder::reusing);
-    for (c, prepared) in prepare_channels(animation, spec, &clips) {
-        clips[c].frames.push(match prepared? {
-            ChannelWork::Host(values) => {
-                host.push(values);
-                Frames::Host(host.len() - 1)
-            }
-            ChannelWork::Track(track, spec) => {
-                // The splines before it first, so that the batch keeps the channels' order.
-                extend_splines(&mut builder, &mut splines)?;
-                tracks.push(track);
-                specs.push(spec);
-                track_clips.push(c);
-                Frames::Device(0, 0)
-            }
-            ChannelWork::Spline { name, points, knots } => {
-                // Likewise the tracks before it (only a fitted animation has splines, and it
-                // needs no tracks kept for key_error).
-                builder.extend(&std::mem::take(&mut tracks), |i| specs[i])?;
-                specs.clear();
-                splines.push((name, points, knots));
-                track_clips.push(c);
-                Frames::Device(0, 0)
-            }
-        });
+    let looping: Vec<bool> = clips.iter().map(|c| c.looping).collect();
+    let builder = reuse.batch.take().map_or_else(BatchBuilder::new, BatchBuilder::reusing);
+    let curves = Curves::build(animation, spec, &looping, builder)?;
+    // The host's channels at their clip's frames, on every core.
+    let host_channels: Vec<(usize, &ChannelEval)> = curves
+        .channels
+        .iter()
+        .enumerate()
+        .flat_map(|(c, channels)| channels.iter().filter(|k| !matches!(k, ChannelEval::Device(_))).map(move |k| (c, k)))
+        .collect();
+    let host: Vec<Vec<[f32; 4]>> = host_channels
+        .par_iter()
+        .map(|&(c, curve)| clips[c].times.iter().filter_map(|&t| curve.host_value(t)).collect())
+        .collect();
+    let mut next_host = 0;
+    for (clip, channels) in clips.iter_mut().zip(&curves.channels) {
+        clip.frames = channels
+            .iter()
+            .map(|k| match k {
+                ChannelEval::Device(_) => Frames::Device(0, 0),
+                _ => {
+                    next_host += 1;
+                    Frames::Host(next_host - 1)
+                }
+            })
+            .collect();
     }
     let mut baked =
         Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host, in_place: Vec::new() };
-    if track_clips.is_empty() {
+    let Some(batch) = curves.batch else {
         return Ok(baked);
-    }
-    // Each on every core (bspline-interp solves a system per track).
-    extend_splines(&mut builder, &mut splines)?;
-    builder.extend(&tracks, |i| specs[i])?;
-    let batch = builder.build()?;
+    };
+    let track_clips = &curves.track_clips;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
     let clips = &baked.clips;
@@ -488,24 +484,10 @@ pub fn bake_reusing(
     baked.device = Some(name);
     // A fitted clip's control points are not keys the curve passes through.
     if interpolates(spec) && !animation.is_fitted() {
-        baked.max_key_error = Some(key_error(&tracks, &batch, device)?);
+        baked.max_key_error = Some(key_error(&curves.tracks, &batch, device)?);
     }
     reuse.batch = Some(batch);
     Ok(baked)
-}
-
-/// A fitted rotation channel on its way into the batch: its name, control points and knots.
-type PendingSpline<'a> = (String, &'a [[f64; 4]], &'a [f64]);
-
-/// Appends `splines` to `builder` on every core, and empties it.
-fn extend_splines(builder: &mut BatchBuilder, splines: &mut Vec<PendingSpline<'_>>) -> Result<(), InputError> {
-    if !splines.is_empty() {
-        let batch: Vec<Spline<'_>> =
-            splines.iter().map(|(name, points, knots)| Spline { name: Some(name), points, knots }).collect();
-        builder.extend_splines(&batch)?;
-        splines.clear();
-    }
-    Ok(())
 }
 
 /// Per clip: whether it loops and its frame grid, within the sample budget, which is counted
@@ -546,87 +528,6 @@ fn plan_clips(
     Ok((clips, grids))
 }
 
-/// Every channel, prepared on every core, with its clip's index: rotations with two keys or
-/// more become device tracks, the rest is evaluated here. The results are in channel order, so
-/// that the first error reported is the first channel's.
-fn prepare_channels<'a>(
-    animation: &'a Animation,
-    spec: &CurveSpec,
-    clips: &[BakedClip],
-) -> Vec<(usize, Result<ChannelWork<'a>, InputError>)> {
-    let channels: Vec<(usize, usize)> = animation
-        .clips
-        .iter()
-        .enumerate()
-        .flat_map(|(c, clip)| (0..clip.channels.len()).map(move |k| (c, k)))
-        .collect();
-    let prepare = |c: usize, k: usize| -> Result<ChannelWork<'a>, InputError> {
-        let (clip, channel) = (&animation.clips[c], &animation.clips[c].channels[k]);
-        let spec = CurveSpec { looping: clips[c].looping, ..*spec };
-        let name = animation.label(clip, channel);
-        let frames = &clips[c].times;
-        let id = TrackId { index: k, name: Some(name) };
-        let (times, values) = match &channel.curve {
-            ChannelCurve::Keys { times, values } => (times, values),
-            ChannelCurve::Spline { knots, controls } => {
-                return fitted_channel(channel.property, knots, controls, id, frames)
-            }
-        };
-        Ok(match (channel.property, values.len()) {
-            (_, 1) => ChannelWork::Host(constant(&id, channel.property, values[0], frames.len())?),
-            (Property::Rotation, _) => ChannelWork::Track(
-                Track { name: id.name, times: Some(times.clone()), ..Track::from_rotations(values.clone()) },
-                spec,
-            ),
-            _ => {
-                let keys: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-                host_vectors(&VectorCurve::new(&id, Some(times), &keys, None, &spec)?, frames)
-            }
-        })
-    };
-    channels.par_iter().with_min_len(16).map(|&(c, k)| (c, prepare(c, k))).collect()
-}
-
-/// A fitted channel ([`ChannelCurve::Spline`]): its control points on its knots, as the fit's
-/// curve family of the order they make ([`quatcurve_anim::qcf::fitted::spline_spec`]);
-/// rotations on the device, vectors here.
-fn fitted_channel<'a>(
-    property: Property,
-    knots: &'a [f64],
-    controls: &'a [[f64; 4]],
-    id: TrackId,
-    frames: &[f64],
-) -> Result<ChannelWork<'a>, InputError> {
-    if property == Property::Rotation {
-        let name = id.name.unwrap_or_default();
-        return Ok(ChannelWork::Spline { name, points: controls, knots });
-    }
-    let spec =
-        quatcurve_anim::qcf::fitted::spline_spec(quatcurve_anim::qcf::fitted::order_of(knots.len(), controls.len()));
-    let controls: Vec<[f64; 3]> = controls.iter().map(|v| [v[0], v[1], v[2]]).collect();
-    Ok(host_vectors(&VectorCurve::new(&id, None, &controls, Some(knots), &spec)?, frames))
-}
-
-/// A vector curve at `frames`, `x, y, z, 0`, for the host's rows.
-fn host_vectors(curve: &VectorCurve, frames: &[f64]) -> ChannelWork<'static> {
-    ChannelWork::Host(
-        frames
-            .iter()
-            .map(|&t| curve.evaluate(t).to_array().map(|v| v as f32))
-            .map(|[x, y, z]| [x, y, z, 0.0])
-            .collect(),
-    )
-}
-
-/// A channel ready to evaluate: a device track, a fitted rotation's spline (control points
-/// and knots as the animation holds them, packed with no track between), or its frames
-/// computed here.
-enum ChannelWork<'a> {
-    Track(Track, CurveSpec),
-    Spline { name: String, points: &'a [[f64; 4]], knots: &'a [f64] },
-    Host(Vec<[f32; 4]>),
-}
-
 /// The largest angle (rad) between a rotation key and the curve evaluated at that key's time
 /// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
 /// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
@@ -659,19 +560,3 @@ fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &De
     Ok(if worst.0.is_nan() { f64::NAN } else { worst.1.angle_to(worst.2) })
 }
 
-/// A one-key channel held for every frame (checked like any key).
-fn constant(id: &TrackId, property: Property, value: [f64; 4], frames: usize) -> Result<Vec<[f32; 4]>, InputError> {
-    let value = if property == Property::Rotation {
-        quatcurve_eval::batch::normalized_key(id, 0, value)?.to_array()
-    } else if value.iter().all(|v| v.is_finite()) {
-        value
-    } else {
-        return Err(quatcurve_eval::error::Error::NonFiniteValue {
-            track: id.clone(),
-            key: 0,
-            value: [value[0], value[1], value[2]],
-        }
-        .into());
-    };
-    Ok(vec![value.map(|v| v as f32); frames])
-}
