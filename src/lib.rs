@@ -52,6 +52,7 @@ pub use quatcurve_eval::{
 pub use quatcurve_fit as fit;
 #[cfg(feature = "gpu")]
 pub use quatcurve_gpu as gpu;
+pub use quatcurve_play as play;
 pub use quatcurve_shader as shader;
 // Charts serve the CLI; they are not part of the library's API.
 #[cfg(feature = "plot")]

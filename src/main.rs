@@ -25,6 +25,9 @@ enum Command {
     /// Fit glTF/BVH clips as the fewest quantized B-spline control points within an error
     /// budget (cm), one .qcf container per input, which bake reads as it reads the source.
     Fit(cli::fit::FitArgs),
+    /// Play a crowd straight from a file's curves: every instance at its own time, two clips
+    /// blended, skin palettes per frame written as one .npy.
+    Play(cli::play::PlayArgs),
     /// Time the same synthetic batch on every available device, side by side.
     Bench(cli::bench::BenchArgs),
     /// Energy, torque and smoothness of curves through the same keys; --paper reruns KKS 6.1.
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => cli::eval::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
         Command::Fit(args) => cli::fit::run(&args),
+        Command::Play(args) => cli::play::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Shaders(args) => cli::shaders::run(&args),

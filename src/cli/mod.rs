@@ -8,6 +8,7 @@ pub mod bench_fitted;
 pub mod eval;
 pub mod fit;
 mod measure;
+pub mod play;
 pub mod shaders;
 pub mod view;
 

@@ -5,6 +5,7 @@
 //!   helpers they share in [`common`] (tracks, specs, generators) and [`fast`] (comparisons);
 //! - [`shaders`]: the WGSL program without a GPU (naga) and the facts Rust shares with it;
 //! - [`cli`], [`bake`]: the command line end to end, real files and hostile ones;
+//! - [`play`]: the playback runtime against the bake and an independent blend;
 //! - [`architecture`]: `ARCHITECTURE.md`'s crates, layers and orders, checked against the
 //!   manifests and the imports.
 
@@ -26,6 +27,8 @@ mod shaders;
 mod bake;
 #[cfg(feature = "cli")]
 mod cli;
+#[cfg(feature = "cli")]
+mod play;
 
 #[cfg(feature = "gpu")]
 use quatcurve::gpu::GpuEvaluator;

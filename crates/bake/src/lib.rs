@@ -28,6 +28,7 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
+use curves::{ChannelEval, Curves};
 pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::error::InputError;
@@ -35,7 +36,6 @@ use quatcurve_anim::error::InputError as E;
 use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
-use curves::{ChannelEval, Curves};
 
 use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::QuatF64;
@@ -559,4 +559,3 @@ fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &De
         );
     Ok(if worst.0.is_nan() { f64::NAN } else { worst.1.angle_to(worst.2) })
 }
-

@@ -28,7 +28,7 @@ use quatcurve::anim::bvh::{self, BvhChannel};
 use quatcurve::QuatF64;
 use std::path::{Path, PathBuf};
 
-fn data_dir() -> Option<PathBuf> {
+pub(crate) fn data_dir() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
     if dir.join("Fox.glb").exists() {
         Some(dir)
@@ -69,18 +69,18 @@ fn bake(args: &[&str]) -> std::process::Output {
     Command::cargo_bin("quatcurve").unwrap().arg("bake").args(args).output().unwrap()
 }
 
-fn stderr(out: &std::process::Output) -> String {
+pub(crate) fn stderr(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+pub(crate) fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     let bytes = std::fs::read(path).unwrap();
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
     let shape = npy.shape().to_vec();
     (shape, npy.into_vec::<f32>().unwrap())
 }
 
-fn json(path: &Path) -> serde_json::Value {
+pub(crate) fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 

@@ -1,0 +1,289 @@
+//! Crowds played straight from curves (DESIGN section 11): an animation's clips built once as
+//! curves ([`quatcurve_bake::curves::Curves`], the bake's own), then, frame after frame, every
+//! instance's joints evaluated at that instance's own time in up to two clips, the two poses
+//! blended in local space, forward kinematics run and the skin's inverse binds multiplied:
+//! the skin palette `[instances, joints, 3x4]` a vertex shader skins with. No texture per clip
+//! and rate: any time, the curve's own smoothness, blends.
+//!
+//! The curves run where the [`Device`] runs them: rotations on the device (the reference in
+//! f64, the CPU path's SIMD f32, the WGSL kernel), translations and scales with the Euclidean
+//! analogue in f64, forward kinematics on the device ([`Device::forward_kinematics`]).
+
+pub mod schedule;
+
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Property, Skin};
+use quatcurve_bake::curves::{ChannelEval, Curves};
+use quatcurve_bake::{clip_loops, LoopMode};
+use quatcurve_core::curve::CurveSpec;
+use quatcurve_core::quat::QuatF64;
+use quatcurve_device::Device;
+use quatcurve_eval::batch::BatchBuilder;
+use quatcurve_eval::job::EvalJob;
+use quatcurve_eval::output::{FloatOutput, LOCAL_CHANNELS, MATRIX_CHANNELS};
+use quatcurve_eval::sampling::{PerTrack, SampleTimes};
+use rayon::prelude::*;
+
+/// A pose of one clip: the clip's index and seconds from its first key. A loop plays on
+/// past its end (rotations periodic, a travelling translation advancing by its per-cycle
+/// offset each period); an open clip holds its first and last poses outside its span.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClipTime {
+    /// Index into the animation's clips.
+    pub clip: usize,
+    /// Seconds from the clip's start.
+    pub time: f64,
+}
+
+/// What one instance plays this frame: `first`, or `first` blended towards `second` by
+/// `weight` (0: `first` alone, 1: `second` alone).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// The first pose.
+    pub first: ClipTime,
+    /// The second pose and its weight, for a blend.
+    pub second: Option<(ClipTime, f32)>,
+}
+
+impl Instance {
+    /// One clip at one time, no blend.
+    #[must_use]
+    pub fn single(clip: usize, time: f64) -> Self {
+        Self { first: ClipTime { clip, time }, second: None }
+    }
+}
+
+/// An animation's clips ready to play: built once, evaluated for any instances at any times.
+#[derive(Debug)]
+pub struct Playback {
+    animation: Animation,
+    curves: Curves,
+    parents: Vec<Option<usize>>,
+    order: Vec<usize>,
+    /// Per clip: its first key's time.
+    starts: Vec<f64>,
+    /// Per clip: its span in seconds.
+    durations: Vec<f64>,
+    /// Per clip: whether it plays as a loop.
+    looping: Vec<bool>,
+    /// The skin whose palette is played; `None`: every joint's model matrix (no skin).
+    skin: Option<usize>,
+}
+
+impl Playback {
+    /// Builds every clip's curves with `spec`, loops chosen by `loops` as the bake chooses
+    /// them ([`clip_loops`]), the palette that of skin `skin` (the first skin when `None`; a
+    /// file without skins plays every joint's model matrix, as a `skin` texture does).
+    ///
+    /// # Errors
+    /// The bake's, for keys or loops it refuses; [`InputError::Animation`] for a skin the
+    /// animation does not have, or an animation without a clip.
+    pub fn new(
+        animation: Animation,
+        spec: &CurveSpec,
+        loops: LoopMode,
+        skin: Option<usize>,
+    ) -> Result<Self, InputError> {
+        if animation.clips.is_empty() {
+            return Err(InputError::Animation("nothing to play: the file has no clip".into()));
+        }
+        let skin = match skin {
+            Some(k) if k >= animation.skins.len() => {
+                return Err(InputError::Animation(format!(
+                    "skin {k} asked for, but the file has {} skin(s)",
+                    animation.skins.len()
+                )))
+            }
+            Some(k) => Some(k),
+            None => (!animation.skins.is_empty()).then_some(0),
+        };
+        let looping =
+            animation.clips.iter().map(|c| clip_loops(&animation, c, spec, loops)).collect::<Result<Vec<_>, _>>()?;
+        let curves = Curves::build(&animation, spec, &looping, BatchBuilder::new())?;
+        let spans: Vec<[f64; 2]> = animation.clips.iter().map(quatcurve_anim::Clip::span).collect();
+        Ok(Self {
+            parents: animation.parents(),
+            order: animation.parents_first()?,
+            starts: spans.iter().map(|s| s[0]).collect(),
+            durations: spans.iter().map(|s| s[1] - s[0]).collect(),
+            looping,
+            skin,
+            curves,
+            animation,
+        })
+    }
+
+    /// The animation played.
+    #[must_use]
+    pub fn animation(&self) -> &Animation {
+        &self.animation
+    }
+
+    /// Clip `clip`'s span in seconds.
+    ///
+    /// # Panics
+    /// When `clip` is not a clip of the animation.
+    #[must_use]
+    pub fn duration(&self, clip: usize) -> f64 {
+        self.durations[clip]
+    }
+
+    /// Whether clip `clip` plays as a loop.
+    ///
+    /// # Panics
+    /// When `clip` is not a clip of the animation.
+    #[must_use]
+    pub fn looping(&self, clip: usize) -> bool {
+        self.looping[clip]
+    }
+
+    /// The skin played ([`Playback::new`]), `None` for model matrices of every joint.
+    #[must_use]
+    pub fn skin(&self) -> Option<&Skin> {
+        self.skin.map(|k| &self.animation.skins[k])
+    }
+
+    /// Matrices per instance in a palette: the skin's joints (in its order), or every joint.
+    #[must_use]
+    pub fn palette_joints(&self) -> usize {
+        self.skin().map_or(self.animation.joints.len(), |s| s.joints.len())
+    }
+
+    /// The seconds of the curves for a pose: the clip's start plus its time, an open clip's
+    /// held inside its span (a loop's curves wrap themselves).
+    fn curve_time(&self, pose: ClipTime) -> f64 {
+        let time = if self.looping[pose.clip] { pose.time } else { pose.time.clamp(0.0, self.durations[pose.clip]) };
+        self.starts[pose.clip] + time
+    }
+
+    /// Every instance's local pose: `[instances, joints, 10]` (rotation `x, y, z, w`,
+    /// translation, scale per joint, in the animation's joint order), the two poses of a blend
+    /// mixed in local space: rotations by slerp on the shorter arc, translations and scales by
+    /// lerp. What a clip does not animate keeps the joint's rest value. Rotations are
+    /// evaluated in one job on `device`.
+    ///
+    /// # Errors
+    /// [`InputError::Animation`] for a clip that is not the animation's, a time that is not
+    /// finite or a weight outside `[0, 1]`, naming the instance; the device's failures.
+    pub fn local_poses(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        self.check(instances)?;
+        // Every pose asked for, grouped by clip: (instance, slot) -> (clip, k-th time of it).
+        let clips = self.animation.clips.len();
+        let mut times: Vec<Vec<f64>> = vec![Vec::new(); clips];
+        let mut at = |pose: ClipTime| {
+            times[pose.clip].push(self.curve_time(pose));
+            (pose.clip, times[pose.clip].len() - 1)
+        };
+        let poses: Vec<[Option<(usize, usize)>; 2]> =
+            instances.iter().map(|i| [Some(at(i.first)), i.second.map(|(p, _)| at(p))]).collect();
+        let rotations = match &self.curves.batch {
+            Some(batch) => {
+                let track_clips = &self.curves.track_clips;
+                let sample_times = SampleTimes::per_track(batch, |i, _| Ok(PerTrack::List(&times[track_clips[i]])))?;
+                let mut out = FloatOutput::default();
+                device.evaluate_into(&EvalJob::new(batch, &sample_times), &mut out)?;
+                Some((out.data, sample_times))
+            }
+            None => None,
+        };
+        let rest: Vec<f32> = self
+            .animation
+            .joints
+            .iter()
+            .flat_map(|j| {
+                j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>()
+            })
+            .collect();
+        let row = rest.len();
+        // One pose's local row: rest values, then every channel of its clip.
+        let pose_row = |(clip, k): (usize, usize), out: &mut [f32]| {
+            out.copy_from_slice(&rest);
+            let t = times[clip][k];
+            for (channel, eval) in self.animation.clips[clip].channels.iter().zip(&self.curves.channels[clip]) {
+                let value = match eval {
+                    ChannelEval::Device(track) => {
+                        let (data, sample_times) = rotations.as_ref().expect("a device channel has a batch");
+                        let s = sample_times.offsets()[*track] + k;
+                        [data[4 * s], data[4 * s + 1], data[4 * s + 2], data[4 * s + 3]]
+                    }
+                    host => host.host_value(t).expect("a host channel has a value"),
+                };
+                let j = channel.joint * LOCAL_CHANNELS;
+                match channel.property {
+                    Property::Rotation => out[j..j + 4].copy_from_slice(&value),
+                    Property::Translation => out[j + 4..j + 7].copy_from_slice(&value[..3]),
+                    Property::Scale => out[j + 7..j + 10].copy_from_slice(&value[..3]),
+                }
+            }
+        };
+        let mut local = vec![0.0f32; instances.len() * row];
+        local.par_chunks_mut(row.max(1)).zip(instances.par_iter().zip(&poses)).for_each(|(out, (instance, pose))| {
+            pose_row(pose[0].expect("every instance has a first pose"), out);
+            if let (Some(second), Some((_, weight))) = (pose[1], instance.second) {
+                let mut other = vec![0.0f32; row];
+                pose_row(second, &mut other);
+                blend(out, &other, weight);
+            }
+        });
+        Ok(local)
+    }
+
+    /// Every instance's skin palette: `[instances, palette joints, 12]`, each the 3x4
+    /// row-major `model(joint) * inverseBind(joint)` in the skin's joint order (the rows of a
+    /// `skin` texture), or every joint's model matrix for a file without skins
+    /// ([`Playback::palette_joints`]). Forward kinematics runs on `device`.
+    ///
+    /// # Errors
+    /// As [`Playback::local_poses`].
+    pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        let local = self.local_poses(device, instances)?;
+        let model = device.forward_kinematics(&self.parents, &self.order, &local)?;
+        Ok(match self.skin() {
+            Some(skin) => quatcurve_bake::texture::skin(skin, self.animation.joints.len(), &model),
+            None => model,
+        })
+    }
+
+    /// Refuses a pose of a clip the animation lacks, a time that is not finite or a weight
+    /// outside `[0, 1]`.
+    fn check(&self, instances: &[Instance]) -> Result<(), InputError> {
+        let clips = self.animation.clips.len();
+        for (i, instance) in instances.iter().enumerate() {
+            let weight = instance.second.map(|(_, w)| w);
+            for pose in std::iter::once(instance.first).chain(instance.second.map(|(p, _)| p)) {
+                if pose.clip >= clips {
+                    return Err(InputError::Animation(format!(
+                        "instance {i}: clip {} asked for, but the file has {clips} clip(s)",
+                        pose.clip
+                    )));
+                }
+                if !pose.time.is_finite() {
+                    return Err(InputError::Animation(format!("instance {i}: time {} is not finite", pose.time)));
+                }
+            }
+            if let Some(w) = weight.filter(|w| !(0.0..=1.0).contains(w)) {
+                return Err(InputError::Animation(format!("instance {i}: blend weight {w} is outside [0, 1]")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Blends local row `out` towards `other` by `weight`: each joint's rotation by slerp on the
+/// shorter arc (in f64), translation and scale by lerp.
+fn blend(out: &mut [f32], other: &[f32], weight: f32) {
+    let w = f64::from(weight);
+    for (a, b) in out.chunks_exact_mut(LOCAL_CHANNELS).zip(other.chunks_exact(LOCAL_CHANNELS)) {
+        let q = |r: &[f32]| QuatF64::from_array([r[0], r[1], r[2], r[3]].map(f64::from)).normalize();
+        let mixed = q(a).slerp(q(b), w).to_array();
+        for (v, m) in a[..4].iter_mut().zip(mixed) {
+            *v = m as f32;
+        }
+        for (v, &o) in a[4..].iter_mut().zip(&b[4..]) {
+            *v += (o - *v) * weight;
+        }
+    }
+}
+
+/// Floats per palette matrix: 3x4 row-major.
+pub const PALETTE_CHANNELS: usize = MATRIX_CHANNELS;

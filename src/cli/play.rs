@@ -1,0 +1,117 @@
+//! `quatcurve play`: a crowd played from a file's curves (DESIGN section 11), every frame's
+//! skin palettes written as `[frames, instances, joints, 12]` in one `.npy`.
+
+use super::{names, open_device, CurveOptions, Failure};
+use clap::Args;
+use quatcurve::anim::error::InputError;
+use quatcurve::anim::source::Source;
+use quatcurve::bake::LoopMode;
+use quatcurve::curve::{Curve, KnotMode};
+use quatcurve::io::{npy_header, AtomicFile, NpyElement};
+use quatcurve::play::schedule::Schedule;
+use quatcurve::play::{Playback, PALETTE_CHANNELS};
+use quatcurve::DeviceChoice;
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Most floats one palette file may hold (4 GiB): the frames, instances and joints asked for
+/// are counted before anything is evaluated.
+pub const MAX_PALETTE_FLOATS: u64 = 1 << 30;
+
+#[derive(Args, Debug)]
+pub struct PlayArgs {
+    /// The file whose clips are played (.gltf, .glb, .fbx, .bvh, .npz, .qcf).
+    #[arg(long)]
+    input: PathBuf,
+    /// Instances per frame; instance i plays clip i mod clips from phase frac(i * 0.618...) of
+    /// its span (instance 0: clip 0 from its start).
+    #[arg(long, default_value_t = 1)]
+    instances: usize,
+    /// Frames per second.
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    rate: f64,
+    /// Seconds played: frames 0 .. floor(seconds * rate), both ends included.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    seconds: f64,
+    /// Blend every instance towards a second pose with this weight in [0, 1]: the next clip,
+    /// half its span further on (the same clip for a file of one).
+    /// (`--blend` is the Nam-Kim curve's blend function, as in bake.)
+    #[arg(long, allow_negative_numbers = true)]
+    blend_weight: Option<f32>,
+    /// The palettes, `[frames, instances, joints, 12]` float32 (each 3x4 row-major, joints in
+    /// the skin's order).
+    #[arg(long, default_value = "palettes.npy")]
+    output: PathBuf,
+    /// Which skin's palette (a file without skins plays every joint's model matrix).
+    #[arg(long, default_value_t = 0)]
+    skin: usize,
+    /// Curve family; by default the source's own, as bake's (bspline-interp; slerp for SMPL).
+    #[arg(long, value_parser = names::<Curve>())]
+    curve: Option<Curve>,
+    #[command(flatten)]
+    curve_options: CurveOptions,
+    /// Which clips loop: auto, on, off (as bake's).
+    #[arg(long = "loop", default_value_t = LoopMode::Auto, value_parser = names::<LoopMode>())]
+    looping: LoopMode,
+    /// Evaluation device (as bake's).
+    #[arg(long, default_value_t = DeviceChoice::Auto, value_parser = names::<DeviceChoice>())]
+    device: DeviceChoice,
+}
+
+pub fn run(args: &PlayArgs) -> Result<(), Failure> {
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        return Err(Failure::Input(format!("--rate {} must be a positive number of frames per second", args.rate)));
+    }
+    if !(args.seconds.is_finite() && args.seconds >= 0.0) {
+        return Err(Failure::Input(format!("--seconds {} must be a number of seconds, 0 or more", args.seconds)));
+    }
+    if let Some(w) = args.blend_weight.filter(|w| !(0.0..=1.0).contains(w)) {
+        return Err(Failure::Input(format!("--blend-weight {w} must be a weight in [0, 1]")));
+    }
+    if args.instances == 0 {
+        return Err(Failure::Input("--instances must be 1 or more".into()));
+    }
+    let input = args.input.display().to_string();
+    let source = Source::read(&args.input, Default::default()).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+    let spec = args.curve_options.spec(args.curve.unwrap_or_else(|| source.default_curve()), KnotMode::Phantom, false);
+    let skin = (!source.animation().skins.is_empty()).then_some(args.skin);
+    let playback = Playback::new(source.animation().clone(), &spec, args.looping, skin)
+        .map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+    let frames = (args.seconds * args.rate + 1e-9).floor() as u64 + 1;
+    let joints = playback.palette_joints();
+    let shape = [frames, args.instances as u64, joints as u64, PALETTE_CHANNELS as u64];
+    if shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d)).map_or(true, |n| n > MAX_PALETTE_FLOATS) {
+        return Err(Failure::Input(format!(
+            "{frames} frames of {} instances of {joints} joints are more than {MAX_PALETTE_FLOATS} floats of \
+             palettes; play fewer seconds, instances or a lower rate",
+            args.instances
+        )));
+    }
+    let device = open_device(args.device, "--device")?;
+    let io = |e: quatcurve::io::IoError| Failure::Input(e.to_string());
+    let mut file = AtomicFile::create(&args.output).map_err(io)?;
+    file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
+    let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight };
+    let started = Instant::now();
+    for frame in 0..frames as usize {
+        let palettes = playback.palettes(&device, &schedule.frame(&playback, frame)).map_err(|e| match e {
+            InputError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
+            other => Failure::Input(format!("{input}: {other}")),
+        })?;
+        file.write_all(&NpyElement::F32.bytes(&palettes)).map_err(|e| io(file.error(e)))?;
+    }
+    let seconds = started.elapsed().as_secs_f64();
+    file.commit().map_err(io)?;
+    let per_frame = seconds / frames as f64;
+    eprintln!(
+        "{input}: {frames} frames of {} instances x {joints} joints on {} in {seconds:.3} s ({:.3} ms a frame, {:.3e} \
+         instance-joints/s) -> {}",
+        args.instances,
+        device.name(),
+        per_frame * 1e3,
+        (args.instances * joints) as f64 / per_frame,
+        args.output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,264 @@
+//! The playback runtime (`quatcurve::play`, DESIGN section 12) held to what it must equal:
+//! the bake's skin textures at their frame times (every clip of the real files, on the
+//! reference, the CPU path and the GPU), the single clips at blend weights 0 and 1, and at
+//! 0.5 a local-space blend, forward kinematics and skinning computed here with glam; and
+//! `quatcurve play` end to end: the schedule, its file, bad requests refused before work.
+
+use crate::bake::{data_dir, json, read_npy, stderr};
+use assert_cmd::Command;
+use glam::{DMat4, DQuat, DVec3};
+use quatcurve::anim::source::Source;
+use quatcurve::bake::LoopMode;
+use quatcurve::curve::{Curve, CurveSpec};
+use quatcurve::play::schedule::{Schedule, PHASE_STEP};
+use quatcurve::play::{ClipTime, Instance, Playback, PALETTE_CHANNELS};
+use quatcurve::{Device, DeviceChoice};
+use std::path::Path;
+
+/// Palettes agree with the bake's textures within this, relative to the largest entry.
+const TOLERANCE: f64 = 1e-5;
+
+/// The devices to play on: the reference, the CPU path, and the GPU when there is one.
+fn devices() -> Vec<(&'static str, Device)> {
+    let mut devices = vec![
+        ("reference", Device::open(DeviceChoice::Reference).unwrap()),
+        ("cpu", Device::open(DeviceChoice::Cpu).unwrap()),
+    ];
+    if let Some(gpu) = crate::shared_gpu() {
+        devices.push(("gpu", Device::Gpu(Box::new(gpu.share_device()))));
+    }
+    devices
+}
+
+fn play(args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("quatcurve").unwrap().arg("play").args(args).output().unwrap()
+}
+
+fn playback(path: &Path, curve: Curve) -> Playback {
+    let source = Source::read(path, Default::default()).unwrap();
+    Playback::new(source.animation().clone(), &CurveSpec::new(curve), LoopMode::Auto, None).unwrap()
+}
+
+/// The largest difference between two palettes, relative to the largest entry of `expected`.
+fn relative_gap(got: &[f32], expected: &[f32]) -> f64 {
+    assert_eq!(got.len(), expected.len());
+    let scale = expected.iter().map(|v| f64::from(v.abs())).fold(1e-30, f64::max);
+    got.iter().zip(expected).map(|(a, b)| f64::from((a - b).abs())).fold(0.0, f64::max) / scale
+}
+
+#[test]
+fn palettes_equal_the_bakes_skin_texture_at_its_frame_times_on_every_device() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for (name, curve) in [
+        ("CesiumMan.glb", Curve::BSplineInterp),
+        ("Fox.glb", Curve::BSplineInterp),
+        ("cmu_131_03.bvh", Curve::Slerp),
+        ("Fox.fbx", Curve::Squad),
+    ] {
+        let input = data.join(name);
+        let playback = playback(&input, curve);
+        for (device_name, device) in devices() {
+            let out = dir.path().join(format!("{name}.{device_name}"));
+            let result = Command::cargo_bin("quatcurve")
+                .unwrap()
+                .args(["bake", "--input", input.to_str().unwrap(), "--output", out.to_str().unwrap()])
+                .args(["--texture", "skin", "--rate", "30", "--exact-rate", "--curve", &curve.to_string()])
+                .args(["--device", device_name])
+                .output()
+                .unwrap();
+            assert!(result.status.success(), "{name}: {}", stderr(&result));
+            let stem = input.file_stem().unwrap().to_str().unwrap();
+            let sidecar = json(&out.join(format!("{stem}.json")));
+            for (c, clip) in sidecar["clips"].as_array().unwrap().iter().enumerate() {
+                let (shape, texture) = read_npy(&out.join(clip["file"].as_str().unwrap()));
+                let rate = clip["rate"].as_f64().unwrap();
+                let instances: Vec<Instance> =
+                    (0..shape[0] as usize).map(|f| Instance::single(c, f as f64 / rate)).collect();
+                let palettes = playback.palettes(&device, &instances).unwrap();
+                let gap = relative_gap(&palettes, &texture);
+                assert!(gap < TOLERANCE, "{name} clip {c} on {device_name}: {gap:.2e}");
+                eprintln!("{name} clip {c} on {device_name}: {} frames within {gap:.1e}", shape[0]);
+            }
+        }
+    }
+}
+
+/// glTF's node transform of a local row: `T * R * S`.
+fn trs(row: &[f32]) -> DMat4 {
+    let q = DQuat::from_xyzw(row[0].into(), row[1].into(), row[2].into(), row[3].into()).normalize();
+    let v = |i: usize| DVec3::new(row[i].into(), row[i + 1].into(), row[i + 2].into());
+    DMat4::from_scale_rotation_translation(v(7), q, v(4))
+}
+
+/// Skin palettes of one instance's local rows, by glam: parents' matrices first, then the
+/// skin's joints' model matrices times their inverse binds, as 3x4 rows.
+fn independent_palette(playback: &Playback, local: &[f32]) -> Vec<f32> {
+    let animation = playback.animation();
+    let mut model: Vec<Option<DMat4>> = vec![None; animation.joints.len()];
+    fn world(j: usize, animation: &quatcurve::anim::Animation, local: &[f32], model: &mut [Option<DMat4>]) -> DMat4 {
+        if let Some(m) = model[j] {
+            return m;
+        }
+        let own = trs(&local[j * 10..j * 10 + 10]);
+        let m = match animation.joints[j].parent {
+            Some(p) => world(p, animation, local, model) * own,
+            None => own,
+        };
+        model[j] = Some(m);
+        m
+    }
+    let skin = playback.skin().unwrap();
+    let mut out = Vec::new();
+    for (&j, ibm) in skin.joints.iter().zip(&skin.inverse_bind) {
+        let inverse_bind = DMat4::from_cols_array(&[
+            ibm[0], ibm[4], ibm[8], 0.0, ibm[1], ibm[5], ibm[9], 0.0, ibm[2], ibm[6], ibm[10], 0.0, ibm[3], ibm[7],
+            ibm[11], 1.0,
+        ]);
+        let m = world(j, animation, local, &mut model) * inverse_bind;
+        for r in 0..3 {
+            out.extend((0..4).map(|c| m.col(c)[r] as f32));
+        }
+    }
+    out
+}
+
+#[test]
+fn blends_are_the_single_clips_at_their_ends_and_a_local_space_blend_between() {
+    let Some(data) = data_dir() else { return };
+    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let joints = playback.animation().joints.len();
+    // Survey (clip 0) at 1.3 s with Run (clip 2) at 0.4 s; Walk with itself half a cycle on.
+    let pairs = [
+        (ClipTime { clip: 0, time: 1.3 }, ClipTime { clip: 2, time: 0.4 }),
+        (ClipTime { clip: 1, time: 0.2 }, ClipTime { clip: 1, time: 0.2 + playback.duration(1) / 2.0 }),
+    ];
+    for (device_name, device) in devices() {
+        for (a, b) in pairs {
+            let single = |p: ClipTime| playback.palettes(&device, &[Instance::single(p.clip, p.time)]).unwrap();
+            let blended = |w: f32| playback.palettes(&device, &[Instance { first: a, second: Some((b, w)) }]).unwrap();
+            assert!(relative_gap(&blended(0.0), &single(a)) < TOLERANCE, "{device_name}: weight 0");
+            assert!(relative_gap(&blended(1.0), &single(b)) < TOLERANCE, "{device_name}: weight 1");
+            // The poses differ, so a blend that ignored its weight or its second pose fails.
+            assert!(relative_gap(&single(a), &single(b)) > 100.0 * TOLERANCE, "{device_name}: the poses differ");
+            // Weight 0.5: slerp and lerp of the two local poses, then FK and skinning, by glam.
+            let la = playback.local_poses(&device, &[Instance::single(a.clip, a.time)]).unwrap();
+            let lb = playback.local_poses(&device, &[Instance::single(b.clip, b.time)]).unwrap();
+            let mut mixed = vec![0.0f32; la.len()];
+            for j in 0..joints {
+                let (ra, rb) = (&la[j * 10..j * 10 + 10], &lb[j * 10..j * 10 + 10]);
+                let q = |r: &[f32]| DQuat::from_xyzw(r[0].into(), r[1].into(), r[2].into(), r[3].into()).normalize();
+                let s = q(ra).slerp(q(rb), 0.5);
+                mixed[j * 10..j * 10 + 4].copy_from_slice(&[s.x as f32, s.y as f32, s.z as f32, s.w as f32]);
+                for i in 4..10 {
+                    mixed[j * 10 + i] = 0.5 * (ra[i] + rb[i]);
+                }
+            }
+            let gap = relative_gap(&blended(0.5), &independent_palette(&playback, &mixed));
+            assert!(gap < TOLERANCE, "{device_name}: weight 0.5 {gap:.2e}");
+        }
+    }
+}
+
+#[test]
+fn bad_poses_are_refused_naming_the_instance() {
+    let Some(data) = data_dir() else { return };
+    let playback = playback(&data.join("CesiumMan.glb"), Curve::BSplineInterp);
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    let cases = [
+        (Instance::single(3, 0.0), "instance 1: clip 3 asked for, but the file has 1 clip(s)"),
+        (Instance::single(0, f64::NAN), "instance 1: time NaN is not finite"),
+        (
+            Instance { first: ClipTime { clip: 0, time: 0.0 }, second: Some((ClipTime { clip: 0, time: 0.5 }, 1.5)) },
+            "instance 1: blend weight 1.5 is outside [0, 1]",
+        ),
+    ];
+    for (bad, message) in cases {
+        let err = playback.palettes(&device, &[Instance::single(0, 0.0), bad]).unwrap_err();
+        assert_eq!(err.to_string(), message);
+    }
+}
+
+#[test]
+fn play_writes_the_schedule_and_its_first_instance_is_the_bake() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let input = data.join("Fox.glb");
+    let output = dir.path().join("palettes.npy");
+    let args = ["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--device", "cpu"];
+    let result =
+        play(&[&args[..], &["--instances", "5", "--rate", "30", "--seconds", "2", "--blend-weight", "0.25"]].concat());
+    assert!(result.status.success(), "{}", stderr(&result));
+    let (shape, data_) = read_npy(&output);
+    let playback = playback(&input, Curve::BSplineInterp);
+    let joints = playback.palette_joints();
+    assert_eq!(shape, [61, 5, joints as u64, PALETTE_CHANNELS as u64]);
+    // Frame by frame, the schedule's instances through the library.
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    let schedule = Schedule { instances: 5, rate: 30.0, blend: Some(0.25) };
+    let frame = 5 * joints * PALETTE_CHANNELS;
+    for f in [0, 17, 60] {
+        let instances = schedule.frame(&playback, f);
+        // Instance i plays clip i mod 3 from phase frac(i * PHASE_STEP); the next clip blended.
+        for (i, instance) in instances.iter().enumerate() {
+            let clip = i % 3;
+            let phase = (i as f64 * PHASE_STEP).fract() * playback.duration(clip);
+            assert_eq!(instance.first.clip, clip);
+            assert_eq!(instance.second.unwrap().0.clip, (clip + 1) % 3);
+            let t = phase + f as f64 / 30.0;
+            let expected =
+                if playback.looping(clip) || t <= playback.duration(clip) { t } else { t % playback.duration(clip) };
+            assert!((instance.first.time - expected).abs() < 1e-12, "frame {f} instance {i}");
+        }
+        let palettes = playback.palettes(&device, &instances).unwrap();
+        assert_eq!(palettes, &data_[f * frame..(f + 1) * frame], "frame {f}");
+    }
+    // One instance, no blend: clip 0 from its start, the bake's exact-rate frames (CesiumMan
+    // is open; a loop's bake fits its rate to whole frames, so only its rate-fitted times are
+    // the bake's, as the test above holds).
+    let input = data.join("CesiumMan.glb");
+    let bake_dir = dir.path().join("bake");
+    let result = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["bake", "--input", input.to_str().unwrap(), "--output", bake_dir.to_str().unwrap()])
+        .args(["--texture", "skin", "--rate", "30", "--exact-rate", "--device", "cpu"])
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", stderr(&result));
+    let args = ["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--device", "cpu"];
+    let result = play(&[&args[..], &["--rate", "30", "--seconds", "1.5"]].concat());
+    assert!(result.status.success(), "{}", stderr(&result));
+    let (shape, played) = read_npy(&output);
+    let (baked_shape, baked) = read_npy(&bake_dir.join("CesiumMan.animation0.skin0.npy"));
+    assert_eq!(shape[..2], [46, 1]);
+    assert!(baked_shape[0] >= 46);
+    let gap = relative_gap(&played, &baked[..played.len()]);
+    assert!(gap < TOLERANCE, "{gap:.2e}");
+}
+
+#[test]
+fn bad_requests_are_refused_before_anything_is_written() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let input = data.join("CesiumMan.glb");
+    let output = dir.path().join("p.npy");
+    let base = ["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--device", "cpu"];
+    for (extra, message) in [
+        (&["--rate", "0"][..], "--rate 0 must be a positive number"),
+        (&["--seconds", "-1"][..], "--seconds -1 must be a number of seconds"),
+        (&["--blend-weight", "2"][..], "--blend-weight 2 must be a weight in [0, 1]"),
+        (&["--instances", "0"][..], "--instances must be 1 or more"),
+        (&["--instances", "100000", "--seconds", "1000"][..], "floats of palettes"),
+        (&["--skin", "4"][..], "skin 4 asked for, but the file has 1 skin(s)"),
+    ] {
+        let result = play(&[&base[..], extra].concat());
+        assert_eq!(result.status.code(), Some(2), "{extra:?}");
+        assert!(stderr(&result).contains(message), "{extra:?}: {}", stderr(&result));
+        assert!(!output.exists(), "{extra:?}");
+    }
+    let missing = dir.path().join("missing.glb");
+    let result = play(&["--input", missing.to_str().unwrap(), "--output", output.to_str().unwrap()]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("missing.glb"), "{}", stderr(&result));
+    assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none(), "nothing written");
+}
