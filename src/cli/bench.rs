@@ -75,6 +75,13 @@ pub struct BenchArgs {
     /// With --fitted: copies of every clip in the batch.
     #[arg(long, default_value_t = 10)]
     copies: usize,
+    /// Time crowd playback instead (`quatcurve play`): one frame of this file's clips for
+    /// --instances instances, each blending two clips, palettes out, on each device.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["sweep", "skinning", "fitted"])]
+    playback: Option<std::path::PathBuf>,
+    /// With --playback: crowd sizes, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000", requires = "playback")]
+    instances: Vec<usize>,
 }
 
 #[derive(Serialize)]
@@ -124,6 +131,9 @@ pub fn run(args: &BenchArgs) -> Result<(), Failure> {
     }
     if args.sweep {
         return sweep(args);
+    }
+    if let Some(file) = &args.playback {
+        return super::bench_playback::run(file, &args.instances, args.runs, args.devices.as_deref(), args.json);
     }
     if !args.fitted.is_empty() {
         if args.copies == 0 {

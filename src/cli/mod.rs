@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bake;
 pub mod bench;
 pub mod bench_fitted;
+pub mod bench_playback;
 pub mod eval;
 pub mod fit;
 mod measure;
