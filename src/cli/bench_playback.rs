@@ -42,8 +42,8 @@ pub fn measure(
     devices: Option<&[DeviceChoice]>,
 ) -> Result<PlaybackReport, Failure> {
     let input = file.display().to_string();
-    let source = Source::read(file, Default::default())
-        .map_err(|e| Failure::Input(format!("bench --playback {input}: {e}")))?;
+    let source =
+        Source::read(file, Default::default()).map_err(|e| Failure::Input(format!("bench --playback {input}: {e}")))?;
     let spec = CurveSpec::new(source.default_curve());
     let playback = Playback::new(source.animation().clone(), &spec, LoopMode::Auto, None)
         .map_err(|e| Failure::Input(format!("bench --playback {input}: {e}")))?;
