@@ -9,7 +9,7 @@ use quatcurve::bake::LoopMode;
 use quatcurve::curve::{Curve, KnotMode};
 use quatcurve::io::{npy_header, AtomicFile, NpyElement};
 use quatcurve::play::schedule::Schedule;
-use quatcurve::play::{Playback, PALETTE_CHANNELS};
+use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
 use quatcurve::DeviceChoice;
 use std::io::Write;
 use std::path::PathBuf;
@@ -46,6 +46,10 @@ pub struct PlayArgs {
     /// Which skin's palette (a file without skins plays every joint's model matrix).
     #[arg(long, default_value_t = 0)]
     skin: usize,
+    /// Take the skin from this file (.gltf, .glb, .fbx), its joints matched by name: a fitted
+    /// container keeps a glTF's joints and clips, not its skins.
+    #[arg(long, value_name = "FILE")]
+    skin_from: Option<PathBuf>,
     /// Curve family; by default the source's own, as bake's (bspline-interp; slerp for SMPL).
     #[arg(long, value_parser = names::<Curve>())]
     curve: Option<Curve>,
@@ -75,9 +79,20 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let input = args.input.display().to_string();
     let source = Source::read(&args.input, Default::default()).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     let spec = args.curve_options.spec(args.curve.unwrap_or_else(|| source.default_curve()), KnotMode::Phantom, false);
-    let skin = (!source.animation().skins.is_empty()).then_some(args.skin);
-    let playback = Playback::new(source.animation().clone(), &spec, args.looping, skin)
-        .map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+    let mut animation = source.animation().clone();
+    if let Some(path) = &args.skin_from {
+        let from = path.display().to_string();
+        let other = Source::read(path, Default::default()).map_err(|e| Failure::Input(format!("{from}: {e}")))?;
+        let skin = skin_by_name(&animation, other.animation(), args.skin)
+            .map_err(|e| Failure::Input(format!("--skin-from {from}: {e}")))?;
+        animation.skins = vec![skin];
+    }
+    let skin = match (&args.skin_from, animation.skins.is_empty()) {
+        (Some(_), _) => Some(0),
+        (None, empty) => (!empty).then_some(args.skin),
+    };
+    let playback =
+        Playback::new(animation, &spec, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     let frames = (args.seconds * args.rate + 1e-9).floor() as u64 + 1;
     let joints = playback.palette_joints();
     let shape = [frames, args.instances as u64, joints as u64, PALETTE_CHANNELS as u64];

@@ -1,7 +1,7 @@
 //! The playback runtime (`quatcurve::play`, DESIGN section 12) held to what it must equal:
 //! the bake's skin textures at their frame times (every clip of the real files, on the
 //! reference, the CPU path and the GPU), the single clips at blend weights 0 and 1, and at
-//! 0.5 a local-space blend, forward kinematics and skinning computed here with glam; and
+//! 0.25 and 0.5 a local-space blend, forward kinematics and skinning computed here with glam; and
 //! `quatcurve play` end to end: the schedule, its file, bad requests refused before work.
 
 use crate::bake::{data_dir, json, read_npy, stderr};
@@ -141,21 +141,25 @@ fn blends_are_the_single_clips_at_their_ends_and_a_local_space_blend_between() {
             assert!(relative_gap(&blended(1.0), &single(b)) < TOLERANCE, "{device_name}: weight 1");
             // The poses differ, so a blend that ignored its weight or its second pose fails.
             assert!(relative_gap(&single(a), &single(b)) > 100.0 * TOLERANCE, "{device_name}: the poses differ");
-            // Weight 0.5: slerp and lerp of the two local poses, then FK and skinning, by glam.
+            // Weights 0.25 and 0.5: slerp and lerp of the two local poses, then FK and
+            // skinning, by glam (at 0.25 slerp and a normalized lerp differ).
             let la = playback.local_poses(&device, &[Instance::single(a.clip, a.time)]).unwrap();
             let lb = playback.local_poses(&device, &[Instance::single(b.clip, b.time)]).unwrap();
-            let mut mixed = vec![0.0f32; la.len()];
-            for j in 0..joints {
-                let (ra, rb) = (&la[j * 10..j * 10 + 10], &lb[j * 10..j * 10 + 10]);
-                let q = |r: &[f32]| DQuat::from_xyzw(r[0].into(), r[1].into(), r[2].into(), r[3].into()).normalize();
-                let s = q(ra).slerp(q(rb), 0.5);
-                mixed[j * 10..j * 10 + 4].copy_from_slice(&[s.x as f32, s.y as f32, s.z as f32, s.w as f32]);
-                for i in 4..10 {
-                    mixed[j * 10 + i] = 0.5 * (ra[i] + rb[i]);
+            for w in [0.25f32, 0.5] {
+                let mut mixed = vec![0.0f32; la.len()];
+                for j in 0..joints {
+                    let (ra, rb) = (&la[j * 10..j * 10 + 10], &lb[j * 10..j * 10 + 10]);
+                    let q =
+                        |r: &[f32]| DQuat::from_xyzw(r[0].into(), r[1].into(), r[2].into(), r[3].into()).normalize();
+                    let s = q(ra).slerp(q(rb), f64::from(w));
+                    mixed[j * 10..j * 10 + 4].copy_from_slice(&[s.x as f32, s.y as f32, s.z as f32, s.w as f32]);
+                    for i in 4..10 {
+                        mixed[j * 10 + i] = ra[i] + (rb[i] - ra[i]) * w;
+                    }
                 }
+                let gap = relative_gap(&blended(w), &independent_palette(&playback, &mixed));
+                assert!(gap < TOLERANCE, "{device_name}: weight {w} {gap:.2e}");
             }
-            let gap = relative_gap(&blended(0.5), &independent_palette(&playback, &mixed));
-            assert!(gap < TOLERANCE, "{device_name}: weight 0.5 {gap:.2e}");
         }
     }
 }
@@ -261,4 +265,37 @@ fn bad_requests_are_refused_before_anything_is_written() {
     assert_eq!(result.status.code(), Some(2));
     assert!(stderr(&result).contains("missing.glb"), "{}", stderr(&result));
     assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none(), "nothing written");
+}
+
+#[test]
+fn a_fitted_container_plays_the_characters_skin_within_the_fits_budget() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = data.join("CesiumMan.glb");
+    let result = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["fit", "--input", glb.to_str().unwrap(), "--output", dir.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", stderr(&result));
+    let source = Source::read(&glb, Default::default()).unwrap();
+    let fitted = Source::read(&dir.path().join("CesiumMan.qcf"), Default::default()).unwrap();
+    let mut animation = fitted.animation().clone();
+    assert!(animation.skins.is_empty(), "a container keeps no skin");
+    animation.skins = vec![quatcurve::play::skin_by_name(&animation, source.animation(), 0).unwrap()];
+    let fitted = Playback::new(animation, &CurveSpec::new(Curve::Slerp), LoopMode::Auto, Some(0)).unwrap();
+    // The fit is held to the source's LINEAR keys: 0.01 cm at them on vertices 3 cm out, a
+    // rotation of 1/300 rad, which moves an entry of a rotation matrix by at most sqrt 2 times
+    // that (4.7e-3); the palettes' largest entries are about 1.
+    let original = playback(&glb, Curve::Slerp);
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    let keys: Vec<Instance> = (0..48).map(|f| Instance::single(0, f as f64 / 24.0)).collect();
+    let gap = relative_gap(&fitted.palettes(&device, &keys).unwrap(), &original.palettes(&device, &keys).unwrap());
+    eprintln!("fitted CesiumMan at its keys: within {gap:.2e} of the glb's palettes");
+    assert!(gap < std::f64::consts::SQRT_2 / 300.0, "{gap:.2e}");
+    // A joint the played file lacks is named.
+    let mut other = source.animation().clone();
+    other.joints[other.skins[0].joints[3]].name = "elsewhere".into();
+    let err = quatcurve::play::skin_by_name(fitted.animation(), &other, 0).unwrap_err();
+    assert!(err.to_string().contains("joint 'elsewhere' is not a joint of the played file"), "{err}");
 }

@@ -269,6 +269,29 @@ impl Playback {
     }
 }
 
+/// Skin `skin` of `source` bound to `target`'s joints by name: how a fitted container (which
+/// keeps the joints and clips of a glTF, not its skins) plays the character's palette.
+///
+/// # Errors
+/// [`InputError::Animation`] for a skin `source` lacks, or a joint of it `target` does not
+/// have, named.
+pub fn skin_by_name(target: &Animation, source: &Animation, skin: usize) -> Result<Skin, InputError> {
+    let from = source.skins.get(skin).ok_or_else(|| {
+        InputError::Animation(format!("skin {skin} asked for, but the file has {} skin(s)", source.skins.len()))
+    })?;
+    let joints = from
+        .joints
+        .iter()
+        .map(|&j| {
+            let name = &source.joints[j].name;
+            target.joints.iter().position(|t| &t.name == name).ok_or_else(|| {
+                InputError::Animation(format!("skin '{}': joint '{name}' is not a joint of the played file", from.name))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Skin { name: from.name.clone(), joints, inverse_bind: from.inverse_bind.clone(), skeleton: None })
+}
+
 /// Blends local row `out` towards `other` by `weight`: each joint's rotation by slerp on the
 /// shorter arc (in f64), translation and scale by lerp.
 fn blend(out: &mut [f32], other: &[f32], weight: f32) {
