@@ -6,19 +6,21 @@
 # it is listed as not run, one cut short as timed out.
 #
 #   scripts/device-check.sh [--plan] [--bin QUATCURVE] [--out DIR] [--limit SECONDS] [--fitted F.qcf ...]
+#                           [--playback FILE]
 #
 # The binary is built beforehand on a plain x86-64 machine and carried along:
 #   RUSTFLAGS="-C target-cpu=x86-64-v2" cargo build --release   # target/release/quatcurve
 # --plan prints what would run, without running it (no GPU needed).
 set -euo pipefail
 
-bin=target/release/quatcurve out=device-check limit=480 plan=0 fitted=()
+bin=target/release/quatcurve out=device-check limit=480 plan=0 fitted=() playback=""
 while (($#)); do
     case $1 in
         --plan) plan=1 ;;
         --bin) bin=$2; shift ;;
         --out) out=$2; shift ;;
         --limit) limit=$2; shift ;;
+        --playback) playback=$2; shift ;;
         --fitted) shift; while (($#)) && [[ $1 != --* ]]; do fitted+=("$1"); shift; done; continue ;;
         *) echo "device-check: unknown argument $1 (see the head of $0)" >&2; exit 2 ;;
     esac
@@ -45,6 +47,10 @@ if ((${#fitted[@]})); then
     workloads+=("fitted decode, batched, 100 copies|--fitted ${fitted[*]} --copies 100")
 fi
 
+if [[ -n $playback ]]; then
+    workloads+=("crowd playback, 10k and 100k instances blending two clips|--playback $playback --instances 10000,100000 --runs 3")
+fi
+
 if ((plan)); then
     echo "device-check plan: $bin, at most $limit s, into $out/"
     echo "  adapter and driver: nvidia-smi (when present); $bin bench --devices gpu --tracks 1 --samples 1 --runs 1 --json"
@@ -54,6 +60,7 @@ if ((plan)); then
         echo "  $i. ${w%%|*}: $bin bench ${w#*|} --devices gpu,cpu --json > $out/$i.json"
     done
     ((${#fitted[@]})) || echo "  (fitted decode: pass --fitted with containers from \`quatcurve fit\`)"
+    [[ -n $playback ]] || echo "  (crowd playback: pass --playback with a file of clips: Fox.glb, 24 skin joints; cmu_131_01.bvh, 31 joints)"
     echo "  then $out/summary.md: one row per workload and device"
     exit 0
 fi
@@ -99,6 +106,10 @@ rows() {
             sub(/.*"results":\[/, ""); n_rows = split($0, parts, /\},\{/)
             for (i = 1; i <= n_rows; i++) {
                 r = parts[i]; device = field(r, "device")
+                if (field(r, "instance_joints_per_s") != "") {
+                    printf "| %s | %s | %s | %s instances: %.2f M instance-joints/s, %.2f ms a frame | - | - | - | - |\n", n, name, device, field(r, "instances"), field(r, "instance_joints_per_s") / 1e6, field(r, "ms_per_frame")
+                    continue
+                }
                 if (field(r, "ns_per_bone_pose") != "") {
                     printf "| %s | %s | %s | %.1f ns per bone-pose | - | - | - | - |\n", n, name, device, field(r, "ns_per_bone_pose")
                     continue
