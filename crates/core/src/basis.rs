@@ -63,32 +63,8 @@ pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<Basi
 /// [`bspline_cumulative`] into `out[..k - 1]`, without allocating (the fast CPU path calls
 /// it per sample).
 pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &mut [BasisJet]) {
-    // tri[m][r] = B_{l-m+1+r, m}(t) for orders m = 1..=k, r = 0..m.
+    let tri = cox_de_boor(knots, k, l, t);
     let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
-    let mut tri = [[0.0f64; 8]; 9];
-    tri[1][0] = 1.0;
-    for m in 1..k {
-        let (done, rest) = tri.split_at_mut(m + 1);
-        let prev = &done[m];
-        let b = |j: isize| -> f64 {
-            let r = j - (l as isize - m as isize + 1);
-            if r < 0 || r >= m as isize {
-                0.0
-            } else {
-                prev[r as usize]
-            }
-        };
-        for (r, slot) in rest[0].iter_mut().enumerate().take(m + 1) {
-            let j = l as isize - m as isize + r as isize;
-            let ju = j.max(0) as usize;
-            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
-            let right = div(
-                knots[(j + m as isize + 1) as usize] - t,
-                knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize],
-            ) * b(j + 1);
-            *slot = left + right;
-        }
-    }
     // B_{j,m}(t), zero outside the triangle.
     let basis = |m: usize, j: isize| -> f64 {
         if m == 0 {
@@ -117,6 +93,51 @@ pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &
         };
         out[(i - first) as usize] = [tail, d1, d2];
     }
+}
+
+/// The values alone of [`bspline_cumulative_into`] (the same sums, so the same bits), into
+/// `out[..k - 1]`: what a curve's value needs (a vector channel per sample), without the
+/// derivatives' quotients.
+pub fn bspline_cumulative_values_into(knots: &[f64], k: usize, l: usize, t: f64, out: &mut [f64]) {
+    let tri = cox_de_boor(knots, k, l, t);
+    let first = l as isize - k as isize + 2;
+    let mut tail = 0.0;
+    for i in (first..=l as isize).rev() {
+        let r = i - (l as isize - k as isize + 1);
+        tail += if r < 0 || r >= k as isize { 0.0 } else { tri[k][r as usize] };
+        out[(i - first) as usize] = tail;
+    }
+}
+
+/// The Cox-de Boor triangle at `t` on span `l`: `tri[m][r] = B_{l-m+1+r, m}(t)` for orders
+/// `m = 1..=k`, `r = 0..m`. Quotients with a zero-length denominator are 0.
+fn cox_de_boor(knots: &[f64], k: usize, l: usize, t: f64) -> [[f64; 8]; 9] {
+    let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
+    let mut tri = [[0.0f64; 8]; 9];
+    tri[1][0] = 1.0;
+    for m in 1..k {
+        let (done, rest) = tri.split_at_mut(m + 1);
+        let prev = &done[m];
+        let b = |j: isize| -> f64 {
+            let r = j - (l as isize - m as isize + 1);
+            if r < 0 || r >= m as isize {
+                0.0
+            } else {
+                prev[r as usize]
+            }
+        };
+        for (r, slot) in rest[0].iter_mut().enumerate().take(m + 1) {
+            let j = l as isize - m as isize + r as isize;
+            let ju = j.max(0) as usize;
+            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
+            let right = div(
+                knots[(j + m as isize + 1) as usize] - t,
+                knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize],
+            ) * b(j + 1);
+            *slot = left + right;
+        }
+    }
+    tri
 }
 
 /// The cumulative basis functions of one span as polynomials in the span parameter

@@ -25,6 +25,55 @@ pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) 
     (span, t)
 }
 
+/// [`locate`] on strictly increasing, about equally spaced knots (`inv_step` their inverse
+/// mean spacing, [`arithmetic_span_step`]) with the domain `[lo, hi]` (`knots[first]`, `knots[last + 1]`) given: the span
+/// from the spacing, then corrected by a step where rounding put it one off, so the result is
+/// [`locate`]'s.
+#[inline(always)]
+#[must_use]
+pub fn locate_uniform(
+    knots: &[f64],
+    first: usize,
+    last: usize,
+    [lo, hi]: [f64; 2],
+    t: f64,
+    inv_step: f64,
+) -> (usize, f64) {
+    let t = if t >= lo { t.min(hi) } else { lo };
+    // Clamped before the cast: a tiny domain can make the spacing's inverse infinite.
+    let guess = ((t - lo) * inv_step).floor().min((last - first) as f64);
+    // Through u32, a shorter conversion than to usize: no track has 2^32 spans (32 GB of knots).
+    let mut span = if guess > 0.0 { first + guess as u32 as usize } else { first };
+    while span < last && knots[span + 1] <= t {
+        span += 1;
+    }
+    while span > first && knots[span] > t {
+        span -= 1;
+    }
+    (span, t)
+}
+
+/// Knots whose largest spacing is at most this many times their smallest have their spans
+/// guessed by arithmetic and walked to the right one: a glTF's f32 key times are equally
+/// spaced only to about 1e-5, too loosely for the fixed span bases of uniform knots, yet a
+/// guess from the mean spacing is at most a step or two off.
+pub const ARITHMETIC_SPAN_RATIO: f64 = 4.0;
+
+/// `(knots - 1) / (last - first)` of the knots bounding the spans a lookup searches
+/// (`knots[first..=last + 1]`), strictly increasing and within [`ARITHMETIC_SPAN_RATIO`], for
+/// [`locate_uniform`]; else 0 (bisection). On strictly increasing knots the walked guess ends
+/// on the span [`locate`] finds (which steps back only over repeated knots).
+#[must_use]
+pub fn arithmetic_span_step(knots: &[f64]) -> f64 {
+    let spacings = || knots.windows(2).map(|w| w[1] - w[0]);
+    let (smallest, largest) = (spacings().fold(f64::INFINITY, f64::min), spacings().fold(0.0, f64::max));
+    if knots.len() > 2 && smallest > 0.0 && largest <= ARITHMETIC_SPAN_RATIO * smallest {
+        (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
+    } else {
+        0.0
+    }
+}
+
 /// Locates `t` among a piecewise track's key times: `(segment, clamped t, segment length)`.
 #[must_use]
 pub fn key_segment(knots: &[f64], t: f64) -> (usize, f64, f64) {
@@ -51,7 +100,53 @@ pub fn wrap(t: f64, [start, end]: [f64; 2]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{locate, wrap};
+    use super::{arithmetic_span_step, locate, locate_uniform, wrap, ARITHMETIC_SPAN_RATIO};
+
+    #[test]
+    fn arithmetic_lookup_finds_the_span_bisection_finds_on_about_equally_spaced_knots() {
+        // f32 key times (spacings off by ~1e-5), jittered ones, and clamped B-spline knots
+        // whose inner spans are the ones searched; times inside, outside and on knots.
+        let mut seed = 7u64;
+        let mut unit = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for case in 0..300 {
+            let n = 3 + case % 40;
+            let jitter = [1e-5, 0.3, 0.7][case % 3];
+            let mut knots: Vec<f64> = (0..n).map(|i| (i as f64 + jitter * (unit() - 0.5)) / 24.0).collect();
+            let (first, last) = if case % 4 == 0 {
+                // Clamped: the ends repeated three times more, the spans searched inside them.
+                let (a, b) = (knots[0], knots[n - 1]);
+                knots.splice(0..0, [a; 3]);
+                knots.extend([b; 3]);
+                (3, n + 1)
+            } else {
+                (0, n - 2)
+            };
+            let step = arithmetic_span_step(&knots[first..=last + 1]);
+            assert!(step > 0.0 || jitter > 0.5, "case {case}: about equal spacings take the arithmetic");
+            if step == 0.0 {
+                continue;
+            }
+            let domain = [knots[first], knots[last + 1]];
+            let mut times: Vec<f64> = (0..50).map(|_| (unit() * 1.4 - 0.2) * domain[1]).collect();
+            times.extend(&knots);
+            for t in times {
+                assert_eq!(
+                    locate_uniform(&knots, first, last, domain, t, step),
+                    locate(&knots, first, last, t),
+                    "case {case}, t {t}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 5_000);
+        // Spacings further apart than the ratio, or a repeated knot, take bisection.
+        assert_eq!(arithmetic_span_step(&[0.0, 1.0, 1.0 + 0.9 / ARITHMETIC_SPAN_RATIO]), 0.0);
+        assert_eq!(arithmetic_span_step(&[0.0, 1.0, 1.0, 2.0]), 0.0);
+    }
 
     #[test]
     fn wrap_keeps_the_period_and_moves_the_rest() {

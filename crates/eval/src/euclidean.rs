@@ -15,11 +15,10 @@
 
 use crate::batch::{bspline_knots, catmull_rom_velocities, key_times, squad_points};
 use crate::error::{Error, Result, TrackId};
-use quatcurve_core::basis::{bernstein_cumulative, bspline_cumulative_into};
+use quatcurve_core::basis::{bernstein_cumulative, bspline_cumulative_values_into};
 use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, MAX_ORDER};
 use quatcurve_core::quat::Vec3F64;
-use quatcurve_core::segment::key_segment;
-use quatcurve_core::segment::{locate, wrap};
+use quatcurve_core::segment::{arithmetic_span_step, locate, locate_uniform, wrap};
 
 /// A vector curve ready to evaluate: points, per-family coefficients and knots, laid out as
 /// the rotation batch lays them out (see [`crate::batch`]).
@@ -34,6 +33,9 @@ pub struct VectorCurve {
     domain: [f64; 2],
     /// Looping: the per-cycle offset per unit time, `D / T`.
     drift: Option<Vec3F64>,
+    /// The knots' inverse mean spacing where spans are found by arithmetic first
+    /// ([`arithmetic_span_step`] of the spans [`Self::periodic`] looks among), else 0.
+    inv_step: f64,
 }
 
 impl VectorCurve {
@@ -62,8 +64,11 @@ impl VectorCurve {
             knots: times.clone(),
             domain: [times[0], times[n]],
             drift,
+            inv_step: 0.0,
         };
         curve.fit(id, spec, explicit_knots, &times)?;
+        let [first, last] = curve.spans();
+        curve.inv_step = arithmetic_span_step(&curve.knots[first..=last + 1]);
         Ok(curve)
     }
 
@@ -150,6 +155,34 @@ impl VectorCurve {
         }
     }
 
+    /// [`locate`] on the knots, by arithmetic first where they are about equally spaced (the
+    /// same span: the guess is walked to it).
+    fn locate(&self, first: usize, last: usize, t: f64) -> (usize, f64) {
+        let knots = &self.knots;
+        if self.inv_step > 0.0 {
+            locate_uniform(knots, first, last, [knots[first], knots[last + 1]], t, self.inv_step)
+        } else {
+            locate(knots, first, last, t)
+        }
+    }
+
+    /// [`quatcurve_core::segment::key_segment`] through [`Self::locate`]: `(segment, clamped
+    /// t, segment length)`.
+    fn key_segment(&self, t: f64) -> (usize, f64, f64) {
+        let [first, last] = self.spans();
+        let (i, t) = self.locate(first, last, t);
+        (i, t, self.knots[i + 1] - self.knots[i])
+    }
+
+    /// The first and last spans [`Self::periodic`] looks `t` up among: a B-spline's from its
+    /// order less one to its last control point, else every key segment.
+    fn spans(&self) -> [usize; 2] {
+        match self.curve {
+            Curve::BSpline | Curve::BSplineInterp => [self.order - 1, self.points.len() - 1],
+            _ => [0, self.knots.len() - 2],
+        }
+    }
+
     /// The curve without the looping offset.
     fn periodic(&self, t: f64) -> Vec3F64 {
         let Self { points, coefs, knots, .. } = self;
@@ -158,40 +191,37 @@ impl VectorCurve {
         };
         match self.curve {
             Curve::Slerp => {
-                let (i, t, len) = key_segment(knots, t);
+                let (i, t, len) = self.key_segment(t);
                 points[i] + coefs[i].scale((t - knots[i]) / len)
             }
             Curve::Bezier => {
-                let (_, t, len) = key_segment(knots, t);
+                let (_, t, len) = self.key_segment(t);
                 let basis = bernstein_cumulative(self.order, (t - knots[0]) / len);
                 sum(points[0], &mut coefs.iter().zip(basis).map(|(&c, b)| (c, b[0])))
             }
             Curve::Hermite => {
-                let (i, t, len) = key_segment(knots, t);
+                let (i, t, len) = self.key_segment(t);
                 let basis = bernstein_cumulative(3, (t - knots[i]) / len);
                 sum(points[i], &mut coefs[3 * i..3 * i + 3].iter().zip(basis).map(|(&c, b)| (c, b[0])))
             }
             Curve::BSpline | Curve::BSplineInterp => {
                 let k = self.order;
-                let m = points.len() - 1;
-                let (l, t) = locate(knots, k - 1, m, t);
+                let [first, last] = self.spans();
+                let (l, t) = self.locate(first, last, t);
                 let first = l + 2 - k;
                 // On the stack: a bake evaluates a vector channel at every frame.
-                let mut basis = [[0.0; 3]; MAX_ORDER - 1];
-                bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
-                sum(
-                    points[l + 1 - k],
-                    &mut basis[..k - 1].iter().enumerate().map(|(j, b)| (coefs[first + j - 1], b[0])),
-                )
+                let mut basis = [0.0; MAX_ORDER - 1];
+                bspline_cumulative_values_into(knots, k, l, t, &mut basis[..k - 1]);
+                sum(points[l + 1 - k], &mut basis[..k - 1].iter().enumerate().map(|(j, &b)| (coefs[first + j - 1], b)))
             }
             Curve::Squad => {
-                let (i, t, len) = key_segment(knots, t);
+                let (i, t, len) = self.key_segment(t);
                 let h = (t - knots[i]) / len;
                 let lerp = |a: Vec3F64, b: Vec3F64, s: f64| a + (b - a).scale(s);
                 lerp(lerp(points[i], points[i + 1], h), lerp(coefs[i], coefs[i + 1], h), 2.0 * h * (1.0 - h))
             }
             Curve::NamKim => {
-                let (i, t, len) = key_segment(knots, t);
+                let (i, t, len) = self.key_segment(t);
                 let s = (t - knots[i]) / len;
                 let c1 = points[i] + coefs[2 * i].scale(s);
                 let c2 = points[i + 1] + coefs[2 * i + 1].scale(s - 1.0);

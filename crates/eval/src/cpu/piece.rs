@@ -172,23 +172,22 @@ pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
     }
 }
 
-/// The inverse knot spacing of `view` for span lookup by arithmetic on equally spaced
-/// knots, else 0.
+/// The inverse mean knot spacing of `view`'s spans for span lookup by arithmetic first
+/// ([`quatcurve_core::segment::arithmetic_span_step`]), else 0.
 pub(super) fn inv_step(view: TrackView<'_>) -> f64 {
-    let knots = view.knots;
-    if view.track.uniform_knots() && knots.len() > 1 {
-        (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
-    } else {
-        0.0
+    let (first, last) = spans(view);
+    if last + 1 >= view.knots.len() {
+        return 0.0;
     }
+    quatcurve_core::segment::arithmetic_span_step(&view.knots[first..=last + 1])
 }
 
 /// Spans [`locate_from`] steps through before it searches.
 const SCAN_AHEAD: usize = 4;
 
 /// `locate`, first trying the previous span and the next few (sample times usually increase);
-/// on equally spaced knots (`inv_step` their inverse spacing, else 0) by arithmetic, else by
-/// bisection. Short tracks land on a new span at almost every sample.
+/// on about equally spaced knots (`inv_step` their inverse mean spacing, else 0) by
+/// arithmetic, else by bisection. Short tracks land on a new span at almost every sample.
 #[inline(always)]
 pub(super) fn locate_from(
     hint: &mut usize,
@@ -223,36 +222,11 @@ pub(super) fn locate_from(
     (span, t)
 }
 
-/// [`locate`] on strictly increasing, equally spaced knots: the span from the spacing, then
-/// corrected by a step where rounding put it one off, so the result is [`locate`]'s.
+/// [`locate`] on about equally spaced knots ([`quatcurve_core::segment::locate_uniform`]),
+/// its domain read from the knots.
 #[inline(always)]
 pub(super) fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, inv_step: f64) -> (usize, f64) {
-    locate_uniform_in(knots, first, last, [knots[first], knots[last + 1]], t, inv_step)
-}
-
-/// [`locate_uniform`] with the domain `[lo, hi]` (`knots[first]`, `knots[last + 1]`) given,
-/// for callers that keep it.
-#[inline(always)]
-pub(super) fn locate_uniform_in(
-    knots: &[f64],
-    first: usize,
-    last: usize,
-    [lo, hi]: [f64; 2],
-    t: f64,
-    inv_step: f64,
-) -> (usize, f64) {
-    let t = if t >= lo { t.min(hi) } else { lo };
-    // Clamped before the cast: a tiny domain can make the spacing's inverse infinite.
-    let guess = ((t - lo) * inv_step).floor().min((last - first) as f64);
-    // Through u32, a shorter conversion than to usize: no track has 2^32 spans (32 GB of knots).
-    let mut span = if guess > 0.0 { first + guess as u32 as usize } else { first };
-    while span < last && knots[span + 1] <= t {
-        span += 1;
-    }
-    while span > first && knots[span] > t {
-        span -= 1;
-    }
-    (span, t)
+    quatcurve_core::segment::locate_uniform(knots, first, last, [knots[first], knots[last + 1]], t, inv_step)
 }
 
 /// One segment's data as the kernels read it ([`Segments::broadcast`]).

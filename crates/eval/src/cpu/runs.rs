@@ -14,7 +14,7 @@
 
 use super::bases::{Bases, PolyBasis};
 use super::lanes::{cumulative_product, AngleRange, LANES};
-use super::piece::{inv_step, locate_from, locate_uniform_in, spans, write_group, LaneRows, Segments, Shared};
+use super::piece::{inv_step, locate_from, spans, write_group, LaneRows, Segments, Shared};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::Batch;
 use crate::job::JobOptions;
@@ -156,7 +156,7 @@ impl Cursor<'_> {
         // Sparse samples of equally spaced knots: straight to the arithmetic; else the last
         // span first (dense samples share spans).
         let (span, t) = if self.sparse {
-            locate_uniform_in(self.knots, self.first, self.last, self.domain, t, self.inv_step)
+            quatcurve_core::segment::locate_uniform(self.knots, self.first, self.last, self.domain, t, self.inv_step)
         } else {
             locate_from(&mut self.hint, self.knots, self.first, self.last, t, self.inv_step)
         };
