@@ -6,6 +6,7 @@
 //! - [`shaders`]: the WGSL program without a GPU (naga) and the facts Rust shares with it;
 //! - [`cli`], [`bake`]: the command line end to end, real files and hostile ones;
 //! - [`play`]: the playback runtime against the bake and an independent blend;
+//! - [`acl`]: the side-by-side with ACL's harness, built and run once;
 //! - [`architecture`]: `ARCHITECTURE.md`'s crates, layers and orders, checked against the
 //!   manifests and the imports.
 
@@ -14,6 +15,7 @@ mod common;
 #[allow(dead_code)]
 mod fast;
 
+mod acl;
 mod architecture;
 mod cpu;
 mod reference;
