@@ -205,6 +205,19 @@ fn the_forward_kinematics_program_validates_and_matches_its_host_struct() {
 }
 
 #[test]
+fn the_playback_program_validates_and_matches_its_host_struct() {
+    let (module, _) = shader::play_module().unwrap_or_else(|e| panic!("naga rejected the playback program:\n{e}"));
+    for entry in [shader::PLAY_BLEND_ENTRY_POINT, shader::FK_ENTRY_POINT, shader::PLAY_PALETTE_ENTRY_POINT] {
+        assert!(shader::entry_workgroup_size(&module, entry).unwrap() >= 32, "{entry}");
+    }
+    let (_, ty) =
+        module.types.iter().find(|(_, t)| t.name.as_deref() == Some("PlayParams")).expect("PlayParams in play.wgsl");
+    assert_eq!(ty.inner.size(module.to_ctx()) as usize, std::mem::size_of::<quatcurve::gpu::playback::PlayParams>());
+    assert_eq!(shader::constant_u32(&module, "PLAY_POSE_CHANNELS"), Some(quatcurve::output::LOCAL_CHANNELS as u32));
+    assert_eq!(shader::constant_u32(&module, "PLAY_MATRIX_CHANNELS"), Some(quatcurve::output::MATRIX_CHANNELS as u32));
+}
+
+#[test]
 fn the_mesh_skinning_program_validates_and_matches_its_host_struct() {
     let (module, _) = shader::skin_mesh_module().unwrap_or_else(|e| panic!("naga rejected the skinning program:\n{e}"));
     assert!(shader::entry_workgroup_size(&module, shader::SKIN_MESH_ENTRY_POINT).unwrap() >= 32);

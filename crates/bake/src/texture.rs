@@ -18,7 +18,7 @@ use super::Baked;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::Device;
-use quatcurve_eval::skeleton::{compose, rigid, Affine};
+use quatcurve_eval::skeleton::{self, rigid, PaletteSkin};
 use rayon::prelude::*;
 
 /// Which texture `bake --texture` writes.
@@ -172,22 +172,10 @@ pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[u
 }
 
 /// A skin texture `[frames, skin joints, 12]` from a model texture: `model(joint) *
-/// inverseBindMatrix(joint)` in the skin's joint order.
+/// inverseBindMatrix(joint)` in the skin's joint order ([`skeleton::palettes`]).
 #[must_use]
 pub fn skin(skin: &Skin, joints: usize, model: &[f32]) -> Vec<f32> {
-    let frames = model.len() / (joints * MATRIX_CHANNELS).max(1);
-    let width = skin.joints.len() * MATRIX_CHANNELS;
-    let mut data = vec![0.0f32; frames * width];
-    data.par_chunks_mut(width.max(1)).enumerate().for_each(|(frame, out)| {
-        for (k, (&joint, ibm)) in skin.joints.iter().zip(&skin.inverse_bind).enumerate() {
-            let at = (frame * joints + joint) * MATRIX_CHANNELS;
-            let m: Affine = std::array::from_fn(|i| f64::from(model[at + i]));
-            for (o, v) in out[k * MATRIX_CHANNELS..(k + 1) * MATRIX_CHANNELS].iter_mut().zip(compose(&m, ibm)) {
-                *o = v as f32;
-            }
-        }
-    });
-    data
+    skeleton::palettes(PaletteSkin { joints: &skin.joints, inverse_binds: &skin.inverse_bind }, joints, model)
 }
 
 /// One texture of a clip, `[frames, width, channels]`.

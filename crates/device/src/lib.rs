@@ -216,6 +216,40 @@ impl Device {
         }
     }
 
+    /// Crowd playback's palettes (DESIGN section 11): each instance's two local poses
+    /// (`poses`, `[instances, 2, joints, 10]`) blended by its weight (`weights`: rotations by
+    /// slerp on the shorter arc, the rest by lerp), forward kinematics, and `skin`'s palette
+    /// (`[instances, skin joints, 12]`; every joint's model matrix without one). The GPU's in
+    /// one submission (`shaders/play.wgsl` around `shaders/fk.wgsl`, f32); the CPU path and the
+    /// reference in f64 ([`skeleton::blend_poses`], [`skeleton::forward_kinematics`],
+    /// [`skeleton::palettes`]).
+    ///
+    /// # Errors
+    /// [`DeviceError::Device`] for the GPU's failures.
+    pub fn play_palettes(
+        &self,
+        parents: &[Option<usize>],
+        order: &[usize],
+        poses: &[f32],
+        weights: &[f32],
+        skin: Option<skeleton::PaletteSkin<'_>>,
+    ) -> Result<Vec<f32>, DeviceError> {
+        match self {
+            #[cfg(feature = "gpu")]
+            Device::Gpu(g) | Device::Auto(g, _) => g
+                .play_palettes(parents, order, poses, weights, skin)
+                .map_err(|e| DeviceError::Device(format!("playback: {e}"))),
+            Device::Cpu(_) | Device::Reference => {
+                let local = skeleton::blend_poses(poses, weights, parents.len());
+                let model = skeleton::forward_kinematics(parents, order, &local);
+                Ok(match skin {
+                    Some(skin) => skeleton::palettes(skin, parents.len(), &model),
+                    None => model,
+                })
+            }
+        }
+    }
+
     /// `mesh` skinned at every frame of `matrices` (`[frames, skin joints, 12]`, 3x4 row-major
     /// skinning matrices): `[frames, vertices, 6]`, position and normal, in f32. The GPU's
     /// `shaders/skin_mesh.wgsl`; the CPU path and the reference [`skeleton::skin`] in f64.

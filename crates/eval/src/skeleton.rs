@@ -6,6 +6,7 @@
 //! and the fit's virtual-vertex error all compose transforms through it.
 
 use crate::output::{LOCAL_CHANNELS, MATRIX_CHANNELS, VERTEX_CHANNELS};
+use quatcurve_core::quat::QuatF64;
 use rayon::prelude::*;
 
 /// A 3x4 row-major affine matrix (its last row is `0 0 0 1`).
@@ -146,6 +147,74 @@ pub fn forward_kinematics(parents: &[Option<usize>], order: &[usize], local: &[f
             }
         },
     );
+    data
+}
+
+/// Two local poses per instance (`[instances, 2, joints, 10]`) blended by `weights` (one per
+/// instance, the second pose's): rotations by slerp on the shorter arc (in f64), translations
+/// and scales by lerp; `[instances, joints, 10]`. The twin of `shaders/play.wgsl`'s
+/// `play_blend`.
+///
+/// # Panics
+/// When `poses` is not two poses of `joints` joints per weight.
+#[must_use]
+pub fn blend_poses(poses: &[f32], weights: &[f32], joints: usize) -> Vec<f32> {
+    let row = joints * LOCAL_CHANNELS;
+    assert_eq!(poses.len(), 2 * row * weights.len(), "two poses of {joints} joints per weight");
+    let mut out = vec![0.0f32; row * weights.len()];
+    out.par_chunks_mut(row.max(1)).zip(poses.par_chunks(2 * row.max(1))).zip(weights).for_each(
+        |((out, pair), &weight)| {
+            let (a, b) = pair.split_at(row);
+            // Weight 0 is the first pose as it is (an instance that blends nothing).
+            if weight == 0.0 {
+                out.copy_from_slice(a);
+                return;
+            }
+            let w = f64::from(weight);
+            for ((o, a), b) in out
+                .chunks_exact_mut(LOCAL_CHANNELS)
+                .zip(a.chunks_exact(LOCAL_CHANNELS))
+                .zip(b.chunks_exact(LOCAL_CHANNELS))
+            {
+                let q = |r: &[f32]| QuatF64::from_array([r[0], r[1], r[2], r[3]].map(f64::from)).normalize();
+                for (o, m) in o[..4].iter_mut().zip(q(a).slerp(q(b), w).to_array()) {
+                    *o = m as f32;
+                }
+                for ((o, &a), &b) in o[4..].iter_mut().zip(&a[4..]).zip(&b[4..]) {
+                    *o = a + (b - a) * weight;
+                }
+            }
+        },
+    );
+    out
+}
+
+/// The joints a palette holds and their inverse binds (a glTF skin's).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PaletteSkin<'a> {
+    /// The skin's joints (indices into the model rows' joints), in its order.
+    pub joints: &'a [usize],
+    /// One inverse bind matrix per skin joint, 3x4 row-major.
+    pub inverse_binds: &'a [[f64; 12]],
+}
+
+/// Skin palettes `[frames, skin joints, 12]` of model rows `[frames, joints, 12]`:
+/// `model(joint) * inverseBind(joint)` in the skin's joint order, composed in f64. The twin of
+/// `shaders/play.wgsl`'s `play_palette`, and the bake's `skin` texture.
+#[must_use]
+pub fn palettes(skin: PaletteSkin<'_>, joints: usize, model: &[f32]) -> Vec<f32> {
+    let frames = model.len() / (joints * MATRIX_CHANNELS).max(1);
+    let width = skin.joints.len() * MATRIX_CHANNELS;
+    let mut data = vec![0.0f32; frames * width];
+    data.par_chunks_mut(width.max(1)).enumerate().for_each(|(frame, out)| {
+        for (k, (&joint, ibm)) in skin.joints.iter().zip(skin.inverse_binds).enumerate() {
+            let at = (frame * joints + joint) * MATRIX_CHANNELS;
+            let m: Affine = std::array::from_fn(|i| f64::from(model[at + i]));
+            for (o, v) in out[k * MATRIX_CHANNELS..(k + 1) * MATRIX_CHANNELS].iter_mut().zip(compose(&m, ibm)) {
+                *o = v as f32;
+            }
+        }
+    });
     data
 }
 

@@ -155,6 +155,7 @@ pub struct GpuEvaluator {
     fk: std::sync::OnceLock<ForwardKinematics>,
     /// The mesh-skinning program, built on first use (vertex textures).
     skinning: std::sync::OnceLock<super::MeshSkinning>,
+    playback: std::sync::OnceLock<super::PosePalettes>,
     /// The last output buffer `evaluate` used, kept for the next chunk or call: a fresh
     /// buffer's memory is faulted in while the kernel writes it (on lavapipe that cost 15-20%
     /// of the kernel's time).
@@ -207,6 +208,7 @@ impl GpuEvaluator {
             program,
             fk: std::sync::OnceLock::new(),
             skinning: std::sync::OnceLock::new(),
+            playback: std::sync::OnceLock::new(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
         })
@@ -261,6 +263,7 @@ impl GpuEvaluator {
             program: self.program.clone(),
             fk: std::sync::OnceLock::new(),
             skinning: std::sync::OnceLock::new(),
+            playback: std::sync::OnceLock::new(),
             spare_output: Mutex::new(None),
             spare_inputs: Mutex::new(None),
         }
@@ -278,6 +281,23 @@ impl GpuEvaluator {
         local: &[f32],
     ) -> Result<Vec<f32>, GpuError> {
         built(&self.fk, || ForwardKinematics::new(&self.context))?.run(parents, order, local)
+    }
+
+    /// Crowd playback's palettes on this evaluator's device ([`super::PosePalettes::run`]:
+    /// blend, forward kinematics and palettes in one submission; built on first use).
+    ///
+    /// # Errors
+    /// As [`super::PosePalettes::run`], and [`GpuError::Device`] when the program cannot be
+    /// built.
+    pub fn play_palettes(
+        &self,
+        parents: &[Option<usize>],
+        order: &[usize],
+        poses: &[f32],
+        weights: &[f32],
+        skin: Option<quatcurve_eval::skeleton::PaletteSkin<'_>>,
+    ) -> Result<Vec<f32>, GpuError> {
+        built(&self.playback, || super::PosePalettes::new(&self.context))?.run(parents, order, poses, weights, skin)
     }
 
     /// A mesh primitive skinned at every frame of `matrices` on this evaluator's device

@@ -8,17 +8,21 @@
 //! - [`evaluator`]: [`GpuEvaluator`], created once and reused.
 //! - [`fk`]: [`ForwardKinematics`], bake's model matrices on the same device.
 //! - [`skinning`]: [`MeshSkinning`], vertex textures' skinned meshes on the same device.
+//! - [`playback`]: [`PosePalettes`], crowd playback's blend, forward kinematics and skin
+//!   palettes in one submission.
 
 pub mod context;
 pub mod evaluator;
 pub mod fk;
 pub mod layout;
+pub mod playback;
 pub mod program;
 pub mod skinning;
 
 pub use context::GpuContext;
 pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 pub use fk::ForwardKinematics;
+pub use playback::PosePalettes;
 pub use skinning::MeshSkinning;
 
 /// Runs `f` (which creates a wgpu instance, adapter or device) without the display-server

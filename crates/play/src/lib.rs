@@ -7,7 +7,8 @@
 //!
 //! The curves run where the [`Device`] runs them: rotations on the device (the reference in
 //! f64, the CPU path's SIMD f32, the WGSL kernel), translations and scales with the Euclidean
-//! analogue in f64, forward kinematics on the device ([`Device::forward_kinematics`]).
+//! analogue in f64; then the blend, forward kinematics and palettes on the device
+//! ([`Device::play_palettes`]: on the GPU one submission of `shaders/play.wgsl`).
 
 pub mod schedule;
 
@@ -16,12 +17,12 @@ use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_bake::curves::{ChannelEval, Curves};
 use quatcurve_bake::{clip_loops, LoopMode};
 use quatcurve_core::curve::CurveSpec;
-use quatcurve_core::quat::QuatF64;
 use quatcurve_device::Device;
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
+use quatcurve_eval::skeleton::{self, PaletteSkin};
 use rayon::prelude::*;
 
 /// A pose of one clip: the clip's index and seconds from its first key. A loop plays on
@@ -158,14 +159,35 @@ impl Playback {
 
     /// Every instance's local pose: `[instances, joints, 10]` (rotation `x, y, z, w`,
     /// translation, scale per joint, in the animation's joint order), the two poses of a blend
-    /// mixed in local space: rotations by slerp on the shorter arc, translations and scales by
-    /// lerp. What a clip does not animate keeps the joint's rest value. Rotations are
-    /// evaluated in one job on `device`.
+    /// mixed in local space ([`skeleton::blend_poses`]: rotations by slerp on the shorter arc,
+    /// translations and scales by lerp). What a clip does not animate keeps the joint's rest
+    /// value. Rotations are evaluated in one job on `device`.
     ///
     /// # Errors
     /// [`InputError::Animation`] for a clip that is not the animation's, a time that is not
     /// finite or a weight outside `[0, 1]`, naming the instance; the device's failures.
     pub fn local_poses(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        let (poses, weights) = self.pose_pairs(device, instances)?;
+        Ok(skeleton::blend_poses(&poses, &weights, self.animation.joints.len()))
+    }
+
+    /// Every instance's skin palette: `[instances, palette joints, 12]`, each the 3x4
+    /// row-major `model(joint) * inverseBind(joint)` in the skin's joint order (the rows of a
+    /// `skin` texture), or every joint's model matrix for a file without skins
+    /// ([`Playback::palette_joints`]). The blend, forward kinematics and palettes run on
+    /// `device` ([`Device::play_palettes`]: one submission on the GPU).
+    ///
+    /// # Errors
+    /// As [`Playback::local_poses`].
+    pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        let (poses, weights) = self.pose_pairs(device, instances)?;
+        let skin = self.skin().map(|s| PaletteSkin { joints: &s.joints, inverse_binds: &s.inverse_bind });
+        Ok(device.play_palettes(&self.parents, &self.order, &poses, &weights, skin)?)
+    }
+
+    /// Each instance's two local poses, `[instances, 2, joints, 10]` (an instance without a
+    /// blend: its pose twice), and the second's weight (0 without a blend).
+    fn pose_pairs(&self, device: &Device, instances: &[Instance]) -> Result<(Vec<f32>, Vec<f32>), InputError> {
         self.check(instances)?;
         // Every pose asked for, grouped by clip: (instance, slot) -> (clip, k-th time of it).
         let clips = self.animation.clips.len();
@@ -216,32 +238,17 @@ impl Playback {
                 }
             }
         };
-        let mut local = vec![0.0f32; instances.len() * row];
-        local.par_chunks_mut(row.max(1)).zip(instances.par_iter().zip(&poses)).for_each(|(out, (instance, pose))| {
-            pose_row(pose[0].expect("every instance has a first pose"), out);
-            if let (Some(second), Some((_, weight))) = (pose[1], instance.second) {
-                let mut other = vec![0.0f32; row];
-                pose_row(second, &mut other);
-                blend(out, &other, weight);
+        let mut pairs = vec![0.0f32; instances.len() * 2 * row];
+        pairs.par_chunks_mut((2 * row).max(1)).zip(&poses).for_each(|(out, pose)| {
+            let (first, second) = out.split_at_mut(row);
+            pose_row(pose[0].expect("every instance has a first pose"), first);
+            match pose[1] {
+                Some(p) => pose_row(p, second),
+                None => second.copy_from_slice(first),
             }
         });
-        Ok(local)
-    }
-
-    /// Every instance's skin palette: `[instances, palette joints, 12]`, each the 3x4
-    /// row-major `model(joint) * inverseBind(joint)` in the skin's joint order (the rows of a
-    /// `skin` texture), or every joint's model matrix for a file without skins
-    /// ([`Playback::palette_joints`]). Forward kinematics runs on `device`.
-    ///
-    /// # Errors
-    /// As [`Playback::local_poses`].
-    pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
-        let local = self.local_poses(device, instances)?;
-        let model = device.forward_kinematics(&self.parents, &self.order, &local)?;
-        Ok(match self.skin() {
-            Some(skin) => quatcurve_bake::texture::skin(skin, self.animation.joints.len(), &model),
-            None => model,
-        })
+        let weights = instances.iter().map(|i| i.second.map_or(0.0, |(_, w)| w)).collect();
+        Ok((pairs, weights))
     }
 
     /// Refuses a pose of a clip the animation lacks, a time that is not finite or a weight
@@ -290,22 +297,6 @@ pub fn skin_by_name(target: &Animation, source: &Animation, skin: usize) -> Resu
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Skin { name: from.name.clone(), joints, inverse_bind: from.inverse_bind.clone(), skeleton: None })
-}
-
-/// Blends local row `out` towards `other` by `weight`: each joint's rotation by slerp on the
-/// shorter arc (in f64), translation and scale by lerp.
-fn blend(out: &mut [f32], other: &[f32], weight: f32) {
-    let w = f64::from(weight);
-    for (a, b) in out.chunks_exact_mut(LOCAL_CHANNELS).zip(other.chunks_exact(LOCAL_CHANNELS)) {
-        let q = |r: &[f32]| QuatF64::from_array([r[0], r[1], r[2], r[3]].map(f64::from)).normalize();
-        let mixed = q(a).slerp(q(b), w).to_array();
-        for (v, m) in a[..4].iter_mut().zip(mixed) {
-            *v = m as f32;
-        }
-        for (v, &o) in a[4..].iter_mut().zip(&b[4..]) {
-            *v += (o - *v) * weight;
-        }
-    }
 }
 
 /// Floats per palette matrix: 3x4 row-major.

@@ -24,6 +24,11 @@ pub const FK_FILES: [(&str, &str); 3] = [
     ("fk.wgsl", include_str!("../../../shaders/fk.wgsl")),
 ];
 
+/// Crowd playback's program: forward kinematics' files, then the pose blend and the skin
+/// palettes around it (one module, so that one submission runs all three).
+pub const PLAY_FILES: [(&str, &str); 4] =
+    [FK_FILES[0], FK_FILES[1], FK_FILES[2], ("play.wgsl", include_str!("../../../shaders/play.wgsl"))];
+
 /// The mesh-skinning program of vertex textures: self-contained.
 pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../../shaders/skin_mesh.wgsl"))];
 
@@ -83,6 +88,12 @@ pub const SKIN_MESH_ENTRY_POINT: &str = "skin_mesh";
 /// Name of the forward-kinematics entry point.
 pub const FK_ENTRY_POINT: &str = "forward_kinematics";
 
+/// The playback program's pose blend (`shaders/play.wgsl`).
+pub const PLAY_BLEND_ENTRY_POINT: &str = "play_blend";
+
+/// The playback program's skin palettes (`shaders/play.wgsl`).
+pub const PLAY_PALETTE_ENTRY_POINT: &str = "play_palette";
+
 /// Name of the compute entry point.
 pub const ENTRY_POINT: &str = "evaluate";
 
@@ -99,6 +110,12 @@ pub fn source() -> String {
 #[must_use]
 pub fn fk_source() -> String {
     join(&FK_FILES)
+}
+
+/// The playback program (blend, forward kinematics, palettes) as one WGSL source.
+#[must_use]
+pub fn play_source() -> String {
+    join(&PLAY_FILES)
 }
 
 /// The mesh-skinning program as one WGSL source.
@@ -417,6 +434,14 @@ pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
 /// As [`module`].
 pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     validate(&fk_source())
+}
+
+/// Parses and validates the playback program with naga.
+///
+/// # Errors
+/// As [`module`].
+pub fn play_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    validate(&play_source())
 }
 
 /// Parses and validates the mesh-skinning program with naga.
