@@ -221,8 +221,7 @@ impl Device {
     /// slerp on the shorter arc, the rest by lerp), forward kinematics, and `skin`'s palette
     /// (`[instances, skin joints, 12]`; every joint's model matrix without one). The GPU's in
     /// one submission (`shaders/play.wgsl` around `shaders/fk.wgsl`, f32); the CPU path and the
-    /// reference in f64 ([`skeleton::blend_poses`], [`skeleton::forward_kinematics`],
-    /// [`skeleton::palettes`]).
+    /// reference in f64, an instance at a time ([`skeleton::play_palettes`]).
     ///
     /// # Errors
     /// [`DeviceError::Device`] for the GPU's failures.
@@ -239,14 +238,7 @@ impl Device {
             Device::Gpu(g) | Device::Auto(g, _) => g
                 .play_palettes(parents, order, poses, weights, skin)
                 .map_err(|e| DeviceError::Device(format!("playback: {e}"))),
-            Device::Cpu(_) | Device::Reference => {
-                let local = skeleton::blend_poses(poses, weights, parents.len());
-                let model = skeleton::forward_kinematics(parents, order, &local);
-                Ok(match skin {
-                    Some(skin) => skeleton::palettes(skin, parents.len(), &model),
-                    None => model,
-                })
-            }
+            Device::Cpu(_) | Device::Reference => Ok(skeleton::play_palettes(parents, order, poses, weights, skin)),
         }
     }
 

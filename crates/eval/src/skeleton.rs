@@ -151,9 +151,7 @@ pub fn forward_kinematics(parents: &[Option<usize>], order: &[usize], local: &[f
 }
 
 /// Two local poses per instance (`[instances, 2, joints, 10]`) blended by `weights` (one per
-/// instance, the second pose's): rotations by slerp on the shorter arc (in f64), translations
-/// and scales by lerp; `[instances, joints, 10]`. The twin of `shaders/play.wgsl`'s
-/// `play_blend`.
+/// instance, the second pose's): `[instances, joints, 10]` ([`blend_row`]).
 ///
 /// # Panics
 /// When `poses` is not two poses of `joints` joints per weight.
@@ -162,30 +160,77 @@ pub fn blend_poses(poses: &[f32], weights: &[f32], joints: usize) -> Vec<f32> {
     let row = joints * LOCAL_CHANNELS;
     assert_eq!(poses.len(), 2 * row * weights.len(), "two poses of {joints} joints per weight");
     let mut out = vec![0.0f32; row * weights.len()];
-    out.par_chunks_mut(row.max(1)).zip(poses.par_chunks(2 * row.max(1))).zip(weights).for_each(
-        |((out, pair), &weight)| {
-            let (a, b) = pair.split_at(row);
-            // Weight 0 is the first pose as it is (an instance that blends nothing).
-            if weight == 0.0 {
-                out.copy_from_slice(a);
-                return;
-            }
-            let w = f64::from(weight);
-            for ((o, a), b) in out
-                .chunks_exact_mut(LOCAL_CHANNELS)
-                .zip(a.chunks_exact(LOCAL_CHANNELS))
-                .zip(b.chunks_exact(LOCAL_CHANNELS))
-            {
-                let q = |r: &[f32]| QuatF64::from_array([r[0], r[1], r[2], r[3]].map(f64::from)).normalize();
-                for (o, m) in o[..4].iter_mut().zip(q(a).slerp(q(b), w).to_array()) {
-                    *o = m as f32;
+    out.par_chunks_mut(row.max(1))
+        .zip(poses.par_chunks(2 * row.max(1)))
+        .zip(weights)
+        .for_each(|((out, pair), &weight)| blend_row(pair, weight, out));
+    out
+}
+
+/// One instance's two local rows (`pair`: the first pose's joints, then the second's) blended
+/// into `out` by `weight`: rotations by slerp on the shorter arc (in f64), translations and
+/// scales by lerp; weight 0 is the first pose as it is. The twin of `shaders/play.wgsl`'s
+/// `play_blend`.
+fn blend_row(pair: &[f32], weight: f32, out: &mut [f32]) {
+    let (a, b) = pair.split_at(out.len());
+    if weight == 0.0 {
+        out.copy_from_slice(a);
+        return;
+    }
+    let w = f64::from(weight);
+    let q = |r: &[f32]| QuatF64::from_array([r[0], r[1], r[2], r[3]].map(f64::from)).normalize();
+    let joints =
+        out.chunks_exact_mut(LOCAL_CHANNELS).zip(a.chunks_exact(LOCAL_CHANNELS)).zip(b.chunks_exact(LOCAL_CHANNELS));
+    for ((o, a), b) in joints {
+        for (o, m) in o[..4].iter_mut().zip(q(a).slerp(q(b), w).to_array()) {
+            *o = m as f32;
+        }
+        for ((o, &a), &b) in o[4..].iter_mut().zip(&a[4..]).zip(&b[4..]) {
+            *o = a + (b - a) * weight;
+        }
+    }
+}
+
+/// Crowd playback's palettes on the host, one instance at a time (its rows stay in cache):
+/// its two local poses blended ([`blend_row`]), forward kinematics in f64 ([`pose_into`]) and
+/// `skin`'s palette (`model * inverseBind`, [`palettes`]' formula), or every joint's model
+/// matrix without one: `[instances, matrices, 12]`. The twin of `shaders/play.wgsl` with
+/// `fk.wgsl`.
+///
+/// # Panics
+/// As [`blend_poses`].
+#[must_use]
+pub fn play_palettes(
+    parents: &[Option<usize>],
+    order: &[usize],
+    poses: &[f32],
+    weights: &[f32],
+    skin: Option<PaletteSkin<'_>>,
+) -> Vec<f32> {
+    let joints = parents.len();
+    let row = joints * LOCAL_CHANNELS;
+    assert_eq!(poses.len(), 2 * row * weights.len(), "two poses of {joints} joints per weight");
+    let matrices = skin.map_or(joints, |s| s.joints.len());
+    let mut out = vec![0.0f32; matrices * MATRIX_CHANNELS * weights.len()];
+    out.par_chunks_mut((matrices * MATRIX_CHANNELS).max(1))
+        .zip(poses.par_chunks(2 * row.max(1)))
+        .zip(weights)
+        .for_each_init(
+            || (vec![0.0f32; row], vec![[0.0; 12]; joints]),
+            |(local, object), ((out, pair), &weight)| {
+                blend_row(pair, weight, local);
+                pose_into(parents, order, |j| trs_row(&local[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]), object);
+                let matrix = |k: usize| match skin {
+                    Some(s) => compose(&object[s.joints[k]], &s.inverse_binds[k]),
+                    None => object[k],
+                };
+                for (k, o) in out.chunks_exact_mut(MATRIX_CHANNELS).enumerate() {
+                    for (o, v) in o.iter_mut().zip(matrix(k)) {
+                        *o = v as f32;
+                    }
                 }
-                for ((o, &a), &b) in o[4..].iter_mut().zip(&a[4..]).zip(&b[4..]) {
-                    *o = a + (b - a) * weight;
-                }
-            }
-        },
-    );
+            },
+        );
     out
 }
 
