@@ -34,6 +34,18 @@ fn play(args: &[&str]) -> std::process::Output {
     Command::cargo_bin("quatcurve").unwrap().arg("play").args(args).output().unwrap()
 }
 
+/// `quatcurve bake --texture skin --rate 30 --exact-rate` of `input` into `output`, and more.
+fn bake_skin(input: &Path, output: &Path, more: &[&str]) {
+    let result = Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["bake", "--input", input.to_str().unwrap(), "--output", output.to_str().unwrap()])
+        .args(["--texture", "skin", "--rate", "30", "--exact-rate"])
+        .args(more)
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}: {}", input.display(), stderr(&result));
+}
+
 fn playback(path: &Path, curve: Curve) -> Playback {
     let source = Source::read(path, Default::default()).unwrap();
     Playback::new(source.animation().clone(), &CurveSpec::new(curve), LoopMode::Auto, None).unwrap()
@@ -60,14 +72,7 @@ fn palettes_equal_the_bakes_skin_texture_at_its_frame_times_on_every_device() {
         let playback = playback(&input, curve);
         for (device_name, device) in devices() {
             let out = dir.path().join(format!("{name}.{device_name}"));
-            let result = Command::cargo_bin("quatcurve")
-                .unwrap()
-                .args(["bake", "--input", input.to_str().unwrap(), "--output", out.to_str().unwrap()])
-                .args(["--texture", "skin", "--rate", "30", "--exact-rate", "--curve", &curve.to_string()])
-                .args(["--device", device_name])
-                .output()
-                .unwrap();
-            assert!(result.status.success(), "{name}: {}", stderr(&result));
+            bake_skin(&input, &out, &["--curve", &curve.to_string(), "--device", device_name]);
             let stem = input.file_stem().unwrap().to_str().unwrap();
             let sidecar = json(&out.join(format!("{stem}.json")));
             for (c, clip) in sidecar["clips"].as_array().unwrap().iter().enumerate() {
@@ -222,13 +227,7 @@ fn play_writes_the_schedule_and_its_first_instance_is_the_bake() {
     // the bake's, as the test above holds).
     let input = data.join("CesiumMan.glb");
     let bake_dir = dir.path().join("bake");
-    let result = Command::cargo_bin("quatcurve")
-        .unwrap()
-        .args(["bake", "--input", input.to_str().unwrap(), "--output", bake_dir.to_str().unwrap()])
-        .args(["--texture", "skin", "--rate", "30", "--exact-rate", "--device", "cpu"])
-        .output()
-        .unwrap();
-    assert!(result.status.success(), "{}", stderr(&result));
+    bake_skin(&input, &bake_dir, &["--device", "cpu"]);
     let args = ["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--device", "cpu"];
     let result = play(&[&args[..], &["--rate", "30", "--seconds", "1.5"]].concat());
     assert!(result.status.success(), "{}", stderr(&result));
