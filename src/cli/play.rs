@@ -43,9 +43,10 @@ pub struct PlayArgs {
     /// the skin's order).
     #[arg(long, default_value = "palettes.npy")]
     output: PathBuf,
-    /// Which skin's palette (a file without skins plays every joint's model matrix).
-    #[arg(long, default_value_t = 0)]
-    skin: usize,
+    /// Which skin's palette, by default the first (a file without skins plays every joint's
+    /// model matrix).
+    #[arg(long)]
+    skin: Option<usize>,
     /// Take the skin from this file (.gltf, .glb, .fbx), its joints matched by name: a fitted
     /// container keeps a glTF's joints and clips, not its skins.
     #[arg(long, value_name = "FILE")]
@@ -83,14 +84,11 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     if let Some(path) = &args.skin_from {
         let from = path.display().to_string();
         let other = Source::read(path, Default::default()).map_err(|e| Failure::Input(format!("{from}: {e}")))?;
-        let skin = skin_by_name(&animation, other.animation(), args.skin)
+        let skin = skin_by_name(&animation, other.animation(), args.skin.unwrap_or(0))
             .map_err(|e| Failure::Input(format!("--skin-from {from}: {e}")))?;
         animation.skins = vec![skin];
     }
-    let skin = match (&args.skin_from, animation.skins.is_empty()) {
-        (Some(_), _) => Some(0),
-        (None, empty) => (!empty).then_some(args.skin),
-    };
+    let skin = if args.skin_from.is_some() { Some(0) } else { args.skin };
     let playback =
         Playback::new(animation, &spec, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     let frames = (args.seconds * args.rate + 1e-9).floor() as u64 + 1;

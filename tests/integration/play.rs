@@ -253,12 +253,18 @@ fn bad_requests_are_refused_before_anything_is_written() {
         (&["--instances", "0"][..], "--instances must be 1 or more"),
         (&["--instances", "100000", "--seconds", "1000"][..], "floats of palettes"),
         (&["--skin", "4"][..], "skin 4 asked for, but the file has 1 skin(s)"),
+        (&["--skin-from", input.to_str().unwrap(), "--skin", "2"][..], "skin 2 asked for, but the file has 1"),
     ] {
         let result = play(&[&base[..], extra].concat());
         assert_eq!(result.status.code(), Some(2), "{extra:?}");
         assert!(stderr(&result).contains(message), "{extra:?}: {}", stderr(&result));
         assert!(!output.exists(), "{extra:?}");
     }
+    // A file without skins refuses a skin asked for by number.
+    let bvh = data.join("cmu_131_03.bvh");
+    let result = play(&["--input", bvh.to_str().unwrap(), "--output", output.to_str().unwrap(), "--skin", "0"]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(stderr(&result).contains("skin 0 asked for, but the file has 0 skin(s)"), "{}", stderr(&result));
     let missing = dir.path().join("missing.glb");
     let result = play(&["--input", missing.to_str().unwrap(), "--output", output.to_str().unwrap()]);
     assert_eq!(result.status.code(), Some(2));

@@ -180,6 +180,9 @@ impl Playback {
     /// # Errors
     /// As [`Playback::local_poses`].
     pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        if instances.is_empty() {
+            return Ok(Vec::new());
+        }
         let (poses, weights) = self.pose_pairs(device, instances)?;
         let skin = self.skin().map(|s| PaletteSkin { joints: &s.joints, inverse_binds: &s.inverse_bind });
         Ok(device.play_palettes(&self.parents, &self.order, &poses, &weights, skin)?)
