@@ -19,6 +19,10 @@ use std::time::Instant;
 /// are counted before anything is evaluated.
 pub const MAX_PALETTE_FLOATS: u64 = 1 << 30;
 
+/// How far below a whole number of frames `--seconds` times `--rate` may fall and still count
+/// it.
+const FRAME_ROUNDING: f64 = 1e-9;
+
 #[derive(Args, Debug)]
 pub struct PlayArgs {
     /// The file whose clips are played (.gltf, .glb, .fbx, .bvh, .npz, .qcf).
@@ -91,7 +95,8 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let skin = if args.skin_from.is_some() { Some(0) } else { args.skin };
     let playback =
         Playback::new(animation, &spec, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
-    let frames = (args.seconds * args.rate + 1e-9).floor() as u64 + 1;
+    // A product meant to be whole (0.7 s at 30 Hz) can round just below it.
+    let frames = (args.seconds * args.rate + FRAME_ROUNDING).floor() as u64 + 1;
     let joints = playback.palette_joints();
     let shape = [frames, args.instances as u64, joints as u64, PALETTE_CHANNELS as u64];
     if shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d)).map_or(true, |n| n > MAX_PALETTE_FLOATS) {
@@ -102,8 +107,10 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
         )));
     }
     let device = open_device(args.device, "--device")?;
-    let io = |e: quatcurve::io::IoError| Failure::Input(e.to_string());
-    let mut file = AtomicFile::create(&args.output).map_err(io)?;
+    // An output that cannot be created is the request's fault (exit 2); one that fails while
+    // written, the machine's (exit 1).
+    let mut file = AtomicFile::create(&args.output).map_err(|e| Failure::Input(e.to_string()))?;
+    let io = |e: quatcurve::io::IoError| Failure::Internal(e.to_string());
     file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
     let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight };
     let started = Instant::now();

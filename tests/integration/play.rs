@@ -304,3 +304,19 @@ fn a_fitted_container_plays_the_characters_skin_within_the_fits_budget() {
     let err = quatcurve::play::skin_by_name(fitted.animation(), &other, 0).unwrap_err();
     assert!(err.to_string().contains("joint 'elsewhere' is not a joint of the played file"), "{err}");
 }
+
+#[test]
+fn a_crowd_larger_than_a_binding_plays_a_part_at_a_time_on_the_gpu() {
+    let Some(data) = data_dir() else { return };
+    let Some(gpu) = crate::shared_gpu() else { return };
+    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let schedule = Schedule { instances: 7, rate: 30.0, blend: Some(0.3) };
+    let instances = schedule.frame(&playback, 11);
+    let whole = Device::Gpu(Box::new(gpu.share_device()));
+    // Two poses of Fox's 24 joints are 1,920 bytes: two instances a submission.
+    let parts = Device::Gpu(Box::new(gpu.share_device().with_binding_limit(4096)));
+    let expected = playback.palettes(&whole, &instances).unwrap();
+    assert_eq!(playback.palettes(&parts, &instances).unwrap(), expected);
+    let cpu = playback.palettes(&Device::open(DeviceChoice::Cpu).unwrap(), &instances).unwrap();
+    assert!(relative_gap(&expected, &cpu) < TOLERANCE);
+}

@@ -94,14 +94,24 @@ impl PosePalettes {
                 (&all, identity.repeat(joints))
             }
         };
-        let largest =
-            (instances * 2 * joints * LOCAL_CHANNELS).max(instances * skin_joints.len().max(joints) * MATRIX_CHANNELS);
-        if (largest * 4) as u64 > self.context.binding_limit() {
+        // The largest buffer per instance (its two poses, or its model rows or palette): a crowd
+        // larger than a binding holds is played a part at a time, a submission each.
+        let per_instance = 4 * (2 * joints * LOCAL_CHANNELS).max(skin_joints.len().max(joints) * MATRIX_CHANNELS);
+        let fits = (self.context.binding_limit() / per_instance as u64) as usize;
+        if fits == 0 {
             return Err(GpuError::Job(format!(
-                "{instances} instances of {joints} joints need {} bytes in one buffer, more than a storage binding ({})",
-                largest * 4,
+                "one instance of {joints} joints needs {per_instance} bytes in one buffer, more than a storage binding \
+                 ({})",
                 self.context.binding_limit()
             )));
+        }
+        if instances > fits {
+            let mut out = Vec::with_capacity(instances * skin_joints.len() * MATRIX_CHANNELS);
+            let row = 2 * joints * LOCAL_CHANNELS;
+            for (poses, weights) in poses.chunks(fits * row).zip(weights.chunks(fits)) {
+                out.extend(self.run(parents, order, poses, weights, skin)?);
+            }
+            return Ok(out);
         }
         let (by_level, starts) = levels(parents, order)?;
         let parents: Vec<i32> = parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();
