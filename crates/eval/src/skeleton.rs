@@ -151,7 +151,7 @@ pub fn forward_kinematics(parents: &[Option<usize>], order: &[usize], local: &[f
 }
 
 /// Two local poses per instance (`[instances, 2, joints, 10]`) blended by `weights` (one per
-/// instance, the second pose's): `[instances, joints, 10]`, each instance as `play_palettes` blends it.
+/// instance, the second pose's) as [`play_palettes`] blends them: `[instances, joints, 10]`.
 ///
 /// # Panics
 /// When `poses` is not two poses of `joints` joints per weight.
@@ -192,8 +192,8 @@ fn blend_row(pair: &[f32], weight: f32, out: &mut [f32]) {
 }
 
 /// Crowd playback's palettes on the host, one instance at a time (its rows stay in cache):
-/// its two local poses blended (rotations by slerp on the shorter arc, the rest by lerp), forward kinematics in f64 ([`pose_into`]) and
-/// `skin`'s palette (`model * inverseBind`, [`palettes`]' formula), or every joint's model
+/// its two local poses blended (rotations by slerp on the shorter arc, the rest by lerp),
+/// forward kinematics in f64 ([`pose_into`]) and `skin`'s palette (`model * inverseBind`, [`palettes`]' formula), or every joint's model
 /// matrix without one: `[instances, matrices, 12]`. The twin of `shaders/play.wgsl` with
 /// `fk.wgsl`.
 ///
