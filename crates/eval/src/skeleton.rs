@@ -194,8 +194,8 @@ fn blend_row(pair: &[f32], weight: f32, out: &mut [f32]) {
 /// Crowd playback's palettes on the host, one instance at a time (its rows stay in cache):
 /// its two local poses blended (rotations by slerp on the shorter arc, the rest by lerp),
 /// forward kinematics in f64 ([`pose_into`]) and `skin`'s palette (`model * inverseBind`,
-/// [`palettes`]' formula), or every joint's model matrix without one: `[instances, matrices, 12]`. The twin of `shaders/play.wgsl` with
-/// `fk.wgsl`.
+/// [`palettes`]' formula), or every joint's model matrix without one: `[instances, matrices,
+/// 12]`. The twin of `shaders/play.wgsl` with `fk.wgsl`.
 ///
 /// # Panics
 /// As [`blend_poses`].
