@@ -138,16 +138,23 @@ pub fn local(animation: &Animation, baked: &Baked, clip: usize) -> Vec<f32> {
     local_rows(animation, baked, clip, &frames)
 }
 
+/// Every joint's rest pose as one local row `[joints, 10]`: what a frame holds where its clip
+/// does not animate a joint.
+#[must_use]
+pub fn rest_row(animation: &Animation) -> Vec<f32> {
+    animation
+        .joints
+        .iter()
+        .flat_map(|j| j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>())
+        .collect()
+}
+
 /// The rows of [`local`] for the clip's `frames` only, in that order (a block of a texture
 /// streamed to disk, or the frames a preview draws).
 #[must_use]
 pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[usize]) -> Vec<f32> {
     let values = baked.values(clip);
-    let rest: Vec<f32> = animation
-        .joints
-        .iter()
-        .flat_map(|j| j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>())
-        .collect();
+    let rest = rest_row(animation);
     let row = rest.len();
     let mut data = vec![0.0f32; frames.len() * row];
     data.par_chunks_mut(row.max(1)).zip(frames).for_each(|(out, &frame)| {

@@ -67,6 +67,8 @@ pub struct Playback {
     durations: Vec<f64>,
     /// Per clip: whether it plays as a loop.
     looping: Vec<bool>,
+    /// Every joint's rest pose, one local row ([`quatcurve_bake::texture::rest_row`]).
+    rest: Vec<f32>,
     /// The skin whose palette is played; `None`: every joint's model matrix (no skin).
     skin: Option<usize>,
 }
@@ -108,6 +110,7 @@ impl Playback {
             starts: spans.iter().map(|s| s[0]).collect(),
             durations: spans.iter().map(|s| s[1] - s[0]).collect(),
             looping,
+            rest: quatcurve_bake::texture::rest_row(&animation),
             skin,
             curves,
             animation,
@@ -211,18 +214,11 @@ impl Playback {
             }
             None => None,
         };
-        let rest: Vec<f32> = self
-            .animation
-            .joints
-            .iter()
-            .flat_map(|j| {
-                j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>()
-            })
-            .collect();
+        let rest = &self.rest;
         let row = rest.len();
         // One pose's local row: rest values, then every channel of its clip.
         let pose_row = |(clip, k): (usize, usize), out: &mut [f32]| {
-            out.copy_from_slice(&rest);
+            out.copy_from_slice(rest);
             let t = times[clip][k];
             for (channel, eval) in self.animation.clips[clip].channels.iter().zip(&self.curves.channels[clip]) {
                 let value = match eval {
