@@ -293,6 +293,19 @@ fn eval_nam_kim(tr: GpuTrack, t: vec2u) -> Sample {
     return sample_from_jets(jet_quat_geodesic(c1, c2, blend(tr.blend, s)));
 }
 
+/// Track `tr` at time `t`, a loop's time already wrapped into its domain (by the host for
+/// `evaluate`, by `play_curves` for playback).
+fn evaluate_track(tr: GpuTrack, t: vec2u) -> Sample {
+    switch select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE) {
+        case CURVE_SLERP: { return eval_slerp(tr, t); }
+        case CURVE_SQUAD: { return eval_squad(tr, t); }
+        case CURVE_BEZIER: { return eval_bezier(tr, t); }
+        case CURVE_HERMITE: { return eval_hermite(tr, t); }
+        case CURVE_NAM_KIM: { return eval_nam_kim(tr, t); }
+        default: { return eval_bspline(tr, t); }
+    }
+}
+
 /// The track of the workgroup's first sample, found once per workgroup.
 var<workgroup> group_track: u32;
 
@@ -331,16 +344,7 @@ fn evaluate(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index
     let tr = load_track(a);
     let j = g - tr.sample_offset;
     let t = sample_time(tr, j);
-    let curve = select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE);
-    var s: Sample;
-    switch curve {
-        case CURVE_SLERP: { s = eval_slerp(tr, t); }
-        case CURVE_SQUAD: { s = eval_squad(tr, t); }
-        case CURVE_BEZIER: { s = eval_bezier(tr, t); }
-        case CURVE_HERMITE: { s = eval_hermite(tr, t); }
-        case CURVE_NAM_KIM: { s = eval_nam_kim(tr, t); }
-        default: { s = eval_bspline(tr, t); }
-    }
+    let s = evaluate_track(tr, t);
     let slot = select(g, j * params.track_count + a, params.frame_major != 0u);
     var o = slot * params.channels;
     out[o] = s.q.x;

@@ -18,15 +18,17 @@ struct FkLevel {
     pad2: u32,
 }
 
+// Bindings from 8 on: crowd playback composes this file with eval.wgsl's (0-7).
+
 // Local rows [frames, joints, 10]: rotation x, y, z, w, translation, scale.
-@group(0) @binding(0) var<storage, read> fk_local: array<f32>;
+@group(0) @binding(8) var<storage, read> fk_local: array<f32>;
 // Parent of each joint, -1 for a root.
-@group(0) @binding(1) var<storage, read> fk_parents: array<i32>;
+@group(0) @binding(9) var<storage, read> fk_parents: array<i32>;
 // Joint indices grouped by depth, roots first.
-@group(0) @binding(2) var<storage, read> fk_level_joints: array<u32>;
+@group(0) @binding(10) var<storage, read> fk_level_joints: array<u32>;
 // Model rows [frames, joints, 12]: 3x4 row-major.
-@group(0) @binding(3) var<storage, read_write> fk_model: array<f32>;
-@group(0) @binding(4) var<uniform> fk_level: FkLevel;
+@group(0) @binding(11) var<storage, read_write> fk_model: array<f32>;
+@group(0) @binding(12) var<uniform> fk_level: FkLevel;
 
 const FK_LOCAL_CHANNELS: u32 = 10u;
 const FK_MATRIX_CHANNELS: u32 = 12u;

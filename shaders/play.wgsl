@@ -17,28 +17,62 @@ struct PlayParams {
 
 // Two local poses per instance, [instances, 2, joints, 10]: rotation x, y, z, w, translation,
 // scale.
-@group(0) @binding(5) var<storage, read> play_poses: array<f32>;
+@group(0) @binding(13) var<storage, read> play_poses: array<f32>;
 // Per instance, the second pose's weight (0: the first pose alone).
-@group(0) @binding(6) var<storage, read> play_weights: array<f32>;
+@group(0) @binding(14) var<storage, read> play_weights: array<f32>;
 // The blended local rows, [instances, joints, 10]: forward kinematics' input.
-@group(0) @binding(7) var<storage, read_write> play_local: array<f32>;
+@group(0) @binding(15) var<storage, read_write> play_local: array<f32>;
 // The skin's joints (indices into the animation's), in the skin's order.
-@group(0) @binding(8) var<storage, read> play_skin_joints: array<u32>;
+@group(0) @binding(16) var<storage, read> play_skin_joints: array<u32>;
 // Per skin joint, its inverse bind matrix, 3x4 row-major.
-@group(0) @binding(9) var<storage, read> play_inverse_binds: array<f32>;
+@group(0) @binding(17) var<storage, read> play_inverse_binds: array<f32>;
 // The palettes, [instances, skin joints, 12]: 3x4 row-major skin matrices.
-@group(0) @binding(10) var<storage, read_write> play_palettes: array<f32>;
-@group(0) @binding(11) var<uniform> play_params: PlayParams;
+@group(0) @binding(18) var<storage, read_write> play_palettes: array<f32>;
+@group(0) @binding(19) var<uniform> play_params: PlayParams;
 
 const PLAY_POSE_CHANNELS: u32 = 10u;
 const PLAY_MATRIX_CHANNELS: u32 = 12u;
 
-fn play_pose_quat(at: u32) -> vec4f {
-    return normalize(vec4f(play_poses[at], play_poses[at + 1u], play_poses[at + 2u], play_poses[at + 3u]));
+/// One joint's local pose.
+struct JointPose {
+    rotation: vec4f,
+    translation: vec3f,
+    scale: vec3f,
 }
 
-// One invocation per instance and joint: the rotations by slerp on the shorter arc,
-// a * exp(w log(a^-1 b)) with b turned to a's side; translation and scale by lerp.
+/// The pose at `at` in `play_poses`.
+fn play_read_pose(at: u32) -> JointPose {
+    return JointPose(
+        vec4f(play_poses[at], play_poses[at + 1u], play_poses[at + 2u], play_poses[at + 3u]),
+        vec3f(play_poses[at + 4u], play_poses[at + 5u], play_poses[at + 6u]),
+        vec3f(play_poses[at + 7u], play_poses[at + 8u], play_poses[at + 9u]),
+    );
+}
+
+/// `a` blended towards `b` by `w`: the rotations by slerp on the shorter arc,
+/// a * exp(w log(a^-1 b)) with b turned to a's side; translation and scale by lerp.
+fn play_mix(a: JointPose, b: JointPose, w: f32) -> JointPose {
+    let qa = normalize(a.rotation);
+    let qb = normalize(b.rotation);
+    let turned = select(qb, -qb, dot(qa, qb) < 0.0);
+    let q = quat_mul(qa, quat_exp(quat_log(quat_mul(quat_conjugate(qa), turned)) * w));
+    return JointPose(q, mix(a.translation, b.translation, w), mix(a.scale, b.scale, w));
+}
+
+/// Row `i` of `play_local` (instance-major, then joint).
+fn play_write_local(i: u32, pose: JointPose) {
+    let out = i * PLAY_POSE_CHANNELS;
+    let values = array<f32, 10>(
+        pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w,
+        pose.translation.x, pose.translation.y, pose.translation.z,
+        pose.scale.x, pose.scale.y, pose.scale.z,
+    );
+    for (var c = 0u; c < PLAY_POSE_CHANNELS; c++) {
+        play_local[out + c] = values[c];
+    }
+}
+
+// One invocation per instance and joint: the two poses given in `play_poses`, blended.
 @compute @workgroup_size(64)
 fn play_blend(@builtin(global_invocation_id) id: vec3u) {
     let i = id.x + id.y * play_params.row;
@@ -50,19 +84,7 @@ fn play_blend(@builtin(global_invocation_id) id: vec3u) {
     let joint = i % joints;
     let a = ((2u * instance) * joints + joint) * PLAY_POSE_CHANNELS;
     let b = ((2u * instance + 1u) * joints + joint) * PLAY_POSE_CHANNELS;
-    let w = play_weights[instance];
-    let qa = play_pose_quat(a);
-    let qb = play_pose_quat(b);
-    let turned = select(qb, -qb, dot(qa, qb) < 0.0);
-    let q = quat_mul(qa, quat_exp(quat_log(quat_mul(quat_conjugate(qa), turned)) * w));
-    let out = i * PLAY_POSE_CHANNELS;
-    play_local[out] = q.x;
-    play_local[out + 1u] = q.y;
-    play_local[out + 2u] = q.z;
-    play_local[out + 3u] = q.w;
-    for (var c = 4u; c < PLAY_POSE_CHANNELS; c++) {
-        play_local[out + c] = mix(play_poses[a + c], play_poses[b + c], w);
-    }
+    play_write_local(i, play_mix(play_read_pose(a), play_read_pose(b), play_weights[instance]));
 }
 
 // One invocation per instance and skin joint: model(joint) * inverseBind, both 3x4 with an

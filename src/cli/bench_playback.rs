@@ -53,12 +53,13 @@ pub fn measure(
     let mut results = Vec::new();
     for choice in devices {
         let Some(device) = open_bench_device(choice, explicit)? else { continue };
+        // Clips go to the device once; a frame sends only its instances.
+        let player = playback.player(&device).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;
         for &count in instances {
             let schedule = Schedule { instances: count, rate: 30.0, blend: Some(BENCH_BLEND) };
             let frame = schedule.frame(&playback, 7);
             let seconds = median_seconds(runs, || {
-                let palettes =
-                    playback.palettes(&device, &frame).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;
+                let palettes = player.palettes(&frame).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;
                 std::hint::black_box(palettes);
                 Ok(())
             })?;

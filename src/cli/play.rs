@@ -113,12 +113,14 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let io = |e: quatcurve::io::IoError| Failure::Internal(e.to_string());
     file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
     let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight };
+    let failure = |e: InputError| match e {
+        InputError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
+        other => Failure::Input(format!("{input}: {other}")),
+    };
+    let player = playback.player(&device).map_err(failure)?;
     let started = Instant::now();
     for frame in 0..frames as usize {
-        let palettes = playback.palettes(&device, &schedule.frame(&playback, frame)).map_err(|e| match e {
-            InputError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
-            other => Failure::Input(format!("{input}: {other}")),
-        })?;
+        let palettes = player.palettes(&schedule.frame(&playback, frame)).map_err(failure)?;
         file.write_all(&NpyElement::F32.bytes(&palettes)).map_err(|e| io(file.error(e)))?;
     }
     let seconds = started.elapsed().as_secs_f64();

@@ -310,13 +310,73 @@ fn a_crowd_larger_than_a_binding_plays_a_part_at_a_time_on_the_gpu() {
     let Some(data) = data_dir() else { return };
     let Some(gpu) = crate::shared_gpu() else { return };
     let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
-    let schedule = Schedule { instances: 7, rate: 30.0, blend: Some(0.3) };
+    let schedule = Schedule { instances: 200, rate: 30.0, blend: Some(0.3) };
     let instances = schedule.frame(&playback, 11);
     let whole = Device::Gpu(Box::new(gpu.share_device()));
-    // Two poses of Fox's 24 joints are 1,920 bytes: two instances a submission.
-    let parts = Device::Gpu(Box::new(gpu.share_device().with_binding_limit(4096)));
     let expected = playback.palettes(&whole, &instances).unwrap();
-    assert_eq!(playback.palettes(&parts, &instances).unwrap(), expected);
     let cpu = playback.palettes(&Device::open(DeviceChoice::Cpu).unwrap(), &instances).unwrap();
     assert!(relative_gap(&expected, &cpu) < TOLERANCE);
+    // From resident curves: Fox's curves fit 128 KiB, a palette of its 24 joints is 1,152
+    // bytes, so 200 instances take two submissions.
+    let parts = Device::Gpu(Box::new(gpu.share_device().with_binding_limit(128 << 10)));
+    assert_eq!(playback.palettes(&parts, &instances).unwrap(), expected);
+    // Curves larger than a binding are refused by name on `gpu`.
+    let tiny = Device::Gpu(Box::new(gpu.share_device().with_binding_limit(4096)));
+    let err = playback.palettes(&tiny, &instances).unwrap_err().to_string();
+    assert!(err.contains("storage bindings of 4096 bytes; playback keeps them in one"), "{err}");
+    // Given poses (two of 1,920 bytes an instance): two instances a submission.
+    let (instances, expected) = (&instances[..7], &expected[..7 * expected.len() / instances.len()]);
+    let animation = playback.animation();
+    let local = playback.local_poses(&whole, instances).unwrap();
+    let row = local.len() / instances.len();
+    let poses: Vec<f32> = local.chunks(row).flat_map(|r| [r, r]).flatten().copied().collect();
+    let weights = vec![0.0; instances.len()];
+    let (parents, order) = (animation.parents(), animation.parents_first().unwrap());
+    let skin =
+        playback.skin().map(|s| quatcurve::skeleton::PaletteSkin { joints: &s.joints, inverse_binds: &s.inverse_bind });
+    let given = whole.play_palettes(&parents, &order, &poses, &weights, skin).unwrap();
+    assert!(relative_gap(&given, expected) < TOLERANCE);
+    assert_eq!(tiny.play_palettes(&parents, &order, &poses, &weights, skin).unwrap(), given);
+}
+
+#[test]
+fn loops_play_on_for_a_thousand_cycles_each_track_wrapping_its_own_time() {
+    let Some(data) = data_dir() else { return };
+    // Fox's loops, clip 0's translations given a steady travel: a loop whose root moves on
+    // by its per-cycle offset every period.
+    let source = Source::read(&data.join("Fox.glb"), Default::default()).unwrap();
+    let mut animation = source.animation().clone();
+    for channel in &mut animation.clips[0].channels {
+        if let (quatcurve::anim::Property::Translation, quatcurve::anim::ChannelCurve::Keys { times, values }) =
+            (channel.property, &mut channel.curve)
+        {
+            for (t, v) in times.iter().zip(values.iter_mut()) {
+                v[0] += 70.0 * t;
+                v[2] -= 30.0 * t;
+            }
+        }
+    }
+    let playback = Playback::new(animation, &CurveSpec::new(Curve::BSplineInterp), LoopMode::Auto, None).unwrap();
+    assert!(playback.looping(0) && playback.looping(1));
+    let period = playback.duration(0);
+    let instances: Vec<Instance> = [-3.0, 0.0, 1.0, 7.0, 250.0, 1000.0]
+        .iter()
+        .map(|k| Instance {
+            first: ClipTime { clip: 0, time: 0.37 + k * period },
+            second: Some((ClipTime { clip: 1, time: 0.11 + k * playback.duration(1) }, 0.4)),
+        })
+        .collect();
+    let mut others = devices();
+    let (_, reference) = others.remove(0);
+    let expected = playback.palettes(&reference, &instances).unwrap();
+    let per = expected.len() / instances.len();
+    // The travel is there: the root's palette moves by the offset each cycle.
+    assert!(relative_gap(&expected[per..2 * per], &expected[..per]) > 0.01);
+    for (name, device) in others {
+        let got = playback.palettes(&device, &instances).unwrap();
+        for (i, (g, e)) in got.chunks(per).zip(expected.chunks(per)).enumerate() {
+            let gap = relative_gap(g, e);
+            assert!(gap < TOLERANCE, "{name} instance {i}: {gap:.2e}");
+        }
+    }
 }

@@ -218,6 +218,24 @@ fn the_playback_program_validates_and_matches_its_host_struct() {
 }
 
 #[test]
+fn the_playback_from_curves_program_validates_and_matches_its_host_structs() {
+    use quatcurve::gpu::playback::{PlayInstance, PlayTrack, PLAY_SOURCE_VALUE};
+    let (module, _) =
+        shader::play_curves_module().unwrap_or_else(|e| panic!("naga rejected the playback from curves:\n{e}"));
+    for entry in [shader::PLAY_CURVES_ENTRY_POINT, shader::FK_ENTRY_POINT, shader::PLAY_PALETTE_ENTRY_POINT] {
+        assert!(shader::entry_workgroup_size(&module, entry).unwrap() >= 32, "{entry}");
+    }
+    for (name, size) in
+        [("PlayInstance", std::mem::size_of::<PlayInstance>()), ("PlayTrack", std::mem::size_of::<PlayTrack>())]
+    {
+        let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect(name);
+        assert_eq!(ty.inner.size(module.to_ctx()) as usize, size, "{name}");
+    }
+    assert_eq!(shader::constant_u32(&module, "PLAY_SOURCE_VALUE"), Some(PLAY_SOURCE_VALUE));
+    assert_eq!(shader::constant_u32(&module, "PLAY_PROPERTIES"), Some(3));
+}
+
+#[test]
 fn the_mesh_skinning_program_validates_and_matches_its_host_struct() {
     let (module, _) = shader::skin_mesh_module().unwrap_or_else(|e| panic!("naga rejected the skinning program:\n{e}"));
     assert!(shader::entry_workgroup_size(&module, shader::SKIN_MESH_ENTRY_POINT).unwrap() >= 32);

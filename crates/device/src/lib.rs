@@ -242,6 +242,36 @@ impl Device {
         }
     }
 
+    /// Playback from curves kept on this device (DESIGN section 11), where the device keeps
+    /// them: the GPU's ([`ResidentPlayback`]: the clips uploaded once, one submission a
+    /// frame). `None` on the CPU path and the reference, which evaluate poses on the host, and
+    /// for `auto` with curves the kernel cannot take.
+    ///
+    /// # Errors
+    /// [`DeviceError::Unsupported`] for curves the GPU cannot take (named);
+    /// [`DeviceError::Device`] for its failures.
+    pub fn resident_playback(
+        &self,
+        curves: &skeleton::PoseCurves<'_>,
+    ) -> Result<Option<ResidentPlayback>, DeviceError> {
+        match self {
+            #[cfg(feature = "gpu")]
+            Device::Gpu(g) | Device::Auto(g, _) => match g.curve_palettes(curves) {
+                Ok(gpu) => Ok(Some(ResidentPlayback { gpu })),
+                // `auto` plays what the kernel cannot take on the host path.
+                Err(GpuError::Pack(_) | GpuError::Job(_)) if matches!(self, Device::Auto(..)) => Ok(None),
+                Err(e @ (GpuError::Pack(_) | GpuError::Job(_))) => {
+                    Err(DeviceError::Unsupported(format!("playback: {e}")))
+                }
+                Err(e) => Err(DeviceError::Device(format!("playback: {e}"))),
+            },
+            Device::Cpu(_) | Device::Reference => {
+                let _ = curves;
+                Ok(None)
+            }
+        }
+    }
+
     /// `mesh` skinned at every frame of `matrices` (`[frames, skin joints, 12]`, 3x4 row-major
     /// skinning matrices): `[frames, vertices, 6]`, position and normal, in f32. The GPU's
     /// `shaders/skin_mesh.wgsl`; the CPU path and the reference [`skeleton::skin`] in f64.
@@ -273,4 +303,28 @@ fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceErro
 
 fn on_cpu(c: &CpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     Ok(c.evaluate(job)?)
+}
+
+/// An animation's curves kept on a device for playback ([`Device::resident_playback`]).
+#[derive(Debug)]
+pub struct ResidentPlayback {
+    #[cfg(feature = "gpu")]
+    gpu: quatcurve_gpu::CurvePalettes,
+}
+
+impl ResidentPlayback {
+    /// Palettes `[instances, palette joints, 12]` of `instances` this frame
+    /// ([`quatcurve_gpu::CurvePalettes::run`] on the GPU).
+    ///
+    /// # Errors
+    /// [`DeviceError::Device`] for the device's failures and instances out of range.
+    pub fn palettes(&self, instances: &[skeleton::PoseTimes]) -> Result<Vec<f32>, DeviceError> {
+        #[cfg(feature = "gpu")]
+        return self.gpu.run(instances).map_err(|e| DeviceError::Device(format!("playback: {e}")));
+        #[cfg(not(feature = "gpu"))]
+        {
+            let _ = instances;
+            Err(DeviceError::Device("this build of quatcurve has no GPU path (cargo feature `gpu`)".into()))
+        }
+    }
 }

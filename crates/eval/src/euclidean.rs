@@ -139,6 +139,49 @@ impl VectorCurve {
         Ok(())
     }
 
+    /// The family evaluated (a natural spline is a cubic B-spline).
+    #[must_use]
+    pub fn curve(&self) -> Curve {
+        self.curve
+    }
+
+    /// A B-spline's order or a Bezier curve's degree (0 for the other families): the rotation
+    /// batch's one field for both.
+    #[must_use]
+    pub fn order(&self) -> usize {
+        self.order
+    }
+
+    /// The Nam-Kim blend function.
+    #[must_use]
+    pub fn blend(&self) -> Blend {
+        self.blend
+    }
+
+    /// Keys or control points (looping: with the per-cycle offset removed).
+    #[must_use]
+    pub fn points(&self) -> &[Vec3F64] {
+        &self.points
+    }
+
+    /// The family's coefficients, laid out as the rotation batch's.
+    #[must_use]
+    pub fn coefs(&self) -> &[Vec3F64] {
+        &self.coefs
+    }
+
+    /// Segment boundaries or the knot vector.
+    #[must_use]
+    pub fn knots(&self) -> &[f64] {
+        &self.knots
+    }
+
+    /// A loop's per-cycle offset per second (`D / T`); `None` for an open curve.
+    #[must_use]
+    pub fn drift(&self) -> Option<Vec3F64> {
+        self.drift
+    }
+
     /// The curve's domain; evaluation clamps to it.
     #[must_use]
     pub fn domain(&self) -> [f64; 2] {

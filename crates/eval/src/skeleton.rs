@@ -243,6 +243,48 @@ pub struct PaletteSkin<'a> {
     pub inverse_binds: &'a [[f64; 12]],
 }
 
+/// Where a played clip takes one joint property from (DESIGN section 11).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PoseSource {
+    /// A rotation: track `i` of the rotation batch.
+    Rotation(usize),
+    /// A translation or scale: vector curve `i`.
+    Vector(usize),
+    /// A constant: a one-key channel, or the rest value of a property the clip leaves alone.
+    Value([f32; 4]),
+}
+
+/// An animation's clips as curves, for a device that keeps them resident and evaluates every
+/// instance's pose itself (the GPU's playback from curves).
+#[derive(Clone, Debug)]
+pub struct PoseCurves<'a> {
+    /// Every clip's rotation tracks, `None` when no clip animates a rotation.
+    pub batch: Option<&'a crate::batch::Batch>,
+    /// Every clip's translation and scale curves.
+    pub vectors: Vec<&'a crate::euclidean::VectorCurve>,
+    /// `[clips, joints, 3]`: each joint's rotation, translation and scale source per clip.
+    pub sources: Vec<PoseSource>,
+    /// Each joint's parent.
+    pub parents: &'a [Option<usize>],
+    /// The joints, every parent before its children.
+    pub order: &'a [usize],
+    /// The palette's skin; `None`: every joint's model matrix.
+    pub skin: Option<PaletteSkin<'a>>,
+}
+
+/// What one instance plays in a frame of playback from curves: its two `(clip, curve time)`
+/// poses (a loop's time may lie past the clip's end; each curve wraps it) and the second's
+/// weight (0: the first alone).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseTimes {
+    /// Clip indices.
+    pub clips: [usize; 2],
+    /// Times on the clips' curves, seconds.
+    pub times: [f64; 2],
+    /// The second pose's weight.
+    pub weight: f32,
+}
+
 /// Skin palettes `[frames, skin joints, 12]` of model rows `[frames, joints, 12]`:
 /// `model(joint) * inverseBind(joint)` in the skin's joint order, composed in f64. The twin of
 /// `shaders/play.wgsl`'s `play_palette`, and the bake's `skin` texture.

@@ -165,6 +165,18 @@ impl GpuContext {
         source: &str,
         entry: &str,
     ) -> Result<super::program::Compiled, GpuError> {
+        self.compile_specialized(label, module, source, entry, &[])
+    }
+
+    /// [`Self::compile`] with the shader's override constants set to `constants`.
+    pub(super) fn compile_specialized(
+        &self,
+        label: &str,
+        module: &naga::Module,
+        source: &str,
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> Result<super::program::Compiled, GpuError> {
         use super::program::{Compiled, Resources};
         use quatcurve_shader::entry_workgroup_size;
         let device = &self.device;
@@ -189,7 +201,7 @@ impl GpuContext {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         });
         scope.pop()?;

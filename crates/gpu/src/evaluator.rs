@@ -300,6 +300,17 @@ impl GpuEvaluator {
         built(&self.playback, || super::PosePalettes::new(&self.context))?.run(parents, order, poses, weights, skin)
     }
 
+    /// `curves` uploaded for playback on this evaluator's device ([`super::CurvePalettes`]).
+    ///
+    /// # Errors
+    /// As [`super::CurvePalettes::new`].
+    pub fn curve_palettes(
+        &self,
+        curves: &quatcurve_eval::skeleton::PoseCurves<'_>,
+    ) -> Result<super::CurvePalettes, GpuError> {
+        super::CurvePalettes::new(&self.context, curves)
+    }
+
     /// A mesh primitive skinned at every frame of `matrices` on this evaluator's device
     /// ([`super::MeshSkinning::run`]; its program is built on first use).
     ///

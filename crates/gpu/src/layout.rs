@@ -251,7 +251,7 @@ pub enum PackError {
 }
 
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.
-fn collapsed_span(knots: &[f64]) -> Option<usize> {
+pub(crate) fn collapsed_span(knots: &[f64]) -> Option<usize> {
     knots.windows(2).position(|w| w[1] > w[0] && fixed_time(w[1]) == fixed_time(w[0]))
 }
 

@@ -9,7 +9,7 @@
 //! - [`fk`]: [`ForwardKinematics`], bake's model matrices on the same device.
 //! - [`skinning`]: [`MeshSkinning`], vertex textures' skinned meshes on the same device.
 //! - [`playback`]: [`PosePalettes`], crowd playback's blend, forward kinematics and skin
-//!   palettes in one submission.
+//!   palettes in one submission; [`CurvePalettes`], the same from curves kept on the device.
 
 pub mod context;
 pub mod evaluator;
@@ -22,7 +22,7 @@ pub mod skinning;
 pub use context::GpuContext;
 pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 pub use fk::ForwardKinematics;
-pub use playback::PosePalettes;
+pub use playback::{CurvePalettes, PosePalettes};
 pub use skinning::MeshSkinning;
 
 /// Runs `f` (which creates a wgpu instance, adapter or device) without the display-server

@@ -2,14 +2,17 @@
 //! (`shaders/play.wgsl` around `shaders/fk.wgsl`), the twin of
 //! [`quatcurve_eval::skeleton::blend_poses`], [`quatcurve_eval::skeleton::forward_kinematics`]
 //! and [`quatcurve_eval::skeleton::palettes`]: two local poses per instance in, one palette per
-//! instance out.
+//! instance out. [`CurvePalettes`] evaluates the poses too, from curves kept on the device
+//! (`shaders/play_curves.wgsl`): only the instances travel per frame.
 
 use super::context::{ErrorScope, GpuContext};
 use super::fk::{levels, FkLevel};
+use super::layout::{self, fixed_time, ChunkTargets, GpuTrack, Params};
 use super::program::Compiled;
 use super::GpuError;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
-use quatcurve_eval::skeleton::PaletteSkin;
+use quatcurve_eval::sampling::{PerTrack, SampleTimes};
+use quatcurve_eval::skeleton::{PaletteSkin, PoseCurves, PoseSource, PoseTimes};
 use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
 
@@ -82,18 +85,8 @@ impl PosePalettes {
                 poses.len()
             )));
         }
-        let all: Vec<usize>;
-        let (skin_joints, inverse_binds): (&[usize], Vec<f32>) = match skin {
-            Some(s) if s.joints.len() == s.inverse_binds.len() && s.joints.iter().all(|&j| j < joints) => {
-                (s.joints, s.inverse_binds.iter().flatten().map(|&v| v as f32).collect())
-            }
-            Some(_) => return Err(GpuError::Job("a skin joint out of range, or not one inverse bind each".into())),
-            None => {
-                all = (0..joints).collect();
-                let identity = [1.0f32, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
-                (&all, identity.repeat(joints))
-            }
-        };
+        let (skin_joints, inverse_binds) = palette_skin(skin, joints)?;
+        let skin_joints = skin_joints.as_slice();
         // The largest buffer per instance (its two poses, or its model rows or palette): a crowd
         // larger than a binding holds is played a part at a time, a submission each.
         let per_instance = 4 * (2 * joints * LOCAL_CHANNELS).max(skin_joints.len().max(joints) * MATRIX_CHANNELS);
@@ -211,6 +204,417 @@ impl PosePalettes {
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("quatcurve play"),
+                timestamp_writes: None,
+            });
+            for (program, group, [x, y]) in &dispatches {
+                pass.set_pipeline(&program.pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(*x, *y, 1);
+            }
+        }
+        self.context.queue().submit([encoder.finish()]);
+        scope.pop()?;
+        let mut out = vec![0.0f32; out_floats];
+        self.context
+            .read_back(&palettes, (out_floats * 4) as u64, |floats| out.copy_from_slice(&floats[..out_floats]))?;
+        Ok(out)
+    }
+}
+
+/// A palette's joints and inverse binds as f32 rows: `skin`'s, or every joint's with
+/// identities (model matrices) without one.
+fn palette_skin(skin: Option<PaletteSkin<'_>>, joints: usize) -> Result<(Vec<usize>, Vec<f32>), GpuError> {
+    match skin {
+        Some(s) if s.joints.len() == s.inverse_binds.len() && s.joints.iter().all(|&j| j < joints) => {
+            Ok((s.joints.to_vec(), s.inverse_binds.iter().flatten().map(|&v| v as f32).collect()))
+        }
+        Some(_) => Err(GpuError::Job("a skin joint out of range, or not one inverse bind each".into())),
+        None => {
+            let identity = [1.0f32, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+            Ok(((0..joints).collect(), identity.repeat(joints)))
+        }
+    }
+}
+
+/// Host twin of WGSL's `PlayInstance` (32 bytes): one instance's two poses this frame.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PlayInstance {
+    /// The first pose's clip.
+    pub first_clip: u32,
+    /// The second pose's clip.
+    pub second_clip: u32,
+    /// The second pose's weight.
+    pub weight: f32,
+    /// Padding.
+    pub pad: u32,
+    /// The first pose's curve time, 32.32 fixed point.
+    pub first_time: [u32; 2],
+    /// The second pose's curve time.
+    pub second_time: [u32; 2],
+}
+
+/// Host twin of WGSL's `PlayTrack` (32 bytes): a loop's domain start and period (period 0:
+/// open) in 32.32 fixed point, and a vector loop's per-cycle offset per second.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PlayTrack {
+    /// The domain's start.
+    pub start: [u32; 2],
+    /// The period.
+    pub period: [u32; 2],
+    /// Per-cycle offset per second (`xyz`; `w` unused).
+    pub drift: [f32; 4],
+}
+
+/// Marks a source that is a constant value (WGSL `PLAY_SOURCE_VALUE`, checked by a test).
+pub const PLAY_SOURCE_VALUE: u32 = 0x8000_0000;
+
+/// An animation's curves packed as the playback program reads them: the evaluator's records
+/// for rotation tracks and then, on the same layout, the vector curves; each track's loop; each
+/// clip's joint sources; the constants. Built on the host once, uploaded once.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PackedCurves {
+    /// Track records (rotations, then vectors).
+    pub tracks: Vec<GpuTrack>,
+    /// Points `[x, y, z, w]`.
+    pub points: Vec<[f32; 4]>,
+    /// Coefficients.
+    pub coefs: Vec<[f32; 4]>,
+    /// Knots, 32.32 fixed point.
+    pub knots: Vec<[u32; 2]>,
+    /// Per track, its loop.
+    pub loops: Vec<PlayTrack>,
+    /// `[clips, joints, 3]`: a track index or [`PLAY_SOURCE_VALUE`] | a value index.
+    pub sources: Vec<u32>,
+    /// Constant values.
+    pub values: Vec<[f32; 4]>,
+}
+
+/// A loop's domain start and period in fixed point (an open track's: zero).
+fn play_track(domain: [f64; 2], looping: bool, drift: [f64; 3]) -> PlayTrack {
+    if !looping {
+        return PlayTrack::default();
+    }
+    let ticks = |t: f64| {
+        let [lo, hi] = fixed_time(t);
+        (i64::from(hi as i32) << 32) | i64::from(lo)
+    };
+    let period = ticks(domain[1]) - ticks(domain[0]);
+    PlayTrack {
+        start: fixed_time(domain[0]),
+        period: [period as u32, (period >> 32) as u32],
+        drift: [drift[0] as f32, drift[1] as f32, drift[2] as f32, 0.0],
+    }
+}
+
+/// Packs `curves` for [`CurvePalettes`]: the rotation batch as the evaluator packs it (one
+/// chunk), then every vector curve on the same layout.
+///
+/// # Errors
+/// [`GpuError::Job`] naming the track when the kernel cannot take it ([`layout::plan_chunks`]'s
+/// rules), or when the curves do not fit one storage binding.
+pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<PackedCurves, GpuError> {
+    let mut packed = PackedCurves::default();
+    if let Some(batch) = curves.batch {
+        let none =
+            SampleTimes::per_track(batch, |_, _| Ok(PerTrack::List(&[]))).map_err(|e| GpuError::Job(e.to_string()))?;
+        let plans = layout::plan_chunks(batch, &none, 4, binding_limit).map_err(|e| GpuError::Job(e.to_string()))?;
+        let [plan] = plans.as_slice() else {
+            return Err(GpuError::Job(format!(
+                "the rotation curves need {} storage bindings of {binding_limit} bytes; playback keeps them in one",
+                plans.len()
+            )));
+        };
+        packed.points = vec![[0.0; 4]; plan.points];
+        packed.coefs = vec![[0.0; 4]; plan.coefs];
+        packed.knots = vec![[0; 2]; plan.knots];
+        let mut times: Vec<u8> = Vec::new();
+        packed.tracks = layout::pack(
+            plan,
+            batch,
+            &none,
+            ChunkTargets {
+                points: bytemuck::cast_slice_mut::<_, u8>(&mut packed.points).into(),
+                coefs: bytemuck::cast_slice_mut::<_, u8>(&mut packed.coefs).into(),
+                knots: bytemuck::cast_slice_mut::<_, u8>(&mut packed.knots).into(),
+                times: times.as_mut_slice().into(),
+            },
+        );
+        packed.loops = batch.tracks().iter().map(|t| play_track(t.domain(), t.looping(), [0.0; 3])).collect();
+    }
+    let rotations = packed.tracks.len();
+    for (v, curve) in curves.vectors.iter().enumerate() {
+        if let Some(knot) = layout::collapsed_span(curve.knots()) {
+            return Err(GpuError::Job(format!(
+                "vector curve {v}: knots {knot} and {} are closer than the GPU's time resolution",
+                knot + 1
+            )));
+        }
+        let vec4 = |p: &quatcurve_core::quat::Vec3F64| [p.x as f32, p.y as f32, p.z as f32, 0.0];
+        packed.tracks.push(GpuTrack {
+            curve: layout::curve_code(curve.curve()),
+            order: curve.order() as u32,
+            blend: layout::blend_code(curve.blend()),
+            point_offset: packed.points.len() as u32,
+            point_count: curve.points().len() as u32,
+            coef_offset: packed.coefs.len() as u32,
+            knot_offset: packed.knots.len() as u32,
+            knot_count: curve.knots().len() as u32,
+            ..GpuTrack::default()
+        });
+        packed.points.extend(curve.points().iter().map(vec4));
+        packed.coefs.extend(curve.coefs().iter().map(vec4));
+        packed.knots.extend(curve.knots().iter().map(|&k| fixed_time(k)));
+        let drift = curve.drift();
+        packed.loops.push(play_track(curve.domain(), drift.is_some(), drift.map_or([0.0; 3], |d| [d.x, d.y, d.z])));
+    }
+    for source in &curves.sources {
+        packed.sources.push(match *source {
+            PoseSource::Rotation(track) => track as u32,
+            PoseSource::Vector(v) => (rotations + v) as u32,
+            PoseSource::Value(value) => {
+                packed.values.push(value);
+                PLAY_SOURCE_VALUE | (packed.values.len() - 1) as u32
+            }
+        });
+    }
+    let bytes = [
+        packed.tracks.len() * std::mem::size_of::<GpuTrack>(),
+        packed.points.len() * 16,
+        packed.coefs.len() * 16,
+        packed.knots.len() * 8,
+        packed.loops.len() * std::mem::size_of::<PlayTrack>(),
+        packed.sources.len() * 4,
+        packed.values.len() * 16,
+    ];
+    if let Some(&largest) = bytes.iter().filter(|&&b| b as u64 > binding_limit).max() {
+        return Err(GpuError::Job(format!(
+            "the curves need {largest} bytes in one storage binding, more than the device's {binding_limit}"
+        )));
+    }
+    Ok(packed)
+}
+
+/// Crowd playback from curves kept on the device (DESIGN section 11): the clips uploaded once;
+/// per frame, one submission evaluates every instance's joints at its own times, blends its two
+/// poses, runs forward kinematics and multiplies the inverse binds (`shaders/play_curves.wgsl`,
+/// then fk.wgsl and `play_palette`). Only the instances travel per frame.
+pub struct CurvePalettes {
+    context: GpuContext,
+    curves: Compiled,
+    fk: Compiled,
+    palette: Compiled,
+    joints: usize,
+    skin_joints: usize,
+    clips: usize,
+    /// Where each level of the hierarchy starts in `levels`.
+    starts: Vec<u32>,
+    /// The resident buffers, by the shader's names.
+    resident: Vec<(&'static str, wgpu::Buffer)>,
+}
+
+impl std::fmt::Debug for CurvePalettes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CurvePalettes")
+            .field("context", &self.context)
+            .field("joints", &self.joints)
+            .finish_non_exhaustive()
+    }
+}
+
+impl CurvePalettes {
+    /// Compiles the program and uploads `curves`.
+    ///
+    /// # Errors
+    /// [`pack_curves`]'s; [`GpuError::Job`] for sources that are not `[clips, joints, 3]`, a
+    /// skin joint out of range or a hierarchy out of order; device errors.
+    pub fn new(context: &GpuContext, curves: &PoseCurves<'_>) -> Result<Self, GpuError> {
+        let joints = curves.parents.len();
+        if joints == 0 || curves.sources.is_empty() || curves.sources.len() % (3 * joints) != 0 {
+            return Err(GpuError::Job(format!(
+                "{} sources are not 3 per joint of {joints} per clip",
+                curves.sources.len()
+            )));
+        }
+        let packed = pack_curves(curves, context.binding_limit())?;
+        let (skin_joints, inverse_binds) = palette_skin(curves.skin, joints)?;
+        let (by_level, starts) = levels(curves.parents, curves.order)?;
+        let parents: Vec<i32> = curves.parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();
+        let skin_indices: Vec<u32> = skin_joints.iter().map(|&j| j as u32).collect();
+        let (module, _) = shader::play_curves_module().map_err(GpuError::Shader)?;
+        let source = shader::play_curves_source();
+        // Derivatives are the evaluator's; a pose needs values only.
+        let compile = |entry: &str| {
+            context.compile_specialized("quatcurve play curves", &module, &source, entry, &[("DERIVATIVES", 0.0)])
+        };
+        let device = context.device();
+        let scope = ErrorScope::push(device);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let init = |name: &'static str, contents: &[u8], usage: wgpu::BufferUsages| {
+            // A binding may not be empty.
+            let contents = if contents.is_empty() { &[0u8; 16][..] } else { contents };
+            let label = format!("quatcurve play {name}");
+            (
+                name,
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(&label), contents, usage }),
+            )
+        };
+        let resident = vec![
+            init("tracks", bytemuck::cast_slice(&packed.tracks), storage),
+            init("points", bytemuck::cast_slice(&packed.points), storage),
+            init("coefs", bytemuck::cast_slice(&packed.coefs), storage),
+            init("knots", bytemuck::cast_slice(&packed.knots), storage),
+            init("poly", bytemuck::cast_slice(&layout::polynomial_table()), wgpu::BufferUsages::UNIFORM),
+            init("play_tracks", bytemuck::cast_slice(&packed.loops), storage),
+            init("play_sources", bytemuck::cast_slice(&packed.sources), storage),
+            init("play_values", bytemuck::cast_slice(&packed.values), storage),
+            init("fk_parents", bytemuck::cast_slice(&parents), storage),
+            init("fk_level_joints", bytemuck::cast_slice(&by_level), storage),
+            init("play_skin_joints", bytemuck::cast_slice(&skin_indices), storage),
+            init("play_inverse_binds", bytemuck::cast_slice(&inverse_binds), storage),
+            // What no dispatch here reads: the evaluator's per-job bindings, given poses.
+            init("params", bytemuck::bytes_of(&Params::default()), wgpu::BufferUsages::UNIFORM),
+            init("times", &[], storage),
+            init("play_poses", &[], storage),
+            init("play_weights", &[], storage),
+        ];
+        scope.pop()?;
+        Ok(Self {
+            context: context.clone(),
+            curves: compile(shader::PLAY_CURVES_ENTRY_POINT)?,
+            fk: compile(shader::FK_ENTRY_POINT)?,
+            palette: compile(shader::PLAY_PALETTE_ENTRY_POINT)?,
+            joints,
+            skin_joints: skin_joints.len(),
+            clips: curves.sources.len() / (3 * joints),
+            starts,
+            resident,
+        })
+    }
+
+    /// Matrices per palette.
+    #[must_use]
+    pub fn palette_joints(&self) -> usize {
+        self.skin_joints
+    }
+
+    /// Palettes `[instances, skin joints, 12]` of `instances` this frame, read back (for tests
+    /// and the CLI; a renderer would read the palette buffer where it lies). A crowd larger
+    /// than a binding holds is played a part at a time, a submission each.
+    ///
+    /// # Errors
+    /// [`GpuError::Job`] for a clip out of range or a weight outside `[0, 1]`; device errors.
+    pub fn run(&self, instances: &[PoseTimes]) -> Result<Vec<f32>, GpuError> {
+        let (joints, skin_joints) = (self.joints, self.skin_joints);
+        let mut records = Vec::with_capacity(instances.len());
+        for (i, p) in instances.iter().enumerate() {
+            if p.clips.iter().any(|&c| c >= self.clips) || !(0.0..=1.0).contains(&p.weight) {
+                return Err(GpuError::Job(format!(
+                    "instance {i}: clips {:?} or weight {} out of range",
+                    p.clips, p.weight
+                )));
+            }
+            records.push(PlayInstance {
+                first_clip: p.clips[0] as u32,
+                second_clip: p.clips[1] as u32,
+                weight: p.weight,
+                pad: 0,
+                first_time: fixed_time(p.times[0]),
+                second_time: fixed_time(p.times[1]),
+            });
+        }
+        let per_instance = 4 * (joints * LOCAL_CHANNELS).max(joints.max(skin_joints) * MATRIX_CHANNELS);
+        let fits = (self.context.binding_limit() / per_instance as u64).max(1) as usize;
+        let mut out = Vec::with_capacity(instances.len() * skin_joints * MATRIX_CHANNELS);
+        for part in records.chunks(fits) {
+            out.extend(self.submit(part)?);
+        }
+        Ok(out)
+    }
+
+    /// One submission for `instances`: poses from the curves, forward kinematics, palettes.
+    fn submit(&self, instances: &[PlayInstance]) -> Result<Vec<f32>, GpuError> {
+        let (joints, skin_joints, count) = (self.joints, self.skin_joints, instances.len());
+        let device = self.context.device();
+        let scope = ErrorScope::push(device);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let scratch = |label: &str, floats: usize, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (floats as u64 * 4).max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let records = init("quatcurve play instances", bytemuck::cast_slice(instances), storage);
+        let local = scratch("quatcurve play local", count * joints * LOCAL_CHANNELS, storage);
+        let model = scratch("quatcurve play model", count * joints * MATRIX_CHANNELS, storage);
+        let out_floats = count * skin_joints * MATRIX_CHANNELS;
+        let palettes = scratch("quatcurve play palettes", out_floats, self.context.output_usage());
+        let spare_write: [wgpu::Buffer; 3] = std::array::from_fn(|_| scratch("quatcurve play spare", 4, storage));
+        let spare_read = scratch("quatcurve play spare", 4, storage);
+        let spare_level =
+            init("quatcurve play spare level", bytemuck::bytes_of(&FkLevel::default()), wgpu::BufferUsages::UNIFORM);
+        let grid = |invocations: usize, program: &Compiled| -> Result<([u32; 2], u32), GpuError> {
+            let [x, y] = self.context.grid((invocations as u64).div_ceil(u64::from(program.workgroup_size)))?;
+            Ok(([x, y], x * program.workgroup_size))
+        };
+        let params = |row: u32| {
+            let params =
+                PlayParams { instances: count as u32, joints: joints as u32, skin_joints: skin_joints as u32, row };
+            init("quatcurve play params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM)
+        };
+        // Every binding of the module, the per-dispatch ones as given: the writable ones
+        // distinct within a dispatch.
+        let bind = |program: &Compiled,
+                    [out, fk_local, fk_model]: [&wgpu::Buffer; 3],
+                    [play_local, play_palettes]: [&wgpu::Buffer; 2],
+                    level: &wgpu::Buffer,
+                    play: &wgpu::Buffer| {
+            let mut buffers: Vec<(&str, &wgpu::Buffer)> = self.resident.iter().map(|(n, b)| (*n, b)).collect();
+            buffers.extend([
+                ("out", out),
+                ("fk_local", fk_local),
+                ("fk_model", fk_model),
+                ("fk_level", level),
+                ("play_local", play_local),
+                ("play_palettes", play_palettes),
+                ("play_params", play),
+                ("play_instances", &records),
+            ]);
+            program.bind_group(device, "quatcurve play curves", &buffers)
+        };
+        let [w0, w1, w2] = &spare_write;
+        let mut dispatches: Vec<(&Compiled, wgpu::BindGroup, [u32; 2])> = Vec::new();
+        let (curves_grid, row) = grid(count * joints, &self.curves)?;
+        let group = bind(&self.curves, [w0, &spare_read, w1], [&local, w2], &spare_level, &params(row))?;
+        dispatches.push((&self.curves, group, curves_grid));
+        for w in self.starts.windows(2) {
+            let (fk_grid, row) = grid((w[1] - w[0]) as usize * count, &self.fk)?;
+            let level = FkLevel {
+                first: w[0],
+                count: w[1] - w[0],
+                frames: count as u32,
+                joints: joints as u32,
+                row,
+                pad: [0; 3],
+            };
+            let level = init("quatcurve play level", bytemuck::bytes_of(&level), wgpu::BufferUsages::UNIFORM);
+            let group = bind(&self.fk, [w0, &local, &model], [w1, w2], &level, &params(row))?;
+            dispatches.push((&self.fk, group, fk_grid));
+        }
+        let (palette_grid, row) = grid(count * skin_joints, &self.palette)?;
+        let group = bind(&self.palette, [w0, &spare_read, &model], [w1, &palettes], &spare_level, &params(row))?;
+        dispatches.push((&self.palette, group, palette_grid));
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve play curves") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("quatcurve play curves"),
                 timestamp_writes: None,
             });
             for (program, group, [x, y]) in &dispatches {

@@ -5,10 +5,12 @@
 //! the skin palette `[instances, joints, 3x4]` a vertex shader skins with. No texture per clip
 //! and rate: any time, the curve's own smoothness, blends.
 //!
-//! The curves run where the [`Device`] runs them: rotations on the device (the reference in
-//! f64, the CPU path's SIMD f32, the WGSL kernel), translations and scales with the Euclidean
-//! analogue in f64; then the blend, forward kinematics and palettes on the device
-//! ([`Device::play_palettes`]: on the GPU one submission of `shaders/play.wgsl`).
+//! On the GPU the clips are uploaded once ([`Playback::player`]) and a frame is one
+//! submission: every joint's curves at each instance's times, the blend, forward kinematics
+//! and palettes (`shaders/play_curves.wgsl`), only the instances sent. The CPU path and the
+//! reference evaluate rotations as one job (SIMD f32, f64), translations and scales with the
+//! Euclidean analogue in f64, then blend, run forward kinematics and build palettes an
+//! instance at a time ([`Device::play_palettes`]).
 
 pub mod schedule;
 
@@ -17,12 +19,12 @@ use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_bake::curves::{ChannelEval, Curves};
 use quatcurve_bake::{clip_loops, LoopMode};
 use quatcurve_core::curve::CurveSpec;
-use quatcurve_device::Device;
+use quatcurve_device::{Device, ResidentPlayback};
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
-use quatcurve_eval::skeleton::{self, PaletteSkin};
+use quatcurve_eval::skeleton::{self, PaletteSkin, PoseCurves, PoseSource, PoseTimes};
 use rayon::prelude::*;
 
 /// A pose of one clip: the clip's index and seconds from its first key. A loop plays on
@@ -183,12 +185,81 @@ impl Playback {
     /// # Errors
     /// As [`Playback::local_poses`].
     pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
-        if instances.is_empty() {
-            return Ok(Vec::new());
+        self.player(device)?.palettes(instances)
+    }
+
+    /// These clips prepared on `device` for frame after frame: on the GPU the curves uploaded
+    /// once ([`Device::resident_playback`]), so that a frame is one submission with only the
+    /// instances sent; elsewhere the host path of [`Playback::palettes`].
+    ///
+    /// # Errors
+    /// The device's, for curves it cannot take (named).
+    pub fn player<'a>(&'a self, device: &'a Device) -> Result<Player<'a>, InputError> {
+        let resident = device.resident_playback(&self.pose_curves())?;
+        Ok(Player { playback: self, device, resident })
+    }
+
+    /// The clips as a device keeps them: per clip, joint and property, the track, vector curve
+    /// or constant it plays (a property the clip leaves alone: its rest value).
+    fn pose_curves(&self) -> PoseCurves<'_> {
+        let joints = self.animation.joints.len();
+        let mut vectors = Vec::new();
+        let mut sources = Vec::with_capacity(self.animation.clips.len() * joints * 3);
+        for (clip, evals) in self.animation.clips.iter().zip(&self.curves.channels) {
+            let first = sources.len();
+            for rest in self.rest.chunks(LOCAL_CHANNELS) {
+                sources.extend([
+                    PoseSource::Value([rest[0], rest[1], rest[2], rest[3]]),
+                    PoseSource::Value([rest[4], rest[5], rest[6], 0.0]),
+                    PoseSource::Value([rest[7], rest[8], rest[9], 0.0]),
+                ]);
+            }
+            for (channel, eval) in clip.channels.iter().zip(evals) {
+                let property = match channel.property {
+                    Property::Rotation => 0,
+                    Property::Translation => 1,
+                    Property::Scale => 2,
+                };
+                sources[first + 3 * channel.joint + property] = match eval {
+                    ChannelEval::Device(track) => PoseSource::Rotation(*track),
+                    ChannelEval::Vector(curve) => {
+                        vectors.push(curve);
+                        PoseSource::Vector(vectors.len() - 1)
+                    }
+                    ChannelEval::Constant(value) => PoseSource::Value(*value),
+                };
+            }
         }
+        PoseCurves {
+            batch: self.curves.batch.as_ref(),
+            vectors,
+            sources,
+            parents: &self.parents,
+            order: &self.order,
+            skin: self.palette_skin(),
+        }
+    }
+
+    /// The played skin's joints and inverse binds.
+    fn palette_skin(&self) -> Option<PaletteSkin<'_>> {
+        self.skin().map(|s| PaletteSkin { joints: &s.joints, inverse_binds: &s.inverse_bind })
+    }
+
+    /// An instance's two poses on the curves' times (without a blend: the first twice).
+    fn pose_times(&self, instance: &Instance) -> PoseTimes {
+        let (second, weight) = instance.second.unwrap_or((instance.first, 0.0));
+        PoseTimes {
+            clips: [instance.first.clip, second.clip],
+            times: [self.curve_time(instance.first), self.curve_time(second)],
+            weight,
+        }
+    }
+
+    /// [`Playback::palettes`] on the host path: rotations by one evaluator job, vectors in f64,
+    /// then [`Device::play_palettes`].
+    fn host_palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
         let (poses, weights) = self.pose_pairs(device, instances)?;
-        let skin = self.skin().map(|s| PaletteSkin { joints: &s.joints, inverse_binds: &s.inverse_bind });
-        Ok(device.play_palettes(&self.parents, &self.order, &poses, &weights, skin)?)
+        Ok(device.play_palettes(&self.parents, &self.order, &poses, &weights, self.palette_skin())?)
     }
 
     /// Each instance's two local poses, `[instances, 2, joints, 10]` (an instance without a
@@ -272,6 +343,37 @@ impl Playback {
             }
         }
         Ok(())
+    }
+}
+
+/// A [`Playback`] prepared on one device ([`Playback::player`]): what a frame loop holds.
+#[derive(Debug)]
+pub struct Player<'a> {
+    playback: &'a Playback,
+    device: &'a Device,
+    /// The curves on the device, where it keeps them.
+    resident: Option<ResidentPlayback>,
+}
+
+impl Player<'_> {
+    /// [`Playback::palettes`] of `instances`: on the GPU one submission from the resident
+    /// curves.
+    ///
+    /// # Errors
+    /// As [`Playback::local_poses`].
+    pub fn palettes(&self, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+        if instances.is_empty() {
+            return Ok(Vec::new());
+        }
+        let playback = self.playback;
+        match &self.resident {
+            Some(resident) => {
+                playback.check(instances)?;
+                let times: Vec<PoseTimes> = instances.iter().map(|i| playback.pose_times(i)).collect();
+                Ok(resident.palettes(&times)?)
+            }
+            None => playback.host_palettes(self.device, instances),
+        }
     }
 }
 

@@ -29,6 +29,20 @@ pub const FK_FILES: [(&str, &str); 3] = [
 pub const PLAY_FILES: [(&str, &str); 4] =
     [FK_FILES[0], FK_FILES[1], FK_FILES[2], ("play.wgsl", include_str!("../../../shaders/play.wgsl"))];
 
+/// Crowd playback from resident curves: the evaluator's files (its track records and curve
+/// functions), forward kinematics and the playback program, then the per-instance pose
+/// evaluation (`shaders/play_curves.wgsl`), one module for one submission.
+pub const PLAY_CURVES_FILES: [(&str, &str); 8] = [
+    FILES[0],
+    FILES[1],
+    FILES[2],
+    FILES[3],
+    FILES[4],
+    FK_FILES[2],
+    PLAY_FILES[3],
+    ("play_curves.wgsl", include_str!("../../../shaders/play_curves.wgsl")),
+];
+
 /// The mesh-skinning program of vertex textures: self-contained.
 pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../../shaders/skin_mesh.wgsl"))];
 
@@ -91,6 +105,9 @@ pub const FK_ENTRY_POINT: &str = "forward_kinematics";
 /// The playback program's pose blend (`shaders/play.wgsl`).
 pub const PLAY_BLEND_ENTRY_POINT: &str = "play_blend";
 
+/// The playback program's pose evaluation from resident curves (`shaders/play_curves.wgsl`).
+pub const PLAY_CURVES_ENTRY_POINT: &str = "play_curves";
+
 /// The playback program's skin palettes (`shaders/play.wgsl`).
 pub const PLAY_PALETTE_ENTRY_POINT: &str = "play_palette";
 
@@ -116,6 +133,12 @@ pub fn fk_source() -> String {
 #[must_use]
 pub fn play_source() -> String {
     join(&PLAY_FILES)
+}
+
+/// The playback program from resident curves as one WGSL source.
+#[must_use]
+pub fn play_curves_source() -> String {
+    join(&PLAY_CURVES_FILES)
 }
 
 /// The mesh-skinning program as one WGSL source.
@@ -434,6 +457,14 @@ pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
 /// As [`module`].
 pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     validate(&fk_source())
+}
+
+/// Parses and validates the playback program from resident curves with naga.
+///
+/// # Errors
+/// naga's message when the program is invalid.
+pub fn play_curves_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    validate(&play_curves_source())
 }
 
 /// Parses and validates the playback program with naga.
