@@ -230,22 +230,27 @@ fn eval_hermite(tr: GpuTrack, t: vec2u) -> Sample {
     return product_sample(p);
 }
 
+/// The span of a B-spline of order k with equally spaced knots at t: by arithmetic, checked
+/// against the exact knots (so long clips keep full precision); its basis is the same
+/// polynomials of u on every span (`poly`, from `(k - 2)(k - 1) / 2`).
+fn uniform_bspline_span(tr: GpuTrack, k: u32, t: vec2u) -> KeySegment {
+    let loc = locate_uniform(tr.knot_offset, k - 1u, tr.point_count - 1u, t);
+    let start = knot(tr.knot_offset, loc.span);
+    let len = time_sub(knot(tr.knot_offset, loc.span + 1u), start);
+    return KeySegment(loc.span, time_sub(loc.t, start) / len, 1.0 / len);
+}
+
 fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     let m = tr.point_count - 1u;
     if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
-        // Span by arithmetic, checked against the exact knots (so long clips keep full
-        // precision); the basis is the same polynomials of u on every span.
-        let loc = locate_uniform(tr.knot_offset, k - 1u, m, t);
-        let l = loc.span;
-        let start = knot(tr.knot_offset, l);
-        let len = time_sub(knot(tr.knot_offset, l + 1u), start);
-        let u = time_sub(loc.t, start) / len;
-        let scale = vec3f(1.0, 1.0 / len, 1.0 / (len * len));
+        let s = uniform_bspline_span(tr, k, t);
+        let l = s.i;
+        let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
         let base = (k - 2u) * (k - 1u) / 2u;
         var p = product_start(points[tr.point_offset + l + 1u - k]);
         for (var r = 0u; r + 1u < k; r++) {
-            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, k - 1u, u) * scale);
+            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, k - 1u, s.u) * scale);
         }
         return product_sample(p);
     }

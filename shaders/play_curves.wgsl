@@ -80,7 +80,7 @@ fn play_track_time(index: u32, t: vec2u) -> vec2u {
 fn vector_at(tr: GpuTrack, t: vec2u) -> vec3f {
     let p = tr.point_offset;
     let c = tr.coef_offset;
-    switch tr.curve {
+    switch select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE) {
         case CURVE_SLERP: {
             let s = key_segment(tr, t);
             return points[p + s.i].xyz + coefs[c + s.i].xyz * s.u;
@@ -116,7 +116,16 @@ fn vector_at(tr: GpuTrack, t: vec2u) -> vec3f {
             return mix(c1, c2, blend(tr.blend, vec3f(s.u, 0.0, 0.0)).x);
         }
         default: {
-            let k = tr.order;
+            let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
+            if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
+                let s = uniform_bspline_span(tr, k, t);
+                let base = (k - 2u) * (k - 1u) / 2u;
+                var v = points[p + s.i + 1u - k].xyz;
+                for (var r = 0u; r + 1u < k; r++) {
+                    v += coefs[c + s.i + r + 1u - k].xyz * poly_jet(base + r, k - 1u, s.u).x;
+                }
+                return v;
+            }
             let loc = locate(tr.knot_offset, k - 1u, tr.point_count - 1u, t);
             let l = loc.span;
             var basis: array<vec3f, MAX_FACTORS>;

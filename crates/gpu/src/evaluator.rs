@@ -90,6 +90,24 @@ impl PipelineKey {
             matrix: options.matrix,
         }
     }
+
+    /// The override constants of this key, by the shader's names.
+    fn constants(&self) -> [(&'static str, f64); 5] {
+        [
+            ("ONLY_CURVE", f64::from(self.only_curve)),
+            ("DERIVATIVES", f64::from(u8::from(self.derivatives))),
+            ("MATRIX", f64::from(u8::from(self.matrix))),
+            ("ONLY_ORDER", f64::from(self.only_order)),
+            ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(self.uniform_knots_only))),
+        ]
+    }
+}
+
+/// The override constants of the narrowest kernel for `tracks`, values only (no derivatives,
+/// no matrix): what playback's pose evaluation is specialized by.
+pub(crate) fn value_specialization(tracks: &[GpuTrack]) -> [(&'static str, f64); 5] {
+    let options = JobOptions { derivatives: false, matrix: false, generic_kernel: false, ..JobOptions::default() };
+    PipelineKey::for_chunk(tracks, &options).constants()
 }
 
 /// The evaluation program on one device: the WGSL module, its layouts, the pipelines
@@ -479,13 +497,7 @@ impl GpuEvaluator {
             return Ok(p.clone());
         }
         let scope = ErrorScope::push(self.context.device());
-        let constants = [
-            ("ONLY_CURVE", f64::from(key.only_curve)),
-            ("DERIVATIVES", f64::from(u8::from(key.derivatives))),
-            ("MATRIX", f64::from(u8::from(key.matrix))),
-            ("ONLY_ORDER", f64::from(key.only_order)),
-            ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(key.uniform_knots_only))),
-        ];
+        let constants = key.constants();
         let pipeline = self.context.device().create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("quatcurve eval"),
             layout: Some(&self.program.pipeline_layout),

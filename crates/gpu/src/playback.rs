@@ -10,6 +10,7 @@ use super::fk::{levels, FkLevel};
 use super::layout::{self, fixed_time, ChunkTargets, GpuTrack, Params};
 use super::program::Compiled;
 use super::GpuError;
+use quatcurve_eval::batch::knots_are_uniform;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
 use quatcurve_eval::skeleton::{PaletteSkin, PoseCurves, PoseSource, PoseTimes};
@@ -361,6 +362,7 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
             coef_offset: packed.coefs.len() as u32,
             knot_offset: packed.knots.len() as u32,
             knot_count: curve.knots().len() as u32,
+            flags: if knots_are_uniform(curve.knots()) { layout::FLAG_UNIFORM_KNOTS } else { 0 },
             ..GpuTrack::default()
         });
         packed.points.extend(curve.points().iter().map(vec4));
@@ -444,10 +446,11 @@ impl CurvePalettes {
         let skin_indices: Vec<u32> = skin_joints.iter().map(|&j| j as u32).collect();
         let (module, _) = shader::play_curves_module().map_err(GpuError::Shader)?;
         let source = shader::play_curves_source();
-        // Derivatives are the evaluator's; a pose needs values only.
-        let compile = |entry: &str| {
-            context.compile_specialized("quatcurve play curves", &module, &source, entry, &[("DERIVATIVES", 0.0)])
-        };
+        // Values only, and the families, orders and knot spacing these curves have: on a
+        // software adapter every branch a kernel holds runs, masked.
+        let constants = super::evaluator::value_specialization(&packed.tracks);
+        let compile =
+            |entry: &str| context.compile_specialized("quatcurve play curves", &module, &source, entry, &constants);
         let device = context.device();
         let scope = ErrorScope::push(device);
         let storage = wgpu::BufferUsages::STORAGE;
