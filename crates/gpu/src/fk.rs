@@ -28,6 +28,15 @@ pub struct FkLevel {
     pub pad: [u32; 3],
 }
 
+impl FkLevel {
+    /// The level whose joints are entries `start..end` of the joints-by-level list, over
+    /// `frames` frames of `joints` joints, `row` invocations per row of the grid.
+    #[must_use]
+    pub fn new([start, end]: [u32; 2], frames: usize, joints: usize, row: u32) -> Self {
+        Self { first: start, count: end - start, frames: frames as u32, joints: joints as u32, row, pad: [0; 3] }
+    }
+}
+
 /// Joint indices grouped by depth (roots first) and where each depth starts, from `parents`
 /// and an order with every parent before its children.
 ///
@@ -160,14 +169,7 @@ impl ForwardKinematics {
             .map(|w| {
                 let invocations = u64::from(w[1] - w[0]) * frames as u64;
                 let [x, y] = self.context.grid(invocations.div_ceil(u64::from(fk.workgroup_size)))?;
-                let level = FkLevel {
-                    first: w[0],
-                    count: w[1] - w[0],
-                    frames: frames as u32,
-                    joints: joints as u32,
-                    row: x * fk.workgroup_size,
-                    pad: [0; 3],
-                };
+                let level = FkLevel::new([w[0], w[1]], frames, joints, x * fk.workgroup_size);
                 let uniform = self.context.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("quatcurve fk level"),
                     contents: bytemuck::bytes_of(&level),

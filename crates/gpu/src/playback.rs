@@ -112,20 +112,9 @@ impl PosePalettes {
         let skin_indices: Vec<u32> = skin_joints.iter().map(|&j| j as u32).collect();
         let device = self.context.device();
         let scope = ErrorScope::push(device);
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // A binding may not be empty.
-            let contents = if contents.is_empty() { &[0u8; 16][..] } else { contents };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-        };
+        let init = |label: &str, contents: &[u8], usage| init_buffer(device, label, contents, usage);
         let storage = wgpu::BufferUsages::STORAGE;
-        let scratch = |label: &str, floats: usize, usage: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: (floats as u64 * 4).max(16),
-                usage,
-                mapped_at_creation: false,
-            })
-        };
+        let scratch = |label: &str, floats: usize, usage| scratch_buffer(device, label, floats, usage);
         let poses_buffer = init("quatcurve play poses", bytemuck::cast_slice(poses), storage);
         let weights_buffer = init("quatcurve play weights", bytemuck::cast_slice(weights), storage);
         let skin_buffer = init("quatcurve play skin joints", bytemuck::cast_slice(&skin_indices), storage);
@@ -173,8 +162,7 @@ impl PosePalettes {
             ];
             program.bind_group(device, "quatcurve play", &buffers)
         };
-        // Blend, then one forward-kinematics dispatch per level, then the palettes; WebGPU
-        // orders the dispatches of a pass, so each reads the one before complete.
+        // Blend, then one forward-kinematics dispatch per level, then the palettes.
         let mut dispatches: Vec<(&Compiled, wgpu::BindGroup, [u32; 2])> = Vec::new();
         let (blend_grid, row) = grid(instances * joints, &self.blend)?;
         let blend_params = uniform("quatcurve play params", bytemuck::bytes_of(&params(row)));
@@ -183,14 +171,7 @@ impl PosePalettes {
         dispatches.push((&self.blend, group, blend_grid));
         for w in starts.windows(2) {
             let (fk_grid, row) = grid((w[1] - w[0]) as usize * instances, &self.fk)?;
-            let level = FkLevel {
-                first: w[0],
-                count: w[1] - w[0],
-                frames: instances as u32,
-                joints: joints as u32,
-                row,
-                pad: [0; 3],
-            };
+            let level = FkLevel::new([w[0], w[1]], instances, joints, row);
             let level = uniform("quatcurve play level", bytemuck::bytes_of(&level));
             let group = bind(&self.fk, [&local, &model], [&spare_write[0], &spare_write[1]], &level, &blend_params)?;
             dispatches.push((&self.fk, group, fk_grid));
@@ -200,26 +181,54 @@ impl PosePalettes {
         let group =
             bind(&self.palette, [&spare_read, &model], [&spare_write[0], &palettes], &spare_level, &palette_params)?;
         dispatches.push((&self.palette, group, palette_grid));
-        let mut encoder =
-            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve play") });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("quatcurve play"),
-                timestamp_writes: None,
-            });
-            for (program, group, [x, y]) in &dispatches {
-                pass.set_pipeline(&program.pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(*x, *y, 1);
-            }
-        }
-        self.context.queue().submit([encoder.finish()]);
         scope.pop()?;
-        let mut out = vec![0.0f32; out_floats];
-        self.context
-            .read_back(&palettes, (out_floats * 4) as u64, |floats| out.copy_from_slice(&floats[..out_floats]))?;
-        Ok(out)
+        dispatch_and_read(&self.context, "quatcurve play", &dispatches, &palettes, out_floats)
     }
+}
+
+/// A buffer holding `contents` (16 zero bytes for none: a binding may not be empty).
+fn init_buffer(device: &wgpu::Device, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    let contents = if contents.is_empty() { &[0u8; 16][..] } else { contents };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+}
+
+/// A buffer of `floats` f32 (at least 16 bytes) that a kernel fills.
+fn scratch_buffer(device: &wgpu::Device, label: &str, floats: usize, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (floats as u64 * 4).max(16),
+        usage,
+        mapped_at_creation: false,
+    })
+}
+
+/// `dispatches` recorded in order in one compute pass (WebGPU orders the dispatches of a
+/// pass, so each reads the one before complete), submitted, and the first `floats` of
+/// `output` read back.
+fn dispatch_and_read(
+    context: &GpuContext,
+    label: &str,
+    dispatches: &[(&Compiled, wgpu::BindGroup, [u32; 2])],
+    output: &wgpu::Buffer,
+    floats: usize,
+) -> Result<Vec<f32>, GpuError> {
+    let device = context.device();
+    let scope = ErrorScope::push(device);
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        for (program, group, [x, y]) in dispatches {
+            pass.set_pipeline(&program.pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(*x, *y, 1);
+        }
+    }
+    context.queue().submit([encoder.finish()]);
+    scope.pop()?;
+    let mut out = vec![0.0f32; floats];
+    context.read_back(output, (floats * 4) as u64, |f| out.copy_from_slice(&f[..floats]))?;
+    Ok(out)
 }
 
 /// A palette's joints and inverse binds as f32 rows: `skin`'s, or every joint's with
@@ -454,14 +463,8 @@ impl CurvePalettes {
         let device = context.device();
         let scope = ErrorScope::push(device);
         let storage = wgpu::BufferUsages::STORAGE;
-        let init = |name: &'static str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // A binding may not be empty.
-            let contents = if contents.is_empty() { &[0u8; 16][..] } else { contents };
-            let label = format!("quatcurve play {name}");
-            (
-                name,
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(&label), contents, usage }),
-            )
+        let init = |name: &'static str, contents: &[u8], usage| {
+            (name, init_buffer(device, &format!("quatcurve play {name}"), contents, usage))
         };
         let resident = vec![
             init("tracks", bytemuck::cast_slice(&packed.tracks), storage),
@@ -542,17 +545,8 @@ impl CurvePalettes {
         let device = self.context.device();
         let scope = ErrorScope::push(device);
         let storage = wgpu::BufferUsages::STORAGE;
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-        };
-        let scratch = |label: &str, floats: usize, usage: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: (floats as u64 * 4).max(16),
-                usage,
-                mapped_at_creation: false,
-            })
-        };
+        let init = |label: &str, contents: &[u8], usage| init_buffer(device, label, contents, usage);
+        let scratch = |label: &str, floats: usize, usage| scratch_buffer(device, label, floats, usage);
         let records = init("quatcurve play instances", bytemuck::cast_slice(instances), storage);
         let local = scratch("quatcurve play local", count * joints * LOCAL_CHANNELS, storage);
         let model = scratch("quatcurve play model", count * joints * MATRIX_CHANNELS, storage);
@@ -598,14 +592,7 @@ impl CurvePalettes {
         dispatches.push((&self.curves, group, curves_grid));
         for w in self.starts.windows(2) {
             let (fk_grid, row) = grid((w[1] - w[0]) as usize * count, &self.fk)?;
-            let level = FkLevel {
-                first: w[0],
-                count: w[1] - w[0],
-                frames: count as u32,
-                joints: joints as u32,
-                row,
-                pad: [0; 3],
-            };
+            let level = FkLevel::new([w[0], w[1]], count, joints, row);
             let level = init("quatcurve play level", bytemuck::bytes_of(&level), wgpu::BufferUsages::UNIFORM);
             let group = bind(&self.fk, [w0, &local, &model], [w1, w2], &level, &params(row))?;
             dispatches.push((&self.fk, group, fk_grid));
@@ -613,24 +600,7 @@ impl CurvePalettes {
         let (palette_grid, row) = grid(count * skin_joints, &self.palette)?;
         let group = bind(&self.palette, [w0, &spare_read, &model], [w1, &palettes], &spare_level, &params(row))?;
         dispatches.push((&self.palette, group, palette_grid));
-        let mut encoder =
-            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("quatcurve play curves") });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("quatcurve play curves"),
-                timestamp_writes: None,
-            });
-            for (program, group, [x, y]) in &dispatches {
-                pass.set_pipeline(&program.pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(*x, *y, 1);
-            }
-        }
-        self.context.queue().submit([encoder.finish()]);
         scope.pop()?;
-        let mut out = vec![0.0f32; out_floats];
-        self.context
-            .read_back(&palettes, (out_floats * 4) as u64, |floats| out.copy_from_slice(&floats[..out_floats]))?;
-        Ok(out)
+        dispatch_and_read(&self.context, "quatcurve play curves", &dispatches, &palettes, out_floats)
     }
 }
