@@ -382,3 +382,27 @@ fn loops_play_on_for_a_thousand_cycles_each_track_wrapping_its_own_time() {
         }
     }
 }
+
+#[test]
+fn a_frame_stays_on_the_gpu_for_a_vertex_shader_and_reads_back_as_the_palettes() {
+    let Some(data) = data_dir() else { return };
+    let Some(gpu) = crate::shared_gpu() else { return };
+    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let instances = Schedule { instances: 30, rate: 30.0, blend: Some(0.3) }.frame(&playback, 5);
+    let device = Device::Gpu(Box::new(gpu.share_device()));
+    let player = playback.player(&device).unwrap();
+    let times = player.pose_times(&instances).unwrap();
+    let resident = player.resident().expect("the GPU keeps the curves").gpu();
+    let frame = resident.frame(&times).unwrap();
+    assert!(frame.buffer().usage().contains(wgpu::BufferUsages::STORAGE), "a vertex shader binds it");
+    assert_eq!(frame.floats(), 30 * 24 * PALETTE_CHANNELS);
+    assert_eq!(resident.read(&frame).unwrap(), player.palettes(&instances).unwrap());
+    // One buffer holds what one binding does; more is refused, not cut.
+    let small = Device::Gpu(Box::new(gpu.share_device().with_binding_limit(128 << 10)));
+    let player = playback.player(&small).unwrap();
+    let resident = player.resident().unwrap().gpu();
+    assert!(resident.max_frame_instances() < 200);
+    let many = Schedule { instances: 200, rate: 30.0, blend: None }.frame(&playback, 0);
+    let err = resident.frame(&player.pose_times(&many).unwrap()).unwrap_err().to_string();
+    assert!(err.contains("200 instances are more than one binding of palettes holds"), "{err}");
+}

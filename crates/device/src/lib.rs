@@ -313,6 +313,14 @@ pub struct ResidentPlayback {
 }
 
 impl ResidentPlayback {
+    /// The GPU program holding the curves: [`quatcurve_gpu::CurvePalettes::frame`] leaves a
+    /// frame's palettes on the device for a renderer's vertex shader.
+    #[cfg(feature = "gpu")]
+    #[must_use]
+    pub fn gpu(&self) -> &quatcurve_gpu::CurvePalettes {
+        &self.gpu
+    }
+
     /// Palettes `[instances, palette joints, 12]` of `instances` this frame
     /// ([`quatcurve_gpu::CurvePalettes::run`] on the GPU).
     ///

@@ -182,7 +182,10 @@ impl PosePalettes {
             bind(&self.palette, [&spare_read, &model], [&spare_write[0], &palettes], &spare_level, &palette_params)?;
         dispatches.push((&self.palette, group, palette_grid));
         scope.pop()?;
-        dispatch_and_read(&self.context, "quatcurve play", &dispatches, &palettes, out_floats)
+        dispatch(&self.context, "quatcurve play", &dispatches)?;
+        let mut out = vec![0.0f32; out_floats];
+        self.context.read_back(&palettes, (out_floats * 4) as u64, |f| out.copy_from_slice(&f[..out_floats]))?;
+        Ok(out)
     }
 }
 
@@ -203,15 +206,12 @@ fn scratch_buffer(device: &wgpu::Device, label: &str, floats: usize, usage: wgpu
 }
 
 /// `dispatches` recorded in order in one compute pass (WebGPU orders the dispatches of a
-/// pass, so each reads the one before complete), submitted, and the first `floats` of
-/// `output` read back.
-fn dispatch_and_read(
+/// pass, so each reads the one before complete) and submitted.
+fn dispatch(
     context: &GpuContext,
     label: &str,
     dispatches: &[(&Compiled, wgpu::BindGroup, [u32; 2])],
-    output: &wgpu::Buffer,
-    floats: usize,
-) -> Result<Vec<f32>, GpuError> {
+) -> Result<(), GpuError> {
     let device = context.device();
     let scope = ErrorScope::push(device);
     let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
@@ -225,10 +225,29 @@ fn dispatch_and_read(
         }
     }
     context.queue().submit([encoder.finish()]);
-    scope.pop()?;
-    let mut out = vec![0.0f32; floats];
-    context.read_back(output, (floats * 4) as u64, |f| out.copy_from_slice(&f[..floats]))?;
-    Ok(out)
+    scope.pop()
+}
+
+/// One frame's palettes on the device ([`CurvePalettes::frame`]): `[instances, skin joints,
+/// 12]` f32 in a storage buffer, for a vertex shader to read where it lies.
+#[derive(Debug)]
+pub struct PaletteFrame {
+    buffer: wgpu::Buffer,
+    floats: usize,
+}
+
+impl PaletteFrame {
+    /// The storage buffer of the palettes.
+    #[must_use]
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
+
+    /// Floats in it that are palettes (the buffer may be longer).
+    #[must_use]
+    pub fn floats(&self) -> usize {
+        self.floats
+    }
 }
 
 /// A palette's joints and inverse binds as f32 rows: `skin`'s, or every joint's with
@@ -506,41 +525,87 @@ impl CurvePalettes {
     }
 
     /// Palettes `[instances, skin joints, 12]` of `instances` this frame, read back (for tests
-    /// and the CLI; a renderer would read the palette buffer where it lies). A crowd larger
+    /// and the CLI; a renderer binds [`CurvePalettes::frame`]'s buffer instead). A crowd larger
     /// than a binding holds is played a part at a time, a submission each.
     ///
     /// # Errors
     /// [`GpuError::Job`] for a clip out of range or a weight outside `[0, 1]`; device errors.
     pub fn run(&self, instances: &[PoseTimes]) -> Result<Vec<f32>, GpuError> {
-        let (joints, skin_joints) = (self.joints, self.skin_joints);
-        let mut records = Vec::with_capacity(instances.len());
-        for (i, p) in instances.iter().enumerate() {
-            if p.clips.iter().any(|&c| c >= self.clips) || !(0.0..=1.0).contains(&p.weight) {
-                return Err(GpuError::Job(format!(
-                    "instance {i}: clips {:?} or weight {} out of range",
-                    p.clips, p.weight
-                )));
-            }
-            records.push(PlayInstance {
-                first_clip: p.clips[0] as u32,
-                second_clip: p.clips[1] as u32,
-                weight: p.weight,
-                pad: 0,
-                first_time: fixed_time(p.times[0]),
-                second_time: fixed_time(p.times[1]),
-            });
-        }
-        let per_instance = 4 * (joints * LOCAL_CHANNELS).max(joints.max(skin_joints) * MATRIX_CHANNELS);
-        let fits = (self.context.binding_limit() / per_instance as u64).max(1) as usize;
-        let mut out = Vec::with_capacity(instances.len() * skin_joints * MATRIX_CHANNELS);
-        for part in records.chunks(fits) {
-            out.extend(self.submit(part)?);
+        let records = self.records(instances)?;
+        let mut out = Vec::with_capacity(instances.len() * self.skin_joints * MATRIX_CHANNELS);
+        for part in records.chunks(self.fits()) {
+            out.extend(self.read(&self.submit(part)?)?);
         }
         Ok(out)
     }
 
+    /// This frame's palettes left on the device, for a vertex shader to read: one submission,
+    /// no read-back (the render path).
+    ///
+    /// # Errors
+    /// [`CurvePalettes::run`]'s, and [`GpuError::Job`] for more instances than one binding of
+    /// palettes holds ([`CurvePalettes::max_frame_instances`]).
+    pub fn frame(&self, instances: &[PoseTimes]) -> Result<PaletteFrame, GpuError> {
+        if instances.len() > self.fits() {
+            return Err(GpuError::Job(format!(
+                "{} instances are more than one binding of palettes holds ({}): play them in parts",
+                instances.len(),
+                self.fits()
+            )));
+        }
+        self.submit(&self.records(instances)?)
+    }
+
+    /// The most instances [`CurvePalettes::frame`] plays in one buffer.
+    #[must_use]
+    pub fn max_frame_instances(&self) -> usize {
+        self.fits()
+    }
+
+    /// A frame's palettes read back: `[instances, skin joints, 12]`.
+    ///
+    /// # Errors
+    /// Device errors.
+    pub fn read(&self, frame: &PaletteFrame) -> Result<Vec<f32>, GpuError> {
+        let floats = frame.floats;
+        let mut out = vec![0.0f32; floats];
+        self.context.read_back(&frame.buffer, (floats * 4) as u64, |f| out.copy_from_slice(&f[..floats]))?;
+        Ok(out)
+    }
+
+    /// Instances per submission: as many as the largest per-instance buffer fits a binding.
+    fn fits(&self) -> usize {
+        let (joints, skin_joints) = (self.joints, self.skin_joints);
+        let per_instance = 4 * (joints * LOCAL_CHANNELS).max(joints.max(skin_joints) * MATRIX_CHANNELS);
+        (self.context.binding_limit() / per_instance as u64).max(1) as usize
+    }
+
+    /// The kernel's records of `instances`, checked.
+    fn records(&self, instances: &[PoseTimes]) -> Result<Vec<PlayInstance>, GpuError> {
+        instances
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                if p.clips.iter().any(|&c| c >= self.clips) || !(0.0..=1.0).contains(&p.weight) {
+                    return Err(GpuError::Job(format!(
+                        "instance {i}: clips {:?} or weight {} out of range",
+                        p.clips, p.weight
+                    )));
+                }
+                Ok(PlayInstance {
+                    first_clip: p.clips[0] as u32,
+                    second_clip: p.clips[1] as u32,
+                    weight: p.weight,
+                    pad: 0,
+                    first_time: fixed_time(p.times[0]),
+                    second_time: fixed_time(p.times[1]),
+                })
+            })
+            .collect()
+    }
+
     /// One submission for `instances`: poses from the curves, forward kinematics, palettes.
-    fn submit(&self, instances: &[PlayInstance]) -> Result<Vec<f32>, GpuError> {
+    fn submit(&self, instances: &[PlayInstance]) -> Result<PaletteFrame, GpuError> {
         let (joints, skin_joints, count) = (self.joints, self.skin_joints, instances.len());
         let device = self.context.device();
         let scope = ErrorScope::push(device);
@@ -601,6 +666,7 @@ impl CurvePalettes {
         let group = bind(&self.palette, [w0, &spare_read, &model], [w1, &palettes], &spare_level, &params(row))?;
         dispatches.push((&self.palette, group, palette_grid));
         scope.pop()?;
-        dispatch_and_read(&self.context, "quatcurve play curves", &dispatches, &palettes, out_floats)
+        dispatch(&self.context, "quatcurve play curves", &dispatches)?;
+        Ok(PaletteFrame { buffer: palettes, floats: out_floats })
     }
 }

@@ -356,6 +356,22 @@ pub struct Player<'a> {
 }
 
 impl Player<'_> {
+    /// The curves on the device, where it keeps them (the GPU): a renderer takes a frame's
+    /// palettes there, left on the device ([`ResidentPlayback::gpu`]).
+    #[must_use]
+    pub fn resident(&self) -> Option<&ResidentPlayback> {
+        self.resident.as_ref()
+    }
+
+    /// What the device plays for `instances`: each one's two clips on the curves' times.
+    ///
+    /// # Errors
+    /// As [`Playback::local_poses`], for instances it refuses.
+    pub fn pose_times(&self, instances: &[Instance]) -> Result<Vec<PoseTimes>, InputError> {
+        self.playback.check(instances)?;
+        Ok(instances.iter().map(|i| self.playback.pose_times(i)).collect())
+    }
+
     /// [`Playback::palettes`] of `instances`: on the GPU one submission from the resident
     /// curves.
     ///
@@ -367,11 +383,7 @@ impl Player<'_> {
         }
         let playback = self.playback;
         match &self.resident {
-            Some(resident) => {
-                playback.check(instances)?;
-                let times: Vec<PoseTimes> = instances.iter().map(|i| playback.pose_times(i)).collect();
-                Ok(resident.palettes(&times)?)
-            }
+            Some(resident) => Ok(resident.palettes(&self.pose_times(instances)?)?),
             None => playback.host_palettes(self.device, instances),
         }
     }
