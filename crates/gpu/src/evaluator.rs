@@ -4,11 +4,10 @@
 
 use super::context::{ErrorScope, GpuContext};
 use super::fk::ForwardKinematics;
-use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, ANY_CURVE, FLAG_UNIFORM_KNOTS};
+use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, PipelineKey};
 use super::program;
 use super::GpuError;
-use quatcurve_core::curve::Curve;
-use quatcurve_eval::job::{EvalJob, JobOptions};
+use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, Layout};
 use quatcurve_eval::sampling::SampleTimes;
 use quatcurve_shader as shader;
@@ -58,56 +57,6 @@ struct PreparedChunk {
     output: wgpu::Buffer,
     output_bytes: u64,
     groups: [u32; 2],
-}
-
-/// Pipelines are specialized by these override constants (WGSL `ONLY_CURVE`, ...).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-struct PipelineKey {
-    only_curve: u32,
-    /// The B-spline order every track of the chunk has, or 0.
-    only_order: u32,
-    /// Every track of the chunk has equally spaced knots (`FLAG_UNIFORM_KNOTS`).
-    uniform_knots_only: bool,
-    derivatives: bool,
-    matrix: bool,
-}
-
-impl PipelineKey {
-    /// The narrowest kernel that evaluates every track of `tracks` (the generic one when
-    /// `options.generic_kernel` asks for it). On a software adapter every branch of the
-    /// kernel runs, so what a chunk never takes is best compiled out.
-    fn for_chunk(tracks: &[GpuTrack], options: &JobOptions) -> Self {
-        let first = tracks.first().copied().unwrap_or_default();
-        let specialize = !options.generic_kernel && !tracks.is_empty();
-        let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));
-        let only_curve = if same(|t| t.curve) { first.curve } else { ANY_CURVE };
-        let bspline = only_curve == layout::curve_code(Curve::BSpline);
-        Self {
-            only_curve,
-            only_order: if bspline && same(|t| t.order) { first.order } else { 0 },
-            uniform_knots_only: specialize && tracks.iter().all(|t| t.flags & FLAG_UNIFORM_KNOTS != 0),
-            derivatives: options.derivatives,
-            matrix: options.matrix,
-        }
-    }
-
-    /// The override constants of this key, by the shader's names.
-    fn constants(&self) -> [(&'static str, f64); 5] {
-        [
-            ("ONLY_CURVE", f64::from(self.only_curve)),
-            ("DERIVATIVES", f64::from(u8::from(self.derivatives))),
-            ("MATRIX", f64::from(u8::from(self.matrix))),
-            ("ONLY_ORDER", f64::from(self.only_order)),
-            ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(self.uniform_knots_only))),
-        ]
-    }
-}
-
-/// The override constants of the narrowest kernel for `tracks`, values only (no derivatives,
-/// no matrix): what playback's pose evaluation is specialized by.
-pub(crate) fn value_specialization(tracks: &[GpuTrack]) -> [(&'static str, f64); 5] {
-    let options = JobOptions { derivatives: false, matrix: false, generic_kernel: false, ..JobOptions::default() };
-    PipelineKey::for_chunk(tracks, &options).constants()
 }
 
 /// The evaluation program on one device: the WGSL module, its layouts, the pipelines

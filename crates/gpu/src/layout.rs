@@ -7,6 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 use quatcurve_core::curve::{Blend, Curve};
 use quatcurve_eval::batch::Batch;
+use quatcurve_eval::job::JobOptions;
 use quatcurve_eval::sampling::{SampleTimes, TrackTimes};
 
 /// One track as the kernel reads it (WGSL `GpuTrack`).
@@ -586,4 +587,57 @@ fn track_entry(
         }
     }
     gpu
+}
+
+/// Pipelines are specialized by these override constants (WGSL `ONLY_CURVE`, ...).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct PipelineKey {
+    /// The curve code every track of the chunk has, or [`ANY_CURVE`].
+    pub(crate) only_curve: u32,
+    /// The B-spline order every track of the chunk has, or 0.
+    pub(crate) only_order: u32,
+    /// Every track of the chunk has equally spaced knots (`FLAG_UNIFORM_KNOTS`).
+    pub(crate) uniform_knots_only: bool,
+    /// Angular velocity and acceleration are written.
+    pub(crate) derivatives: bool,
+    /// The rotation matrix is written.
+    pub(crate) matrix: bool,
+}
+
+impl PipelineKey {
+    /// The narrowest kernel that evaluates every track of `tracks` (the generic one when
+    /// `options.generic_kernel` asks for it). On a software adapter every branch of the
+    /// kernel runs, so what a chunk never takes is best compiled out.
+    pub(crate) fn for_chunk(tracks: &[GpuTrack], options: &JobOptions) -> Self {
+        let first = tracks.first().copied().unwrap_or_default();
+        let specialize = !options.generic_kernel && !tracks.is_empty();
+        let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));
+        let only_curve = if same(|t| t.curve) { first.curve } else { ANY_CURVE };
+        let bspline = only_curve == curve_code(Curve::BSpline);
+        Self {
+            only_curve,
+            only_order: if bspline && same(|t| t.order) { first.order } else { 0 },
+            uniform_knots_only: specialize && tracks.iter().all(|t| t.flags & FLAG_UNIFORM_KNOTS != 0),
+            derivatives: options.derivatives,
+            matrix: options.matrix,
+        }
+    }
+
+    /// The override constants of this key, by the shader's names.
+    pub(crate) fn constants(&self) -> [(&'static str, f64); 5] {
+        [
+            ("ONLY_CURVE", f64::from(self.only_curve)),
+            ("DERIVATIVES", f64::from(u8::from(self.derivatives))),
+            ("MATRIX", f64::from(u8::from(self.matrix))),
+            ("ONLY_ORDER", f64::from(self.only_order)),
+            ("UNIFORM_KNOTS_ONLY", f64::from(u8::from(self.uniform_knots_only))),
+        ]
+    }
+}
+
+/// The override constants of the narrowest kernel for `tracks`, values only (no derivatives,
+/// no matrix): what playback's pose evaluation is specialized by.
+pub(crate) fn value_specialization(tracks: &[GpuTrack]) -> [(&'static str, f64); 5] {
+    let options = JobOptions { derivatives: false, matrix: false, generic_kernel: false, ..JobOptions::default() };
+    PipelineKey::for_chunk(tracks, &options).constants()
 }

@@ -476,7 +476,7 @@ impl CurvePalettes {
         let source = shader::play_curves_source();
         // Values only, and the families, orders and knot spacing these curves have: on a
         // software adapter every branch a kernel holds runs, masked.
-        let constants = super::evaluator::value_specialization(&packed.tracks);
+        let constants = layout::value_specialization(&packed.tracks);
         let compile =
             |entry: &str| context.compile_specialized("quatcurve play curves", &module, &source, entry, &constants);
         let device = context.device();
