@@ -179,11 +179,11 @@ impl Playback {
     /// Every instance's skin palette: `[instances, palette joints, 12]`, each the 3x4
     /// row-major `model(joint) * inverseBind(joint)` in the skin's joint order (the rows of a
     /// `skin` texture), or every joint's model matrix for a file without skins
-    /// ([`Playback::palette_joints`]). The blend, forward kinematics and palettes run on
-    /// `device` ([`Device::play_palettes`]: one submission on the GPU).
+    /// ([`Playback::palette_joints`]). Everything runs on `device`; each call prepares it
+    /// ([`Playback::player`]): a frame loop keeps one [`Player`] instead.
     ///
     /// # Errors
-    /// As [`Playback::local_poses`].
+    /// As [`Playback::local_poses`], and [`Playback::player`]'s.
     pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
         self.player(device)?.palettes(instances)
     }
