@@ -232,7 +232,7 @@ fn the_playback_from_curves_program_validates_and_matches_its_host_structs() {
         assert_eq!(ty.inner.size(module.to_ctx()) as usize, size, "{name}");
     }
     assert_eq!(shader::constant_u32(&module, "PLAY_SOURCE_VALUE"), Some(PLAY_SOURCE_VALUE));
-    assert_eq!(shader::constant_u32(&module, "PLAY_PROPERTIES"), Some(3));
+    assert_eq!(shader::constant_u32(&module, "PLAY_PROPERTIES"), Some(quatcurve::skeleton::POSE_PROPERTIES as u32));
 }
 
 #[test]

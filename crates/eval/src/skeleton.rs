@@ -254,6 +254,10 @@ pub enum PoseSource {
     Value([f32; 4]),
 }
 
+/// Sources per joint in [`PoseCurves::sources`]: rotation, translation, scale (WGSL
+/// `PLAY_PROPERTIES`).
+pub const POSE_PROPERTIES: usize = 3;
+
 /// An animation's clips as curves, for a device that keeps them resident and evaluates every
 /// instance's pose itself (the GPU's playback from curves).
 #[derive(Clone, Debug)]
@@ -262,7 +266,8 @@ pub struct PoseCurves<'a> {
     pub batch: Option<&'a crate::batch::Batch>,
     /// Every clip's translation and scale curves.
     pub vectors: Vec<&'a crate::euclidean::VectorCurve>,
-    /// `[clips, joints, 3]`: each joint's rotation, translation and scale source per clip.
+    /// `[clips, joints, POSE_PROPERTIES]`: each joint's rotation, translation and scale source
+    /// per clip.
     pub sources: Vec<PoseSource>,
     /// Each joint's parent.
     pub parents: &'a [Option<usize>],

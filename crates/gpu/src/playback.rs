@@ -13,7 +13,7 @@ use super::GpuError;
 use quatcurve_eval::batch::knots_are_uniform;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
-use quatcurve_eval::skeleton::{PaletteSkin, PoseCurves, PoseSource, PoseTimes};
+use quatcurve_eval::skeleton::{PaletteSkin, PoseCurves, PoseSource, PoseTimes, POSE_PROPERTIES};
 use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
 
@@ -314,7 +314,8 @@ pub struct PackedCurves {
     pub knots: Vec<[u32; 2]>,
     /// Per track, its loop.
     pub loops: Vec<PlayTrack>,
-    /// `[clips, joints, 3]`: a track index or [`PLAY_SOURCE_VALUE`] | a value index.
+    /// `[clips, joints, POSE_PROPERTIES]`: a track index or [`PLAY_SOURCE_VALUE`] | a value
+    /// index.
     pub sources: Vec<u32>,
     /// Constant values.
     pub values: Vec<[f32; 4]>,
@@ -457,11 +458,11 @@ impl CurvePalettes {
     /// Compiles the program and uploads `curves`.
     ///
     /// # Errors
-    /// [`pack_curves`]'s; [`GpuError::Job`] for sources that are not `[clips, joints, 3]`, a
+    /// [`pack_curves`]'s; [`GpuError::Job`] for sources that are not `[clips, joints, POSE_PROPERTIES]`, a
     /// skin joint out of range or a hierarchy out of order; device errors.
     pub fn new(context: &GpuContext, curves: &PoseCurves<'_>) -> Result<Self, GpuError> {
         let joints = curves.parents.len();
-        if joints == 0 || curves.sources.is_empty() || curves.sources.len() % (3 * joints) != 0 {
+        if joints == 0 || curves.sources.is_empty() || curves.sources.len() % (POSE_PROPERTIES * joints) != 0 {
             return Err(GpuError::Job(format!(
                 "{} sources are not 3 per joint of {joints} per clip",
                 curves.sources.len()
@@ -512,7 +513,7 @@ impl CurvePalettes {
             palette: compile(shader::PLAY_PALETTE_ENTRY_POINT)?,
             joints,
             skin_joints: skin_joints.len(),
-            clips: curves.sources.len() / (3 * joints),
+            clips: curves.sources.len() / (POSE_PROPERTIES * joints),
             starts,
             resident,
         })

@@ -24,7 +24,7 @@ use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
-use quatcurve_eval::skeleton::{self, PaletteSkin, PoseCurves, PoseSource, PoseTimes};
+use quatcurve_eval::skeleton::{self, PaletteSkin, PoseCurves, PoseSource, PoseTimes, POSE_PROPERTIES};
 use rayon::prelude::*;
 
 /// A pose of one clip: the clip's index and seconds from its first key. A loop plays on
@@ -204,7 +204,7 @@ impl Playback {
     fn pose_curves(&self) -> PoseCurves<'_> {
         let joints = self.animation.joints.len();
         let mut vectors = Vec::new();
-        let mut sources = Vec::with_capacity(self.animation.clips.len() * joints * 3);
+        let mut sources = Vec::with_capacity(self.animation.clips.len() * joints * POSE_PROPERTIES);
         for (clip, evals) in self.animation.clips.iter().zip(&self.curves.channels) {
             let first = sources.len();
             for rest in self.rest.chunks(LOCAL_CHANNELS) {
@@ -220,7 +220,7 @@ impl Playback {
                     Property::Translation => 1,
                     Property::Scale => 2,
                 };
-                sources[first + 3 * channel.joint + property] = match eval {
+                sources[first + POSE_PROPERTIES * channel.joint + property] = match eval {
                     ChannelEval::Device(track) => PoseSource::Rotation(*track),
                     ChannelEval::Vector(curve) => {
                         vectors.push(curve);
