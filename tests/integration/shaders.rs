@@ -236,6 +236,19 @@ fn the_playback_from_curves_program_validates_and_matches_its_host_structs() {
 }
 
 #[test]
+fn the_palette_vertex_shader_validates_and_reads_the_bone_shaders_vertex_inputs() {
+    let (module, _) = shader::parse(&shader::PALETTE_VERTEX_FILES)
+        .unwrap_or_else(|e| panic!("naga rejected the palette vertex shader:\n{e}"));
+    let inputs = shader::vertex_inputs(&module, shader::PALETTE_VERTEX_ENTRY_POINT).unwrap();
+    let (bones, _) = shader::parse(&shader::SKIN_VERTEX_FILES).unwrap();
+    let bone_inputs = shader::vertex_inputs(&bones, shader::SKIN_VERTEX_ENTRY_POINT).unwrap();
+    for input in &inputs {
+        assert!(bone_inputs.contains(input), "{input:?} is not an input of skin_vertex.wgsl");
+    }
+    assert!(inputs.iter().any(|(n, _)| n == "joints") && inputs.iter().any(|(n, _)| n == "weights"));
+}
+
+#[test]
 fn the_mesh_skinning_program_validates_and_matches_its_host_struct() {
     let (module, _) = shader::skin_mesh_module().unwrap_or_else(|e| panic!("naga rejected the skinning program:\n{e}"));
     assert!(shader::entry_workgroup_size(&module, shader::SKIN_MESH_ENTRY_POINT).unwrap() >= 32);

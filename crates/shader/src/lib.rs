@@ -43,6 +43,10 @@ pub const PLAY_CURVES_FILES: [(&str, &str); 8] = [
     ("play_curves.wgsl", include_str!("../../../shaders/play_curves.wgsl")),
 ];
 
+/// The WebGPU viewer's vertex shader over playback's palettes: self-contained.
+pub const PALETTE_VERTEX_FILES: [(&str, &str); 1] =
+    [("palette_vertex.wgsl", include_str!("../../../shaders/palette_vertex.wgsl"))];
+
 /// The mesh-skinning program of vertex textures: self-contained.
 pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../../shaders/skin_mesh.wgsl"))];
 
@@ -86,6 +90,9 @@ pub const VIEWER_FRAGMENT_ENTRY_POINT: &str = "viewer_fragment";
 
 /// Name of the skinned vertex shader's entry point.
 pub const SKIN_VERTEX_ENTRY_POINT: &str = "skin_vertex";
+
+/// The WebGPU viewer's vertex shader over palettes (`shaders/palette_vertex.wgsl`).
+pub const PALETTE_VERTEX_ENTRY_POINT: &str = "palette_vertex";
 
 /// Name of the vertex-texture vertex shader's entry point.
 pub const VERTEX_TEXTURE_ENTRY_POINT: &str = "vertex_texture_vertex";
