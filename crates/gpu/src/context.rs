@@ -214,19 +214,17 @@ impl GpuContext {
         wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | readable
     }
 
-    /// The 2D grid of `groups` workgroups (at least one), past
-    /// `max_compute_workgroups_per_dimension` in x.
+    /// The 2D grid of `groups` workgroups on this device ([`super::layout::grid`]).
     ///
     /// # Errors
     /// [`GpuError::Job`] when even the 2D grid cannot hold them.
     pub(super) fn grid(&self, groups: u64) -> Result<[u32; 2], GpuError> {
-        let max = u64::from(self.max_groups_per_dim);
-        let x = groups.clamp(1, max);
-        let y = groups.div_ceil(x).max(1);
-        if y > max {
-            return Err(GpuError::Job(format!("{groups} workgroups exceed one 2D dispatch")));
-        }
-        Ok([x as u32, y as u32])
+        super::layout::grid(groups, self.max_groups_per_dim)
+    }
+
+    /// The most workgroups a dispatch has in one dimension.
+    pub(super) fn max_groups_per_dim(&self) -> u32 {
+        self.max_groups_per_dim
     }
 
     /// Waits for every submitted pass; the device-lost flag after.

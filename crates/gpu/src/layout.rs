@@ -125,6 +125,21 @@ pub fn fixed_time(t: f64) -> [u32; 2] {
     [ticks as u32, (ticks >> 32) as u32]
 }
 
+/// The 2D grid of `groups` workgroups (at least one), past `max` (a device's
+/// `max_compute_workgroups_per_dimension`) in x: `[x, y]` with `x * y >= groups`.
+///
+/// # Errors
+/// [`super::GpuError::Job`] when even the 2D grid cannot hold them.
+pub fn grid(groups: u64, max: u32) -> Result<[u32; 2], super::GpuError> {
+    let max = u64::from(max);
+    let x = groups.clamp(1, max);
+    let y = groups.div_ceil(x).max(1);
+    if y > max {
+        return Err(super::GpuError::Job(format!("{groups} workgroups exceed one 2D dispatch")));
+    }
+    Ok([x as u32, y as u32])
+}
+
 /// A non-negative step as 32.64 fixed point `[whole, fraction high, fraction low]`, so that
 /// `j * step` stays exact to 2^-32 s for any 32-bit `j`.
 #[must_use]

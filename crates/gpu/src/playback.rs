@@ -427,162 +427,159 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
     Ok(packed)
 }
 
-/// Crowd playback from curves kept on the device (DESIGN section 11): the clips uploaded once;
-/// per frame, one submission evaluates every instance's joints at its own times, blends its two
-/// poses, runs forward kinematics and multiplies the inverse binds (`shaders/play_curves.wgsl`,
-/// then fk.wgsl and `play_palette`). Only the instances travel per frame.
-pub struct CurvePalettes {
-    context: GpuContext,
-    curves: Compiled,
-    fk: Compiled,
-    palette: Compiled,
-    joints: usize,
-    skin_joints: usize,
-    clips: usize,
-    /// Where each level of the hierarchy starts in `levels`.
-    starts: Vec<u32>,
-    /// The resident buffers, by the shader's names.
-    resident: Vec<(&'static str, wgpu::Buffer)>,
+/// What crowd playback keeps on a device (DESIGN section 11), as bytes ready to upload: each
+/// resident buffer by the shader's name, the pose kernel's specialization, and what a frame's
+/// dispatches are planned from. [`CurvePalettes`] uploads it through wgpu; a browser's WebGPU
+/// uploads the same bytes (`quatcurve view`), so both hosts run one plan.
+#[derive(Clone, Debug)]
+pub struct ResidentCurves {
+    /// The buffers, in the order uploaded.
+    pub buffers: Vec<ResidentBuffer>,
+    /// The pose kernel's override constants: values only, and the families, orders and knot
+    /// spacing these curves have (on a software adapter every branch a kernel holds runs,
+    /// masked).
+    pub constants: Vec<(&'static str, f64)>,
+    /// Joints per pose.
+    pub joints: usize,
+    /// Matrices per palette.
+    pub skin_joints: usize,
+    /// Clips (the first index of `play_sources`).
+    pub clips: usize,
+    /// Where each level of the hierarchy starts in `fk_level_joints`, and its end.
+    pub starts: Vec<u32>,
 }
 
-impl std::fmt::Debug for CurvePalettes {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("CurvePalettes")
-            .field("context", &self.context)
-            .field("joints", &self.joints)
-            .finish_non_exhaustive()
+/// One resident buffer: the shader's variable, its bytes, and whether it is a uniform (else a
+/// read-only storage buffer).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResidentBuffer {
+    /// The WGSL variable it binds.
+    pub name: &'static str,
+    /// Its contents (at least 16 bytes: a binding may not be empty).
+    pub bytes: Vec<u8>,
+    /// A uniform buffer.
+    pub uniform: bool,
+}
+
+/// The buffers a frame's dispatches write, by the role each plays for every entry point: the
+/// local poses (`play_local`, read as `fk_local`), the model matrices (`fk_model`), the
+/// palettes (`play_palettes`). A host binds each entry point's variables to these.
+pub const FRAME_BUFFER_ROLES: [(&str, &str); 4] =
+    [("play_local", "local"), ("fk_local", "local"), ("fk_model", "model"), ("play_palettes", "palettes")];
+
+/// The workgroup widths of a frame's three kernels, read from the shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameKernels {
+    /// `play_curves`.
+    pub curves: u32,
+    /// `forward_kinematics`.
+    pub fk: u32,
+    /// `play_palette`.
+    pub palette: u32,
+}
+
+impl FrameKernels {
+    /// The widths in `module` (the playback-from-curves program).
+    ///
+    /// # Errors
+    /// [`GpuError::Shader`] for an entry point missing or not one-dimensional.
+    pub fn of(module: &naga::Module) -> Result<Self, GpuError> {
+        let width = |entry| shader::entry_workgroup_size(module, entry).map_err(GpuError::Shader);
+        Ok(Self {
+            curves: width(shader::PLAY_CURVES_ENTRY_POINT)?,
+            fk: width(shader::FK_ENTRY_POINT)?,
+            palette: width(shader::PLAY_PALETTE_ENTRY_POINT)?,
+        })
     }
 }
 
-impl CurvePalettes {
-    /// Compiles the program and uploads `curves`.
+/// One dispatch of a frame, in submission order: its entry point, its grid, and its uniforms
+/// (`play_params`; `fk_level` for a level of forward kinematics).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameDispatch {
+    /// The entry point.
+    pub entry: &'static str,
+    /// Workgroups in x and y.
+    pub groups: [u32; 2],
+    /// The dispatch's `play_params`.
+    pub params: PlayParams,
+    /// The level's `fk_level` (forward kinematics only).
+    pub level: Option<FkLevel>,
+}
+
+impl ResidentCurves {
+    /// `curves` packed for a device whose storage bindings hold `binding_limit` bytes.
     ///
     /// # Errors
-    /// [`pack_curves`]'s; [`GpuError::Job`] for sources that are not `[clips, joints, POSE_PROPERTIES]`, a
-    /// skin joint out of range or a hierarchy out of order; device errors.
-    pub fn new(context: &GpuContext, curves: &PoseCurves<'_>) -> Result<Self, GpuError> {
+    /// [`pack_curves`]'s; [`GpuError::Job`] for sources that are not `[clips, joints,
+    /// POSE_PROPERTIES]`, a skin joint out of range or a hierarchy out of order.
+    pub fn new(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Self, GpuError> {
         let joints = curves.parents.len();
         if joints == 0 || curves.sources.is_empty() || curves.sources.len() % (POSE_PROPERTIES * joints) != 0 {
             return Err(GpuError::Job(format!(
-                "{} sources are not 3 per joint of {joints} per clip",
+                "{} sources are not {POSE_PROPERTIES} per joint of {joints} per clip",
                 curves.sources.len()
             )));
         }
-        let packed = pack_curves(curves, context.binding_limit())?;
+        let packed = pack_curves(curves, binding_limit)?;
         let (skin_joints, inverse_binds) = palette_skin(curves.skin, joints)?;
         let (by_level, starts) = levels(curves.parents, curves.order)?;
         let parents: Vec<i32> = curves.parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();
         let skin_indices: Vec<u32> = skin_joints.iter().map(|&j| j as u32).collect();
-        let (module, _) = shader::play_curves_module().map_err(GpuError::Shader)?;
-        let source = shader::play_curves_source();
-        // Values only, and the families, orders and knot spacing these curves have: on a
-        // software adapter every branch a kernel holds runs, masked.
-        let constants = layout::value_specialization(&packed.tracks);
-        let compile =
-            |entry: &str| context.compile_specialized("quatcurve play curves", &module, &source, entry, &constants);
-        let device = context.device();
-        let scope = ErrorScope::push(device);
-        let storage = wgpu::BufferUsages::STORAGE;
-        let init = |name: &'static str, contents: &[u8], usage| {
-            (name, init_buffer(device, &format!("quatcurve play {name}"), contents, usage))
+        let buffer = |name: &'static str, bytes: &[u8], uniform: bool| ResidentBuffer {
+            name,
+            bytes: if bytes.is_empty() { vec![0; 16] } else { bytes.to_vec() },
+            uniform,
         };
-        let resident = vec![
-            init("tracks", bytemuck::cast_slice(&packed.tracks), storage),
-            init("points", bytemuck::cast_slice(&packed.points), storage),
-            init("coefs", bytemuck::cast_slice(&packed.coefs), storage),
-            init("knots", bytemuck::cast_slice(&packed.knots), storage),
-            init("poly", bytemuck::cast_slice(&layout::polynomial_table()), wgpu::BufferUsages::UNIFORM),
-            init("play_tracks", bytemuck::cast_slice(&packed.loops), storage),
-            init("play_sources", bytemuck::cast_slice(&packed.sources), storage),
-            init("play_values", bytemuck::cast_slice(&packed.values), storage),
-            init("fk_parents", bytemuck::cast_slice(&parents), storage),
-            init("fk_level_joints", bytemuck::cast_slice(&by_level), storage),
-            init("play_skin_joints", bytemuck::cast_slice(&skin_indices), storage),
-            init("play_inverse_binds", bytemuck::cast_slice(&inverse_binds), storage),
-            // What no dispatch here reads: the evaluator's per-job bindings, given poses.
-            init("params", bytemuck::bytes_of(&Params::default()), wgpu::BufferUsages::UNIFORM),
-            init("times", &[], storage),
-            init("play_poses", &[], storage),
-            init("play_weights", &[], storage),
+        let buffers = vec![
+            buffer("tracks", bytemuck::cast_slice(&packed.tracks), false),
+            buffer("points", bytemuck::cast_slice(&packed.points), false),
+            buffer("coefs", bytemuck::cast_slice(&packed.coefs), false),
+            buffer("knots", bytemuck::cast_slice(&packed.knots), false),
+            buffer("poly", bytemuck::cast_slice(&layout::polynomial_table()), true),
+            buffer("play_tracks", bytemuck::cast_slice(&packed.loops), false),
+            buffer("play_sources", bytemuck::cast_slice(&packed.sources), false),
+            buffer("play_values", bytemuck::cast_slice(&packed.values), false),
+            buffer("fk_parents", bytemuck::cast_slice(&parents), false),
+            buffer("fk_level_joints", bytemuck::cast_slice(&by_level), false),
+            buffer("play_skin_joints", bytemuck::cast_slice(&skin_indices), false),
+            buffer("play_inverse_binds", bytemuck::cast_slice(&inverse_binds), false),
         ];
-        scope.pop()?;
         Ok(Self {
-            context: context.clone(),
-            curves: compile(shader::PLAY_CURVES_ENTRY_POINT)?,
-            fk: compile(shader::FK_ENTRY_POINT)?,
-            palette: compile(shader::PLAY_PALETTE_ENTRY_POINT)?,
+            buffers,
+            constants: layout::value_specialization(&packed.tracks).to_vec(),
             joints,
             skin_joints: skin_joints.len(),
             clips: curves.sources.len() / (POSE_PROPERTIES * joints),
             starts,
-            resident,
         })
     }
 
-    /// Matrices per palette.
+    /// The most instances one frame plays on a device whose storage bindings hold
+    /// `binding_limit` bytes: as many as the largest per-instance buffer fits (at least one).
     #[must_use]
-    pub fn palette_joints(&self) -> usize {
-        self.skin_joints
-    }
-
-    /// Palettes `[instances, skin joints, 12]` of `instances` this frame, read back (for tests
-    /// and the CLI; a renderer binds [`CurvePalettes::frame`]'s buffer instead). A crowd larger
-    /// than a binding holds is played a part at a time, a submission each.
-    ///
-    /// # Errors
-    /// [`GpuError::Job`] for a clip out of range or a weight outside `[0, 1]`; device errors.
-    pub fn run(&self, instances: &[PoseTimes]) -> Result<Vec<f32>, GpuError> {
-        let records = self.records(instances)?;
-        let mut out = Vec::with_capacity(instances.len() * self.skin_joints * MATRIX_CHANNELS);
-        for part in records.chunks(self.fits()) {
-            out.extend(self.read(&self.submit(part)?)?);
-        }
-        Ok(out)
-    }
-
-    /// This frame's palettes left on the device, for a vertex shader to read: one submission,
-    /// no read-back (the render path).
-    ///
-    /// # Errors
-    /// [`CurvePalettes::run`]'s, and [`GpuError::Job`] for more instances than one binding of
-    /// palettes holds ([`CurvePalettes::max_frame_instances`]).
-    pub fn frame(&self, instances: &[PoseTimes]) -> Result<PaletteFrame, GpuError> {
-        if instances.len() > self.fits() {
-            return Err(GpuError::Job(format!(
-                "{} instances are more than one binding of palettes holds ({}): play them in parts",
-                instances.len(),
-                self.fits()
-            )));
-        }
-        self.submit(&self.records(instances)?)
-    }
-
-    /// The most instances [`CurvePalettes::frame`] plays in one buffer.
-    #[must_use]
-    pub fn max_frame_instances(&self) -> usize {
-        self.fits()
-    }
-
-    /// A frame's palettes read back: `[instances, skin joints, 12]`.
-    ///
-    /// # Errors
-    /// Device errors.
-    pub fn read(&self, frame: &PaletteFrame) -> Result<Vec<f32>, GpuError> {
-        let floats = frame.floats;
-        let mut out = vec![0.0f32; floats];
-        self.context.read_back(&frame.buffer, (floats * 4) as u64, |f| out.copy_from_slice(&f[..floats]))?;
-        Ok(out)
-    }
-
-    /// Instances per submission: as many as the largest per-instance buffer fits a binding.
-    fn fits(&self) -> usize {
+    pub fn max_frame_instances(&self, binding_limit: u64) -> usize {
         let (joints, skin_joints) = (self.joints, self.skin_joints);
         let per_instance = 4 * (joints * LOCAL_CHANNELS).max(joints.max(skin_joints) * MATRIX_CHANNELS);
-        (self.context.binding_limit() / per_instance as u64).max(1) as usize
+        (binding_limit / per_instance as u64).max(1) as usize
     }
 
-    /// The kernel's records of `instances`, checked.
-    fn records(&self, instances: &[PoseTimes]) -> Result<Vec<PlayInstance>, GpuError> {
+    /// Floats per instance of the frame buffer of `role` ([`FRAME_BUFFER_ROLES`]).
+    #[must_use]
+    pub fn frame_floats(&self, role: &str) -> usize {
+        match role {
+            "local" => self.joints * LOCAL_CHANNELS,
+            "model" => self.joints * MATRIX_CHANNELS,
+            _ => self.skin_joints * MATRIX_CHANNELS,
+        }
+    }
+
+    /// The kernel's records of `instances`, checked: what a host uploads each frame.
+    ///
+    /// # Errors
+    /// [`GpuError::Job`] for a clip out of range or a weight outside `[0, 1]`, naming the
+    /// instance.
+    pub fn records(&self, instances: &[PoseTimes]) -> Result<Vec<PlayInstance>, GpuError> {
         instances
             .iter()
             .enumerate()
@@ -605,67 +602,202 @@ impl CurvePalettes {
             .collect()
     }
 
-    /// One submission for `instances`: poses from the curves, forward kinematics, palettes.
+    /// The dispatches of a frame of `instances`, in order: the poses from the curves, one
+    /// forward-kinematics dispatch per level of the hierarchy, the palettes. Grids are 2D past
+    /// `max_groups` workgroups a side.
+    ///
+    /// # Errors
+    /// [`GpuError::Job`] for more workgroups than a 2D grid holds.
+    pub fn frame_plan(
+        &self,
+        instances: usize,
+        kernels: FrameKernels,
+        max_groups: u32,
+    ) -> Result<Vec<FrameDispatch>, GpuError> {
+        let (joints, skin_joints) = (self.joints, self.skin_joints);
+        let planned = |entry: &'static str, invocations: usize, width: u32, level: Option<[u32; 2]>| {
+            let groups = layout::grid((invocations as u64).div_ceil(u64::from(width)), max_groups)?;
+            let row = groups[0] * width;
+            let params =
+                PlayParams { instances: instances as u32, joints: joints as u32, skin_joints: skin_joints as u32, row };
+            let level = level.map(|span| FkLevel::new(span, instances, joints, row));
+            Ok::<_, GpuError>(FrameDispatch { entry, groups, params, level })
+        };
+        let mut plan = vec![planned(shader::PLAY_CURVES_ENTRY_POINT, instances * joints, kernels.curves, None)?];
+        for w in self.starts.windows(2) {
+            let invocations = (w[1] - w[0]) as usize * instances;
+            plan.push(planned(shader::FK_ENTRY_POINT, invocations, kernels.fk, Some([w[0], w[1]]))?);
+        }
+        plan.push(planned(shader::PLAY_PALETTE_ENTRY_POINT, instances * skin_joints, kernels.palette, None)?);
+        Ok(plan)
+    }
+}
+
+/// Crowd playback from curves kept on the device (DESIGN section 11): the clips uploaded once;
+/// per frame, one submission evaluates every instance's joints at its own times, blends its two
+/// poses, runs forward kinematics and multiplies the inverse binds (`shaders/play_curves.wgsl`,
+/// then fk.wgsl and `play_palette`). Only the instances travel per frame.
+pub struct CurvePalettes {
+    context: GpuContext,
+    curves: Compiled,
+    fk: Compiled,
+    palette: Compiled,
+    kernels: FrameKernels,
+    plan: ResidentCurves,
+    /// The resident buffers, by the shader's names.
+    resident: Vec<(&'static str, wgpu::Buffer)>,
+}
+
+impl std::fmt::Debug for CurvePalettes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CurvePalettes")
+            .field("context", &self.context)
+            .field("joints", &self.plan.joints)
+            .finish_non_exhaustive()
+    }
+}
+
+impl CurvePalettes {
+    /// Compiles the program and uploads `curves`.
+    ///
+    /// # Errors
+    /// [`ResidentCurves::new`]'s; device errors.
+    pub fn new(context: &GpuContext, curves: &PoseCurves<'_>) -> Result<Self, GpuError> {
+        let mut plan = ResidentCurves::new(curves, context.binding_limit())?;
+        let (module, _) = shader::play_curves_module().map_err(GpuError::Shader)?;
+        let source = shader::play_curves_source();
+        let constants = &plan.constants;
+        let compile =
+            |entry: &str| context.compile_specialized("quatcurve play curves", &module, &source, entry, constants);
+        let device = context.device();
+        let scope = ErrorScope::push(device);
+        let upload = |name: &'static str, contents: &[u8], uniform: bool| {
+            let usage = if uniform { wgpu::BufferUsages::UNIFORM } else { wgpu::BufferUsages::STORAGE };
+            (name, init_buffer(device, &format!("quatcurve play {name}"), contents, usage))
+        };
+        let mut resident: Vec<_> = plan.buffers.iter().map(|b| upload(b.name, &b.bytes, b.uniform)).collect();
+        // What no dispatch here reads, bound because this host's layout holds every binding of
+        // the module: the evaluator's per-job bindings, given poses.
+        resident.extend([
+            upload("params", bytemuck::bytes_of(&Params::default()), true),
+            upload("times", &[], false),
+            upload("play_poses", &[], false),
+            upload("play_weights", &[], false),
+        ]);
+        // The bytes are on the device; the plan keeps the rest.
+        plan.buffers.clear();
+        scope.pop()?;
+        Ok(Self {
+            context: context.clone(),
+            curves: compile(shader::PLAY_CURVES_ENTRY_POINT)?,
+            fk: compile(shader::FK_ENTRY_POINT)?,
+            palette: compile(shader::PLAY_PALETTE_ENTRY_POINT)?,
+            kernels: FrameKernels::of(&module)?,
+            plan,
+            resident,
+        })
+    }
+
+    /// Matrices per palette.
+    #[must_use]
+    pub fn palette_joints(&self) -> usize {
+        self.plan.skin_joints
+    }
+
+    /// Palettes `[instances, skin joints, 12]` of `instances` this frame, read back (for tests
+    /// and the CLI; a renderer binds [`CurvePalettes::frame`]'s buffer instead). A crowd larger
+    /// than a binding holds is played a part at a time, a submission each.
+    ///
+    /// # Errors
+    /// [`GpuError::Job`] for a clip out of range or a weight outside `[0, 1]`; device errors.
+    pub fn run(&self, instances: &[PoseTimes]) -> Result<Vec<f32>, GpuError> {
+        let records = self.plan.records(instances)?;
+        let mut out = Vec::with_capacity(instances.len() * self.plan.skin_joints * MATRIX_CHANNELS);
+        for part in records.chunks(self.max_frame_instances()) {
+            out.extend(self.read(&self.submit(part)?)?);
+        }
+        Ok(out)
+    }
+
+    /// This frame's palettes left on the device, for a vertex shader to read: one submission,
+    /// no read-back (the render path).
+    ///
+    /// # Errors
+    /// [`CurvePalettes::run`]'s, and [`GpuError::Job`] for more instances than one binding of
+    /// palettes holds ([`CurvePalettes::max_frame_instances`]).
+    pub fn frame(&self, instances: &[PoseTimes]) -> Result<PaletteFrame, GpuError> {
+        if instances.len() > self.max_frame_instances() {
+            return Err(GpuError::Job(format!(
+                "{} instances are more than one binding of palettes holds ({}): play them in parts",
+                instances.len(),
+                self.max_frame_instances()
+            )));
+        }
+        self.submit(&self.plan.records(instances)?)
+    }
+
+    /// The most instances [`CurvePalettes::frame`] plays in one buffer.
+    #[must_use]
+    pub fn max_frame_instances(&self) -> usize {
+        self.plan.max_frame_instances(self.context.binding_limit())
+    }
+
+    /// A frame's palettes read back: `[instances, skin joints, 12]`.
+    ///
+    /// # Errors
+    /// Device errors.
+    pub fn read(&self, frame: &PaletteFrame) -> Result<Vec<f32>, GpuError> {
+        let floats = frame.floats;
+        let mut out = vec![0.0f32; floats];
+        self.context.read_back(&frame.buffer, (floats * 4) as u64, |f| out.copy_from_slice(&f[..floats]))?;
+        Ok(out)
+    }
+
+    /// One submission for `instances`: [`ResidentCurves::frame_plan`]'s dispatches.
     fn submit(&self, instances: &[PlayInstance]) -> Result<PaletteFrame, GpuError> {
-        let (joints, skin_joints, count) = (self.joints, self.skin_joints, instances.len());
+        let count = instances.len();
+        let plan = self.plan.frame_plan(count, self.kernels, self.context.max_groups_per_dim())?;
         let device = self.context.device();
         let scope = ErrorScope::push(device);
         let storage = wgpu::BufferUsages::STORAGE;
         let init = |label: &str, contents: &[u8], usage| init_buffer(device, label, contents, usage);
         let scratch = |label: &str, floats: usize, usage| scratch_buffer(device, label, floats, usage);
         let records = init("quatcurve play instances", bytemuck::cast_slice(instances), storage);
-        let local = scratch("quatcurve play local", count * joints * LOCAL_CHANNELS, storage);
-        let model = scratch("quatcurve play model", count * joints * MATRIX_CHANNELS, storage);
-        let out_floats = count * skin_joints * MATRIX_CHANNELS;
+        let local = scratch("quatcurve play local", count * self.plan.frame_floats("local"), storage);
+        let model = scratch("quatcurve play model", count * self.plan.frame_floats("model"), storage);
+        let out_floats = count * self.plan.frame_floats("palettes");
         let palettes = scratch("quatcurve play palettes", out_floats, self.context.output_usage());
         let spare_write: [wgpu::Buffer; 3] = std::array::from_fn(|_| scratch("quatcurve play spare", 4, storage));
         let spare_read = scratch("quatcurve play spare", 4, storage);
-        let spare_level =
-            init("quatcurve play spare level", bytemuck::bytes_of(&FkLevel::default()), wgpu::BufferUsages::UNIFORM);
-        let grid = |invocations: usize, program: &Compiled| -> Result<([u32; 2], u32), GpuError> {
-            let [x, y] = self.context.grid((invocations as u64).div_ceil(u64::from(program.workgroup_size)))?;
-            Ok(([x, y], x * program.workgroup_size))
-        };
-        let params = |row: u32| {
-            let params =
-                PlayParams { instances: count as u32, joints: joints as u32, skin_joints: skin_joints as u32, row };
-            init("quatcurve play params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM)
-        };
-        // Every binding of the module, the per-dispatch ones as given: the writable ones
-        // distinct within a dispatch.
-        let bind = |program: &Compiled,
-                    [out, fk_local, fk_model]: [&wgpu::Buffer; 3],
-                    [play_local, play_palettes]: [&wgpu::Buffer; 2],
-                    level: &wgpu::Buffer,
-                    play: &wgpu::Buffer| {
+        let [w0, w1, w2] = &spare_write;
+        // Every binding of the module, the frame's as each kernel uses them and the rest spare
+        // (the writable ones distinct within a dispatch).
+        let mut dispatches: Vec<(&Compiled, wgpu::BindGroup, [u32; 2])> = Vec::new();
+        for d in &plan {
+            let (program, [out, fk_local, fk_model], [play_local, play_palettes]) = match d.entry {
+                e if e == shader::PLAY_CURVES_ENTRY_POINT => (&self.curves, [w0, &spare_read, w1], [&local, w2]),
+                e if e == shader::FK_ENTRY_POINT => (&self.fk, [w0, &local, &model], [w1, w2]),
+                _ => (&self.palette, [w0, &spare_read, &model], [w1, &palettes]),
+            };
+            let level = init(
+                "quatcurve play level",
+                bytemuck::bytes_of(&d.level.unwrap_or_default()),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let params = init("quatcurve play params", bytemuck::bytes_of(&d.params), wgpu::BufferUsages::UNIFORM);
             let mut buffers: Vec<(&str, &wgpu::Buffer)> = self.resident.iter().map(|(n, b)| (*n, b)).collect();
             buffers.extend([
                 ("out", out),
                 ("fk_local", fk_local),
                 ("fk_model", fk_model),
-                ("fk_level", level),
+                ("fk_level", &level),
                 ("play_local", play_local),
                 ("play_palettes", play_palettes),
-                ("play_params", play),
+                ("play_params", &params),
                 ("play_instances", &records),
             ]);
-            program.bind_group(device, "quatcurve play curves", &buffers)
-        };
-        let [w0, w1, w2] = &spare_write;
-        let mut dispatches: Vec<(&Compiled, wgpu::BindGroup, [u32; 2])> = Vec::new();
-        let (curves_grid, row) = grid(count * joints, &self.curves)?;
-        let group = bind(&self.curves, [w0, &spare_read, w1], [&local, w2], &spare_level, &params(row))?;
-        dispatches.push((&self.curves, group, curves_grid));
-        for w in self.starts.windows(2) {
-            let (fk_grid, row) = grid((w[1] - w[0]) as usize * count, &self.fk)?;
-            let level = FkLevel::new([w[0], w[1]], count, joints, row);
-            let level = init("quatcurve play level", bytemuck::bytes_of(&level), wgpu::BufferUsages::UNIFORM);
-            let group = bind(&self.fk, [w0, &local, &model], [w1, w2], &level, &params(row))?;
-            dispatches.push((&self.fk, group, fk_grid));
+            dispatches.push((program, program.bind_group(device, "quatcurve play curves", &buffers)?, d.groups));
         }
-        let (palette_grid, row) = grid(count * skin_joints, &self.palette)?;
-        let group = bind(&self.palette, [w0, &spare_read, &model], [w1, &palettes], &spare_level, &params(row))?;
-        dispatches.push((&self.palette, group, palette_grid));
         scope.pop()?;
         dispatch(&self.context, "quatcurve play curves", &dispatches)?;
         Ok(PaletteFrame { buffer: palettes, floats: out_floats })

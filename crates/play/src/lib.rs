@@ -201,7 +201,8 @@ impl Playback {
 
     /// The clips as a device keeps them: per clip, joint and property, the track, vector curve
     /// or constant it plays (a property the clip leaves alone: its rest value).
-    fn pose_curves(&self) -> PoseCurves<'_> {
+    #[must_use]
+    pub fn pose_curves(&self) -> PoseCurves<'_> {
         let joints = self.animation.joints.len();
         let mut vectors = Vec::new();
         let mut sources = Vec::with_capacity(self.animation.clips.len() * joints * POSE_PROPERTIES);

@@ -148,6 +148,18 @@ pub fn play_curves_source() -> String {
     join(&PLAY_CURVES_FILES)
 }
 
+/// The WebGPU viewer's vertex shader as one WGSL source.
+#[must_use]
+pub fn palette_vertex_source() -> String {
+    join(&PALETTE_VERTEX_FILES)
+}
+
+/// The viewer's fragment shader as one WGSL source.
+#[must_use]
+pub fn viewer_fragment_source() -> String {
+    join(&VIEWER_FRAGMENT_FILES)
+}
+
 /// The mesh-skinning program as one WGSL source.
 #[must_use]
 pub fn skin_mesh_source() -> String {
@@ -559,6 +571,29 @@ pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, St
         [x, 1, 1] if x > 0 => Ok(x),
         other => Err(format!("workgroup size {other:?} is not one-dimensional")),
     }
+}
+
+/// The bound variables entry point `name` uses, `(variable, binding)` by binding number: what a
+/// pipeline built with an automatic layout (WebGPU's `layout: "auto"`) binds, no more.
+///
+/// # Errors
+/// When the entry point is missing.
+pub fn entry_point_bindings(
+    module: &naga::Module,
+    info: &naga::valid::ModuleInfo,
+    name: &str,
+) -> Result<Vec<(String, u32)>, String> {
+    let index =
+        module.entry_points.iter().position(|e| e.name == name).ok_or_else(|| format!("no `{name}` entry point"))?;
+    let uses = info.get_entry_point(index);
+    let mut bindings: Vec<(String, u32)> = module
+        .global_variables
+        .iter()
+        .filter(|(handle, _)| !uses[*handle].is_empty())
+        .filter_map(|(_, var)| Some((var.name.clone()?, var.binding.as_ref()?.binding)))
+        .collect();
+    bindings.sort_by_key(|&(_, b)| b);
+    Ok(bindings)
 }
 
 /// A `u32` module-scope constant, by name (curve codes, limits).
