@@ -2,7 +2,8 @@
 // `[instances, skin joints, 12]`, each a 3x4 row-major skin matrix): the WebGPU viewer's
 // vertex shader, one character per instance. Its vertex inputs are skin_vertex.wgsl's (the
 // same names and locations), so the viewer's mesh attributes feed either; the instance's
-// clip and time are the palette's, not inputs.
+// clip and time are the palette's, not inputs. Its outputs are what viewer_fragment.wgsl
+// reads.
 
 struct PaletteCamera {
     view_projection: mat4x4f,
@@ -26,14 +27,12 @@ struct PaletteVertex {
     @location(2) joints: vec4u,
     @location(3) weights: vec4f,
     @location(4) instance_offset: vec3f,
-    @location(7) uv: vec2f,
 }
 
 struct PaletteOut {
     @builtin(position) position: vec4f,
     @location(0) normal: vec3f,
     @location(1) world: vec3f,
-    @location(2) uv: vec2f,
 }
 
 /// The 3x4 rows of instance `instance`'s skin matrix of joint `joint`, as a mat4 (columns).
@@ -61,6 +60,5 @@ fn palette_vertex(v: PaletteVertex, @builtin(instance_index) instance: u32) -> P
     out.position = palette_camera.view_projection * vec4f(world, 1.0);
     out.normal = (skin * vec4f(v.normal, 0.0)).xyz;
     out.world = world;
-    out.uv = v.uv;
     return out;
 }

@@ -1,8 +1,9 @@
-// Opens `quatcurve view`'s page in Debian's headless Chromium (WebGL2 on SwiftShader) and
-// writes what the test asks of it as JSON: the renderer, page errors, any request that left
-// the viewer's origin (none may), and on request a captured frame, timed frames or a
-// screenshot. Usage: node view.mjs URL OUT.json [--capture] [--measure FRAMES] [--watch SECONDS]
-// [--screenshot FILE.png] [--viewport WxH]. QUATCURVE_CHROMIUM names another browser binary.
+// Opens `quatcurve view`'s page in Debian's headless Chromium (WebGL2, and with --webgpu
+// WebGPU, on SwiftShader) and writes what the test asks of it as JSON: the path drawn and its
+// renderer, page errors, any request that left the viewer's origin (none may), and on request
+// a captured frame, timed frames or a screenshot. Usage: node view.mjs URL OUT.json [--capture]
+// [--measure FRAMES] [--watch SECONDS] [--screenshot FILE.png] [--viewport WxH] [--webgpu].
+// QUATCURVE_CHROMIUM names another browser binary.
 import { launch, watchedPage } from './chromium.mjs';
 import { writeFileSync } from 'node:fs';
 
@@ -14,17 +15,14 @@ const option = (name) => {
 const [width, height] = (option('--viewport') || '1280x720').split('x').map(Number);
 const origin = new URL(url).origin;
 
-const browser = await launch();
+const browser = await launch({ webgpu: Boolean(option('--webgpu')) });
 const result = { errors: [], foreign: [] };
 try {
   const page = await watchedPage(browser, { width, height }, origin, result);
   await page.goto(url);
   await page.evaluate(() => window.quatcurveViewer.ready);
-  result.renderer = await page.evaluate(() => {
-    const gl = document.createElement('canvas').getContext('webgl2');
-    const info = gl.getExtension('WEBGL_debug_renderer_info');
-    return gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER);
-  });
+  result.renderer = await page.evaluate(() => window.quatcurveViewer.renderer());
+  result.path = await page.evaluate(() => window.quatcurveViewer.path());
   if (option('--capture')) result.capture = await page.evaluate(() => window.quatcurveViewer.capture());
   if (option('--watch')) {
     await page.waitForTimeout(1000 * Number(option('--watch')));

@@ -1,9 +1,12 @@
 //! `quatcurve view DIR` (DESIGN section 5e): a baked directory served on this machine to a
-//! WebGL2 page that plays it, a crowd driven by the shipped shaders. Routes: `/` the page
-//! (`viewer/`), `/api/bakes` the playable bakes, `/api/scene?bake=..&clip=..` one clip ready
-//! to draw ([`scene`]), `/texels/<file>` an image's texels as `f32` ([`texels`]),
+//! page that plays it as a crowd: its curves on the GPU through WebGPU, or its textures
+//! through WebGL2 with the shipped shaders. Routes: `/` the page (`viewer/`), `/api/bakes` the
+//! playable bakes, `/api/scene?bake=..&clip=..` one clip ready to draw ([`scene`]),
+//! `/api/curves?bake=..&instances=..` the clips as curves on the GPU ([`curves`]),
+//! `/texels/<file>` an image's texels as `f32` ([`texels`]),
 //! `/files/<file>` a file as it is; only files under DIR ([`files`]).
 
+pub mod curves;
 pub mod files;
 pub mod scene;
 pub mod texels;
@@ -17,6 +20,7 @@ pub const DEFAULT_ADDRESS: &str = "127.0.0.1:8765";
 /// The page and its script, embedded: the binary serves them with nothing else installed.
 const PAGE: &str = include_str!("../../../viewer/index.html");
 const SCRIPT: &str = include_str!("../../../viewer/viewer.js");
+const WEBGPU_SCRIPT: &str = include_str!("../../../viewer/webgpu.js");
 
 /// An HTTP response.
 #[derive(Debug)]
@@ -89,8 +93,10 @@ impl Viewer {
         match path {
             "/" | "/index.html" => Reply::ok("text/html; charset=utf-8", PAGE.into()),
             "/viewer.js" => Reply::ok("text/javascript; charset=utf-8", SCRIPT.into()),
+            "/webgpu.js" => Reply::ok("text/javascript; charset=utf-8", WEBGPU_SCRIPT.into()),
             "/api/bakes" => Reply::json(&scene::bakes(&self.root)),
             "/api/scene" => self.scene(query),
+            "/api/curves" => self.curves(query),
             _ => {
                 if let Some(file) = path.strip_prefix("/texels/") {
                     match files::resolve(&self.root, file) {
@@ -115,21 +121,39 @@ impl Viewer {
 
     /// `/api/scene?bake=<sidecar>&clip=<index>`.
     fn scene(&self, query: &str) -> Reply {
+        self.with_bake(query, "clip", 0, |sidecar, clip| {
+            scene::scene(&self.root, sidecar, clip).map(|s| Reply::json(&s))
+        })
+    }
+
+    /// `/api/curves?bake=<sidecar>&instances=<count>`.
+    fn curves(&self, query: &str) -> Reply {
+        self.with_bake(query, "instances", 1, |sidecar, n| curves::curve_scene(sidecar, n).map(|s| Reply::json(&s)))
+    }
+
+    /// `answer` for the sidecar named by `query`'s `bake` and its count parameter `name`
+    /// (`default` when absent): 400 for a parameter missing or not a count, the refusal of a
+    /// path outside the directory, 422 naming the sidecar for what `answer` refuses.
+    fn with_bake(
+        &self,
+        query: &str,
+        name: &str,
+        default: usize,
+        answer: impl FnOnce(&Path, usize) -> Result<Reply, String>,
+    ) -> Reply {
         let param = |name: &str| {
             query.split('&').filter_map(|kv| kv.split_once('=')).find(|(k, _)| *k == name).map(|(_, v)| {
                 percent_encoding::percent_decode_str(&v.replace('+', " ")).decode_utf8_lossy().into_owned()
             })
         };
         let Some(bake) = param("bake") else { return Reply::error(400, "no `bake` parameter") };
-        let clip = match param("clip").map_or(Ok(0), |c| c.parse::<usize>()) {
+        let count = match param(name).map_or(Ok(default), |c| c.parse::<usize>()) {
             Ok(c) => c,
-            Err(_) => return Reply::error(400, "`clip` is not a clip index"),
+            Err(_) => return Reply::error(400, &format!("`{name}` is not a count")),
         };
         match files::resolve(&self.root, &bake) {
-            Ok(sidecar) => match scene::scene(&self.root, &sidecar, clip) {
-                Ok(scene) => Reply::json(&scene),
-                Err(e) => Reply::error(422, &format!("{}: {e}", files::url_path(&self.root, &sidecar))),
-            },
+            Ok(sidecar) => answer(&sidecar, count)
+                .unwrap_or_else(|e| Reply::error(422, &format!("{}: {e}", files::url_path(&self.root, &sidecar)))),
             Err(refusal) => refusal.into(),
         }
     }

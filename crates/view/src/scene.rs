@@ -230,6 +230,8 @@ pub struct Draw {
     pub textures: Vec<TextureBinding>,
     /// Uniform blocks: the GLSL block and its bytes as 32-bit words.
     pub blocks: Vec<BlockBinding>,
+    /// The glTF skin whose joints `joints` indexes (bone textures; `None` for vertex textures).
+    pub skin: Option<usize>,
 }
 
 /// A per-vertex input.
@@ -456,6 +458,7 @@ impl<'a> Assembly<'a> {
                 indices: p.indices.clone().unwrap_or_else(|| (0..p.vertices() as u32).collect()),
                 textures: vec![self.binding("bone_texture", &image, &grid)?],
                 blocks: vec![block],
+                skin: Some(p.skin),
             });
         }
         let bounds = Bounds::of_positions(corners).ok_or("no triangles to draw")?;
@@ -575,6 +578,7 @@ impl<'a> Assembly<'a> {
                     self.binding("vertex_normals", normal_path, &normals.as_ref().map_or(grid, |(_, g, _)| *g))?,
                 ],
                 blocks: vec![self.shaders.block("vertex_layout", "VertexLayout", words)?],
+                skin: None,
             });
         }
         let bounds = Bounds::of_positions(corners).ok_or("no primitives to draw")?;
@@ -617,7 +621,7 @@ fn remap(record: &ImageRecord) -> Result<[[(f32, f32); 4]; 3], String> {
     Ok(out)
 }
 
-fn read_sidecar(path: &Path) -> Result<Sidecar, String> {
+pub(crate) fn read_sidecar(path: &Path) -> Result<Sidecar, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -2,7 +2,8 @@
 //! in Debian's headless Chromium (WebGL2 on SwiftShader, driven by `tests/browser/view.mjs`),
 //! draws CesiumMan at a clip's first and last frames with the silhouette a CPU render of an
 //! independent skinning of the same pose has, on both the bone-texture and the vertex-texture
-//! paths; and plays 1,000 of them. `.ci/run` installs the browser and requires these tests
+//! paths; plays 1,000 of them; and through WebGPU plays Fox's clips from their curves,
+//! blended, with the reference's silhouettes and the texture path's. `.ci/run` installs the browser and requires these tests
 //! (`QUATCURVE_REQUIRE_BROWSER`).
 
 use super::vertex::{independent, open};
@@ -10,7 +11,10 @@ use super::{bake, data_dir, json, stderr};
 use glam::{DMat4, DVec3, DVec4};
 use quatcurve::anim::gltf::{self, UriPolicy};
 use quatcurve::anim::mesh::skinned_primitives;
+use quatcurve::bake::LoopMode;
 use quatcurve::output::VERTEX_CHANNELS;
+use quatcurve::play::{ClipTime, Instance, Playback};
+use quatcurve::{skeleton, Curve, CurveSpec, Device, DeviceChoice};
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -24,6 +28,10 @@ const CLEAR_THRESHOLD: i32 = 12;
 
 /// The drawing buffer of a captured frame, pixels a side.
 const CAPTURE_SIZE: usize = 256;
+
+/// The page's paths, as `bake_both` names its bakes and the page its renderers: a bone bake's
+/// curves through WebGPU and its texture through WebGL2, a vertex bake's texture.
+const PATHS: [(&str, &str); 3] = [("bones", "webgpu"), ("bones", "webgl2"), ("vertex", "webgl2")];
 
 /// A running `quatcurve view`, stopped when dropped.
 struct Server {
@@ -156,15 +164,17 @@ pub(super) fn browser() -> Option<PathBuf> {
     None
 }
 
-/// Runs the page at `query` in headless Chromium with `args` for `view.mjs`; its result, with
-/// no page error and no request outside the viewer.
+/// Runs the page at `query` in headless Chromium (with WebGPU where the query asks for it) with
+/// `args` for `view.mjs`; its result, with no page error and no request outside the viewer.
 fn page(script: &Path, server: &Server, query: &str, args: &[&str]) -> serde_json::Value {
     let out = tempfile::NamedTempFile::new().unwrap();
+    let webgpu = query.contains("renderer=webgpu").then_some("--webgpu");
     let status = std::process::Command::new("node")
         .arg(script)
         .arg(format!("{}?{query}", server.url()))
         .arg(out.path())
         .args(args)
+        .args(webgpu)
         .status()
         .unwrap();
     assert!(status.success(), "view.mjs failed on {query}");
@@ -240,7 +250,7 @@ fn bake_both(source: &Path, formats: [&str; 2]) -> tempfile::TempDir {
 }
 
 #[test]
-fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() {
+fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_every_path() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
     let source = data.join("CesiumMan.glb");
     // PNG16 for bones (its remap through the layout), EXR for vertices; the other way round below.
@@ -256,14 +266,16 @@ fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() 
     let indices = primitive.indices.clone().unwrap();
     let poses: Vec<Vec<f64>> = times.iter().map(|&t| independent(&source, primitive, 0, t)).collect();
     let server = Server::start(dir.path());
-    for path in ["bones", "vertex"] {
+    for (bake, renderer) in PATHS {
+        let path = format!("{bake} on {renderer}");
         for (k, time) in times.iter().enumerate() {
             // From the side, where a walk's stride shows in the silhouette.
             let query = format!(
-                "bake={path}%2FCesiumMan.json&instances=1&paused=1&time={}&azimuth=90&width={CAPTURE_SIZE}&height={CAPTURE_SIZE}&antialias=0",
+                "bake={bake}%2FCesiumMan.json&renderer={renderer}&instances=1&paused=1&time={}&azimuth=90&width={CAPTURE_SIZE}&height={CAPTURE_SIZE}&antialias=0",
                 time - times[0]
             );
             let result = page(&script, &server, &query, &["--capture"]);
+            assert_eq!(result["path"], renderer, "{query}: {}", result["message"]);
             let capture = &result["capture"];
             let numbers = |key: &str| -> Vec<f64> {
                 capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
@@ -298,16 +310,105 @@ fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_both_paths() 
 }
 
 #[test]
-fn the_page_plays_a_thousand_cesium_men_on_both_paths() {
+fn the_page_plays_a_thousand_cesium_men_on_every_path() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
     let dir = bake_both(&data.join("CesiumMan.glb"), ["exr", "png16"]);
     let server = Server::start(dir.path());
-    for path in ["bones", "vertex"] {
-        let result =
-            page(&script, &server, &format!("bake={path}%2FCesiumMan.json&instances=1000"), &["--measure", "2"]);
+    for (bake, renderer) in PATHS {
+        let path = format!("{bake} on {renderer}");
+        let query = format!("bake={bake}%2FCesiumMan.json&renderer={renderer}&instances=1000");
+        let result = page(&script, &server, &query, &["--measure", "2"]);
+        assert_eq!(result["path"], renderer, "{query}: {}", result["message"]);
         let times: Vec<f64> = result["measure"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
         eprintln!("{path}: 1000 CesiumMen, frames drawn and waited for in {times:?} ms ({})", result["renderer"]);
         assert_eq!(times.len(), 2);
         assert!(result["stats"].as_str().unwrap().contains("1000 instances"), "{}", result["stats"]);
     }
+}
+
+/// One page of the WebGPU test: its query, and the reference pose it must draw.
+struct CurvePage {
+    query: String,
+    /// Index into the reference poses.
+    pose: usize,
+}
+
+#[test]
+fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_reference_draw_them() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let source = data.join("Fox.glb");
+    let dir = tempfile::tempdir().unwrap();
+    let bones = dir.path().join("bones");
+    let args = ["--input", source.to_str().unwrap(), "--texture", "skin-trs", "--format", "exr"];
+    let out = bake(&[&args[..], &["--output", bones.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Walk (clip 1) blended towards Run (clip 2) at the same phase of Run.
+    let (walk, run) = (1, 2);
+    let file = gltf::read(&source, UriPolicy::default()).unwrap();
+    let primitive = &skinned_primitives(&file).unwrap()[0];
+    let indices = primitive.indices.clone().unwrap_or_else(|| (0..primitive.vertices() as u32).collect());
+    let curve: Curve = json(&bones.join("Fox.json"))["curve"].as_str().unwrap().parse().unwrap();
+    let playback = Playback::new(file.animation.clone(), &CurveSpec::new(curve), LoopMode::Auto, Some(0)).unwrap();
+    let reference = Device::open(DeviceChoice::Reference).unwrap();
+    let phase = |t: f64| t / playback.duration(walk) * playback.duration(run);
+    // The reference's poses (time into Walk, weight), skinned on the CPU.
+    let poses = [(0.2, 0.0), (0.2, 0.5), (0.2, 1.0), (0.45, 0.5)];
+    let skinned: Vec<Vec<f64>> = poses
+        .iter()
+        .map(|&(t, w)| {
+            let instance = Instance {
+                first: ClipTime { clip: walk, time: t },
+                second: Some((ClipTime { clip: run, time: phase(t) }, w)),
+            };
+            let palettes = playback.palettes(&reference, &[instance]).unwrap();
+            skeleton::skin(&primitive.bind, playback.palette_joints(), &palettes)
+        })
+        .collect();
+    let common = format!("bake=bones%2FFox.json&clip={walk}&blend={run}&instances=1&paused=1&azimuth=90&width={CAPTURE_SIZE}&height={CAPTURE_SIZE}&antialias=0");
+    let mut pages: Vec<CurvePage> = poses
+        .iter()
+        .enumerate()
+        .map(|(pose, &(t, w))| CurvePage { query: format!("{common}&renderer=webgpu&time={t}&weight={w}"), pose })
+        .collect();
+    // The bake's texture of Walk, drawn by WebGL2 with the same camera (the scene of Walk).
+    pages.push(CurvePage { query: format!("{common}&renderer=webgl2&time={}", poses[0].0), pose: 0 });
+    let server = Server::start(dir.path());
+    let mut masks = Vec::new();
+    for p in &pages {
+        let result = page(&script, &server, &p.query, &["--capture"]);
+        let capture = &result["capture"];
+        let expected = if p.query.contains("webgpu") { "webgpu" } else { "webgl2" };
+        assert_eq!(result["path"], expected, "{}: {}", p.query, result["message"]);
+        let numbers =
+            |key: &str| -> Vec<f64> { capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect() };
+        let view_projection = DMat4::from_cols_slice(&numbers("view_projection"));
+        let offset = DVec3::from_slice(&numbers("offsets")[..3]);
+        let mask = page_mask(capture);
+        let against: Vec<f64> = skinned
+            .iter()
+            .map(|pose| mismatch(&mask, &cpu_mask(pose, &indices, offset, &view_projection, CAPTURE_SIZE)))
+            .collect();
+        let inside = mask.iter().filter(|&&m| m).count();
+        eprintln!(
+            "{}: {inside} pixels, mismatch against the reference poses {poses:?}: {against:.4?} ({})",
+            p.query, result["renderer"]
+        );
+        assert!(inside > 500, "{}: the character takes {inside} pixels", p.query);
+        assert!(
+            against[p.pose] <= SILHOUETTE_TOLERANCE,
+            "{}: mismatch {} > {SILHOUETTE_TOLERANCE}",
+            p.query,
+            against[p.pose]
+        );
+        // Every other time and weight draws another silhouette: a page that ignored the time or
+        // the weight would match one of them instead.
+        for (other, &m) in against.iter().enumerate().filter(|&(k, _)| k != p.pose) {
+            assert!(m > 3.0 * SILHOUETTE_TOLERANCE, "{}: pose {:?} differs by only {m}", p.query, poses[other]);
+        }
+        masks.push(mask);
+    }
+    // WebGPU from the curves and WebGL2 from the texture draw Walk alike.
+    let between = mismatch(&masks[0], &masks[pages.len() - 1]);
+    eprintln!("Walk at {} s: WebGPU against WebGL2 {between:.4}", poses[0].0);
+    assert!(between <= SILHOUETTE_TOLERANCE, "WebGPU and WebGL2 differ by {between}");
 }
