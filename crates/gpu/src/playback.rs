@@ -461,11 +461,42 @@ pub struct ResidentBuffer {
     pub uniform: bool,
 }
 
-/// The buffers a frame's dispatches write, by the role each plays for every entry point: the
-/// local poses (`play_local`, read as `fk_local`), the model matrices (`fk_model`), the
-/// palettes (`play_palettes`). A host binds each entry point's variables to these.
-pub const FRAME_BUFFER_ROLES: [(&str, &str); 4] =
-    [("play_local", "local"), ("fk_local", "local"), ("fk_model", "model"), ("play_palettes", "palettes")];
+/// A buffer a frame's dispatches write, per instance: what one entry point writes and the next
+/// reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameBuffer {
+    /// The blended local poses, `[instances, joints, 10]`.
+    Local,
+    /// The model matrices, `[instances, joints, 12]`.
+    Model,
+    /// The skin palettes, `[instances, skin joints, 12]`.
+    Palettes,
+}
+
+impl FrameBuffer {
+    /// Every frame buffer.
+    pub const ALL: [FrameBuffer; 3] = [FrameBuffer::Local, FrameBuffer::Model, FrameBuffer::Palettes];
+
+    /// Its name, as a host's plan names it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            FrameBuffer::Local => "local",
+            FrameBuffer::Model => "model",
+            FrameBuffer::Palettes => "palettes",
+        }
+    }
+}
+
+/// The shader's variables that bind the frame buffers: `play_local` (written by `play_curves`)
+/// is `fk_local` to forward kinematics, whose `fk_model` `play_palette` reads. A host binds
+/// each entry point's variables by this table.
+pub const FRAME_BINDINGS: [(&str, FrameBuffer); 4] = [
+    ("play_local", FrameBuffer::Local),
+    ("fk_local", FrameBuffer::Local),
+    ("fk_model", FrameBuffer::Model),
+    ("play_palettes", FrameBuffer::Palettes),
+];
 
 /// The workgroup widths of a frame's three kernels, read from the shader.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -564,13 +595,13 @@ impl ResidentCurves {
         (binding_limit / per_instance as u64).max(1) as usize
     }
 
-    /// Floats per instance of the frame buffer of `role` ([`FRAME_BUFFER_ROLES`]).
+    /// Floats per instance of frame buffer `buffer`.
     #[must_use]
-    pub fn frame_floats(&self, role: &str) -> usize {
-        match role {
-            "local" => self.joints * LOCAL_CHANNELS,
-            "model" => self.joints * MATRIX_CHANNELS,
-            _ => self.skin_joints * MATRIX_CHANNELS,
+    pub fn frame_floats(&self, buffer: FrameBuffer) -> usize {
+        match buffer {
+            FrameBuffer::Local => self.joints * LOCAL_CHANNELS,
+            FrameBuffer::Model => self.joints * MATRIX_CHANNELS,
+            FrameBuffer::Palettes => self.skin_joints * MATRIX_CHANNELS,
         }
     }
 
@@ -763,9 +794,9 @@ impl CurvePalettes {
         let init = |label: &str, contents: &[u8], usage| init_buffer(device, label, contents, usage);
         let scratch = |label: &str, floats: usize, usage| scratch_buffer(device, label, floats, usage);
         let records = init("quatcurve play instances", bytemuck::cast_slice(instances), storage);
-        let local = scratch("quatcurve play local", count * self.plan.frame_floats("local"), storage);
-        let model = scratch("quatcurve play model", count * self.plan.frame_floats("model"), storage);
-        let out_floats = count * self.plan.frame_floats("palettes");
+        let local = scratch("quatcurve play local", count * self.plan.frame_floats(FrameBuffer::Local), storage);
+        let model = scratch("quatcurve play model", count * self.plan.frame_floats(FrameBuffer::Model), storage);
+        let out_floats = count * self.plan.frame_floats(FrameBuffer::Palettes);
         let palettes = scratch("quatcurve play palettes", out_floats, self.context.output_usage());
         let spare_write: [wgpu::Buffer; 3] = std::array::from_fn(|_| scratch("quatcurve play spare", 4, storage));
         let spare_read = scratch("quatcurve play spare", 4, storage);

@@ -10,7 +10,7 @@ use quatcurve_anim::mesh;
 use quatcurve_bake::sidecar::Sidecar;
 use quatcurve_bake::LoopMode;
 use quatcurve_core::curve::{Curve, CurveSpec};
-use quatcurve_gpu::playback::{FrameDispatch, FrameKernels, ResidentCurves, FRAME_BUFFER_ROLES};
+use quatcurve_gpu::playback::{FrameBuffer, FrameDispatch, FrameKernels, ResidentCurves, FRAME_BINDINGS};
 use quatcurve_play::Playback;
 use quatcurve_shader as shader;
 use serde::Serialize;
@@ -193,7 +193,6 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
         .collect::<Result<Vec<_>, String>>()?;
     let (vertex_module, vertex_info) = shader::parse(&shader::PALETTE_VERTEX_FILES)?;
     let base64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
-    let roles: BTreeMap<&str, &str> = FRAME_BUFFER_ROLES.into_iter().collect();
     Ok(CurveScene {
         compute_shader: shader::play_curves_source(),
         constants: resident.constants.iter().copied().collect(),
@@ -203,8 +202,8 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
             .iter()
             .map(|b| Buffer { name: b.name, uniform: b.uniform, base64: base64(&b.bytes) })
             .collect(),
-        frame_floats: roles.values().map(|&role| (role, resident.frame_floats(role))).collect(),
-        frame_roles: roles,
+        frame_floats: FrameBuffer::ALL.into_iter().map(|b| (b.name(), resident.frame_floats(b))).collect(),
+        frame_roles: FRAME_BINDINGS.into_iter().map(|(variable, b)| (variable, b.name())).collect(),
         instance_bytes: std::mem::size_of::<quatcurve_gpu::playback::PlayInstance>(),
         instances,
         max_instances,
