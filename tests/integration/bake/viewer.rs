@@ -373,7 +373,7 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     // The bake's texture of Walk, drawn by WebGL2 with the same camera (the scene of Walk).
     pages.push(CurvePage { query: format!("{common}&renderer=webgl2&time={}", poses[0].0), pose: 0 });
     let server = Server::start(dir.path());
-    // Counts the page cannot play are refused by name before anything is built for them.
+    // Counts the page cannot play are refused by name.
     for (query, status, says) in [("instances=0", 422, "0 instances"), ("instances=x", 400, "not a count")] {
         let (got, body) = server.request("GET", &format!("/api/curves?bake=bones%2FFox.json&{query}"));
         let body = String::from_utf8_lossy(&body);
