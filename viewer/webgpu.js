@@ -18,8 +18,6 @@
   const DEPTH_FORMAT = 'depth24plus';
   // Colour target: a canvas format that reads back as RGBA bytes.
   const COLOR_FORMAT = 'rgba8unorm';
-  // Clip-space depth from GL's [-1, 1] to WebGPU's [0, 1] (x and y as they are).
-  const DEPTH_TO_UNIT = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0.5, 0, 0, 0, 0.5, 1]);
   // Bytes per row of a texture copy are a multiple of this.
   const COPY_ROW_ALIGNMENT = 256;
 
@@ -33,13 +31,11 @@
     return [ticks - hi * TICKS_PER_SECOND, hi];
   }
 
-  function multiply(a, b) {
-    const m = new Float32Array(16);
-    for (let c = 0; c < 4; c++) for (let r = 0; r < 4; r++) {
-      let s = 0;
-      for (let k = 0; k < 4; k++) s += a[k * 4 + r] * b[c * 4 + k];
-      m[c * 4 + r] = s;
-    }
+  // `viewProjection` (column-major, GL's clip space) with its depth moved to WebGPU's [0, 1]:
+  // z' = (z + w) / 2, x and y as they are.
+  function unitDepth(viewProjection) {
+    const m = Float32Array.from(viewProjection);
+    for (let c = 0; c < 4; c++) m[c * 4 + 2] = 0.5 * (viewProjection[c * 4 + 2] + viewProjection[c * 4 + 3]);
     return m;
   }
 
@@ -203,7 +199,7 @@
         }
       }
       device.queue.writeBuffer(this.records, 0, this.recordBytes);
-      device.queue.writeBuffer(this.camera, 0, multiply(DEPTH_TO_UNIT, viewProjection));
+      device.queue.writeBuffer(this.camera, 0, unitDepth(viewProjection));
       const encoder = device.createCommandEncoder();
       const pass = encoder.beginComputePass();
       for (const d of this.dispatches) {

@@ -229,6 +229,21 @@ fn cpu_mask(positions: &[f64], indices: &[u32], offset: DVec3, view_projection: 
     mask
 }
 
+/// A captured frame's mask, and its mismatch against each of `poses` (skinned positions)
+/// drawn on the CPU with the frame's camera and first instance's offset.
+fn against_poses(capture: &serde_json::Value, poses: &[Vec<f64>], indices: &[u32]) -> (Vec<bool>, Vec<f64>) {
+    let numbers =
+        |key: &str| -> Vec<f64> { capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect() };
+    let view_projection = DMat4::from_cols_slice(&numbers("view_projection"));
+    let offset = DVec3::from_slice(&numbers("offsets")[..3]);
+    let mask = page_mask(capture);
+    let against = poses
+        .iter()
+        .map(|pose| mismatch(&mask, &cpu_mask(pose, indices, offset, &view_projection, CAPTURE_SIZE)))
+        .collect();
+    (mask, against)
+}
+
 /// Pixels in one mask but not the other, as a fraction of the pixels in either.
 fn mismatch(a: &[bool], b: &[bool]) -> f64 {
     let either = a.iter().zip(b).filter(|(a, b)| **a || **b).count();
@@ -276,17 +291,7 @@ fn the_page_draws_the_silhouette_of_an_independent_cpu_skinning_on_every_path() 
             );
             let result = page(&script, &server, &query, &["--capture"]);
             assert_eq!(result["path"], renderer, "{query}: {}", result["message"]);
-            let capture = &result["capture"];
-            let numbers = |key: &str| -> Vec<f64> {
-                capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
-            };
-            let view_projection = DMat4::from_cols_slice(&numbers("view_projection"));
-            let offset = DVec3::from_slice(&numbers("offsets")[..3]);
-            let page = page_mask(capture);
-            let against: Vec<f64> = poses
-                .iter()
-                .map(|pose| mismatch(&page, &cpu_mask(pose, &indices, offset, &view_projection, CAPTURE_SIZE)))
-                .collect();
+            let (page, against) = against_poses(&result["capture"], &poses, &indices);
             let inside = page.iter().filter(|&&p| p).count();
             let others =
                 against.iter().enumerate().filter(|&(j, _)| j != k).map(|(_, &m)| m).fold(f64::INFINITY, f64::min);
@@ -383,18 +388,9 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     let mut masks = Vec::new();
     for p in &pages {
         let result = page(&script, &server, &p.query, &["--capture"]);
-        let capture = &result["capture"];
         let expected = if p.query.contains("webgpu") { "webgpu" } else { "webgl2" };
         assert_eq!(result["path"], expected, "{}: {}", p.query, result["message"]);
-        let numbers =
-            |key: &str| -> Vec<f64> { capture[key].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect() };
-        let view_projection = DMat4::from_cols_slice(&numbers("view_projection"));
-        let offset = DVec3::from_slice(&numbers("offsets")[..3]);
-        let mask = page_mask(capture);
-        let against: Vec<f64> = skinned
-            .iter()
-            .map(|pose| mismatch(&mask, &cpu_mask(pose, &indices, offset, &view_projection, CAPTURE_SIZE)))
-            .collect();
+        let (mask, against) = against_poses(&result["capture"], &skinned, &indices);
         let inside = mask.iter().filter(|&&m| m).count();
         eprintln!(
             "{}: {inside} pixels, mismatch against the reference poses {poses:?}: {against:.4?} ({})",
