@@ -237,13 +237,18 @@
   async function loadCurves(scene, notes) {
     if (renderer === 'webgl2' || scene.playback !== 'bones') return false;
     try {
+      // Another clip of the bake already playing: its curves are uploaded (they hold every clip).
+      if (state.path === 'webgpu' && state.curvesOf === state.bake.sidecar) {
+        notes.push(...state.curves.notes);
+        return true;
+      }
       state.gpu = state.gpu || await window.QuatcurveCurvePlayer.device();
       if (!state.gpu.device) throw new Error(state.gpu.reason);
       const curves = await (await fetchOk(curvesUrl())).json();
       canvasFor('webgpu');
       const player = new window.QuatcurveCurvePlayer(state.gpu.device, canvas, antialias);
       await player.load(curves, scene, notes);
-      Object.assign(state, { player, curves, path: 'webgpu' });
+      Object.assign(state, { player, curves, path: 'webgpu', curvesOf: state.bake.sidecar });
       notes.push(...curves.notes);
       return true;
     } catch (e) {
@@ -266,7 +271,7 @@
       show(notes.join('\n'));
       return scene;
     }
-    state.path = 'webgl2';
+    Object.assign(state, { path: 'webgl2', curvesOf: null });
     canvasFor('webgl2');
     fillBlend();
     if (state.program) gl.deleteProgram(state.program);
