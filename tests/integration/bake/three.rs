@@ -19,6 +19,7 @@ pub(super) const SILHOUETTE_TOLERANCE: f64 = 0.02;
 /// Runs `engine`'s test page (`tests/browser/ENGINE/`) at `query` over `dir` (served at
 /// `/data/`); its result, with no page error and no request outside the page's origin.
 pub(super) fn page(script: &Path, engine: &str, dir: &Path, query: &str, extra: &[&str]) -> serde_json::Value {
+    let _one = super::viewer::ONE_BROWSER.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let out = tempfile::NamedTempFile::new().unwrap();
     let status = std::process::Command::new("node")
         .arg(script)

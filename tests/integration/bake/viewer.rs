@@ -164,9 +164,16 @@ pub(super) fn browser() -> Option<PathBuf> {
     None
 }
 
+/// Held while a page runs, here and in the engines' tests: one headless Chromium of the tests
+/// at a time. Two at once, one of them drawing with WebGPU on SwiftShader, now and then lose the
+/// WebGPU page's GPU process ("A valid external Instance reference no longer exists"): 1 run in
+/// 2 of the viewer's tests here, and 1 CI run.
+pub(super) static ONE_BROWSER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Runs the page at `query` in headless Chromium (with WebGPU where the query asks for it) with
 /// `args` for `view.mjs`; its result, with no page error and no request outside the viewer.
 fn page(script: &Path, server: &Server, query: &str, args: &[&str]) -> serde_json::Value {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let out = tempfile::NamedTempFile::new().unwrap();
     let webgpu = query.contains("renderer=webgpu").then_some("--webgpu");
     let status = std::process::Command::new("node")
