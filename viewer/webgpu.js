@@ -77,8 +77,6 @@
     // Uploads `curves` (an /api/curves answer) and builds the programs for `scene`'s draws.
     async load(curves, scene, notes) {
       const { device } = this;
-      this.curves = curves;
-      this.clips = curves.clips;
       const compute = await compiled(device, curves.compute_shader, 'the playback program');
       this.pipelines = {};
       for (const { entry } of curves.entries) {
@@ -135,6 +133,7 @@
     // The frame's buffers and bind groups for `curves.instances` instances (its plan).
     frameBuffers(curves) {
       const { device } = this;
+      this.curves = curves;
       const n = curves.instances;
       for (const b of this.owned || []) b.destroy();
       const storage = (bytes) => device.createBuffer({ size: Math.max(16, bytes), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
@@ -162,7 +161,7 @@
       const resources = { palette_camera: this.camera, palette_matrices: byRole.palettes, palette_layout: this.paletteLayout };
       this.renderGroup = device.createBindGroup({
         layout: this.render.getBindGroupLayout(0),
-        entries: this.curves.vertex_bindings.map(({ name, binding }) => ({ binding, resource: { buffer: resources[name] } })),
+        entries: curves.vertex_bindings.map(({ name, binding }) => ({ binding, resource: { buffer: resources[name] } })),
       });
       this.instances = n;
       this.targets = null;
@@ -175,7 +174,7 @@
 
     // The curves' time of a pose `t` seconds into clip `c`: an open clip's held to its span.
     curveTime(c, t) {
-      const clip = this.clips[c];
+      const clip = this.curves.clips[c];
       return clip.start + (clip.looping ? t : Math.min(Math.max(t, 0), clip.duration));
     }
 
@@ -185,7 +184,7 @@
       const { device } = this;
       const view = new DataView(this.recordBytes);
       const size = this.curves.instance_bytes;
-      const [a, b] = [this.clips[clip].duration, this.clips[blend].duration];
+      const [a, b] = [this.curves.clips[clip].duration, this.curves.clips[blend].duration];
       for (let i = 0; i < this.instances; i++) {
         const at = i * size;
         const second = a > 0 ? (times[i] / a) * b : 0;
