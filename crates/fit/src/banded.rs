@@ -2,9 +2,10 @@
 //! control points `i` and `j` interact only when `|i - j| < order`), solved by a banded
 //! Cholesky factorization in `O(n * band^2)`.
 
-/// The lower band of a symmetric matrix: `band[i][d]` is entry `(i, i - d)`.
+/// The lower band of a symmetric matrix: entry `(i, i - d)` at `band[i * width + d]`, one
+/// allocation for the whole band.
 pub struct Banded {
-    band: Vec<Vec<f64>>,
+    band: Vec<f64>,
     width: usize,
 }
 
@@ -12,35 +13,35 @@ impl Banded {
     /// An `n` by `n` zero matrix with `width - 1` sub-diagonals.
     #[must_use]
     pub fn zeros(n: usize, width: usize) -> Self {
-        Self { band: vec![vec![0.0; width]; n], width }
+        Self { band: vec![0.0; n * width], width }
     }
 
     /// Adds `value` to entry `(i, j)`, `|i - j| < width`, and its mirror.
     pub fn add(&mut self, i: usize, j: usize, value: f64) {
         let (row, col) = if i >= j { (i, j) } else { (j, i) };
-        self.band[row][row - col] += value;
+        debug_assert!(row - col < self.width, "({i}, {j}) outside the band");
+        self.band[row * self.width + row - col] += value;
     }
 
     /// `A = L L^T`, or `None` when the matrix is not positive definite.
     #[must_use]
     pub fn factor(mut self) -> Option<Cholesky> {
-        let n = self.band.len();
+        let width = self.width;
+        let n = self.band.len() / width;
         for i in 0..n {
-            for d in (0..self.width.min(i + 1)).rev() {
+            for d in (0..width.min(i + 1)).rev() {
                 let j = i - d;
-                let mut sum = self.band[i][d];
-                for k in 1..self.width.min(j + 1) {
-                    if d + k < self.width {
-                        sum -= self.band[i][d + k] * self.band[j][k];
-                    }
+                let mut sum = self.band[i * width + d];
+                for k in 1..(width - d).min(j + 1) {
+                    sum -= self.band[i * width + d + k] * self.band[j * width + k];
                 }
                 if d == 0 {
                     if sum <= 0.0 || !sum.is_finite() {
                         return None;
                     }
-                    self.band[i][0] = sum.sqrt();
+                    self.band[i * width] = sum.sqrt();
                 } else {
-                    self.band[i][d] = sum / self.band[j][0];
+                    self.band[i * width + d] = sum / self.band[j * width];
                 }
             }
         }
@@ -58,12 +59,12 @@ impl Cholesky {
     pub fn solve(&self, b: &mut [f64]) {
         let (band, width, n) = (&self.lower.band, self.lower.width, b.len());
         for i in 0..n {
-            let sum: f64 = (1..width.min(i + 1)).map(|d| band[i][d] * b[i - d]).sum();
-            b[i] = (b[i] - sum) / band[i][0];
+            let sum: f64 = (1..width.min(i + 1)).map(|d| band[i * width + d] * b[i - d]).sum();
+            b[i] = (b[i] - sum) / band[i * width];
         }
         for i in (0..n).rev() {
-            let sum: f64 = (1..width.min(n - i)).map(|d| band[i + d][d] * b[i + d]).sum();
-            b[i] = (b[i] - sum) / band[i][0];
+            let sum: f64 = (1..width.min(n - i)).map(|d| band[(i + d) * width + d] * b[i + d]).sum();
+            b[i] = (b[i] - sum) / band[i * width];
         }
     }
 }

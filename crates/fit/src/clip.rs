@@ -5,7 +5,7 @@
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
 //! against the clip's bytes in the container ([`quatcurve_anim::qcf`]).
 
-use super::{bracket, fit_rotations, fit_vectors};
+use super::{bracket, fit_vectors, spans_of_order, RotationStart};
 use quatcurve_analysis::vertex_error::{object_space, pose_errors, Transform};
 use quatcurve_anim::qcf::fitted::ORDER;
 use quatcurve_anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
@@ -293,15 +293,6 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
         s as u32
     };
     let interior = |knots: &[f64]| -> Vec<u32> { knots[ORDER..knots.len() - ORDER].iter().map(sample_of).collect() };
-    let cubic = if rotation {
-        let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
-        let fit = fit_rotations(&times, &rotations, &fitting);
-        (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls))
-    } else {
-        let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
-        let fit = fit_vectors(&times, &vectors, &fitting);
-        (Form::Cubic, interior(&fit.knots), Controls::Vectors(fit.controls))
-    };
     let kept = kept_keys(channel.property, &values, &times, &fitting);
     let at_kept = |k: &usize| values[k * (BETWEEN_POINTS + 1)];
     let kept_values: Vec<[f64; 4]> =
@@ -315,15 +306,42 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
             Controls::Vectors(kept_values.iter().map(|v| [v[0], v[1], v[2]]).collect())
         },
     );
+    let cubic = if rotation {
+        let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
+        let start = RotationStart::new(&times, &rotations, &fitting);
+        // The cubic would hold at least as many control points as the kept keys (noisy frames
+        // at a low rate): its nonlinear fit, the most costly step, is not made.
+        (start.controls() < kept_values.len()).then(|| {
+            let fit = start.fit();
+            (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls))
+        })
+    } else {
+        let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
+        let fit = fit_vectors(&times, &vectors, &fitting);
+        Some((Form::Cubic, interior(&fit.knots), Controls::Vectors(fit.controls)))
+    };
     // Each form in the fewest bits whose decoded curve is within every sample's bound, or,
     // where the fit itself missed its share, within the rounding's share past the fit's own
     // error; the form of fewer bytes is kept.
-    [cubic, keys]
+    cubic
         .into_iter()
+        .chain([keys])
         .map(|(form, knots, controls)| {
             let unrounded = errors(&controls.unrounded_at(timelines, line, form, &knots, &times));
+            // Every width tried shares the knots, so a rotation's spans and basis at the
+            // samples are computed once (the same bits as `Fitted::at`).
+            let spans = std::cell::OnceCell::new();
+            let at = |curve: &Fitted| match curve {
+                Fitted::Rotation(spline, _) => {
+                    let fit = &spline.fit;
+                    let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
+                    let curve = fit.evaluate_spans(spans).expect("a fitted curve evaluates");
+                    curve.iter().map(|q| q.to_array()).collect()
+                }
+                _ => curve.at(&times),
+            };
             let within = |curve: &Fitted| {
-                errors(&curve.at(&times))
+                errors(&at(curve))
                     .iter()
                     .zip(&unrounded)
                     .zip(&limits)
@@ -340,7 +358,7 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
                 curve: curve.clone(),
             })
         })
-        .expect("two forms")
+        .expect("the keys at least")
 }
 
 /// A channel's control points before quantization.

@@ -18,7 +18,7 @@ pub mod job;
 
 use banded::Banded;
 use quatcurve_anim::qcf::fitted::{clamped, Fit, ORDER};
-use quatcurve_core::basis::{bspline_cumulative, BasisJet};
+use quatcurve_core::basis::{bspline_cumulative, bspline_cumulative_values_into, BasisJet};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_core::segment::locate;
 
@@ -35,17 +35,22 @@ type Span = (usize, Vec<BasisJet>);
 type Row = (usize, [f64; ORDER]);
 
 /// Per sample time, its span `l` ([`locate`]) and the cumulative basis there
-/// (`B~_{l-k+2..=l}`, [`bspline_cumulative`]): what the reference evaluator computes for each
-/// time, computed once per knot vector.
-fn spans(knots: &[f64], times: &[f64]) -> Vec<Span> {
-    let last = knots.len() - ORDER - 1;
+/// (`B~_{l-k+2..=l}`, [`bspline_cumulative`]) of a clamped B-spline of order `k`: what the
+/// reference evaluator computes for each time, computed once per knot vector.
+fn spans_of_order(knots: &[f64], k: usize, times: &[f64]) -> Vec<Span> {
+    let last = knots.len() - k - 1;
     times
         .iter()
         .map(|&t| {
-            let (l, t) = locate(knots, ORDER - 1, last, t);
-            (l, bspline_cumulative(knots, ORDER, l, t))
+            let (l, t) = locate(knots, k - 1, last, t);
+            (l, bspline_cumulative(knots, k, l, t))
         })
         .collect()
+}
+
+/// [`spans_of_order`] of a cubic.
+fn spans(knots: &[f64], times: &[f64]) -> Vec<Span> {
+    spans_of_order(knots, ORDER, times)
 }
 
 /// Per sample time, the first control point it depends on and the [`ORDER`] basis values
@@ -69,10 +74,35 @@ fn collocation(spans: &[Span]) -> Vec<Row> {
         .collect()
 }
 
+/// [`collocation`] computed from the knots directly, with the cumulative basis's values
+/// alone (no derivatives, nothing allocated per sample): what a linear fit needs.
+fn rows(knots: &[f64], times: &[f64]) -> Vec<Row> {
+    let last = knots.len() - ORDER - 1;
+    times
+        .iter()
+        .map(|&t| {
+            let (l, t) = locate(knots, ORDER - 1, last, t);
+            let mut cumulative = [0.0; ORDER - 1];
+            bspline_cumulative_values_into(knots, ORDER, l, t, &mut cumulative);
+            let at = |m: usize| match m {
+                0 => 1.0,
+                m if m < ORDER => cumulative[m - 1],
+                _ => 0.0,
+            };
+            (l + 1 - ORDER, std::array::from_fn(|m| at(m) - at(m + 1)))
+        })
+        .collect()
+}
+
 /// The least-squares control point offsets for `residuals` on the basis `rows`, `n` controls.
-fn least_squares(rows: &[Row], weights: &[f64], residuals: &[[f64; 3]], n: usize) -> Option<Vec<[f64; 3]>> {
+fn least_squares<const N: usize>(
+    rows: &[Row],
+    weights: &[f64],
+    residuals: &[[f64; N]],
+    n: usize,
+) -> Option<Vec<[f64; N]>> {
     let mut normal = Banded::zeros(n, ORDER);
-    let mut rhs = vec![[0.0; 3]; n];
+    let mut rhs = vec![[0.0; N]; n];
     for (((first, b), r), &w) in rows.iter().zip(residuals).zip(weights) {
         for (a, &ba) in b.iter().enumerate() {
             for (c, &bc) in b.iter().enumerate().take(a + 1) {
@@ -88,7 +118,7 @@ fn least_squares(rows: &[Row], weights: &[f64], residuals: &[[f64; 3]], n: usize
         normal.add(i, i, 1e-12);
     }
     let factored = normal.factor()?;
-    for c in 0..3 {
+    for c in 0..N {
         let mut column: Vec<f64> = rhs.iter().map(|r| r[c]).collect();
         factored.solve(&mut column);
         for (r, v) in rhs.iter_mut().zip(column) {
@@ -172,7 +202,7 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
     loop {
         let knots = clamped(ORDER, start, end, &interior);
         let n = knots.len() - ORDER;
-        let rows = collocation(&spans(&knots, times));
+        let rows = rows(&knots, times);
         let controls =
             least_squares(&rows, &weights, values, n).expect("a ridge-regularized normal matrix is definite");
         let mut fit = Fit { knots, controls, worst: 0.0, worst_at: 0 };
@@ -195,46 +225,119 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
 /// With fewer than two samples or a length mismatch.
 #[must_use]
 pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -> Fit<QuatF64> {
-    assert!(
-        times.len() >= 2 && times.len() == rotations.len() && times.len() == tolerances.len(),
-        "at least two samples, one rotation and one tolerance each"
-    );
-    let weights = weights(tolerances);
-    let mut samples = rotations.to_vec();
-    for j in 1..samples.len() {
-        samples[j] = samples[j].normalize().aligned_with(samples[j - 1]);
+    RotationStart::new(times, rotations, tolerances).fit()
+}
+
+/// The linear first stage of [`fit_rotations`]: the quaternions' components fitted as a plain
+/// cubic B-spline ([`component_knots`]), whose knots and control points the cumulative form
+/// starts from. Knots are only added after it, so its control point count is a lower bound on
+/// the fit's: a caller with a cheaper form of fewer points need not go on.
+pub struct RotationStart<'a> {
+    times: &'a [f64],
+    tolerances: &'a [f64],
+    /// Unit, each on the side of the one before.
+    samples: Vec<QuatF64>,
+    weights: Vec<f64>,
+    interior: Vec<f64>,
+    controls: Vec<[f64; 4]>,
+}
+
+impl<'a> RotationStart<'a> {
+    /// The components' fit of `rotations` at `times` within `tolerances` ([`fit_rotations`]).
+    ///
+    /// # Panics
+    /// With fewer than two samples or a length mismatch.
+    #[must_use]
+    pub fn new(times: &'a [f64], rotations: &[QuatF64], tolerances: &'a [f64]) -> Self {
+        assert!(
+            times.len() >= 2 && times.len() == rotations.len() && times.len() == tolerances.len(),
+            "at least two samples, one rotation and one tolerance each"
+        );
+        let weights = weights(tolerances);
+        let mut samples = rotations.to_vec();
+        for j in 1..samples.len() {
+            samples[j] = samples[j].normalize().aligned_with(samples[j - 1]);
+        }
+        let (interior, controls) = component_knots(times, &samples, &weights, tolerances);
+        Self { times, tolerances, samples, weights, interior, controls }
     }
-    let (start, end) = (times[0], *times.last().unwrap());
-    let mut fit: Option<Fit<QuatF64>> = None;
-    let mut interior = Vec::new();
-    loop {
-        let knots = clamped(ORDER, start, end, &interior);
-        let spans = spans(&knots, times);
-        let rows = collocation(&spans);
-        // First guess: each control point at its Greville abscissa, on the last fit (or the
-        // samples, slerped).
-        let greville: Vec<f64> =
-            (0..knots.len() - ORDER).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / 3.0).collect();
-        let controls = match &fit {
-            Some(previous) => previous.evaluate(&greville).expect("a fitted curve evaluates"),
-            None => greville.iter().map(|&t| sampled(times, &samples, t)).collect(),
-        };
-        let start_fit = Fit { knots, controls, worst: f64::INFINITY, worst_at: 0 };
-        let (current, errors) = refine(start_fit, times, &samples, &spans, &rows, &weights);
-        let new = splits(&current.knots, times, &errors, tolerances);
-        let done = new.is_empty();
-        interior = merged(&interior, &new);
-        fit = Some(current);
-        if done {
-            return fit.expect("set above");
+
+    /// How many control points the components' fit has: at least, the cumulative form's.
+    #[must_use]
+    pub fn controls(&self) -> usize {
+        self.controls.len()
+    }
+
+    /// The cumulative form from here: Levenberg-Marquardt steps ([`refine`]) on the knots,
+    /// then spans still off split and the steps run again, until none is.
+    #[must_use]
+    pub fn fit(self) -> Fit<QuatF64> {
+        let Self { times, tolerances, samples, weights, mut interior, controls } = self;
+        let (start, end) = (times[0], *times.last().unwrap());
+        let mut fit: Option<Fit<QuatF64>> = None;
+        loop {
+            let knots = clamped(ORDER, start, end, &interior);
+            let spans = spans(&knots, times);
+            let rows = collocation(&spans);
+            // First guess: the components' control points, normalized; after a split, each
+            // control point at its Greville abscissa on the last fit.
+            let greville: Vec<f64> =
+                (0..knots.len() - ORDER).map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / 3.0).collect();
+            let guess = match &fit {
+                Some(previous) => previous.evaluate(&greville).expect("a fitted curve evaluates"),
+                None => controls.iter().map(|c| QuatF64::from_array(*c).normalize()).collect(),
+            };
+            let start_fit = Fit { knots, controls: guess, worst: f64::INFINITY, worst_at: 0 };
+            let (current, errors) = refine(start_fit, times, &samples, &spans, &rows, &weights);
+            let new = splits(&current.knots, times, &errors, tolerances);
+            let done = new.is_empty();
+            interior = merged(&interior, &new);
+            fit = Some(current);
+            if done {
+                return fit.expect("set above");
+            }
         }
     }
 }
 
-/// The sample rotation at `t`, slerped between the samples around it.
-fn sampled(times: &[f64], samples: &[QuatF64], t: f64) -> QuatF64 {
-    let (j, h) = bracket(times, t);
-    samples[j].slerp(samples[j + 1], h)
+/// Interior knots and control points of `samples` (unit, each on the side of the one before)
+/// fitted as four components of a clamped cubic B-spline by linear least squares, split as
+/// [`fit_vectors`] until every sample's chord is within half its tolerance (a rotation by a
+/// small angle `a` moves the unit quaternion by a chord of about `a / 2`).
+fn component_knots(
+    times: &[f64],
+    samples: &[QuatF64],
+    weights: &[f64],
+    tolerances: &[f64],
+) -> (Vec<f64>, Vec<[f64; 4]>) {
+    let values: Vec<[f64; 4]> = samples.iter().map(|q| q.to_array()).collect();
+    let chords: Vec<f64> = tolerances.iter().map(|t| t / 2.0).collect();
+    let (start, end) = (times[0], *times.last().unwrap());
+    let mut interior = Vec::new();
+    loop {
+        let knots = clamped(ORDER, start, end, &interior);
+        let rows = rows(&knots, times);
+        let controls = least_squares(&rows, weights, &values, knots.len() - ORDER)
+            .expect("a ridge-regularized normal matrix is definite");
+        let errors: Vec<f64> = rows
+            .iter()
+            .zip(&values)
+            .map(|((first, b), v)| {
+                let mut p = [0.0; 4];
+                for (m, &bm) in b.iter().enumerate() {
+                    for (x, c) in p.iter_mut().zip(controls[first + m]) {
+                        *x += bm * c;
+                    }
+                }
+                p.iter().zip(v).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+            })
+            .collect();
+        let new = splits(&knots, times, &errors, &chords);
+        if new.is_empty() {
+            return (interior, controls);
+        }
+        interior = merged(&interior, &new);
+    }
 }
 
 /// The samples around `t` among `times` (at least two): the first's index and how far `t` is
@@ -444,6 +547,13 @@ mod tests {
     }
 
     #[test]
+    fn the_rows_from_the_knots_are_the_collocation_of_the_spans() {
+        let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.5, 0.55, 0.8]);
+        let times: Vec<f64> = (0..=90).map(|j| j as f64 / 90.0).collect();
+        assert_eq!(rows(&knots, &times), collocation(&spans(&knots, &times)));
+    }
+
+    #[test]
     fn the_collocation_rows_are_a_partition_of_unity_on_their_controls() {
         let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.55]);
         for (first, b) in collocation(&spans(&knots, &[0.0, 0.1, 0.2, 0.51, 0.99, 1.0])) {
@@ -479,6 +589,29 @@ mod tests {
         let values: Vec<[f64; 3]> = times.iter().map(|&t| [t.sin(), (5.0 * t).cos(), t]).collect();
         let fit = fit_vectors(&times, &values, &vec![1e-4; times.len()]);
         assert!(fit.worst <= 1e-4 && fit.controls.len() < times.len() / 4, "{} {}", fit.worst, fit.controls.len());
+    }
+
+    #[test]
+    fn the_components_fit_holds_no_more_control_points_than_the_cumulative_form_it_starts() {
+        let times: Vec<f64> = (0..=240).map(|j| j as f64 / 120.0).collect();
+        // Smooth, and with frame-to-frame jitter as mocap has.
+        let jitter = |j: usize| 0.002 * ((j * 7919) % 13) as f64 / 13.0;
+        let smooth: Vec<QuatF64> = times.iter().map(|&t| rotation(t)).collect();
+        let noisy: Vec<QuatF64> = times
+            .iter()
+            .enumerate()
+            .map(|(j, &t)| rotation(t) * QuatF64::from_rotation_vector(Vec3F64::new(jitter(j), 0.0, -jitter(j + 3))))
+            .collect();
+        for (name, rotations) in [("smooth", smooth), ("noisy", noisy)] {
+            for tolerance in [1e-3, 1e-4] {
+                let tolerances = vec![tolerance; times.len()];
+                let start = RotationStart::new(&times, &rotations, &tolerances);
+                let lower = start.controls();
+                let fit = start.fit();
+                assert!(lower <= fit.controls.len(), "{name} {tolerance}: {lower} > {}", fit.controls.len());
+                assert!(fit.worst <= tolerance, "{name} {tolerance}: {}", fit.worst);
+            }
+        }
     }
 
     #[test]
