@@ -33,6 +33,12 @@ const ROOM_TO_GROW: f64 = 1.25;
 /// The most the tolerances grow from one fit to the next.
 const MAX_GROWTH: f64 = 4.0;
 
+/// After the first step, a channel's scale moves by this power of its room: errors follow
+/// tolerances loosely, and whole steps overshot back and forth around the budget (CMU 131_03:
+/// 60.0 KB after 12 fits with whole steps, 58.9 KB with square roots; no clip of the shared
+/// files larger).
+const LATER_STEPS: f64 = 0.5;
+
 /// The error allowed and where it is measured, in the file's units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Budget {
@@ -166,7 +172,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     let mut closest = (0.0, Worst::default(), Worst::default());
     // Fits over the budget in a row.
     let mut overs = 0;
-    for _ in 0..SCALINGS {
+    for scaling in 0..SCALINGS {
         let fitted: Vec<FittedChannel> = channels
             .par_iter()
             .zip(&tolerances)
@@ -223,7 +229,9 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         for ((scale, room), kept) in scales.iter_mut().flatten().zip(rooms.iter().flatten()).zip(kept.iter().flatten())
         {
             let back = all_back || (over && *room < 1.0 && kept < scale);
-            *scale = if back { (*scale * kept).sqrt() } else { *scale * 0.9 * room };
+            // The first step leaves the even split by the whole room; later ones by its root.
+            let step = if scaling == 0 { 0.9 * room } else { (0.9 * room).powf(LATER_STEPS) };
+            *scale = if back { (*scale * kept).sqrt() } else { *scale * step };
         }
     }
     best.ok_or(FitClipError::OverBudget { at_frames: closest.1, between_frames: closest.2 })
@@ -644,7 +652,8 @@ mod tests {
             let values = values.iter().enumerate().filter(|(i, _)| keep(i)).map(|(_, &v)| v).collect();
             *channel = Channel::keys(channel.joint, channel.property, times, values);
         }
-        let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
+        // Between frames held as tightly as at them: only the keys' own interpolation is within.
+        let budget = Budget { max_error: 0.01, between_error: 0.01, vertex_distance: 3.0 };
         let fit = fit_clip(&animation, 0, &budget).unwrap();
         for (k, channel) in fit.clip.channels.iter().enumerate().take(3) {
             assert!(

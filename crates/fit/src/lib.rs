@@ -77,11 +77,26 @@ fn collocation(spans: &[Span]) -> Vec<Row> {
 /// [`collocation`] computed from the knots directly, with the cumulative basis's values
 /// alone (no derivatives, nothing allocated per sample): what a linear fit needs.
 fn rows(knots: &[f64], times: &[f64]) -> Vec<Row> {
+    rows_after(knots, times, None)
+}
+
+/// [`rows`], taking a sample's basis from `before` (the rows of the same times on other knots)
+/// where the knots it depends on (`2 ORDER` around its span) are the same: a split changes the
+/// basis of the few samples near it.
+fn rows_after(knots: &[f64], times: &[f64], before: Option<(&[f64], &[Row])>) -> Vec<Row> {
     let last = knots.len() - ORDER - 1;
+    let window = |knots: &[f64], l: usize| -> [f64; 2 * ORDER] { std::array::from_fn(|i| knots[l + 1 - ORDER + i]) };
     times
         .iter()
-        .map(|&t| {
+        .enumerate()
+        .map(|(s, &t)| {
             let (l, t) = locate(knots, ORDER - 1, last, t);
+            if let Some((old_knots, old_rows)) = before {
+                let (first, b) = old_rows[s];
+                if window(old_knots, first + ORDER - 1) == window(knots, l) {
+                    return (l + 1 - ORDER, b);
+                }
+            }
             let mut cumulative = [0.0; ORDER - 1];
             bspline_cumulative_values_into(knots, ORDER, l, t, &mut cumulative);
             let at = |m: usize| match m {
@@ -314,9 +329,10 @@ fn component_knots(
     let chords: Vec<f64> = tolerances.iter().map(|t| t / 2.0).collect();
     let (start, end) = (times[0], *times.last().unwrap());
     let mut interior = Vec::new();
+    let mut before: Option<(Vec<f64>, Vec<Row>)> = None;
     loop {
         let knots = clamped(ORDER, start, end, &interior);
-        let rows = rows(&knots, times);
+        let rows = rows_after(&knots, times, before.as_ref().map(|(k, r)| (k.as_slice(), r.as_slice())));
         let controls = least_squares(&rows, weights, &values, knots.len() - ORDER)
             .expect("a ridge-regularized normal matrix is definite");
         let errors: Vec<f64> = rows
@@ -337,6 +353,7 @@ fn component_knots(
             return (interior, controls);
         }
         interior = merged(&interior, &new);
+        before = Some((knots, rows));
     }
 }
 
@@ -551,6 +568,10 @@ mod tests {
         let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.5, 0.55, 0.8]);
         let times: Vec<f64> = (0..=90).map(|j| j as f64 / 90.0).collect();
         assert_eq!(rows(&knots, &times), collocation(&spans(&knots, &times)));
+        // Taken over from other knots where a sample's own knots are the same: still the same.
+        let coarse = clamped(ORDER, 0.0, 1.0, &[0.5, 0.8]);
+        let after = rows_after(&knots, &times, Some((&coarse, &rows(&coarse, &times))));
+        assert_eq!(after, rows(&knots, &times));
     }
 
     #[test]
