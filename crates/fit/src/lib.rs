@@ -244,9 +244,9 @@ pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -
 }
 
 /// The linear first stage of [`fit_rotations`]: the quaternions' components fitted as a plain
-/// cubic B-spline ([`component_knots`]), whose knots and control points the cumulative form
-/// starts from. Knots are only added after it, so its control point count is a lower bound on
-/// the fit's: a caller with a cheaper form of fewer points need not go on.
+/// cubic B-spline, whose knots and control points the cumulative form starts from. Knots are
+/// only added after it, so its control point count is a lower bound on the fit's: a caller
+/// with a cheaper form of fewer points need not go on.
 pub struct RotationStart<'a> {
     times: &'a [f64],
     tolerances: &'a [f64],
@@ -283,7 +283,7 @@ impl<'a> RotationStart<'a> {
         self.controls.len()
     }
 
-    /// The cumulative form from here: Levenberg-Marquardt steps ([`refine`]) on the knots,
+    /// The cumulative form from here: Levenberg-Marquardt steps on the knots,
     /// then spans still off split and the steps run again, until none is.
     #[must_use]
     pub fn fit(self) -> Fit<QuatF64> {

@@ -471,7 +471,7 @@ impl Writer {
         self.count(timeline);
         self.knots(knots, least_delta(form));
         self.u8(codes.bits as u8);
-        codes.low.iter().chain(&codes.span).for_each(|&v| self.f32(v as f32));
+        codes.low.iter().chain([&codes.span]).for_each(|&v| self.f32(v as f32));
         let packed = pack_codes(&codes.codes, codes.bits);
         self.count(packed.len());
         self.bytes(&packed);
@@ -728,11 +728,11 @@ impl Reader<'_> {
         if !(1..=MAX_BITS).contains(&bits) {
             return Err(self.bad(&format!("{field} bit width"), format!("{bits} is not 1-{MAX_BITS}")));
         }
-        let mut ranges = [0.0; 6];
+        let mut ranges = [0.0; 4];
         for (i, v) in ranges.iter_mut().enumerate() {
             let name = format!("{field} {}", if i < 3 { "low" } else { "span" });
             *v = self.finite_f32(&name)?;
-            if i >= 3 && *v < 0.0 {
+            if i == 3 && *v < 0.0 {
                 return Err(self.bad_at(self.at - 4, &name, format!("{v} is negative")));
             }
         }
@@ -741,8 +741,8 @@ impl Reader<'_> {
         let start = self.at;
         let packed = self.take(length, &name)?;
         let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, &name, e))?;
-        let [l0, l1, l2, s0, s1, s2] = ranges;
-        Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span: [s0, s1, s2], codes }))
+        let [l0, l1, l2, span] = ranges;
+        Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span, codes }))
     }
 }
 

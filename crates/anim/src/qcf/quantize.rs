@@ -1,5 +1,6 @@
-//! Control points in fewer bits: per channel, each stored component's range over its control
-//! points (`low`, `span`) and the fewest bits (at most [`MAX_BITS`]) whose rounding moves a
+//! Control points in fewer bits: per channel, each stored component's smallest value over its
+//! control points (`low`), the widest component's range (`span`, one step for the three) and
+//! the fewest bits (at most [`MAX_BITS`]) whose rounding moves a
 //! control point by at most a given amount. A B-spline point is a blend of its control points,
 //! so the curve moves by about as much; the clip measures it after quantization anyway.
 //! Rotations store their three smallest components (the batch builder makes the decoded control
@@ -16,10 +17,12 @@ pub const MAX_BITS: u32 = 24;
 pub struct Quantized {
     /// Bits per component.
     pub bits: u32,
-    /// Each component's smallest value, and its range.
+    /// Each component's smallest value.
     pub low: [f64; 3],
-    /// See [`Self::low`].
-    pub span: [f64; 3],
+    /// The widest component's range, every component's: one step for the three, as the error
+    /// is a distance over all three (a finer step on a narrow component buys little, and its
+    /// residuals would take more bits: CMU at 24 Hz 14.0:1, not 13.2:1).
+    pub span: f64,
     /// Per control point, its three codes.
     pub codes: Vec<[u32; 3]>,
 }
@@ -37,8 +40,7 @@ impl Quantized {
     #[must_use]
     pub fn bits_within(components: &[[f64; 3]], error: f64) -> u32 {
         let (_, span) = ranges(components);
-        let widest = span.iter().copied().fold(0.0, f64::max);
-        (1..=MAX_BITS).find(|&b| 3f64.sqrt() / 2.0 * widest / f64::from((1u32 << b) - 1) <= error).unwrap_or(MAX_BITS)
+        (1..=MAX_BITS).find(|&b| 3f64.sqrt() / 2.0 * span / f64::from((1u32 << b) - 1) <= error).unwrap_or(MAX_BITS)
     }
 
     /// `components` as `bits`-bit codes (1 to [`MAX_BITS`]) over their ranges.
@@ -50,8 +52,8 @@ impl Quantized {
             .iter()
             .map(|v| {
                 std::array::from_fn(|c| {
-                    if span[c] > 0.0 {
-                        ((v[c] - low[c]) / span[c] * levels).round().clamp(0.0, levels) as u32
+                    if span > 0.0 {
+                        ((v[c] - low[c]) / span * levels).round().clamp(0.0, levels) as u32
                     } else {
                         0
                     }
@@ -72,17 +74,18 @@ impl Quantized {
         let levels = f64::from((1u32 << self.bits) - 1);
         self.codes
             .iter()
-            .map(move |code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span[c]))
+            .map(move |code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) / levels * self.span))
     }
 }
 
-/// Each component's smallest value and its range over `components`, as `f32` values that
-/// hold every one.
-fn ranges(components: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+/// Each component's smallest value over `components`, and the widest component's range
+/// ([`Quantized::span`]), as `f32` values that hold every value.
+fn ranges(components: &[[f64; 3]]) -> ([f64; 3], f64) {
     let low: [f64; 3] =
         std::array::from_fn(|c| f32_at_most(components.iter().map(|v| v[c]).fold(f64::INFINITY, f64::min)));
-    let span = std::array::from_fn(|c| f32_at_least(components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max)));
-    (low, span)
+    let widest =
+        (0..3).map(|c| f32_at_least(components.iter().map(|v| v[c] - low[c]).fold(0.0, f64::max))).fold(0.0, f64::max);
+    (low, widest)
 }
 
 /// The largest `f32` value at most `v`.
@@ -218,9 +221,24 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(worst <= error, "{error}: {worst} with {} bits", q.bits);
             let fewer = Quantized { bits: q.bits - 1, ..q.clone() };
-            let widest = q.span.iter().copied().fold(0.0, f64::max);
-            let step = widest / f64::from((1u32 << fewer.bits) - 1);
+            let step = q.span / f64::from((1u32 << fewer.bits) - 1);
             assert!(3f64.sqrt() / 2.0 * step > error, "{error}: {} bits is not the fewest", q.bits);
+        }
+    }
+
+    #[test]
+    fn the_three_components_share_one_step_so_a_narrow_one_takes_small_codes() {
+        // Ranges 2, 0.01 and 0: the narrow components' codes stay near their low end.
+        let values: Vec<[f64; 3]> =
+            (0..40).map(|i| f64::from(i) / 39.0).map(|t| [2.0 * t, 0.01 * t * t, 0.5]).collect();
+        let q = Quantized::with_bits(&values, 12);
+        assert_eq!(q.span, 2.0);
+        let most = |c: usize| q.codes.iter().map(|code| code[c]).max().unwrap();
+        assert_eq!(most(0), 4095);
+        assert!(most(1) <= 21, "{}: 0.01 of a 2.0 span at 12 bits", most(1));
+        assert_eq!(most(2), 0);
+        for (a, b) in q.values().iter().zip(&values) {
+            assert!((0..3).all(|c| (a[c] - b[c]).abs() <= 0.5 * 2.0 / 4095.0 + 1e-12), "{a:?} vs {b:?}");
         }
     }
 
