@@ -316,13 +316,10 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
     );
     let cubic = if rotation {
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
-        let start = RotationStart::new(&times, &rotations, &fitting);
-        // The cubic would hold at least as many control points as the kept keys (noisy frames
-        // at a low rate): its nonlinear fit, the most costly step, is not made.
-        (start.controls() < kept_values.len()).then(|| {
-            let fit = start.fit();
-            (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls))
-        })
+        // A cubic of as many control points as the kept keys is not fitted on (noisy frames at
+        // a low rate, or flips): the nonlinear fit is the most costly step.
+        let fit = RotationStart::new(&times, &rotations, &fitting).fit_below(kept_values.len());
+        fit.map(|fit| (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls)))
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
         let fit = fit_vectors(&times, &vectors, &fitting);

@@ -240,7 +240,7 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
 /// With fewer than two samples or a length mismatch.
 #[must_use]
 pub fn fit_rotations(times: &[f64], rotations: &[QuatF64], tolerances: &[f64]) -> Fit<QuatF64> {
-    RotationStart::new(times, rotations, tolerances).fit()
+    RotationStart::new(times, rotations, tolerances).fit_below(usize::MAX).expect("no bound on the control points")
 }
 
 /// The linear first stage of [`fit_rotations`]: the quaternions' components fitted as a plain
@@ -283,14 +283,19 @@ impl<'a> RotationStart<'a> {
         self.controls.len()
     }
 
-    /// The cumulative form from here: Levenberg-Marquardt steps on the knots,
-    /// then spans still off split and the steps run again, until none is.
+    /// The cumulative form from here: Levenberg-Marquardt steps on the knots, then spans
+    /// still off split and the steps run again, until none is; `None` once its knots make
+    /// `most` control points or more (a caller with a cheaper form of that many stops there:
+    /// frames that flip by more than a quarter turn split a cubic down to C0 at every sample).
     #[must_use]
-    pub fn fit(self) -> Fit<QuatF64> {
+    pub fn fit_below(self, most: usize) -> Option<Fit<QuatF64>> {
         let Self { times, tolerances, samples, weights, mut interior, controls } = self;
         let (start, end) = (times[0], *times.last().unwrap());
         let mut fit: Option<Fit<QuatF64>> = None;
         loop {
+            if interior.len() + ORDER >= most {
+                return None;
+            }
             let knots = clamped(ORDER, start, end, &interior);
             let spans = spans(&knots, times);
             let rows = collocation(&spans);
@@ -309,7 +314,7 @@ impl<'a> RotationStart<'a> {
             interior = merged(&interior, &new);
             fit = Some(current);
             if done {
-                return fit.expect("set above");
+                return fit;
             }
         }
     }
@@ -626,11 +631,15 @@ mod tests {
         for (name, rotations) in [("smooth", smooth), ("noisy", noisy)] {
             for tolerance in [1e-3, 1e-4] {
                 let tolerances = vec![tolerance; times.len()];
-                let start = RotationStart::new(&times, &rotations, &tolerances);
-                let lower = start.controls();
-                let fit = start.fit();
-                assert!(lower <= fit.controls.len(), "{name} {tolerance}: {lower} > {}", fit.controls.len());
+                let start = || RotationStart::new(&times, &rotations, &tolerances);
+                let lower = start().controls();
+                let fit = start().fit_below(usize::MAX).unwrap();
+                let n = fit.controls.len();
+                assert!(lower <= n, "{name} {tolerance}: {lower} > {n}");
                 assert!(fit.worst <= tolerance, "{name} {tolerance}: {}", fit.worst);
+                // Bounded: no fit at the lower bound, the same fit just above the fit's count.
+                assert!(start().fit_below(lower).is_none(), "{name} {tolerance}");
+                assert_eq!(start().fit_below(n + 1), Some(fit), "{name} {tolerance}");
             }
         }
     }
