@@ -491,7 +491,7 @@ impl Writer {
                 Some(u64::from(delta.expect("knots ascend, keys' each once (a fit makes no other)")))
             })
             .collect();
-        let k = (0..=MOST_RICE).min_by_key(|&k| deltas.iter().map(|&d| rice_bits(d, k)).sum::<u64>()).unwrap_or(0);
+        let k = rice_parameter(deltas.iter().copied());
         self.u8(k as u8);
         let mut bits = BitWriter::default();
         deltas.iter().for_each(|&d| bits.rice(d, k));
@@ -532,6 +532,11 @@ fn rice_bits(z: u64, k: u32) -> u64 {
     (z >> k) + 1 + u64::from(k)
 }
 
+/// The Rice parameter (0 to [`MOST_RICE`]) that codes `values` in the fewest bits.
+fn rice_parameter(values: impl Iterator<Item = u64> + Clone) -> u32 {
+    (0..=MOST_RICE).min_by_key(|&k| values.clone().map(|z| rice_bits(z, k)).sum::<u64>()).unwrap_or(0)
+}
+
 /// Codes packed low bit first: the first point's at `bits` each, then per block of [`BLOCK`]
 /// points each component's Rice parameter ([`RICE_BITS`], the one of fewest bits for the
 /// block) and the points' zigzagged residuals from [`predicted`] as Rice codes. Residuals
@@ -547,11 +552,7 @@ fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
     };
     for block in (1..codes.len()).step_by(BLOCK) {
         let points = block..(block + BLOCK).min(codes.len());
-        let ks: [u32; 3] = std::array::from_fn(|c| {
-            (0..=MOST_RICE)
-                .min_by_key(|&k| points.clone().map(|i| rice_bits(zigzag(i, c), k)).sum::<u64>())
-                .unwrap_or(0)
-        });
+        let ks: [u32; 3] = std::array::from_fn(|c| rice_parameter(points.clone().map(|i| zigzag(i, c))));
         ks.iter().for_each(|&k| out.push(u64::from(k), RICE_BITS));
         for i in points {
             for (c, &k) in ks.iter().enumerate() {
@@ -761,8 +762,16 @@ impl Reader<'_> {
         // A Rice code takes a bit at least: the count is held to the bytes left, and to the
         // knots the curve can have, before anything is allocated for them.
         let count = self.count(&name, 0)?;
-        if count > most || count > 8 * (self.bytes.len() - self.at) {
+        if count > most {
             return Err(self.bad_at(start, &name, format!("{count} knots; its timeline has room for {most}")));
+        }
+        let left = self.bytes.len() - self.at;
+        if count > 8 * left {
+            return Err(self.bad_at(
+                start,
+                &name,
+                format!("{count} knots of a bit at least cannot fit in the {left} bytes left"),
+            ));
         }
         if count == 0 {
             return Ok(Vec::new());
@@ -880,7 +889,8 @@ impl<'a> BitReader<'a> {
             let skip = (self.bit % 8) as u32;
             let word = u64::from_le_bytes(eight.try_into().expect("eight bytes")) >> skip;
             let run = word.trailing_ones();
-            if run + 1 + k <= 64 - skip {
+            // Strictly inside the word: `word >> 64` would overflow.
+            if run + 1 + k < 64 - skip {
                 self.bit += (run + 1 + k) as usize;
                 return Some((u64::from(run), (word >> (run + 1)) & ((1u64 << k) - 1)));
             }
@@ -1019,6 +1029,11 @@ mod tests {
         for &(z, k) in &values {
             assert_eq!(reader.rice(k), Some((z >> k, z & ((1 << k) - 1))), "{z} at {k}");
         }
+        // A code that fills the first word to its last bit (63 ones and the zero).
+        let mut writer = BitWriter::default();
+        writer.rice(63, 0);
+        writer.push(0, 8);
+        assert_eq!(BitReader::new(&writer.finish()).rice(0), Some((63, 0)));
     }
 
     #[test]
