@@ -25,6 +25,37 @@ pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) 
     (span, t)
 }
 
+/// [`locate`] of each of `times` in ascending order, walking the knots from the last span
+/// instead of bisecting for each: a fit evaluates every sample of a channel on each knot
+/// vector it tries, and the bisection was a tenth of its time.
+///
+/// # Panics
+/// When `times` are not ascending (NaN included).
+pub fn locate_ascending<'a>(
+    knots: &'a [f64],
+    first: usize,
+    last: usize,
+    times: &'a [f64],
+) -> impl Iterator<Item = (usize, f64)> + 'a {
+    let (lo, hi) = (knots[first], knots[last + 1]);
+    // How many of knots[first..=last] are <= the time before.
+    let mut below = 1;
+    let mut before = f64::NEG_INFINITY;
+    times.iter().map(move |&t| {
+        assert!(t >= before, "times in ascending order");
+        before = t;
+        let t = if t >= lo { t.min(hi) } else { lo };
+        while first + below <= last && knots[first + below] <= t {
+            below += 1;
+        }
+        let mut span = first + below - 1;
+        while knots[span] == knots[span + 1] && span > first {
+            span -= 1;
+        }
+        (span, t)
+    })
+}
+
 /// [`locate`] on strictly increasing, about equally spaced knots (`inv_step` their inverse
 /// mean spacing, [`arithmetic_span_step`]) with the domain `[lo, hi]` (`knots[first]`, `knots[last + 1]`) given: the span
 /// from the spacing, then corrected by a step where rounding put it one off, so the result is
@@ -100,7 +131,7 @@ pub fn wrap(t: f64, [start, end]: [f64; 2]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{arithmetic_span_step, locate, locate_uniform, wrap, ARITHMETIC_SPAN_RATIO};
+    use super::{arithmetic_span_step, locate, locate_ascending, locate_uniform, wrap, ARITHMETIC_SPAN_RATIO};
 
     #[test]
     fn arithmetic_lookup_finds_the_span_bisection_finds_on_about_equally_spaced_knots() {
@@ -180,5 +211,32 @@ mod tests {
         assert_eq!(locate(&knots, 2, 5, 1.999), (3, 1.999));
         assert_eq!(locate(&knots, 2, 5, 3.0), (5, 3.0));
         assert_eq!(locate(&knots, 2, 5, 0.0), (2, 0.0));
+    }
+
+    #[test]
+    fn walking_ascending_times_finds_the_spans_bisection_finds() {
+        // Clamped knots with repeated inner knots; times before, inside, on knots and after.
+        let mut seed = 11u64;
+        let mut unit = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..200 {
+            let inner = case % 30;
+            let mut knots: Vec<f64> = (0..inner).map(|_| (unit() * 8.0).round() / 8.0).collect();
+            if case % 3 == 0 {
+                knots.extend(knots.clone());
+            }
+            knots.extend([0.0; 4]);
+            knots.extend([1.0; 4]);
+            knots.sort_by(f64::total_cmp);
+            let (first, last) = (3, knots.len() - 5);
+            let mut times: Vec<f64> = (0..60).map(|_| unit() * 1.4 - 0.2).collect();
+            times.extend(&knots);
+            times.sort_by(f64::total_cmp);
+            let walked: Vec<(usize, f64)> = locate_ascending(&knots, first, last, &times).collect();
+            let bisected: Vec<(usize, f64)> = times.iter().map(|&t| locate(&knots, first, last, t)).collect();
+            assert_eq!(walked, bisected, "case {case}, knots {knots:?}");
+        }
     }
 }

@@ -20,7 +20,7 @@ use banded::Banded;
 use quatcurve_anim::qcf::fitted::{clamped, Fit, ORDER};
 use quatcurve_core::basis::{bspline_cumulative, bspline_cumulative_values_into, BasisJet};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
-use quatcurve_core::segment::locate;
+use quatcurve_core::segment::locate_ascending;
 
 /// Levenberg-Marquardt steps at most per knot vector.
 const STEPS: usize = 60;
@@ -34,18 +34,12 @@ type Span = (usize, Vec<BasisJet>);
 /// A sample's first control point and the [`ORDER`] basis values from there ([`collocation`]).
 type Row = (usize, [f64; ORDER]);
 
-/// Per sample time, its span `l` ([`locate`]) and the cumulative basis there
+/// Per sample time (ascending), its span `l` (`locate`) and the cumulative basis there
 /// (`B~_{l-k+2..=l}`, [`bspline_cumulative`]) of a clamped B-spline of order `k`: what the
 /// reference evaluator computes for each time, computed once per knot vector.
 fn spans_of_order(knots: &[f64], k: usize, times: &[f64]) -> Vec<Span> {
     let last = knots.len() - k - 1;
-    times
-        .iter()
-        .map(|&t| {
-            let (l, t) = locate(knots, k - 1, last, t);
-            (l, bspline_cumulative(knots, k, l, t))
-        })
-        .collect()
+    locate_ascending(knots, k - 1, last, times).map(|(l, t)| (l, bspline_cumulative(knots, k, l, t))).collect()
 }
 
 /// [`spans_of_order`] of a cubic.
@@ -86,11 +80,9 @@ fn rows(knots: &[f64], times: &[f64]) -> Vec<Row> {
 fn rows_after(knots: &[f64], times: &[f64], before: Option<(&[f64], &[Row])>) -> Vec<Row> {
     let last = knots.len() - ORDER - 1;
     let window = |knots: &[f64], l: usize| -> [f64; 2 * ORDER] { std::array::from_fn(|i| knots[l + 1 - ORDER + i]) };
-    times
-        .iter()
+    locate_ascending(knots, ORDER - 1, last, times)
         .enumerate()
-        .map(|(s, &t)| {
-            let (l, t) = locate(knots, ORDER - 1, last, t);
+        .map(|(s, (l, t))| {
             if let Some((old_knots, old_rows)) = before {
                 let (first, b) = old_rows[s];
                 if window(old_knots, first + ORDER - 1) == window(knots, l) {
@@ -308,7 +300,7 @@ impl<'a> RotationStart<'a> {
                 None => controls.iter().map(|c| QuatF64::from_array(*c).normalize()).collect(),
             };
             let start_fit = Fit { knots, controls: guess, worst: f64::INFINITY, worst_at: 0 };
-            let (current, errors) = refine(start_fit, times, &samples, &spans, &rows, &weights);
+            let (current, errors) = refine(start_fit, &samples, &spans, &rows, &weights);
             let new = splits(&current.knots, times, &errors, tolerances);
             let done = new.is_empty();
             interior = merged(&interior, &new);
@@ -434,11 +426,10 @@ fn rotation_steps(
 /// Levenberg-Marquardt steps on the control points of `fit` (the sum of squared residual
 /// angles falls at every step kept; damping, a multiple of the normal matrix's mean diagonal,
 /// grows until a step helps); its worst sample, and every sample's angle to the curve, measured
-/// by the reference evaluator at `times`. The steps evaluate the curve at the samples' `spans`
-/// (their basis computed once), `rows` their collocation.
+/// by the reference evaluator at the samples. The steps evaluate the curve at the samples'
+/// `spans` (their basis computed once, the reference's own bits), `rows` their collocation.
 fn refine(
     mut fit: Fit<QuatF64>,
-    times: &[f64],
     samples: &[QuatF64],
     spans: &[Span],
     rows: &[Row],
@@ -478,7 +469,7 @@ fn refine(
             break;
         }
     }
-    let curve = fit.evaluate(times).expect("a fitted curve evaluates");
+    // `curve` is the kept fit's at the spans: the reference evaluator's at `times`, to the bit.
     let errors: Vec<f64> = curve.iter().zip(samples).map(|(q, s)| q.angle_to(*s)).collect();
     (fit.worst_at, fit.worst) = worst(&errors);
     (fit, errors)
