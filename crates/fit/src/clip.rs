@@ -24,6 +24,12 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 /// within the whole.
 pub const QUANTIZATION_SHARE: f64 = 0.25;
 
+/// The bit-width search starts this many bits below the width the rounding bound asks for:
+/// the bound is loose (rounding errors seldom line up), and on CMU 131_01 the search ended 2
+/// or 3 bits below it for 96% of the forms tried; started at the bound, it took 4.5 curve
+/// evaluations a form.
+const BITS_BELOW_BOUND: u32 = 2;
+
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 12;
 
@@ -352,7 +358,7 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
                     .zip(&limits)
                     .all(|((&d, &u), &l)| d <= l.max(u + QUANTIZATION_SHARE * l))
             };
-            let start = controls.bits_within(tolerance * QUANTIZATION_SHARE);
+            let start = controls.bits_within(tolerance * QUANTIZATION_SHARE).saturating_sub(BITS_BELOW_BOUND).max(1);
             let curve = |bits| controls.quantized(timelines, line, form, knots.clone(), bits);
             quantize::fewest_bits(start, curve, within)
         })
