@@ -4,6 +4,7 @@
 
 /// The lower band of a symmetric matrix: entry `(i, i - d)` at `band[i * width + d]`, one
 /// allocation for the whole band.
+#[derive(Clone)]
 pub struct Banded {
     band: Vec<f64>,
     width: usize,

@@ -361,66 +361,95 @@ pub(crate) fn bracket(times: &[f64], t: f64) -> (usize, f64) {
     (j - 1, ((t - times[j - 1]) / (times[j] - times[j - 1])).clamp(0.0, 1.0))
 }
 
-/// The Gauss-Newton step of every control point (its body frame) for `residuals` (each
-/// sample's, in the curve's body frame there): turning control point `i` by `exp(d)` turns the
-/// curve at `t` by about `B_i(t) R_i d`, `R_i` the rotation from the control point's frame to
-/// the curve's (`q^-1 c_i`), so the normal equations couple a point's three components (a band
-/// of `3 * ORDER`).
-///
-/// Assembled per control point, not per sample: `R_a^T R_c = (c_a^-1 c_c)` whatever the
-/// sample, so block `(a, c)` of `J^T J` is `(sum of w B_a B_c) (c_a^-1 c_c)`, and block `a` of
-/// `J^T r` is `c_a^T (sum of w B_a q r)`: over the samples only a scalar band and a world-frame
-/// vector per control point are gathered (the per-sample blocks cost the fit a third of its
-/// time).
-fn rotation_steps(
-    rows: &[Row],
-    curve: &[QuatF64],
-    controls: &[QuatF64],
-    weights: &[f64],
-    residuals: &[[f64; 3]],
-    damping: f64,
-) -> Option<Vec<[f64; 3]>> {
-    let n = controls.len();
-    // gram[i][d]: sum of w B_i B_(i - d); world[i]: sum of w B_i (q r).
+/// Per control point `i`, the scalar band `sum of w B_i B_(i - d)` over the samples (`d <
+/// ORDER`): it depends on the knots and the weights alone, so a knot vector gathers it once
+/// for all of its steps.
+fn gram(rows: &[Row], weights: &[f64], n: usize) -> Vec<[f64; ORDER]> {
     let mut gram = vec![[0.0; ORDER]; n];
-    let mut world = vec![[0.0; 3]; n];
-    for ((((first, b), q), r), &w) in rows.iter().zip(curve).zip(residuals).zip(weights) {
-        let v = q.rotate(Vec3F64::from_array(*r)).to_array();
+    for ((first, b), &w) in rows.iter().zip(weights) {
         for a in 0..ORDER {
             let wb = w * b[a];
-            for (sum, v) in world[first + a].iter_mut().zip(v) {
-                *sum += wb * v;
-            }
             for c in 0..=a {
                 gram[first + a][a - c] += wb * b[c];
             }
         }
     }
-    let controls: Vec<QuatF64> = controls.iter().map(|c| c.normalize()).collect();
-    let mut normal = Banded::zeros(3 * n, 3 * ORDER);
-    let mut rhs = vec![0.0; 3 * n];
-    for i in 0..n {
-        let to_control = controls[i].to_mat3();
-        for x in 0..3 {
-            rhs[3 * i + x] = (0..3).map(|k| to_control[k][x] * world[i][k]).sum();
-        }
-        for (d, &sum) in gram[i].iter().enumerate().take(i + 1) {
-            let j = i - d;
-            let block = (controls[i].conjugate() * controls[j]).to_mat3();
-            for (x, row) in block.iter().enumerate() {
-                for (y, &value) in row.iter().enumerate().filter(|&(y, _)| d > 0 || y <= x) {
-                    normal.add(3 * i + x, 3 * j + y, sum * value);
+    gram
+}
+
+/// The Gauss-Newton normal equations of every control point's step (its body frame) for
+/// `residuals` (each sample's, in the curve's body frame there), undamped: turning control
+/// point `i` by `exp(d)` turns the curve at `t` by about `B_i(t) R_i d`, `R_i` the rotation
+/// from the control point's frame to the curve's (`q^-1 c_i`), so the normal equations couple
+/// a point's three components (a band of `3 * ORDER`). Each damping tried solves them again
+/// without gathering them again.
+///
+/// Assembled per control point, not per sample: `R_a^T R_c = (c_a^-1 c_c)` whatever the
+/// sample, so block `(a, c)` of `J^T J` is `(sum of w B_a B_c) (c_a^-1 c_c)` ([`gram`]), and
+/// block `a` of `J^T r` is `c_a^T (sum of w B_a q r)`: over the samples only a world-frame
+/// vector per control point is gathered (the per-sample blocks cost the fit a third of its
+/// time).
+struct Steps {
+    normal: Banded,
+    rhs: Vec<f64>,
+    /// The mean diagonal (`sum B^2` over the samples per control point), damping's unit.
+    mean: f64,
+}
+
+impl Steps {
+    fn new(
+        rows: &[Row],
+        gram: &[[f64; ORDER]],
+        curve: &[QuatF64],
+        controls: &[QuatF64],
+        weights: &[f64],
+        residuals: &[[f64; 3]],
+    ) -> Self {
+        let n = controls.len();
+        // world[i]: sum of w B_i (q r).
+        let mut world = vec![[0.0; 3]; n];
+        for ((((first, b), q), r), &w) in rows.iter().zip(curve).zip(residuals).zip(weights) {
+            let v = q.rotate(Vec3F64::from_array(*r)).to_array();
+            for a in 0..ORDER {
+                let wb = w * b[a];
+                for (sum, v) in world[first + a].iter_mut().zip(v) {
+                    *sum += wb * v;
                 }
             }
         }
+        let controls: Vec<QuatF64> = controls.iter().map(|c| c.normalize()).collect();
+        let mut normal = Banded::zeros(3 * n, 3 * ORDER);
+        let mut rhs = vec![0.0; 3 * n];
+        for i in 0..n {
+            let to_control = controls[i].to_mat3();
+            for x in 0..3 {
+                rhs[3 * i + x] = (0..3).map(|k| to_control[k][x] * world[i][k]).sum();
+            }
+            for (d, &sum) in gram[i].iter().enumerate().take(i + 1) {
+                let j = i - d;
+                let block = (controls[i].conjugate() * controls[j]).to_mat3();
+                for (x, row) in block.iter().enumerate() {
+                    for (y, &value) in row.iter().enumerate().filter(|&(y, _)| d > 0 || y <= x) {
+                        normal.add(3 * i + x, 3 * j + y, sum * value);
+                    }
+                }
+            }
+        }
+        let mean = gram.iter().map(|g| g[0]).sum::<f64>() / n as f64;
+        Self { normal, rhs, mean }
     }
-    // Damping relative to the mean diagonal (`sum B^2` over the samples per control point).
-    let mean = gram.iter().map(|g| g[0]).sum::<f64>() / n as f64;
-    for i in 0..3 * n {
-        normal.add(i, i, 1e-12 + damping * mean);
+
+    /// The steps with `damping` (relative to the mean diagonal) added to the diagonal, or
+    /// `None` when the system is not positive definite.
+    fn damped(&self, damping: f64) -> Option<Vec<[f64; 3]>> {
+        let mut normal = self.normal.clone();
+        for i in 0..self.rhs.len() {
+            normal.add(i, i, 1e-12 + damping * self.mean);
+        }
+        let mut rhs = self.rhs.clone();
+        normal.factor()?.solve(&mut rhs);
+        Some(rhs.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
     }
-    normal.factor()?.solve(&mut rhs);
-    Some(rhs.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 /// Levenberg-Marquardt steps on the control points of `fit` (the sum of squared residual
@@ -444,11 +473,13 @@ fn refine(
         (curve, residuals, sum)
     };
     let (mut curve, mut residuals, mut sum) = residuals_of(&fit);
+    let gram = gram(rows, weights, fit.controls.len());
     let mut damping = 0.0;
     for _ in 0..STEPS {
         let mut kept = false;
+        let system = Steps::new(rows, &gram, &curve, &fit.controls, weights, &residuals);
         for _ in 0..DAMPING_TRIES {
-            let Some(steps) = rotation_steps(rows, &curve, &fit.controls, weights, &residuals, damping) else { break };
+            let Some(steps) = system.damped(damping) else { break };
             let controls = fit
                 .controls
                 .iter()
@@ -483,7 +514,7 @@ mod tests {
         QuatF64::from_rotation_vector(Vec3F64::new((2.0 * t).sin(), 0.3 * t, (3.0 * t).cos() * 0.5))
     }
 
-    /// [`rotation_steps`] assembled sample by sample, block by block, as the Jacobian reads:
+    /// [`Steps`] assembled sample by sample, block by block, as the Jacobian reads:
     /// the oracle of its per-control-point assembly.
     #[allow(clippy::type_complexity)]
     fn rotation_steps_per_sample(
@@ -542,7 +573,9 @@ mod tests {
             times.iter().map(|&t| [0.01 * (7.0 * t).sin(), 0.02 * t, -0.005 * (3.0 * t).cos()]).collect();
         let weights: Vec<f64> = times.iter().map(|&t| 1.0 + t * t).collect();
         for damping in [0.0, 1e-3] {
-            let gathered = rotation_steps(&rows, &curve, &controls, &weights, &residuals, damping).unwrap();
+            let system =
+                Steps::new(&rows, &gram(&rows, &weights, controls.len()), &curve, &controls, &weights, &residuals);
+            let gathered = system.damped(damping).unwrap();
             let oracle = rotation_steps_per_sample(&rows, &curve, &controls, &weights, &residuals, damping).unwrap();
             for (a, b) in gathered.iter().flatten().zip(oracle.iter().flatten()) {
                 assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-3), "{damping}: {a} against {b}");
