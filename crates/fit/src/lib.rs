@@ -25,6 +25,9 @@ use quatcurve_core::segment::locate_ascending;
 /// Levenberg-Marquardt steps at most per knot vector.
 const STEPS: usize = 60;
 
+/// The least relative fall in the weighted sum of squares that counts as progress.
+const KEPT_GAIN: f64 = 1e-9;
+
 /// Damping values tried (each ten times the last) before a step is given up.
 const DAMPING_TRIES: usize = 8;
 
@@ -439,16 +442,19 @@ impl Steps {
         Self { normal, rhs, mean }
     }
 
-    /// The steps with `damping` (relative to the mean diagonal) added to the diagonal, or
-    /// `None` when the system is not positive definite.
-    fn damped(&self, damping: f64) -> Option<Vec<[f64; 3]>> {
+    /// The steps with `damping` (relative to the mean diagonal) added to the diagonal, and the
+    /// fall in the weighted sum of squares the linear model predicts for them (`d . g + l |d|^2`
+    /// for `(J^T W J + l I) d = g`); `None` when the system is not positive definite.
+    fn damped(&self, damping: f64) -> Option<(Vec<[f64; 3]>, f64)> {
+        let diagonal = 1e-12 + damping * self.mean;
         let mut normal = self.normal.clone();
         for i in 0..self.rhs.len() {
-            normal.add(i, i, 1e-12 + damping * self.mean);
+            normal.add(i, i, diagonal);
         }
-        let mut rhs = self.rhs.clone();
-        normal.factor()?.solve(&mut rhs);
-        Some(rhs.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        let mut steps = self.rhs.clone();
+        normal.factor()?.solve(&mut steps);
+        let predicted = steps.iter().zip(&self.rhs).map(|(d, g)| d * g + diagonal * d * d).sum();
+        Some((steps.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(), predicted))
     }
 }
 
@@ -479,7 +485,13 @@ fn refine(
         let mut kept = false;
         let system = Steps::new(rows, &gram, &curve, &fit.controls, weights, &residuals);
         for _ in 0..DAMPING_TRIES {
-            let Some(steps) = system.damped(damping) else { break };
+            let Some((steps, predicted)) = system.damped(damping) else { break };
+            // More damping only shortens the step: once the model promises less than a kept
+            // step must gain, none of them is tried (a converged fit's last step tried all
+            // dampings, half of the evaluations of the steps).
+            if predicted <= sum * KEPT_GAIN {
+                break;
+            }
             let controls = fit
                 .controls
                 .iter()
@@ -489,7 +501,7 @@ fn refine(
             let candidate = Fit { knots: fit.knots.clone(), controls, worst: 0.0, worst_at: 0 };
             let (c, r, s) = residuals_of(&candidate);
             if s < sum {
-                kept = s < sum * (1.0 - 1e-9);
+                kept = s < sum * (1.0 - KEPT_GAIN);
                 (fit, curve, residuals, sum) = (candidate, c, r, s);
                 damping *= 0.1;
                 break;
@@ -575,7 +587,7 @@ mod tests {
         for damping in [0.0, 1e-3] {
             let system =
                 Steps::new(&rows, &gram(&rows, &weights, controls.len()), &curve, &controls, &weights, &residuals);
-            let gathered = system.damped(damping).unwrap();
+            let gathered = system.damped(damping).unwrap().0;
             let oracle = rotation_steps_per_sample(&rows, &curve, &controls, &weights, &residuals, damping).unwrap();
             for (a, b) in gathered.iter().flatten().zip(oracle.iter().flatten()) {
                 assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-3), "{damping}: {a} against {b}");
