@@ -6,7 +6,7 @@
 //! against the clip's bytes in the container ([`quatcurve_anim::qcf`]).
 
 use super::{bracket, fit_vectors, spans_of_order, RotationStart};
-use quatcurve_analysis::vertex_error::{object_space, pose_errors, Transform};
+use quatcurve_analysis::vertex_error::{joint_errors, object_space, Transform};
 use quatcurve_anim::qcf::fitted::ORDER;
 use quatcurve_anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
 use quatcurve_anim::qcf::quantize::{self, Quantized};
@@ -14,6 +14,7 @@ use quatcurve_anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
 use quatcurve_anim::{Animation, Channel, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::error::Number;
+use quatcurve_eval::skeleton::Affine;
 use rayon::prelude::*;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
@@ -163,6 +164,20 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
         })
         .collect();
     let tolerances = tolerances(animation, &order, channels, budget);
+    // What the scalings share: each channel's source at its timeline's samples, and the
+    // source's poses where the clip's error is measured.
+    let sampled: Vec<Vec<[f64; 4]>> = channels
+        .par_iter()
+        .zip(&timeline_of)
+        .map(|(c, &line)| {
+            let times = if c.times.len() < 2 { Vec::new() } else { timelines[line].sample_times() };
+            times.iter().map(|&(t, _)| source_at(c, t)).collect()
+        })
+        .collect();
+    let (source_frames, source_between) = (
+        SourcePoses::at(animation, &parents, &order, channels, &frames),
+        SourcePoses::at(animation, &parents, &order, channels, &between),
+    );
     let between_share = budget.between_error / budget.max_error;
     // The shares are conservative (errors along a chain seldom add up in one direction), so
     // each channel's tolerance is scaled towards the budget by the room its joint's subtree
@@ -184,14 +199,17 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             .zip(&tolerances)
             .zip(&timeline_of)
             .zip(&scales)
-            .map(|(((c, &t), &line), &[at, between])| FittedChannel {
+            .zip(&sampled)
+            .map(|((((c, &t), &line), &[at, between]), values)| FittedChannel {
                 joint: c.joint,
                 property: c.property,
-                curve: fit_channel(c, &timelines, line, [t * at, t * between_share * between]),
+                curve: fit_channel(c, values, &timelines, line, [t * at, t * between_share * between]),
             })
             .collect();
-        let measure = |times: &[f64]| worst_error(animation, &parents, &order, channels, &fitted, times, budget);
-        let ((at_frames, at_joints), (between_frames, between_joints)) = (measure(&frames), measure(&between));
+        let measure =
+            |source: &SourcePoses| worst_error(animation, &parents, &order, channels, &fitted, source, budget);
+        let ((at_frames, at_joints), (between_frames, between_joints)) =
+            (measure(&source_frames), measure(&source_between));
         let room = (budget.max_error / at_frames.error).min(budget.between_error / between_frames.error);
         if room > closest.0 {
             closest = (room, at_frames, between_frames);
@@ -278,7 +296,15 @@ fn tolerances(animation: &Animation, order: &[usize], channels: &[Keyed], budget
 /// between them), within `tolerance[0]` at keys and `tolerance[1]` between them,
 /// against its own interpolation; a channel whose every key is within `tolerance` of its first
 /// is stored once.
-fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance, between]: [f64; 2]) -> Fitted {
+/// `channel` fitted within its tolerances at frames and between them; `values` is the source
+/// at its timeline's samples (none for a single key).
+fn fit_channel(
+    channel: &Keyed,
+    values: &[[f64; 4]],
+    timelines: &[Timeline],
+    line: usize,
+    [tolerance, between]: [f64; 2],
+) -> Fitted {
     let first = channel.values[0];
     let rotation = channel.property == Property::Rotation;
     let off = |v: &[f64; 4]| {
@@ -296,9 +322,8 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
     // Each sample's bound on the decoded curve; the fit takes its share of it.
     let limits: Vec<f64> = samples.iter().map(|&(_, key)| if key { tolerance } else { between }).collect();
     let fitting: Vec<f64> = limits.iter().map(|l| (1.0 - QUANTIZATION_SHARE) * l).collect();
-    let values: Vec<[f64; 4]> = times.iter().map(|&t| source_at(channel, t)).collect();
     let errors = |curve: &[[f64; 4]]| -> Vec<f64> {
-        curve.iter().zip(&values).map(|(a, b)| distance(channel.property, a, b)).collect()
+        curve.iter().zip(values).map(|(a, b)| distance(channel.property, a, b)).collect()
     };
     // Every knot is one of the samples; the container stores its index.
     let sample_of = |knot: &f64| {
@@ -307,7 +332,7 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
         s as u32
     };
     let interior = |knots: &[f64]| -> Vec<u32> { knots[ORDER..knots.len() - ORDER].iter().map(sample_of).collect() };
-    let kept = kept_keys(channel.property, &values, &times, &fitting);
+    let kept = kept_keys(channel.property, values, &times, &fitting);
     let at_kept = |k: &usize| values[k * (BETWEEN_POINTS + 1)];
     let kept_values: Vec<[f64; 4]> =
         [0].iter().chain(&kept).chain([timelines[line].keys() - 1].iter()).map(at_kept).collect();
@@ -324,7 +349,8 @@ fn fit_channel(channel: &Keyed, timelines: &[Timeline], line: usize, [tolerance,
         let rotations: Vec<QuatF64> = values.iter().map(|v| QuatF64::from_array(*v)).collect();
         // A cubic of as many control points as the kept keys is not fitted on (noisy frames at
         // a low rate, or flips): the nonlinear fit is the most costly step.
-        let fit = RotationStart::new(&times, &rotations, &fitting).fit_below(kept_values.len());
+        let most = kept_values.len();
+        let fit = RotationStart::below(&times, &rotations, &fitting, most).and_then(|start| start.fit_below(most));
         fit.map(|fit| (Form::Cubic, interior(&fit.knots), Controls::Rotations(fit.controls)))
     } else {
         let vectors: Vec<[f64; 3]> = values.iter().map(|v| [v[0], v[1], v[2]]).collect();
@@ -499,41 +525,73 @@ fn source_at(channel: &Keyed, t: f64) -> [f64; 4] {
     }
 }
 
-/// The worst object-space error over `times` between the source and the fitted channels, and
-/// each joint's worst.
+/// The source's poses at the times a clip's error is measured, in object space, and whether
+/// each scales a joint: the same for every fit of the clip.
+struct SourcePoses {
+    times: Vec<f64>,
+    object: Vec<Vec<Affine>>,
+    scales: Vec<bool>,
+}
+
+impl SourcePoses {
+    fn at(
+        animation: &Animation,
+        parents: &[Option<usize>],
+        order: &[usize],
+        channels: &[Keyed],
+        times: &[f64],
+    ) -> Self {
+        let rest = rest_pose(animation);
+        let (object, scales) = times
+            .par_iter()
+            .map(|&t| {
+                let local = pose(&rest, channels, |k| source_at(&channels[k], t));
+                (object_space(parents, order, &local), local.iter().any(Transform::scales))
+            })
+            .unzip();
+        Self { times: times.to_vec(), object, scales }
+    }
+}
+
+/// The local pose of `rest` with each of `channels` set to its value from `values` (by index).
+fn pose(rest: &[Transform], channels: &[Keyed], values: impl Fn(usize) -> [f64; 4]) -> Vec<Transform> {
+    let mut local = rest.to_vec();
+    for (k, c) in channels.iter().enumerate() {
+        let v = values(k);
+        let t = &mut local[c.joint];
+        match c.property {
+            Property::Rotation => t.rotation = v,
+            Property::Translation => t.translation = [v[0], v[1], v[2]],
+            Property::Scale => t.scale = [v[0], v[1], v[2]],
+        }
+    }
+    local
+}
+
+/// The worst object-space error over the `source`'s times between it and the fitted channels
+/// (ACL's metric: the third vertex counts when either pose scales), and each joint's worst.
 fn worst_error(
     animation: &Animation,
     parents: &[Option<usize>],
     order: &[usize],
     channels: &[Keyed],
     fitted: &[FittedChannel],
-    times: &[f64],
+    source: &SourcePoses,
     budget: &Budget,
 ) -> (Worst, Vec<f64>) {
     // Every fitted channel at every time, evaluated once per channel.
-    let curves: Vec<Vec<[f64; 4]>> = fitted.par_iter().map(|f| f.curve.at(times)).collect();
+    let curves: Vec<Vec<[f64; 4]>> = fitted.par_iter().map(|f| f.curve.at(&source.times)).collect();
     let rest = rest_pose(animation);
-    let pose = |values: &dyn Fn(usize) -> [f64; 4]| {
-        let mut local = rest.clone();
-        for (k, c) in channels.iter().enumerate() {
-            let v = values(k);
-            let t = &mut local[c.joint];
-            match c.property {
-                Property::Rotation => t.rotation = v,
-                Property::Translation => t.translation = [v[0], v[1], v[2]],
-                Property::Scale => t.scale = [v[0], v[1], v[2]],
-            }
-        }
-        local
-    };
     let joints = parents.len();
-    times
+    source
+        .times
         .par_iter()
         .enumerate()
         .map(|(i, &t)| {
-            let raw = pose(&|k| source_at(&channels[k], t));
-            let lossy = pose(&|k| curves[k][i]);
-            let errors = pose_errors(parents, order, &raw, &lossy, budget.vertex_distance);
+            let lossy = pose(&rest, channels, |k| curves[k][i]);
+            let scales = source.scales[i] || lossy.iter().any(Transform::scales);
+            let lossy = object_space(parents, order, &lossy);
+            let errors = joint_errors(&source.object[i], &lossy, budget.vertex_distance, scales);
             let (joint, error) =
                 errors.iter().copied().enumerate().fold((0, 0.0), |w, (j, e)| if e > w.1 { (j, e) } else { w });
             (Worst { error, joint, time: t }, errors)
@@ -561,6 +619,7 @@ fn subtree_worst(parents: &[Option<usize>], order: &[usize], mut errors: Vec<f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use quatcurve_analysis::vertex_error::pose_errors;
     use quatcurve_anim::{Clip, Joint};
 
     /// A three-joint arm (10 cm bones) waving smoothly for two seconds at 120 Hz, its root
@@ -604,13 +663,22 @@ mod tests {
         let fit = fit_clip(&animation, 0, &budget).unwrap();
         assert!(fit.at_frames.error <= budget.max_error, "{:?}", fit.at_frames);
         assert!(fit.between_frames.error <= budget.between_error, "{:?}", fit.between_frames);
-        // Measured again here, at every frame, from the fitted curves and the keys.
+        // Measured again here, at every frame, from the fitted curves and the keys, pose by pose
+        // with the metric's own function (the fit computes the source's poses once).
         let channels: Vec<Keyed> = animation.clips[0].channels.iter().map(|c| Keyed::of(c).unwrap()).collect();
         let order = animation.parents_first().unwrap();
         let parents = animation.parents();
-        let again =
-            worst_error(&animation, &parents, &order, &channels, &fit.clip.channels, channels[0].times, &budget);
-        assert_eq!(again.0, fit.at_frames);
+        let rest = rest_pose(&animation);
+        let worst = channels[0]
+            .times
+            .iter()
+            .map(|&t| {
+                let raw = pose(&rest, &channels, |k| source_at(&channels[k], t));
+                let lossy = pose(&rest, &channels, |k| fit.clip.channels[k].curve.at(&[t])[0]);
+                pose_errors(&parents, &order, &raw, &lossy, budget.vertex_distance).into_iter().fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        assert_eq!(worst, fit.at_frames.error);
         assert!(matches!(fit.clip.channels[3].curve, Fitted::Constant(_)), "the still hand is stored once");
         assert_eq!(fit.raw_bytes, RAW_BYTES_PER_JOINT_FRAME * 3 * 241);
         assert!(fit.fitted_bytes * 4 < fit.raw_bytes, "{} of {} bytes", fit.fitted_bytes, fit.raw_bytes);

@@ -259,6 +259,17 @@ impl<'a> RotationStart<'a> {
     /// With fewer than two samples or a length mismatch.
     #[must_use]
     pub fn new(times: &'a [f64], rotations: &[QuatF64], tolerances: &'a [f64]) -> Self {
+        Self::below(times, rotations, tolerances, usize::MAX).expect("no bound on the control points")
+    }
+
+    /// [`RotationStart::new`], or `None` once its knots make `most` control points or more:
+    /// knots are only added, so the cumulative form would have as many ([`Self::fit_below`]),
+    /// and the splitting stops there.
+    ///
+    /// # Panics
+    /// With fewer than two samples or a length mismatch.
+    #[must_use]
+    pub fn below(times: &'a [f64], rotations: &[QuatF64], tolerances: &'a [f64], most: usize) -> Option<Self> {
         assert!(
             times.len() >= 2 && times.len() == rotations.len() && times.len() == tolerances.len(),
             "at least two samples, one rotation and one tolerance each"
@@ -268,8 +279,8 @@ impl<'a> RotationStart<'a> {
         for j in 1..samples.len() {
             samples[j] = samples[j].normalize().aligned_with(samples[j - 1]);
         }
-        let (interior, controls) = component_knots(times, &samples, &weights, tolerances);
-        Self { times, tolerances, samples, weights, interior, controls }
+        let (interior, controls) = component_knots(times, &samples, &weights, tolerances, most)?;
+        Some(Self { times, tolerances, samples, weights, interior, controls })
     }
 
     /// How many control points the components' fit has: at least, the cumulative form's.
@@ -318,19 +329,24 @@ impl<'a> RotationStart<'a> {
 /// Interior knots and control points of `samples` (unit, each on the side of the one before)
 /// fitted as four components of a clamped cubic B-spline by linear least squares, split as
 /// [`fit_vectors`] until every sample's chord is within half its tolerance (a rotation by a
-/// small angle `a` moves the unit quaternion by a chord of about `a / 2`).
+/// small angle `a` moves the unit quaternion by a chord of about `a / 2`); `None` once the
+/// knots make `most` control points or more.
 fn component_knots(
     times: &[f64],
     samples: &[QuatF64],
     weights: &[f64],
     tolerances: &[f64],
-) -> (Vec<f64>, Vec<[f64; 4]>) {
+    most: usize,
+) -> Option<(Vec<f64>, Vec<[f64; 4]>)> {
     let values: Vec<[f64; 4]> = samples.iter().map(|q| q.to_array()).collect();
     let chords: Vec<f64> = tolerances.iter().map(|t| t / 2.0).collect();
     let (start, end) = (times[0], *times.last().unwrap());
     let mut interior = Vec::new();
     let mut before: Option<(Vec<f64>, Vec<Row>)> = None;
     loop {
+        if interior.len() + ORDER >= most {
+            return None;
+        }
         let knots = clamped(ORDER, start, end, &interior);
         let rows = rows_after(&knots, times, before.as_ref().map(|(k, r)| (k.as_slice(), r.as_slice())));
         let controls = least_squares(&rows, weights, &values, knots.len() - ORDER)
@@ -350,7 +366,7 @@ fn component_knots(
             .collect();
         let new = splits(&knots, times, &errors, &chords);
         if new.is_empty() {
-            return (interior, controls);
+            return Some((interior, controls));
         }
         interior = merged(&interior, &new);
         before = Some((knots, rows));
@@ -675,6 +691,9 @@ mod tests {
                 assert!(fit.worst <= tolerance, "{name} {tolerance}: {}", fit.worst);
                 // Bounded: no fit at the lower bound, the same fit just above the fit's count.
                 assert!(start().fit_below(lower).is_none(), "{name} {tolerance}");
+                assert!(RotationStart::below(&times, &rotations, &tolerances, lower).is_none(), "{name} {tolerance}");
+                let below = RotationStart::below(&times, &rotations, &tolerances, lower + 1);
+                assert_eq!(below.map(|s| s.controls), Some(start().controls), "{name} {tolerance}");
                 assert_eq!(start().fit_below(n + 1), Some(fit), "{name} {tolerance}");
             }
         }
