@@ -133,15 +133,19 @@ pub fn wrap(t: f64, [start, end]: [f64; 2]) -> f64 {
 mod tests {
     use super::{arithmetic_span_step, locate, locate_ascending, locate_uniform, wrap, ARITHMETIC_SPAN_RATIO};
 
+    /// Numbers in `[0, 1)` from a linear congruential generator seeded with `seed`.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     #[test]
     fn arithmetic_lookup_finds_the_span_bisection_finds_on_about_equally_spaced_knots() {
         // f32 key times (spacings off by ~1e-5), jittered ones, and clamped B-spline knots
         // whose inner spans are the ones searched; times inside, outside and on knots.
-        let mut seed = 7u64;
-        let mut unit = || {
-            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = uniform(7);
         let mut checked = 0;
         for case in 0..300 {
             let n = 3 + case % 40;
@@ -216,11 +220,7 @@ mod tests {
     #[test]
     fn walking_ascending_times_finds_the_spans_bisection_finds() {
         // Clamped knots with repeated inner knots; times before, inside, on knots and after.
-        let mut seed = 11u64;
-        let mut unit = || {
-            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = uniform(11);
         for case in 0..200 {
             let inner = case % 30;
             let mut knots: Vec<f64> = (0..inner).map(|_| (unit() * 8.0).round() / 8.0).collect();
