@@ -612,6 +612,47 @@ mod tests {
     }
 
     #[test]
+    fn the_fall_a_step_predicts_is_the_fall_it_makes_near_the_fit() {
+        // Control points a little off the curve they fit: the linear model is close, so the
+        // fall in the weighted sum of squares it predicts is the fall the step makes (the
+        // dampings stop on it).
+        let knots = clamped(ORDER, 0.0, 1.0, &[0.25, 0.5, 0.75]);
+        let times: Vec<f64> = (0..=80).map(|j| j as f64 / 80.0).collect();
+        let spans = spans(&knots, &times);
+        let rows = collocation(&spans);
+        let truth: Vec<QuatF64> = (0..knots.len() - ORDER).map(|i| rotation(0.4 * i as f64)).collect();
+        let samples = Fit { knots: knots.clone(), controls: truth.clone(), worst: 0.0, worst_at: 0 }
+            .evaluate_spans(&spans)
+            .unwrap();
+        let off = |i: usize| Vec3F64::new(0.002 * (i as f64).sin(), -0.001, 0.0015 * (i as f64).cos());
+        let controls: Vec<QuatF64> = truth.iter().enumerate().map(|(i, c)| *c * QuatF64::exp(off(i))).collect();
+        let weights: Vec<f64> = times.iter().map(|&t| 1.0 + t).collect();
+        let sum_of = |controls: &[QuatF64]| {
+            let fit = Fit { knots: knots.clone(), controls: controls.to_vec(), worst: 0.0, worst_at: 0 };
+            let curve = fit.evaluate_spans(&spans).unwrap();
+            let residuals: Vec<[f64; 3]> =
+                curve.iter().zip(&samples).map(|(q, s)| (q.conjugate() * *s).log().to_array()).collect();
+            let sum: f64 = residuals.iter().zip(&weights).map(|(r, w)| w * r.iter().map(|v| v * v).sum::<f64>()).sum();
+            (curve, residuals, sum)
+        };
+        let (curve, residuals, sum) = sum_of(&controls);
+        let system = Steps::new(&rows, &gram(&rows, &weights, controls.len()), &curve, &controls, &weights, &residuals);
+        for damping in [0.0, 1e-2, 1.0] {
+            let (steps, predicted) = system.damped(damping).unwrap();
+            let moved: Vec<QuatF64> = controls
+                .iter()
+                .zip(&steps)
+                .map(|(c, d)| (*c * QuatF64::exp(Vec3F64::from_array(*d))).normalize())
+                .collect();
+            let fall = sum - sum_of(&moved).2;
+            assert!(
+                predicted > 0.0 && (fall - predicted).abs() <= 0.05 * predicted,
+                "{damping}: {fall} against {predicted}"
+            );
+        }
+    }
+
+    #[test]
     fn a_curve_evaluated_at_its_spans_is_the_reference_evaluators_to_the_bit() {
         let knots = clamped(ORDER, 0.0, 1.0, &[0.2, 0.5, 0.5, 0.5, 0.8]);
         let controls: Vec<QuatF64> = (0..knots.len() - ORDER).map(|i| rotation(0.9 * i as f64)).collect();
