@@ -34,7 +34,12 @@ const BITS_BELOW_BOUND: u32 = 2;
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
 const SCALINGS: usize = 12;
 
-/// A fit whose worst error is within this factor of the budget is not tried looser.
+/// A fit whose worst error at frames is within this factor of the budget is not tried looser:
+/// the search ends once every channel's room at frames is below it and none is over the
+/// budget between frames. Room left between frames alone does not hold it (the points between
+/// frames take a bound 30 times looser, which seldom decides a channel's bytes; CMU 131_01's
+/// search ended after 8 fits instead of 12 in the same bytes, and no other clip of the shared
+/// files changed by more than a byte).
 const ROOM_TO_GROW: f64 = 1.25;
 
 /// The most the tolerances grow from one fit to the next.
@@ -240,7 +245,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
                 [budget.max_error / at[c.joint], budget.between_error / between[c.joint]].map(|r| r.min(MAX_GROWTH))
             })
             .collect();
-        if rooms.iter().flatten().all(|r| (1.0..ROOM_TO_GROW).contains(r)) {
+        if rooms.iter().all(|&[at, between]| (1.0..ROOM_TO_GROW).contains(&at) && between >= 1.0) {
             break;
         }
         // Over the budget after a step from the kept fit: half the step back (geometric mean),
