@@ -300,9 +300,8 @@ fn tolerances(animation: &Animation, order: &[usize], channels: &[Keyed], budget
 /// `channel` fitted at the samples of its timeline (`timelines[line]`: its keys and the points
 /// between them), within `tolerance[0]` at keys and `tolerance[1]` between them,
 /// against its own interpolation; a channel whose every key is within `tolerance` of its first
-/// is stored once.
-/// `channel` fitted within its tolerances at frames and between them; `values` is the source
-/// at its timeline's samples (none for a single key).
+/// is stored once. `values` is the source at those samples (none for a single key), the same
+/// for every fit of the clip.
 fn fit_channel(
     channel: &Keyed,
     values: &[[f64; 4]],
