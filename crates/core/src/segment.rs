@@ -27,7 +27,7 @@ pub fn locate(knots: &[f64], first: usize, last: usize, t: f64) -> (usize, f64) 
 
 /// [`locate`] of each of `times` in ascending order, walking the knots from the last span
 /// instead of bisecting for each: a fit evaluates every sample of a channel on each knot
-/// vector it tries, and the bisection was a tenth of its time.
+/// vector it tries, and bisecting for each costs it a tenth of its time.
 ///
 /// # Panics
 /// When `times` are not ascending (NaN included).

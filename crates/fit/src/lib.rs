@@ -528,7 +528,7 @@ fn refine(
             break;
         }
     }
-    // `curve` is the kept fit's at the spans: the reference evaluator's at `times`, to the bit.
+    // `curve` is the kept fit's at the spans: the reference evaluator's at the samples, to the bit.
     let errors: Vec<f64> = curve.iter().zip(samples).map(|(q, s)| q.angle_to(*s)).collect();
     (fit.worst_at, fit.worst) = worst(&errors);
     (fit, errors)
