@@ -26,9 +26,9 @@ pub const RAW_BYTES_PER_JOINT_FRAME: usize = 40;
 pub const QUANTIZATION_SHARE: f64 = 0.25;
 
 /// The bit-width search starts this many bits below the width the rounding bound asks for:
-/// the bound is loose (rounding errors seldom line up), and on CMU 131_01 the search ended 2
-/// or 3 bits below it for 96% of the forms tried; started at the bound, it took 4.5 curve
-/// evaluations a form.
+/// the bound is loose (rounding errors seldom line up): on CMU 131_01 the search ends 2 or 3
+/// bits below it for 96% of the forms, and from the bound it takes 4.5 curve evaluations a
+/// form.
 const BITS_BELOW_BOUND: u32 = 2;
 
 /// Fits of a clip at most, each with every tolerance scaled by how much room the last left.
@@ -37,9 +37,9 @@ const SCALINGS: usize = 12;
 /// A fit whose worst error at frames is within this factor of the budget is not tried looser:
 /// the search ends once every channel's room at frames is below it and none is over the
 /// budget between frames. Room left between frames alone does not hold it (the points between
-/// frames take a bound 30 times looser, which seldom decides a channel's bytes; CMU 131_01's
-/// search ended after 8 fits instead of 12 in the same bytes, and no other clip of the shared
-/// files changed by more than a byte).
+/// frames take a bound 30 times looser, which seldom decides a channel's bytes: CMU 131_01's
+/// search ends after 8 fits, not 12, in the same bytes, and no other clip of the shared files
+/// moves by more than a byte).
 const ROOM_TO_GROW: f64 = 1.25;
 
 /// The most the tolerances grow from one fit to the next.

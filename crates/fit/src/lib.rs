@@ -503,8 +503,8 @@ fn refine(
         for _ in 0..DAMPING_TRIES {
             let Some((steps, predicted)) = system.damped(damping) else { break };
             // More damping only shortens the step: once the model promises less than a kept
-            // step must gain, none of them is tried (a converged fit's last step tried all
-            // dampings, half of the evaluations of the steps).
+            // step must gain, none of them is tried (else a converged fit's last step tries all
+            // dampings: half of the steps' curve evaluations).
             if predicted <= sum * KEPT_GAIN {
                 break;
             }
