@@ -63,7 +63,14 @@ pub fn bspline_cumulative(knots: &[f64], k: usize, l: usize, t: f64) -> Vec<Basi
 /// [`bspline_cumulative`] into `out[..k - 1]`, without allocating (the fast CPU path calls
 /// it per sample).
 pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &mut [BasisJet]) {
-    let tri = cox_de_boor(knots, k, l, t);
+    // Rows k - 2, k - 1 and k of the triangle: the derivatives read the two below the last.
+    let mut rows = [[0.0f64; MAX_TRIANGLE]; 3];
+    let last = cox_de_boor(knots, k, l, t, |m, row| {
+        if m + 2 >= k {
+            rows[m + 2 - k] = *row;
+        }
+    });
+    rows[2] = last;
     let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
     // B_{j,m}(t), zero outside the triangle.
     let basis = |m: usize, j: isize| -> f64 {
@@ -74,7 +81,7 @@ pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &
         if r < 0 || r >= m as isize {
             0.0
         } else {
-            tri[m][r as usize]
+            rows[m + 2 - k][r as usize]
         }
     };
     let kn = |j: isize| knots[j as usize];
@@ -99,45 +106,51 @@ pub fn bspline_cumulative_into(knots: &[f64], k: usize, l: usize, t: f64, out: &
 /// `out[..k - 1]`: what a curve's value needs (a vector channel per sample), without the
 /// derivatives' quotients.
 pub fn bspline_cumulative_values_into(knots: &[f64], k: usize, l: usize, t: f64, out: &mut [f64]) {
-    let tri = cox_de_boor(knots, k, l, t);
+    let row = cox_de_boor(knots, k, l, t, |_, _| {});
     let first = l as isize - k as isize + 2;
     let mut tail = 0.0;
     for i in (first..=l as isize).rev() {
         let r = i - (l as isize - k as isize + 1);
-        tail += if r < 0 || r >= k as isize { 0.0 } else { tri[k][r as usize] };
+        tail += if r < 0 || r >= k as isize { 0.0 } else { row[r as usize] };
         out[(i - first) as usize] = tail;
     }
 }
 
-/// The Cox-de Boor triangle at `t` on span `l`: `tri[m][r] = B_{l-m+1+r, m}(t)` for orders
-/// `m = 1..=k`, `r = 0..m`. Quotients with a zero-length denominator are 0.
-fn cox_de_boor(knots: &[f64], k: usize, l: usize, t: f64) -> [[f64; 8]; 9] {
+/// Entries of a Cox-de Boor triangle's row: the highest order, [`crate::curve::MAX_ORDER`].
+const MAX_TRIANGLE: usize = crate::curve::MAX_ORDER;
+
+/// The last row of the Cox-de Boor triangle at `t` on span `l`, `row[r] = B_{l-k+1+r, k}(t)`
+/// for `r = 0..k`, each row `m = 1..k` shown to `seen(m, row)` before the next replaces it
+/// in place (from the top entry down, so each entry reads the two below it before they
+/// change): no triangle is kept or copied. Quotients with a zero-length denominator are 0.
+#[inline]
+fn cox_de_boor(
+    knots: &[f64],
+    k: usize,
+    l: usize,
+    t: f64,
+    mut seen: impl FnMut(usize, &[f64; MAX_TRIANGLE]),
+) -> [f64; MAX_TRIANGLE] {
     let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
-    let mut tri = [[0.0f64; 8]; 9];
-    tri[1][0] = 1.0;
+    let mut row = [0.0f64; MAX_TRIANGLE];
+    row[0] = 1.0;
     for m in 1..k {
-        let (done, rest) = tri.split_at_mut(m + 1);
-        let prev = &done[m];
-        let b = |j: isize| -> f64 {
-            let r = j - (l as isize - m as isize + 1);
-            if r < 0 || r >= m as isize {
-                0.0
-            } else {
-                prev[r as usize]
-            }
-        };
-        for (r, slot) in rest[0].iter_mut().enumerate().take(m + 1) {
+        seen(m, &row);
+        // Row m holds B_{l-m+1+r, m} at r = 0..m; row m + 1 takes r = 0..=m.
+        for r in (0..=m).rev() {
+            let below = if r < m { row[r] } else { 0.0 };
+            let before = if r > 0 { row[r - 1] } else { 0.0 };
             let j = l as isize - m as isize + r as isize;
             let ju = j.max(0) as usize;
-            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * b(j) } else { 0.0 };
+            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * before } else { 0.0 };
             let right = div(
                 knots[(j + m as isize + 1) as usize] - t,
                 knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize],
-            ) * b(j + 1);
-            *slot = left + right;
+            ) * below;
+            row[r] = left + right;
         }
     }
-    tri
+    row
 }
 
 /// The cumulative basis functions of one span as polynomials in the span parameter
