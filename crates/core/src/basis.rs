@@ -120,9 +120,11 @@ pub fn bspline_cumulative_values_into(knots: &[f64], k: usize, l: usize, t: f64,
 const MAX_TRIANGLE: usize = crate::curve::MAX_ORDER;
 
 /// The last row of the Cox-de Boor triangle at `t` on span `l`, `row[r] = B_{l-k+1+r, k}(t)`
-/// for `r = 0..k`, each row `m = 1..k` shown to `seen(m, row)` before the next replaces it
-/// in place (from the top entry down, so each entry reads the two below it before they
-/// change): no triangle is kept or copied. Quotients with a zero-length denominator are 0.
+/// for `r = 0..k`, each row `m = 1..k` shown to `seen(m, row)` before the next replaces it in
+/// place: de Boor's triangular scheme (Piegl and Tiller's `BasisFuns`), one quotient per pair
+/// of neighbours (6 for a cubic, where the recursion as written takes 18). Its denominators
+/// are knot differences that span `[t_l, t_{l+1}]`, so they vanish only on an empty span, whose
+/// quotients are 0.
 #[inline]
 fn cox_de_boor(
     knots: &[f64],
@@ -131,24 +133,22 @@ fn cox_de_boor(
     t: f64,
     mut seen: impl FnMut(usize, &[f64; MAX_TRIANGLE]),
 ) -> [f64; MAX_TRIANGLE] {
-    let div = |a: f64, b: f64| if b == 0.0 { 0.0 } else { a / b };
     let mut row = [0.0f64; MAX_TRIANGLE];
     row[0] = 1.0;
+    // left[j] = t - t_{l+1-j}, right[j] = t_{l+j} - t.
+    let (mut left, mut right) = ([0.0f64; MAX_TRIANGLE], [0.0f64; MAX_TRIANGLE]);
     for m in 1..k {
         seen(m, &row);
-        // Row m holds B_{l-m+1+r, m} at r = 0..m; row m + 1 takes r = 0..=m.
-        for r in (0..=m).rev() {
-            let below = if r < m { row[r] } else { 0.0 };
-            let before = if r > 0 { row[r - 1] } else { 0.0 };
-            let j = l as isize - m as isize + r as isize;
-            let ju = j.max(0) as usize;
-            let left = if j >= 0 { div(t - knots[ju], knots[ju + m] - knots[ju]) * before } else { 0.0 };
-            let right = div(
-                knots[(j + m as isize + 1) as usize] - t,
-                knots[(j + m as isize + 1) as usize] - knots[(j + 1) as usize],
-            ) * below;
-            row[r] = left + right;
+        left[m] = t - knots[l + 1 - m];
+        right[m] = knots[l + m] - t;
+        let mut saved = 0.0;
+        for r in 0..m {
+            let width = right[r + 1] + left[m - r];
+            let quotient = if width == 0.0 { 0.0 } else { row[r] / width };
+            row[r] = saved + right[r + 1] * quotient;
+            saved = left[m - r] * quotient;
         }
+        row[m] = saved;
     }
     row
 }
