@@ -372,21 +372,24 @@ fn fit_channel(
             // Every width tried shares the knots, so a rotation's spans and basis at the
             // samples are computed once (the same bits as `Fitted::at`).
             let spans = std::cell::OnceCell::new();
-            let at = |curve: &Fitted| match curve {
-                Fitted::Rotation(spline, _) => {
-                    let fit = &spline.fit;
-                    let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
-                    let curve = fit.evaluate_spans(spans).expect("a fitted curve evaluates");
-                    curve.iter().map(|q| q.to_array()).collect()
-                }
-                _ => curve.at(&times),
-            };
+            // Each sample's distance from the source, as far as the first one out of its
+            // bound: a refused width (every search tries one) stops there.
             let within = |curve: &Fitted| {
-                errors(&at(curve))
-                    .iter()
-                    .zip(&unrounded)
-                    .zip(&limits)
-                    .all(|((&d, &u), &l)| d <= l.max(u + QUANTIZATION_SHARE * l))
+                let bounded = |(d, (&u, &l)): (f64, (&f64, &f64))| d <= l.max(u + QUANTIZATION_SHARE * l);
+                let bounds = unrounded.iter().zip(&limits);
+                match curve {
+                    Fitted::Rotation(spline, _) => {
+                        let fit = &spline.fit;
+                        let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
+                        let curve = fit.spans_lazily(spans).expect("a fitted curve evaluates");
+                        curve
+                            .zip(values)
+                            .map(|(q, v)| distance(channel.property, &q.to_array(), v))
+                            .zip(bounds)
+                            .all(bounded)
+                    }
+                    _ => errors(&curve.at(&times)).into_iter().zip(bounds).all(bounded),
+                }
             };
             let start = controls.bits_within(tolerance * QUANTIZATION_SHARE).saturating_sub(BITS_BELOW_BOUND).max(1);
             let curve = |bits| controls.quantized(timelines, line, form, knots.clone(), bits);

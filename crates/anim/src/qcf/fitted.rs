@@ -96,11 +96,20 @@ impl Fit<QuatF64> {
     /// # Errors
     /// As [`Self::evaluate`].
     pub fn evaluate_spans(&self, spans: &[(usize, Vec<BasisJet>)]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
+        Ok(self.spans_lazily(spans)?.collect())
+    }
+
+    /// [`Self::evaluate_spans`] one time at a time, as they are asked for: a check that stops
+    /// at the first sample out of bounds evaluates no further.
+    ///
+    /// # Errors
+    /// As [`Self::evaluate`].
+    pub fn spans_lazily<'s>(
+        &self,
+        spans: &'s [(usize, Vec<BasisJet>)],
+    ) -> quatcurve_eval::error::Result<impl Iterator<Item = QuatF64> + 's> {
         let batch = self.batch()?;
-        Ok(spans
-            .iter()
-            .map(|(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, basis))
-            .collect())
+        Ok(spans.iter().map(move |(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, basis)))
     }
 }
 
