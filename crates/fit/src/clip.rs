@@ -8,7 +8,7 @@
 use super::{bracket, fit_vectors, spans_of_order, RotationStart};
 use quatcurve_analysis::vertex_error::{joint_errors, object_space, Transform};
 use quatcurve_anim::qcf::fitted::ORDER;
-use quatcurve_anim::qcf::fitted::{Between, Fitted, FittedChannel, FittedClip, Form, Spline};
+use quatcurve_anim::qcf::fitted::{Between, Fit, Fitted, FittedChannel, FittedClip, Form, Spline};
 use quatcurve_anim::qcf::quantize::{self, Quantized};
 use quatcurve_anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
 use quatcurve_anim::{Animation, Channel, Property};
@@ -368,26 +368,25 @@ fn fit_channel(
         .into_iter()
         .chain([keys])
         .map(|(form, knots, controls)| {
-            let unrounded = errors(&controls.unrounded_at(timelines, line, form, &knots, &times));
-            // Every width tried shares the knots, so a rotation's spans and basis at the
-            // samples are computed once (the same bits as `Fitted::at`).
+            // The unrounded curve and every width tried share the knots, so a rotation's spans
+            // and basis at the samples are computed once (the same bits as `Fitted::at`).
             let spans = std::cell::OnceCell::new();
+            let rotation_at = |fit: &Fit<QuatF64>| {
+                let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
+                let curve = fit.spans_lazily(spans).expect("a fitted curve evaluates");
+                curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v))
+            };
+            let unrounded: Vec<f64> = match &controls {
+                Controls::Rotations(c) => rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit).collect(),
+                Controls::Vectors(c) => errors(&Spline::new(timelines, line, form, knots.clone(), c.clone()).at(&times)),
+            };
             // Each sample's distance from the source, as far as the first one out of its
             // bound: a refused width (every search tries one) stops there.
             let within = |curve: &Fitted| {
                 let bounded = |(d, (&u, &l)): (f64, (&f64, &f64))| d <= l.max(u + QUANTIZATION_SHARE * l);
                 let bounds = unrounded.iter().zip(&limits);
                 match curve {
-                    Fitted::Rotation(spline, _) => {
-                        let fit = &spline.fit;
-                        let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
-                        let curve = fit.spans_lazily(spans).expect("a fitted curve evaluates");
-                        curve
-                            .zip(values)
-                            .map(|(q, v)| distance(channel.property, &q.to_array(), v))
-                            .zip(bounds)
-                            .all(bounded)
-                    }
+                    Fitted::Rotation(spline, _) => rotation_at(&spline.fit).zip(bounds).all(bounded),
                     _ => errors(&curve.at(&times)).into_iter().zip(bounds).all(bounded),
                 }
             };
@@ -412,21 +411,6 @@ enum Controls {
 }
 
 impl Controls {
-    /// The curve they make in `form` on `knots` of a timeline, unrounded, at `times`.
-    fn unrounded_at(
-        &self,
-        timelines: &[Timeline],
-        line: usize,
-        form: Form,
-        knots: &[u32],
-        times: &[f64],
-    ) -> Vec<[f64; 4]> {
-        match self {
-            Controls::Rotations(c) => Spline::new(timelines, line, form, knots.to_vec(), c.clone()).at(times),
-            Controls::Vectors(c) => Spline::new(timelines, line, form, knots.to_vec(), c.clone()).at(times),
-        }
-    }
-
     /// The fewest bits whose rounding moves no control point by more than `error`.
     fn bits_within(&self, error: f64) -> u32 {
         match self {
