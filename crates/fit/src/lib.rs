@@ -17,8 +17,8 @@ pub mod clip;
 pub mod job;
 
 use banded::Banded;
-use quatcurve_anim::qcf::fitted::{clamped, Fit, ORDER};
-use quatcurve_core::basis::{bspline_cumulative, bspline_cumulative_values_into, BasisJet};
+use quatcurve_anim::qcf::fitted::{clamped, Fit, SpanBasis, ORDER};
+use quatcurve_core::basis::{bspline_cumulative_into, bspline_cumulative_values_into};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_core::segment::locate_ascending;
 
@@ -32,17 +32,23 @@ const KEPT_GAIN: f64 = 1e-9;
 const DAMPING_TRIES: usize = 8;
 
 /// A sample's span `l` and the cumulative basis there ([`spans`]).
-type Span = (usize, Vec<BasisJet>);
+type Span = SpanBasis;
 
 /// A sample's first control point and the [`ORDER`] basis values from there ([`collocation`]).
 type Row = (usize, [f64; ORDER]);
 
 /// Per sample time (ascending), its span `l` (`locate`) and the cumulative basis there
-/// (`B~_{l-k+2..=l}`, [`bspline_cumulative`]) of a clamped B-spline of order `k`: what the
+/// (`B~_{l-k+2..=l}`, [`SpanBasis`]) of a clamped B-spline of order `k` (at most [`ORDER`]): what the
 /// reference evaluator computes for each time, computed once per knot vector.
 fn spans_of_order(knots: &[f64], k: usize, times: &[f64]) -> Vec<Span> {
     let last = knots.len() - k - 1;
-    locate_ascending(knots, k - 1, last, times).map(|(l, t)| (l, bspline_cumulative(knots, k, l, t))).collect()
+    locate_ascending(knots, k - 1, last, times)
+        .map(|(l, t)| {
+            let mut basis = [[0.0; 3]; ORDER - 1];
+            bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
+            (l, basis)
+        })
+        .collect()
 }
 
 /// [`spans_of_order`] of a cubic.

@@ -16,6 +16,12 @@ use quatcurve_eval::track::Track;
 /// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
 pub const ORDER: usize = 4;
 
+/// A time's span `l` on a fitted channel's knots and the cumulative basis there
+/// (`B~_{l-k+2..=l}`, [`quatcurve_core::basis::bspline_cumulative`]): its first `k - 1`
+/// entries, `k` the curve's order (at most [`ORDER`]). Held inline: a fit computes one per
+/// sample and knot vector.
+pub type SpanBasis = (usize, [BasisJet; ORDER - 1]);
+
 /// A fitted channel: the knot vector (clamped: [`ORDER`] copies of each end) and the control
 /// points, with the largest error over the samples and where.
 #[derive(Clone, Debug, PartialEq)]
@@ -95,7 +101,7 @@ impl Fit<QuatF64> {
     ///
     /// # Errors
     /// As [`Self::evaluate`].
-    pub fn evaluate_spans(&self, spans: &[(usize, Vec<BasisJet>)]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
+    pub fn evaluate_spans(&self, spans: &[SpanBasis]) -> quatcurve_eval::error::Result<Vec<QuatF64>> {
         Ok(self.spans_lazily(spans)?.collect())
     }
 
@@ -106,10 +112,13 @@ impl Fit<QuatF64> {
     /// As [`Self::evaluate`].
     pub fn spans_lazily<'s>(
         &self,
-        spans: &'s [(usize, Vec<BasisJet>)],
+        spans: &'s [SpanBasis],
     ) -> quatcurve_eval::error::Result<impl Iterator<Item = QuatF64> + 's> {
         let batch = self.batch()?;
-        Ok(spans.iter().map(move |(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, basis)))
+        let k = self.order();
+        Ok(spans
+            .iter()
+            .map(move |(l, basis)| quatcurve_eval::reference::bspline_rotation_at(batch.view(0), *l, &basis[..k - 1])))
     }
 }
 
