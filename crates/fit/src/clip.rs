@@ -377,8 +377,12 @@ fn fit_channel(
                 curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v))
             };
             let unrounded: Vec<f64> = match &controls {
-                Controls::Rotations(c) => rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit).collect(),
-                Controls::Vectors(c) => errors(&Spline::new(timelines, line, form, knots.clone(), c.clone()).at(&times)),
+                Controls::Rotations(c) => {
+                    rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit).collect()
+                }
+                Controls::Vectors(c) => {
+                    errors(&Spline::new(timelines, line, form, knots.clone(), c.clone()).at(&times))
+                }
             };
             // Each sample's distance from the source, as far as the first one out of its
             // bound: a refused width (every search tries one) stops there.
