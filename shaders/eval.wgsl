@@ -18,6 +18,7 @@ const CURVE_BEZIER: u32 = 2u;
 const CURVE_HERMITE: u32 = 3u;
 const CURVE_NAM_KIM: u32 = 4u;
 const CURVE_BSPLINE: u32 = 5u;
+const CURVE_NORMALIZED_BSPLINE: u32 = 6u;
 const ANY_CURVE: u32 = 255u;
 const BLEND_QUADRATIC: u32 = 1u;
 
@@ -265,6 +266,41 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     return product_sample(p);
 }
 
+/// normalize(sum B_i c_i) with its time derivatives: the span's cumulative basis (B~, as the
+/// cumulative form takes it) differenced into the plain one, B_i = B~_i - B~_(i+1), B~ being 1
+/// below the window and 0 above it; then the sum of control points normalized on jets.
+fn eval_normalized_bspline(tr: GpuTrack, t: vec2u) -> Sample {
+    let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
+    var basis: array<vec3f, MAX_FACTORS>;
+    var l: u32;
+    if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
+        let s = uniform_bspline_span(tr, k, t);
+        l = s.i;
+        let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
+        let base = (k - 2u) * (k - 1u) / 2u;
+        for (var r = 0u; r + 1u < k; r++) {
+            basis[r] = poly_jet(base + r, k - 1u, s.u) * scale;
+        }
+    } else {
+        let loc = locate(tr.knot_offset, k - 1u, tr.point_count - 1u, t);
+        l = loc.span;
+        bspline_cumulative(knot_window(tr.knot_offset, k, l, loc.t), k, &basis);
+    }
+    var sum = jet_quat_const(vec4f(0.0));
+    var above = vec3f(1.0, 0.0, 0.0);
+    for (var r = 0u; r < k; r++) {
+        var below = vec3f(0.0);
+        if r + 1u < k {
+            below = basis[r];
+        }
+        let b = above - below;
+        let c = points[tr.point_offset + l + 1u + r - k];
+        sum = JetQuat(sum.v + b.x * c, sum.d + b.y * c, sum.dd + b.z * c);
+        above = below;
+    }
+    return sample_from_jets(jet_quat_normalize(sum));
+}
+
 fn eval_squad(tr: GpuTrack, t: vec2u) -> Sample {
     let s = key_segment(tr, t);
     let h = vec3f(s.u, s.inv_len, 0.0);
@@ -307,6 +343,7 @@ fn evaluate_track(tr: GpuTrack, t: vec2u) -> Sample {
         case CURVE_BEZIER: { return eval_bezier(tr, t); }
         case CURVE_HERMITE: { return eval_hermite(tr, t); }
         case CURVE_NAM_KIM: { return eval_nam_kim(tr, t); }
+        case CURVE_NORMALIZED_BSPLINE: { return eval_normalized_bspline(tr, t); }
         default: { return eval_bspline(tr, t); }
     }
 }

@@ -127,6 +127,13 @@ fn jet_quat_log(q: JetQuat) -> JetVec {
     return jet_vec_scale(v, factor);
 }
 
+/// q / |q| on jets: a normalized B-spline's sum of control points made a unit rotation.
+fn jet_quat_normalize(q: JetQuat) -> JetQuat {
+    let length2 = vec3f(dot(q.v, q.v), 2.0 * dot(q.v, q.d), 2.0 * dot(q.d, q.d) + 2.0 * dot(q.v, q.dd));
+    let k = jet_div(jet_const(1.0), jet_sqrt(length2));
+    return JetQuat(q.v * k.x, q.d * k.x + q.v * k.y, q.dd * k.x + 2.0 * q.d * k.y + q.v * k.z);
+}
+
 /// Unfolded geodesic a exp(h log(a^-1 b)) on jets, evaluated from the nearer end (as
 /// Quat::geodesic): past the middle, b exp((1 - h) log(b^-1 a)).
 fn jet_quat_geodesic(a: JetQuat, b: JetQuat, h: vec3f) -> JetQuat {

@@ -132,9 +132,11 @@ def evaluate(
         Samples per second, or samples per track (not both).
     curve : str, default ``"bspline-interp"``
         ``bspline-interp`` (the default of every front end: C2 and through every key, on any
-        key times), ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim`` or ``bspline``
+        key times), ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim``, ``bspline``
         (KKS order-k B-spline with the keys as control points, ``knots``
-        phantom/uniform/clamped: it approximates the keys, passing only through the ends).
+        phantom/uniform/clamped: it approximates the keys, passing only through the ends) or
+        ``normalized-bspline`` (the same B-spline on the keys' components, normalized: cheaper,
+        for keys less than a half turn apart within a span).
     order, knots, tangents, blend
         B-spline order, knot mode (phantom when not given), tangent source of hermite/nam-kim
         (``catmull-rom``, ``zero``, ``given`` with ``angular_velocities``), Nam-Kim blend

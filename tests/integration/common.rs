@@ -56,6 +56,11 @@ pub const KINDS: [Kind; 4] = [Kind::Random, Kind::NearIdentical, Kind::NearAntip
 
 /// `count` keys whose consecutive physical rotation steps follow `kind`.
 pub fn keys(g: &mut Gen, count: usize, kind: Kind) -> Vec<[f64; 4]> {
+    keys_scaled(g, count, kind, 1.0)
+}
+
+/// [`keys`] with every step's angle times `scale`.
+pub fn keys_scaled(g: &mut Gen, count: usize, kind: Kind, scale: f64) -> Vec<[f64; 4]> {
     let mut q = g.rotation();
     let mut out = vec![q.to_array()];
     for _ in 1..count {
@@ -63,7 +68,7 @@ pub fn keys(g: &mut Gen, count: usize, kind: Kind) -> Vec<[f64; 4]> {
             Kind::Random | Kind::SignFlipped => g.range(0.0, 140f64.to_radians()),
             Kind::NearIdentical => 10f64.powf(g.range(-9.0, -6.0)),
             Kind::NearAntipodal => g.range(170f64.to_radians(), 179.9f64.to_radians()),
-        };
+        } * scale;
         q = q * QuatF64::exp(g.direction().scale(angle / 2.0));
         let sign = if kind == Kind::SignFlipped && g.coin() { -1.0 } else { 1.0 };
         out.push(q.mul_scalar(sign).to_array());
@@ -99,17 +104,20 @@ pub fn velocities(g: &mut Gen, count: usize, max: f64) -> Vec<[f64; 3]> {
 }
 
 /// A random track for `spec`: key count within the curve's needs, times uniform where the
-/// knot mode needs them, velocities up to 20 rad/s, explicit knots with repeats when asked.
+/// knot mode needs them, velocities up to 20 rad/s, explicit knots with repeats when asked. A
+/// normalized B-spline's steps are `kind`'s over `k - 1`, so that a span's control points
+/// (phantom points too) keep within its rule's half turn: near-antipodal steps reach its limit.
 pub fn track(g: &mut Gen, spec: &CurveSpec, count: usize, kind: Kind) -> Track {
     use quatcurve::{Curve, KnotMode};
-    let uniform = spec.curve == Curve::BSpline && matches!(spec.knots, KnotMode::Phantom | KnotMode::Uniform);
+    let bspline = matches!(spec.curve, Curve::BSpline | Curve::NormalizedBSpline);
+    let uniform = bspline && matches!(spec.knots, KnotMode::Phantom | KnotMode::Uniform);
     let times = times(g, count, uniform);
-    let knots = (spec.curve == Curve::BSpline && spec.knots == KnotMode::Explicit)
-        .then(|| explicit_knots(g, spec.order, count));
+    let knots = (bspline && spec.knots == KnotMode::Explicit).then(|| explicit_knots(g, spec.order, count));
+    let scale = if spec.curve == Curve::NormalizedBSpline { 1.0 / (spec.order - 1) as f64 } else { 1.0 };
     Track {
         name: Some(format!("{kind:?}")),
         times: Some(times),
-        rotations: keys(g, count, kind),
+        rotations: keys_scaled(g, count, kind, scale),
         angular_velocities: Some(velocities(g, count, 20.0)),
         knots,
         extra_turns: None,
@@ -203,7 +211,7 @@ pub fn eval(batch: &Batch, index: usize, t: f64) -> Sample {
 }
 
 /// Every curve spec the reference supports: all families, tangent sources, blends, and
-/// B-spline orders 2..=8 with every knot mode.
+/// B-spline orders 2..=8 with every knot mode (the normalized form's orders on explicit knots).
 pub fn all_specs() -> Vec<CurveSpec> {
     use quatcurve::{Blend, Curve, KnotMode, Tangents};
     let mut specs = vec![CurveSpec::new(Curve::Slerp), CurveSpec::new(Curve::Squad), CurveSpec::new(Curve::Bezier)];
@@ -218,6 +226,14 @@ pub fn all_specs() -> Vec<CurveSpec> {
         for knots in [KnotMode::Uniform, KnotMode::Clamped, KnotMode::Explicit] {
             specs.push(CurveSpec { order, knots, ..CurveSpec::new(Curve::BSpline) });
         }
+    }
+    // The normalized form on each knot mode, and its orders on explicit knots.
+    specs.push(CurveSpec::new(Curve::NormalizedBSpline));
+    for knots in [KnotMode::Uniform, KnotMode::Clamped] {
+        specs.push(CurveSpec { knots, ..CurveSpec::new(Curve::NormalizedBSpline) });
+    }
+    for order in 2..=8 {
+        specs.push(CurveSpec { order, knots: KnotMode::Explicit, ..CurveSpec::new(Curve::NormalizedBSpline) });
     }
     specs
 }

@@ -203,7 +203,10 @@ pub fn mixed_batch_with_repeated_knots() -> (Batch, SampleTimes) {
     for spec in all_specs() {
         let count = spec.min_keys().max(2) + 2;
         let mut t = accurate_track(&mut g, &spec, count, Kind::SignFlipped);
-        if spec.knots == KnotMode::Explicit && spec.curve == Curve::BSpline && spec.order >= 3 {
+        if spec.knots == KnotMode::Explicit
+            && matches!(spec.curve, Curve::BSpline | Curve::NormalizedBSpline)
+            && spec.order >= 3
+        {
             let k = spec.order;
             let mut knots = explicit_knots(&mut g, k, count);
             let mid = knots[k];

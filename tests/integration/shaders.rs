@@ -149,6 +149,7 @@ fn codes_and_limits_match_the_shader_constants() {
         (Curve::Hermite, "CURVE_HERMITE"),
         (Curve::NamKim, "CURVE_NAM_KIM"),
         (Curve::BSpline, "CURVE_BSPLINE"),
+        (Curve::NormalizedBSpline, "CURVE_NORMALIZED_BSPLINE"),
     ] {
         assert_eq!(layout::curve_code(curve), c(name), "{name}");
     }

@@ -15,6 +15,12 @@ pub enum Curve {
     NamKim,
     /// KKS order-k B-spline with the keys as control points. C^(k-2), approximating.
     BSpline,
+    /// A B-spline on the quaternions' components, normalized: `q = (sum B_i c_i) / |sum B_i
+    /// c_i|`, with the keys as control points. The order and knots of [`Curve::BSpline`] and
+    /// its continuity, approximating; no exponential, so the cheapest smooth family to
+    /// evaluate. The control points of one span must lie less than a half turn apart, so the
+    /// sum never vanishes.
+    NormalizedBSpline,
     /// KKS cubic B-spline through every key at its time (KKS section 6.2): C2, interpolating,
     /// natural ends (or periodic when looping). The builder solves its control points, after
     /// which every evaluator sees a cubic B-spline on explicit knots.
@@ -70,9 +76,10 @@ pub const DEFAULT_CURVE: Curve = Curve::BSplineInterp;
 pub struct CurveSpec {
     /// The family.
     pub curve: Curve,
-    /// B-spline order k (degree k - 1), [`MIN_ORDER`]`..=`[`MAX_ORDER`]. Ignored by other families.
+    /// B-spline order k (degree k - 1), [`MIN_ORDER`]`..=`[`MAX_ORDER`]. Ignored by families
+    /// other than the B-splines.
     pub order: usize,
-    /// B-spline knot mode. Ignored by other families.
+    /// B-spline knot mode. Ignored by families other than the B-splines.
     pub knots: KnotMode,
     /// Tangent source for Hermite and Nam-Kim.
     pub tangents: Tangents,
@@ -116,19 +123,20 @@ impl CurveSpec {
         Self { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..Self::default() }
     }
 
-    /// Whether this spec can loop (DESIGN section 3, "Loops"): Bezier and B-splines on
-    /// uniform, clamped or explicit knots cannot.
+    /// Whether this spec can loop (DESIGN section 3, "Loops"): Bezier and B-splines (either
+    /// form) on uniform, clamped or explicit knots cannot.
     #[must_use]
     pub fn can_loop(&self) -> bool {
         match self.curve {
             Curve::Bezier => false,
-            Curve::BSpline => self.knots == KnotMode::Phantom,
+            Curve::BSpline | Curve::NormalizedBSpline => self.knots == KnotMode::Phantom,
             _ => true,
         }
     }
 
     /// The curves that loop, as messages and help texts list them (from [`Self::can_loop`]):
-    /// `slerp, squad, hermite, nam-kim, bspline with phantom knots, bspline-interp`.
+    /// `slerp, squad, hermite, nam-kim, bspline with phantom knots, normalized-bspline with
+    /// phantom knots, bspline-interp`.
     #[must_use]
     pub fn looping_curves() -> String {
         let mut names = Vec::new();
@@ -141,7 +149,9 @@ impl CurveSpec {
                 .collect();
             match (curve, looping.len()) {
                 (_, 0) => {}
-                (Curve::BSpline, _) => names.push(format!("{curve} with {} knots", looping.join(" or "))),
+                (Curve::BSpline | Curve::NormalizedBSpline, _) => {
+                    names.push(format!("{curve} with {} knots", looping.join(" or ")));
+                }
                 _ => names.push(curve.to_string()),
             }
         }
@@ -152,8 +162,8 @@ impl CurveSpec {
     #[must_use]
     pub fn min_keys(&self) -> usize {
         match (self.curve, self.knots) {
-            (Curve::BSpline, KnotMode::Phantom) => 2,
-            (Curve::BSpline, _) => self.order,
+            (Curve::BSpline | Curve::NormalizedBSpline, KnotMode::Phantom) => 2,
+            (Curve::BSpline | Curve::NormalizedBSpline, _) => self.order,
             _ => 2,
         }
     }
@@ -217,7 +227,7 @@ pub use names;
 
 names!(Curve, "curve",
     Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim",
-    BSpline => "bspline", BSplineInterp => "bspline-interp");
+    BSpline => "bspline", NormalizedBSpline => "normalized-bspline", BSplineInterp => "bspline-interp");
 names!(KnotMode, "knot mode", Phantom => "phantom", Uniform => "uniform", Clamped => "clamped", Explicit => "explicit");
 names!(Tangents, "tangent source", CatmullRom => "catmull-rom", Zero => "zero", Given => "given");
 names!(Blend, "blend", Cubic => "cubic", Quadratic => "quadratic");

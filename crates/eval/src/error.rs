@@ -150,6 +150,27 @@ pub enum Error {
         /// What is wrong, in words.
         reason: String,
     },
+    /// Two control points of one span of a normalized B-spline are a half turn or more apart.
+    #[error(
+        "{track}: control points {first} and {second} of one span of a normalized-bspline of order {order} are \
+         {angle} rad apart{}; a span's control points must lie less than a half turn (pi rad) apart, or their \
+         normalized sum can vanish: add keys between them, or use bspline",
+        if *phantom { " (with phantom knots control point i is key i - 1, and the first and last are the mirrored ends)" } else { "" }
+    )]
+    ControlPointsApart {
+        /// The track, by index and name.
+        track: TrackId,
+        /// The first control point's index.
+        first: usize,
+        /// The second's.
+        second: usize,
+        /// The rotation between them, radians.
+        angle: f64,
+        /// Whether the knots are phantom (the control points are the keys shifted by one).
+        phantom: bool,
+        /// The B-spline order (control points a span holds).
+        order: usize,
+    },
     /// Explicit knots are missing or their count is wrong.
     #[error(
         "{track}: explicit knots for order {order} with {keys} keys need {expected} knots (n + k + 1), got {found}"

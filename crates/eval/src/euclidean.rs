@@ -100,8 +100,10 @@ impl VectorCurve {
                 let v = velocities(id, spec.tangents, &curve.points, times, looping)?;
                 curve.coefs = (0..n).flat_map(|i| [v[i], v[i + 1]].map(|v| v.scale(times[i + 1] - times[i]))).collect();
             }
-            Curve::BSpline => {
+            // A normalized B-spline's analogue is the plain one: vectors need no normalizing.
+            Curve::BSpline | Curve::NormalizedBSpline => {
                 let k = spec.order;
+                curve.curve = Curve::BSpline;
                 curve.order = k;
                 curve.knots = bspline_knots(id, explicit_knots, spec, times)?;
                 if spec.knots == KnotMode::Phantom {
@@ -221,7 +223,7 @@ impl VectorCurve {
     /// order less one to its last control point, else every key segment.
     fn spans(&self) -> [usize; 2] {
         match self.curve {
-            Curve::BSpline | Curve::BSplineInterp => [self.order - 1, self.points.len() - 1],
+            Curve::BSpline | Curve::NormalizedBSpline | Curve::BSplineInterp => [self.order - 1, self.points.len() - 1],
             _ => [0, self.knots.len() - 2],
         }
     }
@@ -247,7 +249,7 @@ impl VectorCurve {
                 let basis = bernstein_cumulative(3, (t - knots[i]) / len);
                 sum(points[i], &mut coefs[3 * i..3 * i + 3].iter().zip(basis).map(|(&c, b)| (c, b[0])))
             }
-            Curve::BSpline | Curve::BSplineInterp => {
+            Curve::BSpline | Curve::NormalizedBSpline | Curve::BSplineInterp => {
                 let k = self.order;
                 let [first, last] = self.spans();
                 let (l, t) = self.locate(first, last, t);

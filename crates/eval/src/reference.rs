@@ -7,6 +7,8 @@
 //! derivatives come from evaluating the same closed form on [`Jet`]s (exact differentiation by
 //! the chain rule, see [`quatcurve_core::real`]).
 //!
+//! The normalized B-spline is no product: a sum of control points, normalized, also on jets.
+//!
 //! Squad's three slerps and Nam-Kim's blend use the *unfolded* geodesic
 //! ([`Quaternion::geodesic`]), as Shoemake and NK eq. 3 write them (`log` with `th = arccos w in
 //! [0, pi]`), on keys already made sign-continuous and squad points `s_i` in `q_i`'s
@@ -141,6 +143,18 @@ fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample 
             bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
             bspline_product::<DERIVATIVES>(view, l, &basis[..k - 1])
         }
+        Curve::NormalizedBSpline => {
+            let k = track.order();
+            let (l, t) = locate(knots, k - 1, points.len() - 1, t);
+            let mut basis = [[0.0; 3]; MAX_ORDER - 1];
+            bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
+            let q = normalized_bspline(points, k, l, &basis[..k - 1]);
+            if DERIVATIVES {
+                sample_from_jets(q)
+            } else {
+                Sample { rotation: q.value(), angular_velocity: Vec3F64::zero(), angular_acceleration: Vec3F64::zero() }
+            }
+        }
         Curve::Squad => {
             let (i, t, len) = key_segment(knots, t);
             sample_from_jets(squad(view, i, (Jet::variable(t) - Jet::cst(knots[i])).scale(1.0 / len)))
@@ -160,6 +174,26 @@ fn bspline_product<const DERIVATIVES: bool>(view: TrackView<'_>, l: usize, basis
     let first = l + 2 - k;
     let factors = basis.iter().enumerate().map(|(j, &b)| Factor { v: coef_vec(view.coefs[first + j - 1]), b });
     product::<DERIVATIVES>(view.points[l + 1 - k], factors)
+}
+
+/// `normalize(sum B_i c_i)` on span `l` of a normalized B-spline of order `k`, with its time
+/// derivatives, from the span's cumulative basis (`B~_{l-k+2..=l}` with derivatives): `B_i =
+/// B~_i - B~_{i+1}`, `B~` being 1 below the window and 0 above it.
+fn normalized_bspline(points: &[QuatF64], k: usize, l: usize, cumulative: &[BasisJet]) -> Quaternion<Jet> {
+    let at = |r: usize| match r {
+        0 => Jet::cst(1.0),
+        r if r < k => Jet { v: cumulative[r - 1][0], d: cumulative[r - 1][1], dd: cumulative[r - 1][2] },
+        _ => Jet::cst(0.0),
+    };
+    let zero = Jet::cst(0.0);
+    let mut sum = Quaternion::from_xyzw(zero, zero, zero, zero);
+    for r in 0..k {
+        let b = at(r) - at(r + 1);
+        let c = points[l + 1 - k + r];
+        sum = sum + Quaternion::from_xyzw(b * Jet::cst(c.x), b * Jet::cst(c.y), b * Jet::cst(c.z), b * Jet::cst(c.w));
+    }
+    let length = sum.dot(sum).sqrt();
+    Quaternion::from_xyzw(sum.x / length, sum.y / length, sum.z / length, sum.w / length)
 }
 
 /// The rotation of a B-spline track at a time whose span `l` (as `locate` finds it) and

@@ -102,6 +102,7 @@ pub fn curve_code(curve: Curve) -> u32 {
         Curve::NamKim => 4,
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => 5,
+        Curve::NormalizedBSpline => 6,
     }
 }
 
@@ -609,7 +610,7 @@ fn track_entry(
 pub(crate) struct PipelineKey {
     /// The curve code every track of the chunk has, or [`ANY_CURVE`].
     pub(crate) only_curve: u32,
-    /// The B-spline order every track of the chunk has, or 0.
+    /// The B-spline order every track of the chunk has (of either form), or 0.
     pub(crate) only_order: u32,
     /// Every track of the chunk has equally spaced knots (`FLAG_UNIFORM_KNOTS`).
     pub(crate) uniform_knots_only: bool,
@@ -628,7 +629,7 @@ impl PipelineKey {
         let specialize = !options.generic_kernel && !tracks.is_empty();
         let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));
         let only_curve = if same(|t| t.curve) { first.curve } else { ANY_CURVE };
-        let bspline = only_curve == curve_code(Curve::BSpline);
+        let bspline = [Curve::BSpline, Curve::NormalizedBSpline].iter().any(|&c| only_curve == curve_code(c));
         Self {
             only_curve,
             only_order: if bspline && same(|t| t.order) { first.order } else { 0 },

@@ -246,3 +246,22 @@ fn tracks_keyed_at_the_same_times_share_one_knot_vector() {
         }
     }
 }
+
+/// Keys turning a quarter turn each (half angles pi / 4 apart): the first and third control
+/// points of a span are a half turn apart, where the normalized sum can vanish; a span of two
+/// (order 2) holds neighbours only, which alignment keeps within a half turn.
+#[test]
+fn normalized_bspline_control_points_a_half_turn_apart() {
+    let turning: Vec<[f64; 4]> =
+        (0..6).map(|i| quatcurve::QuatF64::exp(quatcurve::Vec3F64::new(0.0, 0.0, 0.8 * i as f64)).to_array()).collect();
+    let spec = CurveSpec { knots: KnotMode::Clamped, ..CurveSpec::new(Curve::NormalizedBSpline) };
+    let (err, msg) = message(named(turning.clone()), spec);
+    assert!(
+        matches!(err, Error::ControlPointsApart { first: 0, second: 2, order: 4, .. })
+            && msg.contains("control points 0 and 2")
+            && msg.contains("half turn"),
+        "{msg}"
+    );
+    let pairs = CurveSpec { order: 2, knots: KnotMode::Clamped, ..CurveSpec::new(Curve::NormalizedBSpline) };
+    assert!(Batch::from_tracks(&[named(turning)], &pairs).is_ok());
+}

@@ -121,7 +121,7 @@ fn pack(
                 .collect();
             piecewise(coefs, keys)
         }
-        Curve::BSpline => bspline(id, track, spec, keys, &times)?,
+        Curve::BSpline | Curve::NormalizedBSpline => bspline(id, track, spec, keys, &times)?,
         Curve::BSplineInterp => {
             let solved = solved.expect("prepare_all solves every bspline-interp track");
             let solved = solved.map_err(|e| Error::NoConvergence {
@@ -323,6 +323,19 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<QuatF64>, ti
         keys
     };
     let m = points.len() - 1;
+    let domain = [knots[k - 1], knots[m + 1]];
+    if spec.curve == Curve::NormalizedBSpline {
+        check_half_turns(id, spec, &points)?;
+        return Ok(PackedData {
+            curve: spec.curve,
+            order: k,
+            bezier_degree: 0,
+            points,
+            coefs: Vec::new(),
+            knots,
+            domain,
+        });
+    }
     let mut coefs: Vec<[f64; 4]> = (1..=m)
         .map(|i| {
             let w = relative_log(points[i - 1], points[i]);
@@ -335,6 +348,29 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<QuatF64>, ti
         coefs[0] = coefs[1];
         coefs[m - 1] = coefs[m - 2];
     }
-    let domain = [knots[k - 1], knots[m + 1]];
     Ok(PackedData { curve: Curve::BSpline, order: k, bezier_degree: 0, points, coefs, knots, domain })
+}
+
+/// A normalized B-spline's rule (DESIGN section 3): every two control points of a span (`k` in
+/// a row) less than a half turn apart (a positive dot product). Then every term of `|sum B_i
+/// c_i|^2 = sum B_i B_j (c_i . c_j)` is at least 0 and the diagonal's sum at least `1 / k`, so
+/// the sum never comes nearer zero than `1 / sqrt k`; beyond it the sum can vanish, and the
+/// direction it normalizes to means nothing.
+fn check_half_turns(id: &TrackId, spec: &CurveSpec, points: &[QuatF64]) -> Result<()> {
+    let k = spec.order;
+    for (i, a) in points.iter().enumerate() {
+        for (j, b) in points.iter().enumerate().skip(i + 1).take(k - 1) {
+            if a.dot(*b) <= 0.0 {
+                return Err(Error::ControlPointsApart {
+                    track: id.clone(),
+                    first: i,
+                    second: j,
+                    angle: a.angle_to(*b),
+                    phantom: spec.knots == KnotMode::Phantom,
+                    order: k,
+                });
+            }
+        }
+    }
+    Ok(())
 }

@@ -30,7 +30,9 @@ pub(super) fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[QuatF64]) -> Re
 /// The curve as messages name it: B-splines with their order and knot mode.
 pub(super) fn curve_label(spec: &CurveSpec) -> String {
     match spec.curve {
-        Curve::BSpline => format!("bspline order {} with {} knots", spec.order, spec.knots),
+        Curve::BSpline | Curve::NormalizedBSpline => {
+            format!("{} order {} with {} knots", spec.curve, spec.order, spec.knots)
+        }
         other => other.to_string(),
     }
 }

@@ -19,6 +19,7 @@
 //! | hermite | keys              | key times               | `w1, w2, w3` per segment; `w2.extra` = start sign (+-1) |
 //! | nam-kim | keys              | key times               | `a, b` per segment (half angle per unit segment parameter) |
 //! | bspline | control points    | full knot vector (n+k+1) | `w_i`, i = 1..=m over control points  |
+//! | normalized-bspline | control points | as bspline     | none                                    |
 //!
 //! `bspline-interp` is packed as a cubic `bspline` on explicit knots once [`quatcurve_core::interp`] has
 //! solved its control points. Looping tracks (`CurveSpec::looping`) are packed like open ones

@@ -10,8 +10,8 @@
 //! the lanes (module `cox_de_boor`); Bezier curves up to degree 7 a de Casteljau triangle.
 //! All of them then take the SIMD cumulative product and its derivative recursion. Squad and
 //! Nam-Kim rotations are two great arcs and a geodesic (module `arcs`). Not vectorized:
-//! squad and Nam-Kim derivatives and Bezier curves of degree 8 and up, which run the f64
-//! reference per sample, in parallel.
+//! squad and Nam-Kim derivatives, Bezier curves of degree 8 and up and normalized B-splines,
+//! which run the f64 reference per sample, in parallel.
 
 mod arcs;
 mod bases;
