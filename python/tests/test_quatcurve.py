@@ -82,14 +82,15 @@ def cli():
     pytest.skip("no quatcurve binary built (cargo build)")
 
 
-CURVES = ["slerp", "squad", "bezier", "hermite", "nam-kim", "bspline", "bspline-interp"]
+CURVES = ["slerp", "squad", "bezier", "hermite", "nam-kim", "bspline", "normalized-bspline", "bspline-interp"]
 
 
 @pytest.mark.parametrize("curve", CURVES)
 def test_every_curve_matches_the_cli(curve, tmp_path):
     binary = cli()
     rng = np.random.default_rng(3)
-    keys = random_keys(rng, 3, 6)
+    # A normalized B-spline's span (four keys) must turn by less than a half turn.
+    keys = random_keys(rng, 3, 6, max_step=0.9 if curve == "normalized-bspline" else 1.2)
     times = np.arange(6) * 0.4
     tracks = [{"name": f"t{i}", "times": times.tolist(), "rotations": keys[i].tolist()} for i in range(3)]
     path = tmp_path / "tracks.json"
