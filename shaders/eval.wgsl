@@ -241,24 +241,28 @@ fn uniform_bspline_span(tr: GpuTrack, k: u32, t: vec2u) -> KeySegment {
     return KeySegment(loc.span, time_sub(loc.t, start) / len, 1.0 / len);
 }
 
-fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
-    let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
-    let m = tr.point_count - 1u;
+/// A B-spline track's span l at t, and its cumulative basis there (B~_(l-k+2..=l) with time
+/// derivatives) into `basis`: equally spaced knots by arithmetic and the polynomial table,
+/// others by the Cox-de Boor triangle. Both forms of B-spline read it.
+fn bspline_span(tr: GpuTrack, k: u32, t: vec2u, basis: ptr<function, array<vec3f, MAX_FACTORS>>) -> u32 {
     if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
         let s = uniform_bspline_span(tr, k, t);
-        let l = s.i;
         let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
         let base = (k - 2u) * (k - 1u) / 2u;
-        var p = product_start(points[tr.point_offset + l + 1u - k]);
         for (var r = 0u; r + 1u < k; r++) {
-            p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, poly_jet(base + r, k - 1u, s.u) * scale);
+            (*basis)[r] = poly_jet(base + r, k - 1u, s.u) * scale;
         }
-        return product_sample(p);
+        return s.i;
     }
-    let loc = locate(tr.knot_offset, k - 1u, m, t);
-    let l = loc.span;
+    let loc = locate(tr.knot_offset, k - 1u, tr.point_count - 1u, t);
+    bspline_cumulative(knot_window(tr.knot_offset, k, loc.span, loc.t), k, basis);
+    return loc.span;
+}
+
+fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
+    let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     var basis: array<vec3f, MAX_FACTORS>;
-    bspline_cumulative(knot_window(tr.knot_offset, k, l, loc.t), k, &basis);
+    let l = bspline_span(tr, k, t, &basis);
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {
         p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, basis[r]);
@@ -272,20 +276,7 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
 fn eval_normalized_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     var basis: array<vec3f, MAX_FACTORS>;
-    var l: u32;
-    if UNIFORM_KNOTS_ONLY || (tr.flags & FLAG_UNIFORM_KNOTS) != 0u {
-        let s = uniform_bspline_span(tr, k, t);
-        l = s.i;
-        let scale = vec3f(1.0, s.inv_len, s.inv_len * s.inv_len);
-        let base = (k - 2u) * (k - 1u) / 2u;
-        for (var r = 0u; r + 1u < k; r++) {
-            basis[r] = poly_jet(base + r, k - 1u, s.u) * scale;
-        }
-    } else {
-        let loc = locate(tr.knot_offset, k - 1u, tr.point_count - 1u, t);
-        l = loc.span;
-        bspline_cumulative(knot_window(tr.knot_offset, k, l, loc.t), k, &basis);
-    }
+    let l = bspline_span(tr, k, t, &basis);
     var sum = jet_quat_const(vec4f(0.0));
     var above = vec3f(1.0, 0.0, 0.0);
     for (var r = 0u; r < k; r++) {

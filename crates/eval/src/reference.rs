@@ -135,19 +135,12 @@ fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample 
         }
         // bspline-interp is packed as a cubic B-spline on explicit knots.
         Curve::BSpline | Curve::BSplineInterp => {
-            let k = track.order();
-            let m = points.len() - 1;
-            let (l, t) = locate(knots, k - 1, m, t);
-            // On the stack: every sample of every B-spline track comes here.
-            let mut basis = [[0.0; 3]; MAX_ORDER - 1];
-            bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
-            bspline_product::<DERIVATIVES>(view, l, &basis[..k - 1])
+            let (l, basis) = span_basis(view, t);
+            bspline_product::<DERIVATIVES>(view, l, &basis[..track.order() - 1])
         }
         Curve::NormalizedBSpline => {
+            let (l, basis) = span_basis(view, t);
             let k = track.order();
-            let (l, t) = locate(knots, k - 1, points.len() - 1, t);
-            let mut basis = [[0.0; 3]; MAX_ORDER - 1];
-            bspline_cumulative_into(knots, k, l, t, &mut basis[..k - 1]);
             let q = normalized_bspline(points, k, l, &basis[..k - 1]);
             if DERIVATIVES {
                 sample_from_jets(q)
@@ -176,6 +169,17 @@ fn bspline_product<const DERIVATIVES: bool>(view: TrackView<'_>, l: usize, basis
     product::<DERIVATIVES>(view.points[l + 1 - k], factors)
 }
 
+/// A B-spline track's span `l` at `t` and its cumulative basis there (`B~_{l-k+2..=l}` with
+/// derivatives, the first `k - 1` entries): on the stack, as every sample of every B-spline
+/// track comes here.
+fn span_basis(view: TrackView<'_>, t: f64) -> (usize, [BasisJet; MAX_ORDER - 1]) {
+    let k = view.track.order();
+    let (l, t) = locate(view.knots, k - 1, view.points.len() - 1, t);
+    let mut basis = [[0.0; 3]; MAX_ORDER - 1];
+    bspline_cumulative_into(view.knots, k, l, t, &mut basis[..k - 1]);
+    (l, basis)
+}
+
 /// `normalize(sum B_i c_i)` on span `l` of a normalized B-spline of order `k`, with its time
 /// derivatives, from the span's cumulative basis (`B~_{l-k+2..=l}` with derivatives): `B_i =
 /// B~_i - B~_{i+1}`, `B~` being 1 below the window and 0 above it.
@@ -185,15 +189,10 @@ fn normalized_bspline(points: &[QuatF64], k: usize, l: usize, cumulative: &[Basi
         r if r < k => Jet { v: cumulative[r - 1][0], d: cumulative[r - 1][1], dd: cumulative[r - 1][2] },
         _ => Jet::cst(0.0),
     };
-    let zero = Jet::cst(0.0);
-    let mut sum = Quaternion::from_xyzw(zero, zero, zero, zero);
-    for r in 0..k {
-        let b = at(r) - at(r + 1);
-        let c = points[l + 1 - k + r];
-        sum = sum + Quaternion::from_xyzw(b * Jet::cst(c.x), b * Jet::cst(c.y), b * Jet::cst(c.z), b * Jet::cst(c.w));
-    }
-    let length = sum.dot(sum).sqrt();
-    Quaternion::from_xyzw(sum.x / length, sum.y / length, sum.z / length, sum.w / length)
+    let sum = (0..k)
+        .map(|r| Quaternion::from_f64(points[l + 1 - k + r]).mul_scalar(at(r) - at(r + 1)))
+        .fold(Quaternion::from_f64(QuatF64::from_xyzw(0.0, 0.0, 0.0, 0.0)), |a, b| a + b);
+    sum.mul_scalar(Jet::cst(1.0) / sum.dot(sum).sqrt())
 }
 
 /// The rotation of a B-spline track at a time whose span `l` (as `locate` finds it) and
