@@ -164,7 +164,8 @@ pub enum Error {
         first: usize,
         /// The second's.
         second: usize,
-        /// The rotation between them, radians.
+        /// The turn from one to the other along the aligned control points, radians (at least
+        /// pi).
         angle: f64,
         /// Whether the knots are phantom (the control points are the keys shifted by one).
         phantom: bool,

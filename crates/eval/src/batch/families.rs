@@ -365,7 +365,9 @@ fn check_half_turns(id: &TrackId, spec: &CurveSpec, points: &[QuatF64]) -> Resul
                     track: id.clone(),
                     first: i,
                     second: j,
-                    angle: a.angle_to(*b),
+                    // The turn from one to the other along the aligned control points, at
+                    // least a half turn here (`angle_to` measures the shorter way round).
+                    angle: 2.0 * a.dot(*b).clamp(-1.0, 1.0).acos(),
                     phantom: spec.knots == KnotMode::Phantom,
                     order: k,
                 });
