@@ -84,6 +84,37 @@ impl<S: Lanes> Q8<S> {
         }
     }
 
+    /// `self * k + acc`, lane by lane.
+    #[inline(always)]
+    fn scaled_add(self, k: S, acc: Self) -> Self {
+        Self {
+            x: self.x.mul_add(k, acc.x),
+            y: self.y.mul_add(k, acc.y),
+            z: self.z.mul_add(k, acc.z),
+            w: self.w.mul_add(k, acc.w),
+        }
+    }
+
+    /// `self * k`.
+    #[inline(always)]
+    fn scale(self, k: S) -> Self {
+        Self { x: self.x * k, y: self.y * k, z: self.z * k, w: self.w * k }
+    }
+
+    /// The 4-vector dot product.
+    #[inline(always)]
+    fn dot(self, o: Self) -> S {
+        self.x.mul_add(o.x, self.y.mul_add(o.y, self.z.mul_add(o.z, self.w * o.w)))
+    }
+
+    /// `vec(conj(self) r)`: `self.w r.v - r.w self.v - self.v x r.v`.
+    #[inline(always)]
+    fn conjugate_times(self, r: Self) -> V8<S> {
+        let v = V8 { x: self.x, y: self.y, z: self.z };
+        let rv = V8 { x: r.x, y: r.y, z: r.z };
+        rv.scale(self.w).add(v.scale(-r.w)).add(rv.cross(v))
+    }
+
     /// `(-x, -y, -z, w)`.
     #[inline(always)]
     pub fn conjugate(self) -> Self {
@@ -226,6 +257,44 @@ pub fn cumulative_product<S: Lanes, const F: usize>(
     }
     let two = S::splat(2.0);
     (q, w.scale(two), w_dot.scale(two))
+}
+
+/// `normalize(c_0 + sum_j B~_j (c_j - c_{j-1}))`, the normalized B-spline of eight samples
+/// from their span's control points `first` and `rest` and cumulative basis jets `jets`
+/// (Abel's sum of `sum B_i c_i`: one difference per jet, no plain basis), with its body
+/// derivatives: for `p` the sum, `s = p.p` and `V(r) = vec(conj(p) r)`,
+/// `omega = 2 V(p') / s` and `alpha = (2 / s) (V(p'') - 2 (p.p') / s V(p'))`, the twin of
+/// `crate::reference::sample_from_jets` on the reference's normalized jets.
+#[inline(always)]
+pub fn normalized_sum<S: Lanes, const F: usize>(
+    first: Q8<S>,
+    rest: &[Q8<S>; F],
+    jets: &[[S; 3]; F],
+    derivatives: bool,
+) -> (Q8<S>, V8<S>, V8<S>) {
+    let zero = Q8 { x: S::ZERO, y: S::ZERO, z: S::ZERO, w: S::ZERO };
+    let (mut p, mut d, mut e) = (first, zero, zero);
+    let mut previous = first;
+    for (point, jet) in rest.iter().zip(jets) {
+        let step =
+            Q8 { x: point.x - previous.x, y: point.y - previous.y, z: point.z - previous.z, w: point.w - previous.w };
+        p = step.scaled_add(jet[0], p);
+        if derivatives {
+            d = step.scaled_add(jet[1], d);
+            e = step.scaled_add(jet[2], e);
+        }
+        previous = *point;
+    }
+    let s = p.dot(p);
+    let q = p.scale(S::ONE / s.sqrt());
+    if !derivatives {
+        return (q, V8::ZERO, V8::ZERO);
+    }
+    let inv = S::ONE / s;
+    let (spin, accel) = (p.conjugate_times(d), p.conjugate_times(e));
+    let two_inv = S::splat(2.0) * inv;
+    let drift = S::splat(2.0) * p.dot(d) * inv;
+    (q, spin.scale(two_inv), accel.add(spin.scale(-drift)).scale(two_inv))
 }
 
 #[cfg(test)]

@@ -8,10 +8,11 @@
 //! Hermite and B-splines on equally spaced knots (phantom, uniform) evaluate a polynomial
 //! basis fitted once per order; B-splines on other knots run the Cox-de Boor triangle over
 //! the lanes (module `cox_de_boor`); Bezier curves up to degree 7 a de Casteljau triangle.
-//! All of them then take the SIMD cumulative product and its derivative recursion. Squad and
-//! Nam-Kim rotations are two great arcs and a geodesic (module `arcs`). Not vectorized:
-//! squad and Nam-Kim derivatives, Bezier curves of degree 8 and up and normalized B-splines,
-//! which run the f64 reference per sample, in parallel.
+//! All of them then take the SIMD cumulative product and its derivative recursion, except
+//! normalized B-splines, which sum their control points on the same cumulative basis and
+//! normalize (`lanes::normalized_sum`). Squad and Nam-Kim rotations are two great arcs and a
+//! geodesic (module `arcs`). Not vectorized: squad and Nam-Kim derivatives and Bezier curves
+//! of degree 8 and up, which run the f64 reference per sample, in parallel.
 
 mod arcs;
 mod bases;

@@ -3,7 +3,7 @@
 
 use super::bases::{bernstein_cumulative_lanes, Bases, Basis};
 use super::cox_de_boor::CoxDeBoor;
-use super::lanes::{axis_angle, cumulative_product, write_columns, AngleRange, Factor8, LANES, Q8, V8};
+use super::lanes::{axis_angle, cumulative_product, normalized_sum, write_columns, AngleRange, Factor8, LANES, Q8, V8};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::{Batch, PackedTrack, TrackView};
 use crate::job::JobOptions;
@@ -42,7 +42,8 @@ impl<'a> Shared<'a> {
     }
 }
 
-/// A segment's first point and its `F` coefficients, in f32 ([`Segments::rows`]).
+/// A segment's first point and its `F` coefficients (a normalized B-spline's: its next `F`
+/// control points), in f32 ([`Segments::rows`]).
 pub(super) type Rows<const F: usize> = ([f32; 4], [[f32; 4]; F]);
 
 /// Where one track's segments lie in the batch: segment `span` starts at point
@@ -56,6 +57,8 @@ pub(super) struct Segments {
     shift: usize,
     /// A Hermite segment's start takes the sign its middle coefficient's `w` keeps.
     hermite: bool,
+    /// A normalized B-spline: no coefficients; its rows are the span's control points.
+    pub(super) normalized: bool,
 }
 
 impl Segments {
@@ -63,10 +66,17 @@ impl Segments {
     pub(super) fn of(track: &PackedTrack) -> Self {
         let (point, coef) = (track.point_offset(), track.coef_offset());
         match track.curve() {
-            Curve::Slerp => Self { point, coef, stride: 1, shift: 0, hermite: false },
-            Curve::Bezier => Self { point, coef, stride: 0, shift: 0, hermite: false },
-            Curve::Hermite => Self { point, coef, stride: 3, shift: 0, hermite: true },
-            _ => Self { point, coef, stride: 1, shift: track.order() - 1, hermite: false },
+            Curve::Slerp => Self { point, coef, stride: 1, shift: 0, hermite: false, normalized: false },
+            Curve::Bezier => Self { point, coef, stride: 0, shift: 0, hermite: false, normalized: false },
+            Curve::Hermite => Self { point, coef, stride: 3, shift: 0, hermite: true, normalized: false },
+            curve => Self {
+                point,
+                coef,
+                stride: 1,
+                shift: track.order() - 1,
+                hermite: false,
+                normalized: curve == Curve::NormalizedBSpline,
+            },
         }
     }
 
@@ -75,8 +85,16 @@ impl Segments {
     /// eight lanes at once ([`Factor8::from_rows`]).
     #[inline(always)]
     pub(super) fn rows<const F: usize>(self, shared: &Shared<'_>, span: usize) -> Rows<F> {
+        let first = self.point + span - self.shift;
+        if self.normalized {
+            let mut points = [[0.0f32; 4]; F];
+            for (f, row) in points.iter_mut().enumerate() {
+                *row = shared.point(first + 1 + f);
+            }
+            return (shared.point(first), points);
+        }
         let coef = self.coef + self.stride * span - self.shift;
-        let mut start = shared.point(self.point + span - self.shift);
+        let mut start = shared.point(first);
         if self.hermite {
             let sign = shared.batch.coefs()[coef + 1][3] as f32;
             start = start.map(|v| v * sign);
@@ -91,11 +109,12 @@ impl Segments {
     }
 
     /// Segment `span` as the shared groups broadcast it: its rows, with each factor's axis
-    /// and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane).
+    /// and angle by [`axis_angle`] (the same bits [`LaneRows::factors`] gives a lane); a
+    /// normalized B-spline's points as read.
     #[inline(always)]
     fn broadcast<const F: usize>(self, shared: &Shared<'_>, span: usize) -> Segment<F> {
-        let (start, coefs) = self.rows::<F>(shared, span);
-        Segment { span, start, axes: coefs.map(axis_angle) }
+        let (start, rows) = self.rows::<F>(shared, span);
+        Segment { span, start, rows: if self.normalized { rows } else { rows.map(axis_angle) } }
     }
 }
 
@@ -151,6 +170,17 @@ impl<const F: usize> LaneRows<F> {
         Q8 { x, y, z, w }
     }
 
+    /// The lanes' rows as points: a normalized B-spline's control points after the first.
+    #[inline(always)]
+    pub(super) fn points<S: Lanes>(&self) -> [Q8<S>; F] {
+        let mut points = [Q8 { x: S::ZERO, y: S::ZERO, z: S::ZERO, w: S::ZERO }; F];
+        for (f, point) in points.iter_mut().enumerate() {
+            let [x, y, z, w] = S::from_rows(&self.coefs[f]);
+            *point = Q8 { x, y, z, w };
+        }
+        points
+    }
+
     /// The lanes' factors, with basis jets `jets`.
     #[inline(always)]
     pub(super) fn factors<S: Lanes>(&self, jets: &[[S; 3]; F]) -> [Factor8<S>; F] {
@@ -167,7 +197,9 @@ impl<const F: usize> LaneRows<F> {
 pub(super) fn spans(view: TrackView<'_>) -> (usize, usize) {
     match view.track.curve() {
         Curve::Slerp | Curve::Hermite => (0, view.knots.len() - 2),
-        Curve::BSpline | Curve::BSplineInterp => (view.track.order() - 1, view.points.len() - 1),
+        Curve::BSpline | Curve::NormalizedBSpline | Curve::BSplineInterp => {
+            (view.track.order() - 1, view.points.len() - 1)
+        }
         _ => (0, 0),
     }
 }
@@ -234,8 +266,9 @@ pub(super) fn locate_uniform(knots: &[f64], first: usize, last: usize, t: f64, i
 struct Segment<const F: usize> {
     span: usize,
     start: [f32; 4],
-    /// `[axis x, axis y, axis z, theta]` of each factor.
-    axes: [[f32; 4]; F],
+    /// `[axis x, axis y, axis z, theta]` of each factor; a normalized B-spline's next `F`
+    /// control points.
+    rows: [[f32; 4]; F],
 }
 
 /// One piece of a vectorized track, and what it needs.
@@ -346,7 +379,7 @@ impl Piece<'_> {
                 }
                 if shared_segment.as_ref().map(|s| s.0.span) != Some(h) {
                     let segment = segments.broadcast::<F>(self.shared, h);
-                    shared_segment = Some((segment, times_axis(segment.start, segment.axes[0])));
+                    shared_segment = Some((segment, times_axis(segment.start, segment.rows[0])));
                 }
                 (S::new(u), S::splat(inv_len as f32))
             } else {
@@ -380,22 +413,31 @@ impl Piece<'_> {
                     jet[2] = jet[2] * (inv * inv);
                 }
             }
-            let (start, lead, factors) = match &shared_segment {
-                Some((segment, lead)) if shared => {
-                    let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
-                    for (f, factor) in factors.iter_mut().enumerate() {
-                        *factor = Factor8 {
-                            axis: V8::splat(segment.axes[f]),
-                            theta: S::splat(segment.axes[f][3]),
-                            b: jets[f],
-                        };
+            let segment = shared_segment.as_ref().filter(|_| shared);
+            let (q, w, a) = if segments.normalized {
+                let (first, rest) = match segment {
+                    Some((segment, _)) => (Q8::splat(segment.start), segment.rows.map(Q8::splat)),
+                    None => (lanes.start(), lanes.points()),
+                };
+                normalized_sum(first, &rest, &jets, DERIVATIVES)
+            } else {
+                let (start, lead, factors) = match segment {
+                    Some((segment, lead)) => {
+                        let mut factors = [Factor8 { axis: V8::ZERO, theta: S::ZERO, b: [S::ZERO; 3] }; F];
+                        for (f, factor) in factors.iter_mut().enumerate() {
+                            *factor = Factor8 {
+                                axis: V8::splat(segment.rows[f]),
+                                theta: S::splat(segment.rows[f][3]),
+                                b: jets[f],
+                            };
+                        }
+                        (Q8::splat(segment.start), Some(Q8::splat(*lead)), factors)
                     }
-                    (Q8::splat(segment.start), Some(Q8::splat(*lead)), factors)
-                }
-                _ => (lanes.start(), None, lanes.factors(&jets)),
+                    None => (lanes.start(), None, lanes.factors(&jets)),
+                };
+                let range = if SMALL { AngleRange::Small } else { AngleRange::Any };
+                cumulative_product(start, lead, &factors, DERIVATIVES, range)
             };
-            let range = if SMALL { AngleRange::Small } else { AngleRange::Any };
-            let (q, w, a) = cumulative_product(start, lead, &factors, DERIVATIVES, range);
             write_group::<S, DERIVATIVES>(
                 options.row(),
                 q,

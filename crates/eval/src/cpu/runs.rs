@@ -5,15 +5,15 @@
 //!
 //! Only tracks of at most [`SHORT`] samples take it (longer ones gain from a [`Piece`]'s
 //! groups that share one segment), and only families whose basis is one fitted polynomial of
-//! the span parameter (slerp, Hermite, B-splines on equally spaced knots), which a group can
-//! evaluate for lanes of different tracks. A lane's result depends on its own track and time
+//! the span parameter (slerp, Hermite, B-splines of either form on equally spaced knots),
+//! which a group can evaluate for lanes of different tracks. A lane's result depends on its own track and time
 //! alone, never on its neighbours (its sine and cosine included, [`AngleRange::PerLane`]):
 //! outputs do not change with the batch a track is in.
 //!
 //! [`Piece`]: super::piece::Piece
 
 use super::bases::{Bases, PolyBasis};
-use super::lanes::{cumulative_product, AngleRange, LANES};
+use super::lanes::{cumulative_product, normalized_sum, AngleRange, LANES};
 use super::piece::{inv_step, locate_from, spans, write_group, LaneRows, Segments, Shared};
 use super::simd::{Isa, Lanes, SMALL_ANGLE};
 use crate::batch::Batch;
@@ -55,6 +55,9 @@ impl Kind {
             Curve::BSpline | Curve::BSplineInterp if track.uniform_knots() => {
                 Some(Self { curve: Curve::BSpline, order: track.order() })
             }
+            Curve::NormalizedBSpline if track.uniform_knots() => {
+                Some(Self { curve: track.curve(), order: track.order() })
+            }
             _ => None,
         }
     }
@@ -89,7 +92,8 @@ pub(super) fn evaluate(
     options: &JobOptions,
     out: &mut [f32],
 ) {
-    let run = Run { shared, batch, basis: kind.basis(shared.bases), times, tracks, options };
+    let normalized = kind.curve == Curve::NormalizedBSpline;
+    let run = Run { shared, batch, basis: kind.basis(shared.bases), normalized, times, tracks, options };
     macro_rules! by_factors {
         ($d:literal) => {
             match kind.factors() {
@@ -115,6 +119,8 @@ struct Run<'a> {
     shared: &'a Shared<'a>,
     batch: &'a Batch,
     basis: &'a PolyBasis,
+    /// Normalized B-splines: a sum of control points, no product.
+    normalized: bool,
     times: &'a SampleTimes,
     tracks: Range<usize>,
     options: &'a JobOptions,
@@ -243,14 +249,18 @@ impl Run<'_> {
                     jet[2] = jet[2] * (inv * inv);
                 }
             }
-            let factors = lanes.factors(&jets);
-            // Each lane's own choice: all of its angles within the small range, or not.
-            let mut small = S::ZERO.cmp_le(S::ZERO);
-            for factor in &factors {
-                small = small & factor.theta.cmp_le(limit);
-            }
-            let range = if small.all() { AngleRange::Small } else { AngleRange::PerLane(small) };
-            let (q, w, a) = cumulative_product(lanes.start(), None, &factors, DERIVATIVES, range);
+            let (q, w, a) = if self.normalized {
+                normalized_sum(lanes.start(), &lanes.points(), &jets, DERIVATIVES)
+            } else {
+                let factors = lanes.factors(&jets);
+                // Each lane's own choice: all of its angles within the small range, or not.
+                let mut small = S::ZERO.cmp_le(S::ZERO);
+                for factor in &factors {
+                    small = small & factor.theta.cmp_le(limit);
+                }
+                let range = if small.all() { AngleRange::Small } else { AngleRange::PerLane(small) };
+                cumulative_product(lanes.start(), None, &factors, DERIVATIVES, range)
+            };
             write_group::<S, DERIVATIVES>(
                 self.options.row(),
                 q,

@@ -1,8 +1,8 @@
 //! One track's samples on the CPU: which kernel its family takes. Vectorized families go to a
 //! [`Piece`] (its basis chosen here), squad and Nam-Kim values to the great-arc kernel,
 //! uniformly sampled slerp and Nam-Kim to forward differences when asked, and what has no
-//! SIMD kernel (squad and Nam-Kim derivatives, Bezier curves above degree 7, normalized
-//! B-splines) to the f64 reference per sample.
+//! SIMD kernel (squad and Nam-Kim derivatives, Bezier curves above degree 7) to the f64
+//! reference per sample.
 
 use super::bases::Basis;
 use super::lanes::MAX_FACTORS;
@@ -34,8 +34,9 @@ pub fn evaluate(
     let (basis, factors) = match track.curve() {
         Curve::Slerp => (Basis::Poly(&shared.bases.slerp), 1),
         Curve::Hermite => (Basis::Poly(&shared.bases.hermite), 3),
-        // bspline-interp is packed as a cubic B-spline on explicit knots.
-        Curve::BSpline | Curve::BSplineInterp => {
+        // bspline-interp is packed as a cubic B-spline on explicit knots. A normalized
+        // B-spline takes the same cumulative basis (its kernel differences it).
+        Curve::BSpline | Curve::NormalizedBSpline | Curve::BSplineInterp => {
             let k = track.order();
             let basis = if track.uniform_knots() {
                 Basis::Poly(&shared.bases.bspline[k - MIN_ORDER])
@@ -53,7 +54,7 @@ pub fn evaluate(
             out.chunks_exact_mut(channels).for_each(|r| row.fill_matrix(r));
             return;
         }
-        Curve::Squad | Curve::NamKim | Curve::Bezier | Curve::NormalizedBSpline => {
+        Curve::Squad | Curve::NamKim | Curve::Bezier => {
             for (dst, j) in out.chunks_exact_mut(channels).zip(range) {
                 let t = times.time(index, j);
                 if options.derivatives {
