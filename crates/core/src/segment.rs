@@ -96,13 +96,20 @@ pub const ARITHMETIC_SPAN_RATIO: f64 = 4.0;
 /// on the span [`locate`] finds (which steps back only over repeated knots).
 #[must_use]
 pub fn arithmetic_span_step(knots: &[f64]) -> f64 {
-    let spacings = || knots.windows(2).map(|w| w[1] - w[0]);
-    let (smallest, largest) = (spacings().fold(f64::INFINITY, f64::min), spacings().fold(0.0, f64::max));
-    if knots.len() > 2 && smallest > 0.0 && largest <= ARITHMETIC_SPAN_RATIO * smallest {
-        (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
-    } else {
-        0.0
+    if knots.len() <= 2 {
+        return 0.0;
     }
+    // One pass, ending at the first spacing that settles it: every track's lookup asks, and
+    // a fitted curve's knots (a sample apart here, dozens there) settle it within a few.
+    let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
+    for w in knots.windows(2) {
+        let spacing = w[1] - w[0];
+        (smallest, largest) = (smallest.min(spacing), largest.max(spacing));
+        if smallest <= 0.0 || largest > ARITHMETIC_SPAN_RATIO * smallest {
+            return 0.0;
+        }
+    }
+    (knots.len() - 1) as f64 / (knots[knots.len() - 1] - knots[0])
 }
 
 /// Locates `t` among a piecewise track's key times: `(segment, clamped t, segment length)`.
