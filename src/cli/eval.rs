@@ -144,12 +144,14 @@ fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
         (args.key_rate.is_some(), "--key-rate"),
     ];
     match refused.iter().find(|(given, _)| *given) {
-        Some((_, flag)) => Err(Failure::Input(format!(
-            "{flag}: a fitted container's curves are its own ({} on its knots, of order {} or {} per channel)",
-            spec.curve,
-            spec.order,
-            quatcurve::anim::qcf::fitted::KEYS_ORDER
-        ))),
+        Some((_, flag)) => {
+            let keys = quatcurve::anim::qcf::fitted::spline_spec(quatcurve::anim::qcf::fitted::KEYS_ORDER);
+            Err(Failure::Input(format!(
+                "{flag}: a fitted container's curves are its own (on its knots, per channel: {} of order {} or {} of \
+                 order {})",
+                spec.curve, spec.order, keys.curve, keys.order
+            )))
+        }
         None => Ok(spec),
     }
 }

@@ -70,8 +70,9 @@ pub enum ChannelCurve {
         /// One per time: `x, y, z, w` for rotations, `x, y, z, 0` for vectors.
         values: Vec<[f64; 4]>,
     },
-    /// A fitted channel (`quatcurve::fit`): a clamped B-spline, the KKS cumulative form for
-    /// rotations, its order the knot count less the control point count.
+    /// A fitted channel (`quatcurve::fit`): a clamped B-spline of the family
+    /// `qcf::fitted::spline_spec` gives its order (the knot count less the control point
+    /// count): a rotation cubic normalized, keys slerped or lerped.
     Spline {
         /// Knots in seconds, ascending, each end repeated to the order.
         knots: Vec<f64>,

@@ -110,8 +110,14 @@ type PendingSpline<'a> = (String, &'a [[f64; 4]], &'a [f64]);
 /// Appends `splines` to `builder` on every core, and empties it.
 fn extend_splines(builder: &mut BatchBuilder, splines: &mut Vec<PendingSpline<'_>>) -> Result<(), InputError> {
     if !splines.is_empty() {
-        let batch: Vec<Spline<'_>> =
-            splines.iter().map(|(name, points, knots)| Spline { name: Some(name), points, knots }).collect();
+        let batch: Vec<Spline<'_>> = splines
+            .iter()
+            .map(|(name, points, knots)| {
+                let order = quatcurve_anim::qcf::fitted::order_of(knots.len(), points.len());
+                let curve = quatcurve_anim::qcf::fitted::spline_spec(order).curve;
+                Spline { name: Some(name), points, knots, curve }
+            })
+            .collect();
         builder.extend_splines(&batch)?;
         splines.clear();
     }

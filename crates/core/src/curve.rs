@@ -116,11 +116,18 @@ impl CurveSpec {
         Self { curve, ..Self::default() }
     }
 
-    /// An open B-spline of `order` on explicit knots: the curve of a fitted channel
-    /// (`quatcurve::BatchBuilder::add_spline`).
+    /// An open B-spline of `order` on explicit knots, the KKS cumulative form.
     #[must_use]
     pub fn open_bspline(order: usize) -> Self {
-        Self { curve: Curve::BSpline, order, knots: KnotMode::Explicit, ..Self::default() }
+        Self::open_spline(Curve::BSpline, order)
+    }
+
+    /// An open B-spline of either form (`curve`: [`Curve::BSpline`] or
+    /// [`Curve::NormalizedBSpline`]) and `order` on explicit knots: the curve of a fitted
+    /// channel (`quatcurve::BatchBuilder::extend_splines`).
+    #[must_use]
+    pub fn open_spline(curve: Curve, order: usize) -> Self {
+        Self { curve, order, knots: KnotMode::Explicit, ..Self::default() }
     }
 
     /// Whether this spec can loop (DESIGN section 3, "Loops"): Bezier and B-splines (either

@@ -141,11 +141,12 @@ fn evaluate_kks<const DERIVATIVES: bool>(view: TrackView<'_>, t: f64) -> Sample 
         Curve::NormalizedBSpline => {
             let (l, basis) = span_basis(view, t);
             let k = track.order();
-            let q = normalized_bspline(points, k, l, &basis[..k - 1]);
             if DERIVATIVES {
-                sample_from_jets(q)
+                let jets: [Jet; MAX_ORDER - 1] = basis.map(|[v, d, dd]| Jet { v, d, dd });
+                sample_from_jets(normalized_bspline(points, k, l, &jets[..k - 1]))
             } else {
-                Sample { rotation: q.value(), angular_velocity: Vec3F64::zero(), angular_acceleration: Vec3F64::zero() }
+                let rotation = bspline_rotation_at(view, l, &basis[..k - 1]);
+                Sample { rotation, angular_velocity: Vec3F64::zero(), angular_acceleration: Vec3F64::zero() }
             }
         }
         Curve::Squad => {
@@ -180,26 +181,31 @@ fn span_basis(view: TrackView<'_>, t: f64) -> (usize, [BasisJet; MAX_ORDER - 1])
     (l, basis)
 }
 
-/// `normalize(sum B_i c_i)` on span `l` of a normalized B-spline of order `k`, with its time
-/// derivatives, from the span's cumulative basis (`B~_{l-k+2..=l}` with derivatives): `B_i =
-/// B~_i - B~_{i+1}`, `B~` being 1 below the window and 0 above it.
-fn normalized_bspline(points: &[QuatF64], k: usize, l: usize, cumulative: &[BasisJet]) -> Quaternion<Jet> {
+/// `normalize(sum B_i c_i)` on span `l` of a normalized B-spline of order `k` from the span's
+/// cumulative basis (`B~_{l-k+2..=l}`; on jets, with time derivatives): `B_i = B~_i -
+/// B~_{i+1}`, `B~` being 1 below the window and 0 above it.
+fn normalized_bspline<R: Real>(points: &[QuatF64], k: usize, l: usize, cumulative: &[R]) -> Quaternion<R> {
     let at = |r: usize| match r {
-        0 => Jet::cst(1.0),
-        r if r < k => Jet { v: cumulative[r - 1][0], d: cumulative[r - 1][1], dd: cumulative[r - 1][2] },
-        _ => Jet::cst(0.0),
+        0 => R::cst(1.0),
+        r if r < k => cumulative[r - 1],
+        _ => R::cst(0.0),
     };
     let sum = (0..k)
         .map(|r| Quaternion::from_f64(points[l + 1 - k + r]).mul_scalar(at(r) - at(r + 1)))
         .fold(Quaternion::from_f64(QuatF64::from_xyzw(0.0, 0.0, 0.0, 0.0)), |a, b| a + b);
-    sum.mul_scalar(Jet::cst(1.0) / sum.dot(sum).sqrt())
+    sum.mul_scalar(R::cst(1.0) / sum.dot(sum).sqrt())
 }
 
-/// The rotation of a B-spline track at a time whose span `l` (as `locate` finds it) and
-/// cumulative basis there (`B~_{l-k+2..=l}`, derivatives not read) the caller already has: a
-/// fit evaluating one knot vector at the same times step after step computes them once.
+/// The rotation of a B-spline track (either form) at a time whose span `l` (as `locate` finds
+/// it) and cumulative basis there (`B~_{l-k+2..=l}`, derivatives not read) the caller already
+/// has: a fit evaluating one knot vector at the same times step after step computes them once.
 #[must_use]
 pub fn bspline_rotation_at(view: TrackView<'_>, l: usize, basis: &[BasisJet]) -> QuatF64 {
+    if view.track.curve() == Curve::NormalizedBSpline {
+        let k = view.track.order();
+        let values: [f64; MAX_ORDER - 1] = std::array::from_fn(|i| basis.get(i).map_or(0.0, |b| b[0]));
+        return normalized_bspline(view.points, k, l, &values[..k - 1]).value();
+    }
     bspline_product::<false>(view, l, basis).rotation
 }
 

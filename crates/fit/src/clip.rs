@@ -363,22 +363,23 @@ fn fit_channel(
     };
     // Each form in the fewest bits whose decoded curve is within every sample's bound, or,
     // where the fit itself missed its share, within the rounding's share past the fit's own
-    // error; the form of fewer bytes is kept.
+    // error; the form of fewer bytes is kept. A rotation cubic whose rounded control points
+    // break the normalized form's rule (two of a span half a turn apart) is not one.
     cubic
         .into_iter()
         .chain([keys])
-        .map(|(form, knots, controls)| {
+        .filter_map(|(form, knots, controls)| {
             // The unrounded curve and every width tried share the knots, so a rotation's spans
             // and basis at the samples are computed once (the same bits as `Fitted::at`).
             let spans = std::cell::OnceCell::new();
             let rotation_at = |fit: &Fit<QuatF64>| {
                 let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
-                let curve = fit.spans_lazily(spans).expect("a fitted curve evaluates");
-                curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v))
+                let curve = fit.spans_lazily(spans).ok()?;
+                Some(curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v)))
             };
             let unrounded: Vec<f64> = match &controls {
                 Controls::Rotations(c) => {
-                    rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit).collect()
+                    rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit)?.collect()
                 }
                 Controls::Vectors(c) => {
                     errors(&Spline::new(timelines, line, form, knots.clone(), c.clone()).at(&times))
@@ -390,13 +391,19 @@ fn fit_channel(
                 let bounded = |(d, (&u, &l)): (f64, (&f64, &f64))| d <= l.max(u + QUANTIZATION_SHARE * l);
                 let bounds = unrounded.iter().zip(&limits);
                 match curve {
-                    Fitted::Rotation(spline, _) => rotation_at(&spline.fit).zip(bounds).all(bounded),
+                    Fitted::Rotation(spline, _) => {
+                        rotation_at(&spline.fit).is_some_and(|errors| errors.zip(bounds).all(bounded))
+                    }
                     _ => errors(&curve.at(&times)).into_iter().zip(bounds).all(bounded),
                 }
             };
             let start = controls.bits_within(tolerance * QUANTIZATION_SHARE).saturating_sub(BITS_BELOW_BOUND).max(1);
             let curve = |bits| controls.quantized(timelines, line, form, knots.clone(), bits);
-            quantize::fewest_bits(start, curve, within)
+            let fewest = quantize::fewest_bits(start, curve, within);
+            match &fewest {
+                Fitted::Rotation(spline, _) => rotation_at(&spline.fit).is_some().then_some(fewest),
+                _ => Some(fewest),
+            }
         })
         .min_by_key(|curve| {
             quatcurve_anim::qcf::channel_bytes(&FittedChannel {

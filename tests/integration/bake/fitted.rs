@@ -316,7 +316,7 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
             quatcurve(&["eval", "--input", container.to_str().unwrap(), "--samples", &samples, "--device", device]);
         assert!(eval.status.success(), "{device}: {}", stderr(&eval));
         let out: serde_json::Value = serde_json::from_slice(&eval.stdout).unwrap();
-        assert_eq!(out["curve"], "bspline");
+        assert_eq!(out["curve"], "normalized-bspline");
         let tracks = out["tracks"].as_array().unwrap();
         let names: Vec<&str> = tracks.iter().map(|t| t["name"].as_str().unwrap()).collect();
         assert_eq!(names, ["bend/hips", "bend/knee"], "every rotation channel, named <clip>/<joint>");

@@ -6,7 +6,7 @@ use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
 use crate::{Channel, ChannelCurve, Clip, Joint, Property};
 use quatcurve_core::basis::BasisJet;
-use quatcurve_core::curve::CurveSpec;
+use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::error::TrackId;
@@ -36,11 +36,17 @@ pub struct Fit<T> {
     pub worst_at: usize,
 }
 
-/// The curve family of a fit of `order` ([`ORDER`] for a cubic, 2 for keys slerped or
-/// lerped between): a clamped B-spline on explicit knots, open.
+/// The rotation form of a fitted cubic: the normalized B-spline, whose decode is a basis, a
+/// weighted sum and a normalization (no exponential, nothing prepared per control point),
+/// and which fits mocap in as few control points as KKS's cumulative form (DESIGN section 10).
+pub const CUBIC_ROTATIONS: Curve = Curve::NormalizedBSpline;
+
+/// The curve family of a fit of `order`: a clamped B-spline on explicit knots, open; a cubic
+/// ([`ORDER`]) [`CUBIC_ROTATIONS`], keys ([`KEYS_ORDER`]) slerped (KKS's order 2) or lerped
+/// between. Vectors take either's Euclidean analogue, the plain B-spline.
 #[must_use]
 pub fn spline_spec(order: usize) -> CurveSpec {
-    CurveSpec::open_bspline(order)
+    CurveSpec::open_spline(if order == ORDER { CUBIC_ROTATIONS } else { Curve::BSpline }, order)
 }
 
 /// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
@@ -232,7 +238,7 @@ impl Spline<[f64; 3]> {
 pub enum Fitted {
     /// Every key within its tolerance of one value: stored once.
     Constant([f64; 4]),
-    /// A KKS cumulative B-spline.
+    /// A rotation curve ([`spline_spec`]).
     Rotation(Spline<QuatF64>, QuantizedRotations),
     /// Its Euclidean analogue (translation, scale).
     Vector(Spline<[f64; 3]>, Quantized),

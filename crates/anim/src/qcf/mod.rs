@@ -20,7 +20,7 @@ use timeline::{Timeline, BETWEEN_POINTS};
 pub const MAGIC: [u8; 8] = *b"QCURVFIT";
 
 /// The layout this code writes and reads.
-pub const VERSION: u16 = 4;
+pub const VERSION: u16 = 5;
 
 /// Bytes of the checksum that ends a container: CRC-32 (zlib's) of every byte before it.
 pub const CHECKSUM_BYTES: usize = 4;
@@ -1157,7 +1157,7 @@ mod tests {
         version[8] = 9;
         assert_eq!(
             Container::from_bytes(&version).unwrap_err().to_string(),
-            "byte 8: version: 9; this quatcurve reads version 4 (fit the source again)"
+            "byte 8: version: 9; this quatcurve reads version 5 (fit the source again)"
         );
         // Knots a fit never makes: outside the samples, or more than ORDER - 1 at one; keys
         // outside the keys (keys' deltas are coded less one, so none is 0 or kept twice).

@@ -2,14 +2,14 @@
 //! (`families`) on every core, a slice at a time, and appended to the packed arrays, sharing
 //! a knot vector between consecutive tracks keyed at the same times.
 
-use super::families::{prepare_all, PackedData};
+use super::families::{check_half_turn, prepare_all, PackedData};
 use super::keys::{aligned, check_key_count};
 use super::knots::{check_explicit_knots, check_order, knots_are_uniform};
 use super::{Batch, PackedTrack};
 use crate::error::{Error, Result, TrackId};
 use crate::track::Track;
-use quatcurve_core::curve::{Curve, CurveSpec};
-use quatcurve_core::quat::relative_log;
+use quatcurve_core::curve::{Curve, CurveSpec, MAX_ORDER};
+use quatcurve_core::quat::{relative_log, QuatF64};
 
 /// Tracks [`BatchBuilder::extend`] prepares at once.
 pub(super) const EXTEND_CHUNK: usize = 1 << 14;
@@ -27,6 +27,8 @@ pub struct Spline<'a> {
     pub points: &'a [[f64; 4]],
     /// The knot vector: `points.len() + k` knots for order `k`.
     pub knots: &'a [f64],
+    /// Its form: [`Curve::BSpline`] (KKS's cumulative form) or [`Curve::NormalizedBSpline`].
+    pub curve: Curve,
 }
 
 /// Builds a [`Batch`] track by track or slice by slice; tracks may use different curve specs.
@@ -75,12 +77,19 @@ impl BatchBuilder {
     ///
     /// # Errors
     /// As [`BatchBuilder::add`] for that track; the builder is unchanged then.
-    pub fn add_spline(&mut self, name: Option<&str>, points: &[[f64; 4]], knots: &[f64]) -> Result<usize> {
-        self.extend_splines(&[Spline { name, points, knots }]).map(|range| range.start)
+    pub fn add_spline(
+        &mut self,
+        name: Option<&str>,
+        points: &[[f64; 4]],
+        knots: &[f64],
+        curve: Curve,
+    ) -> Result<usize> {
+        self.extend_splines(&[Spline { name, points, knots, curve }]).map(|range| range.start)
     }
 
-    /// Validates and appends open B-splines given as evaluators read them, each of the order
-    /// its counts make ([`CurveSpec::open_bspline`] of `knots.len() - points.len()`), checked
+    /// Validates and appends open B-splines given as evaluators read them, each of its form
+    /// and the order its counts make ([`CurveSpec::open_spline`] of `knots.len() -
+    /// points.len()`; a normalized one packs no coefficients), checked
     /// as a [`Track`] with explicit knots is and packed as it would be, on every core. Straight
     /// into the packed arrays, with no track and no copy per step: a fitted container's
     /// channels built through tracks cost more than evaluating them. Returns their indices.
@@ -101,7 +110,8 @@ impl BatchBuilder {
             last_knots = Some(spline.knots);
         }
         let lengths = |s: &Spline<'_>, own: bool| {
-            [s.points.len(), s.points.len().saturating_sub(1), if own { s.knots.len() } else { 0 }]
+            let coefs = if s.curve == Curve::NormalizedBSpline { 0 } else { s.points.len().saturating_sub(1) };
+            [s.points.len(), coefs, if own { s.knots.len() } else { 0 }]
         };
         let totals = splines.iter().zip(&own).fold([0; 3], |sum, (s, &own)| {
             let [p, c, k] = lengths(s, own);
@@ -134,18 +144,28 @@ impl BatchBuilder {
             .map(|(i, (spline, (points, coefs, knots)))| {
                 let id = TrackId { index: first + i, name: spline.name.map(str::to_owned) };
                 let order = spline.knots.len().saturating_sub(spline.points.len());
-                check_key_count(&id, &CurveSpec::open_bspline(order), spline.points.len())?;
+                let spec = CurveSpec::open_spline(spline.curve, order);
+                check_key_count(&id, &spec, spline.points.len())?;
+                check_order(&id, order)?;
+                let normalized = spline.curve == Curve::NormalizedBSpline;
+                // A normalized spline's last `order - 1` points, for its rule: each new point
+                // against them.
+                let mut recent = [QuatF64::identity(); MAX_ORDER];
                 let mut prev = None;
                 for (j, q) in aligned(&id, spline.points).enumerate() {
                     let q = q?;
                     points[j].write(q);
-                    if let Some(prev) = prev {
+                    if normalized {
+                        for i in j.saturating_sub(order - 1)..j {
+                            check_half_turn(&id, &spec, (i, recent[i % MAX_ORDER]), (j, q))?;
+                        }
+                        recent[j % MAX_ORDER] = q;
+                    } else if let Some(prev) = prev {
                         let v = relative_log(prev, q);
                         coefs[j - 1].write([v.x, v.y, v.z, 0.0]);
                     }
                     prev = Some(q);
                 }
-                check_order(&id, order)?;
                 check_explicit_knots(&id, spline.knots, order, spline.points.len() - 1)?;
                 for (slot, &knot) in knots.iter_mut().zip(spline.knots) {
                     slot.write(knot);
@@ -173,15 +193,16 @@ impl BatchBuilder {
                 }
             };
             let (order, last) = (spline.knots.len() - spline.points.len(), spline.points.len() - 1);
+            let coef_count = if spline.curve == Curve::NormalizedBSpline { 0 } else { last };
             b.tracks.push(PackedTrack {
-                curve: Curve::BSpline,
+                curve: spline.curve,
                 order,
                 bezier_degree: 0,
-                blend: CurveSpec::open_bspline(order).blend,
+                blend: CurveSpec::open_spline(spline.curve, order).blend,
                 point_offset,
                 point_count: spline.points.len(),
                 coef_offset,
-                coef_count: last,
+                coef_count,
                 knot_offset,
                 knot_count: spline.knots.len(),
                 domain: [spline.knots[order - 1], spline.knots[last + 1]],
@@ -190,7 +211,7 @@ impl BatchBuilder {
             });
             b.names.push(spline.name);
             point_offset += spline.points.len();
-            coef_offset += last;
+            coef_offset += coef_count;
         }
         Ok(first..b.tracks.len())
     }

@@ -357,22 +357,35 @@ fn bspline(id: &TrackId, track: &Track, spec: &CurveSpec, keys: Vec<QuatF64>, ti
 /// the sum never comes nearer zero than `1 / sqrt k`; beyond it the sum can vanish, and the
 /// direction it normalizes to means nothing.
 fn check_half_turns(id: &TrackId, spec: &CurveSpec, points: &[QuatF64]) -> Result<()> {
-    let k = spec.order;
-    for (i, a) in points.iter().enumerate() {
-        for (j, b) in points.iter().enumerate().skip(i + 1).take(k - 1) {
-            if a.dot(*b) <= 0.0 {
-                return Err(Error::ControlPointsApart {
-                    track: id.clone(),
-                    first: i,
-                    second: j,
-                    // The turn from one to the other along the aligned control points, at
-                    // least a half turn here (`angle_to` measures the shorter way round).
-                    angle: 2.0 * a.dot(*b).clamp(-1.0, 1.0).acos(),
-                    phantom: spec.knots == KnotMode::Phantom,
-                    order: k,
-                });
-            }
+    for (j, &b) in points.iter().enumerate() {
+        let from = j.saturating_sub(spec.order - 1);
+        for (i, &a) in points[from..j].iter().enumerate() {
+            check_half_turn(id, spec, (from + i, a), (j, b))?;
         }
     }
     Ok(())
+}
+
+/// [`check_half_turns`] for control points `i` and `j` of one span; the packers of tracks and of
+/// splines (`BatchBuilder::extend_splines`) take the pairs in the same order (each point against
+/// those before it), so that both name the same pair.
+pub(super) fn check_half_turn(
+    id: &TrackId,
+    spec: &CurveSpec,
+    (i, a): (usize, QuatF64),
+    (j, b): (usize, QuatF64),
+) -> Result<()> {
+    if a.dot(b) > 0.0 {
+        return Ok(());
+    }
+    Err(Error::ControlPointsApart {
+        track: id.clone(),
+        first: i,
+        second: j,
+        // The turn from one to the other along the aligned control points, at least a half
+        // turn here (`angle_to` measures the shorter way round).
+        angle: 2.0 * a.dot(b).clamp(-1.0, 1.0).acos(),
+        phantom: spec.knots == KnotMode::Phantom,
+        order: spec.order,
+    })
 }

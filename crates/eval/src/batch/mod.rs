@@ -391,75 +391,88 @@ mod tests {
     /// the same track and key, with the builder left as it was.
     #[test]
     fn a_spline_packs_and_fails_as_its_track_does() {
-        use quatcurve_core::curve::CurveSpec;
-        let point = |i: usize| {
-            let a = 0.3 * i as f64;
-            let sign = if i % 3 == 1 { -2.0 } else { 0.5 };
-            [sign * a.sin() * 0.6, sign * a.cos() * 0.3, sign * 0.1, sign * (1.0 + a).cos()]
-        };
-        let points: Vec<[f64; 4]> = (0..7).map(point).collect();
-        let cubic = vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 1.5, 2.0, 2.0, 2.0, 2.0];
-        let keys = vec![0.0, 0.0, 0.25, 0.5, 1.0, 1.5, 1.75, 2.0, 2.0];
-        let inputs = [(Some("a"), &cubic), (Some("b"), &cubic), (None, &keys)];
-        let track = |(name, knots): (Option<&str>, &Vec<f64>)| Track {
-            name: name.map(str::to_owned),
-            knots: Some(knots.clone()),
-            rotations: points.clone(),
-            ..Track::default()
-        };
-        let tracks: Vec<Track> = inputs.iter().map(|&(n, k)| track((n, k))).collect();
-        let want = super::Batch::from_tracks_each(&tracks, |i| {
-            CurveSpec::open_bspline(tracks[i].knots.as_ref().unwrap().len() - points.len())
-        })
-        .unwrap();
-        let mut builder = BatchBuilder::reusing(want.clone());
-        for &(name, knots) in &inputs {
-            builder.add_spline(name, &points, knots).unwrap();
-        }
-        let got = builder.build().unwrap();
-        assert_eq!(got, want);
-        assert_eq!(got.knots().len(), cubic.len() + keys.len(), "the second cubic shares the first's knots");
-        let splines: Vec<Spline<'_>> =
-            inputs.iter().map(|&(name, knots)| Spline { name, points: &points, knots }).collect();
-        let mut builder = BatchBuilder::new();
-        assert_eq!(builder.extend_splines(&splines).unwrap(), 0..3);
-        assert_eq!(builder.build().unwrap(), want, "all at once");
-
-        let mut bad_point = points.clone();
-        bad_point[4] = [0.0; 4];
-        let mut decreasing = cubic.clone();
-        decreasing[5] = 0.25;
-        let mut repeated = keys.clone();
-        repeated[3] = 0.25;
-        for (points, knots) in [
-            (&bad_point, &cubic),
-            (&points, &decreasing),
-            (&points, &repeated),
-            (&points, &cubic[..10].to_vec()),
-            (&points[..2].to_vec(), &vec![0.0, 1.0, 2.0]),
-            (&points[..3].to_vec(), &vec![0.0; 12]),
-        ] {
-            let spec = CurveSpec::open_bspline(knots.len().saturating_sub(points.len()));
-            let track = Track {
-                name: Some("t".into()),
+        use quatcurve_core::curve::{Curve, CurveSpec};
+        // Either form: the cumulative one's coefficients, the normalized one's rule.
+        for curve in [Curve::BSpline, Curve::NormalizedBSpline] {
+            let spec_of = |order: usize| CurveSpec::open_spline(curve, order);
+            let point = |i: usize| {
+                let a = 0.3 * i as f64;
+                let sign = if i % 3 == 1 { -2.0 } else { 0.5 };
+                [sign * a.sin() * 0.3, sign * a.cos() * 0.2, sign * 0.1, sign * (1.0 + 0.1 * a)]
+            };
+            let points: Vec<[f64; 4]> = (0..7).map(point).collect();
+            let cubic = vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 1.5, 2.0, 2.0, 2.0, 2.0];
+            let keys = vec![0.0, 0.0, 0.25, 0.5, 1.0, 1.5, 1.75, 2.0, 2.0];
+            let inputs = [(Some("a"), &cubic), (Some("b"), &cubic), (None, &keys)];
+            let track = |(name, knots): (Option<&str>, &Vec<f64>)| Track {
+                name: name.map(str::to_owned),
                 knots: Some(knots.clone()),
                 rotations: points.clone(),
                 ..Track::default()
             };
+            let tracks: Vec<Track> = inputs.iter().map(|&(n, k)| track((n, k))).collect();
+            let want = super::Batch::from_tracks_each(&tracks, |i| {
+                spec_of(tracks[i].knots.as_ref().unwrap().len() - points.len())
+            })
+            .unwrap();
+            let mut builder = BatchBuilder::reusing(want.clone());
+            for &(name, knots) in &inputs {
+                builder.add_spline(name, &points, knots, curve).unwrap();
+            }
+            let got = builder.build().unwrap();
+            assert_eq!(got, want, "{curve:?}");
+            assert_eq!(got.knots().len(), cubic.len() + keys.len(), "the second cubic shares the first's knots");
+            let splines: Vec<Spline<'_>> =
+                inputs.iter().map(|&(name, knots)| Spline { name, points: &points, knots, curve }).collect();
             let mut builder = BatchBuilder::new();
-            builder.add(&tracks[0], &CurveSpec::open_bspline(4)).unwrap();
-            let want = builder.add(&track, &spec).unwrap_err();
-            assert_eq!(builder.add_spline(Some("t"), points, knots).unwrap_err(), want);
-            // Among good ones it is the error it is as the third track, and none of them is kept.
-            let good = Spline { name: Some("a"), points: &tracks[0].rotations, knots: &cubic };
-            let among = [good, Spline { name: Some("t"), points, knots }, good];
-            let mut third = BatchBuilder::new();
-            third.extend(&tracks[..2], |_| CurveSpec::open_bspline(4)).unwrap();
-            assert_eq!(builder.extend_splines(&among).unwrap_err(), third.add(&track, &spec).unwrap_err());
-            assert_eq!(
-                builder.build().unwrap(),
-                super::Batch::from_tracks_each(&tracks[..1], |_| CurveSpec::open_bspline(4)).unwrap()
-            );
+            assert_eq!(builder.extend_splines(&splines).unwrap(), 0..3);
+            assert_eq!(builder.build().unwrap(), want, "{curve:?}: all at once");
+
+            let mut bad_point = points.clone();
+            bad_point[4] = [0.0; 4];
+            let mut decreasing = cubic.clone();
+            decreasing[5] = 0.25;
+            let mut repeated = keys.clone();
+            repeated[3] = 0.25;
+            // Points 4 and 5 half a turn apart: the normalized form's packers name the same
+            // pair; the cumulative one takes them.
+            let mut apart = points.clone();
+            apart[4] = [0.0, 0.0, 1.0, 0.0];
+            apart[5] = [0.0, 0.0, 0.0, 1.0];
+            for (points, knots) in [
+                (&bad_point, &cubic),
+                (&points, &decreasing),
+                (&points, &repeated),
+                (&points, &cubic[..10].to_vec()),
+                (&points[..2].to_vec(), &vec![0.0, 1.0, 2.0]),
+                (&points[..3].to_vec(), &vec![0.0; 12]),
+                (&apart, &cubic),
+            ] {
+                let spec = spec_of(knots.len().saturating_sub(points.len()));
+                let track = Track {
+                    name: Some("t".into()),
+                    knots: Some(knots.clone()),
+                    rotations: points.clone(),
+                    ..Track::default()
+                };
+                let mut builder = BatchBuilder::new();
+                builder.add(&tracks[0], &spec_of(4)).unwrap();
+                let Err(want) = builder.add(&track, &spec) else {
+                    assert_eq!(curve, Curve::BSpline, "only the cumulative form takes points apart");
+                    continue;
+                };
+                assert_eq!(builder.add_spline(Some("t"), points, knots, curve).unwrap_err(), want);
+                // Among good ones it is the error it is as the third track, and none is kept.
+                let good = Spline { name: Some("a"), points: &tracks[0].rotations, knots: &cubic, curve };
+                let among = [good, Spline { name: Some("t"), points, knots, curve }, good];
+                let mut third = BatchBuilder::new();
+                third.extend(&tracks[..2], |_| spec_of(4)).unwrap();
+                assert_eq!(builder.extend_splines(&among).unwrap_err(), third.add(&track, &spec).unwrap_err());
+                assert_eq!(
+                    builder.build().unwrap(),
+                    super::Batch::from_tracks_each(&tracks[..1], |_| spec_of(4)).unwrap()
+                );
+            }
         }
     }
 }
