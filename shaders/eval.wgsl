@@ -20,6 +20,8 @@ const CURVE_NAM_KIM: u32 = 4u;
 const CURVE_BSPLINE: u32 = 5u;
 const CURVE_NORMALIZED_BSPLINE: u32 = 6u;
 const ANY_CURVE: u32 = 255u;
+/// ONLY_CURVE's code for "either B-spline form, per track" (a fitted clip's rotations).
+const BSPLINE_FORMS: u32 = 254u;
 const BLEND_QUADRATIC: u32 = 1u;
 
 // GpuTrack.flags bits.
@@ -27,7 +29,8 @@ const FLAG_EXPLICIT_TIMES: u32 = 1u;
 const FLAG_HAS_LAST: u32 = 2u;
 const FLAG_UNIFORM_KNOTS: u32 = 4u;
 
-/// Specialization: evaluate only this curve (ANY_CURVE: switch per track).
+/// Specialization: evaluate only this curve (ANY_CURVE: switch per track; BSPLINE_FORMS: the
+/// two B-spline forms alone, per track).
 override ONLY_CURVE: u32 = 255u;
 /// Specialization: every track's knots (or key times) are equally spaced (FLAG_UNIFORM_KNOTS),
 /// so spans are found by arithmetic alone and the general Cox-de Boor path is left out.
@@ -259,10 +262,17 @@ fn bspline_span(tr: GpuTrack, k: u32, t: vec2u, basis: ptr<function, array<vec3f
     return loc.span;
 }
 
+/// A B-spline of either form: the span and its cumulative basis found once, then the
+/// cumulative form's product from the span's first control point, or the normalized form's
+/// sum. The form is folded to a constant where the kernel is specialized to one.
 fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
     var basis: array<vec3f, MAX_FACTORS>;
     let l = bspline_span(tr, k, t, &basis);
+    let form = select(tr.curve, ONLY_CURVE, ONLY_CURVE != ANY_CURVE && ONLY_CURVE != BSPLINE_FORMS);
+    if form == CURVE_NORMALIZED_BSPLINE {
+        return normalized_sum(tr, k, l, &basis);
+    }
     var p = product_start(points[tr.point_offset + l + 1u - k]);
     for (var r = 0u; r + 1u < k; r++) {
         p = product_step(p, coefs[tr.coef_offset + l + r + 1u - k].xyz, basis[r]);
@@ -270,19 +280,17 @@ fn eval_bspline(tr: GpuTrack, t: vec2u) -> Sample {
     return product_sample(p);
 }
 
-/// normalize(sum B_i c_i) with its time derivatives: the span's cumulative basis (B~, as the
-/// cumulative form takes it) differenced into the plain one, B_i = B~_i - B~_(i+1), B~ being 1
-/// below the window and 0 above it; then the sum of control points normalized on jets.
-fn eval_normalized_bspline(tr: GpuTrack, t: vec2u) -> Sample {
-    let k = select(tr.order, ONLY_ORDER, ONLY_ORDER != 0u);
-    var basis: array<vec3f, MAX_FACTORS>;
-    let l = bspline_span(tr, k, t, &basis);
+/// normalize(sum B_i c_i) on span l with its time derivatives: the span's cumulative basis
+/// (B~, as the cumulative form takes it) differenced into the plain one, B_i = B~_i -
+/// B~_(i+1), B~ being 1 below the window and 0 above it; then the sum of control points
+/// normalized on jets.
+fn normalized_sum(tr: GpuTrack, k: u32, l: u32, basis: ptr<function, array<vec3f, MAX_FACTORS>>) -> Sample {
     var sum = jet_quat_const(vec4f(0.0));
     var above = vec3f(1.0, 0.0, 0.0);
     for (var r = 0u; r < k; r++) {
         var below = vec3f(0.0);
         if r + 1u < k {
-            below = basis[r];
+            below = (*basis)[r];
         }
         let b = above - below;
         let c = points[tr.point_offset + l + 1u + r - k];
@@ -334,7 +342,7 @@ fn evaluate_track(tr: GpuTrack, t: vec2u) -> Sample {
         case CURVE_BEZIER: { return eval_bezier(tr, t); }
         case CURVE_HERMITE: { return eval_hermite(tr, t); }
         case CURVE_NAM_KIM: { return eval_nam_kim(tr, t); }
-        case CURVE_NORMALIZED_BSPLINE: { return eval_normalized_bspline(tr, t); }
+        // Either B-spline form.
         default: { return eval_bspline(tr, t); }
     }
 }

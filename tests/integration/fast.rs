@@ -225,17 +225,20 @@ pub fn mixed_batch_with_repeated_knots() -> (Batch, SampleTimes) {
     (batch, times)
 }
 
-/// B-splines only, of each order and knot mode given, several of each side by side: a kernel
-/// specialized to the family must still take each track's order and knot spacing.
-pub fn bspline_batch(orders: &[usize], knot_modes: &[KnotMode]) -> (Batch, SampleTimes) {
+/// B-splines only, of each order, knot mode and form given, several of each side by side: a
+/// kernel specialized to the family (or to both forms) must still take each track's form,
+/// order and knot spacing.
+pub fn bspline_batch(orders: &[usize], knot_modes: &[KnotMode], forms: &[Curve]) -> (Batch, SampleTimes) {
     let mut g = Gen::new(7);
     let mut builder = BatchBuilder::new();
     for &order in orders {
         // Phantom knots exist for the cubic only.
         for &knots in knot_modes.iter().filter(|&&m| m != KnotMode::Phantom || order == 4) {
-            let spec = CurveSpec { order, knots, ..CurveSpec::new(Curve::BSpline) };
-            let t = accurate_track(&mut g, &spec, spec.min_keys().max(2) + 3, Kind::SignFlipped);
-            builder.add(&t, &spec).unwrap();
+            for &curve in forms {
+                let spec = CurveSpec { order, knots, ..CurveSpec::new(curve) };
+                let t = accurate_track(&mut g, &spec, spec.min_keys().max(2) + 3, Kind::SignFlipped);
+                builder.add(&t, &spec).unwrap();
+            }
         }
     }
     let batch = builder.build().unwrap();

@@ -156,6 +156,7 @@ fn codes_and_limits_match_the_shader_constants() {
     assert_eq!(layout::blend_code(Blend::Quadratic), c("BLEND_QUADRATIC"));
     assert_ne!(layout::blend_code(Blend::Cubic), c("BLEND_QUADRATIC"));
     assert_eq!(layout::ANY_CURVE, c("ANY_CURVE"));
+    assert_eq!(layout::BSPLINE_FORMS, c("BSPLINE_FORMS"));
     assert_eq!(layout::FLAG_EXPLICIT_TIMES, c("FLAG_EXPLICIT_TIMES"));
     assert_eq!(layout::FLAG_HAS_LAST, c("FLAG_HAS_LAST"));
     assert_eq!(layout::FLAG_UNIFORM_KNOTS, c("FLAG_UNIFORM_KNOTS"));

@@ -91,6 +91,11 @@ pub const FLAG_UNIFORM_KNOTS: u32 = 4;
 /// `ANY_CURVE` in the shader: no specialization.
 pub const ANY_CURVE: u32 = 255;
 
+/// `BSPLINE_FORMS` in the shader: tracks of either B-spline form, chosen per track, every other
+/// family compiled out (a fitted clip mixes normalized cubics and slerped keys; on a software
+/// adapter the generic kernel decoded it 2.5x slower).
+pub const BSPLINE_FORMS: u32 = 254;
+
 /// The shader's code for a curve family (`CURVE_*`).
 #[must_use]
 pub fn curve_code(curve: Curve) -> u32 {
@@ -608,7 +613,8 @@ fn track_entry(
 /// Pipelines are specialized by these override constants (WGSL `ONLY_CURVE`, ...).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) struct PipelineKey {
-    /// The curve code every track of the chunk has, or [`ANY_CURVE`].
+    /// The curve code every track of the chunk has, [`BSPLINE_FORMS`] when they are B-splines
+    /// of both forms, or [`ANY_CURVE`].
     pub(crate) only_curve: u32,
     /// The B-spline order every track of the chunk has (of either form), or 0.
     pub(crate) only_order: u32,
@@ -628,8 +634,15 @@ impl PipelineKey {
         let first = tracks.first().copied().unwrap_or_default();
         let specialize = !options.generic_kernel && !tracks.is_empty();
         let same = |f: fn(&GpuTrack) -> u32| specialize && tracks.iter().all(|t| f(t) == f(&first));
-        let only_curve = if same(|t| t.curve) { first.curve } else { ANY_CURVE };
-        let bspline = [Curve::BSpline, Curve::NormalizedBSpline].iter().any(|&c| only_curve == curve_code(c));
+        let forms = [Curve::BSpline, Curve::NormalizedBSpline].map(curve_code);
+        let only_curve = if same(|t| t.curve) {
+            first.curve
+        } else if specialize && tracks.iter().all(|t| forms.contains(&t.curve)) {
+            BSPLINE_FORMS
+        } else {
+            ANY_CURVE
+        };
+        let bspline = only_curve == BSPLINE_FORMS || forms.contains(&only_curve);
         Self {
             only_curve,
             only_order: if bspline && same(|t| t.order) { first.order } else { 0 },

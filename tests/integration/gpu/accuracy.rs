@@ -83,10 +83,15 @@ fn bspline_batches_mixing_orders_and_knot_spacings() {
         (&[5][..], &[KnotMode::Clamped, KnotMode::Uniform][..], "one order, mixed spacings"),
         (&[4][..], &uniform[..], "one order, equally spaced (both specializations)"),
     ] {
-        let (batch, times) = bspline_batch(orders, modes);
-        for layout in [Layout::Track, Layout::Frame] {
-            compare_output(&on_gpu(gpu, false)(&batch, &times, layout, true), &batch, &times, layout, true, what)
-                .assert_within_bars(what);
+        // One form (the kernel of one family), and both side by side (a fitted clip's: the
+        // kernel of the two forms alone).
+        for forms in [&[Curve::BSpline][..], &[Curve::NormalizedBSpline, Curve::BSpline]] {
+            let (batch, times) = bspline_batch(orders, modes, forms);
+            let what = format!("{what}, {forms:?}");
+            for layout in [Layout::Track, Layout::Frame] {
+                compare_output(&on_gpu(gpu, false)(&batch, &times, layout, true), &batch, &times, layout, true, &what)
+                    .assert_within_bars(&what);
+            }
         }
     }
 }
