@@ -31,6 +31,18 @@ pub struct Spline<'a> {
     pub curve: Curve,
 }
 
+impl Spline<'_> {
+    /// The coefficients it packs: one per step between control points for the cumulative
+    /// form, none for the normalized one.
+    fn coef_count(&self) -> usize {
+        if self.curve == Curve::NormalizedBSpline {
+            0
+        } else {
+            self.points.len().saturating_sub(1)
+        }
+    }
+}
+
 /// Builds a [`Batch`] track by track or slice by slice; tracks may use different curve specs.
 #[derive(Debug)]
 pub struct BatchBuilder {
@@ -109,10 +121,7 @@ impl BatchBuilder {
             own.push(last_knots != Some(spline.knots));
             last_knots = Some(spline.knots);
         }
-        let lengths = |s: &Spline<'_>, own: bool| {
-            let coefs = if s.curve == Curve::NormalizedBSpline { 0 } else { s.points.len().saturating_sub(1) };
-            [s.points.len(), coefs, if own { s.knots.len() } else { 0 }]
-        };
+        let lengths = |s: &Spline<'_>, own: bool| [s.points.len(), s.coef_count(), if own { s.knots.len() } else { 0 }];
         let totals = splines.iter().zip(&own).fold([0; 3], |sum, (s, &own)| {
             let [p, c, k] = lengths(s, own);
             [sum[0] + p, sum[1] + c, sum[2] + k]
@@ -193,7 +202,7 @@ impl BatchBuilder {
                 }
             };
             let (order, last) = (spline.knots.len() - spline.points.len(), spline.points.len() - 1);
-            let coef_count = if spline.curve == Curve::NormalizedBSpline { 0 } else { last };
+            let coef_count = spline.coef_count();
             b.tracks.push(PackedTrack {
                 curve: spline.curve,
                 order,

@@ -55,6 +55,9 @@ impl<S: Lanes> V8<S> {
 }
 
 impl<S: Lanes> Q8<S> {
+    /// All zero.
+    pub const ZERO: Self = Self { x: S::ZERO, y: S::ZERO, z: S::ZERO, w: S::ZERO };
+
     /// Lane-wise gather from `[x, y, z, w]` rows.
     #[inline(always)]
     pub fn gather(rows: &[[f32; 4]; LANES]) -> Self {
@@ -272,8 +275,7 @@ pub fn normalized_sum<S: Lanes, const F: usize>(
     jets: &[[S; 3]; F],
     derivatives: bool,
 ) -> (Q8<S>, V8<S>, V8<S>) {
-    let zero = Q8 { x: S::ZERO, y: S::ZERO, z: S::ZERO, w: S::ZERO };
-    let (mut p, mut d, mut e) = (first, zero, zero);
+    let (mut p, mut d, mut e) = (first, Q8::ZERO, Q8::ZERO);
     let mut previous = first;
     for (point, jet) in rest.iter().zip(jets) {
         let step =

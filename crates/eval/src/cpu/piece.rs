@@ -173,7 +173,7 @@ impl<const F: usize> LaneRows<F> {
     /// The lanes' rows as points: a normalized B-spline's control points after the first.
     #[inline(always)]
     pub(super) fn points<S: Lanes>(&self) -> [Q8<S>; F] {
-        let mut points = [Q8 { x: S::ZERO, y: S::ZERO, z: S::ZERO, w: S::ZERO }; F];
+        let mut points = [Q8::ZERO; F];
         for (f, point) in points.iter_mut().enumerate() {
             let [x, y, z, w] = S::from_rows(&self.coefs[f]);
             *point = Q8 { x, y, z, w };

@@ -6,9 +6,9 @@
 //! Only tracks of at most [`SHORT`] samples take it (longer ones gain from a [`Piece`]'s
 //! groups that share one segment), and only families whose basis is one fitted polynomial of
 //! the span parameter (slerp, Hermite, B-splines of either form on equally spaced knots),
-//! which a group can evaluate for lanes of different tracks. A lane's result depends on its own track and time
-//! alone, never on its neighbours (its sine and cosine included, [`AngleRange::PerLane`]):
-//! outputs do not change with the batch a track is in.
+//! which a group can evaluate for lanes of different tracks. A lane's result depends on its
+//! own track and time alone, never on its neighbours (its sine and cosine included,
+//! [`AngleRange::PerLane`]): outputs do not change with the batch a track is in.
 //!
 //! [`Piece`]: super::piece::Piece
 
