@@ -93,7 +93,7 @@ pub const ANY_CURVE: u32 = 255;
 
 /// `BSPLINE_FORMS` in the shader: tracks of either B-spline form, chosen per track, every other
 /// family compiled out (a fitted clip mixes normalized cubics and slerped keys; on a software
-/// adapter the generic kernel decoded it 2.5x slower).
+/// adapter the generic kernel decoded it about 2x slower).
 pub const BSPLINE_FORMS: u32 = 254;
 
 /// The shader's code for a curve family (`CURVE_*`).
