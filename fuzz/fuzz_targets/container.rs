@@ -1,10 +1,11 @@
 //! Fitted-container bytes (resealed) -> reader -> bake (fast CPU path) -> BVH and texture encoders, in
-//! memory.
+//! memory; and the runtime decoder at times before, across and after each clip.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::anim::bvh;
 use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::qcf::decoder::Decoder;
 use quatcurve::anim::qcf::Container;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
@@ -12,6 +13,15 @@ fuzz_target!(|bytes: &[u8]| {
     // The checksum made right again, so that the fuzzer's bytes reach the fields behind it.
     let mut bytes = bytes.to_vec();
     quatcurve::anim::qcf::reseal(&mut bytes);
+    if let Ok(decoder) = Decoder::from_bytes(&bytes) {
+        for mut clip in decoder.clips {
+            let [start, end] = clip.span();
+            let mut pose = vec![0.0; clip.pose_floats()];
+            for i in -2..=14 {
+                let _ = clip.pose(start + (end - start) * f64::from(i) / 12.0, &mut pose);
+            }
+        }
+    }
     let Ok(container) = Container::from_bytes(&bytes) else { return };
     let animation = container.animation();
     if animation.clips.is_empty() {

@@ -7,6 +7,7 @@ use super::{bake, data_dir, stderr};
 use assert_cmd::Command;
 use quatcurve::analysis::vertex_error::{pose_errors, Transform};
 use quatcurve::anim::bvh;
+use quatcurve::anim::qcf::decoder::{Decoder, POSE_FLOATS};
 use quatcurve::anim::qcf::fitted::{Fitted, Form};
 use quatcurve::anim::qcf::Container;
 use quatcurve::anim::{Animation, Property};
@@ -154,7 +155,37 @@ fn bakes_back_within_the_reported_error(every: usize) -> Option<Vec<u8>> {
         eprintln!("{device}: the decoded BVH is within {again_cm} cm; the report says {at_frames_cm} cm");
         assert!((again_cm - at_frames_cm).abs() <= 2e-5, "{device}: {again_cm} cm decoded, {at_frames_cm} reported");
     }
-    Some(std::fs::read(&container).unwrap())
+    // The runtime decoder, frame after frame from the bytes, poses the skeleton as the bake does.
+    let bytes = std::fs::read(&container).unwrap();
+    let mut clip = Decoder::from_bytes(&bytes).unwrap().clips.remove(0);
+    let [start, end] = clip.span();
+    assert!(
+        (clip.rate - 120.0 / every as f64).abs() < 1e-9
+            && ((end - start) * clip.rate - (frames - 1) as f64).abs() < 1e-6
+    );
+    let (parents, order) = (source_animation.parents(), source_animation.parents_first().unwrap());
+    let mut floats = vec![0.0; clip.pose_floats()];
+    let mut worst = 0.0f64;
+    for f in 0..frames {
+        clip.pose(start + f as f64 / clip.rate, &mut floats).unwrap();
+        let decoded: Vec<Transform> = floats
+            .chunks_exact(POSE_FLOATS)
+            .map(|p| {
+                let v: Vec<f64> = p.iter().map(|&v| f64::from(v)).collect();
+                Transform {
+                    rotation: [v[0], v[1], v[2], v[3]],
+                    translation: [v[4], v[5], v[6]],
+                    scale: [v[7], v[8], v[9]],
+                }
+            })
+            .collect();
+        let errors = pose_errors(&parents, &order, &pose(&source_animation, f), &decoded, 3.0 / CMU_UNIT_CM);
+        worst = errors.into_iter().fold(worst, f64::max);
+    }
+    let decoder_cm = worst * CMU_UNIT_CM;
+    eprintln!("decoder: within {decoder_cm} cm; the report says {at_frames_cm} cm");
+    assert!((decoder_cm - at_frames_cm).abs() <= 2e-5, "decoder: {decoder_cm} cm, {at_frames_cm} reported");
+    Some(bytes)
 }
 
 /// A small BVH: a root that moves and turns, a child that bends, 61 frames at 30 Hz.

@@ -201,16 +201,23 @@ impl Between for [f64; 3] {
     }
 }
 
+/// The knot vector, in seconds, of a curve in `form` on interior `knots` of `timeline`
+/// (clamped at the timeline's ends): what every evaluator of a stored curve reads.
+#[must_use]
+pub fn knot_times(timelines: &[Timeline], timeline: usize, form: Form, knots: &[u32]) -> Vec<f64> {
+    let line = &timelines[timeline];
+    let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
+    let (order, interior): (usize, Vec<f64>) = match form {
+        Form::Cubic => (ORDER, knots.iter().map(|&s| line.sample(s as usize)).collect()),
+        Form::Keys => (KEYS_ORDER, knots.iter().map(|&k| line.key(k as usize)).collect()),
+    };
+    clamped(order, start, end, &interior)
+}
+
 impl<T> Spline<T> {
     /// The curve of `controls` in `form` on interior `knots` of `timeline` (clamped at its ends).
     pub fn new(timelines: &[Timeline], timeline: usize, form: Form, knots: Vec<u32>, controls: Vec<T>) -> Self {
-        let line = &timelines[timeline];
-        let (start, end) = (line.sample(0), line.sample(line.samples() - 1));
-        let (order, interior): (usize, Vec<f64>) = match form {
-            Form::Cubic => (ORDER, knots.iter().map(|&s| line.sample(s as usize)).collect()),
-            Form::Keys => (KEYS_ORDER, knots.iter().map(|&k| line.key(k as usize)).collect()),
-        };
-        let fit = Fit { knots: clamped(order, start, end, &interior), controls, worst: 0.0, worst_at: 0 };
+        let fit = Fit { knots: knot_times(timelines, timeline, form, &knots), controls, worst: 0.0, worst_at: 0 };
         Spline { timeline, form, knots, fit }
     }
 }
@@ -299,6 +306,12 @@ impl Fitted {
     }
 }
 
+/// A clip's source frame rate from its `timelines` ([`FittedClip::source_rate`]).
+#[must_use]
+pub fn source_rate(timelines: &[Timeline]) -> f64 {
+    timelines.iter().map(|l| (l.keys() - 1) as f64 / (l.key(l.keys() - 1) - l.key(0))).fold(1.0, f64::max)
+}
+
 /// A fitted channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FittedChannel {
@@ -328,7 +341,7 @@ impl FittedClip {
     /// constants, which holds one pose).
     #[must_use]
     pub fn source_rate(&self) -> f64 {
-        self.timelines.iter().map(|l| (l.keys() - 1) as f64 / (l.key(l.keys() - 1) - l.key(0))).fold(1.0, f64::max)
+        source_rate(&self.timelines)
     }
 
     /// The clip's rotation channels as tracks of explicit knots ([`spline_spec`]),

@@ -4,6 +4,7 @@
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
 //! is an error naming it and its byte offset.
 
+pub mod decoder;
 pub mod fitted;
 pub mod quantize;
 pub mod timeline;
@@ -121,6 +122,74 @@ impl Container {
     /// # Errors
     /// The first field that is truncated or out of its range, named, with its offset.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ContainerError> {
+        let stored = Stored::from_bytes(bytes)?;
+        let clips = stored.clips.into_iter().map(StoredClip::fitted).collect();
+        Ok(Container { joints: stored.joints, bvh: stored.bvh, clips })
+    }
+}
+
+/// A container as its bytes hold it: every field read and checked, each curve's control
+/// points still codes. The container's model ([`Container`], control points in f64) and the
+/// runtime decoder ([`decoder::Decoder`], in f32) are each built from it.
+pub(crate) struct Stored {
+    pub(crate) joints: Vec<Joint>,
+    pub(crate) bvh: Option<BvhSkeleton>,
+    pub(crate) clips: Vec<StoredClip>,
+}
+
+/// A clip as stored: [`FittedClip`] with each curve's codes not yet decoded.
+pub(crate) struct StoredClip {
+    pub(crate) name: String,
+    pub(crate) span: [f64; 2],
+    pub(crate) timelines: Vec<Timeline>,
+    pub(crate) channels: Vec<StoredChannel>,
+}
+
+/// A channel as stored: joint, property, and its constant or curve.
+pub(crate) struct StoredChannel {
+    pub(crate) joint: usize,
+    pub(crate) property: Property,
+    pub(crate) curve: StoredCurve,
+}
+
+/// A curve as stored: its timeline, form, knot indices and codes ([`Fitted::rotation`] and
+/// [`Fitted::vector`] take exactly these).
+pub(crate) enum StoredCurve {
+    /// A constant's value (`f32` values, as stored).
+    Constant([f64; 4]),
+    /// Timeline, form, knot indices and codes of a rotation curve.
+    Rotation(usize, Form, Vec<u32>, QuantizedRotations),
+    /// The same of a translation or scale curve.
+    Vector(usize, Form, Vec<u32>, Quantized),
+}
+
+impl StoredClip {
+    /// The clip in the container's model: its control points decoded.
+    fn fitted(self) -> FittedClip {
+        let timelines = self.timelines;
+        let channels = self
+            .channels
+            .into_iter()
+            .map(|c| {
+                let curve = match c.curve {
+                    StoredCurve::Constant(v) => Fitted::Constant(v),
+                    StoredCurve::Rotation(line, form, knots, codes) => {
+                        Fitted::rotation(&timelines, line, form, knots, codes)
+                    }
+                    StoredCurve::Vector(line, form, knots, codes) => {
+                        Fitted::vector(&timelines, line, form, knots, codes)
+                    }
+                };
+                FittedChannel { joint: c.joint, property: c.property, curve }
+            })
+            .collect();
+        FittedClip { name: self.name, span: self.span, timelines, channels }
+    }
+}
+
+impl Stored {
+    /// Every field of a container's bytes, checked ([`Container::from_bytes`]).
+    pub(crate) fn from_bytes(bytes: &[u8]) -> Result<Self, ContainerError> {
         let mut r = Reader { bytes, at: 0 };
         let magic = r.take(MAGIC.len(), "magic")?;
         if magic != MAGIC {
@@ -212,7 +281,7 @@ impl Container {
         if r.at != r.bytes.len() {
             return Err(r.bad("end", format!("{} bytes after the last clip", r.bytes.len() - r.at)));
         }
-        Ok(Container { joints, bvh, clips })
+        Ok(Stored { joints, bvh, clips })
     }
 }
 
@@ -318,7 +387,7 @@ fn write_channel(out: &mut Writer, channel: &FittedChannel) {
     }
 }
 
-fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, ContainerError> {
+fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, ContainerError> {
     let name = r.text(&format!("clip {c} name"))?;
     let clip = format!("clip {c} '{name}'");
     let span = [r.finite_f64(&format!("{clip} start"))?, r.finite_f64(&format!("{clip} end"))?];
@@ -393,7 +462,7 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, C
                 for x in v.iter_mut().take(if rotation { 4 } else { 3 }) {
                     *x = r.finite_f32(&format!("{field} value"))?;
                 }
-                Fitted::Constant(v)
+                StoredCurve::Constant(v)
             }
             Some(form) => {
                 let (line, knots, codes) = r.curve(&field, &timelines, form)?;
@@ -414,15 +483,15 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<FittedClip, C
                             ))
                         }
                     };
-                    Fitted::rotation(&timelines, line, form, knots, QuantizedRotations { smallest: codes, largest })
+                    StoredCurve::Rotation(line, form, knots, QuantizedRotations { smallest: codes, largest })
                 } else {
-                    Fitted::vector(&timelines, line, form, knots, codes)
+                    StoredCurve::Vector(line, form, knots, codes)
                 }
             }
         };
-        channels.push(FittedChannel { joint, property, curve });
+        channels.push(StoredChannel { joint, property, curve });
     }
-    Ok(FittedClip { name, span, timelines, channels })
+    Ok(StoredClip { name, span, timelines, channels })
 }
 
 /// Bytes being written.
@@ -931,8 +1000,9 @@ mod tests {
     use crate::qcf::quantize;
     use quatcurve_core::quat::{QuatF64, Vec3F64};
 
-    /// Two joints: a rotation curve, a vector curve with a knot of multiplicity 3, a constant.
-    fn container() -> Container {
+    /// Three joints: rotation and vector curves of both forms (a vector's with a knot of
+    /// multiplicity 3), a constant.
+    pub(crate) fn container() -> Container {
         let timelines =
             vec![Timeline::Even { first: 0.0, last: 2.0, count: 61 }, Timeline::Listed(vec![0.0, 0.5, 2.0])];
         let turns: Vec<QuatF64> =
@@ -1123,6 +1193,8 @@ mod tests {
                 _ => changed.splice(at..at, (0..1 + next(16)).map(|_| next(256) as u8)).for_each(drop),
             }
             let e = Container::from_bytes(&changed).expect_err("a changed container was read");
+            let decoder = decoder::Decoder::from_bytes(&changed).expect_err("a changed container was decoded");
+            assert_eq!(decoder, e, "the decoder reads as the container does");
             *by_field.entry(e.field).or_default() += 1;
         }
         eprintln!("300 random changes refused by field: {by_field:?}");
