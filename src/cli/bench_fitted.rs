@@ -6,6 +6,7 @@
 
 use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
+use quatcurve::anim::qcf::decoder::Decoder;
 use quatcurve::anim::qcf::Container;
 use quatcurve::anim::Animation;
 use quatcurve::bake::{self, ClipRate, LoopMode, Reuse};
@@ -29,6 +30,8 @@ pub struct FittedReport {
     acl_ns_per_bone_pose: [f64; 2],
     /// Reading the containers' bytes, once per copy: before any decode.
     load: FittedLoad,
+    /// The runtime's way: from the bytes to every frame's local poses in order, one thread.
+    decoder: FittedLoad,
     results: Vec<FittedTiming>,
 }
 
@@ -127,7 +130,29 @@ pub fn measure(
         }
         Ok(())
     })?;
+    // The runtime's way ([`Decoder`]): each copy read from its bytes, then every frame's local
+    // pose in order into one pose buffer, as a player keeps one.
+    let mut pose = Vec::new();
+    let decoder_seconds = median_seconds(runs, || {
+        for bytes in &files_bytes {
+            for _ in 0..copies {
+                let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
+                for mut clip in decoder.clips {
+                    let [start, end] = clip.span();
+                    let (grid, _) =
+                        bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
+                    pose.resize(clip.pose_floats(), 0.0);
+                    for t in (0..grid.count()).filter_map(|j| grid.grid_time(j)) {
+                        clip.pose(t, &mut pose).map_err(|e| Failure::Internal(e.to_string()))?;
+                        std::hint::black_box(&pose);
+                    }
+                }
+            }
+        }
+        Ok(())
+    })?;
     Ok(FittedReport {
+        decoder: FittedLoad { seconds: decoder_seconds, ns_per_bone_pose: decoder_seconds * 1e9 / bone_poses as f64 },
         load: FittedLoad { seconds: load_seconds, ns_per_bone_pose: load_seconds * 1e9 / bone_poses as f64 },
         files: files.iter().map(|f| f.display().to_string()).collect(),
         copies,
@@ -160,6 +185,12 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         "loading the containers (bytes to control points, one thread): {:.4} s, {:.2} ns a bone-pose; then decoding:",
         report.load.seconds, report.load.ns_per_bone_pose
     )?;
+    writeln!(
+        w,
+        "the runtime decoder (bytes to every frame's local poses in order, one thread): {:.4} s, {:.2} ns a bone-pose",
+        report.decoder.seconds, report.decoder.ns_per_bone_pose
+    )?;
+    writeln!(w, "baking them:")?;
     writeln!(w, "{:<44} {:>8} {:>10} {:>14} {:>12}", "device", "threads", "seconds", "poses/s", "ns/bone-pose")?;
     for r in &report.results {
         writeln!(
