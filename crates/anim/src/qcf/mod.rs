@@ -635,26 +635,38 @@ fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
 /// `n` points' codes of [`pack_codes`], each checked to lie within `bits`.
 fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, String> {
     let mut input = BitReader::new(packed);
-    let end = || format!("the packed codes end before control point {n}");
+    let end = |i: usize| move || format!("the packed codes end in control point {i}");
     let mut codes: Vec<[u32; 3]> = Vec::with_capacity(n);
+    if n == 0 {
+        return Ok(codes);
+    }
     let most = (1i64 << bits) - 1;
+    let outside = |i: usize, c: usize, value: i64| {
+        format!("control point {i} component {c} decodes to {value}, outside {bits} bits")
+    };
+    // The first point whole; then blocks of residuals, each after its three Rice parameters.
+    let mut first = [0u32; 3];
+    for (c, code) in first.iter_mut().enumerate() {
+        let value = input.take(bits).ok_or_else(end(0))? as i64;
+        if !(0..=most).contains(&value) {
+            return Err(outside(0, c, value));
+        }
+        *code = value as u32;
+    }
+    codes.push(first);
     // A residual of a code within `bits` from a prediction within `bits + 1`, zigzagged.
     let most_zigzag = 1u64 << (bits + 2);
-    let mut ks = [0; 3];
     // The two points before the next, kept out of `codes` so that they stay in registers.
-    let (mut two_back, mut last): (Option<[u32; 3]>, [u32; 3]) = (None, [0; 3]);
-    for i in 0..n {
-        if i % BLOCK == 1 {
-            for k in &mut ks {
-                *k = input.take(RICE_BITS).ok_or_else(end)? as u32;
-            }
+    let (mut two_back, mut last): (Option<[u32; 3]>, [u32; 3]) = (None, first);
+    for block in (1..n).step_by(BLOCK) {
+        let mut ks = [0; 3];
+        for k in &mut ks {
+            *k = input.take(RICE_BITS).ok_or_else(end(block))? as u32;
         }
-        let mut point = [0u32; 3];
-        for c in 0..3 {
-            let value = if i == 0 {
-                input.take(bits).ok_or_else(end)? as i64
-            } else {
-                let (quotient, low) = input.rice(ks[c]).ok_or_else(end)?;
+        for i in block..(block + BLOCK).min(n) {
+            let mut point = [0u32; 3];
+            for c in 0..3 {
+                let (quotient, low) = input.rice(ks[c]).ok_or_else(end(i))?;
                 if quotient > most_zigzag >> ks[c] {
                     return Err(format!(
                         "control point {i} component {c}: a residual's quotient {quotient} is larger than any of {bits} bits"
@@ -662,18 +674,16 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
                 }
                 let z = (quotient << ks[c]) | low;
                 let r = (z >> 1) as i64 ^ -((z & 1) as i64);
-                predicted(two_back.as_ref(), &last, c).wrapping_add(r)
-            };
-            if !(0..=most).contains(&value) {
-                return Err(format!("control point {i} component {c} decodes to {value}, outside {bits} bits"));
+                let value = predicted(two_back.as_ref(), &last, c).wrapping_add(r);
+                if !(0..=most).contains(&value) {
+                    return Err(outside(i, c, value));
+                }
+                point[c] = value as u32;
             }
-            point[c] = value as u32;
-        }
-        codes.push(point);
-        if i > 0 {
+            codes.push(point);
             two_back = Some(last);
+            last = point;
         }
-        last = point;
     }
     Ok(codes)
 }
@@ -1135,7 +1145,7 @@ mod tests {
         );
         assert_eq!(
             unpack_codes(&packed[..packed.len() - 2], codes.len(), bits).unwrap_err(),
-            format!("the packed codes end before control point {}", codes.len())
+            format!("the packed codes end in control point {}", codes.len() - 1)
         );
     }
 
