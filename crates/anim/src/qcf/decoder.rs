@@ -28,6 +28,8 @@ fn slot(joint: usize, property: Property) -> usize {
 /// into f32 control points, in order, with nothing else built.
 #[derive(Clone, Debug)]
 pub struct Decoder {
+    /// The skeleton at rest, parents by index: what the poses' joints are.
+    pub joints: Vec<Joint>,
     /// One per clip, in the container's order.
     pub clips: Vec<ClipDecoder>,
 }
@@ -40,7 +42,8 @@ impl Decoder {
     /// range, or a checksum that does not match.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ContainerError> {
         let stored = Stored::from_bytes(bytes)?;
-        Ok(Self { clips: stored.clips.into_iter().map(|clip| ClipDecoder::new(&stored.joints, clip)).collect() })
+        let clips = stored.clips.into_iter().map(|clip| ClipDecoder::new(&stored.joints, clip)).collect();
+        Ok(Self { joints: stored.joints, clips })
     }
 }
 
@@ -104,7 +107,7 @@ impl ClipDecoder {
                     let knots = knot_times(&clip.timelines, line, form, &knots);
                     match form {
                         Form::Cubic => decoder.cubic_rotations.push(Cubic::new(at, knots, points)),
-                        Form::Keys => decoder.slerps.push(Slerp { keys: Keys::new(at, knots), points, arc: [0.0; 2] }),
+                        Form::Keys => decoder.slerps.push(Slerp { keys: Keys::new(at, knots), points, arc: None }),
                     }
                 }
                 StoredCurve::Vector(line, form, knots, codes) => {
@@ -346,8 +349,8 @@ struct Slerp {
     keys: Keys,
     points: Vec<[f32; 4]>,
     /// The span's angle between its keys and its sine's reciprocal (0 for keys too close to
-    /// part, which are lerped).
-    arc: [f32; 2],
+    /// part, which are lerped), once a time inside the span asked for them.
+    arc: Option<[f32; 2]>,
 }
 
 impl Slerp {
@@ -356,15 +359,26 @@ impl Slerp {
         let (h, moved) = self.keys.seek(t);
         let (a, b) = (self.points[self.keys.l - 1], self.points[self.keys.l]);
         if moved {
+            self.arc = None;
+        }
+        // On a key (a clip sampled at its source's frames, nearly always): the key itself,
+        // and the span's angle not computed.
+        if h == 0.0 {
+            return a;
+        }
+        let [angle, inv] = *self.arc.get_or_insert_with(|| {
             // The angle between the keys from half their chord, `|a - b| = 2 sin(angle / 2)`,
             // which keeps its precision for close keys where `acos` of their dot does not;
             // `sin(angle) = 2 s sqrt(1 - s^2)`.
             let s = 0.5 * (0..4).map(|c| (a[c] - b[c]) * (a[c] - b[c])).sum::<f32>().sqrt();
             let angle = 2.0 * s.min(1.0).asin();
             let sin = 2.0 * s * (1.0 - s * s).max(0.0).sqrt();
-            self.arc = if angle > 1e-3 { [angle, 1.0 / sin] } else { [0.0; 2] };
-        }
-        let [angle, inv] = self.arc;
+            if angle > 1e-3 {
+                [angle, 1.0 / sin]
+            } else {
+                [0.0; 2]
+            }
+        });
         let (wa, wb) =
             if angle > 0.0 { (sin_poly((1.0 - h) * angle) * inv, sin_poly(h * angle) * inv) } else { (1.0 - h, h) };
         // Unit to f32's rounding without a normalization: slerp keeps unit keys unit, and
