@@ -317,11 +317,26 @@ impl QuatF64 {
     /// `2 acos|dot|` (DESIGN section 1); used for every error figure.
     #[must_use]
     pub fn angle_to(self, other: Self) -> f64 {
+        let (apart, together) = self.chords(other);
+        4.0 * apart.atan2(together)
+    }
+
+    /// Whether [`Self::angle_to`] `other` is at most the angle whose quarter's tangent is
+    /// `tan_quarter` ([`tan_quarter`]): the same chords compared, without the arctangent (a
+    /// seventh of a fit, which holds every sample to a bound and needs no angle).
+    #[must_use]
+    pub fn within(self, other: Self, tan_quarter: f64) -> bool {
+        let (apart, together) = self.chords(other);
+        apart <= tan_quarter * together
+    }
+
+    /// `|a - s b|` and `|a + s b|` of [`Self::angle_to`].
+    fn chords(self, other: Self) -> (f64, f64) {
         let a = self.normalize();
         let b = other.normalize();
         let s = if a.dot(b) < 0.0 { -1.0 } else { 1.0 };
         let b = b.mul_scalar(s);
-        4.0 * (a - b).length().atan2((a + b).length())
+        ((a - b).length(), (a + b).length())
     }
 
     /// The unit quaternion of a rotation vector: its axis times its angle in radians (scipy's
@@ -455,6 +470,17 @@ pub fn relative_log(a: QuatF64, b: QuatF64) -> Vec3F64 {
     (a.conjugate() * b.aligned_with(a)).log()
 }
 
+/// `tan(angle / 4)` of a bound on [`QuatF64::angle_to`], as [`QuatF64::within`] reads it;
+/// infinite for a bound of a full turn or more, which every pair of rotations is within.
+#[must_use]
+pub fn tan_quarter(angle: f64) -> f64 {
+    if angle >= 2.0 * std::f64::consts::PI {
+        f64::INFINITY
+    } else {
+        (angle / 4.0).tan()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -560,6 +586,23 @@ mod tests {
         let b = QuatF64::exp(Vec3F64::new(0.0, 5e-10, 0.0));
         assert!((a.angle_to(b) - 1e-9).abs() < 1e-22);
         assert!((a.angle_to(-b) - 1e-9).abs() < 1e-22);
+    }
+
+    /// `within` agrees with `angle_to` against a bound, for angles from a nanoradian to nearly
+    /// half a turn, either sign, unnormalized inputs, bounds just either side and past a turn.
+    #[test]
+    fn within_holds_a_pair_to_a_bound_as_its_angle_does() {
+        let a = QuatF64::exp(Vec3F64::new(0.3, -0.2, 0.5)).mul_scalar(1.7);
+        for (i, angle) in [1e-9, 1e-4, 0.01, 0.5, 2.0, 3.0, 3.1, PI - 1e-6].into_iter().enumerate() {
+            let turn = QuatF64::exp(Vec3F64::new(0.6, 0.0, -0.8).scale(angle / 2.0));
+            let b = (a * turn).mul_scalar(if i % 2 == 0 { -0.4 } else { 2.5 });
+            let measured = a.angle_to(b);
+            assert!((measured - angle).abs() < 1e-9 * angle.max(1.0), "{angle}: {measured}");
+            for bound in [measured * (1.0 + 1e-9), measured * (1.0 - 1e-9), 7.0] {
+                assert_eq!(a.within(b, tan_quarter(bound)), measured <= bound, "{angle} against {bound}");
+            }
+        }
+        assert!(a.within(-a, tan_quarter(0.0)), "the same rotation either sign");
     }
 
     #[test]

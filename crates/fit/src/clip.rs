@@ -12,7 +12,7 @@ use quatcurve_anim::qcf::fitted::{Between, Fit, Fitted, FittedChannel, FittedCli
 use quatcurve_anim::qcf::quantize::{self, Quantized};
 use quatcurve_anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
 use quatcurve_anim::{Animation, Channel, Property};
-use quatcurve_core::quat::{QuatF64, Vec3F64};
+use quatcurve_core::quat::{tan_quarter, QuatF64, Vec3F64};
 use quatcurve_eval::error::Number;
 use quatcurve_eval::skeleton::Affine;
 use rayon::prelude::*;
@@ -374,28 +374,36 @@ fn fit_channel(
             let spans = std::cell::OnceCell::new();
             let rotation_at = |fit: &Fit<QuatF64>| {
                 let spans = spans.get_or_init(|| spans_of_order(&fit.knots, fit.order(), &times));
-                let curve = fit.spans_lazily(spans).ok()?;
-                Some(curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v)))
+                fit.spans_lazily(spans).ok()
             };
             let unrounded: Vec<f64> = match &controls {
                 Controls::Rotations(c) => {
-                    rotation_at(&Spline::new(timelines, line, form, knots.clone(), c.clone()).fit)?.collect()
+                    let fit = Spline::new(timelines, line, form, knots.clone(), c.clone()).fit;
+                    let curve = rotation_at(&fit)?;
+                    curve.zip(values).map(|(q, v)| distance(channel.property, &q.to_array(), v)).collect()
                 }
                 Controls::Vectors(c) => {
                     errors(&Spline::new(timelines, line, form, knots.clone(), c.clone()).at(&times))
                 }
             };
-            // Each sample's distance from the source, as far as the first one out of its
-            // bound: a refused width (every search tries one) stops there.
-            let within = |curve: &Fitted| {
-                let bounded = |(d, (&u, &l)): (f64, (&f64, &f64))| d <= l.max(u + QUANTIZATION_SHARE * l);
-                let bounds = unrounded.iter().zip(&limits);
-                match curve {
-                    Fitted::Rotation(spline, _) => {
-                        rotation_at(&spline.fit).is_some_and(|errors| errors.zip(bounds).all(bounded))
-                    }
-                    _ => errors(&curve.at(&times)).into_iter().zip(bounds).all(bounded),
-                }
+            // Each sample's bound, as `within` compares it.
+            let bounds: Vec<f64> = unrounded
+                .iter()
+                .zip(&limits)
+                .map(|(&u, &l)| checked_bound(channel.property, l.max(u + QUANTIZATION_SHARE * l)))
+                .collect();
+            // Each sample held to its bound, as far as the first one out of it: a refused
+            // width (every search tries one) stops there.
+            let within = |curve: &Fitted| match curve {
+                Fitted::Rotation(spline, _) => rotation_at(&spline.fit).is_some_and(|curve| {
+                    curve.zip(values).zip(&bounds).all(|((q, v), &b)| q.within(QuatF64::from_array(*v), b))
+                }),
+                _ => curve
+                    .at(&times)
+                    .iter()
+                    .zip(values)
+                    .zip(&bounds)
+                    .all(|((a, v), &b)| within(channel.property, a, v, b)),
             };
             let start = controls.bits_within(tolerance * QUANTIZATION_SHARE).saturating_sub(BITS_BELOW_BOUND).max(1);
             let curve = |bits| controls.quantized(timelines, line, form, knots.clone(), bits);
@@ -449,6 +457,23 @@ fn distance(property: Property, a: &[f64; 4], b: &[f64; 4]) -> f64 {
     }
 }
 
+/// A bound on [`distance`] as [`within`] reads it: a rotation's as its quarter's tangent
+/// ([`QuatF64::within`]), a vector's as it is.
+fn checked_bound(property: Property, bound: f64) -> f64 {
+    match property {
+        Property::Rotation => tan_quarter(bound),
+        _ => bound,
+    }
+}
+
+/// Whether [`distance`] is at most the bound `checked` ([`checked_bound`]) says.
+fn within(property: Property, a: &[f64; 4], b: &[f64; 4], checked: f64) -> bool {
+    match property {
+        Property::Rotation => QuatF64::from_array(*a).within(QuatF64::from_array(*b), checked),
+        _ => distance(property, a, b) <= checked,
+    }
+}
+
 /// The interior keys a [`Form::Keys`] curve keeps (key indices, ascending): from each kept
 /// key, the farthest key that the source's interpolation between the two holds within
 /// `tolerances` at every sample of `values` between them (its keys and the points between).
@@ -470,8 +495,9 @@ fn kept_keys(property: Property, values: &[[f64; 4]], times: &[f64], tolerances:
             }
         }
     };
+    let bounds: Vec<f64> = tolerances.iter().map(|&t| checked_bound(property, t)).collect();
     let holds = |a: usize, b: usize| {
-        (a * step + 1..b * step).all(|s| distance(property, &between(a, b, s), &values[s]) <= tolerances[s])
+        (a * step + 1..b * step).all(|s| within(property, &between(a, b, s), &values[s], bounds[s]))
     };
     let mut kept = Vec::new();
     let mut a = 0;
