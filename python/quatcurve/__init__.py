@@ -30,12 +30,13 @@ from ._quatcurve import (
     FIT_OPTIONS as _FIT_OPTIONS,
     __version__,
     bake_files,
+    decode_container,
     evaluate_tracks,
     fit_files,
     resample_pose_arrays,
 )
 
-__all__ = ["evaluate", "bake", "fit", "resample_poses", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
+__all__ = ["evaluate", "bake", "fit", "decode", "resample_poses", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
 
 # Each job's options by name with the library's defaults (what :func:`evaluate`, :func:`bake`
 # and :func:`fit` take as keywords).
@@ -491,6 +492,46 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
         lines = "; ".join(f"{row['input']}: {row['error']}" for row in failed)
         raise ValueError(f"{len(failed)} of {len(report['inputs'])} inputs failed (no container written for them): {lines}")
     return report
+
+
+def decode(path, rate=None):
+    """Decodes a fitted container (``.qcf``, :func:`fit`'s output) to each clip's local poses
+    with the runtime decoder (DESIGN section 10): from the file's bytes straight to f32 poses,
+    frame after frame, as a data loader or a game reads them, no bake. The poses are the
+    ``local`` texture a :func:`bake` of the container writes at the same rate.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The container.
+    rate : float, optional
+        Frames per second, fitted to each clip's span as a bake's (default: each clip's
+        source rate).
+
+    Returns
+    -------
+    dict
+        ``joints`` (names) and ``parents`` (index, -1 for a root), and ``clips``, per clip
+        ``name``, ``times`` (float64 ``[frames]``, seconds) and ``poses`` (float32
+        ``[frames, joints, 10]``: rotation ``x, y, z, w``, translation, scale, relative to the
+        parent; the rest pose where the clip does not animate a joint).
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read or is not a container of this version (the field and byte
+        named), or a rate that is not positive.
+    """
+    names, parents, clips = decode_container(os.fspath(path), None if rate is None else float(rate))
+    joints = len(names)
+    return {
+        "joints": names,
+        "parents": parents,
+        "clips": [
+            {"name": name, "times": times, "poses": poses.reshape(len(times), joints, 10)}
+            for name, times, poses in clips
+        ],
+    }
 
 
 # The bake options that apply to arrays in memory (the rest are about files and textures).

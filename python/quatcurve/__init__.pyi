@@ -112,6 +112,18 @@ def fit(
     errors: Literal["raise", "report"] = "raise",
 ) -> dict[str, Any]: ...
 
+class DecodedClip(TypedDict):
+    name: str
+    times: npt.NDArray[np.float64]
+    poses: npt.NDArray[np.float32]
+
+class Decoded(TypedDict):
+    joints: list[str]
+    parents: list[int]
+    clips: list[DecodedClip]
+
+def decode(path: str | os.PathLike[str], rate: float | None = None) -> Decoded: ...
+
 class ResampledPoses(TypedDict):
     poses: npt.NDArray[np.float64]
     trans: npt.NDArray[np.float64] | None

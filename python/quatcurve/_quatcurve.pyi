@@ -44,3 +44,8 @@ def resample_pose_arrays(
     rate: float,
     options: str,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None, float, list[str]]: ...
+
+def decode_container(
+    path: str,
+    rate: float | None,
+) -> tuple[list[str], list[int], list[tuple[str, npt.NDArray[np.float64], npt.NDArray[np.float32]]]]: ...

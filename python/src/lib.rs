@@ -6,15 +6,17 @@
 //! one numpy array `[samples, channels]` (owning the evaluator's buffer when the output is
 //! quaternions) with each track's offsets.
 //! [`bake_files`] fills the library's [`BakeJob`] (the same job `quatcurve bake` runs) and
-//! returns its per-input report as dictionaries.
+//! returns its per-input report as dictionaries; [`decode_container`] runs the runtime decoder
+//! of fitted containers.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use quatcurve::anim::qcf::decoder::Decoder;
 use quatcurve::anim::smpl::SmplFile;
 use quatcurve::bake::budget::{ChosenRate, Worst};
-use quatcurve::bake::{poses, BakeJob, BakeOptions, Shard};
+use quatcurve::bake::{fitted_frame_grid, poses, BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
 use quatcurve::options::EvalOptions;
 use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
@@ -418,6 +420,39 @@ fn fit_files(py: Python<'_>, inputs: Vec<PathBuf>, output: PathBuf, options: &st
     serde_json::to_string(&report).map_err(value_error)
 }
 
+/// A fitted container's clips through the runtime decoder (DESIGN section 10): the joints'
+/// names and parents (-1 for a root), then per clip its name, its frame times at `rate` (the
+/// source's when `None`, fitted to the clip's span as a bake's) and the local poses there,
+/// `[frames, joints * 10]` f32 (rotation `x, y, z, w`, translation, scale). See
+/// `quatcurve.decode`.
+#[pyfunction]
+#[pyo3(signature = (path, rate))]
+#[allow(clippy::type_complexity)]
+fn decode_container<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    rate: Option<f64>,
+) -> PyResult<(Vec<String>, Vec<i64>, Vec<(String, Bound<'py, PyAny>, Bound<'py, PyAny>)>)> {
+    let failed = |e: &dyn std::fmt::Display| value_error(format!("{}: {e}", path.display()));
+    let bytes = std::fs::read(&path).map_err(|e| failed(&e))?;
+    let decoder = Decoder::from_bytes(&bytes).map_err(|e| failed(&format!("fitted container {e}")))?;
+    let names = decoder.joints.iter().map(|j| j.name.clone()).collect();
+    let parents = decoder.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect();
+    let mut clips = Vec::with_capacity(decoder.clips.len());
+    for mut clip in decoder.clips {
+        let [start, end] = clip.span();
+        let (grid, _) = fitted_frame_grid(start, end, rate.unwrap_or(clip.rate)).map_err(|e| failed(&e))?;
+        let times: Vec<f64> = (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect();
+        let width = clip.pose_floats();
+        let mut poses = vec![0.0f32; times.len() * width];
+        py.detach(|| clip.poses(&times, &mut poses)).map_err(|e| failed(&e))?;
+        let frames = times.len();
+        let poses = PyArray1::from_vec(py, poses).reshape([frames, width])?.into_any();
+        clips.push((clip.name, PyArray1::from_vec(py, times).into_any(), poses));
+    }
+    Ok((names, parents, clips))
+}
+
 /// The compiled module, `quatcurve._quatcurve`.
 #[pymodule]
 fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -425,6 +460,7 @@ fn _quatcurve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bake_files, m)?)?;
     m.add_function(wrap_pyfunction!(fit_files, m)?)?;
     m.add_function(wrap_pyfunction!(resample_pose_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_container, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // The front ends' defaults, from the library (the Python signatures use these).
     m.add("DEFAULT_CURVE", quatcurve::DEFAULT_CURVE.name())?;

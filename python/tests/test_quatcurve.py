@@ -372,6 +372,28 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
     (row,) = quatcurve.bake(tmp_path / "py" / "CesiumMan.qcf", tmp_path / "baked", device="cpu", texture="model")
     assert row["status"] == "ok", row
     assert json.loads((tmp_path / "baked" / "CesiumMan.json").read_text())["curve"] == "fitted-bspline"
+    # The runtime decoder gives the poses the bake's `local` texture holds, at the source's
+    # rate and at another.
+    sidecar = json.loads((tmp_path / "baked" / "CesiumMan.json").read_text())
+    for rate in (None, 24.0):
+        decoded = quatcurve.decode(tmp_path / "py" / "CesiumMan.qcf", rate=rate)
+        assert decoded["joints"] == sidecar["joints"] and decoded["parents"] == sidecar["parents"]
+        (clip,) = decoded["clips"]
+        baked = tmp_path / f"local{rate}"
+        times = clip["times"]
+        source_rate = (len(times) - 1) / (times[-1] - times[0])
+        (row,) = quatcurve.bake(tmp_path / "py" / "CesiumMan.qcf", baked, device="cpu", rate=rate or source_rate)
+        assert row["status"] == "ok", row
+        texture = np.load(baked / json.loads((baked / "CesiumMan.json").read_text())["clips"][0]["file"])
+        assert clip["poses"].dtype == np.float32 and clip["poses"].shape == texture.shape
+        assert clip["times"].shape == (texture.shape[0],)
+        # Rotations either sign; every value to f32 rounding of the two paths.
+        q, r = clip["poses"][..., :4], texture[..., :4]
+        sign = np.where(np.sum(q * r, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+        assert np.abs(q - sign * r).max() < 2e-5, np.abs(q - sign * r).max()
+        assert np.abs(clip["poses"][..., 4:] - texture[..., 4:]).max() < 1e-4 * max(1.0, np.abs(texture[..., 4:]).max())
+    with pytest.raises(ValueError, match="CesiumMan.glb: fitted container byte 0: magic"):
+        quatcurve.decode(inputs[0])
     with pytest.raises(ValueError, match="unit_cm is needed for"):
         quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
     with pytest.raises(ValueError, match="max_error is 0; it must be a positive length"):
