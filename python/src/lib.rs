@@ -16,7 +16,7 @@ use pyo3::types::PyDict;
 use quatcurve::anim::qcf::decoder::Decoder;
 use quatcurve::anim::smpl::SmplFile;
 use quatcurve::bake::budget::{ChosenRate, Worst};
-use quatcurve::bake::{fitted_frame_grid, poses, BakeJob, BakeOptions, Shard};
+use quatcurve::bake::{fitted_frame_grid, grid_times, poses, BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
 use quatcurve::options::EvalOptions;
 use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
@@ -442,7 +442,7 @@ fn decode_container<'py>(
     for mut clip in decoder.clips {
         let [start, end] = clip.span();
         let (grid, _) = fitted_frame_grid(start, end, rate.unwrap_or(clip.rate)).map_err(|e| failed(&e))?;
-        let times: Vec<f64> = (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect();
+        let times = grid_times(grid);
         let width = clip.pose_floats();
         let mut poses = vec![0.0f32; times.len() * width];
         py.detach(|| clip.poses(&times, &mut poses)).map_err(|e| failed(&e))?;

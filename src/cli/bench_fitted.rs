@@ -142,7 +142,7 @@ pub fn measure(
                     let (grid, _) =
                         bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
                     pose.resize(clip.pose_floats(), 0.0);
-                    for t in (0..grid.count()).filter_map(|j| grid.grid_time(j)) {
+                    for t in bake::grid_times(grid) {
                         clip.pose(t, &mut pose).map_err(|e| Failure::Internal(e.to_string()))?;
                         std::hint::black_box(&pose);
                     }

@@ -354,7 +354,7 @@ pub fn clip_frame_grid(start: f64, end: f64, rate: ClipRate, looping: bool) -> R
 }
 
 /// The times of a uniform grid, as [`SampleTimes::time`] computes them.
-fn grid_times(grid: TrackTimes) -> Vec<f64> {
+pub fn grid_times(grid: TrackTimes) -> Vec<f64> {
     (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect()
 }
 
