@@ -32,6 +32,11 @@ pub struct FittedReport {
     load: FittedLoad,
     /// The runtime's way: from the bytes to every frame's local poses in order, one thread.
     decoder: FittedLoad,
+    /// A decoded clip played again: every frame's local poses in order from the control
+    /// points a player kept, one thread.
+    replay: FittedLoad,
+    /// What the kept decoded clips hold in memory, per bone-pose of one play.
+    decoded_bytes_per_bone_pose: f64,
     results: Vec<FittedTiming>,
 }
 
@@ -151,7 +156,34 @@ pub fn measure(
         }
         Ok(())
     })?;
+    // A decoded clip played again: each copy decoded once beforehand and kept, as a player that
+    // keeps its clips does, then every frame's pose in order; the memory it keeps is the price.
+    let mut kept = Vec::new();
+    for bytes in &files_bytes {
+        for _ in 0..copies {
+            let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
+            for clip in decoder.clips {
+                let [start, end] = clip.span();
+                let (grid, _) =
+                    bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
+                kept.push((clip, bake::grid_times(grid)));
+            }
+        }
+    }
+    let decoded_bytes: usize = kept.iter().map(|(clip, _)| clip.heap_bytes()).sum();
+    let replay_seconds = median_seconds(runs, || {
+        for (clip, times) in &mut kept {
+            pose.resize(clip.pose_floats(), 0.0);
+            for &t in times.iter() {
+                clip.pose(t, &mut pose).map_err(|e| Failure::Internal(e.to_string()))?;
+                std::hint::black_box(&pose);
+            }
+        }
+        Ok(())
+    })?;
     Ok(FittedReport {
+        replay: FittedLoad { seconds: replay_seconds, ns_per_bone_pose: replay_seconds * 1e9 / bone_poses as f64 },
+        decoded_bytes_per_bone_pose: decoded_bytes as f64 / bone_poses as f64,
         decoder: FittedLoad { seconds: decoder_seconds, ns_per_bone_pose: decoder_seconds * 1e9 / bone_poses as f64 },
         load: FittedLoad { seconds: load_seconds, ns_per_bone_pose: load_seconds * 1e9 / bone_poses as f64 },
         files: files.iter().map(|f| f.display().to_string()).collect(),
@@ -189,6 +221,11 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         w,
         "the runtime decoder (bytes to every frame's local poses in order, one thread): {:.4} s, {:.2} ns a bone-pose",
         report.decoder.seconds, report.decoder.ns_per_bone_pose
+    )?;
+    writeln!(
+        w,
+        "a decoded clip played again (its control points kept, {:.1} bytes a bone-pose): {:.4} s, {:.2} ns a bone-pose",
+        report.decoded_bytes_per_bone_pose, report.replay.seconds, report.replay.ns_per_bone_pose
     )?;
     writeln!(w, "baking them:")?;
     writeln!(w, "{:<44} {:>8} {:>10} {:>14} {:>12}", "device", "threads", "seconds", "poses/s", "ns/bone-pose")?;

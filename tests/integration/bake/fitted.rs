@@ -185,6 +185,24 @@ fn bakes_back_within_the_reported_error(every: usize) -> Option<Vec<u8>> {
     let decoder_cm = worst * CMU_UNIT_CM;
     eprintln!("decoder: within {decoder_cm} cm; the report says {at_frames_cm} cm");
     assert!((decoder_cm - at_frames_cm).abs() <= 2e-5, "decoder: {decoder_cm} cm, {at_frames_cm} reported");
+    // What the decoded clip holds: the container's control points in f32 and its knot times,
+    // counted through the other reader, beside one pose and a cursor of at most 200 bytes a
+    // channel.
+    let channels = &Container::from_bytes(&bytes).unwrap().clips[0].channels;
+    let points_and_knots: usize = channels
+        .iter()
+        .map(|channel| match &channel.curve {
+            Fitted::Rotation(spline, _) => 16 * spline.fit.controls.len() + 8 * spline.fit.knots.len(),
+            Fitted::Vector(spline, _) => 12 * spline.fit.controls.len() + 8 * spline.fit.knots.len(),
+            Fitted::Constant(_) => 0,
+        })
+        .sum();
+    let (held, pose_bytes) = (clip.heap_bytes(), 4 * clip.pose_floats());
+    let beside = held.checked_sub(points_and_knots + pose_bytes);
+    assert!(
+        beside.is_some_and(|b| b <= 200 * channels.len()),
+        "{held} bytes; {points_and_knots} and a pose {pose_bytes}"
+    );
     Some(bytes)
 }
 
@@ -273,7 +291,10 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     for row in timed["results"].as_array().unwrap() {
         assert!(row["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{row}");
     }
-    assert!(timed["load"]["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{timed}");
+    for row in ["load", "decoder", "replay"] {
+        assert!(timed[row]["ns_per_bone_pose"].as_f64().unwrap() > 0.0, "{row}: {timed}");
+    }
+    assert!(timed["decoded_bytes_per_bone_pose"].as_f64().unwrap() > 0.0, "{timed}");
     let one_thread =
         |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
     assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");

@@ -129,6 +129,23 @@ impl ClipDecoder {
         self.fixed.len()
     }
 
+    /// Bytes the decoded clip holds on the heap (its control points and knot times, its
+    /// cursors and fixed pose): what a player that keeps it to play it again pays in memory
+    /// for not reading its codes again.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val as size;
+        let rotations: usize = self.cubic_rotations.iter().map(|c| size(&c.knots[..]) + size(&c.points[..])).sum();
+        let vectors: usize = self.cubic_vectors.iter().map(|c| size(&c.knots[..]) + size(&c.points[..])).sum();
+        let slerps: usize = self.slerps.iter().map(|s| size(&s.keys.knots[..]) + size(&s.points[..])).sum();
+        let lerps: usize = self.lerps.iter().map(|l| size(&l.keys.knots[..]) + size(&l.points[..])).sum();
+        let cursors = size(&self.cubic_rotations[..])
+            + size(&self.cubic_vectors[..])
+            + size(&self.slerps[..])
+            + size(&self.lerps[..]);
+        size(&self.fixed[..]) + cursors + rotations + vectors + slerps + lerps
+    }
+
     /// The clip's first and last key times, seconds.
     #[must_use]
     pub fn span(&self) -> [f64; 2] {
