@@ -15,6 +15,7 @@ use fitted::{Fitted, FittedChannel, FittedClip, Form, ORDER};
 use quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use quatcurve_eval::batch::MIN_KEY_NORM;
 use quatcurve_eval::error::Number;
+use std::fmt::Display;
 use timeline::{Timeline, BETWEEN_POINTS};
 
 /// The first bytes of a container.
@@ -236,7 +237,7 @@ impl Stored {
             let parent = match r.varint(&field("parent"))? {
                 0 => None,
                 p if p <= n as u64 && p as usize - 1 != j => Some(p as usize - 1),
-                p => return Err(r.bad_at(at, &field("parent"), format!("{} is not another of the {n} joints", p - 1))),
+                p => return Err(r.bad_at(at, field("parent"), format!("{} is not another of the {n} joints", p - 1))),
             };
             let mut floats = [0.0; 10];
             for v in &mut floats {
@@ -247,7 +248,7 @@ impl Stored {
             if norm < MIN_KEY_NORM {
                 return Err(r.bad_at(
                     r.at - 80,
-                    &field("rest pose"),
+                    field("rest pose"),
                     format!("its rotation has norm {}, below {}", Number(norm), Number(MIN_KEY_NORM)),
                 ));
             }
@@ -272,7 +273,7 @@ impl Stored {
             if r.at - start != length {
                 return Err(r.bad_at(
                     start,
-                    &format!("clip {c} '{}'", clip.name),
+                    format!("clip {c} '{}'", clip.name),
                     format!("{} bytes where its length says {length}", r.at - start),
                 ));
             }
@@ -392,7 +393,7 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
     let clip = format!("clip {c} '{name}'");
     let span = [r.finite_f64(&format!("{clip} start"))?, r.finite_f64(&format!("{clip} end"))?];
     if span[1] < span[0] {
-        return Err(r.bad(&format!("{clip} end"), format!("{} s is before its start {} s", span[1], span[0])));
+        return Err(r.bad(format!("{clip} end"), format!("{} s is before its start {} s", span[1], span[0])));
     }
     let count = r.count(&format!("{clip} timeline count"), 2)?;
     let mut timelines = Vec::with_capacity(count);
@@ -402,7 +403,7 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
         // Listed keys take 8 bytes each; even keys take none (knot indices stay within u32).
         let keys = r.count(&format!("{field} key count"), if kind == 1 { 8 } else { 0 })?;
         if keys > u32::MAX as usize / (BETWEEN_POINTS + 1) {
-            return Err(r.bad(&format!("{field} key count"), format!("{keys} keys are more than a knot index reaches")));
+            return Err(r.bad(format!("{field} key count"), format!("{keys} keys are more than a knot index reaches")));
         }
         if keys < 2 {
             return Err(r.bad(&field, format!("{keys} keys; a timeline has at least 2")));
@@ -420,7 +421,7 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
                 for k in 0..keys {
                     let t = r.finite_f64(&format!("{field} key {k}"))?;
                     if times.last().is_some_and(|&p| t <= p) {
-                        return Err(r.bad(&format!("{field} key {k}"), format!("{t} s is not after the key before")));
+                        return Err(r.bad(format!("{field} key {k}"), format!("{t} s is not after the key before")));
                     }
                     times.push(t);
                 }
@@ -435,14 +436,14 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
     let mut channels = Vec::with_capacity(count);
     for k in 0..count {
         let field = format!("{clip} channel {k}");
-        let joint = r.varint(&format!("{field} joint"))? as usize;
+        let joint = r.varint(Sub(&field, "joint"))? as usize;
         if joint >= joints.len() {
-            return Err(r.bad(&format!("{field} joint"), format!("{joint} is not one of the {} joints", joints.len())));
+            return Err(r.bad(Sub(&field, "joint"), format!("{joint} is not one of the {} joints", joints.len())));
         }
         let field = format!("{field} ({})", joints[joint].name);
-        let tag = r.u8(&format!("{field} tag"))?;
+        let tag = r.u8(Sub(&field, "tag"))?;
         let property = *PROPERTIES.get(usize::from(tag & 3)).ok_or_else(|| {
-            r.bad(&format!("{field} tag"), format!("property {} is not 0-2 (rotation, translation, scale)", tag & 3))
+            r.bad(Sub(&field, "tag"), format!("property {} is not 0-2 (rotation, translation, scale)", tag & 3))
         })?;
         let rotation = property == Property::Rotation;
         let form = match tag >> 2 {
@@ -450,35 +451,34 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
             1 => Some(Form::Cubic),
             2 => Some(Form::Keys),
             other => {
-                return Err(r.bad(
-                    &format!("{field} tag"),
-                    format!("kind {other} is none of 0 (constant), 1 (cubic) and 2 (keys)"),
-                ))
+                return Err(
+                    r.bad(Sub(&field, "tag"), format!("kind {other} is none of 0 (constant), 1 (cubic) and 2 (keys)"))
+                )
             }
         };
         let curve = match form {
             None => {
                 let mut v = [0.0; 4];
                 for x in v.iter_mut().take(if rotation { 4 } else { 3 }) {
-                    *x = r.finite_f32(&format!("{field} value"))?;
+                    *x = r.finite_f32(Sub(&field, "value"))?;
                 }
                 StoredCurve::Constant(v)
             }
             Some(form) => {
                 let (line, knots, codes) = r.curve(&field, &timelines, form)?;
                 if rotation {
-                    let name = format!("{field} largest components");
-                    let largest = match r.u8(&name)? {
+                    let name = Sub(&field, "largest components");
+                    let largest = match r.u8(name)? {
                         one @ 0..=3 => vec![one; codes.codes.len()],
                         SEVERAL_LARGEST => {
                             let n = codes.codes.len();
-                            let mut bits = BitReader::new(r.take((n * INDEX_BITS as usize).div_ceil(8), &name)?);
+                            let mut bits = BitReader::new(r.take((n * INDEX_BITS as usize).div_ceil(8), name)?);
                             (0..n).map(|_| bits.take(INDEX_BITS).map_or(0, |i| i as u8)).collect()
                         }
                         other => {
                             return Err(r.bad_at(
                                 r.at - 1,
-                                &name,
+                                name,
                                 format!("{other} is neither 0-3 nor {SEVERAL_LARGEST}"),
                             ))
                         }
@@ -688,6 +688,16 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
     Ok(codes)
 }
 
+/// A field's name, `"{0} {1}"`, written out only for a message: loading formats no names.
+#[derive(Clone, Copy)]
+struct Sub<'a>(&'a str, &'a str);
+
+impl Display for Sub<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}", self.0, self.1)
+    }
+}
+
 /// Bytes being read, and where.
 struct Reader<'a> {
     bytes: &'a [u8],
@@ -695,15 +705,15 @@ struct Reader<'a> {
 }
 
 impl Reader<'_> {
-    fn bad(&self, field: &str, reason: String) -> ContainerError {
+    fn bad(&self, field: impl Display, reason: String) -> ContainerError {
         self.bad_at(self.at, field, reason)
     }
 
-    fn bad_at(&self, offset: usize, field: &str, reason: String) -> ContainerError {
+    fn bad_at(&self, offset: usize, field: impl Display, reason: String) -> ContainerError {
         ContainerError { offset, field: field.to_string(), reason }
     }
 
-    fn take(&mut self, n: usize, field: &str) -> Result<&[u8], ContainerError> {
+    fn take(&mut self, n: usize, field: impl Display + Copy) -> Result<&[u8], ContainerError> {
         let left = self.bytes.len() - self.at;
         if n > left {
             return Err(self.bad(field, format!("truncated: {n} bytes needed, {left} left")));
@@ -712,11 +722,11 @@ impl Reader<'_> {
         Ok(&self.bytes[self.at - n..self.at])
     }
 
-    fn u8(&mut self, field: &str) -> Result<u8, ContainerError> {
+    fn u8(&mut self, field: impl Display + Copy) -> Result<u8, ContainerError> {
         Ok(self.take(1, field)?[0])
     }
 
-    fn expect(&mut self, field: &str, value: usize) -> Result<(), ContainerError> {
+    fn expect(&mut self, field: impl Display + Copy, value: usize) -> Result<(), ContainerError> {
         let got = self.u8(field)?;
         if usize::from(got) == value {
             Ok(())
@@ -725,7 +735,7 @@ impl Reader<'_> {
         }
     }
 
-    fn varint(&mut self, field: &str) -> Result<u64, ContainerError> {
+    fn varint(&mut self, field: impl Display + Copy) -> Result<u64, ContainerError> {
         let start = self.at;
         let mut v = 0u64;
         for shift in (0..64).step_by(7) {
@@ -740,7 +750,7 @@ impl Reader<'_> {
 
     /// A count of items each at least `min_bytes` long: more than the bytes left can hold is
     /// an error before anything is allocated for them.
-    fn count(&mut self, field: &str, min_bytes: usize) -> Result<usize, ContainerError> {
+    fn count(&mut self, field: impl Display + Copy, min_bytes: usize) -> Result<usize, ContainerError> {
         let start = self.at;
         let n = self.varint(field)?;
         let left = self.bytes.len() - self.at;
@@ -750,14 +760,14 @@ impl Reader<'_> {
         }
     }
 
-    fn text(&mut self, field: &str) -> Result<String, ContainerError> {
+    fn text(&mut self, field: impl Display + Copy) -> Result<String, ContainerError> {
         let n = self.count(field, 1)?;
         let start = self.at;
         let bytes = self.take(n, field)?.to_vec();
         String::from_utf8(bytes).map_err(|e| self.bad_at(start, field, format!("not UTF-8: {e}")))
     }
 
-    fn finite_f64(&mut self, field: &str) -> Result<f64, ContainerError> {
+    fn finite_f64(&mut self, field: impl Display + Copy) -> Result<f64, ContainerError> {
         let v = f64::from_le_bytes(self.take(8, field)?.try_into().expect("8 bytes"));
         if v.is_finite() {
             Ok(v)
@@ -766,7 +776,7 @@ impl Reader<'_> {
         }
     }
 
-    fn finite_f32(&mut self, field: &str) -> Result<f64, ContainerError> {
+    fn finite_f32(&mut self, field: impl Display + Copy) -> Result<f64, ContainerError> {
         let v = f32::from_le_bytes(self.take(4, field)?.try_into().expect("4 bytes"));
         if v.is_finite() {
             Ok(f64::from(v))
@@ -782,9 +792,9 @@ impl Reader<'_> {
         timelines: &[Timeline],
         form: Form,
     ) -> Result<(usize, Vec<u32>, Quantized), ContainerError> {
-        let line = self.varint(&format!("{field} timeline"))? as usize;
+        let line = self.varint(Sub(field, "timeline"))? as usize;
         let timeline = timelines.get(line).ok_or_else(|| {
-            self.bad(&format!("{field} timeline"), format!("{line} is not one of the clip's {}", timelines.len()))
+            self.bad(Sub(field, "timeline"), format!("{line} is not one of the clip's {}", timelines.len()))
         })?;
         // Interior knots: strictly inside the timeline's samples (a cubic's, at most ORDER - 1
         // at one) or keys (each once), and the control points they make.
@@ -804,23 +814,23 @@ impl Reader<'_> {
             Ok(())
         })?;
         let controls = knots.len() + controls;
-        let bits = u32::from(self.u8(&format!("{field} bit width"))?);
+        let bits = u32::from(self.u8(Sub(field, "bit width"))?);
         if !(1..=MAX_BITS).contains(&bits) {
-            return Err(self.bad(&format!("{field} bit width"), format!("{bits} is not 1-{MAX_BITS}")));
+            return Err(self.bad(Sub(field, "bit width"), format!("{bits} is not 1-{MAX_BITS}")));
         }
         let mut ranges = [0.0; 4];
         for (i, v) in ranges.iter_mut().enumerate() {
-            let name = format!("{field} {}", if i < 3 { "low" } else { "span" });
-            *v = self.finite_f32(&name)?;
+            let name = Sub(field, if i < 3 { "low" } else { "span" });
+            *v = self.finite_f32(name)?;
             if i == 3 && *v < 0.0 {
-                return Err(self.bad_at(self.at - 4, &name, format!("{v} is negative")));
+                return Err(self.bad_at(self.at - 4, name, format!("{v} is negative")));
             }
         }
-        let name = format!("{field} codes");
-        let length = self.count(&name, 1)?;
+        let name = Sub(field, "codes");
+        let length = self.count(name, 1)?;
         let start = self.at;
-        let packed = self.take(length, &name)?;
-        let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, &name, e))?;
+        let packed = self.take(length, name)?;
+        let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, name, e))?;
         let [l0, l1, l2, span] = ranges;
         Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span, codes }))
     }
@@ -836,49 +846,45 @@ impl Reader<'_> {
         least: u32,
         check: impl Fn(&[u32], u64) -> Result<(), String>,
     ) -> Result<Vec<u32>, ContainerError> {
-        let name = format!("{field} knot count");
+        let name = Sub(field, "knot count");
         let start = self.at;
         // A Rice code takes a bit at least: the count is held to the bytes left, and to the
         // knots the curve can have, before anything is allocated for them.
-        let count = self.count(&name, 0)?;
+        let count = self.count(name, 0)?;
         if count > most {
-            return Err(self.bad_at(start, &name, format!("{count} knots; its timeline has room for {most}")));
+            return Err(self.bad_at(start, name, format!("{count} knots; its timeline has room for {most}")));
         }
         let left = self.bytes.len() - self.at;
         if count > 8 * left {
             return Err(self.bad_at(
                 start,
-                &name,
+                name,
                 format!("{count} knots of a bit at least cannot fit in the {left} bytes left"),
             ));
         }
         if count == 0 {
             return Ok(Vec::new());
         }
-        let name = format!("{field} knot Rice parameter");
-        let k = u32::from(self.u8(&name)?);
+        let name = Sub(field, "knot Rice parameter");
+        let k = u32::from(self.u8(name)?);
         if k > MOST_RICE {
-            return Err(self.bad_at(self.at - 1, &name, format!("{k} is more than {MOST_RICE}")));
+            return Err(self.bad_at(self.at - 1, name, format!("{k} is more than {MOST_RICE}")));
         }
         let start = self.at;
         let mut deltas = BitReader::new(&self.bytes[start..]);
         let mut knots: Vec<u32> = Vec::with_capacity(count);
         for i in 0..count {
             let field = || format!("{field} knot {i}");
-            let end = || self.bad_at(start, &field(), "the packed knots end before it".into());
+            let end = || self.bad_at(start, field(), "the packed knots end before it".into());
             let (quotient, low) = deltas.rice(k).ok_or_else(end)?;
             // No delta reaches past every interior place: a longer run is named, not shifted.
             if quotient > (most as u64 + 1) >> k {
-                return Err(self.bad_at(
-                    start,
-                    &field(),
-                    format!("a delta's quotient {quotient} is past the timeline"),
-                ));
+                return Err(self.bad_at(start, field(), format!("a delta's quotient {quotient} is past the timeline")));
             }
             let delta = (quotient << k | low) + u64::from(least);
             let at = u64::from(knots.last().copied().unwrap_or(0)) + delta;
             // The field's name made only for a message: one per knot was most of a load's time.
-            check(&knots, at).map_err(|reason| self.bad_at(start, &field(), reason))?;
+            check(&knots, at).map_err(|reason| self.bad_at(start, field(), reason))?;
             knots.push(at as u32);
         }
         self.at = start + deltas.bytes_read();
