@@ -932,53 +932,72 @@ impl BitWriter {
     }
 }
 
-/// Values unpacked low bit first (the caller sized the slice).
+/// Values unpacked low bit first (the caller sized the slice), through a word of the next bits
+/// kept in a register: a Rice code's length is known only once it is read, so each code waits
+/// on the one before, and a load from memory at the bit position is no longer in that wait.
 struct BitReader<'a> {
     bytes: &'a [u8],
-    bit: usize,
+    /// The first byte not yet in `word`.
+    next: usize,
+    /// The next bits, low first: `filled` of them (at most 63) counted; above them zeros or
+    /// the bits that follow, which a refill writes again as they are.
+    word: u64,
+    filled: u32,
 }
 
 impl<'a> BitReader<'a> {
     fn new(bytes: &'a [u8]) -> Self {
-        Self { bytes, bit: 0 }
+        Self { bytes, next: 0, word: 0, filled: 0 }
     }
 
-    /// The next `bits` (at most 32), or `None` past the end: the eight bytes from the one the
-    /// next bit is in, as one little-endian word (zeros past the end), shifted and masked.
+    /// Tops `word` up to 56 bits or more, or to the end of the bytes: the eight bytes from
+    /// `next` in one read while there are eight, and the whole bytes of them that fit counted.
+    #[inline(always)]
+    fn refill(&mut self) {
+        if let Some(eight) = self.bytes.get(self.next..self.next + 8) {
+            self.word |= u64::from_le_bytes(eight.try_into().expect("eight bytes")) << self.filled;
+            let whole = (63 - self.filled) / 8;
+            self.next += whole as usize;
+            self.filled += 8 * whole;
+        } else {
+            while self.filled <= 55 && self.next < self.bytes.len() {
+                self.word |= u64::from(self.bytes[self.next]) << self.filled;
+                self.next += 1;
+                self.filled += 8;
+            }
+        }
+    }
+
+    /// Drops `n` (at most `filled`) counted bits.
+    #[inline(always)]
+    fn skip(&mut self, n: u32) {
+        self.word = self.word.checked_shr(n).unwrap_or(0);
+        self.filled -= n;
+    }
+
+    /// The next `bits` (at most 32), or `None` past the end.
     fn take(&mut self, bits: u32) -> Option<u64> {
         debug_assert!(bits <= 32);
-        if self.bit + bits as usize > 8 * self.bytes.len() {
+        self.refill();
+        if bits > self.filled {
             return None;
         }
-        let start = self.bit / 8;
-        let word = match self.bytes.get(start..start + 8) {
-            Some(eight) => eight.try_into().expect("eight bytes"),
-            None => {
-                let mut word = [0u8; 8];
-                word[..self.bytes.len() - start].copy_from_slice(&self.bytes[start..]);
-                word
-            }
-        };
-        let v = u64::from_le_bytes(word) >> (self.bit % 8);
-        self.bit += bits as usize;
-        Some(v & ((1u64 << bits) - 1))
+        let v = self.word & ((1u64 << bits) - 1);
+        self.skip(bits);
+        Some(v)
     }
 
     /// A Rice code of parameter `k` (at most 31): its quotient and its low bits, or `None`
     /// when the input ends first. The caller bounds the quotient before joining the two.
     #[inline(always)]
     fn rice(&mut self, k: u32) -> Option<(u64, u64)> {
-        // Most codes lie within the eight bytes from the next bit's: read once.
-        let start = self.bit / 8;
-        if let Some(eight) = self.bytes.get(start..start + 8) {
-            let skip = (self.bit % 8) as u32;
-            let word = u64::from_le_bytes(eight.try_into().expect("eight bytes")) >> skip;
-            let run = word.trailing_ones();
-            // Strictly inside the word: `word >> 64` would overflow.
-            if run + 1 + k < 64 - skip {
-                self.bit += (run + 1 + k) as usize;
-                return Some((u64::from(run), (word >> (run + 1)) & ((1u64 << k) - 1)));
-            }
+        self.refill();
+        // Most codes lie within the counted bits: read from the word.
+        let run = self.word.trailing_ones();
+        if run + 1 + k <= self.filled {
+            let low = (self.word >> (run + 1)) & ((1u64 << k) - 1);
+            self.skip(run + 1 + k);
+            return Some((u64::from(run), low));
         }
         let quotient = self.ones()?;
         Some((quotient, self.take(k)?))
@@ -986,7 +1005,7 @@ impl<'a> BitReader<'a> {
 
     /// The bytes the bits taken so far began in (a field packed to a byte ends there).
     fn bytes_read(&self) -> usize {
-        self.bit.div_ceil(8)
+        (8 * self.next - self.filled as usize).div_ceil(8)
     }
 
     /// How many one bits come before the next zero bit, both taken (a Rice code's quotient),
@@ -994,18 +1013,18 @@ impl<'a> BitReader<'a> {
     fn ones(&mut self) -> Option<u64> {
         let mut count = 0;
         loop {
-            let window = (8 * self.bytes.len() - self.bit).min(32) as u32;
-            if window == 0 {
+            self.refill();
+            if self.filled == 0 {
                 return None;
             }
-            let at = self.bit;
-            // Bits past the window are masked to zero, so the run stops at `window` at most.
-            let run = self.take(window)?.trailing_ones();
-            if run < window {
-                self.bit = at + run as usize + 1;
+            // Bits above the counted ones are not yet known: the run stops at `filled`.
+            let run = self.word.trailing_ones().min(self.filled);
+            if run < self.filled {
+                self.skip(run + 1);
                 return Some(count + u64::from(run));
             }
-            count += u64::from(window);
+            count += u64::from(run);
+            self.skip(run);
         }
     }
 }
