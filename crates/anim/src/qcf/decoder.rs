@@ -360,6 +360,10 @@ impl Keys {
     }
 }
 
+/// A fraction of a keys span within which a time is taken to be on its key: `2^-24`, f32's
+/// rounding, which moves a slerp by at most that times its angle (at most `pi / 2`), 1e-7 rad.
+const ON_KEY: f32 = f32::EPSILON / 2.0;
+
 /// Rotation keys slerped (KKS's order 2).
 #[derive(Clone, Debug)]
 struct Slerp {
@@ -378,10 +382,13 @@ impl Slerp {
         if moved {
             self.arc = None;
         }
-        // On a key (a clip sampled at its source's frames, nearly always): the key itself,
-        // and the span's angle not computed.
-        if h == 0.0 {
+        // On a key, or nearer one than f32 tells apart (a frame's time is often a rounding
+        // either side of its key's): the key itself, and the span's angle not computed.
+        if h < ON_KEY {
             return a;
+        }
+        if h > 1.0 - ON_KEY {
+            return b;
         }
         let [angle, inv] = *self.arc.get_or_insert_with(|| {
             // The angle between the keys from half their chord, `|a - b| = 2 sin(angle / 2)`,
@@ -499,6 +506,21 @@ mod tests {
         let scattered: Vec<f64> = (0..500).map(|i| f64::from((i * 7919) % 1201) / 600.0).collect();
         let (angle, distance) = worst(&mut decoder, &container, &scattered);
         assert!(angle < 2e-6 && distance < 1e-6, "scattered: {angle:e} rad, {distance:e}");
+    }
+
+    #[test]
+    fn a_time_a_rounding_either_side_of_a_key_is_that_key() {
+        let mut decoder = Decoder::from_bytes(&container().to_bytes()).unwrap().clips.remove(0);
+        // Joint 2's rotation keeps keys at 0, 0.5 and 2 s.
+        let mut rotation = |t: f64| {
+            let mut pose = vec![0.0; decoder.pose_floats()];
+            decoder.pose(t, &mut pose).unwrap();
+            pose[2 * POSE_FLOATS..2 * POSE_FLOATS + 4].to_vec()
+        };
+        let key = rotation(0.5);
+        let (below, above) = (f64::from_bits(0.5f64.to_bits() - 1), f64::from_bits(0.5f64.to_bits() + 1));
+        assert_eq!((rotation(below), rotation(above)), (key.clone(), key.clone()));
+        assert_ne!(rotation(0.5 + 1e-4), key, "a time inside the span slerps");
     }
 
     #[test]
