@@ -142,7 +142,8 @@ impl Fit<[f64; 3]> {
 
 /// `[start; order]`, `interior`, `[end; order]`.
 pub fn clamped(order: usize, start: f64, end: f64, interior: &[f64]) -> Vec<f64> {
-    let mut knots = vec![start; order];
+    let mut knots = Vec::with_capacity(interior.len() + 2 * order);
+    knots.extend(std::iter::repeat(start).take(order));
     knots.extend_from_slice(interior);
     knots.extend(std::iter::repeat(end).take(order));
     knots
