@@ -6,7 +6,7 @@
 
 use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
-use quatcurve::anim::qcf::decoder::Decoder;
+use quatcurve::anim::qcf::decoder::{ClipDecoder, Decoder};
 use quatcurve::anim::qcf::Container;
 use quatcurve::anim::Animation;
 use quatcurve::bake::{self, ClipRate, LoopMode, Reuse};
@@ -45,6 +45,12 @@ struct FittedLoad {
     seconds: f64,
     /// Per bone-pose of one decode of every clip.
     ns_per_bone_pose: f64,
+}
+
+impl FittedLoad {
+    fn of(seconds: f64, bone_poses: usize) -> Self {
+        Self { seconds, ns_per_bone_pose: seconds * 1e9 / bone_poses as f64 }
+    }
 }
 
 #[derive(Serialize)]
@@ -143,14 +149,8 @@ pub fn measure(
             for _ in 0..copies {
                 let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
                 for mut clip in decoder.clips {
-                    let [start, end] = clip.span();
-                    let (grid, _) =
-                        bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
-                    pose.resize(clip.pose_floats(), 0.0);
-                    for t in bake::grid_times(grid) {
-                        clip.pose(t, &mut pose).map_err(|e| Failure::Internal(e.to_string()))?;
-                        std::hint::black_box(&pose);
-                    }
+                    let times = frame_times(&clip)?;
+                    play(&mut clip, &times, &mut pose)?;
                 }
             }
         }
@@ -163,29 +163,19 @@ pub fn measure(
         for _ in 0..copies {
             let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
             for clip in decoder.clips {
-                let [start, end] = clip.span();
-                let (grid, _) =
-                    bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
-                kept.push((clip, bake::grid_times(grid)));
+                let times = frame_times(&clip)?;
+                kept.push((clip, times));
             }
         }
     }
     let decoded_bytes: usize = kept.iter().map(|(clip, _)| clip.heap_bytes()).sum();
-    let replay_seconds = median_seconds(runs, || {
-        for (clip, times) in &mut kept {
-            pose.resize(clip.pose_floats(), 0.0);
-            for &t in times.iter() {
-                clip.pose(t, &mut pose).map_err(|e| Failure::Internal(e.to_string()))?;
-                std::hint::black_box(&pose);
-            }
-        }
-        Ok(())
-    })?;
+    let replay_seconds =
+        median_seconds(runs, || kept.iter_mut().try_for_each(|(clip, times)| play(clip, times, &mut pose)))?;
     Ok(FittedReport {
-        replay: FittedLoad { seconds: replay_seconds, ns_per_bone_pose: replay_seconds * 1e9 / bone_poses as f64 },
+        replay: FittedLoad::of(replay_seconds, bone_poses),
         decoded_bytes_per_bone_pose: decoded_bytes as f64 / bone_poses as f64,
-        decoder: FittedLoad { seconds: decoder_seconds, ns_per_bone_pose: decoder_seconds * 1e9 / bone_poses as f64 },
-        load: FittedLoad { seconds: load_seconds, ns_per_bone_pose: load_seconds * 1e9 / bone_poses as f64 },
+        decoder: FittedLoad::of(decoder_seconds, bone_poses),
+        load: FittedLoad::of(load_seconds, bone_poses),
         files: files.iter().map(|f| f.display().to_string()).collect(),
         copies,
         clips: animations.iter().map(|(a, _)| a.clips.len()).sum(),
@@ -195,6 +185,23 @@ pub fn measure(
         acl_ns_per_bone_pose: ACL_NS_PER_BONE_POSE,
         results,
     })
+}
+
+/// A decoded clip's frame times at its source rate, as a bake of it takes them.
+fn frame_times(clip: &ClipDecoder) -> Result<Vec<f64>, Failure> {
+    let [start, end] = clip.span();
+    let (grid, _) = bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
+    Ok(bake::grid_times(grid))
+}
+
+/// Every pose of `clip` at `times`, in order, into one pose buffer as a player keeps one.
+fn play(clip: &mut ClipDecoder, times: &[f64], pose: &mut Vec<f32>) -> Result<(), Failure> {
+    pose.resize(clip.pose_floats(), 0.0);
+    for &t in times {
+        clip.pose(t, pose).map_err(|e| Failure::Internal(e.to_string()))?;
+        std::hint::black_box(&pose);
+    }
+    Ok(())
 }
 
 /// The report as a table.
