@@ -60,6 +60,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
         // A geometric transform (a pivot glTF has no word for) becomes a child node of its own
         // holding the mesh, so that a mesh that is not skinned is drawn where the FBX puts it.
         geometry_transform_handling: ufbx::GeometryTransformHandling::HelperNodes,
+        inherit_mode_handling: ufbx::InheritModeHandling::Compensate,
         // No file beside it is opened: an FBX's external references are not followed.
         load_external_files: false,
         ..Default::default()
@@ -195,7 +196,7 @@ fn to_glb(scene: &ufbx::Scene) -> Result<Vec<u8>, InputError> {
             None => roots.push(i),
         }
     }
-    let animations = animations(scene, &index, &mut buffer)?;
+    let animations = animations(scene, &nodes, &index, &mut buffer)?;
     let mut document = json!({
         "asset": {"version": "2.0", "generator": "quatcurve (FBX through ufbx)"},
         "scene": 0,
@@ -329,8 +330,15 @@ fn mesh_json(mesh: &ufbx::Mesh, skin: Option<&ufbx::SkinDeformer>, buffer: &mut 
 }
 
 /// Every animation stack as a glTF animation of ufbx's baked keys (LINEAR), one sampler per
-/// animated property of each node.
-fn animations(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buffer) -> Result<Vec<Value>, InputError> {
+/// animated property of each node. A property a stack holds constant is a one-key sampler
+/// where its value is not the node's rest value (an FBX curve of one key poses the node for
+/// the whole stack, as FBX readers play it), and no sampler where it is.
+fn animations(
+    scene: &ufbx::Scene,
+    nodes: &[&ufbx::Node],
+    index: &HashMap<u32, usize>,
+    buffer: &mut Buffer,
+) -> Result<Vec<Value>, InputError> {
     let mut animations = Vec::new();
     for (stack, name) in scene.anim_stacks.iter().zip(clip_names(scene)) {
         let baked = ufbx::bake_anim(scene, &stack.anim, ufbx::BakeOpts::default())
@@ -338,23 +346,37 @@ fn animations(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buf
         let (mut samplers, mut channels) = (Vec::new(), Vec::new());
         for node in baked.nodes.iter() {
             let Some(&target) = index.get(&node.typed_id) else { continue };
+            let rest = &nodes[target].local_transform;
             let mut add = |path: &str, times: Vec<f32>, values: Vec<f32>, width: usize, kind: &str| {
                 let input = buffer.floats(&times, 1, "SCALAR", true);
                 let output = buffer.floats(&values, width, kind, false);
                 samplers.push(json!({"input": input, "output": output}));
                 channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": target, "path": path}}));
             };
-            if !node.constant_rotation {
-                let keys = &node.rotation_keys;
-                let values = keys.iter().flat_map(|k| [k.value.x, k.value.y, k.value.z, k.value.w].map(|x| x as f32));
+            let rotation = |q: ufbx::Quat| [q.x, q.y, q.z, q.w];
+            let at_rest = |k: &ufbx::BakedQuat| {
+                let (q, r) = (rotation(k.value), rotation(rest.rotation));
+                // q and -q are one rotation.
+                let dot: f64 = q.iter().zip(&r).map(|(a, b)| a * b).sum();
+                q.iter().zip(&r).all(|(a, b)| (a - dot.signum() * b).abs() <= REST_TOLERANCE)
+            };
+            if let Some(keys) = baked_keys(node.constant_rotation, &node.rotation_keys, at_rest) {
+                let values = keys.iter().flat_map(|k| rotation(k.value).map(|x| x as f32));
                 add("rotation", keys.iter().map(|k| k.time as f32).collect(), values.collect(), 4, "VEC4");
             }
-            for (constant, keys, path) in [
-                (node.constant_translation, &node.translation_keys, "translation"),
-                (node.constant_scale, &node.scale_keys, "scale"),
+            for (constant, keys, path, rest) in [
+                (node.constant_translation, &node.translation_keys, "translation", rest.translation),
+                (node.constant_scale, &node.scale_keys, "scale", rest.scale),
             ] {
-                if !constant {
-                    let values = keys.iter().flat_map(|k| [k.value.x, k.value.y, k.value.z].map(|x| x as f32));
+                let vector = |v: ufbx::Vec3| [v.x, v.y, v.z];
+                let at_rest = |k: &ufbx::BakedVec3| {
+                    vector(k.value)
+                        .iter()
+                        .zip(vector(rest))
+                        .all(|(a, b)| (a - b).abs() <= REST_TOLERANCE * b.abs().max(1.0))
+                };
+                if let Some(keys) = baked_keys(constant, keys, at_rest) {
+                    let values = keys.iter().flat_map(|k| vector(k.value).map(|x| x as f32));
                     add(path, keys.iter().map(|k| k.time as f32).collect(), values.collect(), 3, "VEC3");
                 }
             }
@@ -364,6 +386,21 @@ fn animations(scene: &ufbx::Scene, index: &HashMap<u32, usize>, buffer: &mut Buf
         }
     }
     Ok(animations)
+}
+
+/// How far (relative to 1, or to a vector's own size) a stack's constant value may be from the
+/// node's rest value and still be the rest value: f32 rounding.
+const REST_TOLERANCE: f64 = 1e-6;
+
+/// The keys of a baked property: all of them where it moves, its one value where a stack holds
+/// it off the node's rest value (`at_rest` of the key says which), none where at rest.
+fn baked_keys<K>(constant: bool, keys: &[K], at_rest: impl Fn(&K) -> bool) -> Option<&[K]> {
+    match keys.first() {
+        Some(first) if constant && at_rest(first) => None,
+        Some(_) if constant => Some(&keys[..1]),
+        Some(_) => Some(keys),
+        None => None,
+    }
 }
 
 /// Each stack's clip name: Blender names a stack `<object>|<action>`; where every stack is
