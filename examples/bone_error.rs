@@ -8,10 +8,11 @@
 use quatcurve::anim::Animation;
 use quatcurve::anim::{bvh, gltf};
 use quatcurve::bake::budget::{self, ErrorBudget, Setting};
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::texture::{Precision, TextureKind};
 use quatcurve::bake::LoopMode;
 use quatcurve::plot::{self, Line};
-use quatcurve::{CurveSpec, Device, DeviceChoice};
+use quatcurve::{Device, DeviceChoice};
 use std::path::Path;
 
 const FILES: [&str; 5] = ["CesiumMan.glb", "Fox.glb", "BrainStem.glb", "cmu_131_01.bvh", "cmu_131_03.bvh"];
@@ -34,9 +35,9 @@ fn main() {
     let dir = std::env::args().nth(1).unwrap_or_else(|| "../shared/data".into());
     let chart = std::env::args().nth(2);
     let device = Device::open(DeviceChoice::Cpu).expect("the CPU path opens");
-    let spec = CurveSpec::new(quatcurve::DEFAULT_CURVE);
+    let curve = CurveChoice::Source;
     let setting = Setting {
-        spec: &spec,
+        curve: &curve,
         looping: LoopMode::Auto,
         kind: TextureKind::Local,
         precision: Precision::F32,

@@ -347,8 +347,9 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         last key); a clip's end off that grid is not baked, and the row's ``warnings`` say
         how much. Loops always fit.
     curve, order, knots, tangents, blend
-        As :func:`evaluate` (knots None: phantom); the default (None) is C2 through every
-        key, and slerp for SMPL poses.
+        As :func:`evaluate` (knots None: phantom); the default (None) is each channel as its
+        source plays it (glTF's samplers: LINEAR slerp and lerp, STEP, CUBICSPLINE; the frames
+        of BVH, FBX and SMPL poses slerped; the sidecar's ``curve`` is ``source``).
     loop : str
         ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
     texture : str

@@ -299,7 +299,7 @@ def test_evaluate_bake_and_fit_take_the_library_options_and_their_stubs_and_docs
     import pathlib
 
     assert quatcurve.BAKE_OPTIONS["rate"] == quatcurve.DEFAULT_RATE
-    assert quatcurve.BAKE_OPTIONS["curve"] is None  # each input's own: C2, slerp for SMPL poses
+    assert quatcurve.BAKE_OPTIONS["curve"] is None  # each input's own interpolation
     assert quatcurve.FIT_OPTIONS["max_error"] == 0.01
     assert quatcurve.EVAL_OPTIONS["curve"] == quatcurve.DEFAULT_CURVE
     stub = ast.parse((pathlib.Path(quatcurve.__file__).parent / "__init__.pyi").read_text())

@@ -189,10 +189,11 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
         format!("{} Hz (fitted per clip)", options.rate)
     };
     let any = |extension: &str| report.inputs.iter().any(|i| i.source.ends_with(&format!(".{extension}")));
-    let mut curve = options.curve.unwrap_or(quatcurve::DEFAULT_CURVE).to_string();
-    if options.curve.is_none() && any(quatcurve::anim::smpl::EXTENSION) {
-        curve.push_str(" (SMPL poses: slerp)");
-    }
+    let mut curve = match options.curve {
+        Some(curve) => curve.to_string(),
+        None if args.input.is_empty() => quatcurve::DEFAULT_CURVE.to_string(),
+        None => "each source's own interpolation (glTF's samplers, other frames slerped)".to_string(),
+    };
     if any(quatcurve::anim::qcf::EXTENSION) {
         curve.push_str(" (fitted inputs: their own B-splines)");
     }

@@ -451,9 +451,14 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
     let clip = animation.clips.first().ok_or_else(|| input("no clip to skin by".into()))?;
     let [start, end] = clip.span();
     let rate = (args.samples.saturating_sub(1)).max(1) as f64 / (end - start).max(1e-9);
-    let spec = CurveSpec::new(quatcurve::curve::DEFAULT_CURVE);
-    let baked = bake::bake(animation, &spec, bake::ClipRate::Fit(rate), bake::LoopMode::Auto, &Device::Reference)
-        .map_err(|e| input(e.to_string()))?;
+    let baked = bake::bake(
+        animation,
+        &bake::curves::CurveChoice::Source,
+        bake::ClipRate::Fit(rate),
+        bake::LoopMode::Auto,
+        &Device::Reference,
+    )
+    .map_err(|e| input(e.to_string()))?;
     let order = animation.parents_first().map_err(|e| input(e.to_string()))?;
     let model = skeleton::forward_kinematics(&animation.parents(), &order, &texture::local(animation, &baked, 0));
     let skins: Vec<Vec<f32>> =

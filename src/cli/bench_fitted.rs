@@ -9,8 +9,9 @@ use super::{print_stdout, Failure};
 use quatcurve::anim::qcf::decoder::{ClipDecoder, Decoder};
 use quatcurve::anim::qcf::Container;
 use quatcurve::anim::Animation;
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::{self, ClipRate, LoopMode, Reuse};
-use quatcurve::{CurveSpec, Device, DeviceChoice};
+use quatcurve::{Device, DeviceChoice};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -82,15 +83,15 @@ pub fn measure(
         let rates = rates.iter().cycle().take(rates.len() * copies).copied().collect();
         animations.push((animation, rates));
     }
-    // The curve a bake would use for keys; every fitted channel uses the fit's own.
-    let spec = CurveSpec::new(quatcurve::curve::DEFAULT_CURVE);
+    // Every fitted channel is evaluated as the fit's own curve.
+    let curve = CurveChoice::Source;
     // Poses and bone-poses decompressed; each container's buffers kept from run to run, as a
     // decoder keeps them from clip to clip.
     let mut reuse: Vec<Reuse> = animations.iter().map(|_| Reuse::default()).collect();
     let mut bake_all = |device: &Device| -> Result<(usize, usize), Failure> {
         let (mut poses, mut bone_poses) = (0, 0);
         for ((animation, rates), reuse) in animations.iter().zip(&mut reuse) {
-            let baked = bake::bake_reusing(animation, &spec, rates, LoopMode::Off, device, reuse)
+            let baked = bake::bake_reusing(animation, &curve, rates, LoopMode::Off, device, reuse)
                 .map_err(|e| Failure::Internal(e.to_string()))?;
             let frames: usize = baked.clips.iter().map(|c| c.times.len()).sum();
             poses += frames;

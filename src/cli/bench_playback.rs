@@ -6,8 +6,9 @@
 use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
 use quatcurve::anim::source::Source;
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::LoopMode;
-use quatcurve::curve::CurveSpec;
+use quatcurve::options::CurveOptions;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::Playback;
 use quatcurve::DeviceChoice;
@@ -44,8 +45,8 @@ pub fn measure(
     let input = file.display().to_string();
     let source =
         Source::read(file, Default::default()).map_err(|e| Failure::Input(format!("bench --playback {input}: {e}")))?;
-    let spec = CurveSpec::new(source.default_curve());
-    let playback = Playback::new(source.animation().clone(), &spec, LoopMode::Auto, None)
+    let curve = CurveChoice::new(source.default_curve(), &CurveOptions::DEFAULT);
+    let playback = Playback::new(source.animation().clone(), &curve, LoopMode::Auto, None)
         .map_err(|e| Failure::Input(format!("bench --playback {input}: {e}")))?;
     let joints = playback.palette_joints();
     let explicit = devices.is_some();

@@ -5,8 +5,9 @@ use super::{names, open_device, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::anim::error::InputError;
 use quatcurve::anim::source::Source;
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::LoopMode;
-use quatcurve::curve::{Curve, KnotMode};
+use quatcurve::curve::Curve;
 use quatcurve::io::{npy_header, AtomicFile, NpyElement};
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
@@ -55,7 +56,8 @@ pub struct PlayArgs {
     /// container keeps a glTF's joints and clips, not its skins.
     #[arg(long, value_name = "FILE")]
     skin_from: Option<PathBuf>,
-    /// Curve family; by default the source's own, as bake's (bspline-interp; slerp for SMPL).
+    /// Curve family for every channel; by default each channel as its source plays it, as
+    /// bake's.
     #[arg(long, value_parser = names::<Curve>())]
     curve: Option<Curve>,
     #[command(flatten)]
@@ -83,7 +85,7 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     }
     let input = args.input.display().to_string();
     let source = Source::read(&args.input, Default::default()).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
-    let spec = args.curve_options.spec(args.curve.unwrap_or_else(|| source.default_curve()), KnotMode::Phantom, false);
+    let curve = CurveChoice::new(args.curve.or(source.default_curve()), &args.curve_options);
     let mut animation = source.animation().clone();
     if let Some(path) = &args.skin_from {
         let from = path.display().to_string();
@@ -94,7 +96,7 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     }
     let skin = if args.skin_from.is_some() { Some(0) } else { args.skin };
     let playback =
-        Playback::new(animation, &spec, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+        Playback::new(animation, &curve, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     // A product meant to be whole (0.7 s at 30 Hz) can round just below it.
     let frames = (args.seconds * args.rate + FRAME_ROUNDING).floor() as u64 + 1;
     let joints = playback.palette_joints();

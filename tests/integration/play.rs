@@ -8,6 +8,7 @@ use crate::bake::{data_dir, json, read_npy, stderr};
 use assert_cmd::Command;
 use glam::{DMat4, DQuat, DVec3};
 use quatcurve::anim::source::Source;
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::LoopMode;
 use quatcurve::curve::{Curve, CurveSpec};
 use quatcurve::play::schedule::{Schedule, PHASE_STEP};
@@ -46,9 +47,11 @@ fn bake_skin(input: &Path, output: &Path, more: &[&str]) {
     assert!(result.status.success(), "{}: {}", input.display(), stderr(&result));
 }
 
-fn playback(path: &Path, curve: Curve) -> Playback {
+/// `path`'s clips played with `curve` (`None`: the source's own interpolation, the default).
+fn playback(path: &Path, curve: Option<Curve>) -> Playback {
     let source = Source::read(path, Default::default()).unwrap();
-    Playback::new(source.animation().clone(), &CurveSpec::new(curve), LoopMode::Auto, None).unwrap()
+    let curve = CurveChoice::new(curve, &quatcurve::options::CurveOptions::DEFAULT);
+    Playback::new(source.animation().clone(), &curve, LoopMode::Auto, None).unwrap()
 }
 
 /// The largest difference between two palettes, relative to the largest entry of `expected`.
@@ -71,7 +74,7 @@ fn palettes_equal_the_bakes_skin_texture_at_its_frame_times_on_every_device() {
         ("Fox.fbx", Curve::Squad),
     ] {
         let input = data.join(name);
-        let playback = playback(&input, curve);
+        let playback = playback(&input, Some(curve));
         for (device_name, device) in devices() {
             let out = dir.path().join(format!("{name}.{curve}.{device_name}"));
             bake_skin(&input, &out, &["--curve", &curve.to_string(), "--device", device_name]);
@@ -133,7 +136,7 @@ fn independent_palette(playback: &Playback, local: &[f32]) -> Vec<f32> {
 #[test]
 fn blends_are_the_single_clips_at_their_ends_and_a_local_space_blend_between() {
     let Some(data) = data_dir() else { return };
-    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let playback = playback(&data.join("Fox.glb"), Some(Curve::BSplineInterp));
     let joints = playback.animation().joints.len();
     // Survey (clip 0) at 1.3 s with Run (clip 2) at 0.4 s; Walk with itself half a cycle on.
     let pairs = [
@@ -174,7 +177,7 @@ fn blends_are_the_single_clips_at_their_ends_and_a_local_space_blend_between() {
 #[test]
 fn bad_poses_are_refused_naming_the_instance() {
     let Some(data) = data_dir() else { return };
-    let playback = playback(&data.join("CesiumMan.glb"), Curve::BSplineInterp);
+    let playback = playback(&data.join("CesiumMan.glb"), Some(Curve::BSplineInterp));
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     let cases = [
         (Instance::single(3, 0.0), "instance 1: clip 3 asked for, but the file has 1 clip(s)"),
@@ -201,7 +204,7 @@ fn play_writes_the_schedule_and_its_first_instance_is_the_bake() {
         play(&[&args[..], &["--instances", "5", "--rate", "30", "--seconds", "2", "--blend-weight", "0.25"]].concat());
     assert!(result.status.success(), "{}", stderr(&result));
     let (shape, data_) = read_npy(&output);
-    let playback = playback(&input, Curve::BSplineInterp);
+    let playback = playback(&input, None);
     let joints = playback.palette_joints();
     assert_eq!(shape, [61, 5, joints as u64, PALETTE_CHANNELS as u64]);
     // Frame by frame, the schedule's instances through the library.
@@ -290,11 +293,12 @@ fn a_fitted_container_plays_the_characters_skin_within_the_fits_budget() {
     let mut animation = fitted.animation().clone();
     assert!(animation.skins.is_empty(), "a container keeps no skin");
     animation.skins = vec![quatcurve::play::skin_by_name(&animation, source.animation(), 0).unwrap()];
-    let fitted = Playback::new(animation, &CurveSpec::new(Curve::Slerp), LoopMode::Auto, Some(0)).unwrap();
+    let fitted =
+        Playback::new(animation, &CurveChoice::Family(CurveSpec::new(Curve::Slerp)), LoopMode::Auto, Some(0)).unwrap();
     // The fit is held to the source's LINEAR keys: 0.01 cm at them on vertices 3 cm out, a
     // rotation of 1/300 rad, which moves an entry of a rotation matrix by at most sqrt 2 times
     // that (4.7e-3); the palettes' largest entries are about 1.
-    let original = playback(&glb, Curve::Slerp);
+    let original = playback(&glb, Some(Curve::Slerp));
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     let keys: Vec<Instance> = (0..48).map(|f| Instance::single(0, f as f64 / 24.0)).collect();
     let gap = relative_gap(&fitted.palettes(&device, &keys).unwrap(), &original.palettes(&device, &keys).unwrap());
@@ -311,7 +315,7 @@ fn a_fitted_container_plays_the_characters_skin_within_the_fits_budget() {
 fn a_crowd_larger_than_a_binding_plays_a_part_at_a_time_on_the_gpu() {
     let Some(data) = data_dir() else { return };
     let Some(gpu) = crate::shared_gpu() else { return };
-    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let playback = playback(&data.join("Fox.glb"), Some(Curve::BSplineInterp));
     let schedule = Schedule { instances: 200, rate: 30.0, blend: Some(0.3) };
     let instances = schedule.frame(&playback, 11);
     let whole = Device::Gpu(Box::new(gpu.share_device()));
@@ -349,7 +353,7 @@ fn loops_play_on_for_a_thousand_cycles_each_track_wrapping_its_own_time() {
     let source = Source::read(&data.join("Fox.glb"), Default::default()).unwrap();
     let mut animation = source.animation().clone();
     for channel in &mut animation.clips[0].channels {
-        if let (quatcurve::anim::Property::Translation, quatcurve::anim::ChannelCurve::Keys { times, values }) =
+        if let (quatcurve::anim::Property::Translation, quatcurve::anim::ChannelCurve::Keys { times, values, .. }) =
             (channel.property, &mut channel.curve)
         {
             for (t, v) in times.iter().zip(values.iter_mut()) {
@@ -358,7 +362,9 @@ fn loops_play_on_for_a_thousand_cycles_each_track_wrapping_its_own_time() {
             }
         }
     }
-    let playback = Playback::new(animation, &CurveSpec::new(Curve::BSplineInterp), LoopMode::Auto, None).unwrap();
+    let playback =
+        Playback::new(animation, &CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)), LoopMode::Auto, None)
+            .unwrap();
     assert!(playback.looping(0) && playback.looping(1));
     let period = playback.duration(0);
     let instances: Vec<Instance> = [-3.0, 0.0, 1.0, 7.0, 250.0, 1000.0]
@@ -387,7 +393,7 @@ fn loops_play_on_for_a_thousand_cycles_each_track_wrapping_its_own_time() {
 fn a_frame_stays_on_the_gpu_for_a_vertex_shader_and_reads_back_as_the_palettes() {
     let Some(data) = data_dir() else { return };
     let Some(gpu) = crate::shared_gpu() else { return };
-    let playback = playback(&data.join("Fox.glb"), Curve::BSplineInterp);
+    let playback = playback(&data.join("Fox.glb"), Some(Curve::BSplineInterp));
     let instances = Schedule { instances: 30, rate: 30.0, blend: Some(0.3) }.frame(&playback, 5);
     let device = Device::Gpu(Box::new(gpu.share_device()));
     let player = playback.player(&device).unwrap();

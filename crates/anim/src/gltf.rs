@@ -8,7 +8,7 @@
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 use super::glb::GLB_MAGIC;
 use crate::error::InputError;
-use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property, Skin};
+use crate::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Interpolation, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
 use serde_json::Value;
@@ -240,8 +240,8 @@ fn read_channel(
         Checked::Valid(gltf::json::animation::Property::MorphTargetWeights) => return Ok(None),
         Checked::Invalid => return Err(unknown("target path")),
     };
-    let cubic = match &raw.samplers[channel.sampler().index()].interpolation {
-        Checked::Valid(interpolation) => *interpolation == gltf::json::animation::Interpolation::CubicSpline,
+    let declared = match &raw.samplers[channel.sampler().index()].interpolation {
+        Checked::Valid(interpolation) => *interpolation,
         Checked::Invalid => return Err(unknown("interpolation")),
     };
     let joint = channel.target().node().index();
@@ -270,12 +270,20 @@ fn read_channel(
             }
             gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
         };
-    // CUBICSPLINE stores (in-tangent, value, out-tangent) per key: the keys are the values.
-    let values = if cubic { values.chunks(3).filter(|c| c.len() == 3).map(|c| c[1]).collect() } else { values };
+    // CUBICSPLINE stores (in-tangent, value, out-tangent) per key.
+    let (values, interpolation) = match declared {
+        gltf::json::animation::Interpolation::Linear => (values, Interpolation::Linear),
+        gltf::json::animation::Interpolation::Step => (values, Interpolation::Step),
+        gltf::json::animation::Interpolation::CubicSpline => {
+            let triples = values.chunks_exact(3);
+            let tangents = triples.clone().map(|c| [c[0], c[2]]).collect();
+            (triples.map(|c| c[1]).collect(), Interpolation::CubicSpline { tangents })
+        }
+    };
     if values.len() != times.len() || times.is_empty() {
         return Err(input(format!("{label}: {} key times but {} key values", times.len(), values.len())));
     }
-    Ok(Some(Channel::keys(joint, property, times, values)))
+    Ok(Some(Channel { joint, property, curve: ChannelCurve::Keys { times, values, interpolation } }))
 }
 
 /// The crate's validation, run here so that a known panic in it is avoided first: its

@@ -58,9 +58,39 @@ pub struct Channel {
     pub curve: ChannelCurve,
 }
 
-/// What a channel holds. Keys lie on the motion and are interpolated by the job's curve
-/// family; a fitted spline's control points do not, and it is evaluated as it is: the two are
-/// read differently, so every consumer says which it takes.
+/// How the source plays a channel's keys between them: glTF's sampler interpolation, the
+/// others' frames linear (BVH, FBX as ufbx bakes it, SMPL poses, the crowd). A bake takes it
+/// unless asked for a curve family.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Interpolation {
+    /// Slerp between rotations, lerp between vectors (glTF's LINEAR).
+    #[default]
+    Linear,
+    /// Each key held until the next one (glTF's STEP).
+    Step,
+    /// glTF's CUBICSPLINE: a cubic Hermite spline of the components through the keys with
+    /// these in- and out-tangents (per second, one pair per key), a rotation normalized.
+    CubicSpline {
+        /// `[in, out]` per key, as `values`.
+        tangents: Vec<[[f64; 4]; 2]>,
+    },
+}
+
+impl Interpolation {
+    /// glTF's name of it.
+    #[must_use]
+    pub fn gltf_name(&self) -> &'static str {
+        match self {
+            Interpolation::Linear => "LINEAR",
+            Interpolation::Step => "STEP",
+            Interpolation::CubicSpline { .. } => "CUBICSPLINE",
+        }
+    }
+}
+
+/// What a channel holds. Keys lie on the motion and are interpolated as the source declares
+/// or by the job's curve family; a fitted spline's control points do not, and it is evaluated
+/// as it is: the two are read differently, so every consumer says which it takes.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ChannelCurve {
     /// Keys on the motion.
@@ -69,6 +99,8 @@ pub enum ChannelCurve {
         times: Vec<f64>,
         /// One per time: `x, y, z, w` for rotations, `x, y, z, 0` for vectors.
         values: Vec<[f64; 4]>,
+        /// How the source interpolates them.
+        interpolation: Interpolation,
     },
     /// A fitted channel (`quatcurve::fit`): a clamped B-spline of the family
     /// `qcf::fitted::spline_spec` gives its order (the knot count less the control point
@@ -82,17 +114,26 @@ pub enum ChannelCurve {
 }
 
 impl Channel {
-    /// A channel of keys.
+    /// A channel of keys the source interpolates linearly.
     #[must_use]
     pub fn keys(joint: usize, property: Property, times: Vec<f64>, values: Vec<[f64; 4]>) -> Self {
-        Self { joint, property, curve: ChannelCurve::Keys { times, values } }
+        Self { joint, property, curve: ChannelCurve::Keys { times, values, interpolation: Interpolation::Linear } }
     }
 
     /// Its key times and values; `None` for a fitted spline.
     #[must_use]
     pub fn keyed(&self) -> Option<(&[f64], &[[f64; 4]])> {
         match &self.curve {
-            ChannelCurve::Keys { times, values } => Some((times, values)),
+            ChannelCurve::Keys { times, values, .. } => Some((times, values)),
+            ChannelCurve::Spline { .. } => None,
+        }
+    }
+
+    /// How the source interpolates its keys; `None` for a fitted spline.
+    #[must_use]
+    pub fn interpolation(&self) -> Option<&Interpolation> {
+        match &self.curve {
+            ChannelCurve::Keys { interpolation, .. } => Some(interpolation),
             ChannelCurve::Spline { .. } => None,
         }
     }

@@ -16,7 +16,6 @@
 use crate::error::InputError;
 use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use npyz::{DType, NpyFile, TypeChar};
-use quatcurve_core::curve::Curve;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::arrays::{member_budget, open_npy, read_floats, Floats};
 use quatcurve_eval::io::npy_header;
@@ -26,11 +25,6 @@ use std::path::Path;
 
 /// The extension of SMPL-family pose archives.
 pub const EXTENSION: &str = "npz";
-
-/// The curve SMPL-family poses bake with unless another is asked for: dataset pipelines check
-/// a resampling against scipy's `Slerp`, and each frame then depends on its two neighbouring
-/// keys alone, so mocap jitter or a bad frame stays local.
-pub const DEFAULT_CURVE: Curve = Curve::Slerp;
 
 /// The rate's field, as SMPL-H files (AMASS) spell it and as SMPL-X files do.
 pub const RATE_FIELDS: [&str; 2] = ["mocap_framerate", "mocap_frame_rate"];

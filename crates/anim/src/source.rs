@@ -99,13 +99,14 @@ impl Source {
         }
     }
 
-    /// The curve family a bake takes when none is asked for: SMPL-family poses their own
-    /// ([`smpl::DEFAULT_CURVE`]), every other source the C2 curve ([`DEFAULT_CURVE`]).
+    /// The curve family a bake takes when none is asked for: `None`, the source's own
+    /// interpolation of each channel ([`crate::Interpolation`]), for every file; the C2 curve
+    /// ([`DEFAULT_CURVE`]) for the built-in crowd, whose keys are samples of a smooth motion.
     #[must_use]
-    pub fn default_curve(&self) -> Curve {
+    pub fn default_curve(&self) -> Option<Curve> {
         match self {
-            Source::Smpl(..) => smpl::DEFAULT_CURVE,
-            _ => DEFAULT_CURVE,
+            Source::Crowd(_) => Some(DEFAULT_CURVE),
+            _ => None,
         }
     }
 

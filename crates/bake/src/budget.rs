@@ -7,11 +7,11 @@
 //! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
+use super::curves::CurveChoice;
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
 use super::{bake, ClipRate, LoopMode};
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::{Animation, GLTF_UNIT_CM};
-use quatcurve_core::curve::CurveSpec;
+use quatcurve_anim::{Animation, Clip, GLTF_UNIT_CM};
 use quatcurve_device::Device;
 use quatcurve_eval::error::Number;
 use quatcurve_eval::skeleton;
@@ -167,8 +167,8 @@ fn only(animation: &Animation, clip: usize) -> Animation {
 
 /// What a bake writes and the options that decide it.
 pub struct Setting<'a> {
-    /// The curve.
-    pub spec: &'a CurveSpec,
+    /// What the keys are interpolated with.
+    pub curve: &'a CurveChoice,
     /// Which clips loop.
     pub looping: LoopMode,
     /// The texture kind (local, model-trs or skin-trs).
@@ -194,7 +194,7 @@ pub fn measure(
     let one = only(animation, clip);
     let order = one.parents_first()?;
     let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), InputError> {
-        let baked = bake(&one, setting.spec, ClipRate::Fit(rate), setting.looping, setting.device)?;
+        let baked = bake(&one, setting.curve, ClipRate::Fit(rate), setting.looping, setting.device)?;
         let sheets = texture::sheets(&one, &order, &baked, 0, setting.kind, setting.device)?;
         let clip = &baked.clips[0];
         Ok((sheets, clip.rate, clip.times.clone()))
@@ -291,13 +291,20 @@ fn bind_position(ibm: &[f64; 12]) -> [f64; 3] {
     skeleton::inverse(ibm).map_or([0.0; 3], |m| [m[3], m[7], m[11]])
 }
 
+/// How far past [`ErrorBudget::max_rate`] a refused clip's search goes to say what rate would
+/// hold.
+pub const REFUSAL_SEARCH: f64 = 8.0;
+
 /// Per clip, the lowest rate whose frames keep within `budget` ([`measure`]), with what it
-/// measured: a search over whole numbers of intervals in the clip's span, doubling from one
-/// interval per second and then bisecting (the error falls as the rate rises).
+/// measured: a search over whole numbers of steps in the clip's span, doubling and then
+/// bisecting (the error falls as the rate rises). A step is a second, or, where the curve
+/// turns corners at keys (slerp: the source's own linear keys) and every key of the clip lies
+/// on one uniform grid, an interval of that grid, so that rows fall on every key.
 ///
 /// # Errors
-/// [`InputError::Animation`] naming the clip, the budget and the error at
-/// [`ErrorBudget::max_rate`] when no rate up to it holds; the bake's.
+/// [`InputError::Animation`] naming the clip, the budget, the error at
+/// [`ErrorBudget::max_rate`] and the rate that would hold (or that none up to
+/// [`REFUSAL_SEARCH`] times it does) when no rate up to it holds; the bake's.
 pub fn choose_rates(
     animation: &Animation,
     budget: &ErrorBudget,
@@ -317,46 +324,105 @@ pub fn choose_rates(
         let at = |intervals: f64| {
             measure(animation, c, if span > 0.0 { intervals / span } else { 1.0 }, setting, budget.unit_mm)
         };
-        let most = (span * budget.max_rate).floor().max(1.0);
-        let mut low = 0.0; // intervals known to fail (0: none tried)
-        let mut high = span.ceil().clamp(1.0, most);
-        let mut best = loop {
-            let m = at(high)?;
-            if budget.holds(&m) {
-                break m;
-            }
-            if high >= most {
+        // Intervals per step of the search, and the first step tried.
+        let grid =
+            key_grid(clip).filter(|&keys| setting.curve.corners_at_keys() && keys as f64 <= span * budget.max_rate);
+        let (step, first) = match grid {
+            Some(keys) => (keys as f64, 1.0),
+            None => (1.0, span.ceil().max(1.0)),
+        };
+        let steps = |rate: f64| (span * rate / step).floor().max(1.0);
+        let most = steps(budget.max_rate);
+        let best = match lowest(&at, budget, [0.0, first.min(most), most], step)? {
+            Ok(best) => best,
+            Err(worst) => {
+                let further = [
+                    most,
+                    (most * 2.0).min(steps(budget.max_rate * REFUSAL_SEARCH)),
+                    steps(budget.max_rate * REFUSAL_SEARCH),
+                ];
+                let would = match lowest(&at, budget, further, step)? {
+                    Ok(m) => format!("{} Hz would (a max_rate of {})", Number(m.rate), m.rate.ceil()),
+                    Err(m) => format!("none up to {} Hz does either", Number(m.rate)),
+                };
                 return Err(InputError::Animation(format!(
-                    "clip '{}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the worst error is {:.3} degrees \
-                     (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s)",
+                    "clip '{}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the \
+                     worst error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s); {would}",
                     clip.name,
                     Number(budget.max_rate),
                     budget.describe(),
-                    Number(m.rate),
-                    m.rotation.value,
-                    m.rotation.joint,
-                    m.rotation.time,
-                    m.position.value,
-                    m.position.joint,
-                    m.position.time
+                    Number(worst.rate),
+                    worst.rotation.value,
+                    worst.rotation.joint,
+                    worst.rotation.time,
+                    worst.position.value,
+                    worst.position.joint,
+                    worst.position.time
                 )));
             }
-            low = high;
-            high = (high * 2.0).min(most);
         };
-        while high - low > 1.0 {
-            let mid = ((low + high) / 2.0).floor();
-            let m = at(mid)?;
-            if budget.holds(&m) {
-                high = mid;
-                best = m;
-            } else {
-                low = mid;
-            }
-        }
         chosen.push(best);
     }
     Ok(chosen)
+}
+
+/// The fewest steps above `low` (known to fail; 0: none tried), trying `first` and doubling up
+/// to `most` (each step `step` intervals of the clip), whose frames keep within `budget`, and
+/// what they measured (`Err`: what `most` steps measured, when they do not hold).
+fn lowest(
+    at: &impl Fn(f64) -> Result<Measured, InputError>,
+    budget: &ErrorBudget,
+    [mut low, first, most]: [f64; 3],
+    step: f64,
+) -> Result<Result<Measured, Measured>, InputError> {
+    let mut high = first;
+    let mut best = loop {
+        let m = at(high * step)?;
+        if budget.holds(&m) {
+            break m;
+        }
+        if high >= most {
+            return Ok(Err(m));
+        }
+        low = high;
+        high = (high * 2.0).min(most);
+    };
+    while high - low > 1.0 {
+        let mid = ((low + high) / 2.0).floor();
+        let m = at(mid * step)?;
+        if budget.holds(&m) {
+            high = mid;
+            best = m;
+        } else {
+            low = mid;
+        }
+    }
+    Ok(Ok(best))
+}
+
+/// How far (a fraction of its step) a key may be from a uniform grid and lie on it: exporters
+/// round key times (BrainStem's 37.5 Hz keys are up to 0.4% of a step off theirs).
+pub const KEY_GRID_TOLERANCE: f64 = 0.02;
+
+/// Where every key of `clip` (every channel's, two keys or more) lies on one uniform grid
+/// from its first key to its last: that grid's intervals (each key within
+/// [`KEY_GRID_TOLERANCE`] of a step from a grid time).
+fn key_grid(clip: &Clip) -> Option<usize> {
+    let [start, end] = clip.span();
+    let keys = || clip.channels.iter().filter_map(|c| c.keyed().map(|(t, _)| t)).filter(|t| t.len() > 1);
+    // The step: the densest channel's mean (a channel keyed at every step of a long clip),
+    // else the shortest between a channel's own keys (a channel with gaps on the grid).
+    let mean = keys().map(|t| (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64).fold(f64::INFINITY, f64::min);
+    let shortest = keys().flat_map(|t| t.windows(2).map(|w| w[1] - w[0])).fold(f64::INFINITY, f64::min);
+    [mean, shortest].into_iter().filter(|&step| step.is_finite() && step > 0.0).find_map(|step| {
+        let intervals = ((end - start) / step).round().max(1.0);
+        let step = (end - start) / intervals;
+        let on_grid = |t: &f64| {
+            let i = ((t - start) / step).round();
+            (t - start - i * step).abs() <= KEY_GRID_TOLERANCE * step
+        };
+        keys().flatten().all(on_grid).then_some(intervals as usize)
+    })
 }
 
 #[cfg(test)]

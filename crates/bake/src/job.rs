@@ -421,10 +421,10 @@ impl BakeJob {
                 )));
             }
             let rate = self.options.clip_rate();
-            let (spec, budget) = (self.options.spec(&src), self.options.budget());
+            let (choice, budget) = (self.options.choice(&src), self.options.budget());
             let mut baked = if budget.is_set() {
                 let setting = budget::Setting {
-                    spec: &spec,
+                    curve: &choice,
                     looping: self.options.looping,
                     kind: self.options.texture,
                     precision: self.options.precision,
@@ -432,11 +432,11 @@ impl BakeJob {
                 };
                 let measured = budget::choose_rates(animation, &budget, &setting)?;
                 let rates: Vec<ClipRate> = measured.iter().map(|m| ClipRate::Fit(m.rate)).collect();
-                let baked = super::bake_each(animation, &spec, &rates, self.options.looping, device)?;
+                let baked = super::bake_each(animation, &choice, &rates, self.options.looping, device)?;
                 report.rates = self.chosen_rates(animation, &baked, measured)?;
                 baked
             } else {
-                super::bake(animation, &spec, rate, self.options.looping, device)?
+                super::bake(animation, &choice, rate, self.options.looping, device)?
             };
             if self.options.root_motion == RootMotion::Extract {
                 root_motion::extract(animation, &mut baked)?;
@@ -573,7 +573,7 @@ impl BakeJob {
         let budget = self.options.budget();
         let options = SidecarOptions {
             device,
-            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.options.curve_for(src).name() },
+            curve: if animation.is_fitted() { super::FITTED_CURVE } else { self.options.choice(src).name() },
             rate: self.options.rate,
             texture: self.options.texture,
             precision: self.options.precision,

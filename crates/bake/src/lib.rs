@@ -28,7 +28,7 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
-use curves::{ChannelEval, Curves};
+use curves::{ChannelEval, CurveChoice, Curves};
 pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::error::InputError;
@@ -37,7 +37,6 @@ use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
 
-use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_core::quat::QuatF64;
 use quatcurve_device::Device;
 use quatcurve_eval::batch::BatchBuilder;
@@ -57,7 +56,7 @@ pub const SOURCE_STEP_WARNING_DEGREES: f64 = 90.0;
 
 /// One warning per rotation channel with steps between consecutive keys over
 /// [`SOURCE_STEP_WARNING_DEGREES`], naming the channel, the first such step and how many
-/// there are. The bake goes on: the curve smooths the step, and the warning says so.
+/// there are. The bake goes on, through the step as the curve takes it.
 #[must_use]
 pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     let limit = SOURCE_STEP_WARNING_DEGREES.to_radians();
@@ -87,7 +86,7 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
         let &(first, angle) = steps.first()?;
         Some(format!(
             "{}: {} step{} between consecutive keys turn{} more than {SOURCE_STEP_WARNING_DEGREES} degrees \
-                    (probably broken source data, smoothed by the curve); the first is key {first} to key {} at {} \
+                    (probably broken source data); the first is key {first} to key {} at {} \
                     s, {} degrees",
             animation.label(clip, channel),
             steps.len(),
@@ -215,18 +214,18 @@ impl Baked {
     }
 }
 
-/// Whether the curve passes through its keys (the others approximate them).
-#[must_use]
-pub fn interpolates(spec: &CurveSpec) -> bool {
-    matches!(spec.curve, Curve::Slerp | Curve::Squad | Curve::Hermite | Curve::NamKim | Curve::BSplineInterp)
-}
-
-/// Whether `clip` bakes as a loop under `mode` with `spec` (DESIGN section 5b).
+/// Whether `clip` bakes as a loop under `mode` with `choice` (DESIGN section 5b).
 ///
 /// # Errors
 /// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
 /// key is not its first rotation, named.
-pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: LoopMode) -> Result<bool, InputError> {
+pub fn clip_loops(
+    animation: &Animation,
+    clip: &Clip,
+    choice: &CurveChoice,
+    mode: LoopMode,
+) -> Result<bool, InputError> {
+    let spec = choice.spec();
     if clip.channels.iter().any(Channel::is_spline) {
         // A fitted clip is the open curve it was fitted as.
         return match mode {
@@ -258,8 +257,8 @@ pub fn clip_loops(animation: &Animation, clip: &Clip, spec: &CurveSpec, mode: Lo
                 return Err(E::Animation(format!(
                     "clip '{}': loop mode on needs a curve that loops; {} does not (the curves that loop are {})",
                     clip.name,
-                    spec.curve,
-                    CurveSpec::looping_curves()
+                    choice.name(),
+                    quatcurve_core::curve::CurveSpec::looping_curves()
                 )));
             }
             if let Some((c, angle)) = rotations().find_map(|(c, v)| open(v).map(|a| (c, a))) {
@@ -358,9 +357,10 @@ pub fn grid_times(grid: TrackTimes) -> Vec<f64> {
     (0..grid.count()).filter_map(|j| grid.grid_time(j)).collect()
 }
 
-/// Resamples every clip at `rate` with `spec`: rotation channels on `device` (one batch
-/// for the whole animation), vector channels with the Euclidean analogue in f64. Channels
-/// with a single key are held constant. Samples outside a channel's keys hold its end value
+/// Resamples every clip at `rate` as `choice` says: rotation channels on `device` (one batch
+/// for the whole animation), vector channels with the Euclidean analogue in f64, keys a
+/// source declares STEP or CUBICSPLINE as glTF defines them in f64. Channels with a single
+/// key are held constant. Samples outside a channel's keys hold its end value
 /// (glTF's clamping). Clips that loop (`loops`, [`clip_loops`]) use the periodic curves of
 /// DESIGN section 3, translations keeping their per-cycle offset.
 ///
@@ -370,12 +370,12 @@ pub fn grid_times(grid: TrackTimes) -> Vec<f64> {
 /// when the device refuses or fails.
 pub fn bake(
     animation: &Animation,
-    spec: &CurveSpec,
+    choice: &CurveChoice,
     rate: ClipRate,
     loops: LoopMode,
     device: &Device,
 ) -> Result<Baked, InputError> {
-    bake_each(animation, spec, &vec![rate; animation.clips.len()], loops, device)
+    bake_each(animation, choice, &vec![rate; animation.clips.len()], loops, device)
 }
 
 /// [`bake`] with a rate of each clip's own (`rates[c]` for clip `c`): what an error budget
@@ -388,12 +388,12 @@ pub fn bake(
 /// When `rates` has not one rate per clip.
 pub fn bake_each(
     animation: &Animation,
-    spec: &CurveSpec,
+    choice: &CurveChoice,
     rates: &[ClipRate],
     loops: LoopMode,
     device: &Device,
 ) -> Result<Baked, InputError> {
-    bake_reusing(animation, spec, rates, loops, device, &mut Reuse::default())
+    bake_reusing(animation, choice, rates, loops, device, &mut Reuse::default())
 }
 
 /// The large buffers of one bake, kept for the next ([`bake_reusing`]): the packed batch's
@@ -421,17 +421,17 @@ impl Reuse {
 /// When `rates` has not one rate per clip.
 pub fn bake_reusing(
     animation: &Animation,
-    spec: &CurveSpec,
+    choice: &CurveChoice,
     rates: &[ClipRate],
     loops: LoopMode,
     device: &Device,
     reuse: &mut Reuse,
 ) -> Result<Baked, InputError> {
     assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
-    let (mut clips, grids) = plan_clips(animation, spec, rates, loops)?;
+    let (mut clips, grids) = plan_clips(animation, choice, rates, loops)?;
     let looping: Vec<bool> = clips.iter().map(|c| c.looping).collect();
     let builder = reuse.batch.take().map_or_else(BatchBuilder::new, BatchBuilder::reusing);
-    let curves = Curves::build(animation, spec, &looping, builder)?;
+    let curves = Curves::build(animation, choice, &looping, builder)?;
     // The host's channels at their clip's frames, on every core.
     let host_channels: Vec<(usize, &ChannelEval)> = curves
         .channels
@@ -483,7 +483,7 @@ pub fn bake_reusing(
     baked.rotations = rotations.data;
     baked.device = Some(name);
     // A fitted clip's control points are not keys the curve passes through.
-    if interpolates(spec) && !animation.is_fitted() {
+    if choice.interpolates() && !animation.is_fitted() {
         baked.max_key_error = Some(key_error(&curves.tracks, &batch, device)?);
     }
     reuse.batch = Some(batch);
@@ -495,7 +495,7 @@ pub fn bake_reusing(
 /// texture's joint rows).
 fn plan_clips(
     animation: &Animation,
-    spec: &CurveSpec,
+    choice: &CurveChoice,
     rates: &[ClipRate],
     loops: LoopMode,
 ) -> Result<(Vec<BakedClip>, Vec<TrackTimes>), InputError> {
@@ -504,7 +504,7 @@ fn plan_clips(
     let mut total_samples = 0usize;
     for (clip, &rate) in animation.clips.iter().zip(rates) {
         let [start, end] = clip.span();
-        let looping = clip_loops(animation, clip, spec, loops)?;
+        let looping = clip_loops(animation, clip, choice, loops)?;
         let hz = rate.hz();
         let frames = ((end - start) * hz).max(0.0).floor() + 2.0;
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;

@@ -3,13 +3,14 @@
 //! Which inputs, where to, which shard and how many at once are the job's ([`super::BakeJob`]).
 
 use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
+use super::curves::CurveChoice;
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::{ClipRate, LoopMode};
 use quatcurve_anim::crowd;
 use quatcurve_anim::source::Source;
-use quatcurve_core::curve::{Curve, CurveSpec, KnotMode};
+use quatcurve_core::curve::Curve;
 use quatcurve_device::DeviceChoice;
 #[cfg(feature = "cli")]
 use quatcurve_eval::options::names;
@@ -29,8 +30,9 @@ pub struct BakeOptions {
     /// so a clip's end off that grid is not baked (the summary warns how much). Loops always fit.
     #[cfg_attr(feature = "cli", arg(long))]
     pub exact_rate: bool,
-    /// Curve family; by default bspline-interp (C2, through every key), and slerp for SMPL
-    /// pose arrays (as dataset pipelines resample them).
+    /// Curve family for every channel; by default each channel as its source plays it (glTF's
+    /// samplers: LINEAR slerp and lerp, STEP, CUBICSPLINE; the frames of BVH, FBX and SMPL
+    /// slerped), and bspline-interp (C2, through every key) for the built-in crowd.
     #[cfg_attr(feature = "cli", arg(long, value_parser = names::<Curve>()))]
     pub curve: Option<Curve>,
     /// The family's options (knots: phantom unless given).
@@ -127,23 +129,18 @@ impl BakeOptions {
         root_motion: RootMotion::Keep,
     };
 
-    /// The curve family `source`'s clips are baked with: the one asked for, else the source's
-    /// own default ([`Source::default_curve`]).
+    /// What `source`'s keys are interpolated with: the family asked for, else the source's
+    /// own choice ([`Source::default_curve`]).
     #[must_use]
-    pub fn curve_for(&self, source: &Source) -> Curve {
-        self.curve.unwrap_or_else(|| source.default_curve())
+    pub fn choice(&self, source: &Source) -> CurveChoice {
+        self.choice_or(source.default_curve())
     }
 
-    /// The curve every clip of `source` is baked with (`looping` is decided per clip).
+    /// What keys are interpolated with: the family asked for, else `default` (`None`: each
+    /// channel as its source interpolates it).
     #[must_use]
-    pub fn spec(&self, source: &Source) -> CurveSpec {
-        self.spec_or(source.default_curve())
-    }
-
-    /// The curve every clip is baked with, `default` where none is asked for.
-    #[must_use]
-    pub fn spec_or(&self, default: Curve) -> CurveSpec {
-        self.curve_options.spec(self.curve.unwrap_or(default), KnotMode::Phantom, false)
+    pub fn choice_or(&self, default: Option<Curve>) -> CurveChoice {
+        CurveChoice::new(self.curve.or(default), &self.curve_options)
     }
 
     /// How each clip's frames are laid: at the rate exactly, or fitted to the clip.
@@ -177,6 +174,7 @@ impl Default for BakeOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use quatcurve_core::curve::KnotMode;
     use quatcurve_eval::options::{from_named, OptionError};
 
     fn given(json: &str) -> Result<BakeOptions, OptionError> {

@@ -5,7 +5,7 @@
 use super::options::BakeOptions;
 use super::report::unbaked_ends;
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::smpl::{self, Resampled, SmplFile};
+use quatcurve_anim::smpl::{Resampled, SmplFile};
 use quatcurve_device::Device;
 
 /// `file`'s poses (and root translation) at `options.rate` (exactly, with `exact_rate`), with
@@ -20,8 +20,8 @@ pub fn resample(
     device: &Device,
 ) -> Result<(Resampled, Vec<String>), InputError> {
     let animation = file.animation("poses");
-    let spec = options.spec_or(smpl::DEFAULT_CURVE);
-    let baked = super::bake(&animation, &spec, options.clip_rate(), options.looping, device)?;
+    let choice = options.choice_or(None);
+    let baked = super::bake(&animation, &choice, options.clip_rate(), options.looping, device)?;
     let mut warnings = super::source_step_warnings(&animation);
     warnings.extend(file.warnings.iter().cloned());
     warnings.extend(unbaked_ends(&animation, &baked));

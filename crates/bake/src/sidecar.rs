@@ -5,6 +5,7 @@
 //! lenient, as for a file an older build wrote: a field it lacks takes its default.
 
 use super::budget::{ChosenRate, ErrorBudget, SUBSTEPS};
+use super::curves::CurveChoice;
 use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
@@ -13,7 +14,7 @@ use super::uniforms::{self, LayoutClip, LayoutOf, Layouts, ShaderRecord, Uniform
 use super::vertex_texture::VertexSheets;
 use super::Baked;
 use quatcurve_anim::mesh::DeclaredPrimitive;
-use quatcurve_anim::Animation;
+use quatcurve_anim::{Animation, Interpolation};
 use quatcurve_shader::Program;
 use serde::{Deserialize, Serialize};
 
@@ -29,14 +30,32 @@ pub(super) struct SidecarOptions<'a> {
     pub(super) max_error: Option<&'a ErrorBudget>,
 }
 
+/// How `animation`'s channels declare their keys interpolated, each name once (glTF's).
+fn declared_interpolations(animation: &Animation) -> Vec<String> {
+    let mut declared: Vec<&str> = animation
+        .clips
+        .iter()
+        .flat_map(|c| &c.channels)
+        .filter_map(|c| c.interpolation().map(Interpolation::gltf_name))
+        .collect();
+    declared.sort_unstable();
+    declared.dedup();
+    declared.into_iter().map(str::to_string).collect()
+}
+
 /// The sidecar JSON next to the animation textures (DESIGN section 5b).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Sidecar {
     /// The baked input's file name (or the built-in crowd's name).
     pub source: String,
-    /// The curve family the clips were baked with.
+    /// What the keys were interpolated with: `source` (each channel as its source plays it,
+    /// `interpolation` naming how), a curve family, or `fitted-bspline` (a fitted input's own).
     pub curve: String,
+    /// With `curve` `source`: how the source interpolates its channels, in glTF's words
+    /// (`LINEAR`, `STEP`, `CUBICSPLINE`; BVH, FBX and SMPL frames are `LINEAR`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub interpolation: Vec<String>,
     /// The rate asked for; each clip's own rate is its `rate` (fitted to its span).
     pub requested_rate: f64,
     /// The device that evaluated the curves.
@@ -384,6 +403,7 @@ impl Sidecar {
         Ok(Sidecar {
             source: source.to_string(),
             curve: curve.to_string(),
+            interpolation: if curve == CurveChoice::SOURCE { declared_interpolations(animation) } else { Vec::new() },
             requested_rate: rate,
             device: device.to_string(),
             texture: texture.name().to_string(),

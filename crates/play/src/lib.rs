@@ -16,9 +16,8 @@ pub mod schedule;
 
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::{Animation, Property, Skin};
-use quatcurve_bake::curves::{ChannelEval, Curves};
+use quatcurve_bake::curves::{ChannelEval, CurveChoice, Curves};
 use quatcurve_bake::{clip_loops, LoopMode};
-use quatcurve_core::curve::CurveSpec;
 use quatcurve_device::{Device, ResidentPlayback};
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
@@ -76,7 +75,7 @@ pub struct Playback {
 }
 
 impl Playback {
-    /// Builds every clip's curves with `spec`, loops chosen by `loops` as the bake chooses
+    /// Builds every clip's curves as `curve` says, loops chosen by `loops` as the bake chooses
     /// them ([`clip_loops`]), the palette that of skin `skin` (the first skin when `None`; a
     /// file without skins plays every joint's model matrix, as a `skin` texture does).
     ///
@@ -85,7 +84,7 @@ impl Playback {
     /// animation does not have, or an animation without a clip.
     pub fn new(
         animation: Animation,
-        spec: &CurveSpec,
+        curve: &CurveChoice,
         loops: LoopMode,
         skin: Option<usize>,
     ) -> Result<Self, InputError> {
@@ -103,8 +102,8 @@ impl Playback {
             None => (!animation.skins.is_empty()).then_some(0),
         };
         let looping =
-            animation.clips.iter().map(|c| clip_loops(&animation, c, spec, loops)).collect::<Result<Vec<_>, _>>()?;
-        let curves = Curves::build(&animation, spec, &looping, BatchBuilder::new())?;
+            animation.clips.iter().map(|c| clip_loops(&animation, c, curve, loops)).collect::<Result<Vec<_>, _>>()?;
+        let curves = Curves::build(&animation, curve, &looping, BatchBuilder::new())?;
         let spans: Vec<[f64; 2]> = animation.clips.iter().map(quatcurve_anim::Clip::span).collect();
         Ok(Self {
             parents: animation.parents(),
@@ -190,19 +189,24 @@ impl Playback {
 
     /// These clips prepared on `device` for frame after frame: on the GPU the curves uploaded
     /// once ([`Device::resident_playback`]), so that a frame is one submission with only the
-    /// instances sent; elsewhere the host path of [`Playback::palettes`].
+    /// instances sent; elsewhere, and for channels only the host evaluates
+    /// ([`Playback::pose_curves`]), the host path of [`Playback::palettes`].
     ///
     /// # Errors
     /// The device's, for curves it cannot take (named).
     pub fn player<'a>(&'a self, device: &'a Device) -> Result<Player<'a>, InputError> {
-        let resident = device.resident_playback(&self.pose_curves())?;
+        let resident = match self.pose_curves() {
+            Some(curves) => device.resident_playback(&curves)?,
+            None => None,
+        };
         Ok(Player { playback: self, device, resident })
     }
 
     /// The clips as a device keeps them: per clip, joint and property, the track, vector curve
-    /// or constant it plays (a property the clip leaves alone: its rest value).
+    /// or constant it plays (a property the clip leaves alone: its rest value). `None` where a
+    /// channel is evaluated on the host alone (keys a source declares STEP or CUBICSPLINE).
     #[must_use]
-    pub fn pose_curves(&self) -> PoseCurves<'_> {
+    pub fn pose_curves(&self) -> Option<PoseCurves<'_>> {
         let joints = self.animation.joints.len();
         let mut vectors = Vec::new();
         let mut sources = Vec::with_capacity(self.animation.clips.len() * joints * POSE_PROPERTIES);
@@ -228,17 +232,18 @@ impl Playback {
                         PoseSource::Vector(vectors.len() - 1)
                     }
                     ChannelEval::Constant(value) => PoseSource::Value(*value),
+                    ChannelEval::Declared(_) => return None,
                 };
             }
         }
-        PoseCurves {
+        Some(PoseCurves {
             batch: self.curves.batch.as_ref(),
             vectors,
             sources,
             parents: &self.parents,
             order: &self.order,
             skin: self.palette_skin(),
-        }
+        })
     }
 
     /// The played skin's joints and inverse binds.

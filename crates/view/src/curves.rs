@@ -7,9 +7,9 @@
 use base64::Engine as _;
 use quatcurve_anim::gltf::{self, UriPolicy};
 use quatcurve_anim::mesh;
+use quatcurve_bake::curves::CurveChoice;
 use quatcurve_bake::sidecar::Sidecar;
 use quatcurve_bake::LoopMode;
-use quatcurve_core::curve::{Curve, CurveSpec};
 use quatcurve_gpu::playback::{FrameBuffer, FrameDispatch, FrameKernels, ResidentCurves, FRAME_BINDINGS};
 use quatcurve_play::Playback;
 use quatcurve_shader as shader;
@@ -150,11 +150,10 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
     for p in primitives.iter().filter(|p| p.skin != skin) {
         notes.push(format!("{}: skin {} is not the one played (skin {skin}); not drawn", p.name, p.skin));
     }
-    // The bake's family with the front ends' defaults for the rest.
-    let curve: Curve = sidecar.curve.parse()?;
-    let spec = CurveSpec { curve, ..CurveSpec::DEFAULT };
+    // The bake's choice (a family with the front ends' defaults for the rest).
+    let curve = CurveChoice::from_name(&sidecar.curve)?;
     let playback =
-        Playback::new(file.animation, &spec, LoopMode::Auto, Some(skin)).map_err(|e| format!("{baked}: {e}"))?;
+        Playback::new(file.animation, &curve, LoopMode::Auto, Some(skin)).map_err(|e| format!("{baked}: {e}"))?;
     let names: Vec<&str> = playback.animation().clips.iter().map(|c| c.name.as_str()).collect();
     let baked_names: Vec<&str> = sidecar.clips.iter().map(|c| c.name.as_str()).collect();
     if names != baked_names {
@@ -174,8 +173,9 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
             ));
         }
     }
-    let resident =
-        ResidentCurves::new(&playback.pose_curves(), WEBGPU_BINDING_LIMIT).map_err(|e| format!("{baked}: {e}"))?;
+    // The baked glTF's samplers are LINEAR: every channel plays on the GPU.
+    let curves = playback.pose_curves().ok_or_else(|| format!("{baked}: a channel is not LINEAR"))?;
+    let resident = ResidentCurves::new(&curves, WEBGPU_BINDING_LIMIT).map_err(|e| format!("{baked}: {e}"))?;
     let max_instances = resident.max_frame_instances(WEBGPU_BINDING_LIMIT);
     if instances == 0 || instances > max_instances {
         return Err(format!("{instances} instances: one frame plays 1 to {max_instances} of this character"));

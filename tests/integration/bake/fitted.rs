@@ -303,7 +303,10 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let fitted = Container::from_bytes(&bytes).unwrap().animation();
     let keyed = bvh::read(&source).unwrap().animation("bend");
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
-    let (spec, rates) = (quatcurve::CurveSpec::new(quatcurve::Curve::BSpline), [ClipRate::Fit(30.0)]);
+    let (spec, rates) = (
+        quatcurve::bake::curves::CurveChoice::Family(quatcurve::CurveSpec::new(quatcurve::Curve::BSpline)),
+        [ClipRate::Fit(30.0)],
+    );
     let mut reuse = Reuse::default();
     for animation in [&fitted, &keyed, &fitted] {
         let fresh = bake_lib::bake_each(animation, &spec, &rates, LoopMode::Off, &device).unwrap();

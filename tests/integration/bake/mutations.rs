@@ -12,6 +12,7 @@ use crate::common::{f64_bytes, npy_bytes, npz_bytes};
 use proptest::prelude::*;
 use quatcurve::anim::error::InputError;
 use quatcurve::anim::{bvh, gltf};
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, SampleTimes, Sampling, TrackFile};
 use std::path::Path;
@@ -254,7 +255,7 @@ enum Reached {
 
 /// Reads, bakes and encodes `bytes` as `seed`'s kind of file.
 fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
-    let spec = CurveSpec::new(Curve::BSplineInterp);
+    let spec = CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp));
     match seed.kind {
         Kind::Gltf | Kind::GlbJson => {
             let packed;
@@ -343,7 +344,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             };
             let file = quatcurve::anim::smpl::from_bytes(bytes)?;
             let animation = file.animation("clip");
-            let spec = CurveSpec::new(Curve::Slerp);
+            let spec = CurveChoice::Family(CurveSpec::new(Curve::Slerp));
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
             file.to_npz(&baked.frames()[0])?;
             Ok(Reached::Baked(baked.sample_count()))
@@ -355,7 +356,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             let Ok(tracks) = quatcurve::arrays::read_tracks(&path, Some(30.0)) else {
                 return Ok(Reached::Skipped("not a track array"));
             };
-            let batch = Batch::from_tracks(&tracks, &spec)?;
+            let batch = Batch::from_tracks(&tracks, &spec.spec())?;
             let times = SampleTimes::uniform(&batch, Sampling::Count(5))?;
             let job = quatcurve::EvalJob::new(&batch, &times).layout(quatcurve::Layout::Track).derivatives(true);
             device().evaluate(&job)?;

@@ -137,9 +137,10 @@ fn smpl_h_poses_resample_at_exact_times_into_their_own_layout() {
         }
     }
     assert!(worst < 1e-6, "frames {worst:e} rad from glam's slerp of the keys");
-    // Slerp unless asked otherwise, and the sidecar says so; the local texture is the same frames.
+    // The source's own frames slerped unless asked otherwise, and the sidecar says so; the
+    // local texture is the same frames.
     let sidecar = json(&out.join("walk.json"));
-    assert_eq!(sidecar["curve"], "slerp");
+    assert_eq!((&sidecar["curve"], &sidecar["interpolation"]), (&"source".into(), &serde_json::json!(["LINEAR"])));
     assert_eq!(sidecar["joints"].as_array().unwrap().len(), SMPL_H);
     assert_eq!(sidecar["joints"][37], "right_index1");
     let asked = dir.path().join("c2");

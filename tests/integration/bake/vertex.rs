@@ -168,7 +168,8 @@ pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, 
 /// The skinning matrices of every skin at every frame of clip `clip`, baked as `bake` does
 /// (`bspline-interp` through the keys at 30 Hz, fitted), on the f64 reference.
 fn skin_matrices(animation: &quatcurve::anim::Animation, clip: usize) -> (Vec<Vec<f32>>, Vec<f64>) {
-    let spec = CurveSpec { curve: Curve::BSplineInterp, ..CurveSpec::default() };
+    let spec =
+        quatcurve::bake::curves::CurveChoice::Family(CurveSpec { curve: Curve::BSplineInterp, ..CurveSpec::default() });
     let baked =
         quatcurve::bake::bake(animation, &spec, ClipRate::Fit(30.0), LoopMode::Auto, &Device::Reference).unwrap();
     let order = animation.parents_first().unwrap();

@@ -11,10 +11,11 @@ use super::{bake, data_dir, json, stderr};
 use glam::{DMat4, DVec3, DVec4};
 use quatcurve::anim::gltf::{self, UriPolicy};
 use quatcurve::anim::mesh::skinned_primitives;
+use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::LoopMode;
 use quatcurve::output::VERTEX_CHANNELS;
 use quatcurve::play::{ClipTime, Instance, Playback};
-use quatcurve::{skeleton, Curve, CurveSpec, Device, DeviceChoice};
+use quatcurve::{skeleton, Device, DeviceChoice};
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -359,8 +360,8 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     let file = gltf::read(&source, UriPolicy::default()).unwrap();
     let primitive = &skinned_primitives(&file).unwrap()[0];
     let indices = primitive.indices.clone().unwrap_or_else(|| (0..primitive.vertices() as u32).collect());
-    let curve: Curve = json(&bones.join("Fox.json"))["curve"].as_str().unwrap().parse().unwrap();
-    let playback = Playback::new(file.animation.clone(), &CurveSpec::new(curve), LoopMode::Auto, Some(0)).unwrap();
+    let curve = CurveChoice::from_name(json(&bones.join("Fox.json"))["curve"].as_str().unwrap()).unwrap();
+    let playback = Playback::new(file.animation.clone(), &curve, LoopMode::Auto, Some(0)).unwrap();
     let reference = Device::open(DeviceChoice::Reference).unwrap();
     let phase = |t: f64| t / playback.duration(walk) * playback.duration(run);
     // The reference's poses (time into Walk, weight), skinned on the CPU.

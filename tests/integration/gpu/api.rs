@@ -285,7 +285,7 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
     let baked = quatcurve::bake::bake(
         &animation,
-        &CurveSpec::new(Curve::BSplineInterp),
+        &quatcurve::bake::curves::CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
         quatcurve::bake::ClipRate::Fit(30.0),
         quatcurve::bake::LoopMode::Auto,
         &device,

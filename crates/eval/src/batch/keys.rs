@@ -79,7 +79,7 @@ pub fn normalized_key(id: &TrackId, key: usize, value: [f64; 4]) -> Result<QuatF
 }
 
 /// The key times, defaulting to `0, 1, ..., n`; finite and strictly increasing.
-pub(crate) fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Result<Vec<f64>> {
+pub fn key_times(id: &TrackId, times: Option<&[f64]>, count: usize) -> Result<Vec<f64>> {
     let Some(times) = times else {
         return Ok((0..count).map(|i| i as f64).collect());
     };

@@ -34,7 +34,7 @@ mod knots;
 pub use builder::{BatchBuilder, Spline};
 pub use families::MIN_TURN_AXIS;
 pub(crate) use families::{catmull_rom_velocities, squad_points};
-pub(crate) use keys::key_times;
+pub use keys::key_times;
 pub use keys::normalized_key;
 pub use keys::{LOOP_TOLERANCE, MIN_KEY_NORM};
 pub(crate) use knots::bspline_knots;
