@@ -193,7 +193,8 @@ fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, Input
     let root = gltf.document.as_json();
     let mut skins = Vec::new();
     for skin in gltf.skins() {
-        let name = skin.name().map_or_else(|| format!("skin{}", skin.index()), str::to_string);
+        // An unnamed skin is `skeleton<k>`, the name Babylon's glTF loader gives its skeleton.
+        let name = skin.name().map_or_else(|| format!("skeleton{}", skin.index()), str::to_string);
         let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
         let inverse_bind = match skin.inverse_bind_matrices() {
             None => vec![IDENTITY_3X4; joints.len()],

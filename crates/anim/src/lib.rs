@@ -220,7 +220,7 @@ impl Joint {
 /// A glTF skin: the joints a mesh is bound to and their inverse bind matrices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Skin {
-    /// Name (the skin's, or `skin<k>`).
+    /// Name (the skin's, or `skeleton<k>`, as Babylon's glTF loader names a skeleton).
     pub name: String,
     /// Joint indices into [`Animation::joints`], in the skin's order.
     pub joints: Vec<usize>,

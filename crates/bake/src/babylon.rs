@@ -16,6 +16,24 @@ use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::{Animation, Skin};
 use quatcurve_eval::skeleton::{compose, inverse, trs, Affine};
 
+/// The manager's settings that play a clip of `frames` rows from `first_row` at `rate` on the
+/// source's clock: `(from, to, offset, speed)`. Babylon's manager (its `bakedVertexAnimation`
+/// shader) plays rows `from..=to` in its first cycle and, assuming a loop's last row repeats
+/// its first, `from + 1..=to` in every later one, each cycle `(to - from + 1) / speed` seconds
+/// long and the row floored. A loop's period is `frames - 1` rows, so its speed is
+/// `rate * frames / (frames - 1)` and its offset -1 row: every later cycle shows row
+/// `floor(time * rate)` of the period exactly, the first a row late. An open clip plays its
+/// rows at `rate`, offset 0.
+#[must_use]
+pub fn settings(first_row: usize, frames: usize, rate: f64, looping: bool) -> [f64; 4] {
+    let (from, to) = (first_row as f64, (first_row + frames.max(1) - 1) as f64);
+    if looping && frames > 1 {
+        [from, to, -1.0, rate * frames as f64 / (frames - 1) as f64]
+    } else {
+        [from, to, 0.0, rate]
+    }
+}
+
 /// Floats of one bone's matrix in Babylon's texture (four RGBA texels).
 pub const MATRIX_FLOATS: usize = 16;
 

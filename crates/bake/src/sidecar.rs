@@ -165,14 +165,20 @@ pub struct BabylonRecord {
     /// Per skin, the node Babylon's glTF loader parents its meshes to, whose space at rest the
     /// bones' matrices are in (`None`: the scene root).
     pub mesh_parents: Vec<Option<String>>,
-    /// A clip's per-instance settings for the manager, in words.
+    /// Per clip, the manager's `animationParameters` (or an instance's
+    /// `bakedVertexAnimationSettingsInstanced`) that play it on the source's clock
+    /// ([`babylon::settings`]): first row, last row, offset in rows, speed in rows a second.
+    pub clips: Vec<[f64; 4]>,
+    /// How to use `clips`, in words.
     pub settings: String,
 }
 
 /// [`BabylonRecord::settings`].
-const BABYLON_SETTINGS: &str = "clip k plays with Vector4(first_row, first_row + frames - 1, offset in frames, rate) as \
-    the manager's animationParameters or an instance's bakedVertexAnimationSettingsInstanced; Babylon takes the row \
-    floor(time * rate) (no blending between rows) and after the first cycle skips first_row, a loop's repeated seam row";
+const BABYLON_SETTINGS: &str = "clip k plays with Vector4(...clips[k]) as the manager's animationParameters or an \
+    instance's bakedVertexAnimationSettingsInstanced, its phase added to the offset in rows; Babylon takes the row \
+    floor(time * speed) (no blending between rows) and after a loop's first cycle skips first_row, its repeated seam \
+    row, so a loop's speed is rate * frames / (frames - 1) and its offset -1: every cycle after the first is the \
+    source's period on its rows, the first a row late";
 
 /// One skinned primitive of a vertex texture.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -447,6 +453,10 @@ impl Sidecar {
                 mesh_parents: super::babylon::mesh_parents(animation, skinned)
                     .into_iter()
                     .map(|parent| parent.map(|j| animation.joints[j].name.clone()))
+                    .collect(),
+                clips: clips
+                    .iter()
+                    .map(|c| super::babylon::settings(c.first_row, c.frames, c.rate, c.looping))
                     .collect(),
                 settings: BABYLON_SETTINGS.into(),
             }),

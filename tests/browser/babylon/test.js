@@ -1,11 +1,14 @@
 // What the Babylon.js tests measure in the browser (URL parameters; bake=SIDECAR of a
 // `--texture skin --format babylon` bake, source=GLB it was baked from):
-// - mode=silhouette: for each clip at four of its frames, the silhouette of the baked glTF
-//   played by Babylon's own BakedVertexAnimationManager from the bake's JSON, against Babylon
-//   playing the source .glb's animation group at that frame's time, both white on black from
-//   one camera. break=time plays every frame at the clip's first; break=space multiplies each
-//   bone by its mesh parent's world matrix (skin matrices in the glTF's world, as a `skin`
-//   texture holds them, not in the space Babylon draws the mesh in).
+// - mode=silhouette (cycles=C): for each clip at four of its frames, the silhouette of the
+//   baked glTF played by Babylon's own BakedVertexAnimationManager from the bake's JSON with the
+//   sidecar's settings, C periods on for a loop (an open clip in its first cycle), against
+//   Babylon playing the source .glb's animation group at that frame's time, both white on black
+//   from one camera. break=time plays every frame at the clip's first; break=space multiplies
+//   each bone by its mesh parent's world matrix (skin matrices in the glTF's world, as a `skin`
+//   texture holds them, not in the space Babylon draws the mesh in); break=period plays a loop
+//   with a frame a row (first_row to its last row at the clip's rate, as if Babylon's cycle
+//   were the clip's period).
 // - mode=baker: each clip baked by Babylon's own VertexAnimationBaker at the bake's frame
 //   times (the group's animations moved onto the bones, which is what that baker plays),
 //   against the bake's JSON as Babylon's loadBakedVertexDataFromJSON reads it: the largest
@@ -38,8 +41,8 @@ function skinnedMeshes(loaded, sidecar) {
   return loaded.meshes
     .filter((m) => m.skeleton && m.getTotalVertices() > 0)
     .map((mesh) => {
-      // Babylon names a skeleton after its skin, or `skeleton<k>` where the skin has no name.
-      const skin = sidecar.skins.findIndex((s, k) => s.name === mesh.skeleton.name || `skeleton${k}` === mesh.skeleton.name);
+      // Babylon names a skeleton after its skin, as the sidecar names the skin.
+      const skin = sidecar.skins.findIndex((s) => s.name === mesh.skeleton.name);
       if (skin < 0) throw new Error(`no skin in the sidecar for skeleton ${mesh.skeleton.name}`);
       return { mesh, skin };
     });
@@ -93,7 +96,10 @@ async function silhouettes() {
       mesh.bakedVertexAnimationManager?.texture?.dispose();
       const manager = new B.BakedVertexAnimationManager(scene);
       manager.texture = baker.textureFromBakedVertexData(data);
-      manager.animationParameters = new B.Vector4(clip.first_row, clip.first_row + clip.frames - 1, 0, clip.rate);
+      const settings = params.get('break') === 'period'
+        ? [clip.first_row, clip.first_row + clip.frames - 1, 0, clip.rate]
+        : bake.sidecar.babylon.clips[c];
+      manager.animationParameters = new B.Vector4(...settings);
       mesh.bakedVertexAnimationManager = manager;
     }
     const group = groupOf(source, bake.sidecar, c);
@@ -106,9 +112,11 @@ async function silhouettes() {
       if (k === 0) frame(camera, sources.map((m) => m.mesh));
       show(sources);
       const expected = await mask(engine, scene);
-      // The middle of the row's frame: the manager takes floor(time * rate).
+      // The middle of the row's frame (the manager floors), `cycles` periods on for a loop.
       const played = params.get('break') === 'time' ? 0 : row;
-      for (const { mesh } of meshes) mesh.bakedVertexAnimationManager.time = (played + 0.5) / clip.rate;
+      const cycles = clip.loop ? Number(params.get('cycles') ?? 1) : 0;
+      const seconds = (cycles * (clip.frames - 1) + played + 0.5) / clip.rate;
+      for (const { mesh } of meshes) mesh.bakedVertexAnimationManager.time = seconds;
       show(meshes);
       const got = await mask(engine, scene);
       let either = 0;
