@@ -278,7 +278,9 @@ export class Crowd extends THREE.Group {
 
   /**
    * Instance `i`'s clip (index or name), time offset in seconds, speed (1: the clip's own),
-   * and transform in the crowd.
+   * and transform in the crowd. It shows its clip at `seconds * speed + offset` on the
+   * source's clock, as three.js's `AnimationMixer` plays the source (a clip whose first key is
+   * past 0 holds its first frame until then).
    * @param {number} i
    * @param {{clip?: number | string, offset?: number, speed?: number, matrix?: THREE.Matrix4, position?: THREE.Vector3}} values
    */
@@ -324,7 +326,9 @@ export class Crowd extends THREE.Group {
         const slot = slots.get(part) ?? 0;
         slots.set(part, slot + 1);
         part.mesh.setMatrixAt(slot, instance.matrix);
-        part.attribute.setXYZ(slot, at, instance.offset, instance.speed);
+        // The shader's time counts from the clip's first frame; an instance's, as three.js's
+        // AnimationMixer counts it, from the source's time zero.
+        part.attribute.setXYZ(slot, at, instance.offset - clip.start, instance.speed);
       }
     }
     for (const part of this.parts.values()) {
