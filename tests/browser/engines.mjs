@@ -7,8 +7,9 @@
 // measured (its `window.quatcurveTest`). With --example, opens examples/ENGINE/ as shipped
 // instead, its engine's scripts from unpkg answered from node_modules (the versions it names
 // must be the ones installed), and reports its title once it sets `window.exampleReady` (or
-// after a few seconds).
-// Usage: node engines.mjs ENGINE DATA_DIR QUERY OUT.json [--example] [--screenshot FILE.png] [--viewport WxH]
+// after a few seconds). With --package DIR, the package is served from DIR (a copy a user
+// installed) instead of the repository's.
+// Usage: node engines.mjs ENGINE DATA_DIR QUERY OUT.json [--example] [--package DIR] [--screenshot FILE.png] [--viewport WxH]
 import { launch, watchedPage } from './chromium.mjs';
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
@@ -24,7 +25,7 @@ const here = fileURLToPath(new URL('.', import.meta.url));
 const repository = resolve(here, '../..');
 const roots = {
   '/page/': join(here, engine),
-  '/pkg/': join(repository, 'packages/quatcurve-three'),
+  '/pkg/': resolve(option('--package') || join(repository, 'packages/quatcurve-three')),
   '/packages/': join(repository, 'packages'),
   '/examples/': join(repository, 'examples'),
   '/three/': join(here, 'node_modules/three'),

@@ -139,9 +139,51 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     let refused = result["page"]["refused"].as_str().unwrap_or_default();
     assert!(refused.contains("CesiumMan.json: a skin-trs bake of npy files"), "{result}");
     assert!(refused.contains("--format exr"), "{refused}");
+    // The package as a user installs it, from `npm pack`'s tarball into a project of their own
+    // (three.js, its peer, is the page's), plays a bake as the repository's copy does.
+    let installed = installed_package(dir.path());
+    let extra = ["--package", installed.to_str().unwrap()];
+    let query = "mode=silhouette&bake=/data/man-exr/CesiumMan.json&source=/data/CesiumMan.glb";
+    let result = page(&script, "three", dir.path(), query, &extra);
+    let most = result["page"]["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["mismatch"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    assert!(most <= SILHOUETTE_TOLERANCE, "the installed package: {most} of a silhouette");
     // examples/three/ as shipped (its three.js from the CDN it names, answered locally).
     let result = page(&script, "three", dir.path(), "bake=/data/fox-atlas/Fox.json", &["--example"]);
     assert_eq!(result["title"], "100 instances playing Survey, Walk, Run", "{result}");
+}
+
+/// `packages/quatcurve-three` packed (`npm pack`) and installed from the tarball into a new
+/// project under `dir`, as its README says (offline: the package has no dependency of its
+/// own); the installed package's directory.
+fn installed_package(dir: &Path) -> std::path::PathBuf {
+    let project = dir.join("user-project");
+    std::fs::create_dir_all(&project).unwrap();
+    std::fs::write(project.join("package.json"), r#"{"name": "user-project", "private": true, "type": "module"}"#)
+        .unwrap();
+    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("packages/quatcurve-three");
+    let npm = |args: &[&str]| {
+        let out = std::process::Command::new("npm").args(args).current_dir(&project).output().unwrap();
+        assert!(out.status.success(), "npm {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).trim().to_string()
+    };
+    let tarball = npm(&["pack", package.to_str().unwrap(), "--pack-destination", ".", "--silent"]);
+    npm(&[
+        "install",
+        &format!("./{tarball}"),
+        "--offline",
+        "--legacy-peer-deps",
+        "--no-audit",
+        "--no-fund",
+        "--silent",
+    ]);
+    let installed = project.join("node_modules/quatcurve-three");
+    assert!(installed.join("src/bones.glsl").exists(), "the tarball lacks the shader library");
+    installed
 }
 
 #[test]
