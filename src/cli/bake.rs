@@ -253,6 +253,12 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
                 c.fixed_rate_bytes
             )?;
         }
+        if let Some([x, y, z]) = r.rig.filter(|_| r.outcome.is_ok() && !r.resumed) {
+            writeln!(
+                w,
+                "  rig at rest {y:.3} tall: its joints span {x:.3} x {y:.3} x {z:.3} (the file's units; glTF: m)"
+            )?;
+        }
         if let Some((vertex_frames, seconds)) = r.skinning {
             writeln!(
                 w,

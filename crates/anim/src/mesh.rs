@@ -154,6 +154,25 @@ pub fn declared_skinned_primitives(file: &GltfFile) -> Result<Vec<DeclaredPrimit
     Ok(out)
 }
 
+/// Every mesh drawn by a node without a skin (a rigid part, moved by its node's transform
+/// alone), as `node 'N', mesh 'M'`: what textures of skinned meshes do not draw.
+///
+/// # Errors
+/// A file whose JSON is not glTF's.
+pub fn rigid_meshes(file: &GltfFile) -> Result<Vec<String>, InputError> {
+    let (document, _) = file.document()?;
+    Ok(document
+        .nodes()
+        .filter(|node| node.skin().is_none())
+        .filter_map(|node| {
+            let mesh = node.mesh()?;
+            let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
+            let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+            Some(format!("node '{node_name}', mesh '{mesh_name}'"))
+        })
+        .collect())
+}
+
 /// Checks `accessor` (a primitive's attribute) as `kind` and that it has `count` elements.
 fn check(
     document: &gltf::Document,

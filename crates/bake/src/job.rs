@@ -395,6 +395,25 @@ impl BakeJob {
             if let Source::Smpl(file, _) = &src {
                 report.warnings.extend(file.warnings.iter().cloned());
             }
+            if src.has_offsets() {
+                report.rig = Some(super::report::rig_extent(animation)?);
+            }
+            if let (Some(file), TextureKind::Skin | TextureKind::SkinTrs | TextureKind::Vertex) =
+                (src.gltf(), self.options.texture)
+            {
+                report.not_drawn = mesh::rigid_meshes(file)?;
+            }
+            if !report.not_drawn.is_empty() {
+                report.warnings.push(format!(
+                    "{} mesh{} hang{} from nodes without a skin (rigid parts), which a {} texture does not draw: {} \
+                     (the baked glTF plays them; a model texture holds their nodes' transforms)",
+                    report.not_drawn.len(),
+                    if report.not_drawn.len() == 1 { "" } else { "es" },
+                    if report.not_drawn.len() == 1 { "s" } else { "" },
+                    self.options.texture,
+                    report.not_drawn.join(", ")
+                ));
+            }
             // Checked before the curves are baked.
             let vertex = match (src.gltf(), self.options.texture) {
                 (Some(file), TextureKind::Vertex) => {
@@ -484,6 +503,7 @@ impl BakeJob {
             stem,
             source: &report.source,
             rates: &report.rates,
+            not_drawn: &report.not_drawn,
             written: Vec::new(),
             atlas: Vec::new(),
             rows: 0,
@@ -589,6 +609,7 @@ impl BakeJob {
         if let Source::Fbx(file) = src {
             sidecar.conversion = Some(ConversionRecord::fbx(file));
         }
+        sidecar.not_drawn = out.not_drawn.to_vec();
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
             .map_err(|e| InputError::Output(e.to_string()))?;

@@ -12,6 +12,8 @@ pub(super) struct Outputs<'a> {
     pub(super) source: &'a str,
     /// With an error budget: each clip's chosen rate and its errors, for the sidecar.
     pub(super) rates: &'a [ChosenRate],
+    /// Meshes the textures do not draw, for the sidecar.
+    pub(super) not_drawn: &'a [String],
     pub(super) written: Vec<Written>,
     /// `--atlas`: the open files every clip appends to, and their rows so far.
     pub(super) atlas: Vec<TextureFile>,

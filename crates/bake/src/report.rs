@@ -81,6 +81,13 @@ pub struct InputReport {
     /// With an error budget ([`super::BakeOptions::max_error`]): per clip, the rate chosen and what
     /// it measured.
     pub rates: Vec<ChosenRate>,
+    /// The box of the joints at rest (model space, the file's units: glTF's and FBX's metres),
+    /// `x, y, z`: a rig read at the wrong scale shows at a glance. `None` for a source without
+    /// joint offsets (SMPL poses).
+    pub rig: Option<[f64; 3]>,
+    /// Meshes the textures do not draw (rigid parts, `node 'N', mesh 'M'`, under a texture of
+    /// skinned meshes), also in the warnings and the sidecar.
+    pub not_drawn: Vec<String>,
 }
 
 impl InputReport {
@@ -99,8 +106,28 @@ impl InputReport {
             warnings: Vec::new(),
             skinning: None,
             rates: Vec::new(),
+            rig: None,
+            not_drawn: Vec::new(),
         }
     }
+}
+
+/// The box of `animation`'s joints at rest, in model space: `x, y, z` extents.
+pub(super) fn rig_extent(animation: &Animation) -> Result<[f64; 3], InputError> {
+    let order = animation.parents_first()?;
+    let model = quatcurve_eval::skeleton::forward_kinematics(
+        &animation.parents(),
+        &order,
+        &super::texture::rest_row(animation),
+    );
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for m in model.chunks_exact(super::texture::MATRIX_CHANNELS) {
+        for (c, &at) in [3, 7, 11].iter().enumerate() {
+            lo[c] = lo[c].min(f64::from(m[at]));
+            hi[c] = hi[c].max(f64::from(m[at]));
+        }
+    }
+    Ok(std::array::from_fn(|c| (hi[c] - lo[c]).max(0.0)))
 }
 
 /// A warning per clip whose end an exact rate left unbaked ([`super::BakedClip::unbaked_end`]).

@@ -112,6 +112,10 @@ pub struct Sidecar {
     /// An input converted to glTF's space as it was read (FBX, DESIGN section 5h).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub conversion: Option<ConversionRecord>,
+    /// Meshes these textures do not draw (`node 'N', mesh 'M'`: rigid parts under a texture of
+    /// skinned meshes), which a renderer drawing from them alone leaves out.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_drawn: Vec<String>,
     /// The baked clips.
     pub clips: Vec<SidecarClip>,
 }
@@ -449,6 +453,7 @@ impl Sidecar {
                 })
                 .collect(),
             conversion: None,
+            not_drawn: Vec::new(),
             babylon: (format == Format::Babylon).then(|| BabylonRecord {
                 mesh_parents: super::babylon::mesh_parents(animation, skinned)
                     .into_iter()

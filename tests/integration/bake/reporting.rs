@@ -190,3 +190,38 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
     let (start, end) = (clip["start"].as_f64().unwrap(), clip["end"].as_f64().unwrap());
     assert!((end - 2.0).abs() < 1e-6 && clip["frames"] == ((end - start) * 30.0).round() as u64 + 1, "{clip}");
 }
+
+/// Every bake's summary gives the rig's size at rest, so a rig read at the wrong scale shows at
+/// a glance (Mixamo's dancer, in centimetres in its file: 1.5 to 1.9 m tall, not 0.18); and the
+/// meshes a texture of skinned meshes does not draw (RobotExpressive's rigid parts, hung from
+/// bones without a skin) are named in the summary and the sidecar, never dropped silently.
+#[test]
+fn the_summary_gives_the_rig_s_size_and_names_the_meshes_a_texture_does_not_draw() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, texture: &str| {
+        let (out, input) = (dir.path().join(format!("{name}.{texture}")), data.join(name));
+        let result =
+            bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--texture", texture]);
+        assert!(result.status.success(), "{name}: {}", stderr(&result));
+        (String::from_utf8_lossy(&result.stdout).into_owned(), stderr(&result), out)
+    };
+    let (summary, _, _) = run("Samba_Dancing.fbx", "model");
+    let tall: f64 = summary
+        .split_once("rig at rest ")
+        .and_then(|(_, rest)| rest.split_whitespace().next())
+        .and_then(|h| h.parse().ok())
+        .unwrap_or_else(|| panic!("no rig in the summary: {summary}"));
+    assert!((1.5..1.9).contains(&tall), "Samba_Dancing's rig is {tall} m tall");
+    let (_, warnings, out) = run("RobotExpressive.glb", "skin-trs");
+    assert!(
+        warnings.contains("12 meshes hang from nodes without a skin") && warnings.contains("node 'Torso'"),
+        "{warnings}"
+    );
+    let not_drawn = json(&out.join("RobotExpressive.json"))["not_drawn"].as_array().unwrap().len();
+    assert_eq!(not_drawn, 12);
+    // A model texture draws no mesh: nothing is left out of it.
+    let (_, warnings, out) = run("RobotExpressive.glb", "model");
+    assert!(!warnings.contains("without a skin"), "{warnings}");
+    assert!(json(&out.join("RobotExpressive.json")).get("not_drawn").is_none());
+}
