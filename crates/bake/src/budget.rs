@@ -401,20 +401,27 @@ fn lowest(
 }
 
 /// How far (a fraction of its step) a key may be from a uniform grid and lie on it: exporters
-/// round key times (BrainStem's 37.5 Hz keys are up to 0.4% of a step off theirs).
-pub const KEY_GRID_TOLERANCE: f64 = 0.02;
+/// round key times (BrainStem's 37.5 Hz keys are up to 0.14% of a step off theirs).
+pub const KEY_GRID_TOLERANCE: f64 = 0.005;
+
+/// The finest grid [`key_grid`] looks for, as a fraction of a channel's shortest (or mean)
+/// step between keys.
+pub const KEY_GRID_DIVISORS: usize = 8;
 
 /// Where every key of `clip` (every channel's, two keys or more) lies on one uniform grid
 /// from its first key to its last: that grid's intervals (each key within
-/// [`KEY_GRID_TOLERANCE`] of a step from a grid time).
+/// [`KEY_GRID_TOLERANCE`] of a step from a grid time; the coarsest such grid found).
 fn key_grid(clip: &Clip) -> Option<usize> {
     let [start, end] = clip.span();
     let keys = || clip.channels.iter().filter_map(|c| c.keyed().map(|(t, _)| t)).filter(|t| t.len() > 1);
-    // The step: the densest channel's mean (a channel keyed at every step of a long clip),
-    // else the shortest between a channel's own keys (a channel with gaps on the grid).
+    // The step: the shortest between a channel's own keys (a channel with gaps on the grid),
+    // else the densest channel's mean (keys rounded off their grid: the shortest step is
+    // short of it), or a whole fraction of either (Fox's Run: 24 Hz frames and keys a fifth of
+    // one off them).
     let mean = keys().map(|t| (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64).fold(f64::INFINITY, f64::min);
     let shortest = keys().flat_map(|t| t.windows(2).map(|w| w[1] - w[0])).fold(f64::INFINITY, f64::min);
-    [mean, shortest].into_iter().filter(|&step| step.is_finite() && step > 0.0).find_map(|step| {
+    let steps = [shortest, mean].into_iter().flat_map(|s| (1..=KEY_GRID_DIVISORS).map(move |k| s / k as f64));
+    steps.filter(|&step| step.is_finite() && step > 0.0).find_map(|step| {
         let intervals = ((end - start) / step).round().max(1.0);
         let step = (end - start) / intervals;
         let on_grid = |t: &f64| {
@@ -458,6 +465,34 @@ mod tests {
         // nlerp of a symmetric pair lands on the half-way rotation.
         assert!((angle_degrees(&mid, &about_z(20.0)) - 0.0).abs() < 1e-3);
         assert_eq!(&mid[4..], &[1.0, 2.0, 3.0, 2.0, 1.0, 1.0]);
+    }
+
+    fn clip(channels: &[&[f64]]) -> Clip {
+        let channel = |times: &[f64]| {
+            let values = vec![[0.0, 0.0, 0.0, 1.0]; times.len()];
+            quatcurve_anim::Channel::keys(0, quatcurve_anim::Property::Rotation, times.to_vec(), values)
+        };
+        Clip { name: "c".into(), channels: channels.iter().map(|t| channel(t)).collect() }
+    }
+
+    #[test]
+    fn keys_on_one_uniform_grid_give_its_intervals_and_keys_off_it_none() {
+        let grid = |n: usize, step: f64| (0..=n).map(|i| i as f64 * step).collect::<Vec<_>>();
+        // Every channel on 24 Hz, one with gaps; a one-key channel does not count.
+        let gaps = [0.0, 1.0 / 24.0, 5.0 / 24.0, 1.0];
+        assert_eq!(key_grid(&clip(&[&grid(24, 1.0 / 24.0), &gaps, &[0.3]])), Some(24));
+        // Keys rounded off their grid by 0.4% of a step, a channel's times apart.
+        let jittered: Vec<f64> =
+            grid(300, 1.0 / 37.5).iter().enumerate().map(|(i, t)| t + if i % 7 == 3 { 1e-4 } else { 0.0 }).collect();
+        assert_eq!(key_grid(&clip(&[&jittered, &grid(300, 1.0 / 37.5)])), Some(300));
+        // Fox's Run: 24 Hz frames, then keys a fifth of a frame off them: a 120 Hz grid.
+        let run = [0.0, 1.0 / 24.0, 2.0 / 24.0, 20.8 / 24.0, 21.8 / 24.0];
+        assert_eq!(key_grid(&clip(&[&run])), Some(109));
+        // Keys at no fraction of a step up to the eighth: none.
+        let off = [0.0, 0.1, 0.2, 0.2 + 0.1 * std::f64::consts::FRAC_1_SQRT_2];
+        assert_eq!(key_grid(&clip(&[&off])), None);
+        // Two channels on grids of their own (30 and 24 Hz) share one of 120 Hz.
+        assert_eq!(key_grid(&clip(&[&grid(30, 1.0 / 30.0), &grid(24, 1.0 / 24.0)])), Some(120));
     }
 
     #[test]
