@@ -85,7 +85,7 @@ fn main() {
     if let Some(chart) = chart {
         plot::log_log(
             Path::new(&chart),
-            "Worst rotation error between baked frames (nlerp, local textures, every joint)",
+            "Worst rotation error between baked frames (nlerp, local textures, every joint, the source's slerp)",
             "rate (Hz)",
             "degrees",
             &lines,
