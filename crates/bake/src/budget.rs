@@ -404,7 +404,7 @@ fn lowest(
 /// round key times (BrainStem's 37.5 Hz keys are up to 0.14% of a step off theirs).
 pub const KEY_GRID_TOLERANCE: f64 = 0.005;
 
-/// The finest grid [`key_grid`] looks for, as a fraction of a channel's shortest (or mean)
+/// The finest key grid a budget looks for, as a fraction of a channel's shortest (or mean)
 /// step between keys.
 pub const KEY_GRID_DIVISORS: usize = 8;
 

@@ -171,7 +171,7 @@ pub struct BabylonRecord {
     pub mesh_parents: Vec<Option<String>>,
     /// Per clip, the manager's `animationParameters` (or an instance's
     /// `bakedVertexAnimationSettingsInstanced`) that play it on the source's clock
-    /// ([`babylon::settings`]): first row, last row, offset in rows, speed in rows a second.
+    /// ([`super::babylon::settings`]): first row, last row, offset in rows, speed in rows a second.
     pub clips: Vec<[f64; 4]>,
     /// How to use `clips`, in words.
     pub settings: String,
