@@ -1,6 +1,7 @@
 // Opens an engine's test page (tests/browser/ENGINE/: three for the quatcurve-three package,
-// babylon for Babylon.js playing Babylon bakes) in Debian's headless Chromium (WebGL2 on
-// SwiftShader), serving it, the package (packages/quatcurve-three/), the engines
+// three-fbx for three.js's FBX reader beside a bake, babylon for Babylon.js playing Babylon
+// bakes) in Debian's headless Chromium (WebGL2 on SwiftShader), serving it, what the pages
+// share (common/), the package (packages/quatcurve-three/), the engines
 // (node_modules/three/, node_modules/babylonjs*/) and a directory of bakes and sources
 // (/data/) from one local origin, as a user's static server would. Writes the page's result
 // as JSON: its errors, any request that left the origin (none may), and what the page
@@ -25,6 +26,7 @@ const here = fileURLToPath(new URL('.', import.meta.url));
 const repository = resolve(here, '../..');
 const roots = {
   '/page/': join(here, engine),
+  '/common/': join(here, 'common'),
   '/pkg/': resolve(option('--package') || join(repository, 'packages/quatcurve-three')),
   '/packages/': join(repository, 'packages'),
   '/examples/': join(repository, 'examples'),

@@ -9,6 +9,7 @@
 //   AnimationMixer, both drawn white on black from one camera. break=time poses the .glb a quarter of the clip
 //   later.
 import * as THREE from 'three';
+import { frame, mask, mismatch } from '/common/masks.js';
 import { FBXLoader } from 'three/addons/loaders/FBXLoader.js';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 
@@ -118,45 +119,18 @@ async function silhouettes() {
     // Framed on the skinned meshes: a file's other objects (lights, helpers) may be far off.
     const box = new THREE.Box3();
     gltf.scene.traverse((o) => { if (o.isSkinnedMesh) box.expandByObject(o, true); });
-    frame(camera, box);
+    frame(camera, box, new THREE.Vector3(1, 0.25, 0.6));
     for (const fraction of FRACTIONS) {
       // A baked frame's time: the bake is the source there (between frames, the baked file
       // is its frames interpolated, the source its keys).
       const time = clip.start + Math.round(fraction * (clip.frames - 1)) / clip.rate;
       poseSource(time);
-      const expected = mask(renderer, source, camera);
+      const expected = mask(renderer, source, camera, SIZE);
       poseBaked(params.get('break') === 'time' ? clip.start + ((fraction + 0.25) % 1) * span : time);
-      const got = mask(renderer, baked, camera);
-      let either = 0;
-      let one = 0;
-      for (let i = 0; i < expected.length; i++) {
-        either += expected[i] || got[i];
-        one += expected[i] !== got[i];
-      }
-      results.push({ clip: clip.name, time, mismatch: one / Math.max(either, 1), pixels: either });
+      const got = mask(renderer, baked, camera, SIZE);
+      results.push({ clip: clip.name, time, ...mismatch(expected, got) });
     }
   }
   return { results };
 }
 
-/** Points `camera` at `box` from its front and side, the whole box in view. */
-function frame(camera, box) {
-  const centre = box.getCenter(new THREE.Vector3());
-  const size = box.getSize(new THREE.Vector3()).length();
-  camera.position.copy(centre).add(new THREE.Vector3(1, 0.25, 0.6).normalize().multiplyScalar(size * 2.2));
-  camera.near = size / 100;
-  camera.far = size * 10;
-  camera.lookAt(centre);
-  camera.updateProjectionMatrix();
-}
-
-/** The pixels `scene` covers, drawn from `camera`. */
-function mask(renderer, scene, camera) {
-  renderer.render(scene, camera);
-  const gl = renderer.getContext();
-  const pixels = new Uint8Array(SIZE * SIZE * 4);
-  gl.readPixels(0, 0, SIZE, SIZE, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
-  const covered = new Uint8Array(SIZE * SIZE);
-  for (let i = 0; i < covered.length; i++) covered[i] = pixels[i * 4] > 127 ? 1 : 0;
-  return covered;
-}

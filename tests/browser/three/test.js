@@ -8,6 +8,7 @@
 //   glTF materials, each with its clip and phase; K frames timed.
 // - mode=refuse (bake=SIDECAR): the message loading a bake the package cannot play throws.
 import * as THREE from 'three';
+import { frame, mask, mismatch } from '/common/masks.js';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { loadBake, flipRows } from 'quatcurve-three';
 
@@ -83,46 +84,19 @@ async function silhouettes() {
     };
     // One camera per clip, framing the source at the first compared time.
     pose(clip.start + FRACTIONS[0] * span);
-    frame(camera, new THREE.Box3().setFromObject(gltf.scene, true));
+    frame(camera, new THREE.Box3().setFromObject(gltf.scene, true), new THREE.Vector3(0.3, 0.2, 1));
     for (const fraction of FRACTIONS) {
       const time = clip.start + fraction * span;
       pose(time);
-      const expected = mask(renderer, source, camera);
+      const expected = mask(renderer, source, camera, SIZE);
       crowd.update(params.get('break') === 'time' ? 0 : time);
-      const got = mask(renderer, played, camera);
-      let either = 0;
-      let one = 0;
-      for (let i = 0; i < expected.length; i++) {
-        either += expected[i] || got[i];
-        one += expected[i] !== got[i];
-      }
-      results.push({ clip: clip.name, time, mismatch: one / Math.max(either, 1), pixels: either });
+      const got = mask(renderer, played, camera, SIZE);
+      results.push({ clip: clip.name, time, ...mismatch(expected, got) });
     }
   }
   return { renderer: rendererName(renderer), results };
 }
 
-/** Points `camera` at `box` from its front, the whole box in view. */
-function frame(camera, box) {
-  const centre = box.getCenter(new THREE.Vector3());
-  const size = box.getSize(new THREE.Vector3()).length();
-  camera.position.copy(centre).add(new THREE.Vector3(0.3, 0.2, 1).normalize().multiplyScalar(size * 2.2));
-  camera.near = size / 100;
-  camera.far = size * 10;
-  camera.lookAt(centre);
-  camera.updateProjectionMatrix();
-}
-
-/** The pixels `scene` covers, drawn from `camera`. */
-function mask(renderer, scene, camera) {
-  renderer.render(scene, camera);
-  const gl = renderer.getContext();
-  const pixels = new Uint8Array(SIZE * SIZE * 4);
-  gl.readPixels(0, 0, SIZE, SIZE, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
-  const covered = new Uint8Array(SIZE * SIZE);
-  for (let i = 0; i < covered.length; i++) covered[i] = pixels[i * 4] > 127 ? 1 : 0;
-  return covered;
-}
 
 function rendererName(renderer) {
   const gl = renderer.getContext();

@@ -110,6 +110,18 @@ pub(super) fn validate(files: &[PathBuf]) -> Option<Vec<Messages>> {
     )
 }
 
+/// `file` passes the Khronos validator without an error (skipped where the validator is not
+/// installed, as [`validate`] says).
+pub(super) fn assert_no_validator_error(file: &Path) {
+    let Some(reports) = validate(&[file.to_path_buf()]) else { return };
+    let errors: Vec<String> = reports[0]
+        .iter()
+        .filter(|((severity, _), _)| *severity == 0)
+        .map(|(key, m)| format!("{key:?}: {}", m[0]))
+        .collect();
+    assert!(errors.is_empty(), "{}: {errors:?}", file.display());
+}
+
 #[test]
 fn baked_glbs_pass_the_khronos_validator_as_their_originals_do() {
     let Some(bakes) = bakes() else { return };
