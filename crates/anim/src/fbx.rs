@@ -9,7 +9,9 @@
 //! ufbx converts the scene to glTF's space as it loads: metres and +Y up, right-handed, by
 //! adjusting the nodes' transforms (`SpaceConversion::AdjustTransforms`), so that mesh data
 //! and inverse bind matrices stay the file's. The file's own unit and up axis are kept
-//! ([`FbxFile::source_unit_metres`], [`FbxFile::source_up`]).
+//! ([`FbxFile::source_unit_metres`], [`FbxFile::source_up`]). A node that does not inherit
+//! its parent's scale (Mixamo's bones) is compensated by ufbx so that glTF's inheritance,
+//! which always multiplies scales down the chain, poses it as FBX does.
 
 use crate::error::InputError;
 use crate::gltf::{self, GltfFile, UriPolicy};
