@@ -66,8 +66,7 @@ impl CurveChoice {
         if name == Self::SOURCE {
             return Ok(CurveChoice::Source);
         }
-        let curve: Curve = name.parse()?;
-        Ok(CurveChoice::Family(CurveSpec { curve, ..CurveSpec::DEFAULT }))
+        Ok(Self::new(Some(name.parse()?), &CurveOptions::DEFAULT))
     }
 
     /// Whether its curves pass through every key (the others approximate them).
@@ -332,17 +331,8 @@ fn declared(
     looping: bool,
 ) -> Result<DeclaredCurve, InputError> {
     quatcurve_eval::batch::key_times(id, Some(times), values.len())?;
-    let values = values
-        .iter()
-        .enumerate()
-        .map(|(k, &v)| {
-            if property == Property::Rotation {
-                Ok(quatcurve_eval::batch::normalized_key(id, k, v)?.to_array())
-            } else {
-                finite(id, k, v).map(|()| v)
-            }
-        })
-        .collect::<Result<Vec<_>, InputError>>()?;
+    let values =
+        values.iter().enumerate().map(|(k, &v)| checked_key(id, property, k, v)).collect::<Result<Vec<_>, _>>()?;
     if let Some(tangents) = tangents {
         for (k, pair) in tangents.iter().enumerate() {
             pair.iter().try_for_each(|&t| finite(id, k, t))?;
@@ -369,19 +359,17 @@ fn finite(id: &TrackId, key: usize, value: [f64; 4]) -> Result<(), InputError> {
 
 /// A one-key channel's value, checked like any key.
 fn constant(id: &TrackId, property: Property, value: [f64; 4]) -> Result<[f32; 4], InputError> {
-    let value = if property == Property::Rotation {
-        quatcurve_eval::batch::normalized_key(id, 0, value)?.to_array()
-    } else if value.iter().all(|v| v.is_finite()) {
-        value
-    } else {
-        return Err(quatcurve_eval::error::Error::NonFiniteValue {
-            track: id.clone(),
-            key: 0,
-            value: [value[0], value[1], value[2]],
-        }
-        .into());
-    };
-    Ok(value.map(|v| v as f32))
+    Ok(checked_key(id, property, 0, value)?.map(|v| v as f32))
+}
+
+/// Key `key` of a channel the host evaluates: a rotation made unit (and not near zero), a
+/// vector finite.
+fn checked_key(id: &TrackId, property: Property, key: usize, value: [f64; 4]) -> Result<[f64; 4], InputError> {
+    if property == Property::Rotation {
+        return Ok(quatcurve_eval::batch::normalized_key(id, key, value)?.to_array());
+    }
+    finite(id, key, value)?;
+    Ok(value)
 }
 
 #[cfg(test)]
