@@ -10,7 +10,8 @@
 //
 // URL parameters (all optional): bake (a sidecar path as /api/bakes lists it), clip (index),
 // blend (the clip blended towards, WebGPU), weight (its weight, 0 to 1), renderer (webgpu or
-// webgl2; else WebGPU where it plays the bake), instances, time (seconds into the clip),
+// webgl2; else WebGPU where it plays the bake), instances, time (seconds on the source's clock,
+// as three.js's AnimationMixer counts a glTF clip's time: the clip's first frame is at its start),
 // paused (1), azimuth (degrees the camera is turned about +y from +z; dragging turns it),
 // width and height (the drawing buffer in pixels, else the window's), antialias (0 for none).
 // `window.quatcurveViewer` is the test hook: `ready` (a promise), `path()` (webgpu or
@@ -318,13 +319,14 @@
     }
   }
 
-  // Instance i's time: its phase plus the clock, wrapped to the clip (the clip's last frame is
-  // kept: only a time past the end wraps).
+  // Instance i's time from its clip's first frame: its phase plus the clock (the source's, so
+  // the clip's start is subtracted), held at the first frame before it and wrapped past the
+  // end (the clip's last frame is kept: only a time past the end wraps).
   function instanceTimes() {
-    const { duration } = state.scene.clip;
+    const { duration, start } = state.scene.clip;
     const times = new Float32Array(state.instances);
     for (let i = 0; i < times.length; i++) {
-      let t = ((i * PHASE_STEP) % 1) * duration + state.time;
+      let t = Math.max(((i * PHASE_STEP) % 1) * duration + state.time - start, 0);
       if (duration > 0 && t > duration) t -= duration * Math.floor(t / duration);
       times[i] = t;
     }

@@ -90,9 +90,9 @@
       for (const b of curves.buffers) this.resident[b.name] = this.buffer(decode(b.base64), b.uniform);
       const vertex = await compiled(device, curves.vertex_shader, 'the palette vertex shader');
       const fragment = await compiled(device, curves.fragment_shader, 'the fragment shader');
-      const drawn = scene.draws.filter((d) => d.skin === curves.skin);
+      const drawn = scene.draws.filter((d) => curves.skins.includes(d.skin));
       const first = drawn[0];
-      if (!first) throw new Error(`no primitive of skin ${curves.skin} to draw`);
+      if (!first) throw new Error(`no primitive of skin ${curves.skins[0]} to draw`);
       const format = (a) => `${a.integer ? 'uint32' : 'float32'}${a.size > 1 ? `x${a.size}` : ''}`;
       const layouts = first.attributes.map((a) => ({
         arrayStride: 4 * a.size, stepMode: 'vertex', attributes: [{ shaderLocation: a.location, offset: 0, format: format(a) }],
@@ -113,7 +113,7 @@
           (a.integer ? Uint32Array.from(a.data) : Float32Array.from(a.data)).buffer), false, GPUBufferUsage.VERTEX)),
         indices: this.buffer(new Uint8Array(Uint32Array.from(d.indices).buffer), false, GPUBufferUsage.INDEX),
       }));
-      for (const d of scene.draws.filter((d) => d.skin !== curves.skin)) notes.push(`${d.name}: not drawn (another skin)`);
+      for (const d of scene.draws.filter((d) => !curves.skins.includes(d.skin))) notes.push(`${d.name}: not drawn (another skin)`);
       this.camera = device.createBuffer({ size: 64, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
       this.paletteLayout = this.buffer(new Uint8Array(new Uint32Array([curves.skin_joints, 0, 0, 0]).buffer), true);
       this.frameBuffers(curves);

@@ -447,7 +447,7 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
     let input = |e: String| Failure::Input(format!("bench --skinning {}: {e}", file.display()));
     let source = gltf::read(file, gltf::UriPolicy::default()).map_err(|e| input(e.to_string()))?;
     let animation = &source.animation;
-    let primitives = mesh::skinned_primitives(&source).map_err(|e| input(e.to_string()))?;
+    let primitives = mesh::skinned_primitives(&source).map_err(|e| input(e.to_string()))?.primitives;
     let clip = animation.clips.first().ok_or_else(|| input("no clip to skin by".into()))?;
     let [start, end] = clip.span();
     let rate = (args.samples.saturating_sub(1)).max(1) as f64 / (end - start).max(1e-9);

@@ -1,11 +1,14 @@
-//! The skinned mesh primitives of a glTF file, read for vertex textures: bind-space positions
-//! and normals (morph targets applied at their default weights) and each vertex's joints and
-//! weights, checked against the skin and normalized. Read on demand, so that a file whose
-//! meshes are broken still bakes bone textures.
+//! The mesh primitives a skin's matrices draw, read for vertex textures and players:
+//! bind-space positions and normals (morph targets applied at their default weights) and each
+//! vertex's joints and weights, checked against the skin and normalized. A mesh that hangs
+//! from a skin's joint without a skin (a rigid part) is drawn too, bound to that joint with
+//! weight 1 ([`RigidBinding`]); what cannot be drawn that way is named. Read on demand, so
+//! that a file whose meshes are broken still bakes bone textures.
 
 use super::gltf::{check_accessor, Element, GltfFile};
+use super::Animation;
 use crate::error::InputError;
-use quatcurve_eval::skeleton::SkinnedMesh;
+use quatcurve_eval::skeleton::{self, Affine, SkinnedMesh};
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
 /// normalized (they are divided by their sum either way); normalized-integer weights are also
@@ -16,7 +19,21 @@ pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
 /// `draco-core` decodes them).
 pub const DRACO: &str = "KHR_draco_mesh_compression";
 
-/// A mesh primitive drawn by a skinned node: what linear blend skinning needs of it.
+/// How a rigid part (a mesh on a node without a skin) moves with a skin: bound with weight 1
+/// to the nearest joint of a skin at or above its node, its vertices taken into that skin's
+/// bind space, so that the joint's skin matrix puts them where the node's world transform does.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RigidBinding {
+    /// The joint, an index into its skin's joints.
+    pub joint: usize,
+    /// 3x4 row-major, from the mesh's space to the skin's bind space: the joint's bind matrix
+    /// (its inverse bind matrix inverted) times the rest transforms from below the joint down
+    /// to the mesh's node. Normals take its inverse transpose.
+    pub bind: [f64; 12],
+}
+
+/// A mesh primitive drawn by a skin's matrices (a skinned node's, or a rigid part's): what
+/// linear blend skinning needs of it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkinnedPrimitive {
     /// `node 'N', mesh 'M', primitive p`, for messages and the sidecar.
@@ -29,6 +46,8 @@ pub struct SkinnedPrimitive {
     pub primitive: usize,
     /// Index into [`super::Animation::skins`].
     pub skin: usize,
+    /// A rigid part's binding (its vertices are bound to its joint alone); `None` when skinned.
+    pub rigid: Option<RigidBinding>,
     /// What skinning needs of it: bind-space positions and normals (morph targets applied at
     /// their default weights), and per vertex four influences per `JOINTS_n`/`WEIGHTS_n` set,
     /// weights summing to 1.
@@ -53,62 +72,150 @@ fn error(msg: String) -> InputError {
     InputError::Gltf(msg)
 }
 
-/// Every primitive drawn by a node with a skin, in node then primitive order. A mesh drawn by a
-/// node without a skin is rigid and left out, unless it carries joints or weights (then the
-/// skin is missing, an error); a skinned node's primitive without `JOINTS_0` and `WEIGHTS_0`
-/// is an error.
+/// How a node's mesh is drawn from a skin's matrices.
+enum Drawing {
+    /// By its node's skin.
+    Skinned(usize),
+    /// As a rigid part of skin `.0`.
+    Rigid(usize, RigidBinding),
+    /// Not at all, for this reason.
+    NotDrawn(String),
+}
+
+/// How `node`'s mesh is drawn: by its skin; else bound to the nearest joint of a skin at or
+/// above it, when no node between that joint and it is animated (the binding holds their rest
+/// transforms) and the joint's inverse bind matrix can be inverted; else not drawn.
+fn drawing(animation: &Animation, animated: &[bool], node: &gltf::Node) -> Drawing {
+    if let Some(skin) = node.skin() {
+        return Drawing::Skinned(skin.index());
+    }
+    let joint_of = |at: usize| {
+        animation.skins.iter().enumerate().find_map(|(s, skin)| Some((s, skin.joints.iter().position(|&j| j == at)?)))
+    };
+    let name = |at: usize| &animation.joints[at].name;
+    // The rest transforms from the mesh's node up to (not including) the joint.
+    let mut below = skeleton::trs([0.0, 0.0, 0.0, 1.0], [0.0; 3], [1.0; 3]);
+    let mut at = node.index();
+    let (skin, joint) = loop {
+        if let Some(found) = joint_of(at) {
+            break found;
+        }
+        if animated.get(at).copied().unwrap_or(false) {
+            return Drawing::NotDrawn(format!(
+                "node '{}' between it and a skin's joint is animated, so it does not move with a joint",
+                name(at)
+            ));
+        }
+        let rest = &animation.joints[at];
+        below = skeleton::compose(&skeleton::trs(rest.rotation, rest.translation, rest.scale), &below);
+        match rest.parent {
+            Some(parent) => at = parent,
+            None => return Drawing::NotDrawn("no joint of a skin is at or above its node".into()),
+        }
+    };
+    let Some(bind) = skeleton::inverse(&animation.skins[skin].inverse_bind[joint]) else {
+        return Drawing::NotDrawn(format!("the inverse bind matrix of joint '{}' it hangs from is singular", name(at)));
+    };
+    Drawing::Rigid(skin, RigidBinding { joint, bind: skeleton::compose(&bind, &below) })
+}
+
+/// Per joint of `animation`, whether a clip animates it.
+fn animated_joints(animation: &Animation) -> Vec<bool> {
+    let mut animated = vec![false; animation.joints.len()];
+    for channel in animation.clips.iter().flat_map(|c| &c.channels) {
+        if let Some(a) = animated.get_mut(channel.joint) {
+            *a = true;
+        }
+    }
+    animated
+}
+
+/// `node 'N', mesh 'M'`, naming a node's mesh in messages.
+fn node_mesh_name(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
+    let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
+    let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+    format!("node '{node_name}', mesh '{mesh_name}'")
+}
+
+/// What a skin's matrices draw of a glTF file, and what they cannot.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Drawn<P> {
+    /// The primitives drawn, skinned and rigid, in node then primitive order.
+    pub primitives: Vec<P>,
+    /// Each mesh left out, `node 'N', mesh 'M': why`.
+    pub not_drawn: Vec<String>,
+}
+
+impl<P> Default for Drawn<P> {
+    fn default() -> Self {
+        Self { primitives: Vec::new(), not_drawn: Vec::new() }
+    }
+}
+
+/// Every primitive a skin's matrices draw, in node then primitive order: those of skinned
+/// nodes, and rigid parts bound to their joint ([`RigidBinding`]); the meshes left out, named
+/// with why. A rigid node's primitive that carries joints or weights is an error (its skin is
+/// missing), and so is a skinned node's without `JOINTS_0` and `WEIGHTS_0`.
 ///
 /// # Errors
-/// [`InputError::Gltf`] naming the node, mesh, primitive, vertex and rule broken; also when no
-/// node draws a skinned mesh.
-pub fn skinned_primitives(file: &GltfFile) -> Result<Vec<SkinnedPrimitive>, InputError> {
+/// [`InputError::Gltf`] naming the node, mesh, primitive, vertex and rule broken; also when
+/// nothing is drawn.
+pub fn skinned_primitives(file: &GltfFile) -> Result<Drawn<SkinnedPrimitive>, InputError> {
     let (document, buffers) = file.document()?;
-    let skins = &file.animation.skins;
-    let mut out = Vec::new();
+    let animation = &file.animation;
+    let animated = animated_joints(animation);
+    let mut drawn = Drawn::default();
     for node in document.nodes() {
         let Some(mesh) = node.mesh() else { continue };
-        let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
-        let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+        let drawing = drawing(animation, &animated, &node);
         for primitive in mesh.primitives() {
-            let name = format!("node '{node_name}', mesh '{mesh_name}', primitive {}", primitive.index());
+            let name = format!("{}, primitive {}", node_mesh_name(&node, &mesh), primitive.index());
             let weighted = primitive.get(&gltf::Semantic::Joints(0)).is_some()
                 || primitive.get(&gltf::Semantic::Weights(0)).is_some();
-            let skin = match (node.skin(), weighted) {
-                (None, false) => continue,
-                (None, true) => {
+            let binding = match &drawing {
+                Drawing::Skinned(skin) => {
+                    let Some(joints) = animation.skins.get(*skin).map(|s| s.joints.len()) else {
+                        return Err(error(format!("{name}: skin {skin} does not exist")));
+                    };
+                    Binding::Skin { skin: *skin, joints }
+                }
+                _ if weighted => {
                     return Err(error(format!(
                         "{name}: has JOINTS_0 or WEIGHTS_0 but its node has no skin to bind them to"
                     )))
                 }
-                (Some(skin), _) => skin.index(),
-            };
-            let Some(skin_joints) = skins.get(skin).map(|s| s.joints.len()) else {
-                return Err(error(format!("{name}: skin {skin} does not exist")));
+                Drawing::Rigid(skin, rigid) => Binding::Rigid { skin: *skin, rigid },
+                Drawing::NotDrawn(_) => continue,
             };
             let draco = file.primitive_extension(mesh.index(), primitive.index(), DRACO);
             let weights = node.weights().or_else(|| mesh.weights()).unwrap_or(&[]);
-            out.push(read_primitive(
+            drawn.primitives.push(read_primitive(
                 &document,
                 buffers,
                 &primitive,
                 name,
-                skin,
-                skin_joints,
+                binding,
                 weights,
                 (node.index(), mesh.index()),
                 draco,
             )?);
         }
+        if let Drawing::NotDrawn(why) = drawing {
+            drawn.not_drawn.push(format!("{}: {why}", node_mesh_name(&node, &mesh)));
+        }
     }
-    if out.is_empty() {
-        return Err(error("no node draws a skinned mesh: there are no vertices to bake".into()));
+    if drawn.primitives.is_empty() {
+        let why = if drawn.not_drawn.is_empty() { String::new() } else { format!(" ({})", drawn.not_drawn.join("; ")) };
+        return Err(error(format!(
+            "no mesh is skinned or hangs from a skin's joint{why}: there are no vertices to bake"
+        )));
     }
-    Ok(out)
+    Ok(drawn)
 }
 
 /// A skinned primitive as the file declares it, without reading its vertices: what a renderer
 /// binds for it (a `skin-trs` bake's sidecar lists these).
-#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
 pub struct DeclaredPrimitive {
     /// `node 'N', mesh 'M', primitive p`, as [`SkinnedPrimitive::name`].
@@ -121,56 +228,50 @@ pub struct DeclaredPrimitive {
     pub primitive: usize,
     /// See [`Self::node`].
     pub skin: usize,
+    /// A rigid part's binding: a renderer binds `JOINTS_0` `(joint, 0, 0, 0)` and `WEIGHTS_0`
+    /// `(1, 0, 0, 0)`, and takes `POSITION` and `NORMAL` into bind space by it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rigid: Option<RigidBinding>,
     /// Whether it has `NORMAL` and `TEXCOORD_0`.
     pub normals: bool,
     /// See [`Self::normals`].
     pub texcoords: bool,
 }
 
-/// Every primitive a skinned node draws, from the file's declarations alone (a Draco
-/// primitive declares its attributes too).
+/// Every primitive a skin's matrices draw ([`skinned_primitives`]'s, skinned and rigid), from
+/// the file's declarations alone (a Draco primitive declares its attributes too), and the
+/// meshes left out.
 ///
 /// # Errors
 /// A file whose JSON is not glTF's.
-pub fn declared_skinned_primitives(file: &GltfFile) -> Result<Vec<DeclaredPrimitive>, InputError> {
+pub fn declared_skinned_primitives(file: &GltfFile) -> Result<Drawn<DeclaredPrimitive>, InputError> {
     let (document, _) = file.document()?;
-    let mut out = Vec::new();
+    let animated = animated_joints(&file.animation);
+    let mut drawn = Drawn::default();
     for node in document.nodes() {
-        let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else { continue };
-        let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
-        let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+        let Some(mesh) = node.mesh() else { continue };
+        let (skin, rigid) = match drawing(&file.animation, &animated, &node) {
+            Drawing::Skinned(skin) => (skin, None),
+            Drawing::Rigid(skin, rigid) => (skin, Some(rigid)),
+            Drawing::NotDrawn(why) => {
+                drawn.not_drawn.push(format!("{}: {why}", node_mesh_name(&node, &mesh)));
+                continue;
+            }
+        };
         for primitive in mesh.primitives() {
-            out.push(DeclaredPrimitive {
-                name: format!("node '{node_name}', mesh '{mesh_name}', primitive {}", primitive.index()),
+            drawn.primitives.push(DeclaredPrimitive {
+                name: format!("{}, primitive {}", node_mesh_name(&node, &mesh), primitive.index()),
                 node: node.index(),
                 mesh: mesh.index(),
                 primitive: primitive.index(),
-                skin: skin.index(),
+                skin,
+                rigid: rigid.clone(),
                 normals: primitive.get(&gltf::Semantic::Normals).is_some(),
                 texcoords: primitive.get(&gltf::Semantic::TexCoords(0)).is_some(),
             });
         }
     }
-    Ok(out)
-}
-
-/// Every mesh drawn by a node without a skin (a rigid part, moved by its node's transform
-/// alone), as `node 'N', mesh 'M'`: what textures of skinned meshes do not draw.
-///
-/// # Errors
-/// A file whose JSON is not glTF's.
-pub fn rigid_meshes(file: &GltfFile) -> Result<Vec<String>, InputError> {
-    let (document, _) = file.document()?;
-    Ok(document
-        .nodes()
-        .filter(|node| node.skin().is_none())
-        .filter_map(|node| {
-            let mesh = node.mesh()?;
-            let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
-            let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
-            Some(format!("node '{node_name}', mesh '{mesh_name}'"))
-        })
-        .collect())
+    Ok(drawn)
 }
 
 /// Checks `accessor` (a primitive's attribute) as `kind` and that it has `count` elements.
@@ -327,14 +428,21 @@ fn from_draco(
     Ok(Stored { positions, normals, sets, quantum: step, indices: Some(decoded.indices()), mode: 4 })
 }
 
+/// What a primitive's vertices are bound to.
+enum Binding<'a> {
+    /// Skin `skin` of `joints` joints, by the primitive's own joints and weights.
+    Skin { skin: usize, joints: usize },
+    /// A rigid part of skin `skin`.
+    Rigid { skin: usize, rigid: &'a RigidBinding },
+}
+
 #[allow(clippy::too_many_arguments)]
 fn read_primitive(
     document: &gltf::Document,
     buffers: &[Vec<u8>],
     primitive: &gltf::Primitive,
     name: String,
-    skin: usize,
-    skin_joints: usize,
+    binding: Binding<'_>,
     morph_weights: &[f32],
     (node, mesh): (usize, usize),
     draco: Option<&serde_json::Value>,
@@ -373,37 +481,32 @@ fn read_primitive(
             add(normals, deltas);
         }
     }
+    let (skin, rigid, influences, joints, mut weights, quantum) = match binding {
+        Binding::Skin { skin, joints } => {
+            let (influences, js, ws) = weights_of(&name, &sets, count, joints)?;
+            (skin, None, influences, js, ws, quantum)
+        }
+        Binding::Rigid { skin, rigid } => {
+            for p in &mut positions {
+                *p = skeleton::transform_point(&rigid.bind, *p);
+            }
+            if let Some(normals) = &mut normals {
+                let normal_matrix = normal_matrix(&rigid.bind);
+                for n in normals.iter_mut() {
+                    *n = std::array::from_fn(|r| (0..3).map(|c| normal_matrix[r][c] * n[c]).sum());
+                }
+            }
+            let joint = u32::try_from(rigid.joint).unwrap_or(u32::MAX);
+            let joints = (0..count).flat_map(|_| [joint, 0, 0, 0]).collect();
+            let weights = (0..count).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect();
+            (skin, Some(rigid.clone()), 4, joints, weights, 0.0)
+        }
+    };
     if let Some(normals) = &mut normals {
         for n in normals.iter_mut() {
             let length = n.iter().map(|c| c * c).sum::<f64>().sqrt();
             if length > 0.0 {
                 *n = n.map(|c| c / length);
-            }
-        }
-    }
-    if sets.is_empty() {
-        return Err(error(format!("{name}: its node has a skin but the primitive has no JOINTS_0 and WEIGHTS_0")));
-    }
-    let influences = 4 * sets.len();
-    let mut joints = vec![0u32; count * influences];
-    let mut weights = vec![0.0f64; count * influences];
-    for (set, (set_joints, set_weights)) in sets.iter().enumerate() {
-        for (v, (js, ws)) in set_joints.iter().zip(set_weights).enumerate() {
-            for k in 0..4 {
-                let slot = v * influences + 4 * set + k;
-                let (joint, weight) = (js[k], ws[k]);
-                if usize::from(joint) >= skin_joints {
-                    return Err(error(format!(
-                        "{name}: vertex {v}: JOINTS_{set}[{k}] is {joint}, but its skin has {skin_joints} joints"
-                    )));
-                }
-                if !weight.is_finite() || weight < 0.0 {
-                    return Err(error(format!(
-                        "{name}: vertex {v}: WEIGHTS_{set}[{k}] is {weight}; weights are finite and not negative"
-                    )));
-                }
-                joints[slot] = u32::from(joint);
-                weights[slot] = weight;
             }
         }
     }
@@ -430,9 +533,62 @@ fn read_primitive(
         mesh,
         primitive: primitive.index(),
         skin,
+        rigid,
         bind: SkinnedMesh { positions, normals, influences, joints, weights },
         normalized,
         indices,
         mode,
     })
+}
+
+/// Each vertex's influences from a skinned primitive's `JOINTS_n`/`WEIGHTS_n` `sets` (four a
+/// set), each joint checked against the skin's `skin_joints`: influences a vertex, joints and
+/// weights (not yet normalized).
+fn weights_of(
+    name: &str,
+    sets: &[WeightSet],
+    count: usize,
+    skin_joints: usize,
+) -> Result<(usize, Vec<u32>, Vec<f64>), InputError> {
+    if sets.is_empty() {
+        return Err(error(format!("{name}: its node has a skin but the primitive has no JOINTS_0 and WEIGHTS_0")));
+    }
+    let influences = 4 * sets.len();
+    let mut joints = vec![0u32; count * influences];
+    let mut weights = vec![0.0f64; count * influences];
+    for (set, (set_joints, set_weights)) in sets.iter().enumerate() {
+        for (v, (js, ws)) in set_joints.iter().zip(set_weights).enumerate() {
+            for k in 0..4 {
+                let slot = v * influences + 4 * set + k;
+                let (joint, weight) = (js[k], ws[k]);
+                if usize::from(joint) >= skin_joints {
+                    return Err(error(format!(
+                        "{name}: vertex {v}: JOINTS_{set}[{k}] is {joint}, but its skin has {skin_joints} joints"
+                    )));
+                }
+                if !weight.is_finite() || weight < 0.0 {
+                    return Err(error(format!(
+                        "{name}: vertex {v}: WEIGHTS_{set}[{k}] is {weight}; weights are finite and not negative"
+                    )));
+                }
+                joints[slot] = u32::from(joint);
+                weights[slot] = weight;
+            }
+        }
+    }
+    Ok((influences, joints, weights))
+}
+
+/// The inverse transpose of `m`'s linear part, up to a positive factor (the cofactor matrix,
+/// its sign kept by the determinant's): what takes normals where `m` takes surfaces.
+fn normal_matrix(m: &Affine) -> [[f64; 3]; 3] {
+    let a = |r: usize, c: usize| m[4 * r + c];
+    let cofactor = |r: usize, c: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+        a(r1, c1) * a(r2, c2) - a(r1, c2) * a(r2, c1)
+    };
+    let det: f64 = (0..3).map(|c| a(0, c) * cofactor(0, c)).sum();
+    let sign = if det < 0.0 { -1.0 } else { 1.0 };
+    std::array::from_fn(|r| std::array::from_fn(|c| sign * cofactor(r, c)))
 }

@@ -206,6 +206,22 @@ impl BakeJob {
         Ok(texture_file::bone_sheets(animation, self.options.texture, &spaces))
     }
 
+    /// What a skin texture's matrices draw of `file`, and what they do not: skinned meshes and
+    /// rigid parts, except that Babylon's baked vertex animation moves skinned meshes alone.
+    fn skin_primitives(&self, file: &gltf::GltfFile) -> Result<mesh::Drawn<DeclaredPrimitive>, InputError> {
+        let mut drawn = mesh::declared_skinned_primitives(file)?;
+        if self.options.format == Format::Babylon {
+            let (rigid, skinned): (Vec<_>, Vec<_>) = drawn.primitives.into_iter().partition(|p| p.rigid.is_some());
+            drawn.primitives = skinned;
+            // One entry a mesh, as the other reasons are named.
+            drawn.not_drawn.extend(rigid.iter().filter(|p| p.primitive == 0).map(|p| {
+                let mesh = p.name.strip_suffix(", primitive 0").unwrap_or(&p.name);
+                format!("{mesh}: a rigid part, and Babylon's baked vertex animation moves skinned meshes alone")
+            }));
+        }
+        Ok(drawn)
+    }
+
     /// The options that decide the outputs (the manifest's `options`; `resume` redoes every
     /// input when they differ).
     fn record(&self) -> serde_json::Value {
@@ -398,26 +414,12 @@ impl BakeJob {
             if src.has_offsets() {
                 report.rig = Some(super::report::rig_extent(animation)?);
             }
-            if let (Some(file), TextureKind::Skin | TextureKind::SkinTrs | TextureKind::Vertex) =
-                (src.gltf(), self.options.texture)
-            {
-                report.not_drawn = mesh::rigid_meshes(file)?;
-            }
-            if !report.not_drawn.is_empty() {
-                report.warnings.push(format!(
-                    "{} mesh{} hang{} from nodes without a skin (rigid parts), which a {} texture does not draw: {} \
-                     (the baked glTF plays them; a model texture holds their nodes' transforms)",
-                    report.not_drawn.len(),
-                    if report.not_drawn.len() == 1 { "" } else { "es" },
-                    if report.not_drawn.len() == 1 { "s" } else { "" },
-                    self.options.texture,
-                    report.not_drawn.join(", ")
-                ));
-            }
             // Checked before the curves are baked.
             let vertex = match (src.gltf(), self.options.texture) {
                 (Some(file), TextureKind::Vertex) => {
-                    Some(VertexSheets::new(mesh::skinned_primitives(file)?, self.options.format != Format::Npy))
+                    let drawn = mesh::skinned_primitives(file)?;
+                    report.not_drawn = drawn.not_drawn;
+                    Some(VertexSheets::new(drawn.primitives, self.options.format != Format::Npy))
                 }
                 (None, TextureKind::Vertex) => {
                     return Err(InputError::Animation(format!(
@@ -425,8 +427,23 @@ impl BakeJob {
                         src.kind()
                     )))
                 }
+                (Some(file), kind) if kind.is_skin() => {
+                    report.not_drawn = self.skin_primitives(file)?.not_drawn;
+                    None
+                }
                 _ => None,
             };
+            if !report.not_drawn.is_empty() {
+                report.warnings.push(format!(
+                    "{} mesh{} not drawn by a {} texture: {} (the baked glTF plays {}; a model texture holds the \
+                     nodes' transforms)",
+                    report.not_drawn.len(),
+                    if report.not_drawn.len() == 1 { " is" } else { "es are" },
+                    self.options.texture,
+                    report.not_drawn.join("; "),
+                    if report.not_drawn.len() == 1 { "it" } else { "them" },
+                ));
+            }
             let needs_space = self.options.texture != TextureKind::Local
                 || self.options.max_error_mm.is_some()
                 || self.options.preview
@@ -546,11 +563,10 @@ impl BakeJob {
                 src.kind()
             )));
         }
-        // What the shipped skinned vertex shader draws of the baked glTF, and the meshes
-        // Babylon hangs from a skin's parent.
-        let skinned = match (src.gltf(), self.options.texture, self.options.format) {
-            (Some(file), TextureKind::SkinTrs, Format::Exr | Format::Png16)
-            | (Some(file), TextureKind::Skin, Format::Babylon) => mesh::declared_skinned_primitives(file)?,
+        // What a skin texture's matrices draw of the baked glTF (the meshes Babylon hangs
+        // from a skin's parent).
+        let skinned = match src.gltf() {
+            Some(file) if self.options.texture.is_skin() => self.skin_primitives(file)?.primitives,
             _ => Vec::new(),
         };
         out.sheets = self.sheets(animation, vertex, &skinned)?;

@@ -112,8 +112,14 @@ pub struct Sidecar {
     /// An input converted to glTF's space as it was read (FBX, DESIGN section 5h).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub conversion: Option<ConversionRecord>,
-    /// Meshes these textures do not draw (`node 'N', mesh 'M'`: rigid parts under a texture of
-    /// skinned meshes), which a renderer drawing from them alone leaves out.
+    /// Skin textures (`skin`, `skin-trs`): the baked glTF's primitives their matrices draw,
+    /// skinned and rigid (a rigid part's `rigid` binding: its joint, weight 1, and the matrix
+    /// into bind space), with whether each has `normals` and `texcoords` (a renderer binds
+    /// zeros for a missing one; the shipped fragment shader then lights the faces).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub primitives: Vec<DeclaredPrimitive>,
+    /// Meshes these textures do not draw (`node 'N', mesh 'M': why`), which a renderer
+    /// drawing from them alone leaves out.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub not_drawn: Vec<String>,
     /// The baked clips.
@@ -124,7 +130,8 @@ pub struct Sidecar {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct VertexRecord {
-    /// The GLB of the skinned primitives as plain meshes, `TEXCOORD_0` each vertex's address.
+    /// The GLB of the drawn primitives (skinned, and rigid parts) as plain meshes, `TEXCOORD_0`
+    /// each vertex's address.
     pub mesh_file: String,
     /// How a `.pos` texel decodes (with its file's `low` and `span` in `textures`).
     pub position: String,
@@ -132,7 +139,7 @@ pub struct VertexRecord {
     pub normal: String,
     /// Where vertex `v`'s texel of frame `frame` is, from its `TEXCOORD_0` `(u, v)`.
     pub texcoord: String,
-    /// The skinned primitives, in the order of their sheets.
+    /// The drawn primitives, in the order of their sheets.
     pub primitives: Vec<VertexPrimitive>,
 }
 
@@ -198,6 +205,9 @@ pub struct VertexPrimitive {
     pub primitive: usize,
     /// Its skin, an index into `skins`.
     pub skin: usize,
+    /// A rigid part's joint (an index into its skin's joints), which alone moves it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rigid_joint: Option<usize>,
     /// Vertices.
     pub vertices: usize,
     /// Influences per vertex.
@@ -327,7 +337,7 @@ pub struct SidecarClip {
 
 impl Sidecar {
     /// The sidecar of one input's bake; `vertex` with the mesh file's name for vertex
-    /// textures; `skinned`, the skinned primitives a `skin-trs` texture's shader draws (or
+    /// textures; `skinned`, the primitives a skin texture's matrices draw (or
     /// that Babylon hangs from their skin's parent).
     ///
     /// # Errors
@@ -392,8 +402,8 @@ impl Sidecar {
         }
         let shader = match texture {
             _ if !image => None,
-            TextureKind::SkinTrs => Some(uniforms::shader_record(Program::Bones, skinned.to_vec())?),
-            TextureKind::Vertex => Some(uniforms::shader_record(Program::Vertex, Vec::new())?),
+            TextureKind::SkinTrs => Some(uniforms::shader_record(Program::Bones)?),
+            TextureKind::Vertex => Some(uniforms::shader_record(Program::Vertex)?),
             _ => None,
         };
         let layout = match (image, texture) {
@@ -453,6 +463,7 @@ impl Sidecar {
                 })
                 .collect(),
             conversion: None,
+            primitives: skinned.to_vec(),
             not_drawn: Vec::new(),
             babylon: (format == Format::Babylon).then(|| BabylonRecord {
                 mesh_parents: super::babylon::mesh_parents(animation, skinned)
@@ -480,6 +491,7 @@ impl Sidecar {
                         mesh: p.mesh,
                         primitive: p.primitive,
                         skin: p.skin,
+                        rigid_joint: p.rigid.as_ref().map(|r| r.joint),
                         vertices: p.vertices(),
                         influences: p.bind.influences,
                         normals: p.bind.normals.is_some(),

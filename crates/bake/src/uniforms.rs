@@ -8,7 +8,6 @@
 use super::image::Grid;
 use super::texture::TextureKind;
 use base64::Engine as _;
-use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_shader::{self as shader, Language, Program};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -159,11 +158,6 @@ pub struct ShaderRecord {
     pub inputs: Vec<ShaderInput>,
     /// Its textures and uniform blocks.
     pub resources: Vec<ShaderResource>,
-    /// `skin-trs`: the baked glTF's skinned primitives it draws, and which of the inputs
-    /// each has (a renderer binds zeros for a missing `NORMAL` or `TEXCOORD_0`; the fragment
-    /// shader then lights the faces). A vertex bake's are the sidecar's `vertex.primitives`.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub primitives: Vec<DeclaredPrimitive>,
 }
 
 /// A vertex input of the shipped vertex shader.
@@ -210,11 +204,11 @@ fn input_source(name: &str) -> Option<&'static str> {
     })
 }
 
-/// The record of `program`'s vertex shader drawing `primitives`.
+/// The record of `program`'s vertex shader.
 ///
 /// # Errors
 /// naga's, or an input this file does not know the source of (a bug: the tests bake both).
-pub(super) fn shader_record(program: Program, primitives: Vec<DeclaredPrimitive>) -> Result<ShaderRecord, String> {
+pub(super) fn shader_record(program: Program) -> Result<ShaderRecord, String> {
     let entry = program.entry_point();
     let glsl = shader::glsl(program.files(), entry, program.stage(), Language::GlslEs)?;
     let (module, _) = shader::parse(program.files())?;
@@ -240,5 +234,5 @@ pub(super) fn shader_record(program: Program, primitives: Vec<DeclaredPrimitive>
         })
         .collect();
     resources.sort_by_key(|r| (r.group, r.binding));
-    Ok(ShaderRecord { program: program.to_string(), entry_point: entry.to_string(), inputs, resources, primitives })
+    Ok(ShaderRecord { program: program.to_string(), entry_point: entry.to_string(), inputs, resources })
 }

@@ -59,8 +59,9 @@ pub struct CurveScene {
     pub fragment_entry: &'static str,
     /// Matrices per palette (the played skin's joints).
     pub skin_joints: usize,
-    /// The skin played: primitives of another skin are not drawn.
-    pub skin: usize,
+    /// The skin played, and every skin of the same joints and inverse bind matrices (its
+    /// palettes draw them too): primitives of another skin are not drawn.
+    pub skins: Vec<usize>,
     /// The clips on the curves' times.
     pub clips: Vec<CurveClip>,
     /// What the page should show the user.
@@ -144,10 +145,14 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
     let dir = sidecar_path.parent().unwrap_or(Path::new("."));
     let baked = sidecar.baked_file.as_deref().ok_or("the sidecar names no baked glTF")?;
     let file = gltf::read(&dir.join(baked), UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
-    let primitives = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
-    let skin = primitives.iter().find(|p| p.mode == 4).map_or(0, |p| p.skin);
-    let mut notes = Vec::new();
-    for p in primitives.iter().filter(|p| p.skin != skin) {
+    let drawn = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+    let skin = drawn.primitives.iter().find(|p| p.mode == 4).map_or(0, |p| p.skin);
+    let all = &file.animation.skins;
+    let skins: Vec<usize> = (0..all.len())
+        .filter(|&s| all[s].joints == all[skin].joints && all[s].inverse_bind == all[skin].inverse_bind)
+        .collect();
+    let mut notes: Vec<String> = drawn.not_drawn.iter().map(|m| format!("{m}; not drawn")).collect();
+    for p in drawn.primitives.iter().filter(|p| !skins.contains(&p.skin)) {
         notes.push(format!("{}: skin {} is not the one played (skin {skin}); not drawn", p.name, p.skin));
     }
     // The bake's choice (a family with the front ends' defaults for the rest).
@@ -214,7 +219,7 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
         fragment_shader: shader::viewer_fragment_source(),
         fragment_entry: shader::VIEWER_FRAGMENT_ENTRY_POINT,
         skin_joints: resident.skin_joints,
-        skin,
+        skins,
         clips,
         notes,
     })

@@ -97,6 +97,8 @@ pub struct Clip {
     pub looping: bool,
     /// Seconds from its first frame to its last.
     pub duration: f64,
+    /// Its first frame's time on the source's clock (the page's `time` is on it).
+    pub start: f64,
 }
 
 impl Clip {
@@ -108,6 +110,7 @@ impl Clip {
             rate: clip.rate,
             looping: clip.looping,
             duration: frames.saturating_sub(1) as f64 / clip.rate,
+            start: clip.start,
         }
     }
 }
@@ -432,7 +435,9 @@ impl<'a> Assembly<'a> {
         let baked = self.sidecar.baked_file.as_deref().ok_or("the sidecar names no baked glTF")?;
         let path = self.dir.join(baked);
         let file = gltf::read(&path, UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
-        let primitives = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+        let drawn = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+        self.notes.extend(drawn.not_drawn.iter().map(|m| format!("{m}; not drawn")));
+        let primitives = drawn.primitives;
         let files = &self.clip.files;
         let mut texels: HashMap<PathBuf, Texels> = HashMap::new();
         let (mut draws, mut corners) = (Vec::new(), Vec::new());

@@ -104,7 +104,7 @@ export async function loadBake(sidecarUrl, { manager } = {}) {
     loader.loadAsync(new URL(meshFile, url).href),
     vertex && sidecar.baked_file ? loader.loadAsync(new URL(sidecar.baked_file, url).href) : null,
   ]);
-  const meshes = vertex ? vertexMeshes(gltf, sidecar, meshFile, baked) : skinnedMeshes(gltf, name);
+  const meshes = vertex ? vertexMeshes(gltf, sidecar, meshFile, baked) : skinnedMeshes(gltf, sidecar, name);
   const textures = new Map();
   const loading = sidecar.textures.map(async (record) => {
     textures.set(record.file, await imageTexture(new URL(record.file, url), record, sidecar, manager));
@@ -123,31 +123,79 @@ async function fetchOk(url) {
   return response;
 }
 
-/** Every skinned primitive of the glTF, in bind space, with its skin's index in the file. */
-function skinnedMeshes(gltf, name) {
+/**
+ * Every primitive the bake's skin textures draw, in bind space, with its skin's index in the
+ * file: the glTF's skinned meshes, and its rigid parts (meshes hung from a joint without a
+ * skin) bound to their joint as the sidecar's `primitives` say.
+ */
+function skinnedMeshes(gltf, sidecar, name) {
   const { parser } = gltf;
   const found = [];
   gltf.scene.updateMatrixWorld(true);
   gltf.scene.traverse((object) => {
-    if (!object.isSkinnedMesh) return;
+    if (!object.isMesh) return;
     // The glTF node of the mesh (a multi-primitive mesh is a group of meshes under it).
     let node = object;
     while (node && parser.associations.get(node)?.nodes === undefined) node = node.parent;
-    const skin = node ? parser.json.nodes[parser.associations.get(node).nodes].skin : undefined;
-    if (skin === undefined) throw new Error(`${name}: skinned mesh ${object.name} has no glTF skin`);
-    const geometry = object.geometry;
-    if (!geometry.attributes.skinIndex || !geometry.attributes.skinWeight) {
-      throw new Error(`${name}: mesh ${object.name} has no JOINTS_0 and WEIGHTS_0`);
+    const index = node ? parser.associations.get(node).nodes : undefined;
+    let geometry = object.geometry;
+    let skin;
+    if (object.isSkinnedMesh) {
+      skin = index === undefined ? undefined : parser.json.nodes[index].skin;
+      if (skin === undefined) throw new Error(`${name}: skinned mesh ${object.name} has no glTF skin`);
+      if (!geometry.attributes.skinIndex || !geometry.attributes.skinWeight) {
+        throw new Error(`${name}: mesh ${object.name} has no JOINTS_0 and WEIGHTS_0`);
+      }
+    } else {
+      const primitive = parser.associations.get(object)?.primitives ?? 0;
+      const part = sidecar.primitives?.find((p) => p.rigid && p.node === index && p.primitive === primitive);
+      // A mesh the sidecar does not bind is in its `not_drawn`.
+      if (!part) return;
+      skin = part.skin;
+      geometry = rigidGeometry(object, part.rigid);
     }
     // Lit materials need normals; a mesh without them gets its bind pose's.
     if (!geometry.attributes.normal) geometry.computeVertexNormals();
     // The bind pose in the scene: glTF skinning takes a vertex to where the mesh's node puts it.
-    geometry.computeBoundingBox();
-    const box = geometry.boundingBox.clone().applyMatrix4(object.matrixWorld);
+    object.geometry.computeBoundingBox();
+    const box = object.geometry.boundingBox.clone().applyMatrix4(object.matrixWorld);
     found.push({ geometry, material: object.material, name: object.name, files: (clip) => [clip.files[skin]], box });
   });
   if (!found.length) throw new Error(`${name}: the baked glTF has no skinned mesh`);
   return found;
+}
+
+/**
+ * A rigid part's geometry as a skinned mesh's: its morph targets at the mesh's weights, taken
+ * into its skin's bind space by the sidecar's `bind` (3x4 row-major), and bound to its joint
+ * alone.
+ */
+function rigidGeometry(object, { joint, bind }) {
+  const geometry = object.geometry.clone();
+  const influences = object.morphTargetInfluences ?? [];
+  for (const [attribute, targets] of Object.entries(geometry.morphAttributes)) {
+    const values = geometry.attributes[attribute];
+    if (!values) continue;
+    targets.forEach((target, t) => {
+      const weight = influences[t] ?? 0;
+      if (weight === 0) return;
+      // glTF's morph targets are deltas (three.js's morphTargetsRelative).
+      for (let i = 0; i < values.array.length; i++) values.array[i] += weight * target.array[i];
+    });
+  }
+  geometry.morphAttributes = {};
+  const m = new THREE.Matrix4().set(...bind, 0, 0, 0, 1);
+  geometry.applyMatrix4(m);
+  const count = geometry.attributes.position.count;
+  const joints = new Uint16Array(4 * count);
+  const weights = new Float32Array(4 * count);
+  for (let v = 0; v < count; v++) {
+    joints[4 * v] = joint;
+    weights[4 * v] = 1;
+  }
+  geometry.setAttribute('skinIndex', new THREE.BufferAttribute(joints, 4));
+  geometry.setAttribute('skinWeight', new THREE.BufferAttribute(weights, 4));
+  return geometry;
 }
 
 /** Every primitive of a vertex bake's mesh file, with the sheets its clips' files name. */

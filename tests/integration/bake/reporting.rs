@@ -193,35 +193,50 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
 
 /// Every bake's summary gives the rig's size at rest, so a rig read at the wrong scale shows at
 /// a glance (Mixamo's dancer, in centimetres in its file: 1.5 to 1.9 m tall, not 0.18); and the
-/// meshes a texture of skinned meshes does not draw (RobotExpressive's rigid parts, hung from
-/// bones without a skin) are named in the summary and the sidecar, never dropped silently.
+/// meshes a texture does not draw are named in the summary and the sidecar, never dropped
+/// silently: RobotExpressive's rigid parts (hung from bones without a skin) are drawn by its
+/// skin textures, bound to their bones, but not by Babylon's baked vertex animation.
 #[test]
 fn the_summary_gives_the_rig_s_size_and_names_the_meshes_a_texture_does_not_draw() {
     let Some(data) = data_dir() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let run = |name: &str, texture: &str| {
-        let (out, input) = (dir.path().join(format!("{name}.{texture}")), data.join(name));
-        let result =
-            bake(&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--texture", texture]);
+    let run = |name: &str, texture: &str, more: &[&str]| {
+        let (out, input) = (dir.path().join(format!("{name}.{texture}{}", more.join(""))), data.join(name));
+        let args = ["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap(), "--texture", texture];
+        let result = bake(&[&args[..], more].concat());
         assert!(result.status.success(), "{name}: {}", stderr(&result));
         (String::from_utf8_lossy(&result.stdout).into_owned(), stderr(&result), out)
     };
-    let (summary, _, _) = run("Samba_Dancing.fbx", "model");
+    let (summary, _, _) = run("Samba_Dancing.fbx", "model", &[]);
     let tall: f64 = summary
         .split_once("rig at rest ")
         .and_then(|(_, rest)| rest.split_whitespace().next())
         .and_then(|h| h.parse().ok())
         .unwrap_or_else(|| panic!("no rig in the summary: {summary}"));
     assert!((1.5..1.9).contains(&tall), "Samba_Dancing's rig is {tall} m tall");
-    let (_, warnings, out) = run("RobotExpressive.glb", "skin-trs");
+    let sidecar = |out: &std::path::Path| json(&out.join("RobotExpressive.json"));
+    // Skin textures draw the rigid parts: the sidecar binds each to its bone.
+    let (_, warnings, out) = run("RobotExpressive.glb", "skin-trs", &[]);
+    assert!(!warnings.contains("not drawn"), "{warnings}");
+    let side = sidecar(&out);
+    assert!(side.get("not_drawn").is_none(), "{side}");
+    let primitives = side["primitives"].as_array().unwrap();
+    let rigid: Vec<&serde_json::Value> = primitives.iter().filter(|p| p["rigid"].is_object()).collect();
+    // 12 rigid meshes of 15 primitives (the torso has two, the head three), and the two hands.
+    assert_eq!((rigid.len(), primitives.len() - rigid.len()), (15, 4), "{primitives:?}");
+    let torso = rigid.iter().find(|p| p["name"].as_str().unwrap().starts_with("node 'Torso'")).unwrap();
+    let body = side["joints"].as_array().unwrap().iter().position(|j| j == "Body").unwrap();
+    let skin = &side["skins"][torso["skin"].as_u64().unwrap() as usize]["joints"];
+    assert_eq!(skin[torso["rigid"]["joint"].as_u64().unwrap() as usize], body, "the torso hangs from Body");
+    // Babylon's baked vertex animation moves skinned meshes alone: the rigid parts are named.
+    let (_, warnings, out) = run("RobotExpressive.glb", "skin", &["--format", "babylon"]);
     assert!(
-        warnings.contains("12 meshes hang from nodes without a skin") && warnings.contains("node 'Torso'"),
+        warnings.contains("12 meshes are not drawn") && warnings.contains("node 'Torso', mesh 'Torso': a rigid"),
         "{warnings}"
     );
-    let not_drawn = json(&out.join("RobotExpressive.json"))["not_drawn"].as_array().unwrap().len();
-    assert_eq!(not_drawn, 12);
+    assert_eq!(sidecar(&out)["not_drawn"].as_array().unwrap().len(), 12);
     // A model texture draws no mesh: nothing is left out of it.
-    let (_, warnings, out) = run("RobotExpressive.glb", "model");
-    assert!(!warnings.contains("without a skin"), "{warnings}");
-    assert!(json(&out.join("RobotExpressive.json")).get("not_drawn").is_none());
+    let (_, warnings, out) = run("RobotExpressive.glb", "model", &[]);
+    assert!(!warnings.contains("not drawn"), "{warnings}");
+    assert!(sidecar(&out).get("not_drawn").is_none());
 }

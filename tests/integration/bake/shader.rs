@@ -435,9 +435,10 @@ fn the_sidecar_names_what_the_skinned_shader_reads_and_draws() {
     for (name, normals) in [("CesiumMan", true), ("Fox", false)] {
         let dir = tmp.path().join(name);
         run_bake(&dir, &data.join(format!("{name}.glb")), &["--texture", "skin-trs", "--format", "exr"]);
-        let shader = &json(&dir.join(format!("{name}.json")))["shader"];
+        let sidecar = json(&dir.join(format!("{name}.json")));
+        let shader = &sidecar["shader"];
         assert_eq!(shader["program"], "bones");
-        let primitives = shader["primitives"].as_array().unwrap();
+        let primitives = sidecar["primitives"].as_array().unwrap();
         assert_eq!(primitives.len(), 1, "{name}: {primitives:?}");
         assert_eq!((&primitives[0]["normals"], &primitives[0]["texcoords"]), (&json!(normals), &json!(true)), "{name}");
         let inputs: Vec<(&str, u64, &str)> = shader["inputs"]

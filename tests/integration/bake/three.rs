@@ -3,8 +3,8 @@
 //! instance's silhouette against three.js's own `AnimationMixer` playing the source .glb as a
 //! `SkinnedMesh`, both on one clock (the source's), at five times of every clip, for bakes on
 //! the default options (the package README's own among them): EXR float, EXR half and PNG16
-//! bone textures, an atlas played per instance, and vertex textures (with normals and
-//! without); a player that ignores the row order or the time fails the same comparison; crowds of 100 draw lit
+//! bone textures, an atlas played per instance, vertex textures (with normals and without),
+//! and a rig whose rigid parts hang from bones without a skin (RobotExpressive); a player that ignores the row order or the time fails the same comparison; crowds of 100 draw lit
 //! and textured with no page error, and so does `examples/three/`. And the package's shader
 //! libraries are what `quatcurve shaders --library` generates today.
 
@@ -78,12 +78,12 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
     let script = script.with_file_name("engines.mjs");
     let dir = tempfile::tempdir().unwrap();
-    let (man, fox) = (data.join("CesiumMan.glb"), data.join("Fox.glb"));
+    let (man, fox, robot) = (data.join("CesiumMan.glb"), data.join("Fox.glb"), data.join("RobotExpressive.glb"));
     let skin = ["--texture", "skin-trs"];
     // Every bake on the default curve, the source's own (three.js plays glTF's LINEAR as slerp
     // and lerp); Fox's first as the package's README bakes it.
     let vertex = ["--texture", "vertex"];
-    let bakes: [(&str, &Path, Vec<&str>); 8] = [
+    let bakes: [(&str, &Path, Vec<&str>); 10] = [
         ("fox-readme", &fox, [&skin[..], &["--format", "exr", "--max-error", "0.5", "--atlas"]].concat()),
         ("man-exr", &man, [&skin[..], &["--format", "exr", "--max-error", "0.5"]].concat()),
         ("man-half", &man, [&skin[..], &["--format", "exr", "--precision", "f16", "--max-error", "0.5"]].concat()),
@@ -93,6 +93,10 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         // Vertex textures: CesiumMan's with normals, Fox's without (lit by its faces).
         ("man-vertex", &man, [&vertex[..], &["--format", "exr", "--rate", "30"]].concat()),
         ("fox-vertex", &fox, [&vertex[..], &["--format", "png16", "--atlas", "--rate", "60"]].concat()),
+        // RobotExpressive's rigid parts (12 of its 14 meshes hang from bones without a skin),
+        // as the README bakes it and in a vertex texture.
+        ("robot-readme", &robot, [&skin[..], &["--format", "exr", "--max-error", "0.5", "--atlas"]].concat()),
+        ("robot-vertex", &robot, [&vertex[..], &["--format", "exr", "--rate", "48"]].concat()),
     ];
     for (name, source, args) in &bakes {
         bake_into(dir.path(), name, source, args);

@@ -98,7 +98,8 @@ pub(super) fn open(path: &std::path::Path) -> (::gltf::Document, Vec<Vec<u8>>) {
 
 /// `primitive` skinned at `time` of `clip`, computed without quatcurve's bake: glam forward
 /// kinematics over the glTF nodes, the skin's inverse bind matrices from the crate's reader,
-/// and the weights as the file stores them (normalized here).
+/// and the weights as the file stores them (normalized here); a rigid part moved by its node's
+/// world transform, as glTF draws a mesh without a skin (its morph targets at zero weights).
 pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, clip: usize, time: f64) -> Vec<f64> {
     let (document, buffers) = open(path);
     let local = local_at(&document, &buffers, clip, time);
@@ -126,9 +127,21 @@ pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, 
     let mesh = document.meshes().nth(primitive.mesh).unwrap();
     let prim = mesh.primitives().nth(primitive.primitive).unwrap();
     let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-    // Per vertex: position, normal, and its (joint, weight) pairs.
+    // Per vertex: position, normal, and its (joint, weight) pairs (none: placed already).
     type Vertex = ([f64; 3], Option<[f64; 3]>, Vec<(usize, f64)>);
     let vertices: Vec<Vertex> = match reader.read_positions() {
+        Some(positions) if primitive.rigid.is_some() => {
+            let node = world(primitive.node);
+            let normals: Option<Vec<[f32; 3]>> = reader.read_normals().map(Iterator::collect);
+            let at = |v: usize, p: [f32; 3]| -> Vertex {
+                let p = node.transform_point3(DVec3::from(p.map(f64::from)));
+                let n = normals
+                    .as_ref()
+                    .map(|n| node.inverse().transpose().transform_vector3(DVec3::from(n[v].map(f64::from))));
+                (p.to_array(), n.map(|n| n.to_array()), Vec::new())
+            };
+            positions.enumerate().map(|(v, p)| at(v, p)).collect()
+        }
         Some(positions) => {
             let normals: Option<Vec<[f32; 3]>> = reader.read_normals().map(Iterator::collect);
             let js: Vec<[u16; 4]> = reader.read_joints(0).unwrap().into_u16().collect();
@@ -156,7 +169,12 @@ pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, 
     let mut out = Vec::with_capacity(vertices.len() * VERTEX_CHANNELS);
     for (position, normal, pairs) in vertices {
         let total: f64 = pairs.iter().map(|(_, w)| w).sum();
-        let m = pairs.iter().fold(DMat4::ZERO, |m, &(j, w)| m + joints[j] * (w / total));
+        // A rigid part's vertices (no joints) are already where its node puts them.
+        let m = if pairs.is_empty() {
+            DMat4::IDENTITY
+        } else {
+            pairs.iter().fold(DMat4::ZERO, |m, &(j, w)| m + joints[j] * (w / total))
+        };
         let p = m.transform_point3(DVec3::from(position));
         let n = normal.map_or(DVec3::ZERO, |n| m.transform_vector3(DVec3::from(n)));
         let n = n.normalize_or_zero();
@@ -186,7 +204,7 @@ fn skinned_vertices_match_an_independent_skinning_at_keys_and_the_gpu_kernel_at_
         let path = data.join(name);
         let file = gltf::read(&path, UriPolicy::default()).unwrap();
         let animation = &file.animation;
-        let primitives = skinned_primitives(&file).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let primitives = skinned_primitives(&file).unwrap_or_else(|e| panic!("{name}: {e}")).primitives;
         let (matrices, times) = skin_matrices(animation, 0);
         let frames = times.len();
         let (mut worst_key, mut worst_gpu) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
@@ -294,11 +312,83 @@ fn skinned_triangle(
     serde_json::to_vec(&doc).unwrap()
 }
 
+/// A triangle on node `body` without a skin, hung under joint `bone` (at `(0, 2, 0)`, its
+/// inverse bind matrix the identity) at `(1, 0, 0)`; a clip moves the bone, and with
+/// `animated` the body too.
+fn rigid_triangle(animated: bool) -> Vec<u8> {
+    use base64::Engine;
+    let floats: Vec<f32> = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] // POSITION
+        .into_iter()
+        .chain([0.0, 1.0]) // key times
+        .chain([0.0, 2.0, 0.0, 0.0, 3.0, 0.0]) // translations
+        .collect();
+    let bin: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    let mut channels = vec![serde_json::json!({"sampler": 0, "target": {"node": 0, "path": "translation"}})];
+    if animated {
+        channels.push(serde_json::json!({"sampler": 0, "target": {"node": 1, "path": "translation"}}));
+    }
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [
+            {"name": "bone", "translation": [0.0, 2.0, 0.0], "children": [1]},
+            {"name": "body", "mesh": 0, "translation": [1.0, 0.0, 0.0]},
+        ],
+        "skins": [{"joints": [0]}],
+        "meshes": [{"name": "tri", "primitives": [{"attributes": {"POSITION": 0}}]}],
+        "animations": [{"name": "move", "channels": channels, "samplers": [{"input": 1, "output": 2}]}],
+        "buffers": [{"uri": uri, "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 8},
+            {"buffer": 0, "byteOffset": 44, "byteLength": 24},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+            {"bufferView": 1, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]},
+            {"bufferView": 2, "componentType": 5126, "count": 2, "type": "VEC3"},
+        ],
+    });
+    serde_json::to_vec(&doc).unwrap()
+}
+
+/// A mesh without a skin under a joint is drawn bound to that joint with weight 1, its
+/// vertices in the skin's bind space (the joint's skin matrix then puts them where the node
+/// does); one whose node moves on its own is named as not drawn, never dropped silently.
+#[test]
+fn rigid_parts_are_bound_to_their_joint_or_named_as_not_drawn() {
+    let file = |animated| gltf::from_bytes(&rigid_triangle(animated), std::path::Path::new("."), UriPolicy::default());
+    let drawn = skinned_primitives(&file(false).unwrap()).unwrap();
+    assert_eq!((drawn.primitives.len(), drawn.not_drawn.len()), (1, 0));
+    let p = &drawn.primitives[0];
+    assert_eq!((p.skin, p.rigid.as_ref().map(|r| r.joint)), (0, Some(0)));
+    // Bind space is the bone's at identity: the body's offset alone.
+    assert_eq!(p.bind.positions, [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0]]);
+    assert_eq!(
+        (p.bind.influences, &p.bind.joints[..4], &p.bind.weights[..4]),
+        (4, &[0, 0, 0, 0][..], &[1.0, 0.0, 0.0, 0.0][..])
+    );
+    // The skin matrix at rest (the bone's world transform, at (0, 2, 0)) puts the triangle
+    // where glTF draws the body: its world transform, at (1, 2, 0).
+    let rest = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0, 0.0].map(|v: f64| v as f32);
+    let skinned = skeleton::skin(&p.bind, 1, &rest);
+    assert_eq!(skinned[..3], [1.0, 2.0, 0.0]);
+    // Animated on its own, the body does not move with the bone: not drawn, and named.
+    let message = skinned_primitives(&file(true).unwrap()).unwrap_err().to_string();
+    assert!(
+        message.contains("node 'body', mesh 'tri': node 'body' between it and a skin's joint is animated"),
+        "{message}"
+    );
+}
+
 #[test]
 fn bad_skinned_meshes_are_refused_naming_the_primitive_vertex_and_rule() {
     let read = |bytes: Vec<u8>| {
         let file = gltf::from_bytes(&bytes, std::path::Path::new("."), UriPolicy::default()).unwrap();
-        skinned_primitives(&file).map_err(|e| e.to_string())
+        skinned_primitives(&file).map(|d| d.primitives).map_err(|e| e.to_string())
     };
     let joints = Some([[0u16; 4]; 3]);
     let weights = Some([[1.0f32, 0.0, 0.0, 0.0]; 3]);
@@ -318,12 +408,16 @@ fn bad_skinned_meshes_are_refused_naming_the_primitive_vertex_and_rule() {
         ),
         (skinned_triangle(true, joints, Some([[1.0, -0.5, 0.0, 0.0]; 3]), 3), "vertex 0: WEIGHTS_0[1] is -0.5"),
         (skinned_triangle(true, joints, weights, 5), "POSITION (accessor 0): count 5 with stride 12 needs 60 bytes"),
-        (skinned_triangle(false, None, None, 3), "no node draws a skinned mesh"),
+        (
+            skinned_triangle(false, None, None, 3),
+            "no mesh is skinned or hangs from a skin's joint (node 'body', mesh 'tri': no joint of a skin is at or \
+             above its node)",
+        ),
     ];
     for (bytes, expected) in cases {
         let message = read(bytes).expect_err(expected);
         assert!(message.contains(expected), "{message}\nlacks: {expected}");
-        if !expected.starts_with("no node") {
+        if !expected.starts_with("no mesh") {
             assert!(message.contains("node 'body', mesh 'tri', primitive 0"), "{message}");
         }
     }
@@ -429,7 +523,8 @@ fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_d
         ("png16", "f32", "1024", POSITION_BOUND, NORMAL_BOUND),
         ("exr", "f16", "4096", HALF_POSITION_BOUND, HALF_NORMAL_BOUND),
     ];
-    let names = ["CesiumMan.glb", "Fox.glb", "SimpleSkin.gltf"];
+    // RobotExpressive: 15 of its 19 primitives are rigid parts, bound to their bones.
+    let names = ["CesiumMan.glb", "Fox.glb", "SimpleSkin.gltf", "RobotExpressive.glb"];
     for device in devices {
         for (format, precision, side, position_bound, normal_bound) in variants {
             let dir = out.path().join(format!("{device}-{format}-{precision}"));
@@ -449,7 +544,7 @@ fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_d
                 let stem = path.file_stem().unwrap().to_str().unwrap();
                 let sidecar = super::json(&dir.join(format!("{stem}.json")));
                 let file = gltf::read(&path, UriPolicy::default()).unwrap();
-                let primitives = skinned_primitives(&file).unwrap();
+                let primitives = skinned_primitives(&file).unwrap().primitives;
                 assert_eq!(sidecar["vertex"]["primitives"].as_array().unwrap().len(), primitives.len());
                 let clip = &sidecar["clips"][0];
                 let frames = clip["frames"].as_u64().unwrap() as usize;
@@ -561,7 +656,7 @@ fn draco_vertices_match_the_bounds_counts_and_weights_the_file_states() {
     let Some(data) = data_dir() else { return };
     let path = data.join("BrainStem.glb");
     let file = gltf::read(&path, UriPolicy::default()).unwrap();
-    let primitives = skinned_primitives(&file).unwrap();
+    let primitives = skinned_primitives(&file).unwrap().primitives;
     let bytes = std::fs::read(&path).unwrap();
     let json: serde_json::Value =
         serde_json::from_slice(&::gltf::binary::Glb::from_slice(&bytes).unwrap().json).unwrap();
