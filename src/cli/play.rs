@@ -85,6 +85,10 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     }
     let input = args.input.display().to_string();
     let source = Source::read(&args.input, Default::default()).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+    // Palettes are matrices of positions.
+    source
+        .require_offsets("the palettes' positions", "bake local textures of it instead")
+        .map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     let curve = CurveChoice::new(args.curve.or(source.default_curve()), &args.curve_options);
     let mut animation = source.animation().clone();
     if let Some(path) = &args.skin_from {

@@ -295,13 +295,18 @@ pub fn quat_to_euler(axes: &[usize], q: QuatF64, near: &[f64]) -> Vec<f64> {
         }
         [i, j, k] => {
             // For R = R_i(a) R_j(b) R_k(c) with (i, j, k) a permutation of parity s:
-            // R[i][k] = s sin b, R[j][k] = -s sin a cos b, R[k][k] = cos a cos b,
-            // R[i][j] = -s cos b sin c, R[i][i] = cos b cos c.
+            // R[i][k] = s sin b, R[i][j] = -s cos b sin c, R[i][i] = cos b cos c. The
+            // quaternion is normalized first (an f32 one is unit to ~1e-7), b is taken by atan2
+            // against cos b = |(R[i][i], R[i][j])| (asin near 90 degrees turns 1e-7 into 1e-4),
+            // and a from what is left once c and b are undone, so the three angles give back q
+            // even where cos b is near 0 and the split between a and c is arbitrary.
+            let q = q.normalize();
             let m = q.to_mat3();
             let s = if (j + 3 - i) % 3 == 1 { 1.0 } else { -1.0 };
-            let b = (s * m[i][k]).clamp(-1.0, 1.0).asin();
-            let a = (-s * m[j][k]).atan2(m[k][k]);
+            let b = (s * m[i][k]).atan2(m[i][i].hypot(m[i][j]));
             let c = (-s * m[i][j]).atan2(m[i][i]);
+            let rest = q * axis_rotation(k, -c) * axis_rotation(j, -b);
+            let a = 2.0 * [rest.x, rest.y, rest.z][i].atan2(rest.w);
             vec![a, b, c]
         }
         _ => Vec::new(),

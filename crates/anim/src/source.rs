@@ -110,6 +110,22 @@ impl Source {
         }
     }
 
+    /// Refuses work that needs positions (`needs`, what it is, and `instead`, what would work)
+    /// when the joints have no offsets ([`Self::has_offsets`]): their positions would be wrong.
+    ///
+    /// # Errors
+    /// [`InputError::Animation`] saying why and what would work.
+    pub fn require_offsets(&self, needs: &str, instead: &str) -> Result<(), InputError> {
+        if self.has_offsets() {
+            return Ok(());
+        }
+        Err(InputError::Animation(format!(
+            "{} holds rotations alone (its joints' offsets come from the body model's shape, and its up axis is not \
+             recorded), so {needs} would be wrong; {instead}",
+            self.kind()
+        )))
+    }
+
     /// Whether its joints have their rest offsets and its space a known up axis, so that
     /// model-space products (positions by forward kinematics, headings) mean anything:
     /// SMPL-family arrays hold rotations alone, the offsets being the body model's, and say

@@ -448,13 +448,11 @@ impl BakeJob {
                 || self.options.max_error_mm.is_some()
                 || self.options.preview
                 || self.options.root_motion == RootMotion::Extract;
-            if !src.has_offsets() && needs_space {
-                return Err(InputError::Animation(format!(
-                    "{} holds rotations alone (its joints' offsets come from the body model's shape, and its up \
-                     axis is not recorded), so positions and headings would be wrong; bake local textures, without \
-                     a millimetre budget, previews or root motion extracted",
-                    src.kind()
-                )));
+            if needs_space {
+                src.require_offsets(
+                    "positions and headings",
+                    "bake local textures, without a millimetre budget, previews or root motion extracted",
+                )?;
             }
             let rate = self.options.clip_rate();
             let (choice, budget) = (self.options.choice(&src), self.options.budget());

@@ -341,6 +341,30 @@ fn bvh_euler_channels_compose_in_file_order_for_every_axis_order() {
     assert!((back[0] - 181.0).abs() < 1e-9, "{back:?}");
 }
 
+/// At gimbal lock (the middle angle at or within a hair of 90 degrees, every channel order),
+/// angles taken from an f32 quaternion (unit only to ~1e-7, as a decoded clip's are) give the
+/// normalized quaternion back to 1e-12 rad: what BVH written from a decoded clip needs to stay
+/// within the container's bound.
+#[test]
+fn euler_angles_at_gimbal_lock_give_the_rotation_back_for_every_channel_order() {
+    let orders = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let mut worst = 0.0f64;
+    for order in orders {
+        let channels: Vec<BvhChannel> = order.iter().map(|&a| BvhChannel::Rotation(a)).collect();
+        for middle in [90.0, -90.0, 89.96, -89.96, 90.0 - 1e-6, 89.0] {
+            for (first, last) in [(0.0, 0.0), (30.0, -50.0), (-170.0, 120.0)] {
+                let exact = bvh::euler_to_quat(&channels, &[first, middle, last]);
+                let q = QuatF64::from_array(exact.to_array().map(|c| f64::from(c as f32)));
+                let back = bvh::quat_to_euler(&order, q, &[first, middle, last]);
+                let error = bvh::euler_to_quat(&channels, &back).angle_to(q.normalize());
+                worst = worst.max(error);
+                assert!(error < 1e-12, "order {order:?}, {middle} degrees: {back:?} is {error:e} rad off");
+            }
+        }
+    }
+    eprintln!("worst {worst:e} rad");
+}
+
 /// A minimal .gltf (one node, one rotation channel) with its buffer as a data URI.
 fn tiny_gltf(times: &[f32], rotations: &[[f32; 4]]) -> String {
     tiny_gltf_value(times, rotations).0.to_string()

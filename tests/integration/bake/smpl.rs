@@ -292,4 +292,18 @@ fn hostile_smpl_archives_are_refused_naming_the_file_and_field() {
         assert!(stderr(&result).contains("holds rotations alone"), "{asked:?}: {}", stderr(&result));
         assert!(!out.join("walk.npz").exists(), "{asked:?}");
     }
+    // So do `play`'s palettes (matrices of positions): refused before anything is written.
+    let palettes = dir.path().join("palettes.npy");
+    let result = assert_cmd::Command::cargo_bin("quatcurve")
+        .unwrap()
+        .args(["play", "--input", input.to_str().unwrap(), "--output", palettes.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(result.status.code(), Some(2), "play: {}", stderr(&result));
+    assert!(
+        stderr(&result).contains("holds rotations alone") && stderr(&result).contains("walk.npz"),
+        "{}",
+        stderr(&result)
+    );
+    assert!(!palettes.exists());
 }
