@@ -209,6 +209,9 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
             report.job_inputs
         )?;
     }
+    if report.stale_removed > 0 {
+        writeln!(w, "removed {} temporary files a killed run of this shard left", report.stale_removed)?;
+    }
     writeln!(
         w,
         "{:<44} {:>5} {:>8} {:>9} {:>11} {:>8} {:>14}  status",

@@ -270,6 +270,8 @@ impl BakeJob {
             inputs.iter().zip(&stems).map(|(p, s)| (p.display().to_string(), s.as_str(), Some(p.as_path()))).collect()
         };
         let job_inputs = all.len();
+        let all_stems: Vec<&str> = all.iter().map(|(_, stem, _)| *stem).collect();
+        let stale_removed = remove_stale_temporaries(&self.output, &all_stems, &shard, &manifest_path);
         let mine: Vec<_> =
             all.into_iter().enumerate().filter(|(k, _)| shard.owns(*k)).map(|(_, input)| input).collect();
         progress.start(mine.len());
@@ -320,7 +322,7 @@ impl BakeJob {
             write_manifest(&mut manifest, &manifest_path)?;
         }
         output.remove_if_unused();
-        Ok(BakeReport { device: device_name, shard, job_inputs, inputs })
+        Ok(BakeReport { device: device_name, shard, job_inputs, inputs, stale_removed })
     }
 
     /// The output faults that can be found before any input is baked: a baked file that would
@@ -730,6 +732,31 @@ fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Res
 /// The file name after an input's stem of the mesh a vertex texture plays
 /// (skinned primitives as plain meshes, DESIGN section 5d).
 pub const MESH_GLB_SUFFIX: &str = ".mesh.glb";
+
+/// Removes the temporary files a killed run of this shard left in `dir`
+/// ([`quatcurve_eval::io::temporary_target`] names the file each was to become): its manifest's,
+/// and those of an output of one of its inputs (the input whose stem, of the job's `stems`, is
+/// the longest that begins the file's name followed by a dot). Another shard's, which may be
+/// running, are left alone. Returns how many were removed.
+fn remove_stale_temporaries(dir: &Path, stems: &[&str], shard: &Shard, manifest: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
+    let manifest = manifest.file_name().map(|n| n.to_string_lossy().into_owned());
+    let owner = |target: &str| {
+        (0..stems.len())
+            .filter(|&k| target.strip_prefix(stems[k]).is_some_and(|rest| rest.starts_with('.')))
+            .max_by_key(|&k| stems[k].len())
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(target) = quatcurve_eval::io::temporary_target(&name) else { continue };
+        let mine = manifest.as_deref() == Some(target) || owner(target).is_some_and(|k| shard.owns(k));
+        if mine && std::fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
 
 fn write_manifest(manifest: &mut Manifest, path: &Path) -> Result<(), FileJobError> {
     manifest.updated = super::manifest::now();

@@ -39,6 +39,8 @@ pub struct BakeReport {
     pub job_inputs: usize,
     /// This shard's inputs.
     pub inputs: Vec<InputReport>,
+    /// Temporary files a killed run of this shard left in the output directory, removed.
+    pub stale_removed: usize,
 }
 
 impl BakeReport {

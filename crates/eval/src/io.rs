@@ -61,6 +61,27 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
     file.commit()
 }
 
+/// Every temporary file an [`AtomicFile`] makes is named `.quatcurve-<target>.<random>.tmp`,
+/// `<target>` the name of the file it becomes (its first [`TEMPORARY_NAME_BYTES`] bytes), so
+/// that a job finding one a killed run left knows whose it was ([`temporary_target`]).
+pub const TEMPORARY_PREFIX: &str = ".quatcurve-";
+/// See [`TEMPORARY_PREFIX`].
+const TEMPORARY_SUFFIX: &str = ".tmp";
+/// Random characters in a temporary file's name.
+const TEMPORARY_RANDOM: usize = 6;
+/// The most bytes of the target's name a temporary file's name holds (a file name holds 255).
+pub const TEMPORARY_NAME_BYTES: usize = 160;
+
+/// The name of the file the temporary file `name` was to become (its first
+/// [`TEMPORARY_NAME_BYTES`] bytes, for a longer one); `None` when `name` is not an
+/// [`AtomicFile`]'s.
+#[must_use]
+pub fn temporary_target(name: &str) -> Option<&str> {
+    let middle = name.strip_prefix(TEMPORARY_PREFIX)?.strip_suffix(TEMPORARY_SUFFIX)?;
+    let (target, random) = middle.rsplit_once('.')?;
+    (random.len() == TEMPORARY_RANDOM && !target.is_empty()).then_some(target)
+}
+
 /// A file written atomically as it goes ([`write_atomic`] for a writer that is handed around,
 /// as a texture streamed block by block is): bytes go to a temporary file beside `path`, and
 /// [`AtomicFile::commit`] flushes, syncs and renames it over `path`. Dropped without a commit
@@ -81,8 +102,14 @@ impl AtomicFile {
             Some(dir) if !dir.as_os_str().is_empty() => dir,
             _ => Path::new("."),
         };
+        let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let mut end = name.len().min(TEMPORARY_NAME_BYTES);
+        while !name.is_char_boundary(end) {
+            end -= 1;
+        }
+        let prefix = format!("{TEMPORARY_PREFIX}{}.", &name[..end]);
         let mut builder = tempfile::Builder::new();
-        builder.prefix(".quatcurve-").suffix(".tmp");
+        builder.prefix(&prefix).suffix(TEMPORARY_SUFFIX).rand_bytes(TEMPORARY_RANDOM);
         #[cfg(unix)]
         builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
         let tmp =
@@ -415,8 +442,30 @@ pub fn demo_tracks() -> Vec<Track> {
 
 #[cfg(test)]
 mod tests {
-    use super::{npy_header, AtomicFile};
+    use super::{npy_header, temporary_target, AtomicFile, TEMPORARY_NAME_BYTES};
     use std::io::Write;
+
+    /// A temporary file's name says which file it becomes, so a job can tell its own from
+    /// another's; a long name keeps its first bytes on a character boundary.
+    #[test]
+    fn a_temporary_file_names_the_file_it_becomes() {
+        let dir = tempfile::tempdir().unwrap();
+        let long = format!("{}.npy", "é".repeat(120));
+        for target in ["Fox.Walk.npy", "manifest.0-of-3.json", long.as_str()] {
+            let file = AtomicFile::create(&dir.path().join(target)).unwrap();
+            let name = file.out.get_ref().path().file_name().unwrap().to_string_lossy().into_owned();
+            let named = temporary_target(&name).unwrap_or_else(|| panic!("{name}: not a temporary file's name"));
+            if target.len() <= TEMPORARY_NAME_BYTES {
+                assert_eq!(named, target);
+            } else {
+                // "é" is two bytes: the first 160 end on a boundary, kept whole.
+                assert!(target.starts_with(named) && named.len() == TEMPORARY_NAME_BYTES, "{name}");
+            }
+        }
+        for other in ["Fox.json", ".quatcurve-.abcdef.tmp", ".quatcurve-Fox.json.tmp", ".quatcurve-Fox.json.abc.tmp"] {
+            assert_eq!(temporary_target(other), None, "{other}");
+        }
+    }
 
     /// Written in pieces, an atomic file appears whole at commit and not before; dropped
     /// uncommitted (a failed bake), it leaves the directory as it was, an old file included.

@@ -218,3 +218,71 @@ fn the_scheduler_examples_run_as_their_schedulers_run_them() {
     }
     assert_eq!(outputs(&k8s), expected, "Kubernetes Indexed Job");
 }
+
+/// A shard killed while it writes (SIGKILL, as a scheduler preempts a task) at 20% and at 80%
+/// of its inputs leaves temporary files; run again with `--resume`, it removes its own (their
+/// names say which file each was to become) and never another shard's, and its outputs are
+/// those of a run never killed.
+#[test]
+fn a_killed_shard_resumed_leaves_no_temporary_file_of_its_own() {
+    let Some(data) = super::data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("inputs");
+    std::fs::create_dir_all(&inputs).unwrap();
+    let count = 40;
+    for k in 0..count {
+        std::os::unix::fs::symlink(data.join("CesiumMan.glb"), inputs.join(format!("man{k:02}.glb"))).unwrap();
+    }
+    let args = |out: &Path| {
+        let mut command = std::process::Command::new(assert_cmd::cargo::cargo_bin("quatcurve"));
+        command.args(["bake", "--input", inputs.to_str().unwrap(), "--output", out.to_str().unwrap()]);
+        command.args(["--texture", "model", "--rate", "240", "--shard", "0/2", "--resume"]);
+        command
+    };
+    let (clean, killed) = (dir.path().join("clean"), dir.path().join("killed"));
+    let result = args(&clean).output().unwrap();
+    assert!(result.status.success(), "{}", stderr(&result));
+    let temporaries = |out: &Path| -> Vec<String> {
+        std::fs::read_dir(out)
+            .map(|d| {
+                d.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.ends_with(".tmp"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    // Shard 1's input man01, being written by a shard still running: left alone.
+    let others = ".quatcurve-man01.json.abcdef.tmp";
+    for fraction in [0.2, 0.8] {
+        let mut child =
+            args(&killed).stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).spawn().unwrap();
+        let sidecars = |out: &Path| {
+            std::fs::read_dir(out)
+                .map(|d| d.flatten().filter(|e| e.file_name().to_string_lossy().ends_with(".json")).count())
+                .unwrap_or(0)
+        };
+        // Killed once this shard (20 inputs) has written the fraction and a file is half written.
+        let mut caught = false;
+        while child.try_wait().unwrap().is_none() {
+            if sidecars(&killed) as f64 >= fraction * (count / 2) as f64 && !temporaries(&killed).is_empty() {
+                child.kill().unwrap();
+                caught = true;
+                break;
+            }
+        }
+        child.wait().unwrap();
+        assert!(caught, "the run at {fraction} ended before it could be killed writing");
+        let left = temporaries(&killed);
+        eprintln!("killed at {fraction}: {left:?} left");
+        assert!(!left.is_empty());
+        std::fs::write(killed.join(others), b"another shard's").unwrap();
+        let result = args(&killed).output().unwrap();
+        assert!(result.status.success(), "{}", stderr(&result));
+        let summary = String::from_utf8_lossy(&result.stdout);
+        assert!(summary.contains("temporary files a killed run of this shard left"), "{summary}");
+        assert_eq!(temporaries(&killed), [others], "after --resume");
+        std::fs::remove_file(killed.join(others)).unwrap();
+    }
+    assert_eq!(outputs(&killed), outputs(&clean), "the resumed shard's outputs differ from a run never killed");
+}
