@@ -703,7 +703,7 @@ impl BakeJob {
             start: result.times[0],
             end: result.times[frames - 1],
             rate: result.rate,
-            looping: result.looping,
+            looping: result.closes(),
             preview,
             between_frames: out.rates.get(index).cloned(),
             root_motion: baked.in_place(index).map(|p| p.track.clone()),

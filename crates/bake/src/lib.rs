@@ -135,11 +135,19 @@ pub struct BakedClip {
 
 impl BakedClip {
     /// Seconds of the clip after its last frame: 0 unless an exact rate ([`ClipRate::Exact`])
-    /// left the end of an open clip off the grid (a last frame up to
-    /// [`END_TOLERANCE_FRAMES`] past the end counts as ending on it).
+    /// left the end of the clip off the grid (a last frame up to [`END_TOLERANCE_FRAMES`] past
+    /// the end counts as ending on it).
     #[must_use]
     pub fn unbaked_end(&self) -> f64 {
         self.times.last().map_or(0.0, |&last| (self.end - last).max(0.0))
+    }
+
+    /// Whether it is a loop whose last frame is its seam (its first pose), so that a player
+    /// wraps it by `frames - 1`: a loop not baked at an exact rate its period is not whole
+    /// frames of ([`clip_frame_grid`]).
+    #[must_use]
+    pub fn closes(&self) -> bool {
+        self.looping && self.unbaked_end() * self.rate <= UNBAKED_FRAMES
     }
 }
 
@@ -280,6 +288,10 @@ pub fn clip_loops(
 /// crafted clip could otherwise ask for any amount of memory (two keys a year apart at 30 Hz are a billion frames per channel).
 pub const MAX_BAKE_SAMPLES: usize = 1 << 27;
 
+/// Frames of a clip's end left unbaked below which it counts as baked whole (a rounding of
+/// the grid, not a part of the clip).
+pub const UNBAKED_FRAMES: f64 = 1e-6;
+
 /// How far past the clip's end (in frames) a last frame is still kept at an exact rate
 /// ([`ClipRate::Exact`]): glTF stores times as f32, so a clip meant to end on the grid can end
 /// a rounding error before it.
@@ -292,9 +304,9 @@ pub enum ClipRate {
     /// its first and last frames are its first and last keys. The default, and the only
     /// choice for loops (whose last frame is the seam).
     Fit(f64),
-    /// This rate exactly for open clips: frames `start + i / rate` while not past the last
-    /// key, so the end of a clip that does not land on the grid is not baked ([`BakedClip::
-    /// unbaked_end`]). Loops still fit.
+    /// This rate exactly: frames `start + i / rate` while not past the last key, so the end of
+    /// a clip that does not land on the grid is not baked ([`BakedClip::unbaked_end`]); a
+    /// loop's frames are on its looping curve ([`clip_frame_grid`]).
     Exact(f64),
 }
 
@@ -341,14 +353,27 @@ pub fn fitted_frame_grid(start: f64, end: f64, rate: f64) -> Result<(TrackTimes,
 }
 
 /// A clip's frame grid and its rate: fitted ([`fitted_frame_grid`]) unless `rate` asks for an
-/// exact rate and the clip is open.
+/// exact rate. At an exact rate an open clip's grid is [`frame_grid`]'s, and so is a loop's
+/// whose period is not a whole number of frames (within [`END_TOLERANCE_FRAMES`]): its rows
+/// `start + i / rate` on its looping curve, the loop closed by the curve rather than by a last
+/// row equal to the first ([`BakedClip::closes`] is false); a loop of whole frames ends on its
+/// seam.
 ///
 /// # Errors
 /// As [`frame_grid`].
 pub fn clip_frame_grid(start: f64, end: f64, rate: ClipRate, looping: bool) -> Result<(TrackTimes, f64), InputError> {
     match rate {
-        ClipRate::Exact(hz) if !looping => Ok((frame_grid(start, end, hz)?, hz)),
-        ClipRate::Fit(hz) | ClipRate::Exact(hz) => fitted_frame_grid(start, end, hz),
+        ClipRate::Exact(hz) => {
+            let frames = (end - start) * hz;
+            let whole = frames.round();
+            if !looping || whole < 1.0 || (frames - whole).abs() > END_TOLERANCE_FRAMES {
+                return Ok((frame_grid(start, end, hz)?, hz));
+            }
+            // Counted as Sampling::Rate counts, so a hostile span meets the same limits.
+            frame_grid(start, start + whole / hz, hz)?;
+            Ok((TrackTimes::Uniform { start, step: 1.0 / hz, count: whole as usize + 1, last: Some(end) }, hz))
+        }
+        ClipRate::Fit(hz) => fitted_frame_grid(start, end, hz),
     }
 }
 

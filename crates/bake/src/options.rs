@@ -26,8 +26,9 @@ pub struct BakeOptions {
     /// last keys (the clip's own rate is in the sidecar).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.rate, allow_negative_numbers = true))]
     pub rate: f64,
-    /// Bake open clips at exactly the rate: frames start + i / rate while not past the last key,
-    /// so a clip's end off that grid is not baked (the summary warns how much). Loops always fit.
+    /// Bake every clip at exactly the rate: frames start + i / rate while not past the last key,
+    /// so a clip's end off that grid is not baked (the summary warns how much); a loop's frames
+    /// stay on its looping curve.
     #[cfg_attr(feature = "cli", arg(long))]
     pub exact_rate: bool,
     /// Curve family for every channel; by default each channel as its source plays it (glTF's

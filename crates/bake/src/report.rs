@@ -139,12 +139,18 @@ pub(super) fn unbaked_ends(animation: &Animation, baked: &Baked) -> Vec<String> 
         .clips
         .iter()
         .zip(&baked.clips)
-        .filter(|(_, b)| b.unbaked_end() * b.rate > 1e-6)
+        .filter(|(_, b)| b.unbaked_end() * b.rate > super::UNBAKED_FRAMES)
         .map(|(clip, b)| {
             let last = b.times[b.times.len() - 1];
+            let looping = if b.looping {
+                "; a loop, its frames on its looping curve, but its last frame is not its seam, so players hold \
+                 its end (the sidecar's loop is false)"
+            } else {
+                ""
+            };
             format!(
                 "clip '{}': at exactly {} Hz the last frame is at {} s, so the last {} s before its last key at {} \
-                    s are not baked (fit the rate to keep them)",
+                    s are not baked (fit the rate to keep them){looping}",
                 clip.name,
                 number(b.rate),
                 number(last),

@@ -150,7 +150,7 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
             position.push(p);
             headings.push(h);
         }
-        let looping = baked.clips[c].looping && frames > 1;
+        let looping = baked.clips[c].closes() && frames > 1;
         let per_cycle = looping.then(|| Cycle {
             displacement: [position[frames - 1][0] - position[0][0], position[frames - 1][1] - position[0][1]],
             turn: headings[frames - 1] - headings[0],

@@ -175,6 +175,34 @@ fn clips_bake_from_first_to_last_key_unless_an_exact_rate_is_asked_for() {
         );
         assert_eq!(warned, exact, "{message}");
     }
+    // Loops too: every clip of RobotExpressive at exactly 30 Hz (fitting gave 29.65-30.32 Hz),
+    // a loop of whole frames ending on its seam, another (Jump: 0.7083 s, 21.25 frames) with
+    // its last frame not its seam, and said so.
+    if let Some(data) = data_dir() {
+        let robot = dir.path().join("robot");
+        let input = data.join("RobotExpressive.glb");
+        let args = ["--input", input.to_str().unwrap(), "--output", robot.to_str().unwrap(), "--rate", "30"];
+        let result = bake(&[&args[..], &["--exact-rate"]].concat());
+        assert!(result.status.success(), "{}", stderr(&result));
+        let sidecar = json(&robot.join("RobotExpressive.json"));
+        let clips = sidecar["clips"].as_array().unwrap();
+        assert!(clips.iter().all(|c| c["rate"] == 30.0), "{clips:?}");
+        let clip = |name: &str| clips.iter().find(|c| c["name"] == name).unwrap();
+        assert_eq!(
+            (&clip("Idle")["frames"], &clip("Idle")["loop"]),
+            (&serde_json::json!(101), &serde_json::json!(true))
+        );
+        assert_eq!(
+            (&clip("Jump")["frames"], &clip("Jump")["loop"]),
+            (&serde_json::json!(22), &serde_json::json!(false))
+        );
+        assert!(
+            stderr(&result).contains("clip 'Jump': at exactly 30 Hz the last frame is at 0.7 s"),
+            "{}",
+            stderr(&result)
+        );
+        assert!(stderr(&result).contains("a loop, its frames on its looping curve, but its last frame is not its seam"));
+    }
     // CesiumMan's walk (2 s) at 30 Hz ends on its last key.
     let Some(data) = data_dir() else { return };
     let result = bake(&[
