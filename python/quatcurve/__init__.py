@@ -14,13 +14,11 @@ body frame (``omega = 2 vec(q^-1 q')``), rad/s and rad/s^2.
 (61, 4)
 """
 
-from __future__ import annotations
+import json as _json
+import math as _math
+import os as _os
 
-import json
-import math
-import os
-
-import numpy as np
+import numpy as _np
 
 from ._quatcurve import (
     BAKE_OPTIONS as _BAKE_OPTIONS,
@@ -29,34 +27,47 @@ from ._quatcurve import (
     EVAL_OPTIONS as _EVAL_OPTIONS,
     FIT_OPTIONS as _FIT_OPTIONS,
     __version__,
-    bake_files,
-    decode_container,
-    evaluate_tracks,
-    fit_files,
-    resample_pose_arrays,
+    bake_files as _bake_files,
+    decode_container as _decode_container,
+    evaluate_tracks as _evaluate_tracks,
+    fit_files as _fit_files,
+    resample_pose_arrays as _resample_pose_arrays,
 )
 
-__all__ = ["evaluate", "bake", "fit", "decode", "resample_poses", "Curve", "EVAL_OPTIONS", "BAKE_OPTIONS", "FIT_OPTIONS", "__version__"]
+__all__ = [
+    "evaluate",
+    "bake",
+    "fit",
+    "decode",
+    "resample_poses",
+    "Curve",
+    "EVAL_OPTIONS",
+    "BAKE_OPTIONS",
+    "FIT_OPTIONS",
+    "DEFAULT_CURVE",
+    "DEFAULT_RATE",
+    "__version__",
+]
 
 # Each job's options by name with the library's defaults (what :func:`evaluate`, :func:`bake`
 # and :func:`fit` take as keywords).
-EVAL_OPTIONS = json.loads(_EVAL_OPTIONS)
-BAKE_OPTIONS = json.loads(_BAKE_OPTIONS)
-FIT_OPTIONS = json.loads(_FIT_OPTIONS)
+EVAL_OPTIONS = _json.loads(_EVAL_OPTIONS)
+BAKE_OPTIONS = _json.loads(_BAKE_OPTIONS)
+FIT_OPTIONS = _json.loads(_FIT_OPTIONS)
 
 
 def _float64(name, value, ndims):
     """`value` as a C-contiguous float64 array of one of the ranks in `ndims`."""
     try:
-        array = np.asarray(value)
+        array = _np.asarray(value)
     except Exception as e:  # ragged lists
         raise ValueError(f"{name} must be a rectangular array of numbers: {e}") from None
-    if array.dtype == object or not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+    if array.dtype == object or not (_np.issubdtype(array.dtype, _np.floating) or _np.issubdtype(array.dtype, _np.integer)):
         raise ValueError(f"{name} must hold real numbers (float or int), got dtype {array.dtype}")
     if array.ndim not in ndims:
         shapes = " or ".join(f"{n} dimensions" for n in ndims)
         raise ValueError(f"{name} must have {shapes}, got shape {array.shape}")
-    return np.ascontiguousarray(array, dtype=np.float64)
+    return _np.ascontiguousarray(array, dtype=_np.float64)
 
 
 # Floats per rotation, and the trailing shape of one, for each way of writing rotations.
@@ -95,7 +106,7 @@ def _rotations(name, value, rotation_type, ranks):
     if array.shape[len(lead):] != trailing or len(lead) not in ranks:
         want = " or ".join(f"({', '.join(['n'] * r + [str(t) for t in trailing])})" for r in ranks)
         raise ValueError(f"{name} as {rotation_type} must have shape {want}, got {array.shape}")
-    return np.ascontiguousarray(array.reshape(-1, width)), lead, rotation_type
+    return _np.ascontiguousarray(array.reshape(-1, width)), lead, rotation_type
 
 
 def evaluate(
@@ -177,21 +188,21 @@ def evaluate(
     if output not in _WIDTHS:
         raise ValueError(f"output must be quat, rotvec or matrix, got {output!r}")
     ragged = isinstance(rotations, (list, tuple)) and len(rotations) > 0 and all(
-        isinstance(r, np.ndarray) or hasattr(r, "as_quat") for r in rotations
+        isinstance(r, _np.ndarray) or hasattr(r, "as_quat") for r in rotations
     )
     if ragged:
         parts = [_rotations(f"rotations[{i}]", r, rotation_type, (1,)) for i, r in enumerate(rotations)]
         if len({p[2] for p in parts}) > 1:
             raise ValueError("every track of a list must write its rotations the same way")
         counts = [p[1][0] for p in parts]
-        flat, kind, single = np.concatenate([p[0] for p in parts]), parts[0][2], False
+        flat, kind, single = _np.concatenate([p[0] for p in parts]), parts[0][2], False
     else:
         flat, lead, kind = _rotations("rotations", rotations, rotation_type, (1, 2))
         single = len(lead) == 1
         tracks, keys = (1, lead[0]) if single else lead
         counts = [keys] * tracks
     tracks = len(counts)
-    key_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    key_offsets = _np.concatenate([[0], _np.cumsum(counts)]).astype(_np.int64)
 
     def per_key(name, value, width):
         """Per-key values of every track, flat: shared, per track, or (ragged) a list."""
@@ -204,11 +215,11 @@ def evaluate(
             for i, (a, n) in enumerate(zip(arrays, counts)):
                 if a.shape[0] != n or (width is not None and a.shape[1] != width):
                     raise ValueError(f"{name}[{i}] must have {n} entries of track {i}'s {n} keys, got shape {a.shape}")
-            return np.ascontiguousarray(np.concatenate(arrays))
+            return _np.ascontiguousarray(_np.concatenate(arrays))
         ndim = 1 if width is None else 2
         a = _float64(name, value, (ndim, ndim + 1))
         if a.ndim == ndim:
-            a = np.broadcast_to(a, (tracks,) + a.shape)
+            a = _np.broadcast_to(a, (tracks,) + a.shape)
         keys = counts[0]
         if a.shape[0] != tracks or a.shape[1] != keys or (width is not None and a.shape[2] != width):
             tail = "" if width is None else f", {width}"
@@ -216,14 +227,14 @@ def evaluate(
                 f"{name} must have shape ({keys}{tail}) or ({tracks}, {keys}{tail}) for {tracks} track(s) of "
                 f"{keys} keys, got {np.shape(value)}"
             )
-        return np.ascontiguousarray(a.reshape((-1,) if width is None else (-1, width)))
+        return _np.ascontiguousarray(a.reshape((-1,) if width is None else (-1, width)))
 
     t = per_key("times", times, None)
     w = per_key("angular_velocities", angular_velocities, 3)
     s = s_offsets = None
     if sample_times is not None:
         if ragged and isinstance(sample_times, (list, tuple)) and len(sample_times) == tracks and all(
-            np.ndim(v) == 1 for v in sample_times
+            _np.ndim(v) == 1 for v in sample_times
         ):
             lists = [_float64(f"sample_times[{i}]", v, (1,)) for i, v in enumerate(sample_times)]
         else:
@@ -231,8 +242,8 @@ def evaluate(
             if shared.ndim == 2 and shared.shape[0] != tracks:
                 raise ValueError(f"sample_times must have shape (m,) or ({tracks}, m), got {shared.shape}")
             lists = list(shared) if shared.ndim == 2 else [shared] * tracks
-        s = np.ascontiguousarray(np.concatenate(lists)) if lists else np.zeros(0)
-        s_offsets = np.concatenate([[0], np.cumsum([len(v) for v in lists])]).astype(np.int64)
+        s = _np.ascontiguousarray(_np.concatenate(lists)) if lists else _np.zeros(0)
+        s_offsets = _np.concatenate([[0], _np.cumsum([len(v) for v in lists])]).astype(_np.int64)
     elif options.get("rate") is None and options.get("samples") is None:
         raise ValueError("give sample_times, samples=N or rate=HZ")
     samples = options.get("samples")
@@ -241,7 +252,7 @@ def evaluate(
             raise ValueError(f"samples must be a positive integer, got {samples}")
         options["samples"] = int(samples)
     derivatives = bool(options.get("derivatives", EVAL_OPTIONS["derivatives"]))
-    data, offsets = evaluate_tracks(flat, kind, key_offsets, t, s, s_offsets, w, str(output), not ragged, _named(options))
+    data, offsets = _evaluate_tracks(flat, kind, key_offsets, t, s, s_offsets, w, str(output), not ragged, _named(options))
     width, trailing = _WIDTHS[output]
 
     def shaped(block):
@@ -298,8 +309,8 @@ class Curve:
         if isinstance(order, bool) or order not in (0, 1, 2):
             raise ValueError(f"order must be 0, 1 or 2, got {order!r}")
         order = int(order)
-        scalar = np.ndim(t) == 0
-        samples = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        scalar = _np.ndim(t) == 0
+        samples = _np.atleast_1d(_np.asarray(t, dtype=_np.float64))
         result = evaluate(self.rotations, self.times, samples, curve=self.curve, derivatives=order > 0, **self.options)
         value = result if order == 0 else result[order]
         return value[0] if scalar else value
@@ -310,13 +321,13 @@ def _named(options):
     Python's; NaN and infinities, which JSON has no word for, refused here)."""
     given = {}
     for name, value in options.items():
-        value = value.item() if isinstance(value, np.generic) else value
-        if isinstance(value, float) and not math.isfinite(value):
+        value = value.item() if isinstance(value, _np.generic) else value
+        if isinstance(value, float) and not _math.isfinite(value):
             raise ValueError(f"{name} must be a finite number, got {value!r}")
         if not (value is None or isinstance(value, (bool, int, float, str))):
             raise ValueError(f"{name}: {value!r} is not a number, a string, a bool or None")
         given[name] = value
-    return json.dumps(given)
+    return _json.dumps(given)
 
 
 def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, errors="raise", **options):
@@ -424,12 +435,12 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         raise ValueError(f"errors must be 'raise' or 'report', got {errors!r}")
     if inputs is None:
         inputs = []
-    elif isinstance(inputs, (str, os.PathLike)):
+    elif isinstance(inputs, (str, _os.PathLike)):
         inputs = [inputs]
-    paths = [os.fspath(p) for p in inputs]
+    paths = [_os.fspath(p) for p in inputs]
     if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 0:
         raise ValueError(f"jobs must be a non-negative integer, got {jobs!r}")
-    rows = bake_files(paths, os.fspath(output), _named(options), None if shard is None else str(shard), bool(resume), int(jobs))
+    rows = _bake_files(paths, _os.fspath(output), _named(options), None if shard is None else str(shard), bool(resume), int(jobs))
     failed = [row for row in rows if row["status"] == "failed"]
     if failed and errors == "raise":
         lines = "; ".join(f"{row['source']}: {row['error']}" for row in failed)
@@ -485,9 +496,9 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
     """
     if errors not in ("raise", "report"):
         raise ValueError(f"errors must be 'raise' or 'report', got {errors!r}")
-    if isinstance(inputs, (str, os.PathLike)):
+    if isinstance(inputs, (str, _os.PathLike)):
         inputs = [inputs]
-    report = json.loads(fit_files([os.fspath(p) for p in inputs], os.fspath(output), _named(options)))
+    report = _json.loads(_fit_files([_os.fspath(p) for p in inputs], _os.fspath(output), _named(options)))
     failed = [row for row in report["inputs"] if row["error"] is not None]
     if failed and errors == "raise":
         lines = "; ".join(f"{row['input']}: {row['error']}" for row in failed)
@@ -523,7 +534,7 @@ def decode(path, rate=None):
         The file cannot be read or is not a container of this version (the field and byte
         named), or a rate that is not positive.
     """
-    names, parents, clips = decode_container(os.fspath(path), None if rate is None else float(rate))
+    names, parents, clips = _decode_container(_os.fspath(path), None if rate is None else float(rate))
     joints = len(names)
     return {
         "joints": names,
@@ -576,5 +587,5 @@ def resample_poses(poses, rate, new_rate, trans=None, **options):
         raise TypeError(f"resample_poses() got options it does not take: {', '.join(unknown)} (it takes {', '.join(_POSE_OPTIONS)})")
     poses = _float64("poses", poses, (2,))
     trans = None if trans is None else _float64("trans", trans, (2,))
-    out, out_trans, out_rate, warnings = resample_pose_arrays(poses, trans, float(rate), _named({"rate": new_rate, **options}))
+    out, out_trans, out_rate, warnings = _resample_pose_arrays(poses, trans, float(rate), _named({"rate": new_rate, **options}))
     return {"poses": out, "trans": out_trans, "rate": out_rate, "warnings": warnings}

@@ -37,6 +37,14 @@ def angle(a, b):
     return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
 
 
+def test_the_namespace_is_what_the_docs_list():
+    """Every public name is in ``__all__`` (no ``np``, ``os`` or compiled helpers), and every
+    name there exists."""
+    public = {name for name in dir(quatcurve) if not name.startswith("_")}
+    assert public == set(quatcurve.__all__) - {"__version__"}
+    assert all(hasattr(quatcurve, name) for name in quatcurve.__all__)
+
+
 def test_slerp_matches_scipy():
     rng = np.random.default_rng(1)
     keys = random_keys(rng, 1, 6)[0]
