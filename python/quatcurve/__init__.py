@@ -550,7 +550,7 @@ def decode(path, rate=None):
 _POSE_OPTIONS = ("exact_rate", "curve", "order", "knots", "tangents", "blend", "loop", "device")
 
 
-def resample_poses(poses, rate, new_rate, trans=None, **options):
+def resample_poses(poses, rate, new_rate, trans=None, per_frame=None, **options):
     """Resamples SMPL-family poses at a new rate in memory, by the rules of :func:`bake`
     (DESIGN section 5b; docs/DATASETS.md): what replaces a dataset pipeline's
     ``poses[::stride]``.
@@ -567,6 +567,9 @@ def resample_poses(poses, rate, new_rate, trans=None, **options):
         or exactly with ``exact_rate=True`` (frames ``k / new_rate``).
     trans : array_like, optional
         ``[frames, 3]``: the root's translation, resampled with the poses.
+    per_frame : dict of array_like, optional
+        Other arrays of ``frames`` rows by name (``dmpls``, ``marker_data``, ...), each
+        resampled linearly at the new times, as a bake of the archive writes them.
     exact_rate, curve, order, knots, tangents, blend, loop, device
         As :func:`bake`; the curve is slerp unless asked otherwise.
 
@@ -574,7 +577,9 @@ def resample_poses(poses, rate, new_rate, trans=None, **options):
     -------
     dict
         ``poses`` ``[new frames, joints * 3]`` (angles in ``[0, pi]``), ``trans``
-        ``[new frames, 3]`` or None, ``rate`` (the frames' rate) and ``warnings``.
+        ``[new frames, 3]`` or None, ``per_frame`` (each array given, at the new frames),
+        ``rate`` (the frames' rate) and ``warnings``. With the default curve (the frames
+        slerped) everything is computed in float64, as scipy's ``Slerp`` and ``np.interp``.
 
     Raises
     ------
@@ -587,5 +592,12 @@ def resample_poses(poses, rate, new_rate, trans=None, **options):
         raise TypeError(f"resample_poses() got options it does not take: {', '.join(unknown)} (it takes {', '.join(_POSE_OPTIONS)})")
     poses = _float64("poses", poses, (2,))
     trans = None if trans is None else _float64("trans", trans, (2,))
-    out, out_trans, out_rate, warnings = _resample_pose_arrays(poses, trans, float(rate), _named({"rate": new_rate, **options}))
-    return {"poses": out, "trans": out_trans, "rate": out_rate, "warnings": warnings}
+    arrays = []
+    for name, values in (per_frame or {}).items():
+        values = _np.ascontiguousarray(values, dtype=_np.float64)
+        arrays.append((str(name), list(values.shape), values.ravel()))
+    out, out_trans, out_fields, out_rate, warnings = _resample_pose_arrays(
+        poses, trans, arrays, float(rate), _named({"rate": new_rate, **options})
+    )
+    fields = {name: values.reshape(shape) for name, values, shape in out_fields}
+    return {"poses": out, "trans": out_trans, "per_frame": fields, "rate": out_rate, "warnings": warnings}

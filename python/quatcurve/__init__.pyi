@@ -144,6 +144,7 @@ def decode(path: str | os.PathLike[str], rate: float | None = None) -> Decoded: 
 class ResampledPoses(TypedDict):
     poses: npt.NDArray[np.float64]
     trans: npt.NDArray[np.float64] | None
+    per_frame: dict[str, npt.NDArray[np.float64]]
     rate: float
     warnings: list[str]
 
@@ -152,6 +153,7 @@ def resample_poses(
     rate: float,
     new_rate: float,
     trans: npt.ArrayLike | None = None,
+    per_frame: dict[str, npt.ArrayLike] | None = None,
     *,
     exact_rate: bool = False,
     curve: CurveName | None = None,

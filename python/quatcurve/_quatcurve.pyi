@@ -41,9 +41,16 @@ def fit_files(
 def resample_pose_arrays(
     poses: npt.NDArray[np.float64],
     trans: npt.NDArray[np.float64] | None,
+    per_frame: list[tuple[str, list[int], npt.NDArray[np.float64]]],
     rate: float,
     options: str,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None, float, list[str]]: ...
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64] | None,
+    list[tuple[str, npt.NDArray[np.float64], list[int]]],
+    float,
+    list[str],
+]: ...
 
 def decode_container(
     path: str,

@@ -353,29 +353,43 @@ fn bake_files<'py>(
         .collect()
 }
 
-/// SMPL-family poses `[frames, joints * 3]` (axis-angle) and optionally the root's `trans`
-/// `[frames, 3]` at `rate` frames per second, resampled by the library's bake options by name
-/// (`options`: `rate` the new rate, `exact_rate`, the curve's, `loop`, `device`), with the GIL
-/// released. Returns the poses, the translation (or `None`), the rate of the frames and the
-/// warnings a bake would give. See `quatcurve.resample_poses`.
+/// SMPL-family poses `[frames, joints * 3]` (axis-angle), optionally the root's `trans`
+/// `[frames, 3]` and other per-frame arrays (`per_frame`: name, shape, values flattened) at
+/// `rate` frames per second, resampled by the library's bake options by name (`options`:
+/// `rate` the new rate, `exact_rate`, the curve's, `loop`, `device`), with the GIL released.
+/// Returns the poses, the translation (or `None`), the per-frame arrays (name, values
+/// flattened, shape), the rate of the frames and the warnings a bake would give. See
+/// `quatcurve.resample_poses`.
 #[pyfunction]
-#[pyo3(signature = (poses, trans, rate, options))]
+#[pyo3(signature = (poses, trans, per_frame, rate, options))]
 #[allow(clippy::type_complexity)]
 fn resample_pose_arrays<'py>(
     py: Python<'py>,
     poses: PyReadonlyArray2<'py, f64>,
     trans: Option<PyReadonlyArray2<'py, f64>>,
+    per_frame: Vec<(String, Vec<u64>, PyReadonlyArray1<'py, f64>)>,
     rate: f64,
     options: &str,
-) -> PyResult<(Bound<'py, PyAny>, Option<Bound<'py, PyAny>>, f64, Vec<String>)> {
+) -> PyResult<(
+    Bound<'py, PyAny>,
+    Option<Bound<'py, PyAny>>,
+    Vec<(String, Bound<'py, PyAny>, Vec<u64>)>,
+    f64,
+    Vec<String>,
+)> {
     let options: BakeOptions = named(options)?;
     let device = self::device(options.device)?;
     let width = poses.shape()[1];
+    let per_frame = per_frame
+        .into_iter()
+        .map(|(name, shape, values)| Ok((name, shape, values.as_slice().map_err(value_error)?.to_vec())))
+        .collect::<PyResult<Vec<_>>>()?;
     let file = SmplFile::from_arrays(
         poses.as_slice().map_err(value_error)?,
         width,
         trans.as_ref().map(|t| t.as_slice()).transpose().map_err(value_error)?,
         rate,
+        &per_frame,
     )
     .map_err(value_error)?;
     let (resampled, warnings) = py.detach(|| poses::resample(file, &options, device)).map_err(value_error)?;
@@ -383,7 +397,12 @@ fn resample_pose_arrays<'py>(
     let poses = PyArray1::from_vec(py, resampled.poses).reshape([frames, width])?.into_any();
     let trans =
         resampled.trans.map(|t| PyArray1::from_vec(py, t).reshape([frames, 3]).map(Bound::into_any)).transpose()?;
-    Ok((poses, trans, resampled.rate, warnings))
+    let per_frame = resampled
+        .per_frame
+        .into_iter()
+        .map(|(name, shape, values)| (name, PyArray1::from_vec(py, values).into_any(), shape))
+        .collect();
+    Ok((poses, trans, per_frame, resampled.rate, warnings))
 }
 
 /// One clip's rate chosen by an error budget, as a dictionary: `clip, rate, frames, rotation`

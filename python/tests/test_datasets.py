@@ -2,14 +2,16 @@
 in and out as scipy's Rotation writes them, tracks of their own lengths in one batch, and
 SMPL-family pose archives (AMASS's layout) resampled at exact times as scipy's Slerp does."""
 
+import pathlib
 import pickle
+import tempfile
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 import quatcurve
-from test_quatcurve import angle, random_keys
+from test_quatcurve import angle, data_files, random_keys
 
 
 def test_curves_pickle_and_give_the_same_bits_after():
@@ -138,12 +140,14 @@ def test_smpl_archives_bake_into_their_own_layout_at_exact_times_as_scipy_slerps
         assert list(baked.keys()) == list(source.keys())
         new_times = np.arange(41) / 25.0  # 1.6 s at exactly 25 Hz
         assert baked["poses"].shape == (41, width) and float(baked["mocap_framerate"]) == 25.0
+        # float64 in, float64 out, computed in float64: scipy's Slerp to 1e-12 rad.
+        assert baked["poses"].dtype == np.float64 and baked["trans"].dtype == np.float64
         for j, expected in enumerate(slerp_each_joint(poses, 60.0, new_times)):
             got = Rotation.from_rotvec(baked["poses"][:, 3 * j:3 * j + 3])
-            assert (expected.inv() * got).magnitude().max() < 1e-6, j
+            assert (expected.inv() * got).magnitude().max() < 1e-12, j
         assert np.linalg.norm(baked["poses"].reshape(-1, 3), axis=1).max() <= np.pi + 1e-9  # angles in [0, pi]
         lerped = np.stack([np.interp(new_times, np.arange(97) / 60, trans[:, c]) for c in range(3)], axis=1)
-        np.testing.assert_allclose(baked["trans"], lerped, atol=1e-6)
+        np.testing.assert_allclose(baked["trans"], lerped, rtol=0, atol=1e-12 * np.abs(trans).max())
         np.testing.assert_array_equal(baked["betas"], source["betas"])
         assert str(baked["gender"]) == "female"
 
@@ -155,16 +159,63 @@ def test_resample_poses_in_memory_is_the_bake_of_the_same_arrays(tmp_path):
     strided = poses[::6]
     out = quatcurve.resample_poses(poses, 120.0, 20.0, trans=trans, exact_rate=True, device="cpu")
     assert out["poses"].shape == strided.shape and out["rate"] == 20.0 and out["warnings"] == []
-    same = Rotation.from_rotvec(out["poses"].reshape(-1, 3)).inv() * Rotation.from_rotvec(strided.reshape(-1, 3))
-    assert same.magnitude().max() < 1e-6
+    # An integer ratio gives the source's own frames, bit for bit.
+    np.testing.assert_array_equal(out["poses"], strided)
+    np.testing.assert_array_equal(out["trans"], trans[::6])
     # Between frames (120 -> 50 Hz) as scipy's Slerp, and as the bake of the archive writes.
     out = quatcurve.resample_poses(poses, 120.0, 50.0, trans=trans, exact_rate=True, device="cpu")
     for j, expected in enumerate(slerp_each_joint(poses, 120.0, np.arange(51) / 50.0)):
-        assert (expected.inv() * Rotation.from_rotvec(out["poses"][:, 3 * j:3 * j + 3])).magnitude().max() < 1e-6, j
+        assert (expected.inv() * Rotation.from_rotvec(out["poses"][:, 3 * j:3 * j + 3])).magnitude().max() < 1e-12, j
     quatcurve.bake(tmp_path / "run.npz", tmp_path / "out", rate=50.0, exact_rate=True, device="cpu")
     with np.load(tmp_path / "out" / "run.npz") as baked:
         np.testing.assert_array_equal(baked["poses"], out["poses"])
         np.testing.assert_array_equal(baked["trans"], out["trans"])
+    # Other per-frame arrays, given by name, at the new frames as np.interp puts them.
+    dmpls, markers = rng.normal(size=(121, 8)), rng.normal(size=(121, 5, 3))
+    out = quatcurve.resample_poses(poses, 120.0, 50.0, per_frame={"dmpls": dmpls, "marker_data": markers}, exact_rate=True)
+    assert out["per_frame"]["dmpls"].shape == (51, 8) and out["per_frame"]["marker_data"].shape == (51, 5, 3)
+    new_times, times = np.arange(51) / 50.0, np.arange(121) / 120.0
+    expected = np.stack([np.interp(new_times, times, markers.reshape(121, -1)[:, c]) for c in range(15)], axis=1)
+    np.testing.assert_allclose(out["per_frame"]["marker_data"].reshape(51, -1), expected, rtol=0, atol=1e-12 * np.abs(markers).max())
+    with pytest.raises(ValueError, match=r"marker_data: shape \[120, 5, 3\]; expected \[121, ...\]"):
+        quatcurve.resample_poses(poses, 120.0, 50.0, per_frame={"marker_data": markers[:120]})
+
+
+def test_amass_s_own_sample_resamples_whole_in_float64():
+    """AMASS's sample archive (601 frames at 120 Hz, float64, marker_data with occluded NaNs,
+    dmpls): every per-frame array at the new frames, the source's own at an integer ratio, and
+    between frames as scipy's Slerp and np.interp compute them, to 1e-12."""
+    (path,) = data_files("amass_sample.npz")
+    with np.load(path) as source:
+        source = {k: source[k] for k in source.files}
+    times = np.arange(601) / 120.0
+    for rate, stride in [(30.0, 4), (50.0, None)]:
+        out = pathlib.Path(tempfile.mkdtemp()) / "out"
+        rows = quatcurve.bake(path, out, rate=rate, exact_rate=True, device="cpu")
+        assert rows[0]["status"] == "ok" and rows[0]["warnings"] == [], rows
+        with np.load(out / "amass_sample.npz") as baked:
+            assert list(baked.keys()) == list(source.keys())
+            new_times = np.arange(len(baked["poses"])) / rate
+            assert baked["poses"].shape == (int(5 * rate) + 1, 156) and baked["marker_data"].shape == (len(new_times), 85, 3)
+            per_frame = ["poses", "trans", "dmpls", "marker_data"]
+            assert all(baked[k].dtype == np.float64 for k in per_frame)
+            if stride:
+                for k in per_frame:
+                    np.testing.assert_array_equal(baked[k], source[k][::stride], err_msg=k)
+            for j, expected in enumerate(slerp_each_joint(source["poses"], 120.0, new_times)):
+                got = Rotation.from_rotvec(baked["poses"][:, 3 * j:3 * j + 3])
+                assert (expected.inv() * got).magnitude().max() < 1e-12, (rate, j)
+            for k in ["trans", "dmpls", "marker_data"]:
+                flat = source[k].reshape(601, -1)
+                expected = np.stack([np.interp(new_times, times, flat[:, c]) for c in range(flat.shape[1])], axis=1)
+                got = baked[k].reshape(len(new_times), -1)
+                # np.interp at a source frame beside a NaN gives NaN; the source's own frame is kept.
+                both = ~np.isnan(expected)
+                largest = np.nanmax(np.abs(flat))  # 1e-12 of the field's largest value
+                np.testing.assert_allclose(got[both], expected[both], rtol=0, atol=1e-12 * largest, err_msg=f"{rate} Hz {k}")
+                assert np.isnan(got).sum() <= np.isnan(expected).sum()
+            np.testing.assert_array_equal(baked["marker_labels"], source["marker_labels"])
+            np.testing.assert_array_equal(baked["betas"], source["betas"])
 
 
 def test_bad_pose_arrays_are_refused_by_name():

@@ -216,9 +216,6 @@ pub struct SmplFile {
     pub poses: Vec<f64>,
     /// `trans` `[frames, 3]`, where the file has it.
     pub trans: Option<Vec<f64>>,
-    /// What was read but may not be what the file meant (arrays of the source's frame count
-    /// that are copied unchanged), for the bake's summary.
-    pub warnings: Vec<String>,
     /// Every array in the archive's order.
     members: Vec<Member>,
 }
@@ -317,7 +314,6 @@ fn parse(raw: Vec<(String, Vec<u8>, bool)>) -> Result<SmplFile, InputError> {
         check_duration(scalar(DURATION_FIELD, bytes)?, rate, rate_field, frames)?;
     }
     let parts = family.parts();
-    let mut warnings = Vec::new();
     let mut members = Vec::with_capacity(raw.len());
     for (name, bytes, deflated) in &raw {
         // Only the header: an array that is only copied may be an object array (numpy saves a
@@ -341,17 +337,26 @@ fn parse(raw: Vec<(String, Vec<u8>, bool)>) -> Result<SmplFile, InputError> {
             }
             finite(name, &values.data, values.data.len() / frames, |_| "its".into())?;
             Stored::Linear(values)
-        } else {
-            if leading == Some(frames as u64) && frames > 1 && !SEQUENCE_FIELDS.contains(&name.as_str()) {
-                warnings.push(format!(
-                    "{name} has the source's {frames} rows and is not a field quatcurve resamples; it is copied unchanged"
+        } else if leading == Some(frames as u64) && frames > 1 && !SEQUENCE_FIELDS.contains(&name.as_str()) {
+            // Any other array of the source's frame count (AMASS's marker_data) is per-frame:
+            // resampled linearly as it is (a NaN, an occluded marker, stays one), never left
+            // at the old count.
+            if !matches!(file.dtype(), DType::Plain(ty) if ty.type_char() == TypeChar::Float) {
+                return Err(bad(
+                    name,
+                    format!(
+                        "has the source's {frames} rows but is not an array of floats, which quatcurve resamples \
+                         linearly; save the archive without it or as floats"
+                    ),
                 ));
             }
+            Stored::Linear(floats(name, bytes)?)
+        } else {
             Stored::Copied(bytes.clone())
         };
         members.push(Member { name: name.clone(), stored, element, deflated: *deflated });
     }
-    Ok(SmplFile { family, rate, rate_field, poses: poses.data, trans, warnings, members })
+    Ok(SmplFile { family, rate, rate_field, poses: poses.data, trans, members })
 }
 
 /// `bytes` as a `.npy` array to read, refusing object arrays (which numpy pickles).
@@ -509,10 +514,16 @@ impl SmplFile {
     }
 
     /// `poses` and `trans` at the baked frames (channels in [`SmplFile::animation`]'s
-    /// order): axis-angles with angles in `[0, pi]`, and the root's translation.
+    /// order): axis-angles with angles in `[0, pi]`, and the root's translation. With
+    /// `slerped` (the bake took the source's own interpolation) they are computed here in f64
+    /// from the source's frames ([`Self::slerped`]) at the baked times; otherwise they are the
+    /// baked (f32) values.
     #[must_use]
-    pub fn resampled(&self, baked: &ClipFrames<'_>) -> Resampled {
+    pub fn resampled(&self, baked: &ClipFrames<'_>, slerped: bool) -> Resampled {
         let joints = self.family.joint_count();
+        if slerped {
+            return self.slerped(baked.times, baked.rate);
+        }
         let poses = (0..baked.times.len())
             .flat_map(|f| (0..joints).map(move |j| (f, j)))
             .flat_map(|(f, j)| to_axis_angle(QuatF64::from_array(baked.values[j][f].map(f64::from))))
@@ -521,7 +532,51 @@ impl SmplFile {
             .trans
             .as_ref()
             .map(|_| baked.values[joints].iter().flat_map(|t| t[..3].iter().map(|&x| f64::from(x))).collect());
-        Resampled { poses, trans, rate: baked.rate, frames: baked.times.len() }
+        let per_frame = self.per_frame(baked.times);
+        Resampled { poses, trans, per_frame, rate: baked.rate, frames: baked.times.len() }
+    }
+
+    /// Every per-frame array other than `poses` and `trans` at `times`, linearly.
+    fn per_frame(&self, times: &[f64]) -> Vec<(String, Vec<u64>, Vec<f64>)> {
+        let linear = self.members.iter().filter_map(|m| match &m.stored {
+            Stored::Linear(values) => Some((&m.name, values)),
+            _ => None,
+        });
+        linear
+            .map(|(name, values)| {
+                let width = values.data.len() / (values.shape[0] as usize).max(1);
+                let mut shape = values.shape.clone();
+                shape[0] = times.len() as u64;
+                (name.clone(), shape, lerped(&values.data, width, self.rate, times))
+            })
+            .collect()
+    }
+
+    /// `poses` and `trans` at `times` (seconds from the first frame; `rate`, theirs) in f64, as
+    /// scipy's `Slerp` and `np.interp` compute them: each joint slerped on the shorter arc
+    /// between the two source frames around the time, the translation lerped; at a source
+    /// frame, its own values exactly (an integer ratio gives the source's frames).
+    #[must_use]
+    pub fn slerped(&self, times: &[f64], rate: f64) -> Resampled {
+        let width = 3 * self.family.joint_count();
+        let frames = self.frames();
+        let mut poses = Vec::with_capacity(times.len() * width);
+        for &t in times {
+            let (r, h) = between(t * self.rate, frames);
+            let row = |r: usize| &self.poses[r * width..(r + 1) * width];
+            if h == 0.0 {
+                poses.extend_from_slice(row(r));
+                continue;
+            }
+            for (a, b) in row(r).chunks_exact(3).zip(row(r + 1).chunks_exact(3)) {
+                let (q0, q1) = (from_axis_angle([a[0], a[1], a[2]]), from_axis_angle([b[0], b[1], b[2]]));
+                let step = q0.conjugate() * q1;
+                let step = if step.w < 0.0 { -step } else { step };
+                poses.extend(to_axis_angle(q0 * QuatF64::exp(step.log().scale(h))));
+            }
+        }
+        let trans = self.trans.as_ref().map(|trans| lerped(trans, 3, self.rate, times));
+        Resampled { poses, trans, per_frame: self.per_frame(times), rate, frames: times.len() }
     }
 
     /// The archive at the baked rate: every member in the read order, poses and the fields
@@ -530,8 +585,8 @@ impl SmplFile {
     ///
     /// # Errors
     /// [`InputError::Output`] if the archive cannot be assembled.
-    pub fn to_npz(&self, baked: &ClipFrames<'_>) -> Result<Vec<u8>, InputError> {
-        let resampled = self.resampled(baked);
+    pub fn to_npz(&self, baked: &ClipFrames<'_>, slerped: bool) -> Result<Vec<u8>, InputError> {
+        let resampled = self.resampled(baked, slerped);
         let frames = resampled.frames as u64;
         let width = 3 * self.family.joint_count();
         let columns = |joints: &Range<usize>| -> Vec<f64> {
@@ -546,9 +601,13 @@ impl SmplFile {
                 Stored::Poses => npy(member.element, &[frames, width as u64], &resampled.poses),
                 Stored::Part(joints) => npy(member.element, &[frames, 3 * joints.len() as u64], &columns(joints)),
                 Stored::Trans => npy(member.element, &[frames, 3], resampled.trans.as_deref().unwrap_or_default()),
-                Stored::Linear(values) => {
-                    let (shape, data) = linear(values, self.rate, baked.times);
-                    npy(member.element, &shape, &data)
+                Stored::Linear(_) => {
+                    let (_, shape, values) = resampled
+                        .per_frame
+                        .iter()
+                        .find(|(name, ..)| *name == member.name)
+                        .expect("every per-frame member is resampled");
+                    npy(member.element, shape, values)
                 }
             };
             let method =
@@ -567,11 +626,18 @@ impl SmplFile {
     }
 
     /// A file of arrays given in memory: `poses` `[frames, width]` (row-major), `trans`
-    /// `[frames, 3]` if given, `rate` frames per second; read by the rules of [`read`].
+    /// `[frames, 3]` if given, `rate` frames per second, and `per_frame` arrays (name, shape,
+    /// values: `dmpls` and any other of `frames` rows); read by the rules of [`read`].
     ///
     /// # Errors
-    /// As [`read`], naming `poses`, `trans` or the rate (as `mocap_framerate`).
-    pub fn from_arrays(poses: &[f64], width: usize, trans: Option<&[f64]>, rate: f64) -> Result<SmplFile, InputError> {
+    /// As [`read`], naming `poses`, `trans`, the rate (as `mocap_framerate`) or the array.
+    pub fn from_arrays(
+        poses: &[f64],
+        width: usize,
+        trans: Option<&[f64]>,
+        rate: f64,
+        per_frame: &[(String, Vec<u64>, Vec<f64>)],
+    ) -> Result<SmplFile, InputError> {
         let frames = (poses.len() / width.max(1)) as u64;
         if poses.len() != frames as usize * width {
             return Err(bad("poses", format!("{} values do not fill rows of {width}", poses.len())));
@@ -584,6 +650,15 @@ impl SmplFile {
             raw.push(("trans".to_string(), npy(8, &[(trans.len() / 3) as u64, 3], trans), false));
         }
         raw.push((RATE_FIELDS[0].to_string(), npy(8, &[], &[rate]), false));
+        for (name, shape, values) in per_frame {
+            if ["poses", "trans", RATE_FIELDS[0]].contains(&name.as_str()) || raw.iter().any(|(n, ..)| n == name) {
+                return Err(bad(name, "is given twice"));
+            }
+            if shape.first() != Some(&frames) || shape.iter().product::<u64>() != values.len() as u64 {
+                return Err(bad(name, format!("shape {shape:?}; expected [{frames}, ...] to match poses")));
+            }
+            raw.push((name.clone(), npy(8, shape, values), false));
+        }
         parse(raw)
     }
 }
@@ -595,31 +670,48 @@ pub struct Resampled {
     pub poses: Vec<f64>,
     /// `[frames, 3]`, where the source had a translation.
     pub trans: Option<Vec<f64>>,
+    /// Every other per-frame array (`dmpls`, `marker_data`, ...), in the archive's order: its
+    /// name, its shape at the new frame count and its values, linearly at the new times.
+    pub per_frame: Vec<(String, Vec<u64>, Vec<f64>)>,
     /// Frames per second.
     pub rate: f64,
     /// Frames.
     pub frames: usize,
 }
 
-/// A `[frames, ...]` array at `times` (seconds from the first row, rows `1 / rate` apart),
-/// each value linearly between its two rows; the shape with the new frame count.
-fn linear(values: &Floats, rate: f64, times: &[f64]) -> (Vec<u64>, Vec<f64>) {
-    let rows = values.shape[0] as usize;
-    let width = values.data.len() / rows.max(1);
-    let row = |r: usize| &values.data[r * width..(r + 1) * width];
-    let data = times
-        .iter()
-        .flat_map(|&t| {
-            let at = (t * rate).clamp(0.0, (rows - 1) as f64);
-            let r = (at.floor() as usize).min(rows.saturating_sub(2));
-            let h = at - r as f64;
-            let next = (r + 1).min(rows - 1);
-            row(r).iter().zip(row(next)).map(move |(a, b)| a + h * (b - a)).collect::<Vec<_>>()
-        })
-        .collect();
-    let mut shape = values.shape.clone();
-    shape[0] = times.len() as u64;
-    (shape, data)
+/// Where `at` (a time in source frames) falls among `frames` frames: the frame at or before it
+/// and the fraction of the way to the next (0 at a frame: `at` within 1e-9 of a whole number
+/// is that frame, so that a time `k / rate` meant to land on a frame does), held at the ends.
+fn between(at: f64, frames: usize) -> (usize, f64) {
+    let last = frames.saturating_sub(1);
+    let at = if (at - at.round()).abs() <= FRAME_SNAP { at.round() } else { at };
+    let at = at.clamp(0.0, last as f64);
+    let r = (at.floor() as usize).min(last);
+    if r == last {
+        return (r, 0.0);
+    }
+    (r, at - r as f64)
+}
+
+/// A time this close to a whole number of source frames (in frames) is that frame.
+const FRAME_SNAP: f64 = 1e-9;
+
+/// Rows of `width` values (`[frames, ...]` flattened, rows `1 / rate` apart) at `times`
+/// (seconds from the first row), each value linearly between its two rows as `np.interp`
+/// computes it; at a row, the row exactly (NaNs and all).
+fn lerped(values: &[f64], width: usize, rate: f64, times: &[f64]) -> Vec<f64> {
+    let frames = values.len() / width.max(1);
+    let row = |r: usize| &values[r * width..(r + 1) * width];
+    let mut out = Vec::with_capacity(times.len() * width);
+    for &t in times {
+        let (r, h) = between(t * rate, frames);
+        if h == 0.0 {
+            out.extend_from_slice(row(r));
+        } else {
+            out.extend(row(r).iter().zip(row(r + 1)).map(|(a, b)| a + h * (b - a)));
+        }
+    }
+    out
 }
 
 /// A little-endian `.npy` of floats of `element` bytes (4 or 8).
@@ -691,10 +783,15 @@ mod tests {
     }
 
     #[test]
-    fn per_frame_coefficients_resample_linearly_and_hold_the_ends() {
-        let values = Floats { shape: vec![3, 2], data: vec![0.0, 10.0, 1.0, 20.0, 3.0, 40.0] };
-        let (shape, data) = linear(&values, 2.0, &[0.0, 0.25, 0.75, 1.0]);
-        assert_eq!(shape, vec![4, 2]);
-        assert_eq!(data, vec![0.0, 10.0, 0.5, 15.0, 2.0, 30.0, 3.0, 40.0]);
+    fn per_frame_arrays_resample_linearly_keep_their_frames_exactly_and_hold_the_ends() {
+        let values = [0.0, 10.0, 1.0, 20.0, 3.0, f64::NAN];
+        let data = lerped(&values, 2, 2.0, &[0.0, 0.25, 0.5, 0.75, 1.0, 1.5]);
+        assert_eq!(data[..7], [0.0, 10.0, 0.5, 15.0, 1.0, 20.0, 2.0]);
+        // At a frame, the frame (its neighbour's NaN does not leak in); beside a NaN, NaN; the end held.
+        assert!(data[7].is_nan() && data[8] == 3.0 && data[9].is_nan() && data[10] == 3.0);
+        // A time meant to land on a frame does, though k / rate * rate is not always k.
+        let third = 1.0 / 3.0;
+        assert_eq!(between(3.0 * third * 3.0, 10), (3, 0.0));
+        assert_eq!(between(0.1 * 30.0, 10), (3, 0.0));
     }
 }

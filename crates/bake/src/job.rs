@@ -8,6 +8,7 @@
 
 use super::babylon;
 use super::budget::{self, ChosenRate};
+use super::curves::CurveChoice;
 use super::image::Format;
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
 use super::options::BakeOptions;
@@ -410,9 +411,6 @@ impl BakeJob {
                 return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
             }
             report.warnings = super::source_step_warnings(animation);
-            if let Source::Smpl(file, _) = &src {
-                report.warnings.extend(file.warnings.iter().cloned());
-            }
             if src.has_offsets() {
                 report.rig = Some(super::report::rig_extent(animation)?);
             }
@@ -576,7 +574,10 @@ impl BakeJob {
             Source::Bvh(file, animation) => {
                 Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
             }
-            Source::Smpl(file, _) => Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0])?)),
+            Source::Smpl(file, _) => {
+                let slerped = self.options.choice(src) == CurveChoice::Source;
+                Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0], slerped)?))
+            }
             Source::Crowd(_) | Source::Fitted(_) => None,
         };
         let mesh_file = match vertex {

@@ -2,6 +2,7 @@
 //! `quatcurve.resample_poses`): the curve, the frame grid and the warnings of a bake of the
 //! same arrays as an archive, without files.
 
+use super::curves::CurveChoice;
 use super::options::BakeOptions;
 use super::report::unbaked_ends;
 use quatcurve_anim::error::InputError;
@@ -23,7 +24,6 @@ pub fn resample(
     let choice = options.choice_or(None);
     let baked = super::bake(&animation, &choice, options.clip_rate(), options.looping, device)?;
     let mut warnings = super::source_step_warnings(&animation);
-    warnings.extend(file.warnings.iter().cloned());
     warnings.extend(unbaked_ends(&animation, &baked));
-    Ok((file.resampled(&baked.frames()[0]), warnings))
+    Ok((file.resampled(&baked.frames()[0], choice == CurveChoice::Source), warnings))
 }

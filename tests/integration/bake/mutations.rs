@@ -346,7 +346,8 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             let animation = file.animation("clip");
             let spec = CurveChoice::Family(CurveSpec::new(Curve::Slerp));
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
-            file.to_npz(&baked.frames()[0])?;
+            file.to_npz(&baked.frames()[0], false)?;
+            file.to_npz(&baked.frames()[0], true)?;
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Npy => {
