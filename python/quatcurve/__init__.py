@@ -225,7 +225,7 @@ def evaluate(
             tail = "" if width is None else f", {width}"
             raise ValueError(
                 f"{name} must have shape ({keys}{tail}) or ({tracks}, {keys}{tail}) for {tracks} track(s) of "
-                f"{keys} keys, got {np.shape(value)}"
+                f"{keys} keys, got {_np.shape(value)}"
             )
         return _np.ascontiguousarray(a.reshape((-1,) if width is None else (-1, width)))
 
