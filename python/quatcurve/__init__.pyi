@@ -5,21 +5,6 @@ from typing import Any, Literal, Sequence, TypedDict, overload
 import numpy as np
 import numpy.typing as npt
 
-__all__ = [
-    "evaluate",
-    "bake",
-    "fit",
-    "decode",
-    "resample_poses",
-    "Curve",
-    "EVAL_OPTIONS",
-    "BAKE_OPTIONS",
-    "FIT_OPTIONS",
-    "DEFAULT_CURVE",
-    "DEFAULT_RATE",
-    "__version__",
-]
-
 __version__: str
 DEFAULT_CURVE: str
 DEFAULT_RATE: float
