@@ -485,6 +485,19 @@ impl SmplFile {
         self.poses.len() / (3 * self.family.joint_count())
     }
 
+    /// Every array of the archive, in its order, with what a bake writes of it: `resampled`
+    /// (poses by slerp, the rest linearly, at the new frames), `rate` (the new rate) or
+    /// `copied` (byte for byte).
+    #[must_use]
+    pub fn arrays(&self) -> Vec<(String, &'static str)> {
+        let written = |stored: &Stored| match stored {
+            Stored::Poses | Stored::Part(_) | Stored::Trans | Stored::Linear(_) => "resampled",
+            Stored::Rate => "rate",
+            Stored::Copied(_) => "copied",
+        };
+        self.members.iter().map(|m| (m.name.clone(), written(&m.stored))).collect()
+    }
+
     /// The common model: the family's joints at rest at their parents' origins, one clip
     /// (`clip_name`) with a rotation channel per joint and the root's translation from
     /// `trans`, keys at `k / rate`.

@@ -17,7 +17,7 @@ use super::outputs::Outputs;
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::root_motion::{self, RootMotion};
 use super::shard::Shard;
-use super::sidecar::{ConversionRecord, Sidecar, SidecarClip, SidecarOptions};
+use super::sidecar::{ArrayRecord, ConversionRecord, Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
@@ -625,6 +625,10 @@ impl BakeJob {
                 .map_err(InputError::Animation)?;
         if let Source::Fbx(file) = src {
             sidecar.conversion = Some(ConversionRecord::fbx(file));
+        }
+        if let Source::Smpl(file, _) = src {
+            let record = |(name, written): (String, &str)| ArrayRecord { name, written: written.to_string() };
+            sidecar.arrays = file.arrays().into_iter().map(record).collect();
         }
         sidecar.not_drawn = out.not_drawn.to_vec();
         let path = dir.join(format!("{stem}.json"));

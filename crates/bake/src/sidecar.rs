@@ -112,6 +112,10 @@ pub struct Sidecar {
     /// An input converted to glTF's space as it was read (FBX, DESIGN section 5h).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub conversion: Option<ConversionRecord>,
+    /// A pose archive's arrays (DESIGN section 5g), in its order, each with what the baked
+    /// archive holds of it: `resampled` at the new frames, `rate` (the new rate) or `copied`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub arrays: Vec<ArrayRecord>,
     /// Skin textures (`skin`, `skin-trs`): the baked glTF's primitives their matrices draw,
     /// skinned and rigid (a rigid part's `rigid` binding: its joint, weight 1, and the matrix
     /// into bind space), with whether each has `normals` and `texcoords` (a renderer binds
@@ -124,6 +128,16 @@ pub struct Sidecar {
     pub not_drawn: Vec<String>,
     /// The baked clips.
     pub clips: Vec<SidecarClip>,
+}
+
+/// One array of a pose archive and what the baked archive holds of it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ArrayRecord {
+    /// The array's name in the archive.
+    pub name: String,
+    /// `resampled`, `rate` or `copied`.
+    pub written: String,
 }
 
 /// How a vertex texture's files are read (DESIGN section 5d).
@@ -463,6 +477,7 @@ impl Sidecar {
                 })
                 .collect(),
             conversion: None,
+            arrays: Vec::new(),
             primitives: skinned.to_vec(),
             not_drawn: Vec::new(),
             babylon: (format == Format::Babylon).then(|| BabylonRecord {

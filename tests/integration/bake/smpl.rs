@@ -157,6 +157,22 @@ fn smpl_h_poses_resample_at_exact_times_into_their_own_layout() {
     // local texture is the same frames.
     let sidecar = json(&out.join("walk.json"));
     assert_eq!((&sidecar["curve"], &sidecar["interpolation"]), (&"source".into(), &serde_json::json!(["LINEAR"])));
+    // The sidecar says what the archive holds of each array.
+    let arrays: Vec<(String, String)> = sidecar["arrays"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| (a["name"].as_str().unwrap().to_string(), a["written"].as_str().unwrap().to_string()))
+        .collect();
+    let expected = [
+        ("trans", "resampled"),
+        ("gender", "copied"),
+        ("mocap_framerate", "rate"),
+        ("betas", "copied"),
+        ("poses", "resampled"),
+        ("dmpls", "resampled"),
+    ];
+    assert_eq!(arrays, expected.map(|(n, w)| (n.to_string(), w.to_string())));
     assert_eq!(sidecar["joints"].as_array().unwrap().len(), SMPL_H);
     assert_eq!(sidecar["joints"][37], "right_index1");
     let asked = dir.path().join("c2");
