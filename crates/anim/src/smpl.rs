@@ -9,9 +9,11 @@
 //! `k / rate`. The joints' offsets are not in the file (the body model computes them from
 //! `betas`), so every joint rests at its parent's origin, and only parent-relative products
 //! mean anything. Written back ([`SmplFile::to_npz`]) in the same layout at the baked rate:
-//! poses and the fields split from them from the baked rotations, `trans` from the baked
-//! translation, per-frame coefficients (`dmpls`) linearly between frames, the rate field set,
-//! every other array copied byte for byte, in the archive's order.
+//! poses and the fields split from them, and `trans`, slerped and lerped in f64 from the
+//! archive's own values ([`SmplFile::slerped`], the source's interpolation) or from the baked
+//! rows (another curve); every other float array of the source's frame count (`dmpls`,
+//! `marker_data`) linearly between frames; the rate field set; every other array copied byte
+//! for byte; in the archive's order.
 
 use crate::error::InputError;
 use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property};
