@@ -414,7 +414,8 @@ impl BakeJob {
             if src.has_offsets() {
                 report.rig = Some(super::report::rig_extent(animation)?);
             }
-            // Checked before the curves are baked.
+            // Checked before the curves are baked; what a skin texture draws, for the sidecar.
+            let mut skinned = Vec::new();
             let vertex = match (src.gltf(), self.options.texture) {
                 (Some(file), TextureKind::Vertex) => {
                     let drawn = mesh::skinned_primitives(file)?;
@@ -428,7 +429,8 @@ impl BakeJob {
                     )))
                 }
                 (Some(file), kind) if kind.is_skin() => {
-                    report.not_drawn = self.skin_primitives(file)?.not_drawn;
+                    let drawn = self.skin_primitives(file)?;
+                    (report.not_drawn, skinned) = (drawn.not_drawn, drawn.primitives);
                     None
                 }
                 _ => None,
@@ -480,7 +482,7 @@ impl BakeJob {
             report.max_key_error = baked.max_key_error;
             // The device that ran this input (auto: the CPU path for a batch the GPU cannot take).
             let used = baked.device.clone().unwrap_or_else(|| device.name());
-            let written = self.write_outputs(&src, &baked, &report, stem, &used, device, vertex.as_ref());
+            let written = self.write_outputs(&src, &baked, &report, &skinned, stem, &used, device, vertex.as_ref());
             report.skinning = vertex.map(|v| v.work());
             written
         });
@@ -508,6 +510,7 @@ impl BakeJob {
         src: &Source,
         baked: &Baked,
         report: &InputReport,
+        skinned: &[DeclaredPrimitive],
         stem: &str,
         device: &str,
         fk_device: &Device,
@@ -519,6 +522,7 @@ impl BakeJob {
             source: &report.source,
             rates: &report.rates,
             not_drawn: &report.not_drawn,
+            skinned,
             written: Vec::new(),
             atlas: Vec::new(),
             rows: 0,
@@ -561,13 +565,8 @@ impl BakeJob {
                 src.kind()
             )));
         }
-        // What a skin texture's matrices draw of the baked glTF (the meshes Babylon hangs
-        // from a skin's parent).
-        let skinned = match src.gltf() {
-            Some(file) if self.options.texture.is_skin() => self.skin_primitives(file)?.primitives,
-            _ => Vec::new(),
-        };
-        out.sheets = self.sheets(animation, vertex, &skinned)?;
+        let skinned = out.skinned;
+        out.sheets = self.sheets(animation, vertex, skinned)?;
         let baked_file = match src {
             Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(&baked.frames())?)),
             Source::Fbx(file) => Some((format!("{stem}.glb"), file.gltf.to_glb(&baked.frames())?)),
@@ -621,7 +620,7 @@ impl BakeJob {
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
         let mut sidecar =
-            Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, &skinned)
+            Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, skinned)
                 .map_err(InputError::Animation)?;
         if let Source::Fbx(file) = src {
             sidecar.conversion = Some(ConversionRecord::fbx(file));
