@@ -7,7 +7,7 @@
 //! joint (-1 for a root), then per frame per joint seven `f32`: rotation `x, y, z, w`,
 //! translation `x, y, z`.
 
-use quatcurve::anim::bvh;
+use quatcurve::formats::bvh;
 
 use quatcurve::anim::Property;
 use std::path::Path;

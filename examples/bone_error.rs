@@ -5,12 +5,12 @@
 //!
 //! Run: `cargo run --release --example bone_error -- ../shared/data [CHART.png]`.
 
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::anim::Animation;
-use quatcurve::anim::{bvh, gltf};
 use quatcurve::bake::budget::{self, ErrorBudget, Setting};
-use quatcurve::bake::curves::CurveChoice;
 use quatcurve::bake::texture::{Precision, TextureKind};
-use quatcurve::bake::LoopMode;
+use quatcurve::formats::{bvh, gltf};
 use quatcurve::plot::{self, Line};
 use quatcurve::{Device, DeviceChoice};
 use std::path::Path;

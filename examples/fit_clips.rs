@@ -8,7 +8,7 @@
 //! Run: `cargo run --release --example fit_clips -- ../shared/data MAX_ERROR_CM [BETWEEN_CM]
 //! [VERTEX_CM]` (defaults 0.01, 0.3, 3).
 
-use quatcurve::anim::{bvh, gltf};
+use quatcurve::formats::{bvh, gltf};
 
 use quatcurve::anim::Animation;
 use quatcurve::fit::clip::{fit_clip, Budget};

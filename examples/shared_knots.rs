@@ -8,8 +8,8 @@
 //! Run: `cargo run --release --example shared_knots -- FITTED.qcf... [--frames N]` (segments
 //! of N source frames, 16 by default, as ACL's).
 
-use quatcurve::anim::qcf::fitted::{Fitted, Form, ORDER};
-use quatcurve::anim::qcf::{channel_bytes, clip_bytes, Container};
+use quatcurve::qcf::fitted::{Fitted, Form, ORDER};
+use quatcurve::qcf::{channel_bytes, clip_bytes, Container};
 
 /// ACL's bytes for a raw bone-pose: a rotation, a translation and a scale in f32 (the figure
 /// `fit` reports its ratio against).

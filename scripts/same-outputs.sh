@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Whether two quatcurve binaries write the same bytes: each bakes the same 30 configurations
-# (the crowd and every real file of ../shared/data; every texture kind, npy/exr/png16, atlas
-# f16, exact rate, vertex, error budgets, root motion; cpu and gpu; a fit and bakes of its
+# Whether two quatcurve binaries write the same bytes: each bakes the same 37 configurations
+# (the crowd and every real file of ../shared/data: glTF, FBX, BVH, SMPL; every texture kind,
+# npy/exr/png16, atlas f16, exact rate, vertex, error budgets, root motion; cpu and gpu; a fit and bakes of its
 # containers) into one directory,
 # and the sha256 of every file but manifests (times, hosts) is compared. For refactors that
 # must not change output.
@@ -25,6 +25,9 @@ hashes() {
         run --device $dev --input "$data/CesiumMan.glb" --texture skin-trs --max-error 1 --max-error-mm 5
         run --device $dev --input "$data/Fox.glb" --texture local --max-error 2 --max-error-mm 50
         run --device $dev --input "$data/CesiumMan.glb" --root-motion extract --rate 30
+        run --device $dev --input "$data/CesiumMan.fbx" "$data/Fox.fbx" "$data/Samba_Dancing.fbx" --texture skin --rate 30
+        run --device $dev --input "$data/RobotExpressive.glb" --texture skin-trs --format exr --rate 30
+        run --device $dev --input "$data/amass_sample.npz" --rate 60
     done
     "$bin" fit --input "$data/CesiumMan.glb" "$data/Fox.glb" --output "$out/fit" >/dev/null 2>&1 || echo "fit failed" >&2
     for dev in cpu gpu; do run --device $dev --input "$out"/fit/*.qcf --rate 30; done

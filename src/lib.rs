@@ -37,7 +37,8 @@
 // The workspace's crates at one root, so users see one library: the maths (quatcurve-core, no
 // I/O), evaluation without a GPU (quatcurve-eval), the WGSL programs and their translations
 // (quatcurve-shader), the GPU path (quatcurve-gpu), the device
-// over them (quatcurve-device), the animation model with its formats (quatcurve-anim), and
+// over them (quatcurve-device), the animation model (quatcurve-anim), the fitted container
+// (quatcurve-qcf), the formats (quatcurve-formats), jobs over files (quatcurve-files), and
 // the products: analysis, the bake, the fit, the viewer.
 pub use quatcurve_analysis as analysis;
 pub use quatcurve_anim as anim;
@@ -49,10 +50,13 @@ pub use quatcurve_eval::synthetic;
 pub use quatcurve_eval::{
     arrays, batch, cpu, error, euclidean, io, job, options, output, reference, sampling, skeleton, track,
 };
+pub use quatcurve_files as files;
 pub use quatcurve_fit as fit;
+pub use quatcurve_formats as formats;
 #[cfg(feature = "gpu")]
 pub use quatcurve_gpu as gpu;
 pub use quatcurve_play as play;
+pub use quatcurve_qcf as qcf;
 pub use quatcurve_shader as shader;
 // Charts serve the CLI; they are not part of the library's API.
 #[cfg(feature = "plot")]

@@ -2,7 +2,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::anim::bvh;
+use quatcurve::formats::bvh;
 use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 

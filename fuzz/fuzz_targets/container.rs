@@ -3,16 +3,16 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::anim::bvh;
+use quatcurve::formats::bvh;
 use quatcurve::bake::{self, LoopMode};
-use quatcurve::anim::qcf::decoder::Decoder;
-use quatcurve::anim::qcf::Container;
+use quatcurve::qcf::decoder::Decoder;
+use quatcurve::qcf::Container;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {
     // The checksum made right again, so that the fuzzer's bytes reach the fields behind it.
     let mut bytes = bytes.to_vec();
-    quatcurve::anim::qcf::reseal(&mut bytes);
+    quatcurve::qcf::reseal(&mut bytes);
     if let Ok(decoder) = Decoder::from_bytes(&bytes) {
         for mut clip in decoder.clips {
             let [start, end] = clip.span();

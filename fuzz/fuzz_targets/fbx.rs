@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::anim::fbx;
+use quatcurve::formats::fbx;
 use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quatcurve::anim::smpl;
+use quatcurve::formats::smpl;
 use quatcurve::bake::{self, LoopMode};
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 

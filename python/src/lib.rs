@@ -13,12 +13,12 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUnty
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use quatcurve::anim::qcf::decoder::Decoder;
-use quatcurve::anim::smpl::SmplFile;
 use quatcurve::bake::budget::{ChosenRate, Worst};
 use quatcurve::bake::{fitted_frame_grid, grid_times, poses, BakeJob, BakeOptions, Shard};
 use quatcurve::fit::job::{FitJob, FitOptions};
+use quatcurve::formats::smpl::SmplFile;
 use quatcurve::options::EvalOptions;
+use quatcurve::qcf::decoder::Decoder;
 use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
 use std::path::PathBuf;
 use std::sync::OnceLock;

@@ -9,8 +9,8 @@
 use super::{flag, print_stdout, Failure};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use quatcurve::anim::files::FileJobError;
 use quatcurve::bake::{BakeJob, BakeOptions, BakeReport, InputReport, Progress, Shard};
+use quatcurve::files::FileJobError;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -147,7 +147,7 @@ enum Fault {
 }
 
 impl Fault {
-    fn of(e: &quatcurve::anim::error::InputError) -> Self {
+    fn of(e: &quatcurve::bake::error::BakeError) -> Self {
         if e.is_internal_failure() {
             Fault::Device
         } else if e.is_output_failure() {
@@ -194,7 +194,7 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
         None if args.input.is_empty() => quatcurve::DEFAULT_CURVE.to_string(),
         None => "each source's own interpolation (glTF's samplers, other frames slerped)".to_string(),
     };
-    if any(quatcurve::anim::qcf::EXTENSION) {
+    if any(quatcurve::qcf::EXTENSION) {
         curve.push_str(" (fitted inputs: their own B-splines)");
     }
     writeln!(w, "baked at {rate} with {curve} on {} -> {}", report.device, args.output.display())?;

@@ -441,8 +441,8 @@ struct SkinningTiming {
 /// Skins every skinned primitive of `file` at `args.samples` frames of its first clip (the
 /// skin matrices baked once, before the timing) on the CPU and the GPU.
 fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, Failure> {
-    use quatcurve::anim::{gltf, mesh};
     use quatcurve::bake::{self, texture};
+    use quatcurve::formats::{gltf, mesh};
     use quatcurve::skeleton;
     let input = |e: String| Failure::Input(format!("bench --skinning {}: {e}", file.display()));
     let source = gltf::read(file, gltf::UriPolicy::default()).map_err(|e| input(e.to_string()))?;
@@ -453,9 +453,9 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
     let rate = (args.samples.saturating_sub(1)).max(1) as f64 / (end - start).max(1e-9);
     let baked = bake::bake(
         animation,
-        &bake::curves::CurveChoice::Source,
+        &quatcurve::anim::curves::CurveChoice::Source,
         bake::ClipRate::Fit(rate),
-        bake::LoopMode::Auto,
+        quatcurve::anim::loops::LoopMode::Auto,
         &Device::Reference,
     )
     .map_err(|e| input(e.to_string()))?;

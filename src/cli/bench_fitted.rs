@@ -6,11 +6,12 @@
 
 use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
-use quatcurve::anim::qcf::decoder::{ClipDecoder, Decoder};
-use quatcurve::anim::qcf::Container;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::anim::Animation;
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::{self, ClipRate, LoopMode, Reuse};
+use quatcurve::bake::{self, ClipRate, Reuse};
+use quatcurve::qcf::decoder::{ClipDecoder, Decoder};
+use quatcurve::qcf::Container;
 use quatcurve::{Device, DeviceChoice};
 use serde::Serialize;
 use std::path::PathBuf;

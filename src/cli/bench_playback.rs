@@ -5,9 +5,9 @@
 
 use super::measure::{median_seconds, open_bench_device};
 use super::{print_stdout, Failure};
-use quatcurve::anim::source::Source;
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::formats::source::Source;
 use quatcurve::options::CurveOptions;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::Playback;

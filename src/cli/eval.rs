@@ -68,7 +68,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
     let batch = if fitted {
         // Each fitted track's order is its own (a cubic, or keys slerped between).
-        Batch::from_tracks_each(&tracks, |i| quatcurve::anim::qcf::fitted::track_spec(&tracks[i]))
+        Batch::from_tracks_each(&tracks, |i| quatcurve::qcf::fitted::track_spec(&tracks[i]))
     } else {
         Batch::from_tracks(&tracks, &spec)
     }
@@ -130,11 +130,11 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A fitted container's curves are its own ([`quatcurve::anim::qcf::fitted::spline_spec`], cubic or keys
+/// A fitted container's curves are its own ([`quatcurve::qcf::fitted::spline_spec`], cubic or keys
 /// per channel): a curve option that would change them is refused (the default curve stands for
 /// them).
 fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
-    let spec = quatcurve::anim::qcf::fitted::spline_spec(quatcurve::anim::qcf::fitted::ORDER);
+    let spec = quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::ORDER);
     let (options, curve) = (&args.options.curve_options, args.options.curve);
     let refused = [
         (curve != spec.curve && curve != EvalOptions::DEFAULT.curve, "--curve"),
@@ -145,7 +145,7 @@ fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
     ];
     match refused.iter().find(|(given, _)| *given) {
         Some((_, flag)) => {
-            let keys = quatcurve::anim::qcf::fitted::spline_spec(quatcurve::anim::qcf::fitted::KEYS_ORDER);
+            let keys = quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::KEYS_ORDER);
             Err(Failure::Input(format!(
                 "{flag}: a fitted container's curves are its own (on its knots, per channel: {} of order {} or {} of \
                  order {})",

@@ -76,18 +76,17 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
 }
 
 /// Every clip's rotation channels of the fitted container at `path`, as tracks
-/// ([`quatcurve::anim::qcf::Container::rotation_tracks`]).
+/// ([`quatcurve::qcf::Container::rotation_tracks`]).
 pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {
     let source = path.display().to_string();
-    let container =
-        quatcurve::anim::qcf::Container::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
+    let container = quatcurve::qcf::Container::read(path).map_err(|e| Failure::Input(format!("{source}: {e}")))?;
     Ok((source, container.rotation_tracks()))
 }
 
 /// Whether `input` is a fitted container, by its extension.
 pub fn is_container(input: Option<&Path>) -> bool {
     let extension = input.and_then(|p| p.extension()).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    extension.as_deref() == Some(quatcurve::anim::qcf::EXTENSION)
+    extension.as_deref() == Some(quatcurve::qcf::EXTENSION)
 }
 
 /// The tracks of `--input` (JSON, or `.npz`/`.npy` arrays keyed at `key_rate`), or the built-in

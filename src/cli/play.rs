@@ -3,12 +3,12 @@
 
 use super::{names, open_device, CurveOptions, Failure};
 use clap::Args;
-use quatcurve::anim::error::InputError;
-use quatcurve::anim::source::Source;
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::curve::Curve;
+use quatcurve::formats::source::Source;
 use quatcurve::io::{npy_header, AtomicFile, NpyElement};
+use quatcurve::play::error::PlayError;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
 use quatcurve::DeviceChoice;
@@ -119,8 +119,8 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let io = |e: quatcurve::io::IoError| Failure::Internal(e.to_string());
     file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
     let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight };
-    let failure = |e: InputError| match e {
-        InputError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
+    let failure = |e: PlayError| match e {
+        PlayError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
         other => Failure::Input(format!("{input}: {other}")),
     };
     let player = playback.player(&device).map_err(failure)?;

@@ -40,7 +40,7 @@ pub fn run(args: &ShadersArgs) -> Result<(), Failure> {
             return Err(Failure::Input(format!("--library is GLSL ES's (--lang glsl-es), not {language}'s")))
         }
     }
-    .map_err(Failure::Internal)?;
+    .map_err(|e| Failure::Internal(e.to_string()))?;
     match &args.output {
         Some(path) => quatcurve::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
             .map_err(|e| Failure::Input(format!("--output {e}"))),

@@ -685,3 +685,48 @@ fn the_library_spells_no_command_line_flag() {
     }
     assert!(found.is_empty(), "library code spelling command-line flags:\n{}", found.join("\n"));
 }
+
+/// A crate packages on its own only if everything it compiles lies inside its directory: no
+/// `include_str!` or `include_bytes!` of a library crate reaches above it (`cargo package
+/// --no-verify`, which CI runs, checks the manifests, not what the code includes).
+#[test]
+fn every_crate_includes_only_files_inside_its_own_directory() {
+    let crates = crate_table(&read(&root().join("ARCHITECTURE.md")));
+    let mut outside = Vec::new();
+    for krate in crates.iter().filter(|c| c.dir != root()) {
+        for path in sources(&krate.dir.join("src")) {
+            let text = read(&path);
+            for (n, line) in text.lines().enumerate() {
+                for include in ["include_str!(\"", "include_bytes!(\""] {
+                    for (i, _) in line.match_indices(include) {
+                        let target = line[i + include.len()..].split('"').next().unwrap_or_default();
+                        let resolved = normalized(&path.parent().unwrap().join(target));
+                        if !resolved.starts_with(&krate.dir) {
+                            outside.push(format!(
+                                "{}:{}: {target}",
+                                path.strip_prefix(root()).unwrap().display(),
+                                n + 1
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(outside.is_empty(), "files included from outside their crate's directory:\n{}", outside.join("\n"));
+}
+
+/// `path` with `.` and `..` resolved lexically.
+fn normalized(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for part in path.components() {
+        match part {
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            std::path::Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}

@@ -7,10 +7,10 @@
 use crate::bake::{data_dir, json, read_npy, stderr};
 use assert_cmd::Command;
 use glam::{DMat4, DQuat, DVec3};
-use quatcurve::anim::source::Source;
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::curve::{Curve, CurveSpec};
+use quatcurve::formats::source::Source;
 use quatcurve::play::schedule::{Schedule, PHASE_STEP};
 use quatcurve::play::{ClipTime, Instance, Playback, PALETTE_CHANNELS};
 use quatcurve::{Device, DeviceChoice};

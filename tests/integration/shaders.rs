@@ -75,7 +75,8 @@ fn workgroup_size_is_read_from_the_shader() {
     let (module, _) = shader::module().unwrap();
     let size = shader::workgroup_size(&module).unwrap();
     // What eval.wgsl declares, read from its text independently of naga.
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/eval.wgsl")).unwrap();
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/shader/shaders/eval.wgsl")).unwrap();
     let declared: u32 = text
         .lines()
         .find_map(|l| l.trim().strip_prefix("const WORKGROUP_SIZE: u32 = "))
@@ -345,7 +346,8 @@ fn bind_group_layouts_come_from_the_shaders() {
 /// (`horner_step(acc, x, c)`, highest power first), are the core's tables (`quatcurve::real`) rounded to f32.
 #[test]
 fn shader_series_are_these_series() {
-    let wgsl = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/real.wgsl")).unwrap();
+    let wgsl =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/shader/shaders/real.wgsl")).unwrap();
     let coefficients = |function: &str| -> Vec<f64> {
         let body = &wgsl[wgsl.find(&format!("fn {function}(")).unwrap_or_else(|| panic!("no fn {function}"))..];
         let body = &body[..body.find("\n}\n").expect("function end")];

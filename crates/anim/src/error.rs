@@ -1,23 +1,25 @@
-//! Why one input could not be read or baked ([`InputError`]): the job goes on with the other
-//! inputs and reports it.
+//! Why one input could not be read or used ([`InputError`]): a job over files goes on with the
+//! other inputs and reports it.
 
-use quatcurve_device::DeviceError;
-
-/// Why one input could not be baked. Every kind but a failing device is the input's (the
-/// command line's exit code 2; a device failure is exit code 1).
+/// Why one input could not be read into the model or used as asked. Every kind but
+/// [`InputError::Internal`] is the input's (the command line's exit code 2; quatcurve's own
+/// failure is exit code 1).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum InputError {
     /// The file could not be read.
     #[error("cannot read: {0}")]
     Read(std::io::Error),
-    /// Not one of [`crate::source::INPUT_EXTENSIONS`].
-    #[error("unknown format: expected .gltf, .glb, .fbx, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)")]
-    UnknownFormat,
-    /// A fitted container ([`crate::qcf`]) with a field truncated or out of range.
+    /// An extension no importer takes (`quatcurve_formats::source::IMPORTERS`).
+    #[error("unknown format: expected {expected}")]
+    UnknownFormat {
+        /// The formats read, by extension.
+        expected: String,
+    },
+    /// A fitted container (`quatcurve_qcf`) with a field truncated or out of range.
     #[error("fitted container {0}")]
     Container(#[from] ContainerError),
-    /// An archive of numpy arrays (SMPL-family poses, [`crate::smpl`]) with a field missing, of
+    /// An archive of numpy arrays (SMPL-family poses, `quatcurve_formats::smpl`) with a field missing, of
     /// the wrong shape or type, or out of its range; `field` is the array (or `file`).
     #[error("{field}: {reason}")]
     Arrays {
@@ -53,19 +55,16 @@ pub enum InputError {
     /// An output that could not be written or assembled.
     #[error("{0}")]
     Output(String),
-    /// The evaluating device refused the work or failed.
-    #[error(transparent)]
-    Device(#[from] DeviceError),
     /// quatcurve itself failed (a worker thread that stopped).
     #[error("{0}")]
     Internal(String),
 }
 
 impl InputError {
-    /// Whether the device or quatcurve itself failed, rather than the input being at fault.
+    /// Whether quatcurve itself failed, rather than the input being at fault.
     #[must_use]
     pub fn is_internal_failure(&self) -> bool {
-        matches!(self, Self::Internal(_)) || matches!(self, Self::Device(e) if e.is_device_failure())
+        matches!(self, Self::Internal(_))
     }
 
     /// Whether an output could not be written (the input itself was fine).
@@ -75,7 +74,7 @@ impl InputError {
     }
 }
 
-/// A field of a fitted container ([`crate::qcf`]) that is missing, truncated or out of its range.
+/// A field of a fitted container (`quatcurve_qcf`) that is missing, truncated or out of its range.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("byte {offset}: {field}: {reason}")]
 pub struct ContainerError {

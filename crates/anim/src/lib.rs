@@ -1,27 +1,20 @@
 //! The animation model every source is read into and every product starts from: joints with
 //! rest poses, skins, and clips of channels, each channel a joint's rotation, translation or
-//! scale as keys or as a fitted B-spline ([`ChannelCurve`]). Importers fill it ([`gltf`],
-//! [`fbx`], [`bvh`], [`smpl`], [`crowd`], fitted containers through [`qcf`]; [`source`] picks one by the file's
-//! extension); the bake resamples it, the fit compresses it, and the formats write baked
-//! frames back ([`ClipFrames`]). Jobs over files (the bake, the fit) share [`files`].
+//! scale as keys or as a fitted B-spline ([`ChannelCurve`]); an animation's channels as curves
+//! built once and evaluated at any times ([`curves`]), and whether a clip loops ([`loops`]).
+//! The runtime's base: importers (`quatcurve_formats`) fill it, the fitted container
+//! (`quatcurve_qcf`) decodes into it, the bake resamples it, playback plays it, and the formats
+//! write baked frames back ([`ClipFrames`]); it reads no file and opens no device.
 
-pub mod bvh;
-pub mod crowd;
-mod draco;
+pub mod curves;
 pub mod error;
-pub mod fbx;
-pub mod files;
-pub mod glb;
-pub mod gltf;
-pub mod mesh;
-pub mod qcf;
-pub mod smpl;
-pub mod source;
+pub mod loops;
+pub mod spline;
 
 use error::InputError;
 
 /// One clip resampled on a uniform grid of frames: what the format writers write back
-/// ([`gltf::GltfFile::to_glb`], [`bvh::BvhFile::to_text`]), as the bake leaves it.
+/// (`quatcurve_formats`: glTF, BVH, SMPL archives), as the bake leaves it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClipFrames<'a> {
     /// The frames' times in seconds, uniform, from the clip's first key.
@@ -103,7 +96,7 @@ pub enum ChannelCurve {
         interpolation: Interpolation,
     },
     /// A fitted channel (`quatcurve::fit`): a clamped B-spline of the family
-    /// `qcf::fitted::spline_spec` gives its order (the knot count less the control point
+    /// [`spline::spline_spec`] gives its order (the knot count less the control point
     /// count): a rotation cubic normalized, keys slerped or lerped.
     Spline {
         /// Knots in seconds, ascending, each end repeated to the order.
@@ -242,6 +235,18 @@ pub struct Animation {
 }
 
 impl Animation {
+    /// Every joint's rest pose as one local row `[joints, 10]`: what a frame holds where its clip
+    /// does not animate a joint.
+    #[must_use]
+    pub fn rest_row(&self) -> Vec<f32> {
+        self.joints
+            .iter()
+            .flat_map(|j| {
+                j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>()
+            })
+            .collect()
+    }
+
     /// Whether any channel is a fitted spline ([`ChannelCurve::Spline`]).
     #[must_use]
     pub fn is_fitted(&self) -> bool {

@@ -11,10 +11,10 @@
 //! inverseBindMatrix(joint)`. The node at rest is what the mesh hangs from while the manager
 //! plays (the glTF's animation groups stopped), so its animation, if any, is in the bones.
 
-use quatcurve_anim::gltf::IDENTITY_3X4 as IDENTITY;
-use quatcurve_anim::mesh::DeclaredPrimitive;
 use quatcurve_anim::{Animation, Skin};
 use quatcurve_eval::skeleton::{compose, inverse, trs, Affine};
+use quatcurve_formats::gltf::IDENTITY_3X4 as IDENTITY;
+use quatcurve_formats::mesh::DeclaredPrimitive;
 
 /// The manager's settings that play a clip of `frames` rows from `first_row` at `rate` on the
 /// source's clock: `(from, to, offset, speed)`. Babylon's manager (its `bakedVertexAnimation`

@@ -7,10 +7,12 @@
 //! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
-use super::curves::CurveChoice;
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
-use super::{bake, ClipRate, LoopMode};
+use super::{bake, ClipRate};
+use crate::error::BakeError;
+use quatcurve_anim::curves::CurveChoice;
 use quatcurve_anim::error::InputError;
+use quatcurve_anim::loops::LoopMode;
 use quatcurve_anim::{Animation, Clip, GLTF_UNIT_CM};
 use quatcurve_device::Device;
 use quatcurve_eval::error::Number;
@@ -190,10 +192,10 @@ pub fn measure(
     rate: f64,
     setting: &Setting<'_>,
     unit_mm: f64,
-) -> Result<Measured, InputError> {
+) -> Result<Measured, BakeError> {
     let one = only(animation, clip);
     let order = one.parents_first()?;
-    let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), InputError> {
+    let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), BakeError> {
         let baked = bake(&one, setting.curve, ClipRate::Fit(rate), setting.looping, setting.device)?;
         let sheets = texture::sheets(&one, &order, &baked, 0, setting.kind, setting.device)?;
         let clip = &baked.clips[0];
@@ -217,7 +219,8 @@ pub fn measure(
             "clip '{}': {} dense frames are not {SUBSTEPS} per each of {intervals} intervals",
             animation.clips[clip].name,
             dense_times.len()
-        )));
+        ))
+        .into());
     }
     let start = times[0];
     for (sheet, truth) in coarse.iter().zip(&dense) {
@@ -309,13 +312,14 @@ pub fn choose_rates(
     animation: &Animation,
     budget: &ErrorBudget,
     setting: &Setting<'_>,
-) -> Result<Vec<Measured>, InputError> {
+) -> Result<Vec<Measured>, BakeError> {
     if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(quatcurve_anim::Channel::is_spline)) {
         return Err(InputError::Animation(format!(
             "clip '{}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it \
                 at a fixed rate",
             clip.name
-        )));
+        ))
+        .into());
     }
     let mut chosen = Vec::with_capacity(animation.clips.len());
     for (c, clip) in animation.clips.iter().enumerate() {
@@ -358,7 +362,8 @@ pub fn choose_rates(
                     worst.position.value,
                     worst.position.joint,
                     worst.position.time
-                )));
+                ))
+                .into());
             }
         };
         chosen.push(best);
@@ -370,11 +375,11 @@ pub fn choose_rates(
 /// to `most` (each step `step` intervals of the clip), whose frames keep within `budget`, and
 /// what they measured (`Err`: what `most` steps measured, when they do not hold).
 fn lowest(
-    at: &impl Fn(f64) -> Result<Measured, InputError>,
+    at: &impl Fn(f64) -> Result<Measured, BakeError>,
     budget: &ErrorBudget,
     [mut low, first, most]: [f64; 3],
     step: f64,
-) -> Result<Result<Measured, Measured>, InputError> {
+) -> Result<Result<Measured, Measured>, BakeError> {
     let mut high = first;
     let mut best = loop {
         let m = at(high * step)?;

@@ -8,7 +8,6 @@
 
 use super::babylon;
 use super::budget::{self, ChosenRate};
-use super::curves::CurveChoice;
 use super::image::Format;
 use super::manifest::{hash_bytes, hash_file, InputRecord, Manifest, ShardRecord};
 use super::options::BakeOptions;
@@ -23,16 +22,18 @@ use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written}
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
 use super::{vertex_glb, Baked, ClipRate};
+use crate::error::BakeError;
+use quatcurve_anim::curves::CurveChoice;
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::files::FileJobError;
-use quatcurve_anim::files::{expand, output_stems};
-use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
-use quatcurve_anim::mesh::DeclaredPrimitive;
-use quatcurve_anim::source::Source;
 use quatcurve_anim::Animation;
-use quatcurve_anim::{crowd, gltf, mesh, smpl};
 use quatcurve_device::Device;
 use quatcurve_eval::io::write_atomic;
+use quatcurve_files::FileJobError;
+use quatcurve_files::{expand, output_stems};
+use quatcurve_files::{refuse_overwriting_input, OutputDir};
+use quatcurve_formats::mesh::DeclaredPrimitive;
+use quatcurve_formats::source::{ReadOptions, Source};
+use quatcurve_formats::{crowd, gltf, mesh};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -189,7 +190,7 @@ impl BakeJob {
         animation: &Animation,
         vertex: Option<&VertexSheets>,
         skinned: &[DeclaredPrimitive],
-    ) -> Result<Vec<SheetSpec>, InputError> {
+    ) -> Result<Vec<SheetSpec>, BakeError> {
         if let Some(vertex) = vertex {
             return Ok(vertex.layout());
         }
@@ -209,7 +210,7 @@ impl BakeJob {
 
     /// What a skin texture's matrices draw of `file`, and what they do not: skinned meshes and
     /// rigid parts, except that Babylon's baked vertex animation moves skinned meshes alone.
-    fn skin_primitives(&self, file: &gltf::GltfFile) -> Result<mesh::Drawn<DeclaredPrimitive>, InputError> {
+    fn skin_primitives(&self, file: &gltf::GltfFile) -> Result<mesh::Drawn<DeclaredPrimitive>, BakeError> {
         let mut drawn = mesh::declared_skinned_primitives(file)?;
         if self.options.format == Format::Babylon {
             let (rigid, skinned): (Vec<_>, Vec<_>) = drawn.primitives.into_iter().partition(|p| p.rigid.is_some());
@@ -241,7 +242,7 @@ impl BakeJob {
             Some(shard) => shard.clone(),
             None => Shard::from_env(&|name| std::env::var(name).ok())?,
         };
-        let inputs = expand(&self.inputs, &quatcurve_anim::source::INPUT_EXTENSIONS)?;
+        let inputs = expand(&self.inputs, &quatcurve_formats::source::input_extensions().collect::<Vec<_>>())?;
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
         let output = OutputDir::create(&self.output, "baked")?;
@@ -290,11 +291,9 @@ impl BakeJob {
                 (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
                 (None, Some(path)) => {
                     let uris = gltf::UriPolicy { allow_external: self.options.allow_external_uris };
-                    self.bake_one(name, stem, || Source::read(path, uris), device)
+                    self.bake_one(name, stem, || Source::read(path, ReadOptions { uris }), device)
                 }
-                (None, None) => {
-                    self.bake_one(name, stem, || Ok(Source::Crowd(crowd::crowd(self.options.characters))), device)
-                }
+                (None, None) => self.bake_one(name, stem, || Ok(Source::crowd(self.options.characters)), device),
             };
             let record = input_record(&report, &written, fingerprint, kept);
             progress.finish(&report);
@@ -334,13 +333,13 @@ impl BakeJob {
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
-                let gltf = match quatcurve_anim::source::extension(input).as_deref() {
+                let gltf = match quatcurve_formats::source::extension(input).as_deref() {
                     Some("gltf" | "glb") => {
                         names.push(format!("{stem}.glb"));
                         true
                     }
                     // A container of a BVH source bakes to BVH again.
-                    Some("bvh" | quatcurve_anim::qcf::EXTENSION) => {
+                    Some("bvh" | quatcurve_qcf::EXTENSION) => {
                         names.push(format!("{stem}.bvh"));
                         false
                     }
@@ -374,7 +373,7 @@ impl BakeJob {
         animation: &Animation,
         baked: &Baked,
         measured: Vec<budget::Measured>,
-    ) -> Result<Vec<ChosenRate>, InputError> {
+    ) -> Result<Vec<ChosenRate>, BakeError> {
         let joints: usize = texture::layout(animation, self.options.texture).iter().map(|(_, width)| width).sum();
         let element = if self.options.format == Format::Png16 { 2 } else { self.options.precision.element().size() };
         let frame_bytes = joints * self.options.texture.channels() * element;
@@ -402,13 +401,13 @@ impl BakeJob {
     ) -> (InputReport, Vec<Written>) {
         let start = Instant::now();
         let mut report = InputReport::new(source);
-        let result = read().and_then(|src| {
+        let result = read().map_err(BakeError::from).and_then(|src| {
             let animation = src.animation();
             report.clips = animation.clips.len();
             report.channels = animation.clips.iter().map(|c| c.channels.len()).sum();
             report.keys = animation.key_count();
             if animation.clips.is_empty() {
-                return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()));
+                return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()).into());
             }
             report.warnings = super::source_step_warnings(animation);
             if src.has_offsets() {
@@ -426,7 +425,8 @@ impl BakeJob {
                     return Err(InputError::Animation(format!(
                         "vertex textures skin a glTF's meshes, and this is {}; bake a bone texture",
                         src.kind()
-                    )))
+                    ))
+                    .into())
                 }
                 (Some(file), kind) if kind.is_skin() => {
                     let drawn = self.skin_primitives(file)?;
@@ -515,7 +515,7 @@ impl BakeJob {
         device: &str,
         fk_device: &Device,
         vertex: Option<&VertexSheets>,
-    ) -> Result<Vec<Written>, InputError> {
+    ) -> Result<Vec<Written>, BakeError> {
         let mut out = Outputs {
             dir: &self.output,
             stem,
@@ -549,36 +549,29 @@ impl BakeJob {
         device: &str,
         fk_device: &Device,
         vertex: Option<&VertexSheets>,
-    ) -> Result<(), InputError> {
+    ) -> Result<(), BakeError> {
         let (animation, dir, stem) = (src.animation(), out.dir, out.stem);
         // Checked before anything is written.
         let order = animation.parents_first()?;
         if self.options.texture.is_skin() && src.gltf().is_some() && animation.skins.is_empty() {
             return Err(InputError::Animation(
                 "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
-            ));
+            )
+            .into());
         }
         if self.options.format == Format::Babylon && (src.gltf().is_none() || animation.skins.is_empty()) {
             return Err(InputError::Animation(format!(
                 "babylon plays a glTF skin's bones, and this is {} without one; bake a glTF with a skinned \
                  mesh, or another format",
                 src.kind()
-            )));
+            ))
+            .into());
         }
         let skinned = out.skinned;
         out.sheets = self.sheets(animation, vertex, skinned)?;
-        let baked_file = match src {
-            Source::Gltf(file) => Some((format!("{stem}.glb"), file.to_glb(&baked.frames())?)),
-            Source::Fbx(file) => Some((format!("{stem}.glb"), file.gltf.to_glb(&baked.frames())?)),
-            Source::Bvh(file, animation) => {
-                Some((format!("{stem}.bvh"), file.to_text(&animation.clips[0], &baked.frames()[0]).into_bytes()))
-            }
-            Source::Smpl(file, _) => {
-                let slerped = self.options.choice(src) == CurveChoice::Source;
-                Some((format!("{stem}.{}", smpl::EXTENSION), file.to_npz(&baked.frames()[0], slerped)?))
-            }
-            Source::Crowd(_) | Source::Fitted(_) => None,
-        };
+        let slerped = self.options.choice(src) == CurveChoice::Source;
+        let baked_file =
+            src.write_back(&baked.frames(), slerped)?.map(|file| (format!("{stem}.{}", file.extension), file.bytes));
         let mesh_file = match vertex {
             Some(vertex) => Some((
                 format!("{stem}{MESH_GLB_SUFFIX}"),
@@ -620,15 +613,10 @@ impl BakeJob {
         let baked_file = baked_file.map(|(name, _)| name);
         let vertex = vertex.zip(mesh_file.map(|(name, _)| name));
         let mut sidecar =
-            Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, skinned)
-                .map_err(InputError::Animation)?;
-        if let Source::Fbx(file) = src {
-            sidecar.conversion = Some(ConversionRecord::fbx(file));
-        }
-        if let Source::Smpl(file, _) = src {
-            let record = |(name, written): (String, &str)| ArrayRecord { name, written: written.to_string() };
-            sidecar.arrays = file.arrays().into_iter().map(record).collect();
-        }
+            Sidecar::new(&options, animation, baked, out.source, baked_file, clips, &out.written, vertex, skinned)?;
+        sidecar.conversion = src.conversion().map(ConversionRecord::from);
+        let record = |(name, written): (String, &str)| ArrayRecord { name, written: written.to_string() };
+        sidecar.arrays = src.arrays().into_iter().map(record).collect();
         sidecar.not_drawn = out.not_drawn.to_vec();
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
@@ -648,7 +636,7 @@ impl BakeJob {
         index: usize,
         fk_device: &Device,
         vertex: Option<&VertexSheets>,
-    ) -> Result<SidecarClip, InputError> {
+    ) -> Result<SidecarClip, BakeError> {
         let (clip, result, dir, stem) = (&animation.clips[index], &baked.clips[index], out.dir, out.stem);
         let file_name = out.clip_names[index].clone();
         let frames = result.times.len();

@@ -9,7 +9,7 @@
 
 pub mod babylon;
 pub mod budget;
-pub mod curves;
+pub mod error;
 pub mod image;
 pub mod job;
 pub mod manifest;
@@ -28,11 +28,13 @@ mod vertex_glb;
 mod vertex_texture;
 mod workers;
 
-use curves::{ChannelEval, CurveChoice, Curves};
+use crate::error::BakeError;
 pub use job::BakeJob;
 pub use options::BakeOptions;
+use quatcurve_anim::curves::{ChannelEval, CurveChoice, Curves};
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::error::InputError as E;
+use quatcurve_anim::loops::{clip_loops, LoopMode};
 use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
 pub use report::{BakeReport, InputReport, Progress};
 pub use shard::Shard;
@@ -99,21 +101,6 @@ pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     };
     channels.par_iter().with_min_len(64).filter_map(warning).collect()
 }
-
-/// Which clips bake as loops (DESIGN section 5b, `--loop`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum LoopMode {
-    /// A clip loops when every rotation channel's last key is the same rotation as its first
-    /// (within [`quatcurve_eval::batch::LOOP_TOLERANCE`]) and the curve can loop.
-    #[default]
-    Auto,
-    /// Every clip loops; a channel that does not close is an error naming it.
-    On,
-    /// No clip loops.
-    Off,
-}
-
-quatcurve_core::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
 
 /// A resampled clip: frame times, and where each channel's frames lie in [`Baked`].
 #[derive(Clone, Debug, PartialEq)]
@@ -189,7 +176,7 @@ impl Baked {
     }
 
     /// Every clip's frames, in order: what the format writers write back
-    /// ([`quatcurve_anim::gltf::GltfFile::to_glb`], [`quatcurve_anim::bvh::BvhFile::to_text`]).
+    /// ([`quatcurve_formats::gltf::GltfFile::to_glb`], [`quatcurve_formats::bvh::BvhFile::to_text`]).
     #[must_use]
     pub fn frames(&self) -> Vec<ClipFrames<'_>> {
         (0..self.clips.len())
@@ -219,67 +206,6 @@ impl Baked {
     #[must_use]
     pub fn sample_count(&self) -> usize {
         (0..self.clips.len()).flat_map(|c| self.values(c)).map(<[_]>::len).sum()
-    }
-}
-
-/// Whether `clip` bakes as a loop under `mode` with `choice` (DESIGN section 5b).
-///
-/// # Errors
-/// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
-/// key is not its first rotation, named.
-pub fn clip_loops(
-    animation: &Animation,
-    clip: &Clip,
-    choice: &CurveChoice,
-    mode: LoopMode,
-) -> Result<bool, InputError> {
-    let spec = choice.spec();
-    if clip.channels.iter().any(Channel::is_spline) {
-        // A fitted clip is the open curve it was fitted as.
-        return match mode {
-            LoopMode::On => Err(E::Animation(format!(
-                "clip '{}' is fitted (an open curve of control points); loop mode on needs keys",
-                clip.name
-            ))),
-            _ => Ok(false),
-        };
-    }
-    let open = |values: &[[f64; 4]]| {
-        let (first, last) =
-            (QuatF64::from_array(values[0]).normalize(), QuatF64::from_array(values[values.len() - 1]).normalize());
-        let angle = first.angle_to(last);
-        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
-    };
-    let rotations = || {
-        clip.channels
-            .iter()
-            .filter(|c| c.property == Property::Rotation)
-            .filter_map(|c| c.keyed().map(|(_, values)| (c, values)))
-            .filter(|(_, values)| values.len() > 1)
-    };
-    match mode {
-        LoopMode::Off => Ok(false),
-        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())),
-        LoopMode::On => {
-            if !spec.can_loop() {
-                return Err(E::Animation(format!(
-                    "clip '{}': loop mode on needs a curve that loops; {} does not (the curves that loop are {})",
-                    clip.name,
-                    choice.name(),
-                    quatcurve_core::curve::CurveSpec::looping_curves()
-                )));
-            }
-            if let Some((c, angle)) = rotations().find_map(|(c, v)| open(v).map(|a| (c, a))) {
-                return Err(E::Animation(format!(
-                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
-                        is {} rad from its first (at most {})",
-                    animation.label(clip, c),
-                    quatcurve_eval::error::Number(angle),
-                    quatcurve_eval::error::Number(quatcurve_eval::batch::LOOP_TOLERANCE)
-                )));
-            }
-            Ok(true)
-        }
     }
 }
 
@@ -391,7 +317,7 @@ pub fn grid_times(grid: TrackTimes) -> Vec<f64> {
 ///
 /// # Errors
 /// [`InputError::Keys`] naming the clip, joint, property and key for bad keys;
-/// [`InputError::Animation`] for a clip that cannot bake as asked; [`InputError::Device`]
+/// [`InputError::Animation`] for a clip that cannot bake as asked; [`BakeError::Device`]
 /// when the device refuses or fails.
 pub fn bake(
     animation: &Animation,
@@ -399,7 +325,7 @@ pub fn bake(
     rate: ClipRate,
     loops: LoopMode,
     device: &Device,
-) -> Result<Baked, InputError> {
+) -> Result<Baked, BakeError> {
     bake_each(animation, choice, &vec![rate; animation.clips.len()], loops, device)
 }
 
@@ -417,7 +343,7 @@ pub fn bake_each(
     rates: &[ClipRate],
     loops: LoopMode,
     device: &Device,
-) -> Result<Baked, InputError> {
+) -> Result<Baked, BakeError> {
     bake_reusing(animation, choice, rates, loops, device, &mut Reuse::default())
 }
 
@@ -451,7 +377,7 @@ pub fn bake_reusing(
     loops: LoopMode,
     device: &Device,
     reuse: &mut Reuse,
-) -> Result<Baked, InputError> {
+) -> Result<Baked, BakeError> {
     assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
     let (mut clips, grids) = plan_clips(animation, choice, rates, loops)?;
     let looping: Vec<bool> = clips.iter().map(|c| c.looping).collect();
@@ -557,7 +483,7 @@ fn plan_clips(
 /// on `device`. The largest chord `|key - q|` (hemispheres aligned) is found first, on every
 /// core: the angle grows with it, so one `angle_to` at the end gives the same answer as one
 /// per key.
-fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &Device) -> Result<f64, InputError> {
+fn key_error(tracks: &[Track], batch: &quatcurve_eval::batch::Batch, device: &Device) -> Result<f64, BakeError> {
     let overrides: Vec<Option<&[f64]>> = tracks.iter().map(|t| t.times.as_deref()).collect();
     let times = SampleTimes::new(batch, &overrides, Sampling::Count(1))?;
     let mut out = FloatOutput::default();

@@ -3,18 +3,19 @@
 //! Which inputs, where to, which shard and how many at once are the job's ([`super::BakeJob`]).
 
 use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
-use super::curves::CurveChoice;
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
-use super::{ClipRate, LoopMode};
-use quatcurve_anim::crowd;
-use quatcurve_anim::source::Source;
+use super::ClipRate;
+use quatcurve_anim::curves::CurveChoice;
+use quatcurve_anim::loops::LoopMode;
 use quatcurve_core::curve::Curve;
 use quatcurve_device::DeviceChoice;
 #[cfg(feature = "cli")]
 use quatcurve_eval::options::names;
 use quatcurve_eval::options::CurveOptions;
+use quatcurve_formats::crowd;
+use quatcurve_formats::source::Source;
 use serde::{Deserialize, Serialize};
 
 /// The options of a bake (DESIGN section 5b).
@@ -131,7 +132,7 @@ impl BakeOptions {
     };
 
     /// What `source`'s keys are interpolated with: the family asked for, else the source's
-    /// own choice ([`Source::default_curve`]).
+    /// own choice ([`quatcurve_formats::source::Input::default_curve`]).
     #[must_use]
     pub fn choice(&self, source: &Source) -> CurveChoice {
         self.choice_or(source.default_curve())

@@ -16,7 +16,7 @@ pub(super) struct Outputs<'a> {
     pub(super) not_drawn: &'a [String],
     /// What a skin texture's matrices draw of the baked glTF (the meshes Babylon hangs from a
     /// skin's parent); empty for other kinds.
-    pub(super) skinned: &'a [quatcurve_anim::mesh::DeclaredPrimitive],
+    pub(super) skinned: &'a [quatcurve_formats::mesh::DeclaredPrimitive],
     pub(super) written: Vec<Written>,
     /// `--atlas`: the open files every clip appends to, and their rows so far.
     pub(super) atlas: Vec<TextureFile>,

@@ -2,12 +2,12 @@
 //! `quatcurve.resample_poses`): the curve, the frame grid and the warnings of a bake of the
 //! same arrays as an archive, without files.
 
-use super::curves::CurveChoice;
 use super::options::BakeOptions;
 use super::report::unbaked_ends;
-use quatcurve_anim::error::InputError;
-use quatcurve_anim::smpl::{Resampled, SmplFile};
+use crate::error::BakeError;
+use quatcurve_anim::curves::CurveChoice;
 use quatcurve_device::Device;
+use quatcurve_formats::smpl::{Resampled, SmplFile};
 
 /// `file`'s poses (and root translation) at `options.rate` (exactly, with `exact_rate`), with
 /// the warnings a bake of it would give.
@@ -15,11 +15,7 @@ use quatcurve_device::Device;
 /// # Errors
 /// As a bake of the file: keys the curve refuses, a clip too long for the rate, a device
 /// failure.
-pub fn resample(
-    file: SmplFile,
-    options: &BakeOptions,
-    device: &Device,
-) -> Result<(Resampled, Vec<String>), InputError> {
+pub fn resample(file: SmplFile, options: &BakeOptions, device: &Device) -> Result<(Resampled, Vec<String>), BakeError> {
     let animation = file.animation("poses");
     let choice = options.choice_or(None);
     let baked = super::bake(&animation, &choice, options.clip_rate(), options.looping, device)?;

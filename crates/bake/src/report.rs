@@ -5,6 +5,7 @@ use super::manifest::{FileRecord, InputRecord};
 use super::shard::Shard;
 use super::texture_file::Written;
 use super::Baked;
+use crate::error::BakeError;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use std::path::{Path, PathBuf};
@@ -70,7 +71,7 @@ pub struct InputReport {
     pub max_key_error: Option<f64>,
     /// The files written (or kept, when resumed), or why the input failed: `Input` for the
     /// file's own faults, `Device` for the machine's.
-    pub outcome: Result<Vec<PathBuf>, InputError>,
+    pub outcome: Result<Vec<PathBuf>, BakeError>,
     /// Skipped by `resume`: the earlier run's outputs were verified and kept.
     pub resumed: bool,
     /// What the bake did that a user should know but that did not fail it: source keys that
@@ -117,11 +118,7 @@ impl InputReport {
 /// The box of `animation`'s joints at rest, in model space: `x, y, z` extents.
 pub(super) fn rig_extent(animation: &Animation) -> Result<[f64; 3], InputError> {
     let order = animation.parents_first()?;
-    let model = quatcurve_eval::skeleton::forward_kinematics(
-        &animation.parents(),
-        &order,
-        &super::texture::rest_row(animation),
-    );
+    let model = quatcurve_eval::skeleton::forward_kinematics(&animation.parents(), &order, &animation.rest_row());
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for m in model.chunks_exact(super::texture::MATRIX_CHANNELS) {
         for (c, &at) in [3, 7, 11].iter().enumerate() {

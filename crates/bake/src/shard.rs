@@ -1,7 +1,7 @@
 //! Which share of a job this process runs (DESIGN section 7): `I/N` given, or the array index
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
-use quatcurve_anim::files::FileJobError;
+use quatcurve_files::FileJobError;
 use std::path::PathBuf;
 
 /// This process's share: inputs `k` with `k mod count == index`.

@@ -5,7 +5,6 @@
 //! lenient, as for a file an older build wrote: a field it lacks takes its default.
 
 use super::budget::{ChosenRate, ErrorBudget, SUBSTEPS};
-use super::curves::CurveChoice;
 use super::image::{Format, Grid};
 use super::root_motion::RootTrack;
 use super::texture::{Precision, TextureKind};
@@ -13,8 +12,11 @@ use super::texture_file::Written;
 use super::uniforms::{self, LayoutClip, LayoutOf, Layouts, ShaderRecord, UniformRecord};
 use super::vertex_texture::VertexSheets;
 use super::Baked;
-use quatcurve_anim::mesh::DeclaredPrimitive;
+use crate::error::LayoutError;
+use quatcurve_anim::curves::CurveChoice;
 use quatcurve_anim::{Animation, Interpolation};
+use quatcurve_formats::mesh::DeclaredPrimitive;
+use quatcurve_formats::source::Conversion;
 use quatcurve_shader::Program;
 use serde::{Deserialize, Serialize};
 
@@ -169,17 +171,9 @@ pub struct ConversionRecord {
     pub to: String,
 }
 
-impl ConversionRecord {
-    /// An FBX file's conversion, as ufbx made it.
-    #[must_use]
-    pub fn fbx(file: &quatcurve_anim::fbx::FbxFile) -> Self {
-        Self {
-            from_unit_metres: file.source_unit_metres,
-            from_up: file.source_up.to_string(),
-            to: "metres, +Y up, right-handed (glTF's space), by adjusting the nodes' transforms as ufbx loads the \
-                 file; mesh data and inverse bind matrices are the file's"
-                .into(),
-        }
+impl From<Conversion> for ConversionRecord {
+    fn from(c: Conversion) -> Self {
+        Self { from_unit_metres: c.from_unit_metres, from_up: c.from_up, to: c.to.into() }
     }
 }
 
@@ -367,7 +361,7 @@ impl Sidecar {
         written: &[Written],
         vertex: Option<(&VertexSheets, String)>,
         skinned: &[DeclaredPrimitive],
-    ) -> Result<Self, String> {
+    ) -> Result<Self, LayoutError> {
         let &SidecarOptions { device, curve, rate, texture, precision, format, atlas, max_error } = options;
         let channels = texture.channels();
         let names = texture.channel_names().join(",");
@@ -411,7 +405,7 @@ impl Sidecar {
             let layouts = Layouts::new(texture)?;
             for record in &mut textures {
                 record.layout = layout_of(&layouts, record, texture, &files, &clips)
-                    .map_err(|e| format!("{}: {e}", record.file))?;
+                    .map_err(|e| LayoutError::Texture { file: record.file.clone(), error: Box::new(e) })?;
             }
         }
         let shader = match texture {
@@ -530,7 +524,7 @@ fn layout_of(
     texture: TextureKind,
     files: &[String],
     clips: &[SidecarClip],
-) -> Result<Option<UniformRecord>, String> {
+) -> Result<Option<UniformRecord>, LayoutError> {
     let of = match (texture, record.low, record.span) {
         (TextureKind::Vertex, Some(low), Some(span)) => {
             // The sheet's own part of the name is its last `.pos.` (the stem may hold one).

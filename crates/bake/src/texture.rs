@@ -15,6 +15,7 @@
 //! stored value), frames on every core.
 
 use super::Baked;
+use crate::error::BakeError;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::Device;
@@ -138,23 +139,12 @@ pub fn local(animation: &Animation, baked: &Baked, clip: usize) -> Vec<f32> {
     local_rows(animation, baked, clip, &frames)
 }
 
-/// Every joint's rest pose as one local row `[joints, 10]`: what a frame holds where its clip
-/// does not animate a joint.
-#[must_use]
-pub fn rest_row(animation: &Animation) -> Vec<f32> {
-    animation
-        .joints
-        .iter()
-        .flat_map(|j| j.rotation.iter().chain(&j.translation).chain(&j.scale).map(|&v| v as f32).collect::<Vec<_>>())
-        .collect()
-}
-
 /// The rows of [`local`] for the clip's `frames` only, in that order (a block of a texture
 /// streamed to disk, or the frames a preview draws).
 #[must_use]
 pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[usize]) -> Vec<f32> {
     let values = baked.values(clip);
-    let rest = rest_row(animation);
+    let rest = animation.rest_row();
     let row = rest.len();
     let mut data = vec![0.0f32; frames.len() * row];
     data.par_chunks_mut(row.max(1)).zip(frames).for_each(|(out, &frame)| {
@@ -223,7 +213,7 @@ pub fn sheets(
     clip: usize,
     kind: TextureKind,
     device: &Device,
-) -> Result<Vec<Sheet>, InputError> {
+) -> Result<Vec<Sheet>, BakeError> {
     let frames: Vec<usize> = (0..baked.clips[clip].times.len()).collect();
     let mut sheets = sheet_rows(animation, order, baked, clip, kind, device, &frames)?;
     Signs::default().follow(kind, &mut sheets);
@@ -244,12 +234,13 @@ pub fn sheet_rows(
     kind: TextureKind,
     device: &Device,
     frames: &[usize],
-) -> Result<Vec<Sheet>, InputError> {
+) -> Result<Vec<Sheet>, BakeError> {
     if kind == TextureKind::Vertex {
         return Err(InputError::Animation(
             "a vertex texture skins a glTF's meshes, which an animation alone does not have; bake it with a BakeJob"
                 .into(),
-        ));
+        )
+        .into());
     }
     let local = local_rows(animation, baked, clip, frames);
     if kind == TextureKind::Local {

@@ -7,6 +7,7 @@ use super::babylon;
 use super::image::{self, Format, Grid, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
+use crate::error::BakeError;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use quatcurve_eval::io::{npy_header, AtomicFile, NpyElement};
@@ -310,9 +311,9 @@ pub(super) fn open(
 /// the arithmetic.
 pub(super) fn stream(
     frames: usize,
-    mut rows: impl FnMut(&[usize]) -> Result<Vec<texture::Sheet>, InputError>,
+    mut rows: impl FnMut(&[usize]) -> Result<Vec<texture::Sheet>, BakeError>,
     textures: &mut [TextureFile],
-) -> Result<(), InputError> {
+) -> Result<(), BakeError> {
     let row_bytes = textures.iter().map(|t| t.row_bytes).sum::<usize>().max(1);
     let block = (TEXTURE_BLOCK_BYTES / row_bytes).max(1);
     std::thread::scope(|s| {
@@ -344,6 +345,6 @@ pub(super) fn stream(
         }
         drop(send);
         let written = writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
-        computed.and(written)
+        computed.and(written.map_err(BakeError::from))
     })
 }

@@ -7,6 +7,7 @@
 
 use super::image::Grid;
 use super::texture::TextureKind;
+use crate::error::LayoutError;
 use base64::Engine as _;
 use quatcurve_shader::{self as shader, Language, Program};
 use serde::{Deserialize, Serialize};
@@ -72,7 +73,7 @@ impl Layouts {
     ///
     /// # Errors
     /// naga's (a bug: the tests parse every program).
-    pub(super) fn new(texture: TextureKind) -> Result<Self, String> {
+    pub(super) fn new(texture: TextureKind) -> Result<Self, LayoutError> {
         let program = if texture == TextureKind::Vertex { Program::Vertex } else { Program::Bones };
         Ok(Self { program, module: shader::parse(program.files())?.0 })
     }
@@ -82,9 +83,14 @@ impl Layouts {
     /// # Errors
     /// A number the shader's struct cannot hold, named (a bug where the shader and this
     /// disagree on a member's name); a layout of the other program.
-    pub(super) fn layout(&self, grid: &Grid, of: &LayoutOf<'_>, clips: &[LayoutClip]) -> Result<UniformRecord, String> {
+    pub(super) fn layout(
+        &self,
+        grid: &Grid,
+        of: &LayoutOf<'_>,
+        clips: &[LayoutClip],
+    ) -> Result<UniformRecord, LayoutError> {
         if of.program() != self.program {
-            return Err(format!("a {} layout among the {} program's", of.program(), self.program));
+            return Err(LayoutError::Program { layout: of.program(), program: self.program });
         }
         layout(&self.module, grid, of, clips)
     }
@@ -95,12 +101,12 @@ fn layout(
     grid: &Grid,
     of: &LayoutOf<'_>,
     clips: &[LayoutClip],
-) -> Result<UniformRecord, String> {
+) -> Result<UniformRecord, LayoutError> {
     let (variable, struct_name, limit) = match of {
         LayoutOf::Bones { .. } => ("bone_layout", "BoneLayout", "BONE_MAX_CLIPS"),
         LayoutOf::Vertex { .. } => ("vertex_layout", "VertexLayout", "VERTEX_MAX_CLIPS"),
     };
-    let limit = shader::constant_u32(module, limit).ok_or_else(|| format!("the shader has no `{limit}`"))?;
+    let limit = shader::constant_u32(module, limit).ok_or(LayoutError::NoConstant { name: limit })?;
     let clips = &clips[..clips.len().min(limit as usize)];
     let clip_fields: Vec<Value> = clips
         .iter()
@@ -208,20 +214,18 @@ fn input_source(name: &str) -> Option<&'static str> {
 ///
 /// # Errors
 /// naga's, or an input this file does not know the source of (a bug: the tests bake both).
-pub(super) fn shader_record(program: Program) -> Result<ShaderRecord, String> {
+pub(super) fn shader_record(program: Program) -> Result<ShaderRecord, LayoutError> {
     let entry = program.entry_point();
     let glsl = shader::glsl(program.files(), entry, program.stage(), Language::GlslEs)?;
     let (module, _) = shader::parse(program.files())?;
     let inputs = shader::vertex_inputs(&module, entry)?
         .into_iter()
         .map(|(name, location)| {
-            let from = input_source(&name).ok_or_else(|| format!("no glTF source for input `{name}`"))?;
-            let glsl = glsl
-                .vertex_input(location)
-                .ok_or_else(|| format!("naga's GLSL names no input at location {location}"))?;
+            let from = input_source(&name).ok_or_else(|| LayoutError::InputSource { name: name.clone() })?;
+            let glsl = glsl.vertex_input(location).ok_or(LayoutError::NoGlslInput { location })?;
             Ok(ShaderInput { from: from.to_string(), glsl, name, location })
         })
-        .collect::<Result<Vec<_>, String>>()?;
+        .collect::<Result<Vec<_>, LayoutError>>()?;
     let mut resources: Vec<ShaderResource> = glsl
         .bindings
         .into_iter()

@@ -6,7 +6,7 @@
 use super::image::Grid;
 use super::texture::TextureKind;
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::mesh::SkinnedPrimitive;
+use quatcurve_formats::mesh::SkinnedPrimitive;
 use serde_json::{json, Value};
 
 /// glTF's `ARRAY_BUFFER` and `ELEMENT_ARRAY_BUFFER` buffer-view targets.
@@ -109,5 +109,5 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    quatcurve_anim::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
+    quatcurve_formats::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
 }

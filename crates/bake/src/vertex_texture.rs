@@ -8,10 +8,10 @@ use super::image::Texels;
 use super::texture::{self, Sheet, TextureKind, VERTEX_CHANNELS};
 use super::texture_file::SheetSpec;
 use super::Baked;
-use quatcurve_anim::error::InputError;
-use quatcurve_anim::mesh::SkinnedPrimitive;
+use crate::error::BakeError;
 use quatcurve_anim::Animation;
 use quatcurve_device::{Device, DeviceError};
+use quatcurve_formats::mesh::SkinnedPrimitive;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -25,7 +25,7 @@ pub fn suffix(k: usize) -> String {
 /// The skinned primitives of one input and how their sheets are laid out; counts the
 /// skinning work done, for the bake's report.
 pub struct VertexSheets {
-    /// The primitives, in [`quatcurve_anim::mesh::skinned_primitives`] order.
+    /// The primitives, in [`quatcurve_formats::mesh::skinned_primitives`] order.
     pub primitives: Vec<SkinnedPrimitive>,
     /// Position and normal images (EXR, PNG16) rather than raw `.npy` rows.
     images: bool,
@@ -79,7 +79,7 @@ impl VertexSheets {
         clip: usize,
         device: &Device,
         frames: &[usize],
-    ) -> Result<Vec<Sheet>, InputError> {
+    ) -> Result<Vec<Sheet>, BakeError> {
         let skins = texture::sheet_rows(animation, order, baked, clip, TextureKind::Skin, device, frames)?;
         let mut out = Vec::new();
         for (k, p) in self.primitives.iter().enumerate() {
@@ -87,7 +87,7 @@ impl VertexSheets {
             let start = Instant::now();
             let data = device
                 .skin(&p.bind, joints, &skins[p.skin].data)
-                .map_err(|e| InputError::Device(DeviceError::Device(format!("{}: {e}", p.name))))?;
+                .map_err(|e| BakeError::Device(DeviceError::Device(format!("{}: {e}", p.name))))?;
             {
                 let mut work = self.work.lock().unwrap_or_else(|e| e.into_inner());
                 work.0 += (frames.len() * p.vertices()) as u64;

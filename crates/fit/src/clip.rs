@@ -3,18 +3,18 @@
 //! virtual vertices ([`quatcurve_analysis::vertex_error`]) stays within a budget at every source
 //! frame; then measured at every frame and at points between frames against the source's own
 //! interpolation (keys slerped and lerped), and counted in bytes as ACL counts a raw clip
-//! against the clip's bytes in the container ([`quatcurve_anim::qcf`]).
+//! against the clip's bytes in the container ([`quatcurve_qcf`]).
 
 use super::{bracket, fit_vectors, spans_of_order, RotationStart};
 use quatcurve_analysis::vertex_error::{joint_errors, object_space, Transform};
-use quatcurve_anim::qcf::fitted::ORDER;
-use quatcurve_anim::qcf::fitted::{Between, Fit, Fitted, FittedChannel, FittedClip, Form, Spline};
-use quatcurve_anim::qcf::quantize::{self, Quantized};
-use quatcurve_anim::qcf::timeline::{Timeline, BETWEEN_POINTS};
 use quatcurve_anim::{Animation, Channel, Property};
 use quatcurve_core::quat::{tan_quarter, QuatF64, Vec3F64};
 use quatcurve_eval::error::Number;
 use quatcurve_eval::skeleton::Affine;
+use quatcurve_qcf::fitted::ORDER;
+use quatcurve_qcf::fitted::{Between, Fit, Fitted, FittedChannel, FittedClip, Form, Spline};
+use quatcurve_qcf::quantize::{self, Quantized};
+use quatcurve_qcf::timeline::{Timeline, BETWEEN_POINTS};
 use rayon::prelude::*;
 
 /// Bytes ACL counts per joint per frame of a raw clip: `f32` rotation, translation and scale.
@@ -100,7 +100,7 @@ pub struct ClipFit {
     pub frames: usize,
     /// [`RAW_BYTES_PER_JOINT_FRAME`] per joint per frame.
     pub raw_bytes: usize,
-    /// The clip's bytes in the container ([`quatcurve_anim::qcf::clip_bytes`]).
+    /// The clip's bytes in the container ([`quatcurve_qcf::clip_bytes`]).
     pub fitted_bytes: usize,
 }
 
@@ -238,7 +238,7 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
             timelines: timelines.clone(),
             channels: fitted,
         };
-        let fitted_bytes = quatcurve_anim::qcf::clip_bytes(&fitted);
+        let fitted_bytes = quatcurve_qcf::clip_bytes(&fitted);
         let smallest = best.as_ref().map(|b| b.fitted_bytes);
         if room >= 1.0 && best.as_ref().map_or(true, |b| fitted_bytes < b.fitted_bytes) {
             kept.clone_from(&scales);
@@ -439,7 +439,7 @@ fn fit_channel(
             }
         })
         .min_by_key(|curve| {
-            quatcurve_anim::qcf::channel_bytes(&FittedChannel {
+            quatcurve_qcf::channel_bytes(&FittedChannel {
                 joint: channel.joint,
                 property: channel.property,
                 curve: curve.clone(),

@@ -5,14 +5,15 @@
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use quatcurve_anim::error::InputError;
-use quatcurve_anim::files::FileJobError;
-use quatcurve_anim::files::{expand, output_stems};
-use quatcurve_anim::files::{refuse_overwriting_input, OutputDir};
-use quatcurve_anim::qcf::{BvhSkeleton, Container, EXTENSION};
-use quatcurve_anim::source::extension;
-use quatcurve_anim::{bvh, fbx, gltf};
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
+use quatcurve_files::FileJobError;
+use quatcurve_files::{expand, output_stems};
+use quatcurve_files::{refuse_overwriting_input, OutputDir};
+use quatcurve_formats::fbx;
+use quatcurve_formats::source::extension;
+use quatcurve_formats::source::{ReadOptions, Source};
+use quatcurve_qcf::{Container, EXTENSION};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -250,21 +251,12 @@ impl FitJob {
 
     fn fit_one(&self, input: &Path, stem: &str, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> InputFit {
         let name = input.display().to_string();
-        let bvh = extension(input).as_deref() == Some("bvh");
         let unit_cm = self.options.unit_cm.unwrap_or(GLTF_UNIT_CM);
         let mut report =
             InputFit { input: name.clone(), output: None, unit_cm, container_bytes: 0, clips: Vec::new(), error: None };
         let result = (|| -> Result<(String, usize), String> {
-            let (animation, skeleton): (Animation, Option<BvhSkeleton>) = if bvh {
-                let file = bvh::read(input).map_err(|e| e.to_string())?;
-                let skeleton = BvhSkeleton { hierarchy: file.hierarchy().to_string(), frame_time: file.frame_time };
-                (file.animation(stem), Some(skeleton))
-            } else if extension(input).as_deref() == Some(fbx::EXTENSION) {
-                (fbx::read(input).map_err(|e| e.to_string())?.gltf.animation, None)
-            } else {
-                let file = gltf::read(input, gltf::UriPolicy::default()).map_err(|e| e.to_string())?;
-                (file.animation, None)
-            };
+            let source = Source::read(input, ReadOptions::default()).map_err(|e| e.to_string())?;
+            let (animation, skeleton) = (source.animation().clone(), source.skeleton());
             if animation.clips.is_empty() {
                 return Err("no rotation, translation or scale animation to fit".into());
             }

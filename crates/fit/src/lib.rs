@@ -17,10 +17,10 @@ pub mod clip;
 pub mod job;
 
 use banded::Banded;
-use quatcurve_anim::qcf::fitted::{clamped, Fit, SpanBasis, ORDER};
 use quatcurve_core::basis::{bspline_cumulative_into, bspline_cumulative_values_into};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_core::segment::locate_ascending;
+use quatcurve_qcf::fitted::{clamped, Fit, SpanBasis, ORDER};
 
 /// Levenberg-Marquardt steps at most per knot vector.
 const STEPS: usize = 60;
@@ -234,7 +234,7 @@ pub fn fit_vectors(times: &[f64], values: &[[f64; 3]], tolerances: &[f64]) -> Fi
 }
 
 /// `rotations` at `times` (at least two, strictly increasing) as a normalized cubic B-spline
-/// ([`quatcurve_anim::qcf::fitted::CUBIC_ROTATIONS`]) whose every sample is within its
+/// ([`quatcurve_qcf::fitted::CUBIC_ROTATIONS`]) whose every sample is within its
 /// tolerance (radians), or as close as knots at the samples allow; weighted as
 /// [`fit_vectors`]. `None` where no such curve keeps its rule ([`RotationStart::fit_below`]).
 ///

@@ -3,7 +3,7 @@
 //! outputs map directly, the device-lost flag, and the calls every pass makes (error scopes,
 //! dispatch grids, waiting, reading back).
 
-use super::GpuError;
+use crate::error::GpuError;
 use std::sync::{Arc, Mutex};
 
 /// A device and what quatcurve knows of it. Clones share the device (wgpu handles); a clone's
@@ -180,9 +180,9 @@ impl GpuContext {
         use super::program::{Compiled, Resources};
         use quatcurve_shader::entry_workgroup_size;
         let device = &self.device;
-        let workgroup_size = entry_workgroup_size(module, entry).map_err(GpuError::Shader)?;
+        let workgroup_size = entry_workgroup_size(module, entry)?;
         let scope = ErrorScope::push(device);
-        let resources = Resources::of(module).map_err(GpuError::Shader)?;
+        let resources = Resources::of(module)?;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
             entries: &resources.layout_entries(),

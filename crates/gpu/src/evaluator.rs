@@ -6,7 +6,7 @@ use super::context::{ErrorScope, GpuContext};
 use super::fk::ForwardKinematics;
 use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, PipelineKey};
 use super::program;
-use super::GpuError;
+use crate::error::GpuError;
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, Layout};
 use quatcurve_eval::sampling::SampleTimes;
@@ -77,14 +77,14 @@ struct Program {
 
 impl Program {
     fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let (naga_module, _) = shader::module().map_err(GpuError::Shader)?;
-        let workgroup_size = shader::workgroup_size(&naga_module).map_err(GpuError::Shader)?;
+        let (naga_module, _) = shader::module()?;
+        let workgroup_size = shader::workgroup_size(&naga_module)?;
         let scope = ErrorScope::push(device);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("quatcurve eval"),
             source: wgpu::ShaderSource::Wgsl(shader::source().into()),
         });
-        let resources = program::Resources::of(&naga_module).map_err(GpuError::Shader)?;
+        let resources = program::Resources::of(&naga_module)?;
         let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("quatcurve eval"),
             entries: &resources.layout_entries(),
@@ -413,7 +413,7 @@ impl GpuEvaluator {
 
     /// Validates the job and plans its chunks, every binding within `limit` bytes.
     fn plan(&self, job: &EvalJob<'_>, channels: usize, limit: u64) -> Result<Vec<ChunkPlan>, GpuError> {
-        job.validate().map_err(|e| GpuError::Job(e.to_string()))?;
+        job.validate()?;
         layout::plan_chunks(job.batch, job.times, channels, limit).map_err(GpuError::Pack)
     }
 
@@ -566,7 +566,7 @@ impl GpuEvaluator {
         let entries = buffers
             .map(|(name, buffer)| {
                 Ok(wgpu::BindGroupEntry {
-                    binding: self.program.resources.binding(name).map_err(GpuError::Shader)?,
+                    binding: self.program.resources.binding(name)?,
                     resource: buffer.as_entire_binding(),
                 })
             })

@@ -5,7 +5,7 @@
 
 use super::context::{ErrorScope, GpuContext};
 use super::program::Compiled;
-use super::GpuError;
+use crate::error::GpuError;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
@@ -84,7 +84,7 @@ impl ForwardKinematics {
     /// # Errors
     /// [`GpuError::Shader`] or [`GpuError::Device`] when it cannot be built.
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
-        let (module, _) = shader::fk_module().map_err(GpuError::Shader)?;
+        let (module, _) = shader::fk_module()?;
         let program = context.compile("quatcurve fk", &module, &shader::fk_source(), shader::FK_ENTRY_POINT)?;
         Ok(Self { context: context.clone(), program })
     }

@@ -4,6 +4,7 @@
 //! `GpuTrack` and `Params` mirror the WGSL structs of `shaders/eval.wgsl` field by field; a
 //! test compares their offsets with naga's layout, so neither side can drift.
 
+use crate::error::{GpuError, PackError};
 use bytemuck::{Pod, Zeroable};
 use quatcurve_core::curve::{Blend, Curve};
 use quatcurve_eval::batch::Batch;
@@ -135,13 +136,13 @@ pub fn fixed_time(t: f64) -> [u32; 2] {
 /// `max_compute_workgroups_per_dimension`) in x: `[x, y]` with `x * y >= groups`.
 ///
 /// # Errors
-/// [`super::GpuError::Job`] when even the 2D grid cannot hold them.
-pub fn grid(groups: u64, max: u32) -> Result<[u32; 2], super::GpuError> {
+/// [`GpuError::Job`] when even the 2D grid cannot hold them.
+pub fn grid(groups: u64, max: u32) -> Result<[u32; 2], GpuError> {
     let max = u64::from(max);
     let x = groups.clamp(1, max);
     let y = groups.div_ceil(x).max(1);
     if y > max {
-        return Err(super::GpuError::Job(format!("{groups} workgroups exceed one 2D dispatch")));
+        return Err(GpuError::Job(format!("{groups} workgroups exceed one 2D dispatch")));
     }
     Ok([x as u32, y as u32])
 }
@@ -219,57 +220,6 @@ pub struct ChunkTargets<'a> {
     pub knots: wgpu::WriteOnly<'a, [u8]>,
     /// Explicit sample times in 32.32 fixed point.
     pub times: wgpu::WriteOnly<'a, [u8]>,
-}
-
-/// Why a batch cannot go to the GPU.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum PackError {
-    /// One track's keys alone exceed a binding limit (its samples are cut into pieces).
-    #[error(
-        "{track}: its keys need {bytes} bytes in one GPU binding, more than the device's {limit}; use the cpu device"
-    )]
-    TrackTooLarge {
-        /// The track, by index and name.
-        track: String,
-        /// Bytes it would take.
-        bytes: u64,
-        /// The binding limit (bytes).
-        limit: u64,
-    },
-    /// A Bezier degree beyond the shader's fixed arrays.
-    #[error("{track}: Bezier degree {degree} is above the GPU limit of {max}; use the cpu or reference device")]
-    BezierTooLong {
-        /// The track, by index and name.
-        track: String,
-        /// The track's degree.
-        degree: usize,
-        /// The most allowed.
-        max: usize,
-    },
-    /// Too many samples in one track for exact in-shader time generation.
-    #[error("{track}: {count} samples is more than the GPU limit of {max} per track")]
-    TooManySamples {
-        /// The track, by index and name.
-        track: String,
-        /// Its samples.
-        count: usize,
-        /// The most allowed.
-        max: usize,
-    },
-    /// Two distinct knots (key times) that the kernel's 32.32 fixed-point times cannot tell
-    /// apart: the span between them would have zero length there (NaN samples).
-    #[error("{track}: knots {knot} and {next} are {gap:e} s apart, closer than the GPU's time resolution of \
-        {resolution:e} s; use the cpu device", next = knot + 1)]
-    KnotsTooClose {
-        /// The track, by index and name.
-        track: String,
-        /// The knot's index.
-        knot: usize,
-        /// The distance between the two knots (s).
-        gap: f64,
-        /// The smallest distance the kernel resolves (s).
-        resolution: f64,
-    },
 }
 
 /// The first non-empty span of `knots` that is empty in fixed point, as its start index.

@@ -12,6 +12,7 @@
 //!   palettes in one submission; [`CurvePalettes`], the same from curves kept on the device.
 
 pub mod context;
+pub mod error;
 pub mod evaluator;
 pub mod fk;
 pub mod layout;
@@ -20,6 +21,7 @@ pub mod program;
 pub mod skinning;
 
 pub use context::GpuContext;
+pub use error::GpuError;
 pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
 pub use fk::ForwardKinematics;
 pub use playback::{CurvePalettes, PosePalettes};
@@ -46,27 +48,4 @@ pub(crate) fn quietly<T>(f: impl FnOnce() -> T) -> T {
         None => std::env::remove_var(NAME),
     }
     result
-}
-
-/// Why the GPU path failed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum GpuError {
-    /// No adapter could be found.
-    #[error("no GPU adapter: {0}")]
-    NoAdapter(String),
-    /// The WGSL program failed naga validation (a bug in this crate).
-    #[error("shader: {0}")]
-    Shader(String),
-    /// The device rejected an operation (validation, out of memory, internal error).
-    #[error("GPU device error: {0}")]
-    Device(String),
-    /// The device was lost.
-    #[error("GPU device lost: {0}")]
-    DeviceLost(String),
-    /// The batch cannot be packed for the kernel.
-    #[error("{0}")]
-    Pack(#[from] layout::PackError),
-    /// Inputs that do not fit together.
-    #[error("{0}")]
-    Job(String),
 }

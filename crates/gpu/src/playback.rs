@@ -9,7 +9,7 @@ use super::context::{ErrorScope, GpuContext};
 use super::fk::{levels, FkLevel};
 use super::layout::{self, fixed_time, ChunkTargets, GpuTrack, Params};
 use super::program::Compiled;
-use super::GpuError;
+use crate::error::GpuError;
 use quatcurve_eval::batch::knots_are_uniform;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
@@ -51,7 +51,7 @@ impl PosePalettes {
     /// # Errors
     /// [`GpuError::Shader`] or [`GpuError::Device`] when it cannot be built.
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
-        let (module, _) = shader::play_module().map_err(GpuError::Shader)?;
+        let (module, _) = shader::play_module()?;
         let source = shader::play_source();
         let compile = |entry: &str| context.compile("quatcurve play", &module, &source, entry);
         Ok(Self {
@@ -347,9 +347,8 @@ fn play_track(domain: [f64; 2], looping: bool, drift: [f64; 3]) -> PlayTrack {
 pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<PackedCurves, GpuError> {
     let mut packed = PackedCurves::default();
     if let Some(batch) = curves.batch {
-        let none =
-            SampleTimes::per_track(batch, |_, _| Ok(PerTrack::List(&[]))).map_err(|e| GpuError::Job(e.to_string()))?;
-        let plans = layout::plan_chunks(batch, &none, 4, binding_limit).map_err(|e| GpuError::Job(e.to_string()))?;
+        let none = SampleTimes::per_track(batch, |_, _| Ok(PerTrack::List(&[])))?;
+        let plans = layout::plan_chunks(batch, &none, 4, binding_limit)?;
         let [plan] = plans.as_slice() else {
             return Err(GpuError::Job(format!(
                 "the rotation curves need {} storage bindings of {binding_limit} bytes; playback keeps them in one",
@@ -515,7 +514,7 @@ impl FrameKernels {
     /// # Errors
     /// [`GpuError::Shader`] for an entry point missing or not one-dimensional.
     pub fn of(module: &naga::Module) -> Result<Self, GpuError> {
-        let width = |entry| shader::entry_workgroup_size(module, entry).map_err(GpuError::Shader);
+        let width = |entry| shader::entry_workgroup_size(module, entry);
         Ok(Self {
             curves: width(shader::PLAY_CURVES_ENTRY_POINT)?,
             fk: width(shader::FK_ENTRY_POINT)?,
@@ -695,7 +694,7 @@ impl CurvePalettes {
     /// [`ResidentCurves::new`]'s; device errors.
     pub fn new(context: &GpuContext, curves: &PoseCurves<'_>) -> Result<Self, GpuError> {
         let mut plan = ResidentCurves::new(curves, context.binding_limit())?;
-        let (module, _) = shader::play_curves_module().map_err(GpuError::Shader)?;
+        let (module, _) = shader::play_curves_module()?;
         let source = shader::play_curves_source();
         let constants = &plan.constants;
         let compile =

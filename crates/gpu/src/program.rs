@@ -2,6 +2,8 @@
 //! from naga's reflection of the WGSL ([`quatcurve_shader`]) so binding numbers and access
 //! modes are written once, in the shader.
 
+use crate::error::{GpuError, ResourceError};
+
 /// A compute program compiled on a device: its pipeline, bind group layout, buffers by name
 /// and workgroup width. The evaluator keeps the forward-kinematics and mesh-skinning programs
 /// in one each, built on first use ([`super::fk`], [`super::skinning`]) by
@@ -21,16 +23,16 @@ impl Compiled {
         device: &wgpu::Device,
         label: &str,
         buffers: &[(&str, &wgpu::Buffer)],
-    ) -> Result<wgpu::BindGroup, super::GpuError> {
+    ) -> Result<wgpu::BindGroup, GpuError> {
         let entries = buffers
             .iter()
             .map(|&(name, buffer)| {
                 Ok(wgpu::BindGroupEntry {
-                    binding: self.resources.binding(name).map_err(super::GpuError::Shader)?,
+                    binding: self.resources.binding(name)?,
                     resource: buffer.as_entire_binding(),
                 })
             })
-            .collect::<Result<Vec<_>, super::GpuError>>()?;
+            .collect::<Result<Vec<_>, GpuError>>()?;
         Ok(device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
             layout: &self.layout,
@@ -54,20 +56,20 @@ impl Resources {
     ///
     /// # Errors
     /// A resource outside group 0, unnamed, or not a uniform or storage buffer.
-    pub fn of(module: &naga::Module) -> Result<Self, String> {
+    pub fn of(module: &naga::Module) -> Result<Self, ResourceError> {
         let mut entries = Vec::new();
         for (_, var) in module.global_variables.iter() {
             let Some(binding) = &var.binding else { continue };
-            let name = var.name.clone().ok_or("a resource without a name")?;
+            let name = var.name.clone().ok_or(ResourceError::Unnamed { binding: binding.binding })?;
             if binding.group != 0 {
-                return Err(format!("`{name}` is in group {}; the host binds group 0 only", binding.group));
+                return Err(ResourceError::Group { name, group: binding.group });
             }
             let ty = match var.space {
                 naga::AddressSpace::Uniform => wgpu::BufferBindingType::Uniform,
                 naga::AddressSpace::Storage { access } => {
                     wgpu::BufferBindingType::Storage { read_only: !access.contains(naga::StorageAccess::STORE) }
                 }
-                other => return Err(format!("`{name}` is in {other:?}, not a buffer")),
+                other => return Err(ResourceError::NotBuffer { name, space: format!("{other:?}") }),
             };
             let entry = wgpu::BindGroupLayoutEntry {
                 binding: binding.binding,
@@ -91,12 +93,12 @@ impl Resources {
     ///
     /// # Errors
     /// When the program has no such buffer.
-    pub fn binding(&self, name: &str) -> Result<u32, String> {
+    pub fn binding(&self, name: &str) -> Result<u32, ResourceError> {
         self.entries
             .iter()
             .find(|(n, _)| n == name)
             .map(|(_, e)| e.binding)
-            .ok_or_else(|| format!("the shader has no buffer `{name}`"))
+            .ok_or_else(|| ResourceError::Missing { name: name.into() })
     }
 
     /// `(name, layout entry)` of every buffer, by binding number.

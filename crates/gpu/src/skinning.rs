@@ -5,7 +5,7 @@
 
 use super::context::{ErrorScope, GpuContext};
 use super::program::Compiled;
-use super::GpuError;
+use crate::error::GpuError;
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton::SkinnedMesh;
 use quatcurve_shader as shader;
@@ -76,7 +76,7 @@ impl MeshSkinning {
     /// # Errors
     /// [`GpuError::Shader`] or [`GpuError::Device`] when it cannot be built.
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
-        let (module, _) = shader::skin_mesh_module().map_err(GpuError::Shader)?;
+        let (module, _) = shader::skin_mesh_module()?;
         let source = shader::skin_mesh_source();
         let program = context.compile("quatcurve skin mesh", &module, &source, shader::SKIN_MESH_ENTRY_POINT)?;
         Ok(Self { context: context.clone(), program })

@@ -1,5 +1,5 @@
 //! Crowds played straight from curves (DESIGN section 11): an animation's clips built once as
-//! curves ([`quatcurve_bake::curves::Curves`], the bake's own), then, frame after frame, every
+//! curves ([`quatcurve_anim::curves::Curves`], the bake's own), then, frame after frame, every
 //! instance's joints evaluated at that instance's own time in up to two clips, the two poses
 //! blended in local space, forward kinematics run and the skin's inverse binds multiplied:
 //! the skin palette `[instances, joints, 3x4]` a vertex shader skins with. No texture per clip
@@ -12,12 +12,14 @@
 //! Euclidean analogue in f64, then blend, run forward kinematics and build palettes an
 //! instance at a time ([`Device::play_palettes`]).
 
+pub mod error;
 pub mod schedule;
 
+use error::PlayError;
+use quatcurve_anim::curves::{ChannelEval, CurveChoice, Curves};
 use quatcurve_anim::error::InputError;
+use quatcurve_anim::loops::{clip_loops, LoopMode};
 use quatcurve_anim::{Animation, Property, Skin};
-use quatcurve_bake::curves::{ChannelEval, CurveChoice, Curves};
-use quatcurve_bake::{clip_loops, LoopMode};
 use quatcurve_device::{Device, ResidentPlayback};
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::job::EvalJob;
@@ -68,7 +70,7 @@ pub struct Playback {
     durations: Vec<f64>,
     /// Per clip: whether it plays as a loop.
     looping: Vec<bool>,
-    /// Every joint's rest pose, one local row ([`quatcurve_bake::texture::rest_row`]).
+    /// Every joint's rest pose, one local row ([`Animation::rest_row`]).
     rest: Vec<f32>,
     /// The skin whose palette is played; `None`: every joint's model matrix (no skin).
     skin: Option<usize>,
@@ -111,7 +113,7 @@ impl Playback {
             starts: spans.iter().map(|s| s[0]).collect(),
             durations: spans.iter().map(|s| s[1] - s[0]).collect(),
             looping,
-            rest: quatcurve_bake::texture::rest_row(&animation),
+            rest: animation.rest_row(),
             skin,
             curves,
             animation,
@@ -170,7 +172,7 @@ impl Playback {
     /// # Errors
     /// [`InputError::Animation`] for a clip that is not the animation's, a time that is not
     /// finite or a weight outside `[0, 1]`, naming the instance; the device's failures.
-    pub fn local_poses(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+    pub fn local_poses(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, PlayError> {
         let (poses, weights) = self.pose_pairs(device, instances)?;
         Ok(skeleton::blend_poses(&poses, &weights, self.animation.joints.len()))
     }
@@ -183,7 +185,7 @@ impl Playback {
     ///
     /// # Errors
     /// As [`Playback::local_poses`], and [`Playback::player`]'s.
-    pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+    pub fn palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, PlayError> {
         self.player(device)?.palettes(instances)
     }
 
@@ -194,7 +196,7 @@ impl Playback {
     ///
     /// # Errors
     /// The device's, for curves it cannot take (named).
-    pub fn player<'a>(&'a self, device: &'a Device) -> Result<Player<'a>, InputError> {
+    pub fn player<'a>(&'a self, device: &'a Device) -> Result<Player<'a>, PlayError> {
         let resident = match self.pose_curves() {
             Some(curves) => device.resident_playback(&curves)?,
             None => None,
@@ -263,14 +265,14 @@ impl Playback {
 
     /// [`Playback::palettes`] on the host path: rotations by one evaluator job, vectors in f64,
     /// then [`Device::play_palettes`].
-    fn host_palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+    fn host_palettes(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, PlayError> {
         let (poses, weights) = self.pose_pairs(device, instances)?;
         Ok(device.play_palettes(&self.parents, &self.order, &poses, &weights, self.palette_skin())?)
     }
 
     /// Each instance's two local poses, `[instances, 2, joints, 10]` (an instance without a
     /// blend: its pose twice), and the second's weight (0 without a blend).
-    fn pose_pairs(&self, device: &Device, instances: &[Instance]) -> Result<(Vec<f32>, Vec<f32>), InputError> {
+    fn pose_pairs(&self, device: &Device, instances: &[Instance]) -> Result<(Vec<f32>, Vec<f32>), PlayError> {
         self.check(instances)?;
         // Every pose asked for, grouped by clip: (instance, slot) -> (clip, k-th time of it).
         let clips = self.animation.clips.len();
@@ -383,7 +385,7 @@ impl Player<'_> {
     ///
     /// # Errors
     /// As [`Playback::local_poses`].
-    pub fn palettes(&self, instances: &[Instance]) -> Result<Vec<f32>, InputError> {
+    pub fn palettes(&self, instances: &[Instance]) -> Result<Vec<f32>, PlayError> {
         if instances.is_empty() {
             return Ok(Vec::new());
         }

@@ -1,4 +1,5 @@
-//! The WGSL programs: composed from `shaders/*.wgsl` (the only place the GPU math lives),
+//! The WGSL programs: composed from the crate's `shaders/*.wgsl` (the only place the GPU math lives, inside the
+//! crate so that it packages alone),
 //! validated by naga, translated to GLSL and HLSL by naga's back ends, and the source of the
 //! layout facts a host needs (workgroup sizes, vertex inputs, uniform structs), so every
 //! number a host shares with a shader is read from the shader. No wgpu: the bake reads its
@@ -6,28 +7,80 @@
 
 pub mod uniform;
 
+/// Why a program could not be composed, validated, translated or reflected. Every one is a bug
+/// of this crate or of a shader edited by hand: the tests translate every program.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ShaderError {
+    /// WGSL naga cannot parse or validate.
+    #[error("{diagnostic}")]
+    Wgsl {
+        /// naga's diagnostic, rendered with the lines of source it points at.
+        diagnostic: String,
+    },
+    /// naga's GLSL back end refused the module.
+    #[error("GLSL: {0}")]
+    Glsl(#[from] naga::back::glsl::Error),
+    /// naga's HLSL back end refused the module.
+    #[error("HLSL: {0}")]
+    Hlsl(#[from] naga::back::hlsl::Error),
+    /// A GLSL translation asked in another language.
+    #[error("{language} is not GLSL")]
+    NotGlsl {
+        /// The language asked for.
+        language: Language,
+    },
+    /// The module has no entry point of this name.
+    #[error("no `{name}` entry point")]
+    NoEntryPoint {
+        /// The entry point asked for.
+        name: String,
+    },
+    /// A compute entry point whose workgroup is not one-dimensional.
+    #[error("workgroup size {size:?} is not one-dimensional")]
+    WorkgroupSize {
+        /// Its `@workgroup_size`.
+        size: [u32; 3],
+    },
+    /// A uniform block of naga's GLSL that the library cannot turn into a uniform of its struct.
+    #[error("uniform block `{block}`")]
+    UniformBlock {
+        /// The block as naga wrote it.
+        block: String,
+    },
+    /// A resource's WGSL name that the GLSL already uses for something else.
+    #[error("the GLSL already uses `{name}`")]
+    NameTaken {
+        /// The name.
+        name: String,
+    },
+    /// A uniform struct that could not be filled or read.
+    #[error(transparent)]
+    Uniform(#[from] uniform::UniformError),
+}
+
 /// The shader files in the order they are concatenated into one module. WGSL has no
 /// `#include`; module-scope declarations are order-independent, so order is only for reading.
 pub const FILES: [(&str, &str); 5] = [
-    ("real.wgsl", include_str!("../../../shaders/real.wgsl")),
-    ("quat.wgsl", include_str!("../../../shaders/quat.wgsl")),
-    ("basis.wgsl", include_str!("../../../shaders/basis.wgsl")),
-    ("segment.wgsl", include_str!("../../../shaders/segment.wgsl")),
-    ("eval.wgsl", include_str!("../../../shaders/eval.wgsl")),
+    ("real.wgsl", include_str!("../shaders/real.wgsl")),
+    ("quat.wgsl", include_str!("../shaders/quat.wgsl")),
+    ("basis.wgsl", include_str!("../shaders/basis.wgsl")),
+    ("segment.wgsl", include_str!("../shaders/segment.wgsl")),
+    ("eval.wgsl", include_str!("../shaders/eval.wgsl")),
 ];
 
 /// The forward-kinematics program of bake's model textures: the quaternion helpers it shares
 /// with the evaluator, then its kernel.
 pub const FK_FILES: [(&str, &str); 3] = [
-    ("real.wgsl", include_str!("../../../shaders/real.wgsl")),
-    ("quat.wgsl", include_str!("../../../shaders/quat.wgsl")),
-    ("fk.wgsl", include_str!("../../../shaders/fk.wgsl")),
+    ("real.wgsl", include_str!("../shaders/real.wgsl")),
+    ("quat.wgsl", include_str!("../shaders/quat.wgsl")),
+    ("fk.wgsl", include_str!("../shaders/fk.wgsl")),
 ];
 
 /// Crowd playback's program: forward kinematics' files, then the pose blend and the skin
 /// palettes around it (one module, so that one submission runs all three).
 pub const PLAY_FILES: [(&str, &str); 4] =
-    [FK_FILES[0], FK_FILES[1], FK_FILES[2], ("play.wgsl", include_str!("../../../shaders/play.wgsl"))];
+    [FK_FILES[0], FK_FILES[1], FK_FILES[2], ("play.wgsl", include_str!("../shaders/play.wgsl"))];
 
 /// Crowd playback from resident curves: the evaluator's files (its track records and curve
 /// functions), forward kinematics and the playback program, then the per-instance pose
@@ -40,50 +93,50 @@ pub const PLAY_CURVES_FILES: [(&str, &str); 8] = [
     FILES[4],
     FK_FILES[2],
     PLAY_FILES[3],
-    ("play_curves.wgsl", include_str!("../../../shaders/play_curves.wgsl")),
+    ("play_curves.wgsl", include_str!("../shaders/play_curves.wgsl")),
 ];
 
 /// The WebGPU viewer's vertex shader over playback's palettes: self-contained.
 pub const PALETTE_VERTEX_FILES: [(&str, &str); 1] =
-    [("palette_vertex.wgsl", include_str!("../../../shaders/palette_vertex.wgsl"))];
+    [("palette_vertex.wgsl", include_str!("../shaders/palette_vertex.wgsl"))];
 
 /// The mesh-skinning program of vertex textures: self-contained.
-pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../../../shaders/skin_mesh.wgsl"))];
+pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../shaders/skin_mesh.wgsl"))];
 
 /// The bone-texture library a renderer includes (`quatcurve shaders`): self-contained, read
 /// with the bake's textures of `--format exr|png16` (DESIGN section 5c).
-pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../../../shaders/bone_texture.wgsl"))];
+pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../shaders/bone_texture.wgsl"))];
 
 /// The minimal skinned vertex shader over the bone library: what `quatcurve shaders` ships and
 /// what the GLSL and HLSL are generated from.
 pub const SKIN_VERTEX_FILES: [(&str, &str); 2] =
-    [BONE_FILES[0], ("skin_vertex.wgsl", include_str!("../../../shaders/skin_vertex.wgsl"))];
+    [BONE_FILES[0], ("skin_vertex.wgsl", include_str!("../shaders/skin_vertex.wgsl"))];
 
 /// The bone library's test and error probe: its functions at given (clip, joint, time) queries
 /// in a compute pass, so the host measures the shader a renderer runs.
 pub const BONE_PROBE_FILES: [(&str, &str); 2] =
-    [BONE_FILES[0], ("bone_probe.wgsl", include_str!("../../../shaders/bone_probe.wgsl"))];
+    [BONE_FILES[0], ("bone_probe.wgsl", include_str!("../shaders/bone_probe.wgsl"))];
 
 /// The vertex-texture library (composed after the bone library, whose frame rule it shares)
 /// and its minimal crowd vertex shader: what `quatcurve shaders --program vertex` ships
 /// (DESIGN section 5d).
 pub const VERTEX_TEXTURE_FILES: [(&str, &str); 3] = [
     BONE_FILES[0],
-    ("vertex_texture.wgsl", include_str!("../../../shaders/vertex_texture.wgsl")),
-    ("vertex_texture_vertex.wgsl", include_str!("../../../shaders/vertex_texture_vertex.wgsl")),
+    ("vertex_texture.wgsl", include_str!("../shaders/vertex_texture.wgsl")),
+    ("vertex_texture_vertex.wgsl", include_str!("../shaders/vertex_texture_vertex.wgsl")),
 ];
 
 /// The vertex-texture library's test probe: its functions at given (clip, vertex, time)
 /// queries in a compute pass.
 pub const VERTEX_PROBE_FILES: [(&str, &str); 3] = [
     BONE_FILES[0],
-    ("vertex_texture.wgsl", include_str!("../../../shaders/vertex_texture.wgsl")),
-    ("vertex_probe.wgsl", include_str!("../../../shaders/vertex_probe.wgsl")),
+    ("vertex_texture.wgsl", include_str!("../shaders/vertex_texture.wgsl")),
+    ("vertex_probe.wgsl", include_str!("../shaders/vertex_probe.wgsl")),
 ];
 
 /// The fragment shader of `quatcurve view`'s page: a fixed light on the crowd shaders' normal.
 pub const VIEWER_FRAGMENT_FILES: [(&str, &str); 1] =
-    [("viewer_fragment.wgsl", include_str!("../../../shaders/viewer_fragment.wgsl"))];
+    [("viewer_fragment.wgsl", include_str!("../shaders/viewer_fragment.wgsl"))];
 
 /// Name of the viewer's fragment entry point.
 pub const VIEWER_FRAGMENT_ENTRY_POINT: &str = "viewer_fragment";
@@ -269,7 +322,7 @@ impl Language {
 ///
 /// # Errors
 /// naga's, in words (a bug in this crate: the tests translate every language).
-pub fn program_in(program: Program, language: Language) -> Result<String, String> {
+pub fn program_in(program: Program, language: Language) -> Result<String, ShaderError> {
     let source = program.source();
     let files: Vec<&str> = program.files().iter().map(|(name, _)| *name).collect();
     let generated = format!("// Generated by `quatcurve shaders` (naga) from shaders/{}.\n", files.join(", "));
@@ -299,9 +352,7 @@ pub fn program_in(program: Program, language: Language) -> Result<String, String
             let options = hlsl::Options::default();
             let pipeline = hlsl::PipelineOptions::default();
             out.push_str(&generated);
-            hlsl::Writer::new(&mut out, &options, &pipeline)
-                .write(&module, &info, None)
-                .map_err(|e| format!("HLSL: {e}"))?;
+            hlsl::Writer::new(&mut out, &options, &pipeline).write(&module, &info, None).map_err(ShaderError::Hlsl)?;
         }
     }
     Ok(out)
@@ -317,7 +368,7 @@ pub fn program_in(program: Program, language: Language) -> Result<String, String
 ///
 /// # Errors
 /// naga's, in words; a resource name that the GLSL already uses for something else.
-pub fn library(program: Program) -> Result<String, String> {
+pub fn library(program: Program) -> Result<String, ShaderError> {
     let glsl = glsl(program.files(), program.entry_point(), program.stage(), Language::GlslEs)?;
     let mut text = String::new();
     for line in glsl.text.lines() {
@@ -346,9 +397,12 @@ pub fn library(program: Program) -> Result<String, String> {
         let generated = match start {
             // `layout(std140) uniform Block { Struct _group_g_binding_b_vs; };`
             Some(start) => {
-                let end = text[start..].find("};").map(|e| start + e + 2).ok_or("a uniform block without its end")?;
+                let end = text[start..].find("};").map(|e| start + e + 2).ok_or_else(|| ShaderError::UniformBlock {
+                    block: text[start..].lines().next().unwrap_or_default().to_string(),
+                })?;
                 let inner = text[start + block.len()..end - 2].trim().trim_end_matches(';').to_string();
-                let (ty, name) = inner.split_once(' ').ok_or_else(|| format!("uniform block `{inner}`"))?;
+                let (ty, name) =
+                    inner.split_once(' ').ok_or_else(|| ShaderError::UniformBlock { block: inner.clone() })?;
                 let declaration = format!("uniform {ty} {name};");
                 text.replace_range(start..end, &declaration);
                 name.to_string()
@@ -359,7 +413,7 @@ pub fn library(program: Program) -> Result<String, String> {
     }
     for (generated, wgsl) in &names {
         if !find_word(&text, wgsl).is_empty() {
-            return Err(format!("the GLSL already uses `{wgsl}`"));
+            return Err(ShaderError::NameTaken { name: wgsl.clone() });
         }
         for at in find_word(&text, generated).into_iter().rev() {
             text.replace_range(at..at + generated.len(), wgsl);
@@ -428,12 +482,17 @@ pub struct GlslBinding {
 ///
 /// # Errors
 /// naga's, in words; a `language` that is not GLSL.
-pub fn glsl(files: &[(&str, &str)], entry: &str, stage: naga::ShaderStage, language: Language) -> Result<Glsl, String> {
+pub fn glsl(
+    files: &[(&str, &str)],
+    entry: &str,
+    stage: naga::ShaderStage,
+    language: Language,
+) -> Result<Glsl, ShaderError> {
     use naga::back::glsl;
     let version = match language {
         Language::Glsl => glsl::Version::Desktop(450),
         Language::GlslEs => glsl::Version::new_gles(300),
-        other => return Err(format!("{other} is not GLSL")),
+        other => return Err(ShaderError::NotGlsl { language: other }),
     };
     let (module, info) = validate(&join(files))?;
     let options = glsl::Options { version, writer_flags: glsl::WriterFlags::empty(), ..Default::default() };
@@ -442,7 +501,7 @@ pub fn glsl(files: &[(&str, &str)], entry: &str, stage: naga::ShaderStage, langu
     let reflection =
         glsl::Writer::new(&mut text, &module, &info, &options, &pipeline, naga::proc::BoundsCheckPolicies::default())
             .and_then(|mut w| w.write())
-            .map_err(|e| format!("GLSL: {e}"))?;
+            .map_err(ShaderError::Glsl)?;
     let binding = |h: naga::Handle<naga::GlobalVariable>, glsl: &str, sampler: bool| {
         let var = &module.global_variables[h];
         let (group, binding) = var.binding.as_ref().map_or((0, 0), |b| (b.group, b.binding));
@@ -466,7 +525,7 @@ fn join(files: &[(&str, &str)]) -> String {
 ///
 /// # Errors
 /// The parse or validation error, rendered with file context.
-pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&source())
 }
 
@@ -474,7 +533,7 @@ pub fn module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
 ///
 /// # Errors
 /// As [`module`].
-pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&fk_source())
 }
 
@@ -482,7 +541,7 @@ pub fn fk_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
 ///
 /// # Errors
 /// naga's message when the program is invalid.
-pub fn play_curves_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn play_curves_module() -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&play_curves_source())
 }
 
@@ -490,7 +549,7 @@ pub fn play_curves_module() -> Result<(naga::Module, naga::valid::ModuleInfo), S
 ///
 /// # Errors
 /// As [`module`].
-pub fn play_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn play_module() -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&play_source())
 }
 
@@ -498,7 +557,7 @@ pub fn play_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> 
 ///
 /// # Errors
 /// As [`module`].
-pub fn skin_mesh_module() -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn skin_mesh_module() -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&skin_mesh_source())
 }
 
@@ -506,7 +565,7 @@ pub fn skin_mesh_module() -> Result<(naga::Module, naga::valid::ModuleInfo), Str
 ///
 /// # Errors
 /// As [`module`].
-pub fn parse(files: &[(&str, &str)]) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+pub fn parse(files: &[(&str, &str)]) -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
     validate(&join(files))
 }
 
@@ -524,8 +583,12 @@ pub fn struct_span(module: &naga::Module, name: &str) -> Option<u32> {
 ///
 /// # Errors
 /// When the module has no such entry point.
-pub fn vertex_inputs(module: &naga::Module, entry: &str) -> Result<Vec<(String, u32)>, String> {
-    let ep = module.entry_points.iter().find(|e| e.name == entry).ok_or_else(|| format!("no `{entry}` entry point"))?;
+pub fn vertex_inputs(module: &naga::Module, entry: &str) -> Result<Vec<(String, u32)>, ShaderError> {
+    let ep = module
+        .entry_points
+        .iter()
+        .find(|e| e.name == entry)
+        .ok_or_else(|| ShaderError::NoEntryPoint { name: entry.into() })?;
     let mut inputs = Vec::new();
     for arg in &ep.function.arguments {
         match (&arg.binding, &module.types[arg.ty].inner) {
@@ -545,11 +608,12 @@ pub fn vertex_inputs(module: &naga::Module, entry: &str) -> Result<Vec<(String, 
     Ok(inputs)
 }
 
-fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
-    let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
+fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), ShaderError> {
+    let module =
+        naga::front::wgsl::parse_str(src).map_err(|e| ShaderError::Wgsl { diagnostic: e.emit_to_string(src) })?;
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
         .validate(&module)
-        .map_err(|e| e.emit_to_string(src))?;
+        .map_err(|e| ShaderError::Wgsl { diagnostic: e.emit_to_string(src) })?;
     Ok((module, info))
 }
 
@@ -557,7 +621,7 @@ fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String
 ///
 /// # Errors
 /// When the entry point is missing or not one-dimensional.
-pub fn workgroup_size(module: &naga::Module) -> Result<u32, String> {
+pub fn workgroup_size(module: &naga::Module) -> Result<u32, ShaderError> {
     entry_workgroup_size(module, ENTRY_POINT)
 }
 
@@ -565,11 +629,15 @@ pub fn workgroup_size(module: &naga::Module) -> Result<u32, String> {
 ///
 /// # Errors
 /// When the entry point is missing or not one-dimensional.
-pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, String> {
-    let ep = module.entry_points.iter().find(|e| e.name == name).ok_or_else(|| format!("no `{name}` entry point"))?;
+pub fn entry_workgroup_size(module: &naga::Module, name: &str) -> Result<u32, ShaderError> {
+    let ep = module
+        .entry_points
+        .iter()
+        .find(|e| e.name == name)
+        .ok_or_else(|| ShaderError::NoEntryPoint { name: name.into() })?;
     match ep.workgroup_size {
         [x, 1, 1] if x > 0 => Ok(x),
-        other => Err(format!("workgroup size {other:?} is not one-dimensional")),
+        other => Err(ShaderError::WorkgroupSize { size: other }),
     }
 }
 
@@ -582,9 +650,12 @@ pub fn entry_point_bindings(
     module: &naga::Module,
     info: &naga::valid::ModuleInfo,
     name: &str,
-) -> Result<Vec<(String, u32)>, String> {
-    let index =
-        module.entry_points.iter().position(|e| e.name == name).ok_or_else(|| format!("no `{name}` entry point"))?;
+) -> Result<Vec<(String, u32)>, ShaderError> {
+    let index = module
+        .entry_points
+        .iter()
+        .position(|e| e.name == name)
+        .ok_or_else(|| ShaderError::NoEntryPoint { name: name.into() })?;
     let uses = info.get_entry_point(index);
     let mut bindings: Vec<(String, u32)> = module
         .global_variables

@@ -7,6 +7,117 @@
 use naga::{ArraySize, Handle, Module, ScalarKind, Type, TypeInner, VectorSize};
 use serde_json::Value;
 
+/// Why a uniform struct could not be filled from named fields or read back: the struct, or the
+/// member (by its path, such as `clips[3].rate`) and the rule it breaks.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum UniformError {
+    /// The shader declares no such struct.
+    #[error("the shader has no struct `{name}`")]
+    NoStruct {
+        /// The struct asked for.
+        name: String,
+    },
+    /// Bytes of another size than the struct's.
+    #[error("`{name}` is {size} bytes, not {given}")]
+    Size {
+        /// The struct.
+        name: String,
+        /// Its size in bytes.
+        size: usize,
+        /// The bytes given.
+        given: usize,
+    },
+    /// A vector given another number of components.
+    #[error("`{path}` has {given} components, not {expected}")]
+    Components {
+        /// The member.
+        path: String,
+        /// Components given.
+        given: usize,
+        /// The vector's.
+        expected: usize,
+    },
+    /// An array given more elements than the shader's array holds.
+    #[error("`{path}` has {given} elements; the shader holds {holds}")]
+    Elements {
+        /// The member.
+        path: String,
+        /// Elements given.
+        given: usize,
+        /// The array's length.
+        holds: u32,
+    },
+    /// A struct not given as an object.
+    #[error("`{path}` is not an object")]
+    NotObject {
+        /// The member.
+        path: String,
+    },
+    /// A vector or array not given as an array.
+    #[error("`{path}` is not an array")]
+    NotArray {
+        /// The member.
+        path: String,
+    },
+    /// A field the struct does not have.
+    #[error("`{path}` has no member `{member}`")]
+    UnknownMember {
+        /// The struct.
+        path: String,
+        /// The field given.
+        member: String,
+    },
+    /// A member WGSL and std140 would place at different offsets.
+    #[error("`{path}` is at byte {wgsl} in WGSL, {std140} in std140")]
+    Std140 {
+        /// The member.
+        path: String,
+        /// Its WGSL offset.
+        wgsl: u32,
+        /// Its std140 offset.
+        std140: u32,
+    },
+    /// A member not given.
+    #[error("`{path}` is missing")]
+    Missing {
+        /// The member.
+        path: String,
+    },
+    /// A member of a type a uniform filled by name does not take.
+    #[error("`{path}` is a {kind}, which a uniform filled by name does not take")]
+    Unsupported {
+        /// The member.
+        path: String,
+        /// Its type, as naga names it.
+        kind: String,
+    },
+    /// A value its scalar cannot hold.
+    #[error("`{path}` = {value} is not {expected}")]
+    Value {
+        /// The member.
+        path: String,
+        /// The value given.
+        value: Value,
+        /// What the scalar holds ("a u32").
+        expected: &'static str,
+    },
+    /// A scalar of a kind a uniform filled by name does not take.
+    #[error("`{path}` is a {kind} scalar")]
+    Scalar {
+        /// The member.
+        path: String,
+        /// Its kind, as naga names it.
+        kind: String,
+    },
+    /// Bytes that end inside the member.
+    #[error("`{path}` is cut short")]
+    Short {
+        /// The member.
+        path: String,
+    },
+}
+
 /// The bytes of struct `name` of `module` with its members taken from `fields` (an object
 /// keyed by member name; nested structs as objects, vectors and arrays as arrays; an array
 /// given fewer elements than its length is padded with zeros), little-endian. The layout is
@@ -17,8 +128,8 @@ use serde_json::Value;
 /// No such struct; a member missing, unknown or of the wrong kind (named by its path, such as
 /// `clips[3].rate`); a number that its scalar cannot hold; a layout that std140 would place
 /// differently.
-pub fn bytes(module: &Module, name: &str, fields: &Value) -> Result<Vec<u8>, String> {
-    let ty = struct_type(module, name).ok_or_else(|| format!("the shader has no struct `{name}`"))?;
+pub fn bytes(module: &Module, name: &str, fields: &Value) -> Result<Vec<u8>, UniformError> {
+    let ty = struct_type(module, name).ok_or_else(|| UniformError::NoStruct { name: name.into() })?;
     let mut out = vec![0; module.types[ty].inner.size(module.to_ctx()) as usize];
     Filler { module }.fill(ty, fields, 0, name, &mut out)?;
     Ok(out)
@@ -30,11 +141,11 @@ pub fn bytes(module: &Module, name: &str, fields: &Value) -> Result<Vec<u8>, Str
 ///
 /// # Errors
 /// No such struct; `bytes` not the struct's size; a member of a kind [`bytes`] does not take.
-pub fn fields(module: &Module, name: &str, bytes: &[u8]) -> Result<Value, String> {
-    let ty = struct_type(module, name).ok_or_else(|| format!("the shader has no struct `{name}`"))?;
+pub fn fields(module: &Module, name: &str, bytes: &[u8]) -> Result<Value, UniformError> {
+    let ty = struct_type(module, name).ok_or_else(|| UniformError::NoStruct { name: name.into() })?;
     let size = module.types[ty].inner.size(module.to_ctx()) as usize;
     if bytes.len() != size {
-        return Err(format!("`{name}` is {size} bytes, not {}", bytes.len()));
+        return Err(UniformError::Size { name: name.into(), size, given: bytes.len() });
     }
     Filler { module }.read(ty, bytes, 0, name)
 }
@@ -53,14 +164,14 @@ struct Filler<'a> {
 }
 
 impl Filler<'_> {
-    fn fill(&self, ty: Handle<Type>, value: &Value, at: u32, path: &str, out: &mut [u8]) -> Result<(), String> {
+    fn fill(&self, ty: Handle<Type>, value: &Value, at: u32, path: &str, out: &mut [u8]) -> Result<(), UniformError> {
         match &self.module.types[ty].inner {
             TypeInner::Scalar(scalar) => write_scalar(scalar.kind, value, at, path, out),
             TypeInner::Vector { size, scalar } => {
                 let items = array_of(value, path)?;
                 let n = vector_len(*size);
                 if items.len() != n {
-                    return Err(format!("`{path}` has {} components, not {n}", items.len()));
+                    return Err(UniformError::Components { path: path.into(), given: items.len(), expected: n });
                 }
                 for (i, item) in items.iter().enumerate() {
                     write_scalar(scalar.kind, item, at + 4 * i as u32, &format!("{path}[{i}]"), out)?;
@@ -70,7 +181,7 @@ impl Filler<'_> {
             TypeInner::Array { base, size: ArraySize::Constant(len), stride } => {
                 let items = array_of(value, path)?;
                 if items.len() > len.get() as usize {
-                    return Err(format!("`{path}` has {} elements; the shader holds {len}", items.len()));
+                    return Err(UniformError::Elements { path: path.into(), given: items.len(), holds: len.get() });
                 }
                 for (i, item) in items.iter().enumerate() {
                     self.fill(*base, item, at + i as u32 * stride, &format!("{path}[{i}]"), out)?;
@@ -78,9 +189,9 @@ impl Filler<'_> {
                 Ok(())
             }
             TypeInner::Struct { members, .. } => {
-                let object = value.as_object().ok_or_else(|| format!("`{path}` is not an object"))?;
+                let object = value.as_object().ok_or_else(|| UniformError::NotObject { path: path.into() })?;
                 if let Some(unknown) = object.keys().find(|k| !members.iter().any(|m| m.name.as_deref() == Some(k))) {
-                    return Err(format!("`{path}` has no member `{unknown}`"));
+                    return Err(UniformError::UnknownMember { path: path.into(), member: unknown.clone() });
                 }
                 let mut std140 = 0u32;
                 for m in members {
@@ -89,19 +200,19 @@ impl Filler<'_> {
                     let (align, size) = self.std140(m.ty);
                     std140 = std140.next_multiple_of(align);
                     if std140 != m.offset {
-                        return Err(format!("`{inner}` is at byte {} in WGSL, {std140} in std140", m.offset));
+                        return Err(UniformError::Std140 { path: inner, wgsl: m.offset, std140 });
                     }
                     std140 += size;
-                    let given = object.get(member).ok_or_else(|| format!("`{inner}` is missing"))?;
+                    let given = object.get(member).ok_or_else(|| UniformError::Missing { path: inner.clone() })?;
                     self.fill(m.ty, given, at + m.offset, &inner, out)?;
                 }
                 Ok(())
             }
-            other => Err(format!("`{path}` is a {other:?}, which a uniform filled by name does not take")),
+            other => Err(UniformError::Unsupported { path: path.into(), kind: format!("{other:?}") }),
         }
     }
 
-    fn read(&self, ty: Handle<Type>, bytes: &[u8], at: u32, path: &str) -> Result<Value, String> {
+    fn read(&self, ty: Handle<Type>, bytes: &[u8], at: u32, path: &str) -> Result<Value, UniformError> {
         Ok(match &self.module.types[ty].inner {
             TypeInner::Scalar(scalar) => read_scalar(scalar.kind, bytes, at, path)?,
             TypeInner::Vector { size, scalar } => Value::Array(
@@ -123,7 +234,7 @@ impl Filler<'_> {
                 }
                 Value::Object(object)
             }
-            other => return Err(format!("`{path}` is a {other:?}, which a uniform filled by name does not take")),
+            other => return Err(UniformError::Unsupported { path: path.into(), kind: format!("{other:?}") }),
         })
     }
 
@@ -154,43 +265,49 @@ fn vector_len(size: VectorSize) -> usize {
     size as usize
 }
 
-fn array_of<'v>(value: &'v Value, path: &str) -> Result<&'v Vec<Value>, String> {
-    value.as_array().ok_or_else(|| format!("`{path}` is not an array"))
+fn array_of<'v>(value: &'v Value, path: &str) -> Result<&'v Vec<Value>, UniformError> {
+    value.as_array().ok_or_else(|| UniformError::NotArray { path: path.into() })
 }
 
-fn write_scalar(kind: ScalarKind, value: &Value, at: u32, path: &str, out: &mut [u8]) -> Result<(), String> {
+fn write_scalar(kind: ScalarKind, value: &Value, at: u32, path: &str, out: &mut [u8]) -> Result<(), UniformError> {
     let word: [u8; 4] = match kind {
         ScalarKind::Uint | ScalarKind::Bool => match value {
             Value::Bool(b) => u32::from(*b),
-            _ => value
-                .as_u64()
-                .and_then(|v| u32::try_from(v).ok())
-                .ok_or_else(|| format!("`{path}` = {value} is not a u32"))?,
+            _ => value.as_u64().and_then(|v| u32::try_from(v).ok()).ok_or_else(|| UniformError::Value {
+                path: path.into(),
+                value: value.clone(),
+                expected: "a u32",
+            })?,
         }
         .to_le_bytes(),
         ScalarKind::Sint => value
             .as_i64()
             .and_then(|v| i32::try_from(v).ok())
-            .ok_or_else(|| format!("`{path}` = {value} is not an i32"))?
+            .ok_or_else(|| UniformError::Value { path: path.into(), value: value.clone(), expected: "an i32" })?
             .to_le_bytes(),
         ScalarKind::Float => {
-            let v = value.as_f64().ok_or_else(|| format!("`{path}` = {value} is not a number"))?;
+            let v = value.as_f64().ok_or_else(|| UniformError::Value {
+                path: path.into(),
+                value: value.clone(),
+                expected: "a number",
+            })?;
             (v as f32).to_le_bytes()
         }
-        other => return Err(format!("`{path}` is a {other:?} scalar")),
+        other => return Err(UniformError::Scalar { path: path.into(), kind: format!("{other:?}") }),
     };
     out[at as usize..at as usize + 4].copy_from_slice(&word);
     Ok(())
 }
 
-fn read_scalar(kind: ScalarKind, bytes: &[u8], at: u32, path: &str) -> Result<Value, String> {
-    let word: [u8; 4] = bytes[at as usize..at as usize + 4].try_into().map_err(|_| format!("`{path}` is cut short"))?;
+fn read_scalar(kind: ScalarKind, bytes: &[u8], at: u32, path: &str) -> Result<Value, UniformError> {
+    let word: [u8; 4] =
+        bytes[at as usize..at as usize + 4].try_into().map_err(|_| UniformError::Short { path: path.into() })?;
     Ok(match kind {
         ScalarKind::Uint => Value::from(u32::from_le_bytes(word)),
         ScalarKind::Bool => Value::from(u32::from_le_bytes(word) != 0),
         ScalarKind::Sint => Value::from(i32::from_le_bytes(word)),
         ScalarKind::Float => Value::from(f64::from(f32::from_le_bytes(word))),
-        other => return Err(format!("`{path}` is a {other:?} scalar")),
+        other => return Err(UniformError::Scalar { path: path.into(), kind: format!("{other:?}") }),
     })
 }
 
@@ -244,14 +361,14 @@ mod tests {
         let m = module(LAYOUT);
         let clip = json!({"first": 1, "rate": 1.0, "n": 1, "on": 1});
         let with = |clips: Value| json!({"width": 1, "low": [], "clips": clips});
-        let err = |v: Value| bytes(&m, "Layout", &v).unwrap_err();
+        let err = |v: Value| bytes(&m, "Layout", &v).unwrap_err().to_string();
         assert!(err(json!({"low": [], "clips": []})).contains("`Layout.width` is missing"));
         assert!(err(json!({"width": 1, "low": [], "clips": [], "extra": 0})).contains("no member `extra`"));
         assert!(err(with(json!([clip, {"first": -1, "rate": 1.0, "n": 1, "on": 1}])))
             .contains("`Layout.clips[1].first` = -1"));
         assert!(err(with(json!([clip, clip, clip, clip]))).contains("4 elements; the shader holds 3"));
         assert!(err(json!({"width": 1, "low": [[1.0, 2.0]], "clips": []})).contains("`Layout.low[0]` has 2 components"));
-        assert!(bytes(&m, "Nothing", &json!({})).unwrap_err().contains("no struct `Nothing`"));
+        assert_eq!(bytes(&m, "Nothing", &json!({})).unwrap_err(), UniformError::NoStruct { name: "Nothing".into() });
     }
 
     #[test]
@@ -267,6 +384,7 @@ mod tests {
         ",
         );
         let err = bytes(&m, "Outer", &json!({"v": [0.0, 0.0, 0.0], "inner": {"a": 1.0}})).unwrap_err();
-        assert!(err.contains("`Outer.inner` is at byte 12 in WGSL, 16 in std140"), "{err}");
+        assert_eq!(err, UniformError::Std140 { path: "Outer.inner".into(), wgsl: 12, std140: 16 });
+        assert_eq!(err.to_string(), "`Outer.inner` is at byte 12 in WGSL, 16 in std140");
     }
 }

@@ -5,11 +5,11 @@
 //! instances' records (`PlayInstance`); everything else here is uploaded once.
 
 use base64::Engine as _;
-use quatcurve_anim::gltf::{self, UriPolicy};
-use quatcurve_anim::mesh;
-use quatcurve_bake::curves::CurveChoice;
+use quatcurve_anim::curves::CurveChoice;
+use quatcurve_anim::loops::LoopMode;
 use quatcurve_bake::sidecar::Sidecar;
-use quatcurve_bake::LoopMode;
+use quatcurve_formats::gltf::{self, UriPolicy};
+use quatcurve_formats::mesh;
 use quatcurve_gpu::playback::{FrameBuffer, FrameDispatch, FrameKernels, ResidentCurves, FRAME_BINDINGS};
 use quatcurve_play::Playback;
 use quatcurve_shader as shader;
@@ -185,7 +185,7 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
     if instances == 0 || instances > max_instances {
         return Err(format!("{instances} instances: one frame plays 1 to {max_instances} of this character"));
     }
-    let (module, info) = shader::play_curves_module()?;
+    let (module, info) = shader::play_curves_module().map_err(|e| e.to_string())?;
     let kernels = FrameKernels::of(&module).map_err(|e| e.to_string())?;
     let plan = resident.frame_plan(instances, kernels, WEBGPU_MAX_WORKGROUPS).map_err(|e| e.to_string())?;
     let bindings = |module: &naga::Module, info: &naga::valid::ModuleInfo, entry: &str| {
@@ -194,9 +194,14 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
     };
     let entries = [shader::PLAY_CURVES_ENTRY_POINT, shader::FK_ENTRY_POINT, shader::PLAY_PALETTE_ENTRY_POINT]
         .into_iter()
-        .map(|entry| Ok(Entry { entry: entry.to_string(), bindings: bindings(&module, &info, entry)? }))
+        .map(|entry| {
+            Ok(Entry {
+                entry: entry.to_string(),
+                bindings: bindings(&module, &info, entry).map_err(|e| e.to_string())?,
+            })
+        })
         .collect::<Result<Vec<_>, String>>()?;
-    let (vertex_module, vertex_info) = shader::parse(&shader::PALETTE_VERTEX_FILES)?;
+    let (vertex_module, vertex_info) = shader::parse(&shader::PALETTE_VERTEX_FILES).map_err(|e| e.to_string())?;
     let base64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
     Ok(CurveScene {
         compute_shader: shader::play_curves_source(),
@@ -215,7 +220,8 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
         dispatches: plan.iter().map(Dispatch::from).collect(),
         vertex_shader: shader::palette_vertex_source(),
         vertex_entry: shader::PALETTE_VERTEX_ENTRY_POINT,
-        vertex_bindings: bindings(&vertex_module, &vertex_info, shader::PALETTE_VERTEX_ENTRY_POINT)?,
+        vertex_bindings: bindings(&vertex_module, &vertex_info, shader::PALETTE_VERTEX_ENTRY_POINT)
+            .map_err(|e| e.to_string())?,
         fragment_shader: shader::viewer_fragment_source(),
         fragment_entry: shader::VIEWER_FRAGMENT_ENTRY_POINT,
         skin_joints: resident.skin_joints,

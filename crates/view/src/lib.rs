@@ -1,6 +1,6 @@
 //! `quatcurve view DIR` (DESIGN section 5e): a baked directory served on this machine to a
 //! page that plays it as a crowd: its curves on the GPU through WebGPU, or its textures
-//! through WebGL2 with the shipped shaders. Routes: `/` the page (`viewer/`), `/api/bakes` the
+//! through WebGL2 with the shipped shaders. Routes: `/` the page (the crate's `page/`), `/api/bakes` the
 //! playable bakes, `/api/scene?bake=..&clip=..` one clip ready to draw ([`scene`]),
 //! `/api/curves?bake=..&instances=..` the clips as curves on the GPU ([`curves`]),
 //! `/texels/<file>` an image's texels as `f32` ([`texels`]),
@@ -18,9 +18,9 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_ADDRESS: &str = "127.0.0.1:8765";
 
 /// The page and its script, embedded: the binary serves them with nothing else installed.
-const PAGE: &str = include_str!("../../../viewer/index.html");
-const SCRIPT: &str = include_str!("../../../viewer/viewer.js");
-const WEBGPU_SCRIPT: &str = include_str!("../../../viewer/webgpu.js");
+const PAGE: &str = include_str!("../page/index.html");
+const SCRIPT: &str = include_str!("../page/viewer.js");
+const WEBGPU_SCRIPT: &str = include_str!("../page/webgpu.js");
 
 /// An HTTP response.
 #[derive(Debug)]

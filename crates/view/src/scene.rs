@@ -9,14 +9,14 @@ use super::files::url_path;
 use super::texels::Texels;
 use base64::Engine as _;
 use naga::ShaderStage;
-use quatcurve_anim::gltf::{self, UriPolicy};
-use quatcurve_anim::mesh::{self, SkinnedPrimitive};
 use quatcurve_bake::image::{Format, Grid};
 use quatcurve_bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
 use quatcurve_bake::texture::TextureKind;
 use quatcurve_bake::vertex_encoding::Bounds;
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton;
+use quatcurve_formats::gltf::{self, UriPolicy};
+use quatcurve_formats::mesh::{self, SkinnedPrimitive};
 use quatcurve_shader::{self as shader, Glsl, Language, Program};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -284,11 +284,13 @@ struct Shaders {
 
 impl Shaders {
     fn of(program: Program) -> Result<Self, String> {
-        let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)?;
+        let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)
+            .map_err(|e| e.to_string())?;
         let fragment = Program::Fragment;
-        let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs)?;
-        let (module, _) = shader::parse(program.files())?;
-        let inputs = shader::vertex_inputs(&module, program.entry_point())?;
+        let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs)
+            .map_err(|e| e.to_string())?;
+        let (module, _) = shader::parse(program.files()).map_err(|e| e.to_string())?;
+        let inputs = shader::vertex_inputs(&module, program.entry_point()).map_err(|e| e.to_string())?;
         Ok(Self { vertex, fragment, module, inputs })
     }
 

@@ -8,8 +8,8 @@
 //! `QUATCURVE_REQUIRE_VALIDATOR=1` so that CI cannot skip it).
 
 use super::{angle, data_dir, stderr};
-use quatcurve::anim::gltf::{self as source, UriPolicy};
 use quatcurve::anim::Property;
+use quatcurve::formats::gltf::{self as source, UriPolicy};
 use quatcurve::QuatF64;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};

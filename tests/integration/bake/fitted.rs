@@ -6,12 +6,13 @@
 use super::{bake, data_dir, stderr};
 use assert_cmd::Command;
 use quatcurve::analysis::vertex_error::{pose_errors, Transform};
-use quatcurve::anim::bvh;
-use quatcurve::anim::qcf::decoder::{Decoder, POSE_FLOATS};
-use quatcurve::anim::qcf::fitted::{Fitted, Form};
-use quatcurve::anim::qcf::Container;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::anim::{Animation, Property};
-use quatcurve::bake::{self as bake_lib, ClipRate, LoopMode, Reuse};
+use quatcurve::bake::{self as bake_lib, ClipRate, Reuse};
+use quatcurve::formats::bvh;
+use quatcurve::qcf::decoder::{Decoder, POSE_FLOATS};
+use quatcurve::qcf::fitted::{Fitted, Form};
+use quatcurve::qcf::Container;
 use std::path::Path;
 
 /// CMU's BVH unit in cm.
@@ -304,7 +305,7 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let keyed = bvh::read(&source).unwrap().animation("bend");
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
     let (spec, rates) = (
-        quatcurve::bake::curves::CurveChoice::Family(quatcurve::CurveSpec::new(quatcurve::Curve::BSpline)),
+        quatcurve::anim::curves::CurveChoice::Family(quatcurve::CurveSpec::new(quatcurve::Curve::BSpline)),
         [ClipRate::Fit(30.0)],
     );
     let mut reuse = Reuse::default();

@@ -25,7 +25,7 @@ mod viewer;
 
 use assert_cmd::Command;
 use base64::Engine;
-use quatcurve::anim::bvh::{self, BvhChannel};
+use quatcurve::formats::bvh::{self, BvhChannel};
 use quatcurve::QuatF64;
 use std::path::{Path, PathBuf};
 

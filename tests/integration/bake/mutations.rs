@@ -10,10 +10,12 @@
 use super::{data_dir, tiny_gltf};
 use crate::common::{f64_bytes, npy_bytes, npz_bytes};
 use proptest::prelude::*;
+use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::error::InputError;
-use quatcurve::anim::{bvh, gltf};
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::bake::error::BakeError;
+use quatcurve::bake::{self};
+use quatcurve::formats::{bvh, gltf};
 use quatcurve::{Batch, Curve, CurveSpec, Device, DeviceChoice, SampleTimes, Sampling, TrackFile};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -129,8 +131,8 @@ fn smpl_archive(poses: Vec<u8>) -> Vec<u8> {
 
 /// The container `quatcurve fit` writes for a BVH text (1 cm units).
 fn fitted_container(text: &str) -> Vec<u8> {
-    use quatcurve::anim::qcf::{BvhSkeleton, Container};
     use quatcurve::fit::clip::{fit_clip, Budget};
+    use quatcurve::qcf::{BvhSkeleton, Container};
     let file = bvh::parse(text).unwrap();
     let animation = file.animation("clip");
     let budget = Budget { max_error: 0.01, between_error: 0.3, vertex_distance: 3.0 };
@@ -254,7 +256,7 @@ enum Reached {
 }
 
 /// Reads, bakes and encodes `bytes` as `seed`'s kind of file.
-fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
+fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, BakeError> {
     let spec = CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp));
     match seed.kind {
         Kind::Gltf | Kind::GlbJson => {
@@ -307,8 +309,8 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             // Its checksum made right again, so that the mutant reaches the fields behind it
             // (the checksum's own refusals are the container's unit tests').
             let mut bytes = bytes.to_vec();
-            quatcurve::anim::qcf::reseal(&mut bytes);
-            let container = quatcurve::anim::qcf::Container::from_bytes(&bytes)?;
+            quatcurve::qcf::reseal(&mut bytes);
+            let container = quatcurve::qcf::Container::from_bytes(&bytes).map_err(InputError::from)?;
             let animation = container.animation();
             if animation.clips.is_empty() {
                 return Ok(Reached::Skipped("no clip"));
@@ -323,7 +325,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             Ok(Reached::Baked(baked.sample_count()))
         }
         Kind::Fbx => {
-            let file = quatcurve::anim::fbx::from_bytes(bytes)?.gltf;
+            let file = quatcurve::formats::fbx::from_bytes(bytes)?.gltf;
             if file.animation.clips.is_empty() {
                 return Ok(Reached::Skipped("no clip"));
             }
@@ -342,7 +344,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             } else {
                 bytes
             };
-            let file = quatcurve::anim::smpl::from_bytes(bytes)?;
+            let file = quatcurve::formats::smpl::from_bytes(bytes)?;
             let animation = file.animation("clip");
             let spec = CurveChoice::Family(CurveSpec::new(Curve::Slerp));
             let baked = bake::bake(&animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, device())?;
@@ -371,7 +373,7 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, InputError> {
             // first refusal is the outcome, a device failure at once.
             let (mut samples, mut refused) = (0, None);
             for curve in [Curve::BSplineInterp, Curve::Squad, Curve::Hermite] {
-                let evaluated = (|| -> Result<usize, InputError> {
+                let evaluated = (|| -> Result<usize, BakeError> {
                     let batch = Batch::from_tracks(&file.tracks, &CurveSpec::new(curve))?;
                     let overrides: Vec<Option<&[f64]>> =
                         file.tracks.iter().map(|t| t.sample_times.as_deref()).collect();

@@ -4,7 +4,7 @@
 
 use super::{bake, data_dir, json, read_npy, stderr, tiny_gltf_value};
 use base64::Engine;
-use quatcurve::anim::bvh::{self, BvhChannel};
+use quatcurve::formats::bvh::{self, BvhChannel};
 use std::collections::HashMap;
 use std::path::Path;
 

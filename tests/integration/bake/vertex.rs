@@ -5,12 +5,13 @@
 
 use super::data_dir;
 use glam::{DMat4, DQuat, DVec3};
-use quatcurve::anim::gltf::{self, UriPolicy};
-use quatcurve::anim::mesh::{skinned_primitives, SkinnedPrimitive};
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::bake::vertex_encoding::Bounds;
-use quatcurve::bake::{texture, ClipRate, LoopMode};
+use quatcurve::bake::{texture, ClipRate};
 use quatcurve::curve::{Curve, CurveSpec};
 use quatcurve::device::Device;
+use quatcurve::formats::gltf::{self, UriPolicy};
+use quatcurve::formats::mesh::{skinned_primitives, SkinnedPrimitive};
 use quatcurve::output::VERTEX_CHANNELS;
 use quatcurve::skeleton;
 
@@ -187,7 +188,7 @@ pub(super) fn independent(path: &std::path::Path, primitive: &SkinnedPrimitive, 
 /// (`bspline-interp` through the keys at 30 Hz, fitted), on the f64 reference.
 fn skin_matrices(animation: &quatcurve::anim::Animation, clip: usize) -> (Vec<Vec<f32>>, Vec<f64>) {
     let spec =
-        quatcurve::bake::curves::CurveChoice::Family(CurveSpec { curve: Curve::BSplineInterp, ..CurveSpec::default() });
+        quatcurve::anim::curves::CurveChoice::Family(CurveSpec { curve: Curve::BSplineInterp, ..CurveSpec::default() });
     let baked =
         quatcurve::bake::bake(animation, &spec, ClipRate::Fit(30.0), LoopMode::Auto, &Device::Reference).unwrap();
     let order = animation.parents_first().unwrap();

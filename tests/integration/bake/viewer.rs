@@ -9,10 +9,10 @@
 use super::vertex::{independent, open};
 use super::{bake, data_dir, json, stderr};
 use glam::{DMat4, DVec3, DVec4};
-use quatcurve::anim::gltf::{self, UriPolicy};
-use quatcurve::anim::mesh::skinned_primitives;
-use quatcurve::bake::curves::CurveChoice;
-use quatcurve::bake::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::formats::gltf::{self, UriPolicy};
+use quatcurve::formats::mesh::skinned_primitives;
 use quatcurve::output::VERTEX_CHANNELS;
 use quatcurve::play::{ClipTime, Instance, Playback};
 use quatcurve::{skeleton, Device, DeviceChoice};

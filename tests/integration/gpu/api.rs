@@ -270,9 +270,9 @@ fn auto_hands_batches_the_kernel_refuses_to_the_cpu_path() {
 #[test]
 fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     let Some(gpu) = gpu() else { return };
-    use quatcurve::anim::crowd;
     use quatcurve::anim::Joint;
     use quatcurve::bake::texture;
+    use quatcurve::formats::crowd;
     let mut animation = crowd::crowd(3);
     // A 40-joint chain under the crowd's first root, scaled unevenly, not animated.
     for k in 0..40 {
@@ -285,9 +285,9 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
     let baked = quatcurve::bake::bake(
         &animation,
-        &quatcurve::bake::curves::CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
+        &quatcurve::anim::curves::CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
         quatcurve::bake::ClipRate::Fit(30.0),
-        quatcurve::bake::LoopMode::Auto,
+        quatcurve::anim::loops::LoopMode::Auto,
         &device,
     )
     .unwrap();

@@ -1,4 +1,4 @@
-// The page's WebGPU path (DESIGN section 11, "In the browser"): a bake's clips played from
+// The page's WebGPU path (DESIGN section 17, "In the browser"): a bake's clips played from
 // their curves on the GPU, with the WGSL the native GPU path runs. Everything comes from the
 // server (`/api/curves`): the playback-from-curves program and its specialization, the buffers
 // uploaded once, which variables each entry point binds, and a frame's dispatches (the same

@@ -7,8 +7,8 @@
 //! the hierarchy text byte for byte and converts each resampled rotation to the joint's own
 //! channel order, unwrapping angles to the previous frame so curves stay continuous.
 
-use crate::error::InputError;
-use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -75,13 +75,13 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
     Ok(BvhFile { joints, frame_time, frames, hierarchy: hierarchy.to_string() })
 }
 
-/// A BVH file without frames from a fitted container's skeleton ([`crate::qcf`]),
+/// A BVH file without frames from a fitted container's skeleton ((`quatcurve_qcf`)),
 /// to write baked frames under the source's hierarchy.
 ///
 /// # Errors
 /// [`InputError::Bvh`] for a malformed hierarchy; [`InputError::Animation`] when its joints are
 /// not the container's, in order.
-pub fn skeleton(skeleton: &crate::qcf::BvhSkeleton, animation: &Animation) -> Result<BvhFile, InputError> {
+pub fn skeleton(skeleton: &quatcurve_qcf::BvhSkeleton, animation: &Animation) -> Result<BvhFile, InputError> {
     let joints = parse_hierarchy(&skeleton.hierarchy)?;
     let names = |j: &[String]| j.join(", ");
     let (ours, theirs): (Vec<String>, Vec<String>) =

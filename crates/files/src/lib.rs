@@ -3,9 +3,9 @@
 //! replaces its input, and the job's own errors ([`FileJobError`]); one input's failure is an
 //! [`InputError`] and the job goes on with the others.
 
-use crate::error::InputError;
-use crate::source::extension;
+use quatcurve_anim::error::InputError;
 use quatcurve_eval::io::{AtomicFile, IoError};
+use quatcurve_formats::source::extension;
 use std::path::{Path, PathBuf};
 
 /// Why a job over files could not start, or could not keep its manifest.
@@ -61,7 +61,7 @@ pub fn expand(inputs: &[PathBuf], known: &[&str]) -> Result<Vec<PathBuf>, FileJo
             files.push(input.clone());
         }
     }
-    // One order for every shard (DESIGN section 7): by path, bytewise.
+    // One order for every shard (DESIGN section 13): by path, bytewise.
     files.sort_by(|a, b| a.as_os_str().as_encoded_bytes().cmp(b.as_os_str().as_encoded_bytes()));
     Ok(files)
 }

@@ -7,10 +7,10 @@
 //! resampled keys are appended as new accessors, and each baked sampler is pointed at them
 //! with LINEAR interpolation. Morph-target weight channels are left as they were.
 use super::glb::GLB_MAGIC;
-use crate::error::InputError;
-use crate::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Interpolation, Joint, Property, Skin};
 use base64::Engine;
 use gltf::json::validation::Checked;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Interpolation, Joint, Property, Skin};
 use serde_json::Value;
 use std::path::Path;
 
@@ -524,7 +524,7 @@ impl GltfFile {
     }
 
     /// The GLB bytes with every baked sampler replaced by LINEAR keys at the baked frames, and
-    /// nothing left that only the replaced keys used (DESIGN section 5b, "Baked glTF").
+    /// nothing left that only the replaced keys used (DESIGN section 6, "Baked glTF").
     ///
     /// # Errors
     /// [`InputError::Animation`] if the GLB would exceed 4 GiB.

@@ -1,4 +1,4 @@
-//! The fitted clip decoded as a runtime decodes it (DESIGN section 10): local poses at times
+//! The fitted clip decoded as a runtime decodes it (DESIGN section 16): local poses at times
 //! taken in order, in f32, from per-channel cursors that step from span to span. What a span
 //! needs that does not depend on the time (its knot offsets, the basis's reciprocals, its
 //! control points, sign-aligned) is computed once when a cursor enters it, so a sample costs
@@ -8,8 +8,8 @@
 
 use super::fitted::{knot_times, source_rate, Form, KEYS_ORDER, ORDER};
 use super::{Stored, StoredClip, StoredCurve};
-use crate::error::ContainerError;
-use crate::{Joint, Property};
+use quatcurve_anim::error::ContainerError;
+use quatcurve_anim::{Joint, Property};
 
 /// Floats of one joint's local pose: rotation `x, y, z, w`, translation, scale.
 pub const POSE_FLOATS: usize = 10;
@@ -445,8 +445,8 @@ impl Lerp {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::qcf::tests::container;
-    use crate::qcf::Container;
+    use crate::tests::container;
+    use crate::Container;
 
     /// Every joint's pose at `times` by the reference: each channel's [`Fitted::at`], the rest
     /// pose where a joint has none.

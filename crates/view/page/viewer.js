@@ -1,4 +1,4 @@
-// The page of `quatcurve view` (DESIGN sections 5e and 11): plays a baked clip as a crowd. A
+// The page of `quatcurve view` (DESIGN sections 9 and 17): plays a baked clip as a crowd. A
 // bone bake plays from its curves on the GPU through WebGPU where the browser has it
 // (webgpu.js: every instance's joints evaluated at its own time, two clips blended by the
 // weight slider); a vertex bake, or a browser without WebGPU, plays the bake's textures with

@@ -1,4 +1,4 @@
-//! The fitted-clip container (`.qcf`, DESIGN section 10): a skeleton, the BVH hierarchy it came
+//! The fitted-clip container (`.qcf`, DESIGN section 16): a skeleton, the BVH hierarchy it came
 //! from when it did, and fitted clips, as versioned little-endian binary ending in a checksum,
 //! so that a damaged file is refused rather than decoded into other motion. Every count is
 //! checked against the bytes left before anything is allocated, and a bad or truncated field
@@ -9,10 +9,10 @@ pub mod fitted;
 pub mod quantize;
 pub mod timeline;
 
-use crate::error::{ContainerError, InputError};
-use crate::{Animation, Joint, Property};
 use fitted::{Fitted, FittedChannel, FittedClip, Form, ORDER};
 use quantize::{Quantized, QuantizedRotations, MAX_BITS};
+use quatcurve_anim::error::{ContainerError, InputError};
+use quatcurve_anim::{Animation, Joint, Property};
 use quatcurve_eval::batch::MIN_KEY_NORM;
 use quatcurve_eval::error::Number;
 use std::fmt::Display;
@@ -1032,7 +1032,7 @@ impl<'a> BitReader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::qcf::quantize;
+    use crate::quantize;
     use quatcurve_core::quat::{QuatF64, Vec3F64};
 
     /// Three joints: rotation and vector curves of both forms (a vector's with a knot of

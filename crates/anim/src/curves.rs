@@ -1,11 +1,11 @@
 //! An animation's channels as curves, built once and evaluated at any times: rotations as the
-//! tracks of one batch (evaluated on a [`quatcurve_device::Device`]), vectors as their
+//! tracks of one batch (evaluated on a device, `quatcurve_device::Device`), vectors as their
 //! Euclidean analogue, one-key channels as constants, and keys a source declares STEP or
 //! CUBICSPLINE as glTF defines them (on the host, f64). The bake evaluates them on frame
 //! grids; the playback runtime at each instance's own time.
 
-use quatcurve_anim::error::InputError;
-use quatcurve_anim::{Animation, ChannelCurve as Stored, Interpolation, Property};
+use crate::error::InputError;
+use crate::{Animation, ChannelCurve as Stored, Interpolation, Property};
 use quatcurve_core::curve::{Curve, CurveSpec, KnotMode};
 use quatcurve_eval::batch::{Batch, BatchBuilder, Spline};
 use quatcurve_eval::error::TrackId;
@@ -14,7 +14,7 @@ use quatcurve_eval::options::CurveOptions;
 use quatcurve_eval::track::Track;
 use rayon::prelude::*;
 
-/// What keys are interpolated with (DESIGN section 5b): as the source plays them, or one curve
+/// What keys are interpolated with (DESIGN section 6): as the source plays them, or one curve
 /// family for every channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum CurveChoice {
@@ -237,8 +237,8 @@ fn extend_splines(builder: &mut BatchBuilder, splines: &mut Vec<PendingSpline<'_
         let batch: Vec<Spline<'_>> = splines
             .iter()
             .map(|(name, points, knots)| {
-                let order = quatcurve_anim::qcf::fitted::order_of(knots.len(), points.len());
-                let curve = quatcurve_anim::qcf::fitted::spline_spec(order).curve;
+                let order = crate::spline::order_of(knots.len(), points.len());
+                let curve = crate::spline::spline_spec(order).curve;
                 Spline { name: Some(name), points, knots, curve }
             })
             .collect();
@@ -302,7 +302,7 @@ fn prepare_channels<'a>(
 }
 
 /// A fitted channel ([`Stored::Spline`]): its control points on its knots, as the fit's curve
-/// family of the order they make ([`quatcurve_anim::qcf::fitted::spline_spec`]); rotations on
+/// family of the order they make ([`crate::spline::spline_spec`]); rotations on
 /// the device, vectors here.
 fn fitted_channel<'a>(
     property: Property,
@@ -314,8 +314,7 @@ fn fitted_channel<'a>(
         let name = id.name.unwrap_or_default();
         return Ok(Prepared::Spline { name, points: controls, knots });
     }
-    let spec =
-        quatcurve_anim::qcf::fitted::spline_spec(quatcurve_anim::qcf::fitted::order_of(knots.len(), controls.len()));
+    let spec = crate::spline::spline_spec(crate::spline::order_of(knots.len(), controls.len()));
     let controls: Vec<[f64; 3]> = controls.iter().map(|v| [v[0], v[1], v[2]]).collect();
     Ok(Prepared::Host(ChannelEval::Vector(VectorCurve::new(&id, None, &controls, Some(knots), &spec)?)))
 }

@@ -6,8 +6,8 @@
 //! that a file whose meshes are broken still bakes bone textures.
 
 use super::gltf::{check_accessor, Element, GltfFile};
-use super::Animation;
-use crate::error::InputError;
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::Animation;
 use quatcurve_eval::skeleton::{self, Affine, SkinnedMesh};
 
 /// The largest `|sum of weights - 1|` a vertex may have before its weights are said to be
@@ -44,7 +44,7 @@ pub struct SkinnedPrimitive {
     pub mesh: usize,
     /// The primitive's index in the mesh.
     pub primitive: usize,
-    /// Index into [`super::Animation::skins`].
+    /// Index into [`quatcurve_anim::Animation::skins`].
     pub skin: usize,
     /// A rigid part's binding (its vertices are bound to its joint alone); `None` when skinned.
     pub rigid: Option<RigidBinding>,

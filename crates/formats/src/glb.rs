@@ -4,9 +4,9 @@
 //! which holds only bytes a kept buffer view covers. A file that uses an extension this writer
 //! does not know might refer to anything by index, so there nothing is removed or renumbered.
 
-use crate::{Clip, ClipFrames, Property};
+use quatcurve_anim::{Clip, ClipFrames, Property};
 
-use crate::error::InputError;
+use quatcurve_anim::error::InputError;
 
 use serde_json::{json, Value};
 

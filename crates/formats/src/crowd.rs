@@ -2,7 +2,7 @@
 //! grid walking forward, each joint swinging in a looping gait with per-character variety.
 //! Deterministic (a hash of the indices, no random numbers), so runs are comparable.
 
-use crate::{Animation, Channel, Clip, Joint, Property};
+use quatcurve_anim::{Animation, Channel, Clip, Joint, Property};
 
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use rayon::prelude::*;

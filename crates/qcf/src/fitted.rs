@@ -4,17 +4,15 @@
 
 use super::quantize::{Quantized, QuantizedRotations};
 use super::timeline::Timeline;
-use crate::{Channel, ChannelCurve, Clip, Joint, Property};
+pub use quatcurve_anim::spline::{order_of, spline_spec, CUBIC_ROTATIONS, ORDER};
+use quatcurve_anim::{Channel, ChannelCurve, Clip, Joint, Property};
 use quatcurve_core::basis::BasisJet;
-use quatcurve_core::curve::{Curve, CurveSpec};
+use quatcurve_core::curve::CurveSpec;
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::error::TrackId;
 use quatcurve_eval::euclidean::VectorCurve;
 use quatcurve_eval::track::Track;
-
-/// Order of the fitted B-splines (cubic), as [`CurveSpec::order`] counts it.
-pub const ORDER: usize = 4;
 
 /// A time's span `l` on a fitted channel's knots and the cumulative basis there
 /// (`B~_{l-k+2..=l}`, [`quatcurve_core::basis::bspline_cumulative`]): its first `k - 1`
@@ -34,26 +32,6 @@ pub struct Fit<T> {
     pub worst: f64,
     /// The sample where it is.
     pub worst_at: usize,
-}
-
-/// The rotation form of a fitted cubic: the normalized B-spline, whose decode is a basis, a
-/// weighted sum and a normalization (no exponential, nothing prepared per control point),
-/// and which fits mocap in as few control points as KKS's cumulative form (DESIGN section 10).
-pub const CUBIC_ROTATIONS: Curve = Curve::NormalizedBSpline;
-
-/// The curve family of a fit of `order`: a clamped B-spline on explicit knots, open; a cubic
-/// ([`ORDER`]) [`CUBIC_ROTATIONS`], keys ([`KEYS_ORDER`]) slerped (KKS's order 2) or lerped
-/// between. Vectors take either's Euclidean analogue, the plain B-spline.
-#[must_use]
-pub fn spline_spec(order: usize) -> CurveSpec {
-    CurveSpec::open_spline(if order == ORDER { CUBIC_ROTATIONS } else { Curve::BSpline }, order)
-}
-
-/// The order of a clamped B-spline of `knots` knots and `controls` control points: what a
-/// fitted channel's knot vector says of its curve.
-#[must_use]
-pub fn order_of(knots: usize, controls: usize) -> usize {
-    knots.saturating_sub(controls)
 }
 
 /// The spec of a fitted track of explicit knots ([`Fit::track`], a container's

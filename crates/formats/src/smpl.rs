@@ -15,9 +15,9 @@
 //! `marker_data`) linearly between frames; the rate field set; every other array copied byte
 //! for byte; in the archive's order.
 
-use crate::error::InputError;
-use crate::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use npyz::{DType, NpyFile, TypeChar};
+use quatcurve_anim::error::InputError;
+use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::arrays::{member_budget, open_npy, read_floats, Floats};
 use quatcurve_eval::io::npy_header;

@@ -13,8 +13,8 @@
 //! its parent's scale (Mixamo's bones) is compensated by ufbx so that glTF's inheritance,
 //! which always multiplies scales down the chain, poses it as FBX does.
 
-use crate::error::InputError;
 use crate::gltf::{self, GltfFile, UriPolicy};
+use quatcurve_anim::error::InputError;
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::path::Path;

@@ -1,0 +1,83 @@
+//! Whether a clip plays as a loop ([`clip_loops`]): its rotations close and its curve can
+//! loop, or the caller says so ([`LoopMode`]). The bake and playback ask the same question.
+
+use crate::curves::CurveChoice;
+use crate::error::InputError;
+use crate::{Animation, Channel, Clip, Property};
+use quatcurve_core::quat::QuatF64;
+
+/// Which clips bake as loops (DESIGN section 5b).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LoopMode {
+    /// A clip loops when every rotation channel's last key is the same rotation as its first
+    /// (within [`quatcurve_eval::batch::LOOP_TOLERANCE`]) and the curve can loop.
+    #[default]
+    Auto,
+    /// Every clip loops; a channel that does not close is an error naming it.
+    On,
+    /// No clip loops.
+    Off,
+}
+
+quatcurve_core::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
+
+/// Whether `clip` bakes as a loop under `mode` with `choice` (DESIGN section 5b).
+///
+/// # Errors
+/// With [`LoopMode::On`]: a curve that cannot loop, or the first rotation channel whose last
+/// key is not its first rotation, named.
+pub fn clip_loops(
+    animation: &Animation,
+    clip: &Clip,
+    choice: &CurveChoice,
+    mode: LoopMode,
+) -> Result<bool, InputError> {
+    let spec = choice.spec();
+    if clip.channels.iter().any(Channel::is_spline) {
+        // A fitted clip is the open curve it was fitted as.
+        return match mode {
+            LoopMode::On => Err(InputError::Animation(format!(
+                "clip '{}' is fitted (an open curve of control points); loop mode on needs keys",
+                clip.name
+            ))),
+            _ => Ok(false),
+        };
+    }
+    let open = |values: &[[f64; 4]]| {
+        let (first, last) =
+            (QuatF64::from_array(values[0]).normalize(), QuatF64::from_array(values[values.len() - 1]).normalize());
+        let angle = first.angle_to(last);
+        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
+    };
+    let rotations = || {
+        clip.channels
+            .iter()
+            .filter(|c| c.property == Property::Rotation)
+            .filter_map(|c| c.keyed().map(|(_, values)| (c, values)))
+            .filter(|(_, values)| values.len() > 1)
+    };
+    match mode {
+        LoopMode::Off => Ok(false),
+        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())),
+        LoopMode::On => {
+            if !spec.can_loop() {
+                return Err(InputError::Animation(format!(
+                    "clip '{}': loop mode on needs a curve that loops; {} does not (the curves that loop are {})",
+                    clip.name,
+                    choice.name(),
+                    quatcurve_core::curve::CurveSpec::looping_curves()
+                )));
+            }
+            if let Some((c, angle)) = rotations().find_map(|(c, v)| open(v).map(|a| (c, a))) {
+                return Err(InputError::Animation(format!(
+                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
+                        is {} rad from its first (at most {})",
+                    animation.label(clip, c),
+                    quatcurve_eval::error::Number(angle),
+                    quatcurve_eval::error::Number(quatcurve_eval::batch::LOOP_TOLERANCE)
+                )));
+            }
+            Ok(true)
+        }
+    }
+}

@@ -1,0 +1,75 @@
+//! The bake through its own API ([`BakeJob`]): what a job writes, and how one input's failure
+//! is reported while the others are baked. The command line's own tests keep to its flags,
+//! exit codes and file names.
+
+use quatcurve_anim::error::InputError;
+use quatcurve_bake::error::BakeError;
+use quatcurve_bake::sidecar::Sidecar;
+use quatcurve_bake::{BakeJob, BakeOptions};
+use quatcurve_device::{Device, DeviceChoice};
+use quatcurve_files::FileJobError;
+use std::path::PathBuf;
+
+fn cpu() -> Device {
+    Device::open(DeviceChoice::Cpu).unwrap()
+}
+
+/// A job without inputs bakes a crowd of `characters`.
+fn crowd_job(dir: &std::path::Path, characters: usize) -> BakeJob {
+    let mut job = BakeJob::new(Vec::new(), dir);
+    job.options = BakeOptions { characters, ..BakeOptions::DEFAULT };
+    job
+}
+
+#[test]
+fn a_job_without_inputs_bakes_the_built_in_crowd_into_a_texture_and_a_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = crowd_job(dir.path(), 2).run(&cpu(), &()).unwrap();
+    assert_eq!(report.inputs.len(), 1);
+    let written = report.inputs[0].outcome.as_ref().unwrap();
+    let names: Vec<String> = written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    assert!(names.iter().any(|n| n.ends_with(".npy")), "{names:?}");
+    assert!(names.iter().any(|n| n == "crowd.json"), "{names:?}");
+    for path in written {
+        assert!(path.is_file(), "{} was reported written", path.display());
+    }
+}
+
+#[test]
+fn the_sidecar_reads_back_with_the_rate_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut job = crowd_job(dir.path(), 1);
+    job.options.rate = 24.0;
+    job.run(&cpu(), &()).unwrap();
+    let sidecar: Sidecar =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("crowd.json")).unwrap()).unwrap();
+    assert_eq!(sidecar.requested_rate, 24.0);
+}
+
+#[test]
+fn an_input_no_importer_takes_fails_alone_naming_every_format_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let notes = dir.path().join("notes.txt");
+    std::fs::write(&notes, "hello").unwrap();
+    let job = BakeJob::new(vec![notes], dir.path().join("out"));
+    let report = job.run(&cpu(), &()).unwrap();
+    let failed: Vec<_> = report.failed().collect();
+    assert_eq!(failed.len(), 1);
+    match &failed[0].outcome {
+        Err(BakeError::Input(InputError::UnknownFormat { expected })) => {
+            assert_eq!(expected, ".gltf, .glb, .fbx, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)");
+        }
+        other => panic!("expected an unknown format, got {other:?}"),
+    }
+    assert!(!failed[0].outcome.as_ref().unwrap_err().is_internal_failure());
+}
+
+#[test]
+fn a_rate_that_is_not_positive_is_refused_before_any_input_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut job = BakeJob::new(vec![PathBuf::from("missing.glb")], dir.path().join("out"));
+    job.options.rate = 0.0;
+    let error = job.validate().unwrap_err();
+    assert!(matches!(error, FileJobError::Option { option: "rate", .. }), "{error}");
+    assert!(!dir.path().join("out").exists());
+}
