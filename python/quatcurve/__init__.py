@@ -119,7 +119,7 @@ def evaluate(
     output="quat",
     **options,
 ):
-    """Evaluates rotation curves through keys (DESIGN section 9).
+    """Evaluates rotation curves through keys (DESIGN section 15).
 
     The options (every keyword below but ``angular_velocities``, ``rotation_type`` and
     ``output``) are the library's eval options by name, each at the library's default when
@@ -332,7 +332,7 @@ def _named(options):
 
 def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, errors="raise", **options):
     """Resamples animation files at a fixed rate into animation textures, as ``quatcurve bake``
-    does (DESIGN section 5b), and returns one summary row per input.
+    does (DESIGN section 6), and returns one summary row per input.
 
     The options (every keyword below but ``shard``, ``resume``, ``jobs`` and ``errors``) are
     the library's bake options by name, each at the library's default when not given
@@ -369,14 +369,14 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         times inverse bind matrix, per glTF skin), ``model-trs`` and ``skin-trs`` (those
         transforms as rotation, translation, scale, which a shader interpolates rigidly), or
         ``vertex`` (glTF and FBX: every skinned mesh primitive skinned at every frame, with
-        ``<stem>.mesh.glb`` the mesh to draw; DESIGN section 5d).
+        ``<stem>.mesh.glb`` the mesh to draw; DESIGN section 8).
     precision : str
         ``f32`` or ``f16`` (``npy`` and ``exr``).
     format : str
         ``npy`` arrays, or 2D RGBA images engines import: ``exr`` (float or half) or
         ``png16`` (each channel remapped to its range, recorded in the sidecar); or
         ``babylon`` (Babylon.js's baked vertex animation JSON, of ``skin`` textures;
-        DESIGN section 5f).
+        DESIGN section 10).
     max_texture_size : int
         Largest side of an image texture, in texels.
     atlas, preview : bool
@@ -402,7 +402,7 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         Rotation budget in degrees, in place of ``rate``: each clip at the lowest rate whose
         frames, blended as the shipped shader does (``quatcurve shaders``), stay within it
         of the curve at 16 points of every frame interval, every joint (textures ``local``,
-        ``model-trs``, ``skin-trs``; DESIGN section 5c).
+        ``model-trs``, ``skin-trs``; DESIGN section 7).
     max_error_mm : float, optional
         Position budget in millimetres for joints in model space, with or without
         ``max_error``.
@@ -452,7 +452,7 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
 
 def fit(inputs, output="fitted", *, errors="raise", **options):
     """Fits every clip of glTF/BVH files as quantized B-splines within an error budget, one
-    ``<stem>.qcf`` container per input, as ``quatcurve fit`` does (DESIGN section 10).
+    ``<stem>.qcf`` container per input, as ``quatcurve fit`` does (DESIGN section 16).
     :func:`bake` reads the containers as it reads their sources. The options (every keyword
     below but ``errors``) are the library's fit options by name, each at the library's default
     when not given (``FIT_OPTIONS`` holds the defaults).
@@ -508,7 +508,7 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
 
 def decode(path, rate=None):
     """Decodes a fitted container (``.qcf``, :func:`fit`'s output) to each clip's local poses
-    with the runtime decoder (DESIGN section 10): from the file's bytes straight to f32 poses,
+    with the runtime decoder (DESIGN section 16): from the file's bytes straight to f32 poses,
     frame after frame, as a data loader or a game reads them, no bake. The poses are the
     ``local`` texture a :func:`bake` of the container writes at the same rate.
 
@@ -552,7 +552,7 @@ _POSE_OPTIONS = ("exact_rate", "curve", "order", "knots", "tangents", "blend", "
 
 def resample_poses(poses, rate, new_rate, trans=None, per_frame=None, **options):
     """Resamples SMPL-family poses at a new rate in memory, by the rules of :func:`bake`
-    (DESIGN section 5b; docs/DATASETS.md): what replaces a dataset pipeline's
+    (DESIGN section 6; docs/DATASETS.md): what replaces a dataset pipeline's
     ``poses[::stride]``.
 
     Parameters

@@ -1,4 +1,4 @@
-//! The compiled half of the Python package (DESIGN section 9). `quatcurve/__init__.py` checks
+//! The compiled half of the Python package (DESIGN section 15). `quatcurve/__init__.py` checks
 //! and shapes the user's arrays (one track, a rectangular batch or a list of tracks of their
 //! own lengths; quaternions, rotation vectors or matrices) and calls [`evaluate_tracks`] with
 //! them flat: C-contiguous float64 rows and each track's offsets. This file builds the
@@ -426,7 +426,7 @@ fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDi
     Ok(d)
 }
 
-/// `quatcurve fit` in-process (DESIGN section 10): `options` a JSON object of the library's
+/// `quatcurve fit` in-process (DESIGN section 16): `options` a JSON object of the library's
 /// fit options by name (`quatcurve::fit::job::FitOptions`: the keywords of `quatcurve.fit`);
 /// the report as JSON text (the Python side parses it), or `ValueError` for a job refused
 /// before the work.
@@ -439,7 +439,7 @@ fn fit_files(py: Python<'_>, inputs: Vec<PathBuf>, output: PathBuf, options: &st
     serde_json::to_string(&report).map_err(value_error)
 }
 
-/// A fitted container's clips through the runtime decoder (DESIGN section 10): the joints'
+/// A fitted container's clips through the runtime decoder (DESIGN section 16): the joints'
 /// names and parents (-1 for a root), then per clip its name, its frame times at `rate` (the
 /// source's when `None`, fitted to the clip's span as a bake's) and the local poses there,
 /// `[frames, joints * 10]` f32 (rotation `x, y, z, w`, translation, scale). See

@@ -1,4 +1,4 @@
-"""quatcurve's Python package against scipy, the CLI, and its own contract (DESIGN section 9)."""
+"""quatcurve's Python package against scipy, the CLI, and its own contract (DESIGN section 15)."""
 
 import json
 import os

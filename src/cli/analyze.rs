@@ -1,5 +1,5 @@
 //! `quatcurve analyze`: energy, torque and smoothness of several curves through the same keys
-//! (DESIGN section 8), and `--paper`, the rerun of KKS section 6.1.
+//! (DESIGN section 14), and `--paper`, the rerun of KKS section 6.1.
 
 use super::{names, print_stdout, read_tracks, CurveOptions, Failure};
 use clap::Args;
@@ -48,7 +48,7 @@ pub struct AnalyzeArgs {
     /// Evaluation device for the derivatives.
     #[arg(long, default_value = "reference", value_parser = names::<DeviceChoice>())]
     device: DeviceChoice,
-    /// Print JSON (DESIGN section 8) instead of tables.
+    /// Print JSON (DESIGN section 14) instead of tables.
     #[arg(long)]
     json: bool,
     /// Draw |omega| and |alpha| against time, one line per curve, to a .png or .svg: the first

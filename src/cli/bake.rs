@@ -129,7 +129,7 @@ pub fn run(args: &BakeArgs) -> Result<(), Failure> {
         _ => "the others were baked",
     };
     let summary = format!("{} of {} inputs failed ({}); {rest}", failed.len(), report.inputs.len(), kinds.join(", "));
-    // Exit code 1 when the machine is at fault (DESIGN section 5b), else 2.
+    // Exit code 1 when the machine is at fault (DESIGN section 6), else 2.
     Err(if counts[Fault::Input as usize] == failed.len() {
         Failure::Input(summary)
     } else {

@@ -62,7 +62,7 @@ pub struct BenchArgs {
     /// track shape (.png or .svg).
     #[arg(long, value_name = "FILE", requires = "sweep")]
     plot: Option<std::path::PathBuf>,
-    /// Time linear blend skinning instead (vertex textures, DESIGN section 5d): every skinned
+    /// Time linear blend skinning instead (vertex textures, DESIGN section 8): every skinned
     /// primitive of this glTF at --samples frames of its first clip, on the CPU (f64, every
     /// core) and the GPU (`shaders/skin_mesh.wgsl`, upload and read-back included).
     #[arg(long, value_name = "GLTF", conflicts_with = "sweep")]

@@ -1,4 +1,4 @@
-//! `quatcurve bench --playback`: crowd playback speed (DESIGN section 11). One frame of `play`'s
+//! `quatcurve bench --playback`: crowd playback speed (DESIGN section 17). One frame of `play`'s
 //! schedule, every instance blended between two clips (the full cost of a frame), timed per
 //! device and crowd size: the skin palettes of every instance, in milliseconds a frame and
 //! instance-joints per second.

@@ -1,5 +1,5 @@
 //! `quatcurve fit`: glTF/BVH clips to fitted containers (`<stem>.qcf`), each clip's curves
-//! within an error budget in centimetres (DESIGN section 10), and a report per clip.
+//! within an error budget in centimetres (DESIGN section 16), and a report per clip.
 
 use super::{print_stdout, Failure};
 use clap::Args;
@@ -21,7 +21,7 @@ pub struct FitArgs {
     /// the command line's spelling of no between-frames error.
     #[arg(long, conflicts_with = "between_error")]
     no_between_check: bool,
-    /// Print the report as JSON (DESIGN section 10) instead of a table.
+    /// Print the report as JSON (DESIGN section 16) instead of a table.
     #[arg(long)]
     json: bool,
 }

@@ -1,4 +1,4 @@
-//! `quatcurve play`: a crowd played from a file's curves (DESIGN section 11), every frame's
+//! `quatcurve play`: a crowd played from a file's curves (DESIGN section 17), every frame's
 //! skin palettes written as `[frames, instances, joints, 12]` in one `.npy`.
 
 use super::{names, open_device, CurveOptions, Failure};

@@ -1,6 +1,6 @@
 //! `quatcurve shaders`: the bone-texture library and its skinned vertex shader, the vertex
 //! texture's, and a fragment shader for both, in WGSL (the one source, `shaders/*.wgsl`) or in
-//! GLSL and HLSL generated from it by naga's back ends (DESIGN section 5c).
+//! GLSL and HLSL generated from it by naga's back ends (DESIGN section 7).
 
 use super::{names, print_stdout, Failure};
 use clap::Args;

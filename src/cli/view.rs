@@ -1,4 +1,4 @@
-//! `quatcurve view DIR`: serves a baked directory to the viewer page (DESIGN section 5e).
+//! `quatcurve view DIR`: serves a baked directory to the viewer page (DESIGN section 9).
 
 use super::Failure;
 use clap::Args;

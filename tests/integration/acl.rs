@@ -1,4 +1,4 @@
-//! `examples/acl/`, the side-by-side with ACL 2.1.0 (DESIGN section 10), smoke-tested: its
+//! `examples/acl/`, the side-by-side with ACL 2.1.0 (DESIGN section 16), smoke-tested: its
 //! harness builds against the vendored headers as `run.sh` builds it and compresses and
 //! decompresses a clip in `examples/acl_raw.rs`'s format. Timings stay benchmarks (`run.sh`).
 

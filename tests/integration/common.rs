@@ -200,7 +200,7 @@ pub fn derivative(f: impl Fn(f64) -> Vec3F64, t: f64, h: f64) -> Vec3F64 {
     (stencil(h / 2.0).scale(16.0) - stencil(h)).scale(1.0 / 15.0)
 }
 
-/// DESIGN section 6 relative error: `max|a - b| / max(1, max|b|)`.
+/// DESIGN section 18 relative error: `max|a - b| / max(1, max|b|)`.
 pub fn rel_err(a: Vec3F64, b: Vec3F64) -> f64 {
     (a - b).max_abs() / b.max_abs().max(1.0)
 }

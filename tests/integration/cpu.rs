@@ -1,4 +1,4 @@
-//! The fast CPU path against the f64 reference (DESIGN section 6 bars): the same suites as the
+//! The fast CPU path against the f64 reference (DESIGN section 18 bars): the same suites as the
 //! GPU, plus layouts and matrices checked against the GPU-independent reference directly.
 
 use crate::common::*;

@@ -1,4 +1,4 @@
-//! What the GPU and CPU accuracy tests share: DESIGN section 6's bars, the comparison with
+//! What the GPU and CPU accuracy tests share: DESIGN section 18's bars, the comparison with
 //! the reference, and batch generators within the bars' domain. Included by path.
 
 use crate::common::*;
@@ -7,7 +7,7 @@ use quatcurve::{
     Batch, BatchBuilder, Curve, CurveSpec, EvalJob, KnotMode, Layout, QuatF64, SampleTimes, Sampling, Track, Vec3F64,
 };
 
-/// DESIGN section 6: rotation error bar (rad) and derivative relative error bar.
+/// DESIGN section 18: rotation error bar (rad) and derivative relative error bar.
 pub const ROTATION_BAR: f64 = 1e-5;
 pub const DERIVATIVE_BAR: f64 = 1e-4;
 
@@ -111,7 +111,7 @@ pub fn compare_output(
     worst
 }
 
-/// A track within DESIGN section 6's domain: consecutive key dots >= 1e-3 (the half-turn
+/// A track within DESIGN section 18's domain: consecutive key dots >= 1e-3 (the half-turn
 /// choice is ill-conditioned below), velocities up to 20 rad/s.
 pub fn accurate_track(g: &mut Gen, spec: &CurveSpec, count: usize, kind: Kind) -> Track {
     loop {

@@ -1,7 +1,7 @@
 //! Every integration test in one binary: one link instead of six, one GPU device for all.
 //!
 //! - [`reference`]: the f64 reference against the mathematics;
-//! - [`cpu`], [`gpu`]: the fast paths against the reference (DESIGN section 6 bars), with the
+//! - [`cpu`], [`gpu`]: the fast paths against the reference (DESIGN section 18 bars), with the
 //!   helpers they share in [`common`] (tracks, specs, generators) and [`fast`] (comparisons);
 //! - [`shaders`]: the WGSL program without a GPU (naga) and the facts Rust shares with it;
 //! - [`cli`], [`bake`]: the command line end to end, real files and hostile ones;

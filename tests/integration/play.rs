@@ -1,4 +1,4 @@
-//! The playback runtime (`quatcurve::play`, DESIGN section 12) held to what it must equal:
+//! The playback runtime (`quatcurve::play`, DESIGN section 17) held to what it must equal:
 //! the bake's skin textures at their frame times (every clip of the real files, on the
 //! reference, the CPU path and the GPU), the single clips at blend weights 0 and 1, and at
 //! 0.25 and 0.5 a local-space blend, forward kinematics and skinning computed here with glam; and

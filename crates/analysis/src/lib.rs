@@ -1,4 +1,4 @@
-//! How smooth a curve is and how much effort it asks of a rigid body (DESIGN section 8):
+//! How smooth a curve is and how much effort it asks of a rigid body (DESIGN section 14):
 //! energy `integral |alpha|^2 dt`, torque energy `integral |tau|^2 dt` with the body torque
 //! `tau = I alpha + omega x (I omega)` (Euler's equations, body frame), peak rates, arc length
 //! and the jump of alpha at the curve's joints.

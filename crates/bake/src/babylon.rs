@@ -1,4 +1,4 @@
-//! Babylon.js's baked vertex animation (`bake --format babylon`, DESIGN section 5f): the JSON
+//! Babylon.js's baked vertex animation (`bake --format babylon`, DESIGN section 10): the JSON
 //! object `VertexAnimationBaker.serializeBakedVertexDataToObject` writes, which Babylon's
 //! `BakedVertexAnimationManager` plays with no shader code of the user's.
 //!

@@ -1,4 +1,4 @@
-//! Rates from an error budget (`bake --max-error DEG`, `--max-error-mm MM`; DESIGN section 5c):
+//! Rates from an error budget (`bake --max-error DEG`, `--max-error-mm MM`; DESIGN section 7):
 //! per clip, the lowest rate at which a renderer interpolating the baked frames as
 //! `shaders/bone_texture.wgsl` does (nlerp of rotations on the shorter arc, lerp of
 //! translations and scales) stays within the budget of the continuous curve, measured at

@@ -1,9 +1,9 @@
-//! Animation textures as images an engine imports (DESIGN section 5b, `--format`): a 2D RGBA
+//! Animation textures as images an engine imports (DESIGN section 6, `--format`): a 2D RGBA
 //! texture with each joint's floats in a fixed number of texels, frames along rows, wrapped so
 //! that neither side exceeds the largest texture size asked for ([`Grid`]), written as
 //! OpenEXR (half or float) or 16-bit PNG (each channel remapped to its own range, recorded
 //! in the sidecar as OpenVAT does). A vertex texture's images hold positions in their box
-//! and octahedral normals instead (DESIGN section 5d), both in `0..1`.
+//! and octahedral normals instead (DESIGN section 8), both in `0..1`.
 use super::texture::TextureKind;
 use super::vertex_encoding::{encode_normal, Bounds};
 use serde::Serialize;

@@ -1,4 +1,4 @@
-//! The bake as a job over files (DESIGN sections 5b and 7): read each input (glTF/GLB, BVH,
+//! The bake as a job over files (DESIGN sections 6 and 13): read each input (glTF/GLB, BVH,
 //! or the built-in crowd), bake every clip, write its outputs atomically, and keep the shard's
 //! manifest current. The command line (`quatcurve bake`) and the Python package
 //! (`quatcurve.bake`) both fill a [`BakeJob`] and run it; neither holds a second copy.
@@ -722,7 +722,7 @@ fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Res
 }
 
 /// The file name after an input's stem of the mesh a vertex texture plays
-/// (skinned primitives as plain meshes, DESIGN section 5d).
+/// (skinned primitives as plain meshes, DESIGN section 8).
 pub const MESH_GLB_SUFFIX: &str = ".mesh.glb";
 
 /// Removes the temporary files a killed run of this shard left in `dir`

@@ -223,7 +223,7 @@ pub const UNBAKED_FRAMES: f64 = 1e-6;
 /// a rounding error before it.
 pub const END_TOLERANCE_FRAMES: f64 = 0.01;
 
-/// How a clip's frames are laid on its span `[first key, last key]` (DESIGN section 5b).
+/// How a clip's frames are laid on its span `[first key, last key]` (DESIGN section 6).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ClipRate {
     /// The rate nearest this one (Hz) that puts a whole number of frames in the clip's span:

@@ -1,4 +1,4 @@
-//! The per-shard record of a bake (DESIGN section 7): what was read (size, SHA-256), with
+//! The per-shard record of a bake (DESIGN section 13): what was read (size, SHA-256), with
 //! which options, what was written (size, SHA-256) and how each input ended. `--resume` reads
 //! it back to skip inputs whose outputs are intact, so a retried array task redoes only what
 //! is missing or changed. Times and hosts live here, never in the outputs, so the outputs do

@@ -18,7 +18,7 @@ use quatcurve_formats::crowd;
 use quatcurve_formats::source::Source;
 use serde::{Deserialize, Serialize};
 
-/// The options of a bake (DESIGN section 5b).
+/// The options of a bake (DESIGN section 6).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]

@@ -1,4 +1,4 @@
-//! Root motion (`bake --root-motion extract`, DESIGN section 5c): the root's horizontal
+//! Root motion (`bake --root-motion extract`, DESIGN section 7): the root's horizontal
 //! translation and heading (yaw about +Y, glTF's and BVH's up) taken out of a clip's textures
 //! into a per-frame root track in the sidecar, so the clip plays in place and the game moves
 //! the character. The track composed with the in-place textures gives the kept clip back:

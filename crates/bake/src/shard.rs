@@ -1,4 +1,4 @@
-//! Which share of a job this process runs (DESIGN section 7): `I/N` given, or the array index
+//! Which share of a job this process runs (DESIGN section 13): `I/N` given, or the array index
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
 use quatcurve_files::FileJobError;

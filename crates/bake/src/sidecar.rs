@@ -1,4 +1,4 @@
-//! The sidecar JSON beside an input's textures (DESIGN section 5b): what a renderer needs to
+//! The sidecar JSON beside an input's textures (DESIGN section 6): what a renderer needs to
 //! read them alone (joints, parents, rest pose, skins with their inverse bind matrices,
 //! per-clip files, rows, rates and loops, and for image textures where each texel is). The
 //! types here write it and read it back (the viewer reads bakes through them); reading is
@@ -45,7 +45,7 @@ fn declared_interpolations(animation: &Animation) -> Vec<String> {
     declared.into_iter().map(str::to_string).collect()
 }
 
-/// The sidecar JSON next to the animation textures (DESIGN section 5b).
+/// The sidecar JSON next to the animation textures (DESIGN section 6).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Sidecar {
@@ -111,10 +111,10 @@ pub struct Sidecar {
     /// `--format babylon`: how Babylon.js's `BakedVertexAnimationManager` plays the files.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub babylon: Option<BabylonRecord>,
-    /// An input converted to glTF's space as it was read (FBX, DESIGN section 5h).
+    /// An input converted to glTF's space as it was read (FBX, DESIGN section 12).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub conversion: Option<ConversionRecord>,
-    /// A pose archive's arrays (DESIGN section 5g), in its order, each with what the baked
+    /// A pose archive's arrays (DESIGN section 11), in its order, each with what the baked
     /// archive holds of it: `resampled` at the new frames, `rate` (the new rate) or `copied`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub arrays: Vec<ArrayRecord>,
@@ -142,7 +142,7 @@ pub struct ArrayRecord {
     pub written: String,
 }
 
-/// How a vertex texture's files are read (DESIGN section 5d).
+/// How a vertex texture's files are read (DESIGN section 8).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct VertexRecord {
@@ -159,7 +159,7 @@ pub struct VertexRecord {
     pub primitives: Vec<VertexPrimitive>,
 }
 
-/// How an input was converted to glTF's space as it was read (DESIGN section 5h).
+/// How an input was converted to glTF's space as it was read (DESIGN section 12).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ConversionRecord {
@@ -177,7 +177,7 @@ impl From<Conversion> for ConversionRecord {
     }
 }
 
-/// How Babylon.js plays a `--format babylon` bake (DESIGN section 5f).
+/// How Babylon.js plays a `--format babylon` bake (DESIGN section 10).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct BabylonRecord {

@@ -1,4 +1,4 @@
-//! Animation textures (DESIGN section 5b): what a crowd renderer samples per joint and frame,
+//! Animation textures (DESIGN section 6): what a crowd renderer samples per joint and frame,
 //! frame-major so that one frame of every joint is one contiguous row.
 //!
 //! - [`local`]: each joint's rotation, translation and scale relative to its parent;
@@ -38,7 +38,7 @@ pub enum TextureKind {
     /// scale.
     SkinTrs,
     /// `[frames, vertices, 6]` per skinned glTF mesh primitive: skinned position and normal
-    /// (DESIGN section 5d); as images, a position and a normal image, encoded.
+    /// (DESIGN section 8); as images, a position and a normal image, encoded.
     Vertex,
 }
 
@@ -81,7 +81,7 @@ impl TextureKind {
     /// How a joint's floats fill RGBA texels of a 2D texture ([`super::image`]): each range
     /// of floats one texel, the rest of it zero. Rotation, translation, scale for `local`;
     /// the matrix's three rows for `model` and `skin`; for `vertex` one texel per vertex in
-    /// each of its images (position, normal), encoded (DESIGN section 5d).
+    /// each of its images (position, normal), encoded (DESIGN section 8).
     #[must_use]
     pub fn texels(self) -> &'static [std::ops::Range<usize>] {
         match self {

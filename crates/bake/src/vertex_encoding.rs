@@ -1,4 +1,4 @@
-//! How a vertex texture stores skinned vertices (DESIGN section 5d): positions remapped into
+//! How a vertex texture stores skinned vertices (DESIGN section 8): positions remapped into
 //! the mesh's animated bounding box (`0..1` per axis, the range a 16-bit PNG holds and where
 //! half floats are densest near the box's far side), normals folded onto the octahedron and
 //! unfolded to a square (`0..1` in two channels; Cigolle et al. 2014). Each has its decoder

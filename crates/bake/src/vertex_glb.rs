@@ -1,4 +1,4 @@
-//! The mesh a vertex texture plays (DESIGN section 5d): each skinned primitive as a plain
+//! The mesh a vertex texture plays (DESIGN section 8): each skinned primitive as a plain
 //! mesh at the scene root, without skin, joints, weights or animation, its bind-space
 //! positions and normals kept (what an engine draws when no texture is bound) and a
 //! `TEXCOORD_0` that addresses each vertex's texel within a frame.

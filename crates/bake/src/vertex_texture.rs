@@ -1,4 +1,4 @@
-//! Vertex textures (DESIGN section 5d): every skinned primitive of a glTF skinned at each
+//! Vertex textures (DESIGN section 8): every skinned primitive of a glTF skinned at each
 //! frame on the bake's device, as the sheets a texture file streams. As `.npy`, one sheet
 //! per primitive of raw positions and normals (`[frames, vertices, 6]`); as images, a
 //! position sheet and (when the primitive has normals) a normal sheet, which the image

@@ -216,7 +216,7 @@ impl Device {
         }
     }
 
-    /// Crowd playback's palettes (DESIGN section 11): each instance's two local poses
+    /// Crowd playback's palettes (DESIGN section 17): each instance's two local poses
     /// (`poses`, `[instances, 2, joints, 10]`) blended by its weight (`weights`: rotations by
     /// slerp on the shorter arc, the rest by lerp), forward kinematics, and `skin`'s palette
     /// (`[instances, skin joints, 12]`; every joint's model matrix without one). The GPU's in
@@ -242,7 +242,7 @@ impl Device {
         }
     }
 
-    /// Playback from curves kept on this device (DESIGN section 11), where the device keeps
+    /// Playback from curves kept on this device (DESIGN section 17), where the device keeps
     /// them: the GPU's ([`ResidentPlayback`]: the clips uploaded once, one submission a
     /// frame). `None` on the CPU path and the reference, which evaluate poses on the host, and
     /// for `auto` with curves the kernel cannot take.

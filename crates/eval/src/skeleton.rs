@@ -243,7 +243,7 @@ pub struct PaletteSkin<'a> {
     pub inverse_binds: &'a [[f64; 12]],
 }
 
-/// Where a played clip takes one joint property from (DESIGN section 11).
+/// Where a played clip takes one joint property from (DESIGN section 17).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PoseSource {
     /// A rotation: track `i` of the rotation batch.

@@ -426,7 +426,7 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
     Ok(packed)
 }
 
-/// What crowd playback keeps on a device (DESIGN section 11), as bytes ready to upload: each
+/// What crowd playback keeps on a device (DESIGN section 17), as bytes ready to upload: each
 /// resident buffer by the shader's name, the pose kernel's specialization, and what a frame's
 /// dispatches are planned from. [`CurvePalettes`] uploads it through wgpu; a browser's WebGPU
 /// uploads the same bytes (`quatcurve view`), so both hosts run one plan.
@@ -663,7 +663,7 @@ impl ResidentCurves {
     }
 }
 
-/// Crowd playback from curves kept on the device (DESIGN section 11): the clips uploaded once;
+/// Crowd playback from curves kept on the device (DESIGN section 17): the clips uploaded once;
 /// per frame, one submission evaluates every instance's joints at its own times, blends its two
 /// poses, runs forward kinematics and multiplies the inverse binds (`shaders/play_curves.wgsl`,
 /// then fk.wgsl and `play_palette`). Only the instances travel per frame.

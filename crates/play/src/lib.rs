@@ -1,4 +1,4 @@
-//! Crowds played straight from curves (DESIGN section 11): an animation's clips built once as
+//! Crowds played straight from curves (DESIGN section 17): an animation's clips built once as
 //! curves ([`quatcurve_anim::curves::Curves`], the bake's own), then, frame after frame, every
 //! instance's joints evaluated at that instance's own time in up to two clips, the two poses
 //! blended in local space, forward kinematics run and the skin's inverse binds multiplied:

@@ -1,4 +1,4 @@
-//! `quatcurve play`'s instance schedule (DESIGN section 11): which clip each instance plays,
+//! `quatcurve play`'s instance schedule (DESIGN section 17): which clip each instance plays,
 //! from which phase, and what it blends with, the same on every run so that a palette file
 //! is reproducible and comparable across devices.
 

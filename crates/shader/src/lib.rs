@@ -104,7 +104,7 @@ pub const PALETTE_VERTEX_FILES: [(&str, &str); 1] =
 pub const SKIN_MESH_FILES: [(&str, &str); 1] = [("skin_mesh.wgsl", include_str!("../shaders/skin_mesh.wgsl"))];
 
 /// The bone-texture library a renderer includes (`quatcurve shaders`): self-contained, read
-/// with the bake's textures of `--format exr|png16` (DESIGN section 5c).
+/// with the bake's textures of `--format exr|png16` (DESIGN section 7).
 pub const BONE_FILES: [(&str, &str); 1] = [("bone_texture.wgsl", include_str!("../shaders/bone_texture.wgsl"))];
 
 /// The minimal skinned vertex shader over the bone library: what `quatcurve shaders` ships and
@@ -119,7 +119,7 @@ pub const BONE_PROBE_FILES: [(&str, &str); 2] =
 
 /// The vertex-texture library (composed after the bone library, whose frame rule it shares)
 /// and its minimal crowd vertex shader: what `quatcurve shaders --program vertex` ships
-/// (DESIGN section 5d).
+/// (DESIGN section 8).
 pub const VERTEX_TEXTURE_FILES: [(&str, &str); 3] = [
     BONE_FILES[0],
     ("vertex_texture.wgsl", include_str!("../shaders/vertex_texture.wgsl")),

@@ -1,4 +1,4 @@
-//! What the page's WebGPU path plays (DESIGN section 11, "In the browser"): a bake's glTF as
+//! What the page's WebGPU path plays (DESIGN section 17, "In the browser"): a bake's glTF as
 //! curves kept on the GPU, in the bytes and dispatches the native GPU path uses
 //! ([`ResidentCurves`]), with the WGSL as it is: the playback-from-curves program, the
 //! palette vertex shader and the viewer's fragment shader. Per frame the page writes only the

@@ -1,4 +1,4 @@
-//! `quatcurve view DIR` (DESIGN section 5e): a baked directory served on this machine to a
+//! `quatcurve view DIR` (DESIGN section 9): a baked directory served on this machine to a
 //! page that plays it as a crowd: its curves on the GPU through WebGPU, or its textures
 //! through WebGL2 with the shipped shaders. Routes: `/` the page (the crate's `page/`), `/api/bakes` the
 //! playable bakes, `/api/scene?bake=..&clip=..` one clip ready to draw ([`scene`]),

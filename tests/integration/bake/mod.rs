@@ -85,7 +85,7 @@ pub(crate) fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// Frames of a clip spanning `[start, end]` baked at `rate` (DESIGN section 5b: the rate fitted
+/// Frames of a clip spanning `[start, end]` baked at `rate` (DESIGN section 6: the rate fitted
 /// to a whole number of intervals, so the first and last frames are the first and last keys;
 /// for a loop the last frame is the seam).
 fn fitted_frames(start: f64, end: f64, rate: f64) -> usize {

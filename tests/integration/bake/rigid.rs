@@ -1,4 +1,4 @@
-//! `bake --texture model-trs|skin-trs` (DESIGN section 5b): the model and skin matrices as
+//! `bake --texture model-trs|skin-trs` (DESIGN section 6): the model and skin matrices as
 //! rotation, translation and scale, checked against the matrix bakes of the same real files,
 //! with quaternions that keep to one side from frame to frame, and sheared joints refused.
 

@@ -1,4 +1,4 @@
-//! `bake --root-motion extract` (DESIGN section 5c): the root track in the sidecar composed
+//! `bake --root-motion extract` (DESIGN section 7): the root track in the sidecar composed
 //! with the in-place textures gives back, for every joint, the textures baked with the motion
 //! kept; in place, the root-motion joint stays over the origin and loops stay seamless.
 

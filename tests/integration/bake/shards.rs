@@ -1,4 +1,4 @@
-//! Sharded bakes (DESIGN section 7): shards reproduce one unsharded run byte for byte,
+//! Sharded bakes (DESIGN section 13): shards reproduce one unsharded run byte for byte,
 //! manifests record SHA-256s, `--resume` redoes exactly what is missing or damaged, and the
 //! scheduler examples in `examples/` run as their schedulers would run them.
 

@@ -19,7 +19,7 @@ use quatcurve::skeleton;
 const POSITION_BOUND: f64 = 1e-4;
 /// Normals agree within this angle (rad).
 const NORMAL_BOUND: f64 = 1e-3;
-/// Half-float images: DESIGN section 5d's half precision (2.3e-4 of the box's diagonal,
+/// Half-float images: DESIGN section 8's half precision (2.3e-4 of the box's diagonal,
 /// 2.0e-3 rad), with room for the f32 skinning.
 const HALF_POSITION_BOUND: f64 = 2.5e-4;
 const HALF_NORMAL_BOUND: f64 = 2.5e-3;
@@ -516,7 +516,7 @@ fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_d
     let out = tempfile::tempdir().unwrap();
     let devices: &[&str] = if crate::shared_gpu().is_some() { &["cpu", "gpu"] } else { &["cpu"] };
     // Format, precision, largest image side, and the bounds each holds to (position /
-    // diagonal, normal rad): DESIGN section 5d's precision of its encoding, plus the f32
+    // diagonal, normal rad): DESIGN section 8's precision of its encoding, plus the f32
     // skinning's. At 1,024 texels a side, CesiumMan's 3,273 vertices wrap to four rows a frame.
     let variants = [
         ("npy", "f32", "4096", POSITION_BOUND, NORMAL_BOUND),
@@ -557,7 +557,7 @@ fn baked_vertex_textures_decode_to_an_independent_skinning_in_every_format_and_d
                         let (ours, animated) = decoded(&dir, &sidecar, clip, k, frame);
                         assert_eq!(ours.len(), theirs.len());
                         // Images: against the box they were encoded in (the mesh's over the
-                        // clip, as DESIGN section 5d states their precision); npy: against
+                        // clip, as DESIGN section 8 states their precision); npy: against
                         // this frame's box, which is smaller.
                         let scale = animated.unwrap_or_else(|| Bounds::of(&theirs).unwrap().diagonal());
                         let (p, n) = worst(&ours, &theirs, scale, primitive.bind.normals.is_some());

@@ -1,5 +1,5 @@
 //! GPU against the f64 reference: every family, order and knot mode, with and without
-//! derivatives, both layouts, random and adversarial tracks (DESIGN section 6 bars).
+//! derivatives, both layouts, random and adversarial tracks (DESIGN section 18 bars).
 
 use crate::common::*;
 use crate::fast::*;

@@ -1,4 +1,4 @@
-//! `analyze` (DESIGN section 8) against integrals computed here a different way: Gauss-Legendre
+//! `analyze` (DESIGN section 14) against integrals computed here a different way: Gauss-Legendre
 //! quadrature over every key interval, closed forms (a constant-speed slerp, the natural
 //! cubic spline of angles about one axis), and the continuity each family promises.
 
