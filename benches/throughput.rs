@@ -15,7 +15,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use quatcurve::cpu::CpuEvaluator;
-use quatcurve::gpu::GpuEvaluator;
+use quatcurve::gpu::GpuDevice;
 use quatcurve::{synthetic, Curve, CurveSpec, EvalJob, JobOptions, KnotMode};
 
 const TRACKS: usize = 10_000;
@@ -31,7 +31,7 @@ fn workloads() -> Vec<(&'static str, CurveSpec)> {
 }
 
 fn paths(c: &mut Criterion) {
-    let gpu = GpuEvaluator::new().map_err(|e| eprintln!("GPU rows skipped: no GPU adapter ({e})")).ok();
+    let gpu = GpuDevice::new().map_err(|e| eprintln!("GPU rows skipped: no GPU adapter ({e})")).ok();
     let cpu = CpuEvaluator::new();
     eprintln!("CPU: {}; GPU: {}", cpu.name(), gpu.as_ref().map_or("none", |g| g.adapter_name()));
     for (name, spec) in workloads() {

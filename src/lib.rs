@@ -70,7 +70,7 @@ pub use cpu::CpuEvaluator;
 pub use device::{Device, DeviceChoice, DeviceError, EvalOutput};
 pub use error::{Error, Result, TrackId};
 #[cfg(feature = "gpu")]
-pub use gpu::GpuEvaluator;
+pub use gpu::GpuDevice;
 pub use job::{EvalJob, JobOptions};
 pub use output::{FloatOutput, Layout, Output, Row};
 pub use quatcurve_core::curve::{Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};

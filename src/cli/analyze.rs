@@ -115,7 +115,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
             .collect::<Result<Vec<_>, _>>()?;
         let name = tracks[0].name.clone().unwrap_or_else(|| "track 0".into());
         plot::rates(path, &format!("{name}: angular velocity and acceleration"), &series, &key_times(&tracks[0]))
-            .map_err(Failure::Input)?;
+            .map_err(|e| Failure::Input(e.to_string()))?;
     }
     let names: Vec<String> =
         tracks.iter().enumerate().map(|(i, t)| t.name.clone().unwrap_or_else(|| format!("track {i}"))).collect();
@@ -242,7 +242,7 @@ fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> R
             "KKS 6.1 rerun: first large-step sequence (seed {}), {}-{} degrees between keys",
             setup.seed, large.degrees[0], large.degrees[1]
         );
-        plot::rates(path, &title, &series, &key_times(&tracks[0])).map_err(Failure::Input)?;
+        plot::rates(path, &title, &series, &key_times(&tracks[0])).map_err(|e| Failure::Input(e.to_string()))?;
     }
     if args.json {
         let doc = serde_json::json!({

@@ -5,8 +5,8 @@ use super::measure::{median_seconds, open_bench_device};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::{
-    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, GpuEvaluator, JobOptions,
-    KnotMode, SampleTimes, Sampling,
+    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, GpuDevice, JobOptions, KnotMode,
+    SampleTimes, Sampling,
 };
 use serde::Serialize;
 
@@ -208,7 +208,8 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
             args.curve,
             if args.derivatives { "with derivatives" } else { "rotation only" }
         );
-        quatcurve::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines).map_err(Failure::Input)?;
+        quatcurve::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines)
+            .map_err(|e| Failure::Input(e.to_string()))?;
     }
     print_stdout(|w| {
         if args.json {
@@ -313,7 +314,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
     })
 }
 
-fn time_gpu(args: &BenchArgs, gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
+fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
     let job = EvalJob::new(batch, times).derivatives(args.derivatives);
     let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
     let seconds = median_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;

@@ -33,16 +33,16 @@ mod cli;
 mod play;
 
 #[cfg(feature = "gpu")]
-use quatcurve::gpu::GpuEvaluator;
+use quatcurve::gpu::GpuDevice;
 #[cfg(feature = "gpu")]
 use std::sync::OnceLock;
 
 #[cfg(feature = "gpu")]
 /// The one GPU evaluator of the test binary (tests that need other limits take
-/// [`GpuEvaluator::share_device`]), or None (skip) when there is no adapter and none is required.
-pub fn shared_gpu() -> Option<&'static GpuEvaluator> {
-    static GPU: OnceLock<Option<GpuEvaluator>> = OnceLock::new();
-    GPU.get_or_init(|| match GpuEvaluator::new() {
+/// [`GpuDevice::share_device`]), or None (skip) when there is no adapter and none is required.
+pub fn shared_gpu() -> Option<&'static GpuDevice> {
+    static GPU: OnceLock<Option<GpuDevice>> = OnceLock::new();
+    GPU.get_or_init(|| match GpuDevice::new() {
         Ok(g) => {
             eprintln!("GPU tests on: {}", g.adapter_name());
             Some(g)

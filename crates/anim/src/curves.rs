@@ -6,7 +6,7 @@
 
 use crate::error::InputError;
 use crate::{Animation, ChannelCurve as Stored, Interpolation, Property};
-use quatcurve_core::curve::{Curve, CurveSpec, KnotMode};
+use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, UnknownName};
 use quatcurve_eval::batch::{Batch, BatchBuilder, Spline};
 use quatcurve_eval::error::TrackId;
 use quatcurve_eval::euclidean::VectorCurve;
@@ -62,7 +62,7 @@ impl CurveChoice {
     ///
     /// # Errors
     /// For a name that is neither.
-    pub fn from_name(name: &str) -> Result<Self, String> {
+    pub fn from_name(name: &str) -> Result<Self, UnknownName> {
         if name == Self::SOURCE {
             return Ok(CurveChoice::Source);
         }

@@ -83,7 +83,7 @@ fn nearest_common_ancestor(animation: &Animation, joints: &[usize]) -> Option<us
 ///
 /// # Errors
 /// The node's name when its rest world matrix is singular (a zero scale).
-pub fn from_world(animation: &Animation, node: Option<usize>) -> Result<Affine, String> {
+pub fn from_world(animation: &Animation, node: Option<usize>) -> Result<Affine, SingularWorld> {
     let Some(node) = node else { return Ok(IDENTITY) };
     let (mut world, mut at) = (IDENTITY, Some(node));
     // Parents were checked to form no cycle when the file was read.
@@ -91,12 +91,16 @@ pub fn from_world(animation: &Animation, node: Option<usize>) -> Result<Affine, 
         world = compose(&trs(joint.rotation, joint.translation, joint.scale), &world);
         at = joint.parent;
     }
-    inverse(&world).ok_or_else(|| {
-        format!(
-            "node '{}', the skinned mesh's parent in Babylon, has a singular world matrix at rest",
-            animation.joints[node].name
-        )
-    })
+    inverse(&world).ok_or_else(|| SingularWorld { node: animation.joints[node].name.clone() })
+}
+
+/// A node whose world matrix at rest has no inverse (a zero scale), so no bone can be written
+/// in its space.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("node '{node}', the skinned mesh's parent in Babylon, has a singular world matrix at rest")]
+pub struct SingularWorld {
+    /// The node's name.
+    pub node: String,
 }
 
 /// Babylon's floats of `rows` (frame-major 3x4 row-major skin matrices of `bones` bones):

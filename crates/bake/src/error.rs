@@ -23,6 +23,10 @@ pub enum BakeError {
     /// program).
     #[error(transparent)]
     Layout(#[from] LayoutError),
+    /// A skeleton preview that could not be drawn or written.
+    #[cfg(feature = "plot")]
+    #[error(transparent)]
+    Preview(#[from] quatcurve_plot::PlotError),
 }
 
 impl BakeError {
@@ -34,13 +38,20 @@ impl BakeError {
             Self::Input(e) => e.is_internal_failure(),
             Self::Device(e) => e.is_device_failure(),
             Self::Layout(_) => true,
+            #[cfg(feature = "plot")]
+            Self::Preview(_) => false,
         }
     }
 
     /// Whether an output could not be written (the input itself was fine).
     #[must_use]
     pub fn is_output_failure(&self) -> bool {
-        matches!(self, Self::Input(e) if e.is_output_failure())
+        match self {
+            Self::Input(e) => e.is_output_failure(),
+            #[cfg(feature = "plot")]
+            Self::Preview(_) => true,
+            _ => false,
+        }
     }
 }
 

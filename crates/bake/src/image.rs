@@ -105,28 +105,77 @@ pub const ADDRESS: &str = "a = j * texels_per_joint + t, r = first_row + frame, 
     x = (r / frames_per_column) * frame_width + a % frame_width, \
     y = (r % frames_per_column) * rows_per_frame + a / frame_width (integer division)";
 
+/// Why a texture could not be laid out or encoded as an image.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ImageError {
+    /// A joint's texels wider than a texture side.
+    #[error("a joint takes {texels_per_joint} texels, more than a texture side of {max}")]
+    JointTooWide {
+        /// Texels a joint takes.
+        texels_per_joint: usize,
+        /// The largest side.
+        max: usize,
+    },
+    /// More frames than the rows and columns of the largest side hold.
+    #[error(
+        "{frames} frames of {joints} joints take {texels} texels ({rows_per_frame} rows of {frame_width} per frame), more \
+         than a texture side of {max} can hold in rows and columns; bake at a lower rate, clip by clip rather than as one \
+         atlas, or raise the maximum texture size"
+    )]
+    FramesDoNotFit {
+        /// Frames of the texture.
+        frames: usize,
+        /// Joints (or vertices) a frame.
+        joints: usize,
+        /// Texels of every frame.
+        texels: usize,
+        /// Rows a frame takes.
+        rows_per_frame: usize,
+        /// Texels a frame's row.
+        frame_width: usize,
+        /// The largest side.
+        max: usize,
+    },
+    /// A skinned position that is not finite, which no box holds.
+    #[error("a skinned position is not finite")]
+    NotFinite,
+    /// The EXR encoder failed.
+    #[error(transparent)]
+    Exr(#[from] exr::error::Error),
+    /// The PNG encoder failed.
+    #[cfg(feature = "plot")]
+    #[error(transparent)]
+    Png(#[from] image::ImageError),
+    /// Texels that do not fill the image (a bug).
+    #[error("the texels do not fill the image")]
+    Unfilled,
+}
+
 impl Grid {
     /// The grid of `frames` frames of `joints` joints of `kind` within `max` texels a side.
     ///
     /// # Errors
     /// The reason in words, naming the limit, when the frames cannot fit.
-    pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, String> {
+    pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, ImageError> {
         let texels_per_joint = kind.texels().len();
         let per_frame = (joints * texels_per_joint).max(1);
         let frame_width = per_frame.min(max / texels_per_joint * texels_per_joint);
         if frame_width == 0 {
-            return Err(format!("a joint takes {texels_per_joint} texels, more than a texture side of {max}"));
+            return Err(ImageError::JointTooWide { texels_per_joint, max });
         }
         let rows_per_frame = per_frame.div_ceil(frame_width);
         let most_per_column = max / rows_per_frame;
         let columns = frames.max(1).div_ceil(most_per_column.max(1));
         if most_per_column == 0 || columns * frame_width > max {
-            return Err(format!(
-                "{frames} frames of {joints} joints take {} texels ({rows_per_frame} rows of {frame_width} per frame), more \
-                 than a texture side of {max} can hold in rows and columns; bake at a lower rate, clip by clip rather than as one atlas, \
-                 or raise the maximum texture size",
-                frames * per_frame
-            ));
+            return Err(ImageError::FramesDoNotFit {
+                frames,
+                joints,
+                texels: frames * per_frame,
+                rows_per_frame,
+                frame_width,
+                max,
+            });
         }
         // Columns of even height, so the image wastes less than a frame per column.
         let frames_per_column = frames.max(1).div_ceil(columns);
@@ -159,12 +208,12 @@ pub fn encode(
     grid: &Grid,
     joints: usize,
     rows: &[f32],
-) -> Result<(Vec<[f32; 4]>, Option<Bounds>), String> {
+) -> Result<(Vec<[f32; 4]>, Option<Bounds>), ImageError> {
     let bounds = match what {
         Texels::Rows(kind) => return Ok((texels(kind, grid, joints, rows), None)),
         Texels::Positions => {
             let positions = rows.chunks_exact(3).map(|p| [p[0], p[1], p[2]].map(f64::from));
-            Some(Bounds::of_positions(positions).ok_or("a skinned position is not finite")?)
+            Some(Bounds::of_positions(positions).ok_or(ImageError::NotFinite)?)
         }
         Texels::Normals => None,
     };
@@ -233,7 +282,7 @@ pub fn ranges(kind: TextureKind, rows: &[f32]) -> Vec<[[f32; 2]; 4]> {
 ///
 /// # Errors
 /// The encoder's, in words.
-pub fn exr(grid: &Grid, image: &[[f32; 4]], half: bool) -> Result<Vec<u8>, String> {
+pub fn exr(grid: &Grid, image: &[[f32; 4]], half: bool) -> Result<Vec<u8>, ImageError> {
     use exr::prelude::*;
     let size = (grid.width, grid.height);
     let at = |Vec2(x, y): Vec2<usize>| image[y * grid.width + x];
@@ -245,7 +294,7 @@ pub fn exr(grid: &Grid, image: &[[f32; 4]], half: bool) -> Result<Vec<u8>, Strin
         let channels = SpecificChannels::rgba(|p| at(p).into());
         Image::from_encoded_channels(size, Encoding::SMALL_LOSSLESS, channels).write().to_buffered(&mut bytes)
     };
-    written.map_err(|e| e.to_string())?;
+    written?;
     Ok(bytes.into_inner())
 }
 
@@ -255,7 +304,7 @@ pub fn exr(grid: &Grid, image: &[[f32; 4]], half: bool) -> Result<Vec<u8>, Strin
 /// # Errors
 /// The encoder's, in words.
 #[cfg(feature = "plot")]
-pub fn png16(grid: &Grid, image: &[[f32; 4]], ranges: &[[[f32; 2]; 4]]) -> Result<Vec<u8>, String> {
+pub fn png16(grid: &Grid, image: &[[f32; 4]], ranges: &[[[f32; 2]; 4]]) -> Result<Vec<u8>, ImageError> {
     let mut samples = Vec::with_capacity(image.len() * 4);
     for (i, texel) in image.iter().enumerate() {
         let slot = &ranges[(i % grid.width) % grid.texels_per_joint];
@@ -266,8 +315,8 @@ pub fn png16(grid: &Grid, image: &[[f32; 4]], ranges: &[[[f32; 2]; 4]]) -> Resul
         }
     }
     let buffer = image::ImageBuffer::<image::Rgba<u16>, _>::from_raw(grid.width as u32, grid.height as u32, samples)
-        .ok_or("the texels do not fill the image")?;
+        .ok_or(ImageError::Unfilled)?;
     let mut bytes = std::io::Cursor::new(Vec::new());
-    buffer.write_to(&mut bytes, image::ImageOutputFormat::Png).map_err(|e| e.to_string())?;
+    buffer.write_to(&mut bytes, image::ImageOutputFormat::Png)?;
     Ok(bytes.into_inner())
 }

@@ -711,14 +711,14 @@ fn draw_preview(
     model: &[f32],
     picks: &[usize],
     animation: &Animation,
-) -> Result<(), InputError> {
-    quatcurve_plot::skeleton(path, title, model, picks, animation).map_err(InputError::Output)
+) -> Result<(), BakeError> {
+    Ok(quatcurve_plot::skeleton(path, title, model, picks, animation)?)
 }
 
 #[cfg(not(feature = "plot"))]
-fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Result<(), InputError> {
+fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Result<(), BakeError> {
     // validate() refuses previews without the feature.
-    Err(InputError::Output("previews need the `plot` cargo feature".into()))
+    Err(InputError::Output("previews need the `plot` cargo feature".into()).into())
 }
 
 /// The file name after an input's stem of the mesh a vertex texture plays

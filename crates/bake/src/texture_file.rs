@@ -4,7 +4,7 @@
 //! at the end ([`TextureFile`]), while the next block is computed ([`stream`]); what each input
 //! wrote, with its hash ([`Written`]).
 use super::babylon;
-use super::image::{self, Format, Grid, Texels};
+use super::image::{self, Format, Grid, ImageError, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
 use crate::error::BakeError;
@@ -127,7 +127,7 @@ impl TextureFile {
     ) -> Result<Self, InputError> {
         let (joints, channels) = (sheet.width, sheet.texels.channels());
         let shape = [rows as u64, joints as u64, channels as u64];
-        let refuse = |e: String| InputError::Animation(format!("{what}: {e}"));
+        let refuse = |e: &dyn std::fmt::Display| InputError::Animation(format!("{what}: {e}"));
         let content = match options.format {
             Format::Npy => Content::Npy(options.precision.element()),
             Format::Babylon => {
@@ -135,7 +135,7 @@ impl TextureFile {
                     .babylon
                     .ok_or_else(|| InputError::Internal(format!("{what}: {} has no Babylon space", sheet.label)))?;
                 if let Some(e) = babylon::too_large(joints, rows, options.max_size) {
-                    return Err(refuse(format!("{}: {e}", sheet.label)));
+                    return Err(refuse(&format!("{}: {e}", sheet.label)));
                 }
                 Content::Babylon { from_world, bones: joints, rows: Vec::new() }
             }
@@ -144,11 +144,11 @@ impl TextureFile {
                     Texels::Rows(kind) => kind,
                     Texels::Positions | Texels::Normals => TextureKind::Vertex,
                 };
-                let grid = Grid::new(kind, joints, rows, options.max_size).map_err(refuse)?;
+                let grid = Grid::new(kind, joints, rows, options.max_size).map_err(|e| refuse(&e))?;
                 let floats = shape.iter().product::<u64>() * 4;
                 let texels = (grid.width * grid.height) as u64 * 16;
                 if floats + texels > IMAGE_MEMORY_LIMIT {
-                    return Err(refuse(format!(
+                    return Err(refuse(&format!(
                         "its {format} image {} would take {} MiB of memory while it is gathered and encoded, over \
                          IMAGE_MEMORY_LIMIT = {} MiB; bake at a lower rate, clip by clip rather than as one atlas, or \
                          as npy (streamed)",
@@ -228,7 +228,7 @@ impl TextureFile {
                 None
             }
             Content::Image { format, texels: what, half, grid, joints, rows } => {
-                let internal = |e: String| InputError::Internal(format!("{}: {e}", path.display()));
+                let internal = |e: ImageError| InputError::Internal(format!("{}: {e}", path.display()));
                 let (texels, bounds) = image::encode(what, &grid, joints, &rows).map_err(internal)?;
                 let (bytes, remap) = match format {
                     Format::Exr => (image::exr(&grid, &texels, half).map_err(internal)?, None),

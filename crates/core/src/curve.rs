@@ -178,7 +178,7 @@ impl CurveSpec {
 
 /// A type named by one of a fixed list of words: how its values are written on the command
 /// line, in Python and in files ([`names!`] implements it).
-pub trait Named: std::str::FromStr<Err = String> + std::fmt::Display + Clone + Send + Sync + 'static {
+pub trait Named: std::str::FromStr<Err = UnknownName> + std::fmt::Display + Clone + Send + Sync + 'static {
     /// Every accepted name, in order.
     const NAMES: &'static [&'static str];
 }
@@ -220,17 +220,37 @@ macro_rules! names {
             }
         }
         impl std::str::FromStr for $ty {
-            type Err = String;
-            fn from_str(s: &str) -> Result<Self, String> {
+            type Err = $crate::curve::UnknownName;
+            fn from_str(s: &str) -> Result<Self, Self::Err> {
                 match s {
                     $($name => Ok(Self::$variant),)+
-                    _ => Err(format!("unknown {} '{}' (expected one of: {})", $what, s, Self::NAMES.join(", "))),
+                    _ => Err($crate::curve::UnknownName { what: $what, given: s.to_string(), expected: Self::NAMES }),
                 }
             }
         }
     };
 }
 pub use names;
+
+/// A name that is none of a type's ([`names!`]): what was named, what was given, the names
+/// accepted.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownName {
+    /// What the name is of ("curve").
+    pub what: &'static str,
+    /// The name given.
+    pub given: String,
+    /// Every accepted name, in order.
+    pub expected: &'static [&'static str],
+}
+
+impl std::fmt::Display for UnknownName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "unknown {} '{}' (expected one of: {})", self.what, self.given, self.expected.join(", "))
+    }
+}
+
+impl std::error::Error for UnknownName {}
 
 names!(Curve, "curve",
     Slerp => "slerp", Squad => "squad", Bezier => "bezier", Hermite => "hermite", NamKim => "nam-kim",

@@ -9,7 +9,7 @@ pub use quatcurve_eval::options::DeviceChoice;
 use quatcurve_eval::output::{FloatOutput, Output};
 use quatcurve_eval::skeleton::{self, SkinnedMesh};
 #[cfg(feature = "gpu")]
-use quatcurve_gpu::{GpuError, GpuEvaluator};
+use quatcurve_gpu::{GpuDevice, GpuError};
 use std::fmt;
 
 /// Why a device could not be opened, refused a job, or failed while evaluating.
@@ -84,14 +84,14 @@ pub enum Device {
     Reference,
     /// The WGSL kernel.
     #[cfg(feature = "gpu")]
-    Gpu(Box<GpuEvaluator>),
+    Gpu(Box<GpuDevice>),
     /// The fast f32 CPU path.
     Cpu(CpuEvaluator),
     /// `auto` with a hardware adapter: the GPU, and the CPU path for a batch the kernel cannot take
     /// (a Bezier above degree 32, one track's keys larger than a binding), so `auto` never
     /// fails where `cpu` works. [`Device::evaluate_into`] says which one ran.
     #[cfg(feature = "gpu")]
-    Auto(Box<GpuEvaluator>, CpuEvaluator),
+    Auto(Box<GpuDevice>, CpuEvaluator),
 }
 
 impl fmt::Debug for Device {
@@ -109,15 +109,15 @@ impl Device {
         match choice {
             DeviceChoice::Reference => Ok(Device::Reference),
             #[cfg(feature = "gpu")]
-            DeviceChoice::Gpu => GpuEvaluator::new()
-                .map(|g| Device::Gpu(Box::new(g)))
-                .map_err(|e| DeviceError::Device(format!("gpu: {e}"))),
+            DeviceChoice::Gpu => {
+                GpuDevice::new().map(|g| Device::Gpu(Box::new(g))).map_err(|e| DeviceError::Device(format!("gpu: {e}")))
+            }
             #[cfg(not(feature = "gpu"))]
             DeviceChoice::Gpu => {
                 Err(DeviceError::Device("gpu: this build of quatcurve has no GPU path (cargo feature `gpu`)".into()))
             }
             #[cfg(feature = "gpu")]
-            DeviceChoice::Auto => Ok(match GpuEvaluator::new() {
+            DeviceChoice::Auto => Ok(match GpuDevice::new() {
                 Ok(g) if !g.is_software() => Device::Auto(Box::new(g), CpuEvaluator::new()),
                 _ => Device::Cpu(CpuEvaluator::new()),
             }),
@@ -294,7 +294,7 @@ impl Device {
 /// The GPU path's errors as a device's: a batch the kernel cannot take (including one too large
 /// for a dispatch) is [`DeviceError::Unsupported`], which `auto` hands to the CPU path.
 #[cfg(feature = "gpu")]
-fn on_gpu(g: &GpuEvaluator, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
+fn on_gpu(g: &GpuDevice, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     g.evaluate(job).map_err(|e| match e {
         GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Unsupported(e.to_string()),
         _ => DeviceError::Device(e.to_string()),

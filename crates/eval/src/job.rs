@@ -38,7 +38,7 @@ impl JobOptions {
 }
 
 /// Every track of a batch at its sample times: what [`EvalJob::run`] (the f64 reference),
-/// `CpuEvaluator::evaluate`, `GpuEvaluator::evaluate` and `Device::evaluate` (in `quatcurve`) take.
+/// `CpuEvaluator::evaluate`, `GpuDevice::evaluate` and `Device::evaluate` (in `quatcurve`) take.
 #[derive(Clone, Copy, Debug)]
 pub struct EvalJob<'a> {
     /// The packed tracks.

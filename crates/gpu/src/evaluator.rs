@@ -1,4 +1,4 @@
-//! [`GpuEvaluator`]: the evaluation program made once on a [`GpuContext`], then any number of
+//! [`GpuDevice`]: the evaluation program made once on a [`GpuContext`], then any number of
 //! batch evaluations (chunks planned, packed straight into their buffers, dispatched, read
 //! back and scattered into place).
 
@@ -15,7 +15,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
 
-/// Largest binding of one chunk [`GpuEvaluator::evaluate`] streams on a hardware GPU (64 MiB):
+/// Largest binding of one chunk [`GpuDevice::evaluate`] streams on a hardware GPU (64 MiB):
 /// small enough that the packed chunk stays a fraction of a large batch, large enough that a
 /// dispatch's fixed cost is amortized.
 pub const STREAM_CHUNK_BYTES: u64 = 64 << 20;
@@ -30,7 +30,7 @@ pub const SOFTWARE_STREAM_CHUNK_BYTES: u64 = 8 << 20;
 /// Host result of the GPU path (the float arrays every fast path returns).
 pub type GpuOutput = FloatOutput;
 
-/// A batch uploaded to the device by [`GpuEvaluator::prepare`].
+/// A batch uploaded to the device by [`GpuDevice::prepare`].
 pub struct PreparedBatch {
     plans: Vec<ChunkPlan>,
     chunks: Vec<PreparedChunk>,
@@ -113,9 +113,11 @@ impl Program {
     }
 }
 
-/// Evaluates packed batches with the WGSL kernel. Create once, reuse for every batch: it
-/// holds its device ([`GpuContext`]), its program and the buffers it reuses.
-pub struct GpuEvaluator {
+/// The GPU device as quatcurve uses it: packed batches evaluated with the WGSL kernel, and
+/// forward kinematics, mesh skinning and crowd playback on the same wgpu device
+/// ([`GpuContext`]). Create once, reuse for every batch: it holds the context, its programs
+/// and the buffers it reuses.
+pub struct GpuDevice {
     context: GpuContext,
     program: Program,
     /// Forward kinematics on the same device, built on first use.
@@ -134,13 +136,13 @@ pub struct GpuEvaluator {
     spare_inputs: Mutex<Option<[wgpu::Buffer; 4]>>,
 }
 
-impl std::fmt::Debug for GpuEvaluator {
+impl std::fmt::Debug for GpuDevice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GpuEvaluator").field("context", &self.context).finish_non_exhaustive()
+        f.debug_struct("GpuDevice").field("context", &self.context).finish_non_exhaustive()
     }
 }
 
-impl GpuEvaluator {
+impl GpuDevice {
     /// An evaluator on a device of its own ([`GpuContext::new`]: the best adapter, high
     /// performance first; software adapters such as lavapipe count).
     ///
@@ -195,13 +197,13 @@ impl GpuEvaluator {
 
     /// Whether the adapter is a software rasterizer running on the host's CPU (lavapipe):
     /// `--device auto` then prefers the fast CPU path, which is many times faster on the same
-    /// cores. Unknown (false) for a device given to [`GpuEvaluator::with_device`].
+    /// cores. Unknown (false) for a device given to [`GpuDevice::with_device`].
     #[must_use]
     pub fn is_software(&self) -> bool {
         self.context.is_software()
     }
 
-    /// The device, for creating buffers that [`GpuEvaluator::evaluate_into`] fills.
+    /// The device, for creating buffers that [`GpuDevice::evaluate_into`] fills.
     #[must_use]
     pub fn device(&self) -> &wgpu::Device {
         self.context.device()
@@ -292,7 +294,7 @@ impl GpuEvaluator {
         built(&self.skinning, || super::MeshSkinning::new(&self.context))?.run(mesh, joints, matrices)
     }
 
-    /// Largest binding of one chunk [`GpuEvaluator::evaluate`] and [`GpuEvaluator::prepare`]
+    /// Largest binding of one chunk [`GpuDevice::evaluate`] and [`GpuDevice::prepare`]
     /// stream: [`STREAM_CHUNK_BYTES`], or [`SOFTWARE_STREAM_CHUNK_BYTES`] on a software adapter.
     #[must_use]
     pub fn stream_chunk_bytes(&self) -> u64 {
@@ -314,7 +316,7 @@ impl GpuEvaluator {
     /// [`STREAM_CHUNK_BYTES`] per binding are packed, uploaded, run and read one at a time, so
     /// host and device memory hold one chunk beside the batch and the output; the output
     /// buffer is kept for reuse by the next chunk and the next call
-    /// ([`GpuEvaluator::release_buffers`] frees it).
+    /// ([`GpuDevice::release_buffers`] frees it).
     ///
     /// # Errors
     /// [`GpuError::Pack`] for a batch the kernel cannot take, [`GpuError::Job`] for
@@ -338,7 +340,7 @@ impl GpuEvaluator {
         Ok(GpuOutput { channels, data })
     }
 
-    /// Frees the buffers kept for reuse by [`GpuEvaluator::evaluate`].
+    /// Frees the buffers kept for reuse by [`GpuDevice::evaluate`].
     pub fn release_buffers(&self) {
         self.spare_output.lock().unwrap_or_else(|e| e.into_inner()).take();
         self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()).take();
@@ -348,7 +350,7 @@ impl GpuEvaluator {
     /// output was consumed). Holds every chunk on the device.
     ///
     /// # Errors
-    /// As [`GpuEvaluator::evaluate`].
+    /// As [`GpuDevice::evaluate`].
     pub fn prepare(&self, job: &EvalJob<'_>) -> Result<PreparedBatch, GpuError> {
         let EvalJob { times, options, .. } = *job;
         let channels = options.row().channels();
@@ -389,7 +391,7 @@ impl GpuEvaluator {
     /// the requested layout, starting at offset 0.
     ///
     /// # Errors
-    /// As [`GpuEvaluator::evaluate`], and [`GpuError::Job`] when the buffer is too small or
+    /// As [`GpuDevice::evaluate`], and [`GpuError::Job`] when the buffer is too small or
     /// the batch needs more than one binding (evaluate it in parts, or use `evaluate`).
     pub fn evaluate_into(&self, job: &EvalJob<'_>, target: &wgpu::Buffer) -> Result<(), GpuError> {
         let EvalJob { times, options, .. } = *job;
@@ -418,7 +420,7 @@ impl GpuEvaluator {
     }
 
     /// Runs the write-only roofline kernel over a prepared batch's chunks and waits: the same
-    /// dispatches and output bytes as [`GpuEvaluator::dispatch`], no math. Its rate is the
+    /// dispatches and output bytes as [`GpuDevice::dispatch`], no math. Its rate is the
     /// device's own ceiling for this output (`bench`'s `roofline_samples_per_s`).
     ///
     /// # Errors
@@ -580,7 +582,7 @@ impl GpuEvaluator {
         Ok(PreparedChunk { pipeline, bind_group, inputs: packed, output, output_bytes, groups: [groups_x, groups_y] })
     }
 
-    /// The input buffers the last chunk of [`GpuEvaluator::evaluate`] packed, mapped for
+    /// The input buffers the last chunk of [`GpuDevice::evaluate`] packed, mapped for
     /// writing again, when it kept them and each holds `sizes` bytes; else `None`.
     fn reuse_inputs(&self, sizes: &[u64; 4]) -> Result<Option<[wgpu::Buffer; 4]>, GpuError> {
         let spare = self.spare_inputs.lock().unwrap_or_else(|e| e.into_inner()).take();

@@ -5,7 +5,8 @@
 //!   (`quatcurve-shader`).
 //! - [`layout`]: host twins of the kernel's structs; packing and chunking.
 //! - [`context`]: [`GpuContext`], one device and the calls every pass makes.
-//! - [`evaluator`]: [`GpuEvaluator`], created once and reused.
+//! - [`evaluator`]: [`GpuDevice`], the GPU device: the evaluation kernel here, forward
+//!   kinematics, skinning and playback in their files; created once and reused.
 //! - [`fk`]: [`ForwardKinematics`], bake's model matrices on the same device.
 //! - [`skinning`]: [`MeshSkinning`], vertex textures' skinned meshes on the same device.
 //! - [`playback`]: [`PosePalettes`], crowd playback's blend, forward kinematics and skin
@@ -22,7 +23,7 @@ pub mod skinning;
 
 pub use context::GpuContext;
 pub use error::GpuError;
-pub use evaluator::{GpuEvaluator, GpuOutput, PreparedBatch};
+pub use evaluator::{GpuDevice, GpuOutput, PreparedBatch};
 pub use fk::ForwardKinematics;
 pub use playback::{CurvePalettes, PosePalettes};
 pub use skinning::MeshSkinning;

@@ -6,7 +6,7 @@
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use quatcurve_eval::io::write_atomic;
+use quatcurve_eval::io::{write_atomic, IoError};
 use std::path::Path;
 
 /// One line of the chart: `|omega|` and `|alpha|` of one curve at `times`.
@@ -35,7 +35,7 @@ pub struct Line {
 ///
 /// # Errors
 /// As [`rates`].
-pub fn log_log(path: &Path, title: &str, x: &str, y: &str, lines: &[Line]) -> Result<(), String> {
+pub fn log_log(path: &Path, title: &str, x: &str, y: &str, lines: &[Line]) -> Result<(), PlotError> {
     render(path, (1000, 640), &LogLog { title, x, y, lines })
 }
 
@@ -108,7 +108,7 @@ pub fn skeleton(
     model: &[f32],
     picks: &[usize],
     animation: &quatcurve_anim::Animation,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let joints = animation.joints.len();
     let picks = picks.to_vec();
     // `k`: the frame's place in `picks` (and its row in `model`).
@@ -201,31 +201,59 @@ trait Figure {
 
 /// Draws `figure` on the backend `path`'s extension names (`.png` or `.svg`) and writes the
 /// file atomically.
-fn render(path: &Path, size: (u32, u32), figure: &impl Figure) -> Result<(), String> {
-    let fail = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+fn render(path: &Path, size: (u32, u32), figure: &impl Figure) -> Result<(), PlotError> {
+    let at = |error: PlotError| PlotError::At { path: path.display().to_string(), error: Box::new(error) };
+    let drawn = |e: DrawingAreaErrorKind<_>| at(PlotError::Draw(Box::new(e)));
     // Both backends measure text with it. Registering twice is harmless; a font that does not
     // parse is a build defect.
     plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
-        .map_err(|_| fail(&"the embedded font does not load"))?;
+        .map_err(|_| at(PlotError::Font))?;
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("svg") => {
             let mut text = String::new();
-            figure.draw(SVGBackend::with_string(&mut text, size).into_drawing_area()).map_err(|e| fail(&e))?;
-            write_atomic(path, |w| w.write_all(text.as_bytes())).map_err(|e| e.to_string())
+            figure
+                .draw(SVGBackend::with_string(&mut text, size).into_drawing_area())
+                .map_err(|e| at(PlotError::Draw(Box::new(e))))?;
+            Ok(write_atomic(path, |w| w.write_all(text.as_bytes()))?)
         }
         Some("png") => {
             let mut pixels = vec![0u8; (size.0 * size.1 * 3) as usize];
-            figure.draw(BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area()).map_err(|e| fail(&e))?;
-            write_atomic(path, |w| {
+            figure.draw(BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area()).map_err(drawn)?;
+            Ok(write_atomic(path, |w| {
                 use image::ImageEncoder;
                 image::codecs::png::PngEncoder::new(w)
                     .write_image(&pixels, size.0, size.1, image::ColorType::Rgb8)
                     .map_err(std::io::Error::other)
-            })
-            .map_err(|e| e.to_string())
+            })?)
         }
-        _ => Err(format!("{}: a plot must end in .png or .svg", path.display())),
+        _ => Err(at(PlotError::Extension)),
     }
+}
+
+/// Why a chart could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    /// What went wrong with the chart at `path`.
+    #[error("{path}: {error}")]
+    At {
+        /// The chart's file.
+        path: String,
+        /// What went wrong.
+        error: Box<PlotError>,
+    },
+    /// A file name that ends in neither `.png` nor `.svg`.
+    #[error("a plot must end in .png or .svg")]
+    Extension,
+    /// The embedded font does not load (a build defect).
+    #[error("the embedded font does not load")]
+    Font,
+    /// plotters could not draw the chart.
+    #[error("{0}")]
+    Draw(Box<dyn std::error::Error + Send + Sync>),
+    /// The file could not be written.
+    #[error(transparent)]
+    Write(#[from] IoError),
 }
 
 /// Draws `|omega|` (top) and `|alpha|` (bottom) against time, one line per series, the key
@@ -233,7 +261,7 @@ fn render(path: &Path, size: (u32, u32), figure: &impl Figure) -> Result<(), Str
 ///
 /// # Errors
 /// A message naming the file: an unknown extension, a drawing or writing failure.
-pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Result<(), String> {
+pub fn rates(path: &Path, title: &str, series: &[Series], keys: &[f64]) -> Result<(), PlotError> {
     render(path, (1000, 640), &Rates { title, series, keys })
 }
 

@@ -4,6 +4,7 @@
 //! palette vertex shader and the viewer's fragment shader. Per frame the page writes only the
 //! instances' records (`PlayInstance`); everything else here is uploaded once.
 
+use crate::error::ViewError;
 use base64::Engine as _;
 use quatcurve_anim::curves::CurveChoice;
 use quatcurve_anim::loops::LoopMode;
@@ -140,12 +141,13 @@ impl From<&FrameDispatch> for Dispatch {
 /// # Errors
 /// What the curves cannot play, naming the file: no baked glTF, its clips not the bake's, a
 /// curve family the sidecar names wrongly, the GPU layout's refusals.
-pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, String> {
+pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, ViewError> {
     let sidecar: Sidecar = super::scene::read_sidecar(sidecar_path)?;
     let dir = sidecar_path.parent().unwrap_or(Path::new("."));
-    let baked = sidecar.baked_file.as_deref().ok_or("the sidecar names no baked glTF")?;
-    let file = gltf::read(&dir.join(baked), UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
-    let drawn = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+    let baked = sidecar.baked_file.as_deref().ok_or(ViewError::Lacks { what: "the sidecar names no baked glTF" })?;
+    let in_baked = |e: ViewError| ViewError::in_file(baked)(e);
+    let file = gltf::read(&dir.join(baked), UriPolicy::default()).map_err(|e| in_baked(e.into()))?;
+    let drawn = mesh::skinned_primitives(&file).map_err(|e| in_baked(e.into()))?;
     let skin = drawn.primitives.iter().find(|p| p.mode == 4).map_or(0, |p| p.skin);
     let all = &file.animation.skins;
     let skins: Vec<usize> = (0..all.len())
@@ -157,12 +159,14 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
     }
     // The bake's choice (a family with the front ends' defaults for the rest).
     let curve = CurveChoice::from_name(&sidecar.curve)?;
-    let playback =
-        Playback::new(file.animation, &curve, LoopMode::Auto, Some(skin)).map_err(|e| format!("{baked}: {e}"))?;
+    let playback = Playback::new(file.animation, &curve, LoopMode::Auto, Some(skin)).map_err(|e| in_baked(e.into()))?;
     let names: Vec<&str> = playback.animation().clips.iter().map(|c| c.name.as_str()).collect();
     let baked_names: Vec<&str> = sidecar.clips.iter().map(|c| c.name.as_str()).collect();
     if names != baked_names {
-        return Err(format!("{baked}: its clips {names:?} are not the bake's {baked_names:?}"));
+        return Err(in_baked(ViewError::ClipsDiffer {
+            curves: names.iter().map(|n| n.to_string()).collect(),
+            baked: baked_names.iter().map(|n| n.to_string()).collect(),
+        }));
     }
     let clips: Vec<CurveClip> = (0..names.len())
         .map(|c| {
@@ -179,29 +183,25 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
         }
     }
     // The baked glTF's samplers are LINEAR: every channel plays on the GPU.
-    let curves = playback.pose_curves().ok_or_else(|| format!("{baked}: a channel is not LINEAR"))?;
-    let resident = ResidentCurves::new(&curves, WEBGPU_BINDING_LIMIT).map_err(|e| format!("{baked}: {e}"))?;
+    let curves =
+        playback.pose_curves().ok_or_else(|| in_baked(ViewError::Lacks { what: "a channel is not LINEAR" }))?;
+    let resident = ResidentCurves::new(&curves, WEBGPU_BINDING_LIMIT).map_err(|e| in_baked(e.into()))?;
     let max_instances = resident.max_frame_instances(WEBGPU_BINDING_LIMIT);
     if instances == 0 || instances > max_instances {
-        return Err(format!("{instances} instances: one frame plays 1 to {max_instances} of this character"));
+        return Err(ViewError::Instances { instances, max: max_instances });
     }
-    let (module, info) = shader::play_curves_module().map_err(|e| e.to_string())?;
-    let kernels = FrameKernels::of(&module).map_err(|e| e.to_string())?;
-    let plan = resident.frame_plan(instances, kernels, WEBGPU_MAX_WORKGROUPS).map_err(|e| e.to_string())?;
+    let (module, info) = shader::play_curves_module()?;
+    let kernels = FrameKernels::of(&module)?;
+    let plan = resident.frame_plan(instances, kernels, WEBGPU_MAX_WORKGROUPS)?;
     let bindings = |module: &naga::Module, info: &naga::valid::ModuleInfo, entry: &str| {
         shader::entry_point_bindings(module, info, entry)
             .map(|b| b.into_iter().map(|(name, binding)| Binding { name, binding }).collect::<Vec<_>>())
     };
     let entries = [shader::PLAY_CURVES_ENTRY_POINT, shader::FK_ENTRY_POINT, shader::PLAY_PALETTE_ENTRY_POINT]
         .into_iter()
-        .map(|entry| {
-            Ok(Entry {
-                entry: entry.to_string(),
-                bindings: bindings(&module, &info, entry).map_err(|e| e.to_string())?,
-            })
-        })
-        .collect::<Result<Vec<_>, String>>()?;
-    let (vertex_module, vertex_info) = shader::parse(&shader::PALETTE_VERTEX_FILES).map_err(|e| e.to_string())?;
+        .map(|entry| Ok(Entry { entry: entry.to_string(), bindings: bindings(&module, &info, entry)? }))
+        .collect::<Result<Vec<_>, ViewError>>()?;
+    let (vertex_module, vertex_info) = shader::parse(&shader::PALETTE_VERTEX_FILES)?;
     let base64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
     Ok(CurveScene {
         compute_shader: shader::play_curves_source(),
@@ -220,8 +220,7 @@ pub fn curve_scene(sidecar_path: &Path, instances: usize) -> Result<CurveScene, 
         dispatches: plan.iter().map(Dispatch::from).collect(),
         vertex_shader: shader::palette_vertex_source(),
         vertex_entry: shader::PALETTE_VERTEX_ENTRY_POINT,
-        vertex_bindings: bindings(&vertex_module, &vertex_info, shader::PALETTE_VERTEX_ENTRY_POINT)
-            .map_err(|e| e.to_string())?,
+        vertex_bindings: bindings(&vertex_module, &vertex_info, shader::PALETTE_VERTEX_ENTRY_POINT)?,
         fragment_shader: shader::viewer_fragment_source(),
         fragment_entry: shader::VIEWER_FRAGMENT_ENTRY_POINT,
         skin_joints: resident.skin_joints,

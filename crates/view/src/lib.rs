@@ -7,10 +7,12 @@
 //! `/files/<file>` a file as it is; only files under DIR ([`files`]).
 
 pub mod curves;
+pub mod error;
 pub mod files;
 pub mod scene;
 pub mod texels;
 
+use error::ViewError;
 use files::Refusal;
 use std::path::{Path, PathBuf};
 
@@ -69,10 +71,10 @@ impl Viewer {
     ///
     /// # Errors
     /// When `dir` is not a readable directory.
-    pub fn new(dir: &Path) -> Result<Self, String> {
-        let root = dir.canonicalize().map_err(|e| e.to_string())?;
+    pub fn new(dir: &Path) -> Result<Self, ViewError> {
+        let root = dir.canonicalize()?;
         if !root.is_dir() {
-            return Err("not a directory".into());
+            return Err(ViewError::Lacks { what: "not a directory" });
         }
         Ok(Self { root })
     }
@@ -139,7 +141,7 @@ impl Viewer {
         query: &str,
         name: &str,
         default: usize,
-        answer: impl FnOnce(&Path, usize) -> Result<Reply, String>,
+        answer: impl FnOnce(&Path, usize) -> Result<Reply, ViewError>,
     ) -> Reply {
         let param = |name: &str| {
             query.split('&').filter_map(|kv| kv.split_once('=')).find(|(k, _)| *k == name).map(|(_, v)| {
@@ -180,9 +182,10 @@ impl Viewer {
 ///
 /// # Errors
 /// The system's reason the address cannot be listened on.
-pub fn bind(address: &str) -> Result<(tiny_http::Server, std::net::SocketAddr), String> {
-    let server = tiny_http::Server::http(address).map_err(|e| format!("{address}: {e}"))?;
-    let bound = server.server_addr().to_ip().ok_or_else(|| format!("{address} is not an IP address"))?;
+pub fn bind(address: &str) -> Result<(tiny_http::Server, std::net::SocketAddr), ViewError> {
+    let server =
+        tiny_http::Server::http(address).map_err(|reason| ViewError::Bind { address: address.into(), reason })?;
+    let bound = server.server_addr().to_ip().ok_or_else(|| ViewError::NotIp { address: address.into() })?;
     Ok((server, bound))
 }
 

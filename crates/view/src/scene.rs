@@ -7,6 +7,7 @@
 
 use super::files::url_path;
 use super::texels::Texels;
+use crate::error::ViewError;
 use base64::Engine as _;
 use naga::ShaderStage;
 use quatcurve_bake::image::{Format, Grid};
@@ -44,16 +45,14 @@ pub enum Playback {
 
 impl Playback {
     /// How a bake of `texture` in `format` plays, or why it cannot.
-    fn of(texture: &str, format: &str) -> Result<Self, String> {
+    fn of(texture: &str, format: &str) -> Result<Self, ViewError> {
         if !format.parse::<Format>().is_ok_and(Format::is_image) {
-            return Err(format!("its textures are {format}; the page samples images: bake exr or png16 textures"));
+            return Err(ViewError::NotImages { format: format.into() });
         }
         match texture.parse::<TextureKind>() {
             Ok(TextureKind::SkinTrs) => Ok(Playback::Bones),
             Ok(TextureKind::Vertex) => Ok(Playback::Vertex),
-            _ => Err(format!(
-                "its textures are {texture}; the page plays skin-trs bone textures (GPU skinning) or vertex textures"
-            )),
+            _ => Err(ViewError::NotPlayed { texture: texture.into() }),
         }
     }
 
@@ -159,7 +158,7 @@ fn bake(root: &Path, path: &Path) -> Option<Bake> {
         texture: sidecar.texture,
         format,
         clips: sidecar.clips.iter().map(Clip::of).collect(),
-        refusal: playback.as_ref().err().cloned(),
+        refusal: playback.as_ref().err().map(ToString::to_string),
         playback: playback.ok(),
     })
 }
@@ -283,45 +282,43 @@ struct Shaders {
 }
 
 impl Shaders {
-    fn of(program: Program) -> Result<Self, String> {
-        let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)
-            .map_err(|e| e.to_string())?;
+    fn of(program: Program) -> Result<Self, ViewError> {
+        let vertex = shader::glsl(program.files(), program.entry_point(), ShaderStage::Vertex, Language::GlslEs)?;
         let fragment = Program::Fragment;
-        let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs)
-            .map_err(|e| e.to_string())?;
-        let (module, _) = shader::parse(program.files()).map_err(|e| e.to_string())?;
-        let inputs = shader::vertex_inputs(&module, program.entry_point()).map_err(|e| e.to_string())?;
+        let fragment = shader::glsl(fragment.files(), fragment.entry_point(), fragment.stage(), Language::GlslEs)?;
+        let (module, _) = shader::parse(program.files())?;
+        let inputs = shader::vertex_inputs(&module, program.entry_point())?;
         Ok(Self { vertex, fragment, module, inputs })
     }
 
     /// The GLSL name of WGSL resource `wgsl`.
-    fn name(&self, wgsl: &str) -> Result<String, String> {
+    fn name(&self, wgsl: &str) -> Result<String, ViewError> {
         self.vertex
             .bindings
             .iter()
             .find(|b| b.wgsl == wgsl)
             .map(|b| b.glsl.clone())
-            .ok_or_else(|| format!("the vertex shader binds no `{wgsl}`"))
+            .ok_or_else(|| ViewError::NoBinding { wgsl: wgsl.into() })
     }
 
-    fn location(&self, name: &str) -> Result<u32, String> {
+    fn location(&self, name: &str) -> Result<u32, ViewError> {
         self.inputs
             .iter()
             .find(|(n, _)| n == name)
             .map(|&(_, l)| l)
-            .ok_or_else(|| format!("the vertex shader has no input `{name}`"))
+            .ok_or_else(|| ViewError::NoInput { name: name.into() })
     }
 
-    fn attribute(&self, name: &str, size: u32, integer: bool, data: Vec<f64>) -> Result<Attribute, String> {
+    fn attribute(&self, name: &str, size: u32, integer: bool, data: Vec<f64>) -> Result<Attribute, ViewError> {
         Ok(Attribute { name: name.to_string(), location: self.location(name)?, size, integer, data })
     }
 
     /// `words` checked to be the size of WGSL struct `name` (std140 and WGSL's uniform layout
     /// agree for these structs: vec4-aligned members, 16-byte array strides).
-    fn block(&self, wgsl: &str, name: &str, words: Vec<u32>) -> Result<BlockBinding, String> {
-        let span = shader::struct_span(&self.module, name).ok_or_else(|| format!("no struct `{name}`"))?;
+    fn block(&self, wgsl: &str, name: &str, words: Vec<u32>) -> Result<BlockBinding, ViewError> {
+        let span = shader::struct_span(&self.module, name).ok_or_else(|| ViewError::NoStruct { name: name.into() })?;
         if words.len() * 4 != span as usize {
-            return Err(format!("`{name}` is {span} bytes; {} were packed", words.len() * 4));
+            return Err(ViewError::BlockSize { name: name.into(), span, packed: words.len() * 4 });
         }
         Ok(BlockBinding { block: self.name(wgsl)?, words })
     }
@@ -331,12 +328,12 @@ impl Shaders {
 ///
 /// # Errors
 /// What in the bake the page cannot play, naming the file, clip or primitive.
-pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, String> {
+pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, ViewError> {
     let sidecar = read_sidecar(sidecar_path)?;
     let dir = sidecar_path.parent().unwrap_or(root);
     let playback = Playback::of(&sidecar.texture, &sidecar.format)?;
     let clips = &sidecar.clips;
-    let chosen = clips.get(clip).ok_or_else(|| format!("no clip {clip}: the bake has {}", clips.len()))?;
+    let chosen = clips.get(clip).ok_or(ViewError::NoClip { clip, clips: clips.len() })?;
     let shaders = Shaders::of(playback.program())?;
     let mut bake = Assembly {
         root,
@@ -352,7 +349,12 @@ pub fn scene(root: &Path, sidecar_path: &Path, clip: usize) -> Result<Scene, Str
         Playback::Bones => bake.bones()?,
         Playback::Vertex => bake.vertex()?,
     };
-    let camera = shaders.vertex.bindings.iter().find(|b| b.group == 0 && !b.sampler).ok_or("no camera block")?;
+    let camera = shaders
+        .vertex
+        .bindings
+        .iter()
+        .find(|b| b.group == 0 && !b.sampler)
+        .ok_or(ViewError::Lacks { what: "no camera block" })?;
     Ok(Scene {
         playback,
         clip: Clip::of(chosen),
@@ -387,17 +389,17 @@ struct Assembly<'a> {
 
 impl<'a> Assembly<'a> {
     /// The sidecar's `textures` record of `file`, its grid, and the file's texel URL.
-    fn texture(&self, file: &str) -> Result<(&'a ImageRecord, Grid, PathBuf), String> {
+    fn texture(&self, file: &str) -> Result<(&'a ImageRecord, Grid, PathBuf), ViewError> {
         let sidecar: &'a Sidecar = self.sidecar;
         let record = sidecar
             .textures
             .iter()
             .find(|r| r.file == file)
-            .ok_or_else(|| format!("the sidecar's `textures` has no record of {file}"))?;
+            .ok_or_else(|| ViewError::NoTextureRecord { file: file.into() })?;
         Ok((record, record.grid, self.dir.join(file)))
     }
 
-    fn binding(&self, wgsl: &str, path: &Path, grid: &Grid) -> Result<TextureBinding, String> {
+    fn binding(&self, wgsl: &str, path: &Path, grid: &Grid) -> Result<TextureBinding, ViewError> {
         Ok(TextureBinding {
             sampler: self.shaders.name(wgsl)?,
             url: format!("/texels/{}", url_path(self.root, path)),
@@ -408,36 +410,35 @@ impl<'a> Assembly<'a> {
 
     /// The std140 words of `record`'s layout uniform (the sidecar's), after checking that it
     /// holds the scene's clip at the index every draw gives its instances.
-    fn layout_words(&mut self, record: &ImageRecord) -> Result<Vec<u32>, String> {
+    fn layout_words(&mut self, record: &ImageRecord) -> Result<Vec<u32>, ViewError> {
         let file = &record.file;
-        let layout = record.layout.as_ref().ok_or_else(|| {
-            format!("{file}: its `textures` record has no `layout` (an older quatcurve wrote it: bake it again)")
-        })?;
-        let at = layout.clips.iter().position(|&c| c == self.index).ok_or_else(|| {
-            format!("{file}: its layout does not hold clip {} (it holds clips {:?})", self.index, layout.clips)
-        })?;
+        let in_file = ViewError::in_file(file);
+        let Some(layout) = record.layout.as_ref() else { return Err(in_file(ViewError::NoLayout)) };
+        let Some(at) = layout.clips.iter().position(|&c| c == self.index) else {
+            return Err(in_file(ViewError::ClipNotInLayout { clip: self.index, held: layout.clips.clone() }));
+        };
         match self.instance_clip.replace(at) {
-            Some(other) if other != at => {
-                return Err(format!("{file}: clip {} is at {at} of its layout, at {other} of another's", self.index))
-            }
+            Some(other) if other != at => return Err(in_file(ViewError::ClipPlaces { clip: self.index, at, other })),
             _ => {}
         }
-        let bytes = base64::engine::general_purpose::STANDARD
-            .decode(&layout.std140)
-            .map_err(|e| format!("{file}: its layout's `std140`: {e}"))?;
+        let bytes = match base64::engine::general_purpose::STANDARD.decode(&layout.std140) {
+            Ok(bytes) => bytes,
+            Err(e) => return Err(in_file(e.into())),
+        };
         if bytes.len() % 4 != 0 {
-            return Err(format!("{file}: its layout's `std140` is {} bytes, not whole words", bytes.len()));
+            return Err(in_file(ViewError::Std140Words { bytes: bytes.len() }));
         }
         Ok(bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect())
     }
 
     /// Every skinned primitive of the baked glTF, skinned by `bone_texture.wgsl` from its
     /// skin's `skin-trs` texture of the clip.
-    fn bones(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
-        let baked = self.sidecar.baked_file.as_deref().ok_or("the sidecar names no baked glTF")?;
+    fn bones(&mut self) -> Result<(Vec<Draw>, Bounds), ViewError> {
+        let baked =
+            self.sidecar.baked_file.as_deref().ok_or(ViewError::Lacks { what: "the sidecar names no baked glTF" })?;
         let path = self.dir.join(baked);
-        let file = gltf::read(&path, UriPolicy::default()).map_err(|e| format!("{baked}: {e}"))?;
-        let drawn = mesh::skinned_primitives(&file).map_err(|e| format!("{baked}: {e}"))?;
+        let file = gltf::read(&path, UriPolicy::default()).map_err(|e| ViewError::in_file(baked)(e.into()))?;
+        let drawn = mesh::skinned_primitives(&file).map_err(|e| ViewError::in_file(baked)(e.into()))?;
         self.notes.extend(drawn.not_drawn.iter().map(|m| format!("{m}; not drawn")));
         let primitives = drawn.primitives;
         let files = &self.clip.files;
@@ -448,13 +449,15 @@ impl<'a> Assembly<'a> {
                 self.notes.push(format!("{}: mode {} is not a triangle list; not drawn", p.name, p.mode));
                 continue;
             }
-            let name = files.get(p.skin).ok_or_else(|| format!("{}: no texture of skin {}", p.name, p.skin))?;
+            let name = files
+                .get(p.skin)
+                .ok_or_else(|| ViewError::NoSkinTexture { primitive: p.name.clone(), skin: p.skin })?;
             let (record, grid, image) = self.texture(name)?;
             let remap = remap(record)?;
             let block = self.shaders.block("bone_layout", "BoneLayout", self.layout_words(record)?)?;
             let joints = record.joints;
             if !texels.contains_key(&image) {
-                let read = Texels::read(&image).map_err(|e| format!("{name}: {e}"))?;
+                let read = Texels::read(&image).map_err(ViewError::in_file(name))?;
                 texels.insert(image.clone(), read);
             }
             corners.extend(self.skinned_box(p, &texels[&image], &grid, &remap, joints)?);
@@ -468,12 +471,12 @@ impl<'a> Assembly<'a> {
                 skin: Some(p.skin),
             });
         }
-        let bounds = Bounds::of_positions(corners).ok_or("no triangles to draw")?;
+        let bounds = Bounds::of_positions(corners).ok_or(ViewError::Lacks { what: "no triangles to draw" })?;
         Ok((draws, bounds))
     }
 
     /// Positions, normals, and the [`SHADER_INFLUENCES`] largest joints and weights.
-    fn bone_attributes(&mut self, p: &SkinnedPrimitive) -> Result<Vec<Attribute>, String> {
+    fn bone_attributes(&mut self, p: &SkinnedPrimitive) -> Result<Vec<Attribute>, ViewError> {
         let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
         // Without normals, zeros: the fragment shader lights the faces.
         let normals = match &p.bind.normals {
@@ -517,7 +520,7 @@ impl<'a> Assembly<'a> {
         grid: &Grid,
         remap: &[[(f32, f32); 4]; 3],
         joints: usize,
-    ) -> Result<Vec<[f64; 3]>, String> {
+    ) -> Result<Vec<[f64; 3]>, ViewError> {
         let (first_row, frames) = (self.clip.first_row, self.clip.frames.max(1));
         let slots = TextureKind::SkinTrs.texels();
         let mut matrices = Vec::new();
@@ -527,10 +530,13 @@ impl<'a> Assembly<'a> {
                 for (t, range) in slots.iter().enumerate() {
                     let (x, y) = grid.texel(first_row + f, j, t);
                     if x >= image.width || y >= image.height {
-                        return Err(format!(
-                            "{}: texel ({x}, {y}) is outside its {}x{} image",
-                            p.name, image.width, image.height
-                        ));
+                        return Err(ViewError::TexelOutside {
+                            primitive: p.name.clone(),
+                            x,
+                            y,
+                            width: image.width,
+                            height: image.height,
+                        });
                     }
                     let texel = image.at((x, y));
                     for (c, r) in range.clone().enumerate() {
@@ -547,29 +553,36 @@ impl<'a> Assembly<'a> {
 
     /// Every primitive of the bake's mesh file, its vertices read from its `.pos` (and
     /// `.nrm`) texture of the clip at its `TEXCOORD_0`.
-    fn vertex(&mut self) -> Result<(Vec<Draw>, Bounds), String> {
-        let vertex = self.sidecar.vertex.as_ref().ok_or("the sidecar has no `vertex` record")?;
+    fn vertex(&mut self) -> Result<(Vec<Draw>, Bounds), ViewError> {
+        let vertex =
+            self.sidecar.vertex.as_ref().ok_or(ViewError::Lacks { what: "the sidecar has no `vertex` record" })?;
         let mesh_file = &vertex.mesh_file;
-        let bytes = std::fs::read(self.dir.join(mesh_file)).map_err(|e| format!("{mesh_file}: {e}"))?;
-        let glb = ::gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{mesh_file}: {e}"))?;
-        let blob = glb.blob.as_deref().ok_or_else(|| format!("{mesh_file}: no binary chunk"))?;
+        let bytes = std::fs::read(self.dir.join(mesh_file)).map_err(|e| ViewError::in_file(mesh_file)(e.into()))?;
+        let glb = ::gltf::Gltf::from_slice(&bytes).map_err(|e| ViewError::in_file(mesh_file)(e.into()))?;
+        let blob = glb
+            .blob
+            .as_deref()
+            .ok_or_else(|| ViewError::in_file(mesh_file)(ViewError::Lacks { what: "no binary chunk" }))?;
         let files = &self.clip.files;
         let ext = self.sidecar.format.parse::<Format>()?.extension();
         let (mut draws, mut corners) = (Vec::new(), Vec::new());
         for p in &vertex.primitives {
             let (name, suffix) = (p.name.clone(), &p.suffix);
             let find = |what: &str| files.iter().find(|f| f.ends_with(&format!("{suffix}.{what}.{ext}")));
-            let positions = find("pos").ok_or_else(|| format!("{name}: the clip lists no {suffix}.pos.{ext}"))?;
+            let positions = find("pos").ok_or_else(|| ViewError::NoPositions {
+                primitive: name.clone(),
+                file: format!("{suffix}.pos.{ext}"),
+            })?;
             let (record, grid, pos_path) = self.texture(positions)?;
             let normals = find("nrm").map(|file| self.texture(file)).transpose()?;
             let (Some(low), Some(span)) = (record.low, record.span) else {
-                return Err(format!("{positions}: its `textures` record has no `low` and `span`"));
+                return Err(ViewError::in_file(positions)(ViewError::NoBox));
             };
             corners.push(low);
             corners.push(std::array::from_fn(|i| low[i] + span[i]));
             let words = self.layout_words(record)?;
             let (addresses, indices) =
-                mesh_addresses(&glb, blob, p.mesh_in_file).map_err(|e| format!("{mesh_file}: {e}"))?;
+                mesh_addresses(&glb, blob, p.mesh_in_file).map_err(ViewError::in_file(mesh_file))?;
             // Without normals the layout says so, and the positions stand in for the binding.
             let normal_path = normals.as_ref().map_or(&pos_path, |(_, _, path)| path);
             if normals.is_none() {
@@ -588,20 +601,20 @@ impl<'a> Assembly<'a> {
                 skin: None,
             });
         }
-        let bounds = Bounds::of_positions(corners).ok_or("no primitives to draw")?;
+        let bounds = Bounds::of_positions(corners).ok_or(ViewError::Lacks { what: "no primitives to draw" })?;
         Ok((draws, bounds))
     }
 }
 
 /// `TEXCOORD_0` (flat) and the triangle list of mesh `mesh` of a vertex bake's mesh file, by
 /// the glTF crate's reader (as a renderer's importer reads the file).
-fn mesh_addresses(glb: &::gltf::Gltf, blob: &[u8], mesh: usize) -> Result<(Vec<f64>, Vec<u32>), String> {
-    let mesh = glb.document.meshes().nth(mesh).ok_or_else(|| format!("no mesh {mesh}"))?;
-    let primitive = mesh.primitives().next().ok_or("a mesh without primitives")?;
+fn mesh_addresses(glb: &::gltf::Gltf, blob: &[u8], mesh: usize) -> Result<(Vec<f64>, Vec<u32>), ViewError> {
+    let mesh = glb.document.meshes().nth(mesh).ok_or(ViewError::NoMesh { mesh })?;
+    let primitive = mesh.primitives().next().ok_or(ViewError::Lacks { what: "a mesh without primitives" })?;
     let reader = primitive.reader(|_| Some(blob));
     let addresses: Vec<f64> = reader
         .read_tex_coords(0)
-        .ok_or("a primitive without TEXCOORD_0")?
+        .ok_or(ViewError::Lacks { what: "a primitive without TEXCOORD_0" })?
         .into_f32()
         .flat_map(|[u, v]| [f64::from(u), f64::from(v)])
         .collect();
@@ -613,11 +626,14 @@ fn mesh_addresses(glb: &::gltf::Gltf, blob: &[u8], mesh: usize) -> Result<(Vec<f
 }
 
 /// A bone texture's `(low, span)` per texel slot and channel: PNG16's `remap`, else `(0, 1)`.
-fn remap(record: &ImageRecord) -> Result<[[(f32, f32); 4]; 3], String> {
+fn remap(record: &ImageRecord) -> Result<[[(f32, f32); 4]; 3], ViewError> {
     let mut out = [[(0.0, 1.0); 4]; 3];
     if let Some(remap) = &record.remap {
         if remap.len() < out.len() {
-            return Err(format!("{}: `remap` has {} texel slots, not {}", record.file, remap.len(), out.len()));
+            return Err(ViewError::in_file(&record.file)(ViewError::RemapSlots {
+                slots: remap.len(),
+                expected: out.len(),
+            }));
         }
         for (slot, ranges) in out.iter_mut().zip(remap) {
             for (pair, &[lo, hi]) in slot.iter_mut().zip(ranges) {
@@ -628,9 +644,10 @@ fn remap(record: &ImageRecord) -> Result<[[(f32, f32); 4]; 3], String> {
     Ok(out)
 }
 
-pub(crate) fn read_sidecar(path: &Path) -> Result<Sidecar, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+pub(crate) fn read_sidecar(path: &Path) -> Result<Sidecar, ViewError> {
+    let in_file = |e: ViewError| ViewError::in_file(path.display())(e);
+    let text = std::fs::read_to_string(path).map_err(|e| in_file(e.into()))?;
+    serde_json::from_str(&text).map_err(|e| in_file(e.into()))
 }
 
 #[cfg(test)]

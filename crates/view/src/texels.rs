@@ -3,6 +3,7 @@
 //! browser decodes neither format to these values (no EXR; PNG to 8 bits), so the viewer's
 //! server sends them as raw little-endian `f32` RGBA, row 0 first.
 
+use crate::error::ViewError;
 use std::path::Path;
 
 /// An RGBA image of `f32` texels, row-major from row 0 (the texture's `y = 0`).
@@ -20,7 +21,7 @@ impl Texels {
     ///
     /// # Errors
     /// The decoder's message, or a PNG that is not 16-bit RGBA (what `--format png16` writes).
-    pub fn read(path: &Path) -> Result<Self, String> {
+    pub fn read(path: &Path) -> Result<Self, ViewError> {
         if path.extension().is_some_and(|e| e == "exr") {
             let image = exr::prelude::read_first_rgba_layer_from_file(
                 path,
@@ -28,19 +29,18 @@ impl Texels {
                 |(width, texels), at, (r, g, b, a): (f32, f32, f32, f32)| {
                     texels[at.y() * *width + at.x()] = [r, g, b, a]
                 },
-            )
-            .map_err(|e| e.to_string())?;
+            )?;
             let (width, rgba) = image.layer_data.channel_data.pixels;
             let height = rgba.len().checked_div(width).unwrap_or(0);
             Ok(Self { width, height, rgba })
         } else {
-            match image::open(path).map_err(|e| e.to_string())? {
+            match image::open(path)? {
                 image::DynamicImage::ImageRgba16(buffer) => Ok(Self {
                     width: buffer.width() as usize,
                     height: buffer.height() as usize,
                     rgba: buffer.pixels().map(|p| p.0.map(|v| f32::from(v) / 65535.0)).collect(),
                 }),
-                other => Err(format!("a {:?} PNG, not the 16-bit RGBA a png16 bake writes", other.color())),
+                other => Err(ViewError::PngColor { color: format!("{:?}", other.color()) }),
             }
         }
     }

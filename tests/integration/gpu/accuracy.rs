@@ -4,19 +4,19 @@
 use crate::common::*;
 use crate::fast::*;
 use crate::shared_gpu as gpu;
-use quatcurve::gpu::GpuEvaluator;
+use quatcurve::gpu::GpuDevice;
 use quatcurve::FloatOutput;
 use quatcurve::{Batch, Curve, CurveSpec, KnotMode, Layout, QuatF64, SampleTimes, Sampling};
 use quatcurve::{EvalJob, JobOptions};
 
 /// Evaluates `batch` on the GPU and compares with the reference.
-pub fn compare(gpu: &GpuEvaluator, batch: &Batch, times: &SampleTimes, options: JobOptions, label: &str) -> Worst {
+pub fn compare(gpu: &GpuDevice, batch: &Batch, times: &SampleTimes, options: JobOptions, label: &str) -> Worst {
     let out = gpu.evaluate(&EvalJob::new(batch, times).with(options)).unwrap();
     compare_output(&out, batch, times, options.layout, options.derivatives, label)
 }
 
 /// The GPU as a fast path under test.
-fn on_gpu(gpu: &GpuEvaluator, generic_kernel: bool) -> impl Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput + '_ {
+fn on_gpu(gpu: &GpuDevice, generic_kernel: bool) -> impl Fn(&Batch, &SampleTimes, Layout, bool) -> FloatOutput + '_ {
     move |batch, times, layout, derivatives| {
         gpu.evaluate(&EvalJob::new(batch, times).with(JobOptions {
             layout,

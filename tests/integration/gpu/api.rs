@@ -3,7 +3,7 @@
 
 use crate::common::*;
 use crate::shared_gpu as gpu;
-use quatcurve::gpu::{GpuError, GpuEvaluator};
+use quatcurve::gpu::{GpuDevice, GpuError};
 use quatcurve::{Batch, Curve, CurveSpec, Layout, SampleTimes, Sampling};
 use quatcurve::{EvalJob, JobOptions};
 
@@ -61,14 +61,14 @@ fn with_device_embeds_in_an_existing_application() {
         let adapter = instance.request_adapter(&wgpu::RequestAdapterOptions::default()).await.unwrap();
         adapter.request_device(&wgpu::DeviceDescriptor::default()).await.unwrap()
     });
-    let evaluator = GpuEvaluator::with_device(device, queue, "host application").unwrap();
+    let evaluator = GpuDevice::with_device(device, queue, "host application").unwrap();
     assert_eq!(evaluator.adapter_name(), "host application");
     let batch = small_batch(&CurveSpec::new(Curve::Squad));
     let times = SampleTimes::uniform(&batch, Sampling::Count(9)).unwrap();
     let out = evaluator.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap();
     assert_eq!(out.data.len(), times.total() * 4);
     // A device without MAPPABLE_PRIMARY_BUFFERS reads back through a staging copy; where
-    // `GpuEvaluator::new` mapped its outputs directly (unified memory, as lavapipe), the
+    // `GpuDevice::new` mapped its outputs directly (unified memory, as lavapipe), the
     // two paths must agree bit for bit, also over several chunks.
     assert_eq!(out.data, gpu.evaluate(&EvalJob::new(&batch, &times).with(JobOptions::default())).unwrap().data);
     let evaluator = evaluator.with_binding_limit(1024);
@@ -310,7 +310,7 @@ fn forward_kinematics_on_the_gpu_matches_the_cpu_twin() {
 #[test]
 #[ignore = "run by opening_a_gpu_prints_nothing_without_a_runtime_directory, in a process of its own"]
 fn open_a_gpu_device() {
-    GpuEvaluator::new().unwrap();
+    GpuDevice::new().unwrap();
 }
 
 #[test]
