@@ -333,19 +333,11 @@ impl BakeJob {
         for (k, stem) in stems.iter().enumerate() {
             let mut names = vec![format!("{stem}.json")];
             if let Some(input) = inputs.get(k) {
-                let gltf = match quatcurve_formats::source::extension(input).as_deref() {
-                    Some("gltf" | "glb") => {
-                        names.push(format!("{stem}.glb"));
-                        true
-                    }
-                    // A container of a BVH source bakes to BVH again.
-                    Some("bvh" | quatcurve_qcf::EXTENSION) => {
-                        names.push(format!("{stem}.bvh"));
-                        false
-                    }
-                    _ => false,
-                };
-                if gltf && self.options.texture == TextureKind::Vertex {
+                let importer = quatcurve_formats::source::importer(input);
+                if let Some(extension) = importer.and_then(|i| i.writes_back) {
+                    names.push(format!("{stem}.{extension}"));
+                }
+                if importer.is_some_and(|i| i.meshes) && self.options.texture == TextureKind::Vertex {
                     names.push(format!("{stem}{MESH_GLB_SUFFIX}"));
                 }
                 for baked in &names[1..] {

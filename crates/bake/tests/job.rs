@@ -73,3 +73,17 @@ fn a_rate_that_is_not_positive_is_refused_before_any_input_is_read() {
     assert!(matches!(error, FileJobError::Option { option: "rate", .. }), "{error}");
     assert!(!dir.path().join("out").exists());
 }
+
+#[test]
+fn a_pose_archive_baked_into_its_own_directory_is_refused_before_anything_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    // Never read: the name alone is refused.
+    let input = dir.path().join("walk.npz");
+    std::fs::write(&input, "not an archive").unwrap();
+    let error = BakeJob::new(vec![input], dir.path()).run(&cpu(), &()).unwrap_err();
+    match &error {
+        FileJobError::Job(message) => assert!(message.contains("would overwrite the input"), "{message}"),
+        other => panic!("expected the job refused, got {other:?}"),
+    }
+    assert!(!dir.path().join("walk.json").exists());
+}

@@ -98,34 +98,61 @@ pub struct Importer {
     pub extensions: &'static [&'static str],
     /// What its files hold, where the extension does not say (" (SMPL-family poses)").
     pub holds: &'static str,
+    /// The extension of the file its inputs write baked frames back to, where they may
+    /// ([`Input::write_back`]), so that a job can check the name before it reads them.
+    pub writes_back: Option<&'static str>,
+    /// Whether its inputs may hold meshes ([`Input::gltf`]).
+    pub meshes: bool,
     /// Reads one file into the model.
     pub read: fn(&Path, ReadOptions) -> Imported,
 }
 
 /// Every format read as an input, by extension.
-pub const IMPORTERS: [Importer; 5] = [
+pub static IMPORTERS: [Importer; 5] = [
     Importer {
         extensions: &["gltf", "glb"],
         holds: "",
+        writes_back: Some("glb"),
+        meshes: true,
         read: |path, options| Ok(Box::new(gltf::read(path, options.uris)?)),
     },
-    Importer { extensions: &[fbx::EXTENSION], holds: "", read: |path, _| Ok(Box::new(fbx::read(path)?)) },
+    Importer {
+        extensions: &[fbx::EXTENSION],
+        holds: "",
+        writes_back: Some("glb"),
+        meshes: true,
+        read: |path, _| Ok(Box::new(fbx::read(path)?)),
+    },
     Importer {
         extensions: &["bvh"],
         holds: "",
+        writes_back: Some("bvh"),
+        meshes: false,
         read: |path, _| Ok(Box::new(Bvh::new(bvh::read(path)?, &clip_name(path)))),
     },
     Importer {
         extensions: &[smpl::EXTENSION],
         holds: " (SMPL-family poses)",
+        writes_back: Some(smpl::EXTENSION),
+        meshes: false,
         read: |path, _| Ok(Box::new(Smpl::new(smpl::read(path)?, &clip_name(path)))),
     },
     Importer {
         extensions: &[quatcurve_qcf::EXTENSION],
         holds: " (a fitted container)",
+        // A container of a BVH source bakes to BVH again.
+        writes_back: Some("bvh"),
+        meshes: false,
         read: |path, _| fitted(&quatcurve_qcf::Container::read(path)?),
     },
 ];
+
+/// The importer of `path`'s extension, if any takes it.
+#[must_use]
+pub fn importer(path: &Path) -> Option<&'static Importer> {
+    let extension = extension(path)?;
+    IMPORTERS.iter().find(|i| i.extensions.contains(&extension.as_str()))
+}
 
 /// The formats [`IMPORTERS`] read, for messages: ".gltf, .glb, ... or .qcf (a fitted container)".
 fn expected() -> String {
@@ -162,11 +189,7 @@ impl Source {
     /// # Errors
     /// [`InputError::UnknownFormat`] for an extension no importer takes; the importer's errors.
     pub fn read(path: &Path, options: ReadOptions) -> Result<Self, InputError> {
-        let extension = extension(path);
-        let importer = IMPORTERS
-            .iter()
-            .find(|i| extension.as_deref().is_some_and(|e| i.extensions.contains(&e)))
-            .ok_or_else(|| InputError::UnknownFormat { expected: expected() })?;
+        let importer = importer(path).ok_or_else(|| InputError::UnknownFormat { expected: expected() })?;
         Ok(Self((importer.read)(path, options)?))
     }
 

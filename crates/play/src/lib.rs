@@ -170,7 +170,7 @@ impl Playback {
     /// value. Rotations are evaluated in one job on `device`.
     ///
     /// # Errors
-    /// [`InputError::Animation`] for a clip that is not the animation's, a time that is not
+    /// [`PlayError::Animation`] for a clip that is not the animation's, a time that is not
     /// finite or a weight outside `[0, 1]`, naming the instance; the device's failures.
     pub fn local_poses(&self, device: &Device, instances: &[Instance]) -> Result<Vec<f32>, PlayError> {
         let (poses, weights) = self.pose_pairs(device, instances)?;
