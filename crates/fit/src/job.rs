@@ -7,6 +7,7 @@ use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
+use quatcurve_eval::io::IoError;
 use quatcurve_files::FileJobError;
 use quatcurve_files::{expand, output_stems};
 use quatcurve_files::{refuse_overwriting_input, OutputDir};
@@ -159,6 +160,73 @@ impl FitReport {
     }
 }
 
+/// Why one input could not be fitted (its report keeps the words, [`InputFit::error`]); the
+/// other inputs are fitted all the same.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitInputError {
+    /// The file could not be read into the model.
+    #[error(transparent)]
+    Input(#[from] InputError),
+    /// The file has no clip to fit.
+    #[error("no rotation, translation or scale animation to fit")]
+    Empty,
+    /// A clip that cannot be fitted at all.
+    #[error("clip '{clip}': {error}")]
+    Clip {
+        /// The clip.
+        clip: String,
+        /// Why.
+        error: FitClipError,
+    },
+    /// A clip no fit held within the budget: how close the closest came, and what loosens it.
+    #[error("{}", over_budget(clip, *max_error_cm, *between_error_cm, at, between))]
+    OverBudget {
+        /// The clip.
+        clip: String,
+        /// The budget at frames, cm.
+        max_error_cm: f64,
+        /// The budget between frames, cm; none: unchecked.
+        between_error_cm: Option<f64>,
+        /// The closest fit's worst error at frames.
+        at: Box<WorstReport>,
+        /// Its worst between frames.
+        between: Box<WorstReport>,
+    },
+    /// The container could not be written.
+    #[error(transparent)]
+    Write(#[from] IoError),
+}
+
+/// [`FitInputError::OverBudget`] in words.
+fn over_budget(
+    clip: &str,
+    max_error: f64,
+    between_error: Option<f64>,
+    at: &WorstReport,
+    between: &WorstReport,
+) -> String {
+    let between_budget = between_error.map_or_else(
+        || "unchecked between them".into(),
+        |cm| format!("{} cm between them (the between-frames error)", Number(cm)),
+    );
+    let loosen = "; a larger between-frames error, or none, loosens the check between frames";
+    let hint = match between_error {
+        Some(cm) if between.error_cm > cm => loosen,
+        _ => "",
+    };
+    format!(
+        "clip '{clip}': no fit within {} cm (the maximum error) at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
+        Number(max_error),
+        Number(at.error_cm),
+        at.joint,
+        at.time,
+        Number(between.error_cm),
+        between.joint,
+        between.time
+    )
+}
+
 impl FitJob {
     /// Fits every input, the inputs side by side and each clip on every core (a clip's fit
     /// leaves cores idle between its passes, which the next input takes), writing each container
@@ -226,39 +294,16 @@ impl FitJob {
         })
     }
 
-    /// A clip no fit held within the budget: how close the closest came, and what loosens it.
-    fn over_budget(&self, clip: &str, at: &WorstReport, between: &WorstReport) -> String {
-        let between_budget = self.options.between_error.map_or_else(
-            || "unchecked between them".into(),
-            |cm| format!("{} cm between them (the between-frames error)", Number(cm)),
-        );
-        let loosen = "; a larger between-frames error, or none, loosens the check between frames";
-        let hint = match self.options.between_error {
-            Some(cm) if between.error_cm > cm => loosen,
-            _ => "",
-        };
-        format!(
-            "clip '{clip}': no fit within {} cm (the maximum error) at every frame and {between_budget}; the closest came to {} cm at frames ({} at {:.3} s) and {} cm between them ({} at {:.3} s){hint}",
-            Number(self.options.max_error),
-            Number(at.error_cm),
-            at.joint,
-            at.time,
-            Number(between.error_cm),
-            between.joint,
-            between.time
-        )
-    }
-
     fn fit_one(&self, input: &Path, stem: &str, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> InputFit {
         let name = input.display().to_string();
         let unit_cm = self.options.unit_cm.unwrap_or(GLTF_UNIT_CM);
         let mut report =
             InputFit { input: name.clone(), output: None, unit_cm, container_bytes: 0, clips: Vec::new(), error: None };
-        let result = (|| -> Result<(String, usize), String> {
-            let source = Source::read(input, ReadOptions::default()).map_err(|e| e.to_string())?;
+        let result = (|| -> Result<(String, usize), FitInputError> {
+            let source = Source::read(input, ReadOptions::default())?;
             let (animation, skeleton) = (source.animation().clone(), source.skeleton());
             if animation.clips.is_empty() {
-                return Err("no rotation, translation or scale animation to fit".into());
+                return Err(FitInputError::Empty);
             }
             let budget = Budget {
                 max_error: self.options.max_error / unit_cm,
@@ -269,14 +314,16 @@ impl FitJob {
             for c in 0..animation.clips.len() {
                 let started = Instant::now();
                 let fit = fit_clip(&animation, c, &budget).map_err(|e| {
-                    let clip = &animation.clips[c].name;
+                    let clip = animation.clips[c].name.clone();
                     match e {
-                        FitClipError::OverBudget { at_frames, between_frames } => self.over_budget(
+                        FitClipError::OverBudget { at_frames, between_frames } => FitInputError::OverBudget {
                             clip,
-                            &worst_report(&animation, &at_frames, unit_cm),
-                            &worst_report(&animation, &between_frames, unit_cm),
-                        ),
-                        FitClipError::Input(e) => format!("clip '{clip}': {e}"),
+                            max_error_cm: self.options.max_error,
+                            between_error_cm: self.options.between_error,
+                            at: Box::new(worst_report(&animation, &at_frames, unit_cm)),
+                            between: Box::new(worst_report(&animation, &between_frames, unit_cm)),
+                        },
+                        error => FitInputError::Clip { clip, error },
                     }
                 })?;
                 let clip = clip_report(&animation, &fit, unit_cm, started.elapsed().as_secs_f64());
@@ -286,7 +333,7 @@ impl FitJob {
             }
             let bytes = Container { joints: animation.joints, bvh: skeleton, clips }.to_bytes();
             let path = self.output.join(format!("{stem}.{EXTENSION}"));
-            quatcurve_eval::io::write_atomic(&path, |w| w.write_all(&bytes)).map_err(|e| e.to_string())?;
+            quatcurve_eval::io::write_atomic(&path, |w| w.write_all(&bytes))?;
             Ok((path.display().to_string(), bytes.len()))
         })();
         match result {
@@ -294,7 +341,7 @@ impl FitJob {
                 report.output = Some(path);
                 report.container_bytes = bytes;
             }
-            Err(e) => report.error = Some(e),
+            Err(e) => report.error = Some(e.to_string()),
         }
         report
     }
