@@ -1,7 +1,8 @@
 //! What every job over files (the bake, the fit) shares: inputs found and given their output
 //! stems, the output directory proven writable before the work, the rule that an output never
-//! replaces its input, and the job's own errors ([`FileJobError`]); one input's failure is an
-//! [`InputError`] and the job goes on with the others.
+//! replaces its input, and the job's own errors ([`FileJobError`]); one input's failure is the
+//! job's to report (the bake's `BakeError`, the fit's `FitInputError`), and the job goes on
+//! with the others.
 
 use quatcurve_anim::error::InputError;
 use quatcurve_eval::io::{AtomicFile, IoError};
