@@ -259,8 +259,10 @@ impl Device {
             Device::Gpu(g) | Device::Auto(g, _) => match g.curve_palettes(curves) {
                 Ok(gpu) => Ok(Some(ResidentPlayback { gpu })),
                 // `auto` plays what the kernel cannot take on the host path.
-                Err(GpuError::Pack(_) | GpuError::Job(_)) if matches!(self, Device::Auto(..)) => Ok(None),
-                Err(e @ (GpuError::Pack(_) | GpuError::Job(_))) => {
+                Err(GpuError::Pack(_) | GpuError::Job(_) | GpuError::Eval(_)) if matches!(self, Device::Auto(..)) => {
+                    Ok(None)
+                }
+                Err(e @ (GpuError::Pack(_) | GpuError::Job(_) | GpuError::Eval(_))) => {
                     Err(DeviceError::Unsupported(format!("playback: {e}")))
                 }
                 Err(e) => Err(DeviceError::Device(format!("playback: {e}"))),
@@ -291,11 +293,13 @@ impl Device {
     }
 }
 
-/// The GPU path's errors as a device's: a batch the kernel cannot take (including one too large
-/// for a dispatch) is [`DeviceError::Unsupported`], which `auto` hands to the CPU path.
+/// The GPU path's errors as a device's: a job that breaks a rule is [`DeviceError::Job`], as on
+/// every path; a batch the kernel cannot take (including one too large for a dispatch) is
+/// [`DeviceError::Unsupported`], which `auto` hands to the CPU path.
 #[cfg(feature = "gpu")]
 fn on_gpu(g: &GpuDevice, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     g.evaluate(job).map_err(|e| match e {
+        GpuError::Eval(e) => DeviceError::Job(e),
         GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Unsupported(e.to_string()),
         _ => DeviceError::Device(e.to_string()),
     })
