@@ -27,9 +27,10 @@ pub enum Failure {
 
 impl From<DeviceError> for Failure {
     fn from(e: DeviceError) -> Self {
-        match e {
-            DeviceError::Device(msg) => Failure::Internal(msg),
-            other => Failure::Input(other.to_string()),
+        if e.is_device_failure() {
+            Failure::Internal(e.to_string())
+        } else {
+            Failure::Input(e.to_string())
         }
     }
 }
@@ -56,9 +57,9 @@ pub fn flag(option: &str) -> String {
 /// Opens the device `choice`; the library's message (`gpu: no adapter ...`) gets the flag
 /// that chose it in front (`--device gpu: no adapter ...`).
 pub fn open_device(choice: DeviceChoice, flag: &str) -> Result<Device, Failure> {
-    Device::open(choice).map_err(|e| match e {
-        DeviceError::Device(msg) => Failure::Internal(format!("{flag} {msg}")),
-        other => Failure::Input(format!("{flag} {other}")),
+    Device::open(choice).map_err(|e| match e.is_device_failure() {
+        true => Failure::Internal(format!("{flag} {e}")),
+        false => Failure::Input(format!("{flag} {e}")),
     })
 }
 

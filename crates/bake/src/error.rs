@@ -19,6 +19,14 @@ pub enum BakeError {
     /// The evaluating device refused the work or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),
+    /// The device refused or failed to skin one primitive of a vertex texture.
+    #[error("{primitive}: {error}")]
+    Skinning {
+        /// The primitive (`node 'N', mesh 'M', primitive p`).
+        primitive: String,
+        /// What the device said.
+        error: Box<DeviceError>,
+    },
     /// The shipped shaders and the bake disagree on a layout (a bug: the tests bake every
     /// program).
     #[error(transparent)]
@@ -37,6 +45,7 @@ impl BakeError {
         match self {
             Self::Input(e) => e.is_internal_failure(),
             Self::Device(e) => e.is_device_failure(),
+            Self::Skinning { error, .. } => error.is_device_failure(),
             Self::Layout(_) => true,
             #[cfg(feature = "plot")]
             Self::Preview(_) => false,

@@ -10,7 +10,7 @@ use super::texture_file::SheetSpec;
 use super::Baked;
 use crate::error::BakeError;
 use quatcurve_anim::Animation;
-use quatcurve_device::{Device, DeviceError};
+use quatcurve_device::Device;
 use quatcurve_formats::mesh::SkinnedPrimitive;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -87,7 +87,7 @@ impl VertexSheets {
             let start = Instant::now();
             let data = device
                 .skin(&p.bind, joints, &skins[p.skin].data)
-                .map_err(|e| BakeError::Device(DeviceError::Device(format!("{}: {e}", p.name))))?;
+                .map_err(|error| BakeError::Skinning { primitive: p.name.clone(), error: Box::new(error) })?;
             {
                 let mut work = self.work.lock().unwrap_or_else(|e| e.into_inner());
                 work.0 += (frames.len() * p.vertices()) as u64;

@@ -22,18 +22,70 @@ pub enum DeviceError {
     Job(#[from] quatcurve_eval::error::Error),
     /// The GPU kernel cannot take this batch (a Bezier curve above its degree limit, one
     /// track's keys larger than a storage binding): `auto` hands such a batch to the CPU path.
-    #[error("{0}")]
-    Unsupported(String),
-    /// The device is missing or failed (exit code 1 in the CLI; the others are exit code 2).
-    #[error("{0}")]
-    Device(String),
+    #[cfg(feature = "gpu")]
+    #[error("{}{error}", during.prefix())]
+    Unsupported {
+        /// The work refused.
+        during: Work,
+        /// Why, as the GPU path says.
+        error: GpuError,
+    },
+    /// The GPU is missing or failed (exit code 1 in the CLI; the others are exit code 2).
+    #[cfg(feature = "gpu")]
+    #[error("{}{error}", during.prefix())]
+    Gpu {
+        /// The work that failed.
+        during: Work,
+        /// How, as the GPU path says.
+        error: GpuError,
+    },
+    /// A GPU asked of a build without the GPU path.
+    #[error("{}this build of quatcurve has no GPU path (cargo feature `gpu`)", during.prefix())]
+    NoGpuPath {
+        /// The work asked of it.
+        during: Work,
+    },
+}
+
+/// The work a device error happened in, named before its message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Work {
+    /// Opening the GPU.
+    Open,
+    /// Evaluating a job's curves (named by nothing: the job is the caller's).
+    Evaluation,
+    /// Forward kinematics.
+    ForwardKinematics,
+    /// Crowd playback.
+    Playback,
+    /// Mesh skinning.
+    Skinning,
+}
+
+impl Work {
+    /// What a message names it by, with its separator ("playback: "), or nothing.
+    fn prefix(self) -> &'static str {
+        match self {
+            Work::Open => "gpu: ",
+            Work::Evaluation => "",
+            Work::ForwardKinematics => "forward kinematics: ",
+            Work::Playback => "playback: ",
+            Work::Skinning => "skinning: ",
+        }
+    }
 }
 
 impl DeviceError {
     /// Whether the device failed, rather than the job or batch being at fault.
     #[must_use]
     pub fn is_device_failure(&self) -> bool {
-        matches!(self, Self::Device(_))
+        match self {
+            #[cfg(feature = "gpu")]
+            Self::Gpu { .. } => true,
+            Self::NoGpuPath { .. } => true,
+            _ => false,
+        }
     }
 }
 
@@ -104,18 +156,17 @@ impl Device {
     /// Opens what `choice` asks for.
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for `gpu` without an adapter.
+    /// [`DeviceError::Gpu`] for `gpu` without an adapter; [`DeviceError::NoGpuPath`] in a build
+    /// without the GPU path.
     pub fn open(choice: DeviceChoice) -> Result<Self, DeviceError> {
         match choice {
             DeviceChoice::Reference => Ok(Device::Reference),
             #[cfg(feature = "gpu")]
-            DeviceChoice::Gpu => {
-                GpuDevice::new().map(|g| Device::Gpu(Box::new(g))).map_err(|e| DeviceError::Device(format!("gpu: {e}")))
-            }
+            DeviceChoice::Gpu => GpuDevice::new()
+                .map(|g| Device::Gpu(Box::new(g)))
+                .map_err(|error| DeviceError::Gpu { during: Work::Open, error }),
             #[cfg(not(feature = "gpu"))]
-            DeviceChoice::Gpu => {
-                Err(DeviceError::Device("gpu: this build of quatcurve has no GPU path (cargo feature `gpu`)".into()))
-            }
+            DeviceChoice::Gpu => Err(DeviceError::NoGpuPath { during: Work::Open }),
             #[cfg(feature = "gpu")]
             DeviceChoice::Auto => Ok(match GpuDevice::new() {
                 Ok(g) if !g.is_software() => Device::Auto(Box::new(g), CpuEvaluator::new()),
@@ -144,7 +195,7 @@ impl Device {
     ///
     /// # Errors
     /// [`DeviceError::Job`] for a job that breaks a rule, [`DeviceError::Unsupported`] for a
-    /// batch the GPU kernel cannot take, [`DeviceError::Device`] for device failures.
+    /// batch the GPU kernel cannot take, [`DeviceError::Gpu`] for device failures.
     pub fn evaluate(&self, job: &EvalJob<'_>) -> Result<Output, DeviceError> {
         let mut out = Output::default();
         self.evaluate_into(job, &mut out)?;
@@ -182,7 +233,7 @@ impl Device {
             Device::Gpu(g) => on_gpu(g, job)?,
             #[cfg(feature = "gpu")]
             Device::Auto(g, c) => match on_gpu(g, job) {
-                Err(DeviceError::Unsupported(_)) => {
+                Err(DeviceError::Unsupported { .. }) => {
                     out.take_rows(on_cpu(c, job)?, job);
                     return Ok(format!("cpu: {}", c.name()));
                 }
@@ -199,7 +250,7 @@ impl Device {
     /// ([`skeleton::forward_kinematics`]), which is all the reference could add.
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for the GPU's failures (a frame larger than a storage binding
+    /// [`DeviceError::Gpu`] for the GPU's failures (a frame larger than a storage binding
     /// among them).
     pub fn forward_kinematics(
         &self,
@@ -211,7 +262,7 @@ impl Device {
             #[cfg(feature = "gpu")]
             Device::Gpu(g) | Device::Auto(g, _) => g
                 .forward_kinematics(parents, order, local)
-                .map_err(|e| DeviceError::Device(format!("forward kinematics: {e}"))),
+                .map_err(|error| DeviceError::Gpu { during: Work::ForwardKinematics, error }),
             Device::Cpu(_) | Device::Reference => Ok(skeleton::forward_kinematics(parents, order, local)),
         }
     }
@@ -224,7 +275,7 @@ impl Device {
     /// reference in f64, an instance at a time ([`skeleton::play_palettes`]).
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for the GPU's failures.
+    /// [`DeviceError::Gpu`] for the GPU's failures.
     pub fn play_palettes(
         &self,
         parents: &[Option<usize>],
@@ -237,7 +288,7 @@ impl Device {
             #[cfg(feature = "gpu")]
             Device::Gpu(g) | Device::Auto(g, _) => g
                 .play_palettes(parents, order, poses, weights, skin)
-                .map_err(|e| DeviceError::Device(format!("playback: {e}"))),
+                .map_err(|error| DeviceError::Gpu { during: Work::Playback, error }),
             Device::Cpu(_) | Device::Reference => Ok(skeleton::play_palettes(parents, order, poses, weights, skin)),
         }
     }
@@ -249,7 +300,7 @@ impl Device {
     ///
     /// # Errors
     /// [`DeviceError::Unsupported`] for curves the GPU cannot take (named);
-    /// [`DeviceError::Device`] for its failures.
+    /// [`DeviceError::Gpu`] for its failures.
     pub fn resident_playback(
         &self,
         curves: &skeleton::PoseCurves<'_>,
@@ -262,10 +313,10 @@ impl Device {
                 Err(GpuError::Pack(_) | GpuError::Job(_) | GpuError::Eval(_)) if matches!(self, Device::Auto(..)) => {
                     Ok(None)
                 }
-                Err(e @ (GpuError::Pack(_) | GpuError::Job(_) | GpuError::Eval(_))) => {
-                    Err(DeviceError::Unsupported(format!("playback: {e}")))
+                Err(error @ (GpuError::Pack(_) | GpuError::Job(_) | GpuError::Eval(_))) => {
+                    Err(DeviceError::Unsupported { during: Work::Playback, error })
                 }
-                Err(e) => Err(DeviceError::Device(format!("playback: {e}"))),
+                Err(error) => Err(DeviceError::Gpu { during: Work::Playback, error }),
             },
             Device::Cpu(_) | Device::Reference => {
                 let _ = curves;
@@ -279,13 +330,13 @@ impl Device {
     /// `shaders/skin_mesh.wgsl`; the CPU path and the reference [`skeleton::skin`] in f64.
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for the GPU's failures.
+    /// [`DeviceError::Gpu`] for the GPU's failures.
     pub fn skin(&self, mesh: &SkinnedMesh, skin_joints: usize, matrices: &[f32]) -> Result<Vec<f32>, DeviceError> {
         match self {
             #[cfg(feature = "gpu")]
             Device::Gpu(g) | Device::Auto(g, _) => g
                 .skin_mesh(&quatcurve_gpu::skinning::BindMesh::of(mesh), skin_joints, matrices)
-                .map_err(|e| DeviceError::Device(format!("skinning: {e}"))),
+                .map_err(|error| DeviceError::Gpu { during: Work::Skinning, error }),
             Device::Cpu(_) | Device::Reference => {
                 Ok(skeleton::skin(mesh, skin_joints, matrices).into_iter().map(|v| v as f32).collect())
             }
@@ -300,8 +351,8 @@ impl Device {
 fn on_gpu(g: &GpuDevice, job: &EvalJob<'_>) -> Result<FloatOutput, DeviceError> {
     g.evaluate(job).map_err(|e| match e {
         GpuError::Eval(e) => DeviceError::Job(e),
-        GpuError::Pack(_) | GpuError::Job(_) => DeviceError::Unsupported(e.to_string()),
-        _ => DeviceError::Device(e.to_string()),
+        error @ (GpuError::Pack(_) | GpuError::Job(_)) => DeviceError::Unsupported { during: Work::Evaluation, error },
+        error => DeviceError::Gpu { during: Work::Evaluation, error },
     })
 }
 
@@ -329,14 +380,14 @@ impl ResidentPlayback {
     /// ([`quatcurve_gpu::CurvePalettes::run`] on the GPU).
     ///
     /// # Errors
-    /// [`DeviceError::Device`] for the device's failures and instances out of range.
+    /// [`DeviceError::Gpu`] for the device's failures and instances out of range.
     pub fn palettes(&self, instances: &[skeleton::PoseTimes]) -> Result<Vec<f32>, DeviceError> {
         #[cfg(feature = "gpu")]
-        return self.gpu.run(instances).map_err(|e| DeviceError::Device(format!("playback: {e}")));
+        return self.gpu.run(instances).map_err(|error| DeviceError::Gpu { during: Work::Playback, error });
         #[cfg(not(feature = "gpu"))]
         {
             let _ = instances;
-            Err(DeviceError::Device("this build of quatcurve has no GPU path (cargo feature `gpu`)".into()))
+            Err(DeviceError::NoGpuPath { during: Work::Playback })
         }
     }
 }
