@@ -11,7 +11,7 @@ pub mod error;
 pub mod loops;
 pub mod spline;
 
-use error::InputError;
+use error::AnimationError;
 
 /// One clip resampled on a uniform grid of frames: what the format writers write back
 /// (`quatcurve_formats`: glTF, BVH, SMPL archives), as the bake leaves it.
@@ -263,8 +263,8 @@ impl Animation {
     /// walks).
     ///
     /// # Errors
-    /// [`InputError::Animation`] for a parent index out of range or a cycle, naming a joint on it.
-    pub fn parents_first(&self) -> Result<Vec<usize>, InputError> {
+    /// [`AnimationError`] for a parent index out of range or a cycle, naming a joint on it.
+    pub fn parents_first(&self) -> Result<Vec<usize>, AnimationError> {
         let n = self.joints.len();
         // Depth by walking up; a chain longer than the joint count is a cycle.
         let mut depth = vec![usize::MAX; n];
@@ -276,16 +276,11 @@ impl Animation {
                 match self.joints[at].parent {
                     None => break,
                     Some(p) if p >= n => {
-                        return Err(InputError::Animation(format!(
-                            "joint {at} ({}): parent {p} does not exist",
-                            self.joints[at].name
-                        )))
+                        let name = self.joints[at].name.clone();
+                        return Err(AnimationError::MissingParent { joint: at, name, parent: p });
                     }
                     Some(_) if chain.len() > n => {
-                        return Err(InputError::Animation(format!(
-                            "joint {at} ({}) is its own ancestor: the hierarchy has a cycle",
-                            self.joints[at].name
-                        )))
+                        return Err(AnimationError::Cycle { joint: at, name: self.joints[at].name.clone() });
                     }
                     Some(p) => at = p,
                 }

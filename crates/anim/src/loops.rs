@@ -2,7 +2,7 @@
 //! loop, or the caller says so ([`LoopMode`]). The bake and playback ask the same question.
 
 use crate::curves::CurveChoice;
-use crate::error::InputError;
+use crate::error::{AnimationError, InputError};
 use crate::{Animation, Channel, Clip, Property};
 use quatcurve_core::quat::QuatF64;
 
@@ -36,10 +36,7 @@ pub fn clip_loops(
     if clip.channels.iter().any(Channel::is_spline) {
         // A fitted clip is the open curve it was fitted as.
         return match mode {
-            LoopMode::On => Err(InputError::Animation(format!(
-                "clip '{}' is fitted (an open curve of control points); loop mode on needs keys",
-                clip.name
-            ))),
+            LoopMode::On => Err(AnimationError::FittedLoop { clip: clip.name.clone() }.into()),
             _ => Ok(false),
         };
     }
@@ -61,21 +58,16 @@ pub fn clip_loops(
         LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())),
         LoopMode::On => {
             if !spec.can_loop() {
-                return Err(InputError::Animation(format!(
-                    "clip '{}': loop mode on needs a curve that loops; {} does not (the curves that loop are {})",
-                    clip.name,
-                    choice.name(),
-                    quatcurve_core::curve::CurveSpec::looping_curves()
-                )));
+                return Err(AnimationError::CurveDoesNotLoop {
+                    clip: clip.name.clone(),
+                    curve: choice.name().to_string(),
+                    looping: quatcurve_core::curve::CurveSpec::looping_curves(),
+                }
+                .into());
             }
             if let Some((c, angle)) = rotations().find_map(|(c, v)| open(v).map(|a| (c, a))) {
-                return Err(InputError::Animation(format!(
-                    "{}: loop mode on needs every rotation channel to end on its first rotation, but its last key \
-                        is {} rad from its first (at most {})",
-                    animation.label(clip, c),
-                    quatcurve_eval::error::Number(angle),
-                    quatcurve_eval::error::Number(quatcurve_eval::batch::LOOP_TOLERANCE)
-                )));
+                let (channel, tolerance) = (animation.label(clip, c), quatcurve_eval::batch::LOOP_TOLERANCE);
+                return Err(AnimationError::LoopOpen { channel, angle, tolerance }.into());
             }
             Ok(true)
         }

@@ -137,21 +137,39 @@ pub fn json(floats: &[f32], bones: usize) -> Vec<u8> {
     value.to_string().into_bytes()
 }
 
+/// A Babylon texture over a side of the maximum texture size.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TooLarge {
+    /// Too many bones for one row.
+    #[error("Babylon's texture is {width} texels wide ((bones + 1) * 4), over a side of {max}; raise the maximum texture size")]
+    Wide {
+        /// Texels a row takes.
+        width: usize,
+        /// The most a side may take.
+        max: usize,
+    },
+    /// Too many frames for one column.
+    #[error(
+        "Babylon's texture is {frames} rows tall (one per frame, never wrapped), over a side of {max}; bake at a lower \
+         rate, clip by clip rather than as one atlas, or raise the maximum texture size"
+    )]
+    Tall {
+        /// Rows it takes.
+        frames: usize,
+        /// The most a side may take.
+        max: usize,
+    },
+}
+
 /// Why `frames` frames of `bones` bones do not fit a texture of at most `max` texels a side
 /// (Babylon's texture is one row per frame, `(bones + 1) * 4` texels wide, never wrapped).
 #[must_use]
-pub fn too_large(bones: usize, frames: usize, max: usize) -> Option<String> {
+pub fn too_large(bones: usize, frames: usize, max: usize) -> Option<TooLarge> {
     let width = (bones + 1) * 4;
     if width > max {
-        Some(format!(
-            "Babylon's texture is {width} texels wide ((bones + 1) * 4), over a side of {max}; raise the maximum \
-             texture size"
-        ))
+        Some(TooLarge::Wide { width, max })
     } else if frames > max {
-        Some(format!(
-            "Babylon's texture is {frames} rows tall (one per frame, never wrapped), over a side of {max}; bake at a \
-             lower rate, clip by clip rather than as one atlas, or raise the maximum texture size"
-        ))
+        Some(TooLarge::Tall { frames, max })
     } else {
         None
     }
@@ -228,7 +246,7 @@ mod tests {
         let bytes = base64::engine::general_purpose::STANDARD.decode(value["vertexData"].as_str().unwrap()).unwrap();
         assert_eq!(bytes.len(), 32 * 4);
         assert!(too_large(1, 4096, 4096).is_none());
-        assert!(too_large(1, 4097, 4096).unwrap().contains("4097 rows tall"));
-        assert!(too_large(1024, 10, 4096).unwrap().contains("4100 texels wide"));
+        assert!(too_large(1, 4097, 4096).unwrap().to_string().contains("4097 rows tall"));
+        assert!(too_large(1024, 10, 4096).unwrap().to_string().contains("4100 texels wide"));
     }
 }

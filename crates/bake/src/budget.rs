@@ -9,9 +9,9 @@
 
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
 use super::{bake, ClipRate};
-use crate::error::BakeError;
+use crate::error::{BakeError, Refusal};
 use quatcurve_anim::curves::CurveChoice;
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{InputError, InternalError};
 use quatcurve_anim::loops::LoopMode;
 use quatcurve_anim::{Animation, Clip, GLTF_UNIT_CM};
 use quatcurve_device::Device;
@@ -108,7 +108,7 @@ impl ErrorBudget {
     }
 
     /// The budget in words, for messages.
-    fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let mut parts = Vec::new();
         if let Some(d) = self.degrees {
             parts.push(format!("{} degrees", Number(d)));
@@ -215,12 +215,8 @@ pub fn measure(
     let (dense, _, dense_times) = frames_at(fitted * SUBSTEPS as f64)?;
     let substeps = (dense_times.len() - 1) / intervals;
     if substeps * intervals != dense_times.len() - 1 {
-        return Err(InputError::Animation(format!(
-            "clip '{}': {} dense frames are not {SUBSTEPS} per each of {intervals} intervals",
-            animation.clips[clip].name,
-            dense_times.len()
-        ))
-        .into());
+        let (clip, frames) = (animation.clips[clip].name.clone(), dense_times.len());
+        return Err(InputError::from(InternalError::Grid { clip, frames, substeps: SUBSTEPS, intervals }).into());
     }
     let start = times[0];
     for (sheet, truth) in coarse.iter().zip(&dense) {
@@ -305,7 +301,7 @@ pub const REFUSAL_SEARCH: f64 = 8.0;
 /// on one uniform grid, an interval of that grid, so that rows fall on every key.
 ///
 /// # Errors
-/// [`InputError::Animation`] naming the clip, the budget, the error at
+/// [`Refusal::NoRateHolds`] naming the clip, the budget, the error at
 /// [`ErrorBudget::max_rate`] and the rate that would hold (or that none up to
 /// [`REFUSAL_SEARCH`] times it does) when no rate up to it holds; the bake's.
 pub fn choose_rates(
@@ -314,12 +310,7 @@ pub fn choose_rates(
     setting: &Setting<'_>,
 ) -> Result<Vec<Measured>, BakeError> {
     if let Some(clip) = animation.clips.iter().find(|c| c.channels.iter().any(quatcurve_anim::Channel::is_spline)) {
-        return Err(InputError::Animation(format!(
-            "clip '{}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it \
-                at a fixed rate",
-            clip.name
-        ))
-        .into());
+        return Err(Refusal::FittedBudget(clip.name.clone()).into());
     }
     let mut chosen = Vec::with_capacity(animation.clips.len());
     for (c, clip) in animation.clips.iter().enumerate() {
@@ -345,25 +336,12 @@ pub fn choose_rates(
                     (most * 2.0).min(steps(budget.max_rate * REFUSAL_SEARCH)),
                     steps(budget.max_rate * REFUSAL_SEARCH),
                 ];
-                let would = match lowest(&at, budget, further, step)? {
-                    Ok(m) => format!("{} Hz would (a max_rate of {})", Number(m.rate), m.rate.ceil()),
-                    Err(m) => format!("none up to {} Hz does either", Number(m.rate)),
+                let higher = match lowest(&at, budget, further, step)? {
+                    Ok(m) => Ok(m.rate),
+                    Err(m) => Err(m.rate),
                 };
-                return Err(InputError::Animation(format!(
-                    "clip '{}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the \
-                     worst error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s); {would}",
-                    clip.name,
-                    Number(budget.max_rate),
-                    budget.describe(),
-                    Number(worst.rate),
-                    worst.rotation.value,
-                    worst.rotation.joint,
-                    worst.rotation.time,
-                    worst.position.value,
-                    worst.position.joint,
-                    worst.position.time
-                ))
-                .into());
+                let (clip, budget, worst) = (clip.name.clone(), *budget, Box::new(worst));
+                return Err(Refusal::NoRateHolds { clip, budget, worst, higher }.into());
             }
         };
         chosen.push(best);

@@ -2,8 +2,9 @@
 //! evaluated it, or a layout the shipped shaders and the bake disagree on ([`LayoutError`]).
 //! The job goes on with the other inputs and reports it.
 
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError, OutputError};
 use quatcurve_device::DeviceError;
+use quatcurve_eval::error::Number;
 use quatcurve_shader::uniform::UniformError;
 use quatcurve_shader::{Program, ShaderError};
 
@@ -16,6 +17,9 @@ pub enum BakeError {
     /// could not be written.
     #[error(transparent)]
     Input(#[from] InputError),
+    /// The input cannot be baked as asked.
+    #[error(transparent)]
+    Refused(#[from] Refusal),
     /// The evaluating device refused the work or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),
@@ -47,6 +51,7 @@ impl BakeError {
             Self::Device(e) => e.is_device_failure(),
             Self::Skinning { error, .. } => error.is_device_failure(),
             Self::Layout(_) => true,
+            Self::Refused(_) => false,
             #[cfg(feature = "plot")]
             Self::Preview(_) => false,
         }
@@ -64,11 +69,174 @@ impl BakeError {
     }
 }
 
+impl From<AnimationError> for BakeError {
+    fn from(e: AnimationError) -> Self {
+        Self::Input(e.into())
+    }
+}
+
+impl From<OutputError> for BakeError {
+    fn from(e: OutputError) -> Self {
+        Self::Input(e.into())
+    }
+}
+
 impl From<quatcurve_eval::error::Error> for BakeError {
     /// Keys the curve builder rejects are the input's ([`InputError::Keys`]).
     fn from(e: quatcurve_eval::error::Error) -> Self {
         Self::Input(e.into())
     }
+}
+
+/// An input that cannot be baked as asked: what it lacks or breaks, and what would bake.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Refusal {
+    /// A vertex texture asked of an animation without meshes.
+    #[error("a vertex texture skins a glTF's meshes, which an animation alone does not have; bake it with a BakeJob")]
+    VertexWithoutMeshes,
+    /// A vertex texture asked of an input that is not a glTF.
+    #[error("vertex textures skin a glTF's meshes, and this is {0}; bake a bone texture")]
+    VertexNeedsGltf(&'static str),
+    /// A skin texture asked of a file without skins.
+    #[error("the file has no skin to bake a skin texture for; bake a model texture instead")]
+    NoSkin,
+    /// A Babylon bake of an input without a skin.
+    #[error("babylon plays a glTF skin's bones, and this is {0} without one; bake a glTF with a skinned mesh, or another format")]
+    BabylonNeedsSkin(&'static str),
+    /// A skin whose world space Babylon cannot invert.
+    #[error("skin '{skin}': {error}")]
+    Singular {
+        /// The skin.
+        skin: String,
+        /// The singular transform.
+        error: crate::babylon::SingularWorld,
+    },
+    /// A Babylon texture larger than its sides allow.
+    #[error("{texture}: {sheet}: {error}")]
+    BabylonTooLarge {
+        /// The texture (`clip 'walk'`).
+        texture: String,
+        /// The sheet (`skin 0`).
+        sheet: String,
+        /// Which side.
+        error: crate::babylon::TooLarge,
+    },
+    /// An image layout that cannot hold the texture.
+    #[error("{texture}: {error}")]
+    Image {
+        /// The texture or primitive.
+        texture: String,
+        /// Why the layout cannot hold it.
+        error: crate::image::ImageError,
+    },
+    /// An image that would take more memory than `IMAGE_MEMORY_LIMIT` while it is encoded.
+    #[error(
+        "{texture}: its {format} image {file} would take {mib} MiB of memory while it is gathered and encoded, over \
+         IMAGE_MEMORY_LIMIT = {limit} MiB; bake at a lower rate, clip by clip rather than as one atlas, or as npy \
+         (streamed)",
+        limit = crate::texture_file::IMAGE_MEMORY_LIMIT >> 20
+    )]
+    ImageMemory {
+        /// The texture.
+        texture: String,
+        /// The image format.
+        format: crate::image::Format,
+        /// The image's file name.
+        file: String,
+        /// MiB it would take.
+        mib: u64,
+    },
+    /// Images that together would take more memory than `IMAGE_MEMORY_LIMIT`.
+    #[error(
+        "{texture}: its {images} {format} images would gather {mib} MiB of rows in memory together (the largest, \
+         {largest}: {largest_mib} MiB), over IMAGE_MEMORY_LIMIT = {limit} MiB; bake at a lower rate, clip by clip \
+         rather than as one atlas, or as npy (streamed)",
+        limit = crate::texture_file::IMAGE_MEMORY_LIMIT >> 20
+    )]
+    ImagesMemory {
+        /// The texture.
+        texture: String,
+        /// Its images.
+        images: usize,
+        /// The image format.
+        format: crate::image::Format,
+        /// MiB they would take.
+        mib: u64,
+        /// The largest image's sheet.
+        largest: String,
+        /// MiB the largest would take.
+        largest_mib: u64,
+    },
+    /// A joint sheared, which rotation, translation and scale cannot hold.
+    #[error(
+        "clip '{clip}', frame {frame}: joint '{joint}' is sheared (a {kind} texture's rotation and scale would be off \
+         by {residual:.1e}, over SHEAR_TOLERANCE = {tolerance:e}), which rotation, translation and scale cannot hold; \
+         bake a {matrices} texture (matrices) instead",
+        tolerance = crate::texture::SHEAR_TOLERANCE
+    )]
+    Sheared {
+        /// The clip.
+        clip: String,
+        /// The frame.
+        frame: usize,
+        /// The joint.
+        joint: String,
+        /// The texture's kind.
+        kind: crate::texture::TextureKind,
+        /// How far off rotation and scale would be.
+        residual: f64,
+        /// The matrix kind that holds it.
+        matrices: crate::texture::TextureKind,
+    },
+    /// Root motion asked of a clip that moves several characters.
+    #[error(
+        "clip '{clip}': {} scene roots move ({}{}): root motion is extracted from one character per input; bake them \
+         apart, or keep the root motion in the textures",
+        roots.len(),
+        roots.iter().take(3).map(|r| format!("'{r}'")).collect::<Vec<_>>().join(", "),
+        if roots.len() > 3 { ", ..." } else { "" }
+    )]
+    SeveralRoots {
+        /// The clip.
+        clip: String,
+        /// The scene roots that move.
+        roots: Vec<String>,
+    },
+    /// An error budget asked of a fitted clip.
+    #[error(
+        "clip '{0}' is fitted (control points, not keys): an error budget measures a bake against keys; bake it at a \
+         fixed rate"
+    )]
+    FittedBudget(String),
+    /// No rate up to the budget's highest keeps within it.
+    #[error(
+        "clip '{clip}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the worst \
+         error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s); {}",
+        Number(budget.max_rate),
+        budget.describe(),
+        Number(worst.rate),
+        worst.rotation.value,
+        worst.rotation.joint,
+        worst.rotation.time,
+        worst.position.value,
+        worst.position.joint,
+        worst.position.time,
+        match higher {
+            Ok(rate) => format!("{} Hz would (a max_rate of {})", Number(*rate), rate.ceil()),
+            Err(searched) => format!("none up to {} Hz does either", Number(*searched)),
+        }
+    )]
+    NoRateHolds {
+        /// The clip.
+        clip: String,
+        /// The budget.
+        budget: crate::budget::ErrorBudget,
+        /// What the highest rate measured.
+        worst: Box<crate::budget::Measured>,
+        /// The rate that would hold, or the highest searched.
+        higher: Result<f64, f64>,
+    },
 }
 
 /// Why a layout uniform or a shader record could not be made: the shipped shaders and the bake

@@ -15,19 +15,19 @@ use super::outputs::clip_file_names;
 use super::outputs::Outputs;
 use super::report::{input_record, resumed, unbaked_ends, BakeReport, InputReport, Progress};
 use super::root_motion::{self, RootMotion};
-use super::shard::Shard;
 use super::sidecar::{ArrayRecord, ConversionRecord, Sidecar, SidecarClip, SidecarOptions};
 use super::texture::{self, Precision, TextureKind};
 use super::texture_file::{self, SheetSpec, TextureFile, TextureOptions, Written};
 use super::vertex_texture::VertexSheets;
 use super::workers::in_order;
 use super::{vertex_glb, Baked, ClipRate};
-use crate::error::BakeError;
+use crate::error::{BakeError, Refusal};
 use quatcurve_anim::curves::CurveChoice;
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError, OutputError};
 use quatcurve_anim::Animation;
 use quatcurve_device::Device;
 use quatcurve_eval::io::write_atomic;
+use quatcurve_files::shard::Shard;
 use quatcurve_files::FileJobError;
 use quatcurve_files::{expand, output_stems};
 use quatcurve_files::{refuse_overwriting_input, OutputDir};
@@ -200,7 +200,7 @@ impl BakeJob {
                 .zip(&animation.skins)
                 .map(|(parent, skin)| {
                     babylon::from_world(animation, parent)
-                        .map_err(|e| InputError::Animation(format!("skin '{}': {e}", skin.name)))
+                        .map_err(|error| Refusal::Singular { skin: skin.name.clone(), error })
                 })
                 .collect::<Result<Vec<_>, _>>()?,
             _ => Vec::new(),
@@ -342,7 +342,7 @@ impl BakeJob {
                 }
                 for baked in &names[1..] {
                     refuse_overwriting_input(&self.output.join(baked), &input.display().to_string())
-                        .map_err(|e| FileJobError::Job(format!("{e} (nothing was baked)")))?;
+                        .map_err(|e| FileJobError::Refused { error: Box::new(e), job: "baked" })?;
                 }
             }
             if let Some(dir) = names.iter().map(|n| self.output.join(n)).find(|p| p.is_dir()) {
@@ -399,7 +399,7 @@ impl BakeJob {
             report.channels = animation.clips.iter().map(|c| c.channels.len()).sum();
             report.keys = animation.key_count();
             if animation.clips.is_empty() {
-                return Err(InputError::Animation("no rotation, translation or scale animation to bake".into()).into());
+                return Err(InputError::from(AnimationError::NothingAnimated).into());
             }
             report.warnings = super::source_step_warnings(animation);
             if src.has_offsets() {
@@ -413,13 +413,7 @@ impl BakeJob {
                     report.not_drawn = drawn.not_drawn;
                     Some(VertexSheets::new(drawn.primitives, self.options.format != Format::Npy))
                 }
-                (None, TextureKind::Vertex) => {
-                    return Err(InputError::Animation(format!(
-                        "vertex textures skin a glTF's meshes, and this is {}; bake a bone texture",
-                        src.kind()
-                    ))
-                    .into())
-                }
+                (None, TextureKind::Vertex) => return Err(Refusal::VertexNeedsGltf(src.kind()).into()),
                 (Some(file), kind) if kind.is_skin() => {
                     let drawn = self.skin_primitives(file)?;
                     (report.not_drawn, skinned) = (drawn.not_drawn, drawn.primitives);
@@ -546,18 +540,10 @@ impl BakeJob {
         // Checked before anything is written.
         let order = animation.parents_first()?;
         if self.options.texture.is_skin() && src.gltf().is_some() && animation.skins.is_empty() {
-            return Err(InputError::Animation(
-                "the file has no skin to bake a skin texture for; bake a model texture instead".into(),
-            )
-            .into());
+            return Err(Refusal::NoSkin.into());
         }
         if self.options.format == Format::Babylon && (src.gltf().is_none() || animation.skins.is_empty()) {
-            return Err(InputError::Animation(format!(
-                "babylon plays a glTF skin's bones, and this is {} without one; bake a glTF with a skinned \
-                 mesh, or another format",
-                src.kind()
-            ))
-            .into());
+            return Err(Refusal::BabylonNeedsSkin(src.kind()).into());
         }
         let skinned = out.skinned;
         out.sheets = self.sheets(animation, vertex, skinned)?;
@@ -574,7 +560,7 @@ impl BakeJob {
         for (name, bytes) in baked_file.iter().chain(&mesh_file) {
             let path = dir.join(name);
             refuse_overwriting_input(&path, out.source)?;
-            write_atomic(&path, |w| w.write_all(bytes)).map_err(|e| InputError::Output(e.to_string()))?;
+            write_atomic(&path, |w| w.write_all(bytes)).map_err(OutputError::from)?;
             out.written.push(path.into());
         }
         // An atlas stacks every clip's frames in one file per sheet, opened with its whole shape.
@@ -612,7 +598,7 @@ impl BakeJob {
         sidecar.not_drawn = out.not_drawn.to_vec();
         let path = dir.join(format!("{stem}.json"));
         write_atomic(&path, |w| serde_json::to_writer_pretty(&mut *w, &sidecar).map_err(std::io::Error::from))
-            .map_err(|e| InputError::Output(e.to_string()))?;
+            .map_err(OutputError::from)?;
         out.written.push(path.into());
         Ok(())
     }
@@ -710,7 +696,7 @@ fn draw_preview(
 #[cfg(not(feature = "plot"))]
 fn draw_preview(_: &Path, _: &str, _: &[f32], _: &[usize], _: &Animation) -> Result<(), BakeError> {
     // validate() refuses previews without the feature.
-    Err(InputError::Output("previews need the `plot` cargo feature".into()).into())
+    Err(InputError::from(OutputError::NotBuilt { what: "previews", feature: "plot" }).into())
 }
 
 /// The file name after an input's stem of the mesh a vertex texture plays

@@ -18,7 +18,6 @@ pub(crate) mod outputs;
 pub mod poses;
 mod report;
 pub mod root_motion;
-pub mod shard;
 pub mod sidecar;
 pub mod texture;
 mod texture_file;
@@ -32,12 +31,11 @@ use crate::error::BakeError;
 pub use job::BakeJob;
 pub use options::BakeOptions;
 use quatcurve_anim::curves::{ChannelEval, CurveChoice, Curves};
-use quatcurve_anim::error::InputError;
-use quatcurve_anim::error::InputError as E;
+use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::loops::{clip_loops, LoopMode};
 use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Property};
+pub use quatcurve_files::shard::Shard;
 pub use report::{BakeReport, InputReport, Progress};
-pub use shard::Shard;
 
 use quatcurve_core::quat::QuatF64;
 use quatcurve_device::Device;
@@ -251,9 +249,9 @@ impl ClipRate {
 /// kept (and evaluates to the end pose).
 ///
 /// # Errors
-/// [`InputError::Animation`] for a rate that is not finite and positive, or a grid too long.
+/// [`InputError::Keys`] for a rate that is not finite and positive, or a grid too long.
 pub fn frame_grid(start: f64, end: f64, rate: f64) -> Result<TrackTimes, InputError> {
-    Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate).map_err(|e| E::Animation(e.to_string()))
+    Ok(Sampling::Rate(rate).over(start, end + END_TOLERANCE_FRAMES / rate)?)
 }
 
 /// The fitted frame grid of a clip spanning `[start, end]`: `N = round((end - start) rate)`
@@ -460,16 +458,16 @@ fn plan_clips(
         let frames = ((end - start) * hz).max(0.0).floor() + 2.0;
         let samples = frames * (clip.channels.len() + animation.joints.len()) as f64;
         if total_samples as f64 + samples > MAX_BAKE_SAMPLES as f64 {
-            return Err(E::Animation(format!(
-                "clip '{}' spans {} s: {} frames at {} Hz of {} channels and {} joints bring the bake of this input \
-                    past {MAX_BAKE_SAMPLES} samples (2 GiB of output); bake at a lower rate",
-                clip.name,
-                quatcurve_eval::error::Number(end - start),
-                quatcurve_eval::error::Number(frames - 1.0),
-                quatcurve_eval::error::Number(hz),
-                clip.channels.len(),
-                animation.joints.len()
-            )));
+            return Err(AnimationError::TooManySamples {
+                clip: clip.name.clone(),
+                span: end - start,
+                frames: frames - 1.0,
+                rate: hz,
+                channels: clip.channels.len(),
+                joints: animation.joints.len(),
+                limit: MAX_BAKE_SAMPLES,
+            }
+            .into());
         }
         total_samples += samples as usize;
         let (grid, clip_rate) = clip_frame_grid(start, end, rate, looping)?;

@@ -2,12 +2,12 @@
 //! ([`InputReport`], [`BakeReport`]), and to the manifest ([`input_record`]).
 use super::budget::ChosenRate;
 use super::manifest::{FileRecord, InputRecord};
-use super::shard::Shard;
 use super::texture_file::Written;
 use super::Baked;
 use crate::error::BakeError;
 use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
+use quatcurve_files::shard::Shard;
 use std::path::{Path, PathBuf};
 
 /// What a running job tells its caller (a progress bar, a log); every method has a default

@@ -6,7 +6,7 @@
 
 use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
-use quatcurve_anim::error::InputError;
+use crate::error::{BakeError, Refusal};
 use quatcurve_anim::{Animation, Property};
 use quatcurve_eval::skeleton::{self, Affine};
 use serde::{Deserialize, Serialize};
@@ -88,9 +88,9 @@ fn heading(m: &Affine) -> f64 {
 /// place.
 ///
 /// # Errors
-/// [`InputError::Animation`] for a clip that moves joints under more than one scene root
-/// (several characters), or a hierarchy that has a cycle.
-pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputError> {
+/// [`Refusal::SeveralRoots`] for a clip that moves joints under more than one scene root
+/// (several characters); [`quatcurve_anim::error::AnimationError`] for a hierarchy that has a cycle.
+pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), BakeError> {
     let order = animation.parents_first()?;
     let roots: Vec<usize> = (0..animation.joints.len()).filter(|&j| animation.joints[j].parent.is_none()).collect();
     let mut in_place = Vec::with_capacity(animation.clips.len());
@@ -112,16 +112,8 @@ pub fn extract(animation: &Animation, baked: &mut Baked) -> Result<(), InputErro
         moving.sort_unstable();
         moving.dedup();
         if moving.len() > 1 {
-            let names: Vec<String> =
-                moving.iter().take(3).map(|&r| format!("'{}'", animation.joints[r].name)).collect();
-            return Err(InputError::Animation(format!(
-                "clip '{}': {} scene roots move ({}{}): root motion is extracted from one character per input; \
-                 bake them apart, or keep the root motion in the textures",
-                clip.name,
-                moving.len(),
-                names.join(", "),
-                if moving.len() > 3 { ", ..." } else { "" }
-            )));
+            let roots = moving.iter().map(|&r| animation.joints[r].name.clone()).collect();
+            return Err(Refusal::SeveralRoots { clip: clip.name.clone(), roots }.into());
         }
         let joints = animation.joints.len();
         let local = texture::local(animation, baked, c);

@@ -15,8 +15,7 @@
 //! stored value), frames on every core.
 
 use super::Baked;
-use crate::error::BakeError;
-use quatcurve_anim::error::InputError;
+use crate::error::{BakeError, Refusal};
 use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::Device;
 use quatcurve_eval::skeleton::{self, rigid, PaletteSkin};
@@ -236,11 +235,7 @@ pub fn sheet_rows(
     frames: &[usize],
 ) -> Result<Vec<Sheet>, BakeError> {
     if kind == TextureKind::Vertex {
-        return Err(InputError::Animation(
-            "a vertex texture skins a glTF's meshes, which an animation alone does not have; bake it with a BakeJob"
-                .into(),
-        )
-        .into());
+        return Err(Refusal::VertexWithoutMeshes.into());
     }
     let local = local_rows(animation, baked, clip, frames);
     if kind == TextureKind::Local {
@@ -257,16 +252,13 @@ pub fn sheet_rows(
         let (data, shear) = if kind.is_matrix() {
             (data, 0.0)
         } else {
-            rigid_rows(&data, width).map_err(|(row, k, residual)| {
-                InputError::Animation(format!(
-                    "clip '{}', frame {}: joint '{}' is sheared (a {kind} texture's rotation and scale would be off by \
-                     {residual:.1e}, over SHEAR_TOLERANCE = {SHEAR_TOLERANCE:e}), which rotation, translation and scale \
-                     cannot hold; bake a {} texture (matrices) instead",
-                    animation.clips[clip].name,
-                    frames[row],
-                    animation.joints[joints[k]].name,
-                    if kind.is_skin() { TextureKind::Skin } else { TextureKind::Model },
-                ))
+            rigid_rows(&data, width).map_err(|(row, k, residual)| Refusal::Sheared {
+                clip: animation.clips[clip].name.clone(),
+                frame: frames[row],
+                joint: animation.joints[joints[k]].name.clone(),
+                kind,
+                residual,
+                matrices: if kind.is_skin() { TextureKind::Skin } else { TextureKind::Model },
             })?
         };
         sheets.push(Sheet { suffix, width, data, shear });

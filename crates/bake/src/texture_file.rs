@@ -7,8 +7,8 @@ use super::babylon;
 use super::image::{self, Format, Grid, ImageError, Texels};
 use super::texture::{self, Precision, TextureKind};
 use super::vertex_encoding::Bounds;
-use crate::error::BakeError;
-use quatcurve_anim::error::InputError;
+use crate::error::{BakeError, Refusal};
+use quatcurve_anim::error::{InputError, InternalError, OutputError};
 use quatcurve_anim::Animation;
 use quatcurve_eval::io::{npy_header, AtomicFile, NpyElement};
 use quatcurve_eval::skeleton::Affine;
@@ -124,18 +124,17 @@ impl TextureFile {
         sheet: &SheetSpec,
         rows: usize,
         what: &str,
-    ) -> Result<Self, InputError> {
+    ) -> Result<Self, BakeError> {
         let (joints, channels) = (sheet.width, sheet.texels.channels());
         let shape = [rows as u64, joints as u64, channels as u64];
-        let refuse = |e: &dyn std::fmt::Display| InputError::Animation(format!("{what}: {e}"));
         let content = match options.format {
             Format::Npy => Content::Npy(options.precision.element()),
             Format::Babylon => {
-                let from_world = sheet
-                    .babylon
-                    .ok_or_else(|| InputError::Internal(format!("{what}: {} has no Babylon space", sheet.label)))?;
-                if let Some(e) = babylon::too_large(joints, rows, options.max_size) {
-                    return Err(refuse(&format!("{}: {e}", sheet.label)));
+                let from_world = sheet.babylon.expect("every sheet of a Babylon bake has its space");
+                if let Some(error) = babylon::too_large(joints, rows, options.max_size) {
+                    return Err(
+                        Refusal::BabylonTooLarge { texture: what.into(), sheet: sheet.label.clone(), error }.into()
+                    );
                 }
                 Content::Babylon { from_world, bones: joints, rows: Vec::new() }
             }
@@ -144,24 +143,24 @@ impl TextureFile {
                     Texels::Rows(kind) => kind,
                     Texels::Positions | Texels::Normals => TextureKind::Vertex,
                 };
-                let grid = Grid::new(kind, joints, rows, options.max_size).map_err(|e| refuse(&e))?;
+                let grid = Grid::new(kind, joints, rows, options.max_size)
+                    .map_err(|error| Refusal::Image { texture: what.into(), error })?;
                 let floats = shape.iter().product::<u64>() * 4;
                 let texels = (grid.width * grid.height) as u64 * 16;
                 if floats + texels > IMAGE_MEMORY_LIMIT {
-                    return Err(refuse(&format!(
-                        "its {format} image {} would take {} MiB of memory while it is gathered and encoded, over \
-                         IMAGE_MEMORY_LIMIT = {} MiB; bake at a lower rate, clip by clip rather than as one atlas, or \
-                         as npy (streamed)",
-                        path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-                        (floats + texels).div_ceil(1 << 20),
-                        IMAGE_MEMORY_LIMIT >> 20
-                    )));
+                    return Err(Refusal::ImageMemory {
+                        texture: what.into(),
+                        format,
+                        file: path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                        mib: (floats + texels).div_ceil(1 << 20),
+                    }
+                    .into());
                 }
                 let half = options.precision == Precision::F16;
                 Content::Image { format, texels: sheet.texels, half, grid, joints, rows: Vec::new() }
             }
         };
-        let file = AtomicFile::create(&path).map_err(|e| InputError::Output(e.to_string()))?;
+        let file = AtomicFile::create(&path).map_err(OutputError::from)?;
         let element_bytes = match content {
             Content::Npy(element) => element.size(),
             Content::Image { .. } | Content::Babylon { .. } => 4,
@@ -187,9 +186,8 @@ impl TextureFile {
 
     /// Appends `values` (whole rows): written and hashed on another core, or gathered.
     pub(super) fn append(&mut self, values: &[f32]) -> Result<(), InputError> {
-        self.left = self.left.checked_sub(values.len() as u64).ok_or_else(|| {
-            InputError::Internal(format!("{}: more values than its shape holds", self.file.path().display()))
-        })?;
+        self.left = (self.left.checked_sub(values.len() as u64))
+            .ok_or_else(|| InternalError::Overfull(self.file.path().to_path_buf()))?;
         match &mut self.content {
             Content::Npy(element) => {
                 let bytes = element.bytes(values);
@@ -209,7 +207,7 @@ impl TextureFile {
             file.write_all(bytes)?;
             file.start_writeback()
         });
-        written.map_err(|e| InputError::Output(self.file.error(e).to_string()))?;
+        written.map_err(|e| OutputError::from(self.file.error(e)))?;
         self.size += bytes.len() as u64;
         Ok(())
     }
@@ -219,7 +217,7 @@ impl TextureFile {
     pub(super) fn finish(mut self) -> Result<Written, InputError> {
         let path = self.file.path().to_path_buf();
         if self.left != 0 {
-            return Err(InputError::Internal(format!("{}: {} values short of its shape", path.display(), self.left)));
+            return Err(InternalError::Short { file: path, left: self.left }.into());
         }
         let image = match std::mem::replace(&mut self.content, Content::Npy(NpyElement::F32)) {
             Content::Npy(_) => None,
@@ -228,7 +226,8 @@ impl TextureFile {
                 None
             }
             Content::Image { format, texels: what, half, grid, joints, rows } => {
-                let internal = |e: ImageError| InputError::Internal(format!("{}: {e}", path.display()));
+                let internal =
+                    |e: ImageError| InternalError::Encode { what: path.display().to_string(), error: e.into() };
                 let (texels, bounds) = image::encode(what, &grid, joints, &rows).map_err(internal)?;
                 let (bytes, remap) = match format {
                     Format::Exr => (image::exr(&grid, &texels, half).map_err(internal)?, None),
@@ -243,18 +242,13 @@ impl TextureFile {
                             (image::png16(&grid, &texels, &[[[0.0, 1.0]; 4]]).map_err(internal)?, None)
                         }
                     },
-                    _ => {
-                        return Err(InputError::Internal(format!(
-                            "{}: no image encoder for {format} in this build",
-                            path.display()
-                        )))
-                    }
+                    _ => return Err(OutputError::NotBuilt { what: "PNG textures", feature: "plot" }.into()),
                 };
                 self.write(&bytes)?;
                 Some(ImageTexture { grid, joints, remap, bounds })
             }
         };
-        self.file.commit().map_err(|e| InputError::Output(e.to_string()))?;
+        self.file.commit().map_err(OutputError::from)?;
         Ok(Written { path, hash: Some((self.size, super::manifest::hex(&self.hasher.finalize()))), image })
     }
 }
@@ -284,22 +278,21 @@ pub(super) fn open(
     rows: usize,
     what: &str,
     path: impl Fn(&str) -> PathBuf,
-) -> Result<Vec<TextureFile>, InputError> {
+) -> Result<Vec<TextureFile>, BakeError> {
     if options.format != Format::Npy {
         let gathered = |sheet: &SheetSpec| (rows * sheet.width * sheet.texels.channels() * 4) as u64;
         let total: u64 = sheets.iter().map(gathered).sum();
         if total > IMAGE_MEMORY_LIMIT {
             let largest = sheets.iter().max_by_key(|s| gathered(s)).map_or("", |s| s.label.as_str());
-            return Err(InputError::Animation(format!(
-                "{what}: its {} {} images would gather {} MiB of rows in memory together (the largest, {largest}: \
-                 {} MiB), over IMAGE_MEMORY_LIMIT = {} MiB; bake at a lower rate, clip by clip rather than as one atlas, \
-                 or as npy (streamed)",
-                sheets.len(),
-                options.format,
-                total.div_ceil(1 << 20),
-                sheets.iter().map(gathered).max().unwrap_or(0).div_ceil(1 << 20),
-                IMAGE_MEMORY_LIMIT >> 20
-            )));
+            return Err(Refusal::ImagesMemory {
+                texture: what.into(),
+                images: sheets.len(),
+                format: options.format,
+                mib: total.div_ceil(1 << 20),
+                largest: largest.into(),
+                largest_mib: sheets.iter().map(gathered).max().unwrap_or(0).div_ceil(1 << 20),
+            }
+            .into());
         }
     }
     sheets.iter().map(|sheet| TextureFile::create(path(&sheet.suffix), options, sheet, rows, what)).collect()
@@ -344,7 +337,7 @@ pub(super) fn stream(
             }
         }
         drop(send);
-        let written = writer.join().unwrap_or_else(|_| Err(InputError::Internal("the texture writer panicked".into())));
+        let written = writer.join().unwrap_or_else(|_| Err(InternalError::Panicked("texture writer").into()));
         computed.and(written.map_err(BakeError::from))
     })
 }

@@ -5,7 +5,7 @@
 
 use super::image::Grid;
 use super::texture::TextureKind;
-use quatcurve_anim::error::InputError;
+use crate::error::{BakeError, Refusal};
 use quatcurve_formats::mesh::SkinnedPrimitive;
 use serde_json::{json, Value};
 
@@ -32,7 +32,7 @@ pub fn address(v: usize, frame_width: usize) -> [f32; 2] {
 /// # Errors
 /// [`InputError::Animation`] naming a primitive whose frame cannot fit that side, or a GLB
 /// over 4 GiB.
-pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>, InputError> {
+pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>, BakeError> {
     let mut bin: Vec<u8> = Vec::new();
     let (mut views, mut accessors, mut meshes, mut nodes) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     // One buffer view and accessor of `bytes` (already little-endian), 4-byte aligned.
@@ -47,7 +47,7 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
     };
     for (k, p) in primitives.iter().enumerate() {
         let frame_width = Grid::new(TextureKind::Vertex, p.vertices(), 1, max_size)
-            .map_err(|e| InputError::Animation(format!("{}: {e}", p.name)))?
+            .map_err(|error| Refusal::Image { texture: p.name.clone(), error })?
             .frame_width;
         let count = p.vertices();
         let positions: Vec<[f32; 3]> = p.bind.positions.iter().map(|v| v.map(|c| c as f32)).collect();
@@ -109,5 +109,5 @@ pub fn write(primitives: &[SkinnedPrimitive], max_size: usize) -> Result<Vec<u8>
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    quatcurve_formats::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")
+    Ok(quatcurve_formats::glb::assemble(&document, bin, "the mesh GLB would exceed 4 GiB, the most a GLB can hold")?)
 }

@@ -2,7 +2,7 @@
 //! is reported while the others are baked. The command line's own tests keep to its flags,
 //! exit codes and file names.
 
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{InputError, OutputError};
 use quatcurve_bake::error::BakeError;
 use quatcurve_bake::sidecar::Sidecar;
 use quatcurve_bake::{BakeJob, BakeOptions};
@@ -82,7 +82,9 @@ fn a_pose_archive_baked_into_its_own_directory_is_refused_before_anything_is_rea
     std::fs::write(&input, "not an archive").unwrap();
     let error = BakeJob::new(vec![input], dir.path()).run(&cpu(), &()).unwrap_err();
     match &error {
-        FileJobError::Job(message) => assert!(message.contains("would overwrite the input"), "{message}"),
+        FileJobError::Refused { error, job: "baked" } => {
+            assert!(matches!(**error, InputError::Output(OutputError::OverwritesInput(_))), "{error:?}");
+        }
         other => panic!("expected the job refused, got {other:?}"),
     }
     assert!(!dir.path().join("walk.json").exists());

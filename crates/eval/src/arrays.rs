@@ -13,14 +13,103 @@ use std::path::Path;
 
 /// Why arrays could not be read as tracks: the file, the array and the rule broken.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}: {array}: {message}")]
+#[error("{path}: {array}: {rule}")]
 pub struct ArrayError {
     /// The file.
     pub path: String,
     /// The array (`rotations`, `times`, ...), or `file`.
     pub array: String,
     /// What is wrong.
-    pub message: String,
+    pub rule: ArrayRule,
+}
+
+/// The rule an array (or the file holding it) breaks.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ArrayRule {
+    /// The file or archive member could not be opened or read.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// The archive's directory could not be read, or a member of it.
+    #[error("{0}")]
+    Zip(#[from] npyz::zip::result::ZipError),
+    /// An array the archive must hold.
+    #[error("missing: the archive needs a rotations array [tracks, keys, 4]")]
+    MissingRotations,
+    /// A key rate that is not a positive number.
+    #[error("the key rate must be a positive number of keys per second, not {0}")]
+    KeyRate(f64),
+    /// Times and a key rate both given.
+    #[error("the archive has times and a key rate was given; use one")]
+    TimesAndKeyRate,
+    /// A shape other than the one expected.
+    #[error("shape {shape:?}; expected {expected}")]
+    Shape {
+        /// The array's shape.
+        shape: Vec<u64>,
+        /// The shapes it may have, in words.
+        expected: String,
+    },
+    /// A shape with no element.
+    #[error("shape {0:?} holds no keys")]
+    Empty(Vec<u64>),
+    /// A shape whose element count overflows.
+    #[error("shape {0:?} overflows")]
+    Overflow(Vec<u64>),
+    /// Fortran order, which would be read transposed.
+    #[error("Fortran order; save it C-contiguous (numpy.ascontiguousarray)")]
+    Fortran,
+    /// A structured dtype.
+    #[error("structured dtype; expected float32, float64 or unicode strings")]
+    Structured,
+    /// A dtype npyz cannot read as the type asked for.
+    #[error("{0}")]
+    DtypeRead(#[from] npyz::DTypeError),
+    /// A dtype other than the ones read.
+    #[error("dtype {0}; expected float32 or float64")]
+    Dtype(String),
+    /// Strings where floats were asked for.
+    #[error("holds strings; expected float32 or float64")]
+    NotFloats,
+    /// Numbers where strings were asked for.
+    #[error("holds numbers; expected unicode strings (numpy dtype <U)")]
+    NotStrings,
+    /// A shape larger than the bytes present (a crafted header could announce any shape).
+    #[error("shape {shape:?} of {dtype} needs {needs} bytes, the file holds {holds}")]
+    TooLarge {
+        /// The array's shape.
+        shape: Vec<u64>,
+        /// Its dtype, as numpy writes it.
+        dtype: String,
+        /// Bytes its shape needs.
+        needs: u64,
+        /// Bytes present.
+        holds: u64,
+    },
+    /// Data that ends before its shape's count.
+    #[error("the data ends after {read} of the {count} values its shape says")]
+    EndsEarly {
+        /// Values read.
+        read: usize,
+        /// Values its shape says.
+        count: usize,
+    },
+    /// Data that could not be read part way.
+    #[error("after {read} values: {error}")]
+    Data {
+        /// Values read.
+        read: usize,
+        /// Why the next could not be.
+        error: std::io::Error,
+    },
+    /// A count of values other than its shape's.
+    #[error("holds {read} values, its shape says {count}")]
+    Count {
+        /// Values read.
+        read: usize,
+        /// Values its shape says.
+        count: usize,
+    },
 }
 
 /// Compressed data may expand at most this much (deflate's own limit is about 1032:1), so a
@@ -90,18 +179,15 @@ fn shape_text(header: &[u8]) -> Option<&str> {
     Some(&after[open + 1..open + close])
 }
 
-/// Why an array of strings is not the floats asked for.
-const NOT_FLOATS: &str = "holds strings; expected float32 or float64";
-
 /// Reads a float32 or float64 array whose data may take at most `budget` bytes (see
-/// [`read_tracks`] for why); the message says what is wrong, for the caller to name the array.
+/// [`read_tracks`] for why); the rule says what is wrong, for the caller to name the array.
 ///
 /// # Errors
 /// Another dtype, a shape larger than the budget, or data that ends early.
-pub fn read_floats<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Floats, String> {
+pub fn read_floats<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Floats, ArrayRule> {
     match Member::read(npy, budget)? {
         Member::Floats(f) => Ok(f),
-        Member::Strings(..) => Err(NOT_FLOATS.into()),
+        Member::Strings(..) => Err(ArrayRule::NotFloats),
     }
 }
 
@@ -112,9 +198,8 @@ pub fn read_floats<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Floats, Stri
 /// [`ArrayError`] naming the array for a missing `rotations`, a wrong shape or dtype, a shape
 /// larger than the bytes present, or an unreadable file.
 pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, ArrayError> {
-    let err =
-        |array: &str, message: String| ArrayError { path: path.display().to_string(), array: array.into(), message };
-    let file = |e: std::io::Error| err("file", e.to_string());
+    let err = |array: &str, rule: ArrayRule| ArrayError { path: path.display().to_string(), array: array.into(), rule };
+    let file = |e: std::io::Error| err("file", e.into());
     let is_npz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
     let (rotations, times, names, velocities) = if is_npz {
         let mut archive = npyz::npz::NpzArchive::open(path).map_err(file)?;
@@ -125,12 +210,11 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
                 Err(_) => return Ok(None),
             };
             let budget = member_budget(size, compressed);
-            let entry = archive.zip_archive().by_name(&file_name).map_err(|e| err(name, e.to_string()))?;
-            let npy = open_npy(entry).map_err(|e| err(name, e.to_string()))?;
+            let entry = archive.zip_archive().by_name(&file_name).map_err(|e| err(name, e.into()))?;
+            let npy = open_npy(entry).map_err(|e| err(name, e.into()))?;
             Ok(Some(Member::read(npy, budget).map_err(|m| err(name, m))?))
         };
-        let rotations = member("rotations")?
-            .ok_or_else(|| err("rotations", "missing: the archive needs a rotations array [tracks, keys, 4]".into()))?;
+        let rotations = member("rotations")?.ok_or_else(|| err("rotations", ArrayRule::MissingRotations))?;
         (
             rotations.floats("rotations", path)?,
             member("times")?.map(|m| m.floats("times", path)).transpose()?,
@@ -140,24 +224,21 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
     } else {
         let size = std::fs::metadata(path).map_err(file)?.len();
         let npy = open_npy(std::io::BufReader::new(std::fs::File::open(path).map_err(file)?))
-            .map_err(|e| err("rotations", e.to_string()))?;
+            .map_err(|e| err("rotations", e.into()))?;
         (Member::read(npy, size).map_err(|m| err("rotations", m))?.floats("rotations", path)?, None, None, None)
     };
     match (key_rate, &times) {
-        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => {
-            return Err(err("times", format!("the key rate must be a positive number of keys per second, not {rate}")))
-        }
-        (Some(_), Some(_)) => {
-            return Err(err("times", "the archive has times and a key rate was given; use one".into()))
-        }
+        (Some(rate), _) if !(rate.is_finite() && rate > 0.0) => return Err(err("times", ArrayRule::KeyRate(rate))),
+        (Some(_), Some(_)) => return Err(err("times", ArrayRule::TimesAndKeyRate)),
         _ => {}
     }
     let [tracks, keys, 4] = rotations.shape[..] else {
-        return Err(err("rotations", format!("shape {:?}; expected [tracks, keys, 4] (x, y, z, w)", rotations.shape)));
+        let expected = "[tracks, keys, 4] (x, y, z, w)".into();
+        return Err(err("rotations", ArrayRule::Shape { shape: rotations.shape, expected }));
     };
     let (tracks, keys) = (tracks as usize, keys as usize);
     if tracks == 0 || keys == 0 {
-        return Err(err("rotations", format!("shape {:?} holds no keys", rotations.shape)));
+        return Err(err("rotations", ArrayRule::Empty(rotations.shape)));
     }
     let times_of = |t: usize| -> Result<Option<Vec<f64>>, ArrayError> {
         Ok(match (&times, key_rate) {
@@ -165,10 +246,8 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
                 [k] if k as usize == keys => times.data.clone(),
                 [n, k] if n as usize == tracks && k as usize == keys => times.data[t * keys..(t + 1) * keys].to_vec(),
                 _ => {
-                    return Err(err(
-                        "times",
-                        format!("shape {:?}; expected [{keys}] or [{tracks}, {keys}] to match rotations", times.shape),
-                    ))
+                    let expected = format!("[{keys}] or [{tracks}, {keys}] to match rotations");
+                    return Err(err("times", ArrayRule::Shape { shape: times.shape.clone(), expected }));
                 }
             }),
             (None, Some(rate)) => Some((0..keys).map(|k| k as f64 / rate).collect()),
@@ -181,10 +260,8 @@ pub fn read_tracks(path: &Path, key_rate: Option<f64>) -> Result<Vec<Track>, Arr
     };
     if let Some(v) = &velocities {
         if v.shape[..] != [tracks as u64, keys as u64, 3] {
-            return Err(err(
-                "angular_velocities",
-                format!("shape {:?}; expected [{tracks}, {keys}, 3] to match rotations", v.shape),
-            ));
+            let expected = format!("[{tracks}, {keys}, 3] to match rotations");
+            return Err(err("angular_velocities", ArrayRule::Shape { shape: v.shape.clone(), expected }));
         }
     }
     (0..tracks)
@@ -212,41 +289,34 @@ enum Member {
 impl Member {
     /// Reads an array of float32/float64 or unicode strings whose data may take at most
     /// `budget` bytes; elements are pushed as they are read, never preallocated from the shape.
-    fn read<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Self, String> {
+    fn read<R: Read>(npy: NpyFile<R>, budget: u64) -> Result<Self, ArrayRule> {
         let shape = npy.shape().to_vec();
-        let count = shape
-            .iter()
-            .try_fold(1u64, |a, &d| a.checked_mul(d))
-            .ok_or_else(|| format!("shape {shape:?} overflows"))?;
+        let Some(count) = shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d)) else {
+            return Err(ArrayRule::Overflow(shape));
+        };
         // Fortran order would be read transposed without a word.
         if npy.order() == npyz::Order::Fortran && shape.iter().filter(|&&d| d > 1).count() > 1 {
-            return Err("Fortran order; save it C-contiguous (numpy.ascontiguousarray)".into());
+            return Err(ArrayRule::Fortran);
         }
         let DType::Plain(ty) = npy.dtype() else {
-            return Err("structured dtype; expected float32, float64 or unicode strings".into());
+            return Err(ArrayRule::Structured);
         };
-        let item = ty.num_bytes().unwrap_or(0) as u64;
-        if count.saturating_mul(item) > budget {
-            return Err(format!(
-                "shape {shape:?} of {ty} needs {} bytes, the file holds {budget}",
-                count.saturating_mul(item)
-            ));
+        let needs = count.saturating_mul(ty.num_bytes().unwrap_or(0) as u64);
+        if needs > budget {
+            return Err(ArrayRule::TooLarge { shape, dtype: ty.to_string(), needs, holds: budget });
         }
         let capacity = count as usize;
         match (ty.type_char(), ty.size_field()) {
-            (TypeChar::Float, 8) => Ok(Self::Floats(Floats {
-                shape,
-                data: collect(npy.data::<f64>().map_err(|e| e.to_string())?, capacity)?,
-            })),
+            (TypeChar::Float, 8) => Ok(Self::Floats(Floats { shape, data: collect(npy.data::<f64>()?, capacity)? })),
             (TypeChar::Float, 4) => {
-                let data: Vec<f32> = collect(npy.data::<f32>().map_err(|e| e.to_string())?, capacity)?;
+                let data: Vec<f32> = collect(npy.data::<f32>()?, capacity)?;
                 Ok(Self::Floats(Floats { shape, data: data.into_iter().map(f64::from).collect() }))
             }
             (TypeChar::UnicodeStr, _) => {
-                let chars: Vec<Vec<char>> = collect(npy.data::<Vec<char>>().map_err(|e| e.to_string())?, capacity)?;
+                let chars: Vec<Vec<char>> = collect(npy.data::<Vec<char>>()?, capacity)?;
                 Ok(Self::Strings(shape, chars.into_iter().map(|c| c.into_iter().collect()).collect()))
             }
-            _ => Err(format!("dtype {ty}; expected float32 or float64")),
+            _ => Err(ArrayRule::Dtype(ty.to_string())),
         }
     }
 
@@ -254,34 +324,34 @@ impl Member {
         match self {
             Self::Floats(f) => Ok(f),
             Self::Strings(..) => {
-                Err(ArrayError { path: path.display().to_string(), array: array.into(), message: NOT_FLOATS.into() })
+                Err(ArrayError { path: path.display().to_string(), array: array.into(), rule: ArrayRule::NotFloats })
             }
         }
     }
 
     fn strings(self, array: &str, tracks: usize, path: &Path) -> Result<Vec<String>, ArrayError> {
-        let err = |message: String| ArrayError { path: path.display().to_string(), array: array.into(), message };
+        let err = |rule: ArrayRule| ArrayError { path: path.display().to_string(), array: array.into(), rule };
         match self {
             Self::Strings(shape, names) if shape[..] == [tracks as u64] => Ok(names),
-            Self::Strings(shape, _) => Err(err(format!("shape {shape:?}; expected [{tracks}] to match rotations"))),
-            Self::Floats(_) => Err(err("holds numbers; expected unicode strings (numpy dtype <U)".into())),
+            Self::Strings(shape, _) => {
+                Err(err(ArrayRule::Shape { shape, expected: format!("[{tracks}] to match rotations") }))
+            }
+            Self::Floats(_) => Err(err(ArrayRule::NotStrings)),
         }
     }
 }
 
 /// Collects a reader's items, growing with the data actually read.
-fn collect<T>(items: impl Iterator<Item = std::io::Result<T>>, count: usize) -> Result<Vec<T>, String> {
+fn collect<T>(items: impl Iterator<Item = std::io::Result<T>>, count: usize) -> Result<Vec<T>, ArrayRule> {
     let mut out = Vec::with_capacity(count.min(1 << 20));
     for item in items {
-        out.push(item.map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => {
-                format!("the data ends after {} of the {count} values its shape says", out.len())
-            }
-            _ => format!("after {} values: {e}", out.len()),
+        out.push(item.map_err(|error| match error.kind() {
+            std::io::ErrorKind::UnexpectedEof => ArrayRule::EndsEarly { read: out.len(), count },
+            _ => ArrayRule::Data { read: out.len(), error },
         })?);
     }
     if out.len() != count {
-        return Err(format!("holds {} values, its shape says {count}", out.len()));
+        return Err(ArrayRule::Count { read: out.len(), count });
     }
     Ok(out)
 }

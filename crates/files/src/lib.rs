@@ -4,10 +4,12 @@
 //! job's to report (the bake's `BakeError`, the fit's `FitInputError`), and the job goes on
 //! with the others.
 
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{InputError, OutputError};
 use quatcurve_eval::io::{AtomicFile, IoError};
 use quatcurve_formats::source::extension;
 use std::path::{Path, PathBuf};
+
+pub mod shard;
 
 /// Why a job over files could not start, or could not keep its manifest.
 #[derive(Debug, thiserror::Error)]
@@ -22,10 +24,27 @@ pub enum FileJobError {
         /// What is wrong with it, said after the name.
         reason: String,
     },
-    /// The job as a whole is inconsistent (two inputs writing the same outputs, a scheduler's
-    /// index without its count).
-    #[error("{0}")]
-    Job(String),
+    /// Two inputs that would write the same outputs.
+    #[error("{} and {} would both write {stem}.*; bake them into separate output directories", first.display(), second.display())]
+    SameStem {
+        /// The first input.
+        first: PathBuf,
+        /// The second.
+        second: PathBuf,
+        /// The stem both would write.
+        stem: String,
+    },
+    /// An output refused before the work (one that would overwrite its input), so nothing ran.
+    #[error("{error} (nothing was {job})")]
+    Refused {
+        /// Why.
+        error: Box<InputError>,
+        /// What the job does, past tense (`baked`).
+        job: &'static str,
+    },
+    /// A scheduler's environment that names no share of the job.
+    #[error(transparent)]
+    Shard(#[from] shard::ShardError),
     /// The manifest could not be written.
     #[error(transparent)]
     Manifest(#[from] IoError),
@@ -78,11 +97,11 @@ pub fn output_stems(inputs: &[PathBuf]) -> Result<Vec<String>, FileJobError> {
     let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::new();
     for (stem, path) in stems.iter().zip(inputs) {
         if let Some(first) = seen.insert(stem, path) {
-            return Err(FileJobError::Job(format!(
-                "{} and {} would both write {stem}.*; bake them into separate output directories",
-                first.display(),
-                path.display(),
-            )));
+            return Err(FileJobError::SameStem {
+                first: first.to_path_buf(),
+                second: path.to_path_buf(),
+                stem: stem.to_string(),
+            });
         }
     }
     Ok(stems)
@@ -140,10 +159,7 @@ pub fn refuse_overwriting_input(output: &Path, source: &str) -> Result<(), Input
         _ => false,
     };
     if same {
-        return Err(InputError::Output(format!(
-            "{} would overwrite the input; choose another output directory",
-            output.display()
-        )));
+        return Err(OutputError::OverwritesInput(output.to_path_buf()).into());
     }
     Ok(())
 }

@@ -7,6 +7,7 @@
 
 use super::{bracket, fit_vectors, spans_of_order, RotationStart};
 use quatcurve_analysis::vertex_error::{joint_errors, object_space, Transform};
+use quatcurve_anim::error::AnimationError;
 use quatcurve_anim::{Animation, Channel, Property};
 use quatcurve_core::quat::{tan_quarter, QuatF64, Vec3F64};
 use quatcurve_eval::error::Number;
@@ -107,9 +108,28 @@ pub struct ClipFit {
 /// Why a clip was not fitted.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum FitClipError {
-    /// The clip or the budget cannot be fitted at all.
-    #[error("{0}")]
-    Input(String),
+    /// A budget length that is not positive.
+    #[error("the {name} is {value}; it must be a positive length")]
+    Budget {
+        /// The budget's length (`max error`).
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A hierarchy that is not a tree.
+    #[error(transparent)]
+    Hierarchy(#[from] AnimationError),
+    /// A clip index past the clips.
+    #[error("no clip {clip}: the animation has {clips}")]
+    NoClip {
+        /// The index asked for.
+        clip: usize,
+        /// Clips there are.
+        clips: usize,
+    },
+    /// A channel that holds control points already.
+    #[error("{0} is fitted already: it holds control points, not keys")]
+    Fitted(String),
     /// Every fit was over the budget; the errors of the closest one, in file units.
     #[error(
         "no fit within the budget after {SCALINGS} scalings of the tolerances; the closest was {} at frames and {} \
@@ -129,7 +149,7 @@ pub enum FitClipError {
 ///
 /// # Errors
 /// A clip index out of range, a budget length that is not positive, a hierarchy that is not
-/// a tree ([`FitClipError::Input`]), or a budget no fit meets ([`FitClipError::OverBudget`]).
+/// a tree, a channel fitted already, or a budget no fit meets ([`FitClipError::OverBudget`]).
 pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<ClipFit, FitClipError> {
     for (name, value) in [
         ("max error", budget.max_error),
@@ -138,26 +158,16 @@ pub fn fit_clip(animation: &Animation, clip: usize, budget: &Budget) -> Result<C
     ] {
         // An infinite between error leaves the points between frames unchecked.
         if !(value > 0.0 && (value.is_finite() || name == "between error")) {
-            return Err(FitClipError::Input(format!("the {name} is {value}; it must be a positive length")));
+            return Err(FitClipError::Budget { name, value });
         }
     }
-    let order = animation.parents_first().map_err(|e| FitClipError::Input(e.to_string()))?;
+    let order = animation.parents_first()?;
     let parents = animation.parents();
-    let source = animation
-        .clips
-        .get(clip)
-        .ok_or_else(|| FitClipError::Input(format!("no clip {clip}: the animation has {}", animation.clips.len())))?;
+    let source = animation.clips.get(clip).ok_or(FitClipError::NoClip { clip, clips: animation.clips.len() })?;
     let channels = &source
         .channels
         .iter()
-        .map(|c| {
-            Keyed::of(c).ok_or_else(|| {
-                FitClipError::Input(format!(
-                    "{} is fitted already: it holds control points, not keys",
-                    animation.label(source, c)
-                ))
-            })
-        })
+        .map(|c| Keyed::of(c).ok_or_else(|| FitClipError::Fitted(animation.label(source, c))))
         .collect::<Result<Vec<_>, _>>()?;
     let mut frames: Vec<f64> = channels.iter().flat_map(|c| c.times.iter().copied()).collect();
     frames.sort_by(f64::total_cmp);

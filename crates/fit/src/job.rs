@@ -4,7 +4,7 @@
 //! input); a failed input is reported and the others still finish.
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{InputError, OutputError};
 use quatcurve_anim::{Animation, GLTF_UNIT_CM};
 use quatcurve_eval::error::Number;
 use quatcurve_eval::io::IoError;
@@ -279,10 +279,10 @@ impl FitJob {
             let path = self.output.join(format!("{stem}.{EXTENSION}"));
             let refused = refuse_overwriting_input(&path, &input.display().to_string())
                 .err()
-                .or_else(|| path.is_dir().then(|| InputError::Output(format!("{}: is a directory", path.display()))));
+                .or_else(|| path.is_dir().then(|| OutputError::IsDirectory(path.clone()).into()));
             if let Some(e) = refused {
                 output.remove_if_unused();
-                return Err(FileJobError::Job(format!("{e} (nothing was fitted)")));
+                return Err(FileJobError::Refused { error: Box::new(e), job: "fitted" });
             }
         }
         let inputs = inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();

@@ -7,7 +7,7 @@
 //! the hierarchy text byte for byte and converts each resampled rotation to the joint's own
 //! channel order, unwrapping angles to the previous frame so curves stay continuous.
 
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use std::fmt::Write as _;
@@ -83,15 +83,10 @@ pub fn parse(text: &str) -> Result<BvhFile, InputError> {
 /// not the container's, in order.
 pub fn skeleton(skeleton: &quatcurve_qcf::BvhSkeleton, animation: &Animation) -> Result<BvhFile, InputError> {
     let joints = parse_hierarchy(&skeleton.hierarchy)?;
-    let names = |j: &[String]| j.join(", ");
-    let (ours, theirs): (Vec<String>, Vec<String>) =
+    let (hierarchy, skeleton_joints): (Vec<String>, Vec<String>) =
         (joints.iter().map(|j| j.name.clone()).collect(), animation.joints.iter().map(|j| j.name.clone()).collect());
-    if ours != theirs {
-        return Err(InputError::Animation(format!(
-            "the container's BVH hierarchy has joints [{}] but its skeleton [{}]",
-            names(&ours),
-            names(&theirs)
-        )));
+    if hierarchy != skeleton_joints {
+        return Err(AnimationError::HierarchyNotSkeleton { hierarchy, skeleton: skeleton_joints }.into());
     }
     Ok(BvhFile { joints, frame_time: skeleton.frame_time, frames: Vec::new(), hierarchy: skeleton.hierarchy.clone() })
 }

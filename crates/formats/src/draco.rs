@@ -5,6 +5,38 @@
 
 use draco_core::{DataType, DecoderBuffer, FaceIndex, Mesh, MeshDecoder, PointAttribute, PointIndex};
 
+/// Why a Draco primitive could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum DracoError {
+    /// The decoder refused the bitstream.
+    #[error(transparent)]
+    Decode(#[from] draco_core::DracoError),
+    /// No attribute of that unique id.
+    #[error("no Draco attribute {0}")]
+    NoAttribute(u32),
+    /// An attribute with another component count.
+    #[error("Draco attribute {id} has {has} components, not {expected}")]
+    Components {
+        /// The attribute's unique id.
+        id: u32,
+        /// Its components.
+        has: u8,
+        /// The components glTF's attribute has.
+        expected: usize,
+    },
+    /// An attribute of a type glTF does not allow there.
+    #[error("Draco attribute {id} holds {data_type}, which glTF does not allow here")]
+    DataType {
+        /// The attribute's unique id.
+        id: u32,
+        /// Its type, as the decoder names it.
+        data_type: String,
+    },
+    /// A point whose value lies outside the decoded data.
+    #[error("point {0}'s value lies outside the decoded data")]
+    OutsideData(usize),
+}
+
 /// A decoded Draco primitive.
 pub(super) struct Decoded {
     mesh: Mesh,
@@ -14,10 +46,10 @@ impl Decoded {
     /// Decodes a Draco mesh bitstream.
     ///
     /// # Errors
-    /// The decoder's, in words.
-    pub(super) fn new(bytes: &[u8]) -> Result<Self, String> {
+    /// [`DracoError::Decode`] with the decoder's error.
+    pub(super) fn new(bytes: &[u8]) -> Result<Self, DracoError> {
         let mut mesh = Mesh::new();
-        MeshDecoder::new().decode(&mut DecoderBuffer::new(bytes), &mut mesh).map_err(|e| format!("{e:?}"))?;
+        MeshDecoder::new().decode(&mut DecoderBuffer::new(bytes), &mut mesh)?;
         Ok(Self { mesh })
     }
 
@@ -35,31 +67,36 @@ impl Decoded {
     /// are, integers as their values or, when `normalized`, divided by their type's largest.
     ///
     /// # Errors
-    /// In words: no such attribute, another component count, a type glTF does not allow, a
-    /// point whose value lies outside the decoded data.
-    pub(super) fn attribute<const N: usize>(&self, id: u32, normalized: bool) -> Result<Vec<[f64; N]>, String> {
-        let attribute = self.mesh.attribute_by_unique_id(id).ok_or_else(|| format!("no Draco attribute {id}"))?;
+    /// No such attribute, another component count, a type glTF does not allow, a point whose
+    /// value lies outside the decoded data.
+    pub(super) fn attribute<const N: usize>(&self, id: u32, normalized: bool) -> Result<Vec<[f64; N]>, DracoError> {
+        let attribute = self.mesh.attribute_by_unique_id(id).ok_or(DracoError::NoAttribute(id))?;
         if usize::from(attribute.num_components()) != N {
-            return Err(format!("Draco attribute {id} has {} components, not {N}", attribute.num_components()));
+            return Err(DracoError::Components { id, has: attribute.num_components(), expected: N });
         }
         let (size, scale): (usize, f64) = match attribute.data_type() {
             DataType::Float32 => (4, 1.0),
             DataType::Uint8 => (1, if normalized { 255.0 } else { 1.0 }),
             DataType::Uint16 => (2, if normalized { 65535.0 } else { 1.0 }),
-            other => return Err(format!("Draco attribute {id} holds {other:?}, which glTF does not allow here")),
+            other => return Err(DracoError::DataType { id, data_type: format!("{other:?}") }),
         };
         (0..self.points()).map(|p| value::<N>(attribute, p, size, scale)).collect()
     }
 }
 
 /// Point `p`'s value of `attribute`, `size`-byte components, integers divided by `scale`.
-fn value<const N: usize>(attribute: &PointAttribute, p: usize, size: usize, scale: f64) -> Result<[f64; N], String> {
+fn value<const N: usize>(
+    attribute: &PointAttribute,
+    p: usize,
+    size: usize,
+    scale: f64,
+) -> Result<[f64; N], DracoError> {
     let index = attribute.mapped_index(PointIndex(p as u32)).0 as usize;
     let stride = usize::try_from(attribute.byte_stride()).unwrap_or(0);
     let mut bytes = [0u8; 16];
     let bytes = &mut bytes[..N * size];
     if !attribute.buffer().try_read(index * stride, bytes) {
-        return Err(format!("point {p}'s value lies outside the decoded data"));
+        return Err(DracoError::OutsideData(p));
     }
     Ok(std::array::from_fn(|c| {
         let b = &bytes[c * size..(c + 1) * size];

@@ -14,7 +14,7 @@
 //! which always multiplies scales down the chain, poses it as FBX does.
 
 use crate::gltf::{self, GltfFile, UriPolicy};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{FormatError, InputError};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::path::Path;
@@ -37,8 +37,14 @@ pub struct FbxFile {
     pub source_up: &'static str,
 }
 
-fn bad(reason: impl std::fmt::Display) -> InputError {
-    InputError::Fbx(reason.to_string())
+/// A rule of the scene broken, found here.
+fn bad(rule: String) -> InputError {
+    InputError::Fbx(FormatError::rule(rule))
+}
+
+/// ufbx's refusal (its description is the only form it has) of `what`.
+fn refused(what: String, error: &ufbx::Error) -> InputError {
+    InputError::Fbx(FormatError::caused(what, error.description.to_string()))
 }
 
 /// Reads an FBX file (binary or ASCII).
@@ -67,8 +73,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
         load_external_files: false,
         ..Default::default()
     };
-    let scene =
-        ufbx::load_memory(bytes, options).map_err(|e| bad(format!("not a readable FBX file: {}", &*e.description)))?;
+    let scene = ufbx::load_memory(bytes, options).map_err(|e| refused("not a readable FBX file".into(), &e))?;
     let glb = to_glb(&scene)?;
     // Only the GLB's own chunk is read: no URI is followed.
     let gltf = gltf::from_bytes(&glb, Path::new(""), UriPolicy::default())?;
@@ -344,7 +349,7 @@ fn animations(
     let mut animations = Vec::new();
     for (stack, name) in scene.anim_stacks.iter().zip(clip_names(scene)) {
         let baked = ufbx::bake_anim(scene, &stack.anim, ufbx::BakeOpts::default())
-            .map_err(|e| bad(format!("animation stack '{}': {}", &*stack.element.name, &*e.description)))?;
+            .map_err(|e| refused(format!("animation stack '{}'", &*stack.element.name), &e))?;
         let (mut samplers, mut channels) = (Vec::new(), Vec::new());
         for node in baked.nodes.iter() {
             let Some(&target) = index.get(&node.typed_id) else { continue };

@@ -6,7 +6,7 @@
 
 use quatcurve_anim::{Clip, ClipFrames, Property};
 
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError, InternalError};
 
 use serde_json::{json, Value};
 
@@ -346,16 +346,17 @@ pub(super) fn write(
 /// when the file would exceed the 4 GiB a GLB can hold.
 ///
 /// # Errors
-/// [`InputError::Animation`] saying `too_large`.
-pub fn assemble(json: &Value, bin: Vec<u8>, too_large: &str) -> Result<Vec<u8>, InputError> {
+/// [`AnimationError::GlbTooLarge`] saying `too_large`.
+pub fn assemble(json: &Value, bin: Vec<u8>, too_large: &'static str) -> Result<Vec<u8>, InputError> {
     if u32::try_from(bin.len() + (1 << 20)).is_err() {
-        return Err(InputError::Animation(too_large.into()));
+        return Err(AnimationError::GlbTooLarge(too_large).into());
     }
-    let text = serde_json::to_vec(json).map_err(|e| InputError::Internal(e.to_string()))?;
+    let encode = |error| InternalError::Encode { what: "the GLB".into(), error };
+    let text = serde_json::to_vec(json).map_err(|e| encode(e.into()))?;
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header { magic: *GLB_MAGIC, version: 2, length: 0 },
         json: text.into(),
         bin: Some(bin.into()),
     };
-    glb.to_vec().map_err(|e| InputError::Internal(format!("cannot assemble GLB: {e}")))
+    Ok(glb.to_vec().map_err(|e| encode(e.into()))?)
 }

@@ -9,7 +9,7 @@
 use super::glb::GLB_MAGIC;
 use base64::Engine;
 use gltf::json::validation::Checked;
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{FormatError, InputError};
 use quatcurve_anim::{Animation, Channel, ChannelCurve, Clip, ClipFrames, Interpolation, Joint, Property, Skin};
 use serde_json::Value;
 use std::path::Path;
@@ -27,8 +27,104 @@ pub struct GltfFile {
     samplers: Vec<Vec<(usize, usize)>>,
 }
 
-fn input(msg: String) -> InputError {
-    InputError::Gltf(msg)
+/// A rule of the file broken, found here.
+fn input(rule: String) -> InputError {
+    InputError::Gltf(FormatError::rule(rule))
+}
+
+/// A rule of the file broken at `rule`, found by `error` (the parser's, or a check's here).
+fn caused(rule: String, error: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> InputError {
+    InputError::Gltf(FormatError::caused(rule, error))
+}
+
+/// Why an accessor cannot be read as the element it is used for.
+#[derive(Debug, thiserror::Error)]
+pub enum AccessorError {
+    /// No elements.
+    #[error("count is 0")]
+    Empty,
+    /// A sparse accessor where keys are read.
+    #[error("sparse accessors are not supported for animation")]
+    Sparse,
+    /// A component or element type the reader does not know.
+    #[error("unknown component type or element type")]
+    UnknownType,
+    /// An element type glTF does not allow where it is used.
+    #[error("{element} of {component} is not an element type glTF allows here")]
+    NotAllowed {
+        /// The element type (`Vec3`).
+        element: String,
+        /// The component type (`F32`).
+        component: String,
+    },
+    /// No buffer view.
+    #[error("no buffer view (an all-zero accessor cannot hold keys)")]
+    NoView,
+    /// A byte stride smaller than an element.
+    #[error("byte stride {stride} is smaller than its {element}-byte element")]
+    Stride {
+        /// The view's stride.
+        stride: usize,
+        /// An element's bytes.
+        element: usize,
+    },
+    /// Elements whose extent overflows.
+    #[error("count {count} with stride {stride} overflows")]
+    Overflow {
+        /// Elements.
+        count: usize,
+        /// The view's stride.
+        stride: usize,
+    },
+    /// Elements that overrun the buffer view.
+    #[error("count {count} with stride {stride} needs {needs} bytes, its buffer view holds {holds}")]
+    Overrun {
+        /// Elements.
+        count: usize,
+        /// The view's stride.
+        stride: usize,
+        /// Bytes they need.
+        needs: usize,
+        /// Bytes the view holds.
+        holds: usize,
+    },
+}
+
+/// Why a buffer URI is not read.
+#[derive(Debug, thiserror::Error)]
+pub enum UriError {
+    /// A data URI that is not base64.
+    #[error("only base64 data URIs are supported")]
+    NotBase64,
+    /// Base64 that does not decode.
+    #[error("bad base64: {0}")]
+    Base64(#[from] base64::DecodeError),
+    /// A scheme other than `data:` and `file:`.
+    #[error("{0} URIs are not read")]
+    Scheme(String),
+    /// A path the policy refuses.
+    #[error(
+        "{0}; only data URIs and relative paths inside the file's directory are read (the bake option to allow \
+         external URIs reads it anyway)"
+    )]
+    Refused(&'static str),
+    /// A `%` escape that is not two hex digits.
+    #[error("a % not followed by two hex digits")]
+    Escape,
+    /// A decoded path that is not UTF-8.
+    #[error("the decoded path is not UTF-8")]
+    NotUtf8,
+    /// A NUL in the decoded path.
+    #[error("a NUL in the path")]
+    Nul,
+    /// A file that cannot be read.
+    #[error("{}: {error}", file.display())]
+    Read {
+        /// The file.
+        file: std::path::PathBuf,
+        /// Why.
+        error: std::io::Error,
+    },
 }
 
 /// Which buffer URIs a glTF file may name (DESIGN: files made by others are untrusted).
@@ -59,15 +155,15 @@ pub fn read(path: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
 pub fn from_bytes(bytes: &[u8], dir: &Path, uris: UriPolicy) -> Result<GltfFile, InputError> {
     check_magic(bytes)?;
     let gltf =
-        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| input(format!("not a valid glTF file: {e}")))?;
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| caused("not a valid glTF file".into(), e))?;
     validate(gltf.document.as_json())?;
     let json: Value = if bytes.starts_with(GLB_MAGIC) {
-        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| input(format!("not a valid GLB file: {e}")))?;
+        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| caused("not a valid GLB file".into(), e))?;
         serde_json::from_slice(&glb.json)
     } else {
         serde_json::from_slice(bytes)
     }
-    .map_err(|e| input(format!("not valid glTF JSON: {e}")))?;
+    .map_err(|e| caused("not valid glTF JSON".into(), e))?;
     let buffers = read_buffers(&gltf, dir, uris)?;
     let joints = read_joints(&gltf)?;
     let skins = read_skins(&gltf, &buffers)?;
@@ -129,8 +225,9 @@ fn read_buffers(gltf: &gltf::Gltf, dir: &Path, uris: UriPolicy) -> Result<Vec<Ve
                 .blob
                 .clone()
                 .ok_or_else(|| input(format!("buffer {} refers to a missing BIN chunk", buffer.index())))?,
-            gltf::buffer::Source::Uri(uri) => load_uri(dir, uri, uris)
-                .map_err(|e| input(format!("buffer {} (uri {uri:.60}): {e}", buffer.index())))?,
+            gltf::buffer::Source::Uri(uri) => {
+                load_uri(dir, uri, uris).map_err(|e| caused(format!("buffer {} (uri {uri:.60})", buffer.index()), e))?
+            }
         };
         if data.len() < buffer.length() {
             return Err(input(format!(
@@ -200,7 +297,7 @@ fn read_skins(gltf: &gltf::Gltf, buffers: &[Vec<u8>]) -> Result<Vec<Skin>, Input
             None => vec![IDENTITY_3X4; joints.len()],
             Some(accessor) => {
                 check_accessor(&accessor, &root.accessors[accessor.index()], Element::Matrices).map_err(|e| {
-                    input(format!("skin '{name}': inverse bind matrices (accessor {}): {e}", accessor.index()))
+                    caused(format!("skin '{name}': inverse bind matrices (accessor {})", accessor.index()), e)
                 })?;
                 let reader = skin.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
                 let matrices: Vec<[f64; 12]> =
@@ -255,7 +352,7 @@ fn read_channel(
         [("key times", sampler.input(), Element::Times), ("key values", sampler.output(), values_kind)]
     {
         check_accessor(&accessor, &root.accessors[accessor.index()], kind)
-            .map_err(|e| input(format!("{label}: {what} (accessor {}): {e}", accessor.index())))?;
+            .map_err(|e| caused(format!("{label}: {what} (accessor {})", accessor.index()), e))?;
     }
     let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     let times: Vec<f64> = reader
@@ -383,20 +480,20 @@ pub(super) fn check_accessor(
     accessor: &gltf::Accessor,
     json: &gltf::json::Accessor,
     kind: Element,
-) -> Result<(), String> {
+) -> Result<(), AccessorError> {
     use gltf::json::accessor::{ComponentType as C, GenericComponentType, Type};
     let count = accessor.count();
     if count == 0 {
-        return Err("count is 0".into());
+        return Err(AccessorError::Empty);
     }
     if accessor.sparse().is_some() {
-        return Err("sparse accessors are not supported for animation".into());
+        return Err(AccessorError::Sparse);
     }
     // The element types glTF allows for animation samplers (the readers assume them).
     let (Checked::Valid(GenericComponentType(component)), Checked::Valid(element_type)) =
         (&json.component_type, &json.type_)
     else {
-        return Err("unknown component type or element type".into());
+        return Err(AccessorError::UnknownType);
     };
     let allowed = match kind {
         Element::Times => *element_type == Type::Scalar && *component == C::F32,
@@ -415,25 +512,25 @@ pub(super) fn check_accessor(
         }
     };
     if !allowed {
-        return Err(format!("{element_type:?} of {component:?} is not an element type glTF allows here"));
+        return Err(AccessorError::NotAllowed {
+            element: format!("{element_type:?}"),
+            component: format!("{component:?}"),
+        });
     }
-    let view = accessor.view().ok_or("no buffer view (an all-zero accessor cannot hold keys)")?;
+    let view = accessor.view().ok_or(AccessorError::NoView)?;
     let element = accessor.size();
     let stride = view.stride().unwrap_or(element);
     if stride < element {
-        return Err(format!("byte stride {stride} is smaller than its {element}-byte element"));
+        return Err(AccessorError::Stride { stride, element });
     }
-    let needed = (count - 1)
+    let needs = (count - 1)
         .checked_mul(stride)
         .and_then(|n| n.checked_add(element))
         .and_then(|n| n.checked_add(accessor.offset()))
-        .ok_or_else(|| format!("count {count} with stride {stride} overflows"))?;
+        .ok_or(AccessorError::Overflow { count, stride })?;
     // (Every view lies inside its buffer: `from_bytes` checked them all.)
-    if needed > view.length() {
-        return Err(format!(
-            "count {count} with stride {stride} needs {needed} bytes, its buffer view holds {}",
-            view.length()
-        ));
+    if needs > view.length() {
+        return Err(AccessorError::Overrun { count, stride, needs, holds: view.length() });
     }
     Ok(())
 }
@@ -441,38 +538,30 @@ pub(super) fn check_accessor(
 /// A buffer URI: base64 `data:`, or a relative path (percent-decoded) that stays inside `dir`
 /// after resolving `..` and symlinks. Anything else (absolute paths, `file:` and other
 /// schemes, escapes from `dir`) only with [`UriPolicy::allow_external`].
-fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, String> {
+fn load_uri(dir: &Path, uri: &str, policy: UriPolicy) -> Result<Vec<u8>, UriError> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are supported")?;
-        return base64::engine::general_purpose::STANDARD.decode(data).map_err(|e| format!("bad base64: {e}"));
+        let (_, data) = rest.split_once(";base64,").ok_or(UriError::NotBase64)?;
+        return Ok(base64::engine::general_purpose::STANDARD.decode(data)?);
     }
-    let refuse = |why: &str| {
-        format!(
-            "{why}; only data URIs and relative paths inside the file's directory are read (the bake option to \
-            allow external URIs reads it anyway)"
-        )
-    };
     let (path, external) = match uri.strip_prefix("file://") {
         Some(rest) => (percent_decode(rest)?, true),
-        None if has_scheme(uri) => {
-            return Err(format!("{} URIs are not read", uri.split(':').next().unwrap_or_default()))
-        }
+        None if has_scheme(uri) => return Err(UriError::Scheme(uri.split(':').next().unwrap_or_default().into())),
         None => (percent_decode(uri)?, false),
     };
     let file = dir.join(&path);
     if !policy.allow_external {
         if external || Path::new(&path).is_absolute() {
-            return Err(refuse("an absolute path"));
+            return Err(UriError::Refused("an absolute path"));
         }
         let inside = match (std::fs::canonicalize(&file), std::fs::canonicalize(dir)) {
             (Ok(file), Ok(dir)) => file.starts_with(dir),
-            (Err(e), _) | (_, Err(e)) => return Err(format!("{}: {e}", file.display())),
+            (Err(error), _) | (_, Err(error)) => return Err(UriError::Read { file, error }),
         };
         if !inside {
-            return Err(refuse("it leaves the file's directory"));
+            return Err(UriError::Refused("it leaves the file's directory"));
         }
     }
-    std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))
+    std::fs::read(&file).map_err(|error| UriError::Read { file, error })
 }
 
 /// `scheme:` per RFC 3986 (a letter, then letters, digits, `+ - .`), as opposed to a path.
@@ -484,7 +573,7 @@ fn has_scheme(uri: &str) -> bool {
 }
 
 /// Decodes `%XX` escapes (glTF URIs are percent-encoded: `my%20file.bin`).
-fn percent_decode(uri: &str) -> Result<String, String> {
+fn percent_decode(uri: &str) -> Result<String, UriError> {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -494,16 +583,16 @@ fn percent_decode(uri: &str) -> Result<String, String> {
                 .get(i + 1..i + 3)
                 .and_then(|h| std::str::from_utf8(h).ok())
                 .and_then(|h| u8::from_str_radix(h, 16).ok());
-            out.push(hex.ok_or("a % not followed by two hex digits")?);
+            out.push(hex.ok_or(UriError::Escape)?);
             i += 3;
         } else {
             out.push(bytes[i]);
             i += 1;
         }
     }
-    let path = String::from_utf8(out).map_err(|_| "the decoded path is not UTF-8".to_string())?;
+    let path = String::from_utf8(out).map_err(|_| UriError::NotUtf8)?;
     if path.contains('\0') {
-        return Err("a NUL in the path".into());
+        return Err(UriError::Nul);
     }
     Ok(path)
 }
@@ -519,7 +608,7 @@ impl GltfFile {
     /// ([`super::mesh::skinned_primitives`]).
     pub(super) fn document(&self) -> Result<(gltf::Document, &[Vec<u8>]), InputError> {
         let root: gltf::json::Root =
-            serde_json::from_value(self.json.clone()).map_err(|e| input(format!("not valid glTF JSON: {e}")))?;
+            serde_json::from_value(self.json.clone()).map_err(|e| caused("not valid glTF JSON".into(), e))?;
         Ok((gltf::Document::from_json_without_validation(root), &self.buffers))
     }
 

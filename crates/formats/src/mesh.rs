@@ -6,7 +6,7 @@
 //! that a file whose meshes are broken still bakes bone textures.
 
 use super::gltf::{check_accessor, Element, GltfFile};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{FormatError, InputError};
 use quatcurve_anim::Animation;
 use quatcurve_eval::skeleton::{self, Affine, SkinnedMesh};
 
@@ -68,8 +68,8 @@ impl SkinnedPrimitive {
     }
 }
 
-fn error(msg: String) -> InputError {
-    InputError::Gltf(msg)
+fn error(rule: String) -> InputError {
+    InputError::Gltf(FormatError::rule(rule))
 }
 
 /// How a node's mesh is drawn from a skin's matrices.
@@ -284,8 +284,9 @@ fn check(
     count: Option<usize>,
 ) -> Result<(), InputError> {
     let json = &document.as_json().accessors[accessor.index()];
-    check_accessor(accessor, json, kind)
-        .map_err(|e| error(format!("{name}: {what} (accessor {}): {e}", accessor.index())))?;
+    check_accessor(accessor, json, kind).map_err(|e| {
+        InputError::Gltf(FormatError::caused(format!("{name}: {what} (accessor {})", accessor.index()), e))
+    })?;
     match count {
         Some(count) if accessor.count() != count => Err(error(format!(
             "{name}: {what} (accessor {}) has {} elements for {count} vertices",
@@ -386,22 +387,25 @@ fn from_draco(
 ) -> Result<Stored, InputError> {
     use gltf::Semantic;
     let fail = |what: String| error(format!("{name}: {DRACO}: {what}"));
+    let failed = |what: String, e: super::draco::DracoError| {
+        InputError::Gltf(FormatError::caused(format!("{name}: {DRACO}: {what}"), e))
+    };
     let view = extension["bufferView"].as_u64().ok_or_else(|| fail("no bufferView".into()))?;
     let view = document.views().nth(view as usize).ok_or_else(|| fail(format!("bufferView {view} does not exist")))?;
     let bytes = buffers
         .get(view.buffer().index())
         .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
         .ok_or_else(|| fail(format!("bufferView {} lies outside its buffer", view.index())))?;
-    let decoded = super::draco::Decoded::new(bytes).map_err(|e| fail(format!("cannot decode: {e}")))?;
+    let decoded = super::draco::Decoded::new(bytes).map_err(|e| failed("cannot decode".into(), e))?;
     let id = |attribute: &str| -> Result<u32, InputError> {
         let id = extension["attributes"][attribute].as_u64();
         id.and_then(|i| u32::try_from(i).ok()).ok_or_else(|| fail(format!("its attributes name no {attribute}")))
     };
     let four = |attribute: &str, normalized: bool| -> Result<Vec<[f64; 4]>, InputError> {
-        decoded.attribute::<4>(id(attribute)?, normalized).map_err(|e| fail(format!("{attribute}: {e}")))
+        decoded.attribute::<4>(id(attribute)?, normalized).map_err(|e| failed(attribute.into(), e))
     };
     let three = |attribute: &str| -> Result<Vec<[f64; 3]>, InputError> {
-        decoded.attribute::<3>(id(attribute)?, false).map_err(|e| fail(format!("{attribute}: {e}")))
+        decoded.attribute::<3>(id(attribute)?, false).map_err(|e| failed(attribute.into(), e))
     };
     let position = primitive.get(&Semantic::Positions).ok_or_else(|| error(format!("{name}: has no POSITION")))?;
     if decoded.points() != position.count() {

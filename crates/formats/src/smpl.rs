@@ -16,7 +16,7 @@
 //! for byte; in the archive's order.
 
 use npyz::{DType, NpyFile, TypeChar};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{InputError, OutputError};
 use quatcurve_anim::{Animation, Channel, Clip, ClipFrames, Joint, Property};
 use quatcurve_core::quat::{QuatF64, Vec3F64};
 use quatcurve_eval::arrays::{member_budget, open_npy, read_floats, Floats};
@@ -608,7 +608,9 @@ impl SmplFile {
             resampled.poses.chunks_exact(width).flat_map(|row| row[3 * joints.start..3 * joints.end].to_vec()).collect()
         };
         let mut zip = zip::ZipWriter::new(Cursor::new(Vec::new()));
-        let failed = |e: &dyn std::fmt::Display| InputError::Output(format!("the .npz archive: {e}"));
+        let failed = |e: Box<dyn std::error::Error + Send + Sync>| -> InputError {
+            OutputError::Archive { what: "the .npz archive", error: e }.into()
+        };
         for member in &self.members {
             let bytes = match &member.stored {
                 Stored::Copied(bytes) => bytes.clone(),
@@ -634,10 +636,10 @@ impl SmplFile {
                     .compression_method(method)
                     .last_modified_time(zip::DateTime::default()),
             )
-            .map_err(|e| failed(&e))?;
-            zip.write_all(&bytes).map_err(|e| failed(&e))?;
+            .map_err(|e| failed(e.into()))?;
+            zip.write_all(&bytes).map_err(|e| failed(e.into()))?;
         }
-        Ok(zip.finish().map_err(|e| failed(&e))?.into_inner())
+        Ok(zip.finish().map_err(|e| failed(e.into()))?.into_inner())
     }
 
     /// A file of arrays given in memory: `poses` `[frames, width]` (row-major), `trans`

@@ -5,7 +5,7 @@
 //! format: a new one is its module, its [`Input`] and a row of [`IMPORTERS`].
 
 use crate::{bvh, crowd, fbx, gltf, smpl};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::{Animation, ClipFrames};
 use quatcurve_core::curve::{Curve, DEFAULT_CURVE};
 use quatcurve_qcf::BvhSkeleton;
@@ -204,15 +204,11 @@ impl Source {
     ///
     /// # Errors
     /// [`InputError::Animation`] saying why and what would work.
-    pub fn require_offsets(&self, needs: &str, instead: &str) -> Result<(), InputError> {
+    pub fn require_offsets(&self, needs: &'static str, instead: &'static str) -> Result<(), InputError> {
         if self.has_offsets() {
             return Ok(());
         }
-        Err(InputError::Animation(format!(
-            "{} holds rotations alone (its joints' offsets come from the body model's shape, and its up axis is not \
-             recorded), so {needs} would be wrong; {instead}",
-            self.kind()
-        )))
+        Err(AnimationError::RotationsAlone { kind: self.kind(), needs, instead }.into())
     }
 }
 

@@ -3,7 +3,7 @@
 //! outputs map directly, the device-lost flag, and the calls every pass makes (error scopes,
 //! dispatch grids, waiting, reading back).
 
-use crate::error::GpuError;
+use crate::error::{GpuError, MapError};
 use std::sync::{Arc, Mutex};
 
 /// A device and what quatcurve knows of it. Clones share the device (wgpu handles); a clone's
@@ -21,7 +21,7 @@ pub struct GpuContext {
     max_groups_per_dim: u32,
     /// Outputs are mappable themselves (`MAPPABLE_PRIMARY_BUFFERS`): no staging copy.
     map_outputs: bool,
-    lost: Arc<Mutex<Option<String>>>,
+    lost: Arc<Mutex<Option<(wgpu::DeviceLostReason, String)>>>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -50,8 +50,7 @@ impl GpuContext {
                         power_preference: wgpu::PowerPreference::HighPerformance,
                         ..wgpu::RequestAdapterOptions::default()
                     })
-                    .await
-                    .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+                    .await?;
                 let info = adapter.get_info();
                 // Where the GPU shares the host's memory (a CPU adapter such as lavapipe, or an
                 // integrated GPU), outputs are mapped directly instead of copied to a staging
@@ -67,8 +66,7 @@ impl GpuContext {
                         required_limits: adapter.limits(),
                         ..wgpu::DeviceDescriptor::default()
                     })
-                    .await
-                    .map_err(|e| GpuError::Device(e.to_string()))?;
+                    .await?;
                 // Errors outside our error scopes must not abort the process (wgpu's default).
                 device.on_uncaptured_error(Arc::new(|e| eprintln!("quatcurve: uncaptured GPU error: {e}")));
                 let name = format!("{} ({:?})", info.name, info.backend);
@@ -90,7 +88,7 @@ impl GpuContext {
         let lost = Arc::new(Mutex::new(None));
         let flag = lost.clone();
         device.set_device_lost_callback(move |reason, message| {
-            *flag.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!("{reason:?}: {message}"));
+            *flag.lock().unwrap_or_else(|e| e.into_inner()) = Some((reason, message));
         });
         Self {
             map_outputs: device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
@@ -232,14 +230,14 @@ impl GpuContext {
     /// # Errors
     /// [`GpuError::Device`], [`GpuError::DeviceLost`].
     pub(super) fn wait(&self) -> Result<(), GpuError> {
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+        self.device.poll(wgpu::PollType::wait_indefinitely())?;
         self.check_lost()
     }
 
     /// [`GpuError::DeviceLost`] once the device was lost.
     pub(super) fn check_lost(&self) -> Result<(), GpuError> {
         match self.lost.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
-            Some(reason) => Err(GpuError::DeviceLost(reason.clone())),
+            Some((reason, message)) => Err(GpuError::DeviceLost { reason: *reason, message: message.clone() }),
             None => Ok(()),
         }
     }
@@ -280,11 +278,12 @@ impl GpuContext {
         scope.pop()?;
         match receiver.recv() {
             Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(GpuError::Device(format!("reading results back: {e}"))),
-            Err(_) => return Err(GpuError::Device("reading results back: the map callback never ran".into())),
+            Ok(Err(e)) => return Err(GpuError::Map { during: "reading results back", error: e.into() }),
+            Err(_) => return Err(GpuError::Map { during: "reading results back", error: MapError::NeverRan }),
         }
-        let view =
-            staging.get_mapped_range(..bytes).map_err(|e| GpuError::Device(format!("reading results back: {e}")))?;
+        let view = staging
+            .get_mapped_range(..bytes)
+            .map_err(|e| GpuError::Map { during: "reading results back", error: e.into() })?;
         consume(bytemuck::cast_slice::<u8, f32>(&view));
         drop(view);
         staging.unmap();
@@ -312,7 +311,7 @@ impl ErrorScope {
         let memory = pollster::block_on(self.memory.pop());
         let validation = pollster::block_on(self.validation.pop());
         match memory.or(validation) {
-            Some(e) => Err(GpuError::Device(e.to_string())),
+            Some(e) => Err(GpuError::Device(e)),
             None => Ok(()),
         }
     }

@@ -8,7 +8,10 @@ use quatcurve_shader::ShaderError;
 pub enum GpuError {
     /// No adapter could be found.
     #[error("no GPU adapter: {0}")]
-    NoAdapter(String),
+    NoAdapter(#[from] wgpu::RequestAdapterError),
+    /// The adapter would not open a device.
+    #[error("GPU device error: {0}")]
+    OpenDevice(#[from] wgpu::RequestDeviceError),
     /// The WGSL program failed naga validation or reflection (a bug in this crate).
     #[error("shader: {0}")]
     Shader(#[from] ShaderError),
@@ -20,16 +23,143 @@ pub enum GpuError {
     Eval(#[from] quatcurve_eval::error::Error),
     /// The device rejected an operation (validation, out of memory, internal error).
     #[error("GPU device error: {0}")]
-    Device(String),
+    Device(#[from] wgpu::Error),
+    /// Waiting for the device failed.
+    #[error("GPU device error: {0}")]
+    Poll(#[from] wgpu::PollError),
+    /// A buffer could not be mapped for the host to write or read.
+    #[error("GPU device error: {during}: {error}")]
+    Map {
+        /// What the mapping was for.
+        during: &'static str,
+        /// wgpu's reason.
+        error: MapError,
+    },
     /// The device was lost.
-    #[error("GPU device lost: {0}")]
-    DeviceLost(String),
+    #[error("GPU device lost: {reason:?}: {message}")]
+    DeviceLost {
+        /// wgpu's reason.
+        reason: wgpu::DeviceLostReason,
+        /// The driver's words.
+        message: String,
+    },
     /// The batch cannot be packed for the kernel.
     #[error("{0}")]
     Pack(#[from] PackError),
-    /// Inputs that do not fit together.
+    /// Inputs that do not fit together, or do not fit the device.
     #[error("{0}")]
-    Job(String),
+    Job(#[from] JobError),
+}
+
+/// Why a buffer could not be mapped.
+#[derive(Debug, thiserror::Error)]
+pub enum MapError {
+    /// The map request failed.
+    #[error("{0}")]
+    Async(#[from] wgpu::BufferAsyncError),
+    /// The mapped range could not be viewed.
+    #[error("{0}")]
+    Range(#[from] wgpu::MapRangeError),
+    /// The map callback was dropped unrun.
+    #[error("a map callback never ran")]
+    NeverRan,
+}
+
+/// Inputs to a GPU pass that do not fit together, or do not fit the device.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum JobError {
+    /// An evaluation order that puts a joint before its parent.
+    #[error("joint {joint} comes before its parent {parent} in the order")]
+    ParentAfterChild {
+        /// The joint.
+        joint: usize,
+        /// Its parent.
+        parent: usize,
+    },
+    /// An evaluation order that leaves joints out.
+    #[error("the order misses some joints")]
+    OrderIncomplete,
+    /// A flat array that is not whole units of what it holds.
+    #[error("{len} {what} are not {whole}")]
+    NotWhole {
+        /// What the array holds (`local floats`).
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// The unit it must be whole numbers of (`whole frames of 3 joints`).
+        whole: String,
+    },
+    /// A joint index past the joints.
+    #[error("joint index {index} with {joints} joints")]
+    JointIndex {
+        /// The index.
+        index: u32,
+        /// Joints there are.
+        joints: usize,
+    },
+    /// A skin whose joints or inverse binds do not match the skeleton.
+    #[error("a skin joint out of range, or not one inverse bind each")]
+    Skin,
+    /// One unit of work larger than a storage binding.
+    #[error("{what} needs {bytes} bytes in one storage binding, more than the device's {limit}")]
+    OverBinding {
+        /// The unit (`one frame of 3 joints`).
+        what: String,
+        /// Bytes it needs.
+        bytes: u64,
+        /// The device's binding limit.
+        limit: u64,
+    },
+    /// Work that needs several bindings where the pass takes one.
+    #[error("{what} need {bindings} storage bindings of at most {limit} bytes; {pass} takes one")]
+    Bindings {
+        /// The data (`the rotation curves`).
+        what: &'static str,
+        /// Bindings needed.
+        bindings: usize,
+        /// The device's binding limit.
+        limit: u64,
+        /// The pass (`evaluate_into`).
+        pass: &'static str,
+    },
+    /// A caller's buffer smaller than the batch.
+    #[error("target buffer has {has} bytes, the batch needs {needs}")]
+    TargetTooSmall {
+        /// Its bytes.
+        has: u64,
+        /// Bytes needed.
+        needs: u64,
+    },
+    /// Two knots of a vector curve closer than the kernel's fixed-point times resolve.
+    #[error("vector curve {curve}: knots {knot} and {next} are closer than the GPU's time resolution", next = knot + 1)]
+    KnotsTooClose {
+        /// The curve.
+        curve: usize,
+        /// The first knot.
+        knot: usize,
+    },
+    /// An instance's clips or weight out of range.
+    #[error("instance {instance}: clips {clips:?} or weight {weight} out of range")]
+    Instance {
+        /// The instance.
+        instance: usize,
+        /// Its two clips.
+        clips: [usize; 2],
+        /// Its blend weight.
+        weight: f32,
+    },
+    /// More instances than one binding of palettes holds.
+    #[error("{instances} instances are more than one binding of palettes holds ({max}): play them in parts")]
+    TooManyInstances {
+        /// Instances asked for.
+        instances: usize,
+        /// The most one frame plays.
+        max: usize,
+    },
+    /// More workgroups than one 2D dispatch has.
+    #[error("{0} workgroups exceed one 2D dispatch")]
+    Workgroups(u64),
 }
 
 /// Why a batch cannot go to the GPU.

@@ -6,7 +6,7 @@ use super::context::{ErrorScope, GpuContext};
 use super::fk::ForwardKinematics;
 use super::layout::{self, ChunkPlan, ChunkTargets, GpuTrack, Params, PipelineKey};
 use super::program;
-use crate::error::GpuError;
+use crate::error::{GpuError, JobError, MapError};
 use quatcurve_eval::job::EvalJob;
 use quatcurve_eval::output::{FloatOutput, Layout};
 use quatcurve_eval::sampling::SampleTimes;
@@ -398,15 +398,14 @@ impl GpuDevice {
         let channels = options.row().channels();
         let needed = (times.total() * channels * 4) as u64;
         if target.size() < needed {
-            return Err(GpuError::Job(format!("target buffer has {} bytes, the batch needs {needed}", target.size())));
+            return Err(JobError::TargetTooSmall { has: target.size(), needs: needed }.into());
         }
         let chunks = self.plan(job, channels, self.context.binding_limit())?;
         if chunks.len() != 1 {
-            return Err(GpuError::Job(format!(
-                "the batch needs {} bindings of at most {} bytes; evaluate_into takes one",
-                chunks.len(),
-                self.context.binding_limit()
-            )));
+            let (bindings, limit) = (chunks.len(), self.context.binding_limit());
+            return Err(
+                JobError::Bindings { what: "the batch's tracks", bindings, limit, pass: "evaluate_into" }.into()
+            );
         }
         let prepared = self.upload(&chunks[0], job, channels, Some(target))?;
         self.submit(&prepared)?;
@@ -502,7 +501,7 @@ impl GpuDevice {
             let [p, c, k, t] = std::array::from_fn(|i| {
                 packed[i]
                     .get_mapped_range_mut(..sizes[i])
-                    .map_err(|e| GpuError::Device(format!("writing the packed batch: {e}")))
+                    .map_err(|e| GpuError::Map { during: "writing the packed batch", error: e.into() })
             });
             let (mut p, mut c, mut k, mut t) = (p?, c?, k?, t?);
             layout::pack(
@@ -603,8 +602,8 @@ impl GpuDevice {
         for _ in &buffers {
             match receiver.recv() {
                 Ok(Ok(())) => {}
-                Ok(Err(e)) => return Err(GpuError::Device(format!("mapping the input buffers: {e}"))),
-                Err(_) => return Err(GpuError::Device("mapping the input buffers: a map callback never ran".into())),
+                Ok(Err(e)) => return Err(GpuError::Map { during: "mapping the input buffers", error: e.into() }),
+                Err(_) => return Err(GpuError::Map { during: "mapping the input buffers", error: MapError::NeverRan }),
             }
         }
         Ok(Some(buffers))

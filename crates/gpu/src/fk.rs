@@ -5,7 +5,7 @@
 
 use super::context::{ErrorScope, GpuContext};
 use super::program::Compiled;
-use crate::error::GpuError;
+use crate::error::{GpuError, JobError};
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_shader as shader;
 use wgpu::util::DeviceExt;
@@ -49,11 +49,11 @@ pub fn levels(parents: &[Option<usize>], order: &[usize]) -> Result<(Vec<u32>, V
         depth[j] = match parents.get(j).copied().flatten() {
             None => 0,
             Some(p) if p < n && depth[p] != usize::MAX => depth[p] + 1,
-            Some(p) => return Err(GpuError::Job(format!("joint {j} comes before its parent {p} in the order"))),
+            Some(parent) => return Err(JobError::ParentAfterChild { joint: j, parent }.into()),
         };
     }
     if depth.contains(&usize::MAX) {
-        return Err(GpuError::Job("the order misses some joints".into()));
+        return Err(JobError::OrderIncomplete.into());
     }
     let deepest = depth.iter().copied().max().unwrap_or(0);
     let mut joints = Vec::with_capacity(n);
@@ -99,15 +99,14 @@ impl ForwardKinematics {
     pub fn run(&self, parents: &[Option<usize>], order: &[usize], local: &[f32]) -> Result<Vec<f32>, GpuError> {
         let joints = parents.len();
         if joints == 0 || local.len() % (joints * LOCAL_CHANNELS) != 0 {
-            return Err(GpuError::Job(format!("{} local floats are not whole frames of {joints} joints", local.len())));
+            let whole = format!("whole frames of {joints} joints");
+            return Err(JobError::NotWhole { what: "local floats", len: local.len(), whole }.into());
         }
         let frames = local.len() / (joints * LOCAL_CHANNELS);
         let frame_bytes = (joints * MATRIX_CHANNELS * 4) as u64;
         if frame_bytes > self.context.binding_limit() {
-            return Err(GpuError::Job(format!(
-                "one frame of {joints} joints needs {frame_bytes} bytes, more than a storage binding ({})",
-                self.context.binding_limit()
-            )));
+            let what = format!("one frame of {joints} joints");
+            return Err(JobError::OverBinding { what, bytes: frame_bytes, limit: self.context.binding_limit() }.into());
         }
         let (by_level, starts) = levels(parents, order)?;
         let parents: Vec<i32> = parents.iter().map(|p| p.map_or(-1, |p| p as i32)).collect();

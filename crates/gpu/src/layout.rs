@@ -4,7 +4,7 @@
 //! `GpuTrack` and `Params` mirror the WGSL structs of `shaders/eval.wgsl` field by field; a
 //! test compares their offsets with naga's layout, so neither side can drift.
 
-use crate::error::{GpuError, PackError};
+use crate::error::{GpuError, JobError, PackError};
 use bytemuck::{Pod, Zeroable};
 use quatcurve_core::curve::{Blend, Curve};
 use quatcurve_eval::batch::Batch;
@@ -142,7 +142,7 @@ pub fn grid(groups: u64, max: u32) -> Result<[u32; 2], GpuError> {
     let x = groups.clamp(1, max);
     let y = groups.div_ceil(x).max(1);
     if y > max {
-        return Err(GpuError::Job(format!("{groups} workgroups exceed one 2D dispatch")));
+        return Err(JobError::Workgroups(groups).into());
     }
     Ok([x as u32, y as u32])
 }

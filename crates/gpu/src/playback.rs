@@ -9,7 +9,7 @@ use super::context::{ErrorScope, GpuContext};
 use super::fk::{levels, FkLevel};
 use super::layout::{self, fixed_time, ChunkTargets, GpuTrack, Params};
 use super::program::Compiled;
-use crate::error::GpuError;
+use crate::error::{GpuError, JobError};
 use quatcurve_eval::batch::knots_are_uniform;
 use quatcurve_eval::output::{LOCAL_CHANNELS, MATRIX_CHANNELS};
 use quatcurve_eval::sampling::{PerTrack, SampleTimes};
@@ -81,10 +81,8 @@ impl PosePalettes {
         let joints = parents.len();
         let instances = weights.len();
         if joints == 0 || poses.len() != instances * 2 * joints * LOCAL_CHANNELS {
-            return Err(GpuError::Job(format!(
-                "{} pose floats are not two poses of {joints} joints for each of {instances} instances",
-                poses.len()
-            )));
+            let whole = format!("two poses of {joints} joints for each of {instances} instances");
+            return Err(JobError::NotWhole { what: "pose floats", len: poses.len(), whole }.into());
         }
         let (skin_joints, inverse_binds) = palette_skin(skin, joints)?;
         let skin_joints = skin_joints.as_slice();
@@ -93,11 +91,13 @@ impl PosePalettes {
         let per_instance = 4 * (2 * joints * LOCAL_CHANNELS).max(skin_joints.len().max(joints) * MATRIX_CHANNELS);
         let fits = (self.context.binding_limit() / per_instance as u64) as usize;
         if fits == 0 {
-            return Err(GpuError::Job(format!(
-                "one instance of {joints} joints needs {per_instance} bytes in one buffer, more than a storage binding \
-                 ({})",
-                self.context.binding_limit()
-            )));
+            let what = format!("one instance of {joints} joints");
+            return Err(JobError::OverBinding {
+                what,
+                bytes: per_instance as u64,
+                limit: self.context.binding_limit(),
+            }
+            .into());
         }
         if instances > fits {
             let mut out = Vec::with_capacity(instances * skin_joints.len() * MATRIX_CHANNELS);
@@ -257,7 +257,7 @@ fn palette_skin(skin: Option<PaletteSkin<'_>>, joints: usize) -> Result<(Vec<usi
         Some(s) if s.joints.len() == s.inverse_binds.len() && s.joints.iter().all(|&j| j < joints) => {
             Ok((s.joints.to_vec(), s.inverse_binds.iter().flatten().map(|&v| v as f32).collect()))
         }
-        Some(_) => Err(GpuError::Job("a skin joint out of range, or not one inverse bind each".into())),
+        Some(_) => Err(JobError::Skin.into()),
         None => {
             let identity = [1.0f32, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
             Ok(((0..joints).collect(), identity.repeat(joints)))
@@ -350,10 +350,8 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
         let none = SampleTimes::per_track(batch, |_, _| Ok(PerTrack::List(&[])))?;
         let plans = layout::plan_chunks(batch, &none, 4, binding_limit)?;
         let [plan] = plans.as_slice() else {
-            return Err(GpuError::Job(format!(
-                "the rotation curves need {} storage bindings of {binding_limit} bytes; playback keeps them in one",
-                plans.len()
-            )));
+            let (bindings, limit) = (plans.len(), binding_limit);
+            return Err(JobError::Bindings { what: "the rotation curves", bindings, limit, pass: "playback" }.into());
         };
         packed.points = vec![[0.0; 4]; plan.points];
         packed.coefs = vec![[0.0; 4]; plan.coefs];
@@ -375,10 +373,7 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
     let rotations = packed.tracks.len();
     for (v, curve) in curves.vectors.iter().enumerate() {
         if let Some(knot) = layout::collapsed_span(curve.knots()) {
-            return Err(GpuError::Job(format!(
-                "vector curve {v}: knots {knot} and {} are closer than the GPU's time resolution",
-                knot + 1
-            )));
+            return Err(JobError::KnotsTooClose { curve: v, knot }.into());
         }
         let vec4 = |p: &quatcurve_core::quat::Vec3F64| [p.x as f32, p.y as f32, p.z as f32, 0.0];
         packed.tracks.push(GpuTrack {
@@ -419,9 +414,8 @@ pub fn pack_curves(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Packed
         packed.values.len() * 16,
     ];
     if let Some(&largest) = bytes.iter().filter(|&&b| b as u64 > binding_limit).max() {
-        return Err(GpuError::Job(format!(
-            "the curves need {largest} bytes in one storage binding, more than the device's {binding_limit}"
-        )));
+        let what = "the curves".to_string();
+        return Err(JobError::OverBinding { what, bytes: largest as u64, limit: binding_limit }.into());
     }
     Ok(packed)
 }
@@ -546,10 +540,8 @@ impl ResidentCurves {
     pub fn new(curves: &PoseCurves<'_>, binding_limit: u64) -> Result<Self, GpuError> {
         let joints = curves.parents.len();
         if joints == 0 || curves.sources.is_empty() || curves.sources.len() % (POSE_PROPERTIES * joints) != 0 {
-            return Err(GpuError::Job(format!(
-                "{} sources are not {POSE_PROPERTIES} per joint of {joints} per clip",
-                curves.sources.len()
-            )));
+            let whole = format!("{POSE_PROPERTIES} per joint of {joints} per clip");
+            return Err(JobError::NotWhole { what: "sources", len: curves.sources.len(), whole }.into());
         }
         let packed = pack_curves(curves, binding_limit)?;
         let (skin_joints, inverse_binds) = palette_skin(curves.skin, joints)?;
@@ -615,10 +607,7 @@ impl ResidentCurves {
             .enumerate()
             .map(|(i, p)| {
                 if p.clips.iter().any(|&c| c >= self.clips) || !(0.0..=1.0).contains(&p.weight) {
-                    return Err(GpuError::Job(format!(
-                        "instance {i}: clips {:?} or weight {} out of range",
-                        p.clips, p.weight
-                    )));
+                    return Err(JobError::Instance { instance: i, clips: p.clips, weight: p.weight }.into());
                 }
                 Ok(PlayInstance {
                     first_clip: p.clips[0] as u32,
@@ -757,11 +746,8 @@ impl CurvePalettes {
     /// palettes holds ([`CurvePalettes::max_frame_instances`]).
     pub fn frame(&self, instances: &[PoseTimes]) -> Result<PaletteFrame, GpuError> {
         if instances.len() > self.max_frame_instances() {
-            return Err(GpuError::Job(format!(
-                "{} instances are more than one binding of palettes holds ({}): play them in parts",
-                instances.len(),
-                self.max_frame_instances()
-            )));
+            let (instances, max) = (instances.len(), self.max_frame_instances());
+            return Err(JobError::TooManyInstances { instances, max }.into());
         }
         self.submit(&self.plan.records(instances)?)
     }

@@ -5,7 +5,7 @@
 
 use super::context::{ErrorScope, GpuContext};
 use super::program::Compiled;
-use crate::error::GpuError;
+use crate::error::{GpuError, JobError};
 use quatcurve_eval::output::{MATRIX_CHANNELS, VERTEX_CHANNELS};
 use quatcurve_eval::skeleton::SkinnedMesh;
 use quatcurve_shader as shader;
@@ -92,25 +92,22 @@ impl MeshSkinning {
         let vertices = mesh.vertices.len() / VERTEX_CHANNELS;
         let frame_in = joints * MATRIX_CHANNELS;
         if vertices == 0 || frame_in == 0 || matrices.len() % frame_in != 0 {
-            return Err(GpuError::Job(format!(
-                "{} matrix floats are not whole frames of {joints} joints, or the mesh is empty",
-                matrices.len()
-            )));
+            let whole = format!("whole frames of {joints} joints, or the mesh is empty");
+            return Err(JobError::NotWhole { what: "matrix floats", len: matrices.len(), whole }.into());
         }
         if mesh.pairs.len() != 2 * vertices * mesh.influences {
-            return Err(GpuError::Job(format!("{} influence words for {vertices} vertices", mesh.pairs.len())));
+            let whole = format!("two per influence of {vertices} vertices");
+            return Err(JobError::NotWhole { what: "influence words", len: mesh.pairs.len(), whole }.into());
         }
         if let Some(bad) = mesh.pairs.chunks_exact(2).find(|p| p[0] as usize >= joints) {
-            return Err(GpuError::Job(format!("joint index {} with {joints} joints", bad[0])));
+            return Err(JobError::JointIndex { index: bad[0], joints }.into());
         }
         let frames = matrices.len() / frame_in;
         let frame_bytes = ((vertices * VERTEX_CHANNELS).max(frame_in) * 4) as u64;
         let limit = self.context.binding_limit();
         if frame_bytes > limit {
-            return Err(GpuError::Job(format!(
-                "one frame of {vertices} vertices and {joints} joints needs {frame_bytes} bytes, more than a storage \
-                 binding ({limit})"
-            )));
+            let what = format!("one frame of {vertices} vertices and {joints} joints");
+            return Err(JobError::OverBinding { what, bytes: frame_bytes, limit }.into());
         }
         let scope = ErrorScope::push(self.context.device());
         let init = |label: &str, contents: &[u8]| {

@@ -17,7 +17,7 @@ pub mod schedule;
 
 use error::PlayError;
 use quatcurve_anim::curves::{ChannelEval, CurveChoice, Curves};
-use quatcurve_anim::error::InputError;
+use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::loops::{clip_loops, LoopMode};
 use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::{Device, ResidentPlayback};
@@ -91,14 +91,11 @@ impl Playback {
         skin: Option<usize>,
     ) -> Result<Self, InputError> {
         if animation.clips.is_empty() {
-            return Err(InputError::Animation("nothing to play: the file has no clip".into()));
+            return Err(AnimationError::NoClip.into());
         }
         let skin = match skin {
             Some(k) if k >= animation.skins.len() => {
-                return Err(InputError::Animation(format!(
-                    "skin {k} asked for, but the file has {} skin(s)",
-                    animation.skins.len()
-                )))
+                return Err(AnimationError::NoSuchSkin { skin: k, skins: animation.skins.len() }.into())
             }
             Some(k) => Some(k),
             None => (!animation.skins.is_empty()).then_some(0),
@@ -337,17 +334,14 @@ impl Playback {
             let weight = instance.second.map(|(_, w)| w);
             for pose in std::iter::once(instance.first).chain(instance.second.map(|(p, _)| p)) {
                 if pose.clip >= clips {
-                    return Err(InputError::Animation(format!(
-                        "instance {i}: clip {} asked for, but the file has {clips} clip(s)",
-                        pose.clip
-                    )));
+                    return Err(AnimationError::InstanceClip { instance: i, clip: pose.clip, clips }.into());
                 }
                 if !pose.time.is_finite() {
-                    return Err(InputError::Animation(format!("instance {i}: time {} is not finite", pose.time)));
+                    return Err(AnimationError::InstanceTime { instance: i, time: pose.time }.into());
                 }
             }
             if let Some(w) = weight.filter(|w| !(0.0..=1.0).contains(w)) {
-                return Err(InputError::Animation(format!("instance {i}: blend weight {w} is outside [0, 1]")));
+                return Err(AnimationError::InstanceWeight { instance: i, weight: w }.into());
             }
         }
         Ok(())
@@ -404,17 +398,17 @@ impl Player<'_> {
 /// [`InputError::Animation`] for a skin `source` lacks, or a joint of it `target` does not
 /// have, named.
 pub fn skin_by_name(target: &Animation, source: &Animation, skin: usize) -> Result<Skin, InputError> {
-    let from = source.skins.get(skin).ok_or_else(|| {
-        InputError::Animation(format!("skin {skin} asked for, but the file has {} skin(s)", source.skins.len()))
-    })?;
+    let from = source.skins.get(skin).ok_or(AnimationError::NoSuchSkin { skin, skins: source.skins.len() })?;
     let joints = from
         .joints
         .iter()
         .map(|&j| {
             let name = &source.joints[j].name;
-            target.joints.iter().position(|t| &t.name == name).ok_or_else(|| {
-                InputError::Animation(format!("skin '{}': joint '{name}' is not a joint of the played file", from.name))
-            })
+            target
+                .joints
+                .iter()
+                .position(|t| &t.name == name)
+                .ok_or_else(|| AnimationError::SkinJoint { skin: from.name.clone(), joint: name.clone() })
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Skin { name: from.name.clone(), joints, inverse_bind: from.inverse_bind.clone(), skeleton: None })

@@ -632,18 +632,41 @@ fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
     out.finish()
 }
 
+/// Why packed control-point codes do not decode within their width.
+#[derive(Debug, PartialEq, Eq, thiserror::Error)]
+enum CodeFault {
+    /// The bytes end inside a point.
+    #[error("the packed codes end in control point {0}")]
+    End(usize),
+    /// A code outside its width.
+    #[error("control point {point} component {component} decodes to {value}, outside {bits} bits")]
+    Outside { point: usize, component: usize, value: i64, bits: u32 },
+    /// A residual's unary run longer than any residual of the width.
+    #[error("control point {point} component {component}: a residual's quotient {quotient} is larger than any of {bits} bits")]
+    Runaway { point: usize, component: usize, quotient: u64, bits: u32 },
+}
+
+/// Why a knot read is not one of the places the curve may have.
+#[derive(Debug, PartialEq, Eq, thiserror::Error)]
+enum KnotFault {
+    /// A knot outside the timeline's interior.
+    #[error("{unit} {at} is not inside 1..{last}")]
+    Outside { unit: &'static str, at: u64, last: usize },
+    /// A knot repeated more often than the curve's order allows.
+    #[error("{unit} {at} repeated {} times; at most {most}", most + 1)]
+    Repeated { unit: &'static str, at: u64, most: usize },
+}
+
 /// `n` points' codes of [`pack_codes`], each checked to lie within `bits`.
-fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, String> {
+fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, CodeFault> {
     let mut input = BitReader::new(packed);
-    let end = |i: usize| move || format!("the packed codes end in control point {i}");
+    let end = |i: usize| move || CodeFault::End(i);
     let mut codes: Vec<[u32; 3]> = Vec::with_capacity(n);
     if n == 0 {
         return Ok(codes);
     }
     let most = (1i64 << bits) - 1;
-    let outside = |i: usize, c: usize, value: i64| {
-        format!("control point {i} component {c} decodes to {value}, outside {bits} bits")
-    };
+    let outside = |point: usize, component: usize, value: i64| CodeFault::Outside { point, component, value, bits };
     // The first point whole; then blocks of residuals, each after its three Rice parameters.
     let mut first = [0u32; 3];
     for (c, code) in first.iter_mut().enumerate() {
@@ -668,9 +691,7 @@ fn unpack_codes(packed: &[u8], n: usize, bits: u32) -> Result<Vec<[u32; 3]>, Str
             for c in 0..3 {
                 let (quotient, low) = input.rice(ks[c]).ok_or_else(end(i))?;
                 if quotient > most_zigzag >> ks[c] {
-                    return Err(format!(
-                        "control point {i} component {c}: a residual's quotient {quotient} is larger than any of {bits} bits"
-                    ));
+                    return Err(CodeFault::Runaway { point: i, component: c, quotient, bits });
                 }
                 let z = (quotient << ks[c]) | low;
                 let r = (z >> 1) as i64 ^ -((z & 1) as i64);
@@ -806,10 +827,10 @@ impl Reader<'_> {
         let most = (last - 1) * repeats;
         let knots = self.knots(field, most, least_delta(form), |knots, at| {
             if at == 0 || at >= last as u64 {
-                return Err(format!("{unit} {at} is not inside 1..{last}"));
+                return Err(KnotFault::Outside { unit, at, last });
             }
             if knots.len() >= repeats && knots[knots.len() - repeats..].iter().all(|&p| u64::from(p) == at) {
-                return Err(format!("{unit} {at} repeated {} times; at most {repeats}", repeats + 1));
+                return Err(KnotFault::Repeated { unit, at, most: repeats });
             }
             Ok(())
         })?;
@@ -830,7 +851,7 @@ impl Reader<'_> {
         let length = self.count(name, 1)?;
         let start = self.at;
         let packed = self.take(length, name)?;
-        let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, name, e))?;
+        let codes = unpack_codes(packed, controls, bits).map_err(|e| self.bad_at(start, name, e.to_string()))?;
         let [l0, l1, l2, span] = ranges;
         Ok((line, knots, Quantized { bits, low: [l0, l1, l2], span, codes }))
     }
@@ -844,7 +865,7 @@ impl Reader<'_> {
         field: &str,
         most: usize,
         least: u32,
-        check: impl Fn(&[u32], u64) -> Result<(), String>,
+        check: impl Fn(&[u32], u64) -> Result<(), KnotFault>,
     ) -> Result<Vec<u32>, ContainerError> {
         let name = Sub(field, "knot count");
         let start = self.at;
@@ -884,7 +905,7 @@ impl Reader<'_> {
             let delta = (quotient << k | low) + u64::from(least);
             let at = u64::from(knots.last().copied().unwrap_or(0)) + delta;
             // The field's name made only for a message: one per knot was most of a load's time.
-            check(&knots, at).map_err(|reason| self.bad_at(start, field(), reason))?;
+            check(&knots, at).map_err(|fault| self.bad_at(start, field(), fault.to_string()))?;
             knots.push(at as u32);
         }
         self.at = start + deltas.bytes_read();
@@ -1153,7 +1174,7 @@ mod tests {
         assert!(packed.len() * 8 < codes.len() * 3 * bits as usize / 2, "{} bytes: residuals are small", packed.len());
         assert_eq!(unpack_codes(&packed, codes.len(), bits).unwrap(), codes);
         assert_eq!(
-            unpack_codes(&packed, codes.len(), 10).unwrap_err(),
+            unpack_codes(&packed, codes.len(), 10).unwrap_err().to_string(),
             "control point 2 component 0 decodes to 1124, outside 10 bits"
         );
         // A run of one bits longer than any residual of the width: named, not shifted past 64.
@@ -1165,12 +1186,12 @@ mod tests {
         }
         runaway.push(0, 8);
         assert_eq!(
-            unpack_codes(&runaway.finish(), 2, 2).unwrap_err(),
+            unpack_codes(&runaway.finish(), 2, 2).unwrap_err().to_string(),
             "control point 1 component 0: a residual's quotient 40 is larger than any of 2 bits"
         );
         assert_eq!(
             unpack_codes(&packed[..packed.len() - 2], codes.len(), bits).unwrap_err(),
-            format!("the packed codes end in control point {}", codes.len() - 1)
+            CodeFault::End(codes.len() - 1)
         );
     }
 

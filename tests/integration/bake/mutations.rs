@@ -11,7 +11,7 @@ use super::{data_dir, tiny_gltf};
 use crate::common::{f64_bytes, npy_bytes, npz_bytes};
 use proptest::prelude::*;
 use quatcurve::anim::curves::CurveChoice;
-use quatcurve::anim::error::InputError;
+use quatcurve::anim::error::{InputError, InternalError};
 use quatcurve::anim::loops::LoopMode;
 use quatcurve::bake::error::BakeError;
 use quatcurve::bake::{self};
@@ -267,7 +267,9 @@ fn attempt(seed: &Seed, bytes: &[u8]) -> Result<Reached, BakeError> {
                     json: bytes.into(),
                     bin: Some(seed.bin.as_slice().into()),
                 };
-                packed = glb.to_vec().map_err(|e| InputError::Output(e.to_string()))?;
+                packed = glb.to_vec().map_err(|e| {
+                    InputError::from(InternalError::Encode { what: "the mutated GLB".into(), error: e.into() })
+                })?;
                 &packed[..]
             } else {
                 bytes

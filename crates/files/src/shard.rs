@@ -1,8 +1,54 @@
 //! Which share of a job this process runs (DESIGN section 13): `I/N` given, or the array index
 //! and count an existing scheduler sets in the environment. quatcurve schedules nothing
 //! itself; it is a well-behaved array task.
-use quatcurve_files::FileJobError;
+use crate::FileJobError;
 use std::path::PathBuf;
+
+/// Why a scheduler's environment names no share of the job.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ShardError {
+    /// An index variable set without its count.
+    #[error("{scheduler}: {index} is set but {count} is not; set it to the number of array tasks (or give the shard as I/N)")]
+    NoCount {
+        /// The scheduler.
+        scheduler: &'static str,
+        /// Its index variable.
+        index: &'static str,
+        /// Its count variable.
+        count: &'static str,
+    },
+    /// A variable that is not a whole number.
+    #[error("{variable}: {text:?} is not a whole number")]
+    NotWhole {
+        /// The variable.
+        variable: &'static str,
+        /// Its value.
+        text: String,
+    },
+    /// An index below the scheduler's first.
+    #[error("{variable} {index} is below {min_variable} {min}")]
+    BelowMin {
+        /// The index variable.
+        variable: &'static str,
+        /// Its value.
+        index: usize,
+        /// The first index's variable.
+        min_variable: &'static str,
+        /// Its value.
+        min: usize,
+    },
+    /// A share that does not exist.
+    #[error("{from}: shard {index} of {count} does not exist (need 0 <= index < count)")]
+    NoSuchShard {
+        /// Where the numbers came from.
+        from: String,
+        /// The index.
+        index: usize,
+        /// The count.
+        count: usize,
+    },
+}
 
 /// This process's share: inputs `k` with `k mod count == index`.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -45,9 +91,9 @@ impl Shard {
     /// The first scheduler whose index variable `env` has, else the whole job.
     ///
     /// # Errors
-    /// [`FileJobError::Job`]: an index without its count, a value that is not a whole number, or
-    /// a shard that does not exist.
-    pub fn from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Self, FileJobError> {
+    /// [`ShardError`]: an index without its count, a value that is not a whole number, or a
+    /// shard that does not exist.
+    pub fn from_env(env: &dyn Fn(&str) -> Option<String>) -> Result<Self, ShardError> {
         // (scheduler, index variable, minimum variable to subtract, count variable)
         let schedulers: [(&str, &str, Option<&str>, &str); 4] = [
             ("Slurm", "SLURM_ARRAY_TASK_ID", Some("SLURM_ARRAY_TASK_MIN"), "SLURM_ARRAY_TASK_COUNT"),
@@ -57,19 +103,17 @@ impl Shard {
         ];
         for (scheduler, index_var, min_var, count_var) in schedulers {
             let Some(index) = env(index_var) else { continue };
-            let count = env(count_var).ok_or_else(|| {
-                bad(format!(
-                    "{scheduler}: {index_var} is set but {count_var} is not; set it to the number of array \
-                    tasks (or give the shard as I/N)"
-                ))
-            })?;
+            let count = env(count_var).ok_or(ShardError::NoCount { scheduler, index: index_var, count: count_var })?;
             let mut index = number(index_var, &index)?;
             let mut source = format!("{scheduler}: {index_var}");
             if let Some(min_var) = min_var {
                 let min = env(min_var).map(|m| number(min_var, &m)).transpose()?.unwrap_or(0);
-                index = index
-                    .checked_sub(min)
-                    .ok_or_else(|| bad(format!("{index_var} {index} is below {min_var} {min}")))?;
+                index = index.checked_sub(min).ok_or(ShardError::BelowMin {
+                    variable: index_var,
+                    index,
+                    min_variable: min_var,
+                    min,
+                })?;
                 source = format!("{source} - {min_var}");
             }
             return Self::new(index, number(count_var, &count)?, format!("{source} of {count_var}"));
@@ -77,9 +121,9 @@ impl Shard {
         Ok(Self::whole())
     }
 
-    fn new(index: usize, count: usize, source: String) -> Result<Self, FileJobError> {
+    fn new(index: usize, count: usize, source: String) -> Result<Self, ShardError> {
         if count == 0 || index >= count {
-            return Err(bad(format!("{source}: shard {index} of {count} does not exist (need 0 <= index < count)")));
+            return Err(ShardError::NoSuchShard { from: source, index, count });
         }
         Ok(Self { index, count, source })
     }
@@ -90,12 +134,8 @@ impl Shard {
     }
 }
 
-fn bad(msg: String) -> FileJobError {
-    FileJobError::Job(msg)
-}
-
-fn number(what: &str, text: &str) -> Result<usize, FileJobError> {
-    text.trim().parse().map_err(|_| bad(format!("{what}: {text:?} is not a whole number")))
+fn number(variable: &'static str, text: &str) -> Result<usize, ShardError> {
+    text.trim().parse().map_err(|_| ShardError::NotWhole { variable, text: text.into() })
 }
 
 #[cfg(test)]
@@ -123,14 +163,29 @@ mod tests {
     }
 
     #[test]
-    fn an_index_without_a_count_and_out_of_range_shards_are_errors() {
-        for pairs in [
-            vec![("JOB_COMPLETION_INDEX", "0")],
-            vec![("BATCH_TASK_INDEX", "0")],
-            vec![("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")],
-        ] {
-            assert!(matches!(Shard::from_env(&env(&pairs)), Err(FileJobError::Job(_))), "{pairs:?}");
+    fn an_index_without_a_count_is_refused_naming_both_variables() {
+        for (index, count) in
+            [("JOB_COMPLETION_INDEX", "QUATCURVE_SHARD_COUNT"), ("BATCH_TASK_INDEX", "BATCH_TASK_COUNT")]
+        {
+            match Shard::from_env(&env(&[(index, "0")])) {
+                Err(ShardError::NoCount { index: i, count: c, .. }) => assert_eq!((i, c), (index, count)),
+                other => panic!("{index}: expected its count missing, got {other:?}"),
+            }
         }
+    }
+
+    #[test]
+    fn a_scheduler_s_shard_out_of_range_or_not_a_number_is_refused() {
+        let past = [("BATCH_TASK_INDEX", "2"), ("BATCH_TASK_COUNT", "2")];
+        assert!(matches!(Shard::from_env(&env(&past)), Err(ShardError::NoSuchShard { index: 2, count: 2, .. })));
+        let below = [("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_MIN", "5"), ("SLURM_ARRAY_TASK_COUNT", "3")];
+        assert!(matches!(Shard::from_env(&env(&below)), Err(ShardError::BelowMin { index: 1, min: 5, .. })));
+        let word = [("BATCH_TASK_INDEX", "x"), ("BATCH_TASK_COUNT", "2")];
+        assert!(matches!(Shard::from_env(&env(&word)), Err(ShardError::NotWhole { variable: "BATCH_TASK_INDEX", .. })));
+    }
+
+    #[test]
+    fn a_given_shard_that_is_not_one_of_its_count_is_an_option_error() {
         for text in ["4/4", "0/0", "1", "a/2"] {
             assert!(matches!(Shard::parse(text), Err(FileJobError::Option { option: "shard", .. })), "{text}");
         }
