@@ -11,6 +11,7 @@
 //! inverseBindMatrix(joint)`. The node at rest is what the mesh hangs from while the manager
 //! plays (the glTF's animation groups stopped), so its animation, if any, is in the bones.
 
+pub use crate::error::{BabylonTooLarge, SingularWorld};
 use quatcurve_anim::{Animation, Skin};
 use quatcurve_eval::skeleton::{compose, inverse, trs, Affine};
 use quatcurve_formats::gltf::IDENTITY_3X4 as IDENTITY;
@@ -94,15 +95,6 @@ pub fn from_world(animation: &Animation, node: Option<usize>) -> Result<Affine, 
     inverse(&world).ok_or_else(|| SingularWorld { node: animation.joints[node].name.clone() })
 }
 
-/// A node whose world matrix at rest has no inverse (a zero scale), so no bone can be written
-/// in its space.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("node '{node}', the skinned mesh's parent in Babylon, has a singular world matrix at rest")]
-pub struct SingularWorld {
-    /// The node's name.
-    pub node: String,
-}
-
 /// Babylon's floats of `rows` (frame-major 3x4 row-major skin matrices of `bones` bones):
 /// per frame `(bones + 1) * 16`, each bone's `from_world * skin` column-major, then identity.
 #[must_use]
@@ -137,39 +129,15 @@ pub fn json(floats: &[f32], bones: usize) -> Vec<u8> {
     value.to_string().into_bytes()
 }
 
-/// A Babylon texture over a side of the maximum texture size.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum TooLarge {
-    /// Too many bones for one row.
-    #[error("Babylon's texture is {width} texels wide ((bones + 1) * 4), over a side of {max}; raise the maximum texture size")]
-    Wide {
-        /// Texels a row takes.
-        width: usize,
-        /// The most a side may take.
-        max: usize,
-    },
-    /// Too many frames for one column.
-    #[error(
-        "Babylon's texture is {frames} rows tall (one per frame, never wrapped), over a side of {max}; bake at a lower \
-         rate, clip by clip rather than as one atlas, or raise the maximum texture size"
-    )]
-    Tall {
-        /// Rows it takes.
-        frames: usize,
-        /// The most a side may take.
-        max: usize,
-    },
-}
-
 /// Why `frames` frames of `bones` bones do not fit a texture of at most `max` texels a side
 /// (Babylon's texture is one row per frame, `(bones + 1) * 4` texels wide, never wrapped).
 #[must_use]
-pub fn too_large(bones: usize, frames: usize, max: usize) -> Option<TooLarge> {
+pub fn too_large(bones: usize, frames: usize, max: usize) -> Option<BabylonTooLarge> {
     let width = (bones + 1) * 4;
     if width > max {
-        Some(TooLarge::Wide { width, max })
+        Some(BabylonTooLarge::Wide { width, max })
     } else if frames > max {
-        Some(TooLarge::Tall { frames, max })
+        Some(BabylonTooLarge::Tall { frames, max })
     } else {
         None
     }

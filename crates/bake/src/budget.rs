@@ -50,16 +50,7 @@ pub struct ErrorBudget {
     pub max_rate: f64,
 }
 
-/// Where an error is largest.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Worst {
-    /// Degrees, or millimetres.
-    pub value: f64,
-    /// The joint's name.
-    pub joint: String,
-    /// Seconds from the clip's start.
-    pub time: f64,
-}
+pub use crate::error::Worst;
 
 /// The error of one clip's frames against its continuous curve, between frames.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -340,8 +331,16 @@ pub fn choose_rates(
                     Ok(m) => Ok(m.rate),
                     Err(m) => Err(m.rate),
                 };
-                let (clip, budget, worst) = (clip.name.clone(), *budget, Box::new(worst));
-                return Err(Refusal::NoRateHolds { clip, budget, worst, higher }.into());
+                return Err(Refusal::NoRateHolds {
+                    clip: clip.name.clone(),
+                    within: budget.describe(),
+                    max_rate: budget.max_rate,
+                    rate: worst.rate,
+                    rotation: worst.rotation,
+                    position: worst.position,
+                    higher,
+                }
+                .into());
             }
         };
         chosen.push(best);

@@ -7,6 +7,7 @@ use quatcurve_device::DeviceError;
 use quatcurve_eval::error::Number;
 use quatcurve_shader::uniform::UniformError;
 use quatcurve_shader::{Program, ShaderError};
+use serde::{Deserialize, Serialize};
 
 /// Why one input could not be baked: its reading or its rules ([`InputError`]), the device, or
 /// a layout.
@@ -19,7 +20,7 @@ pub enum BakeError {
     Input(#[from] InputError),
     /// The input cannot be baked as asked.
     #[error(transparent)]
-    Refused(#[from] Refusal),
+    Refused(Box<Refusal>),
     /// The evaluating device refused the work or failed.
     #[error(transparent)]
     Device(#[from] DeviceError),
@@ -69,6 +70,12 @@ impl BakeError {
     }
 }
 
+impl From<Refusal> for BakeError {
+    fn from(e: Refusal) -> Self {
+        Self::Refused(Box::new(e))
+    }
+}
+
 impl From<AnimationError> for BakeError {
     fn from(e: AnimationError) -> Self {
         Self::Input(e.into())
@@ -110,7 +117,7 @@ pub enum Refusal {
         /// The skin.
         skin: String,
         /// The singular transform.
-        error: crate::babylon::SingularWorld,
+        error: SingularWorld,
     },
     /// A Babylon texture larger than its sides allow.
     #[error("{texture}: {sheet}: {error}")]
@@ -120,7 +127,7 @@ pub enum Refusal {
         /// The sheet (`skin 0`).
         sheet: String,
         /// Which side.
-        error: crate::babylon::TooLarge,
+        error: BabylonTooLarge,
     },
     /// An image layout that cannot hold the texture.
     #[error("{texture}: {error}")]
@@ -128,31 +135,33 @@ pub enum Refusal {
         /// The texture or primitive.
         texture: String,
         /// Why the layout cannot hold it.
-        error: crate::image::ImageError,
+        error: GridError,
     },
     /// An image that would take more memory than `IMAGE_MEMORY_LIMIT` while it is encoded.
     #[error(
         "{texture}: its {format} image {file} would take {mib} MiB of memory while it is gathered and encoded, over \
          IMAGE_MEMORY_LIMIT = {limit} MiB; bake at a lower rate, clip by clip rather than as one atlas, or as npy \
          (streamed)",
-        limit = crate::texture_file::IMAGE_MEMORY_LIMIT >> 20
+        limit = limit >> 20
     )]
     ImageMemory {
         /// The texture.
         texture: String,
         /// The image format.
-        format: crate::image::Format,
+        format: &'static str,
         /// The image's file name.
         file: String,
         /// MiB it would take.
         mib: u64,
+        /// The most bytes (`IMAGE_MEMORY_LIMIT`).
+        limit: u64,
     },
     /// Images that together would take more memory than `IMAGE_MEMORY_LIMIT`.
     #[error(
         "{texture}: its {images} {format} images would gather {mib} MiB of rows in memory together (the largest, \
          {largest}: {largest_mib} MiB), over IMAGE_MEMORY_LIMIT = {limit} MiB; bake at a lower rate, clip by clip \
          rather than as one atlas, or as npy (streamed)",
-        limit = crate::texture_file::IMAGE_MEMORY_LIMIT >> 20
+        limit = limit >> 20
     )]
     ImagesMemory {
         /// The texture.
@@ -160,20 +169,21 @@ pub enum Refusal {
         /// Its images.
         images: usize,
         /// The image format.
-        format: crate::image::Format,
+        format: &'static str,
         /// MiB they would take.
         mib: u64,
         /// The largest image's sheet.
         largest: String,
         /// MiB the largest would take.
         largest_mib: u64,
+        /// The most bytes (`IMAGE_MEMORY_LIMIT`).
+        limit: u64,
     },
     /// A joint sheared, which rotation, translation and scale cannot hold.
     #[error(
         "clip '{clip}', frame {frame}: joint '{joint}' is sheared (a {kind} texture's rotation and scale would be off \
          by {residual:.1e}, over SHEAR_TOLERANCE = {tolerance:e}), which rotation, translation and scale cannot hold; \
-         bake a {matrices} texture (matrices) instead",
-        tolerance = crate::texture::SHEAR_TOLERANCE
+         bake a {matrices} texture (matrices) instead"
     )]
     Sheared {
         /// The clip.
@@ -183,11 +193,13 @@ pub enum Refusal {
         /// The joint.
         joint: String,
         /// The texture's kind.
-        kind: crate::texture::TextureKind,
+        kind: &'static str,
         /// How far off rotation and scale would be.
         residual: f64,
+        /// The most allowed (`SHEAR_TOLERANCE`).
+        tolerance: f64,
         /// The matrix kind that holds it.
-        matrices: crate::texture::TextureKind,
+        matrices: &'static str,
     },
     /// Root motion asked of a clip that moves several characters.
     #[error(
@@ -213,15 +225,15 @@ pub enum Refusal {
     #[error(
         "clip '{clip}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the worst \
          error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s); {}",
-        Number(budget.max_rate),
-        budget.describe(),
-        Number(worst.rate),
-        worst.rotation.value,
-        worst.rotation.joint,
-        worst.rotation.time,
-        worst.position.value,
-        worst.position.joint,
-        worst.position.time,
+        Number(*max_rate),
+        within,
+        Number(*rate),
+        rotation.value,
+        rotation.joint,
+        rotation.time,
+        position.value,
+        position.joint,
+        position.time,
         match higher {
             Ok(rate) => format!("{} Hz would (a max_rate of {})", Number(*rate), rate.ceil()),
             Err(searched) => format!("none up to {} Hz does either", Number(*searched)),
@@ -230,12 +242,95 @@ pub enum Refusal {
     NoRateHolds {
         /// The clip.
         clip: String,
-        /// The budget.
-        budget: crate::budget::ErrorBudget,
-        /// What the highest rate measured.
-        worst: Box<crate::budget::Measured>,
+        /// The budget, in words (`1 degrees and 5 mm`).
+        within: String,
+        /// The highest rate a budget may choose (Hz).
+        max_rate: f64,
+        /// The rate measured last (Hz).
+        rate: f64,
+        /// Its largest rotation error (degrees).
+        rotation: Worst,
+        /// Its largest position error (millimetres).
+        position: Worst,
         /// The rate that would hold, or the highest searched.
         higher: Result<f64, f64>,
+    },
+}
+
+/// Where an error is largest.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Worst {
+    /// Degrees, or millimetres.
+    pub value: f64,
+    /// The joint's name.
+    pub joint: String,
+    /// Seconds from the clip's start.
+    pub time: f64,
+}
+
+/// A node whose world matrix at rest has no inverse (a zero scale), so no bone can be written
+/// in its space.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("node '{node}', the skinned mesh's parent in Babylon, has a singular world matrix at rest")]
+pub struct SingularWorld {
+    /// The node's name.
+    pub node: String,
+}
+
+/// A Babylon texture over a side of the maximum texture size.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BabylonTooLarge {
+    /// Too many bones for one row.
+    #[error("Babylon's texture is {width} texels wide ((bones + 1) * 4), over a side of {max}; raise the maximum texture size")]
+    Wide {
+        /// Texels a row takes.
+        width: usize,
+        /// The most a side may take.
+        max: usize,
+    },
+    /// Too many frames for one column.
+    #[error(
+        "Babylon's texture is {frames} rows tall (one per frame, never wrapped), over a side of {max}; bake at a lower \
+         rate, clip by clip rather than as one atlas, or raise the maximum texture size"
+    )]
+    Tall {
+        /// Rows it takes.
+        frames: usize,
+        /// The most a side may take.
+        max: usize,
+    },
+}
+
+/// Why a texture's frames do not fit an image of the largest side.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum GridError {
+    /// A joint's texels wider than a texture side.
+    #[error("a joint takes {texels_per_joint} texels, more than a texture side of {max}")]
+    JointTooWide {
+        /// Texels a joint takes.
+        texels_per_joint: usize,
+        /// The largest side.
+        max: usize,
+    },
+    /// More frames than the rows and columns of the largest side hold.
+    #[error(
+        "{frames} frames of {joints} joints take {texels} texels ({rows_per_frame} rows of {frame_width} per frame), more \
+         than a texture side of {max} can hold in rows and columns; bake at a lower rate, clip by clip rather than as one \
+         atlas, or raise the maximum texture size"
+    )]
+    FramesDoNotFit {
+        /// Frames of the texture.
+        frames: usize,
+        /// Joints (or vertices) a frame.
+        joints: usize,
+        /// Texels of every frame.
+        texels: usize,
+        /// Rows a frame takes.
+        rows_per_frame: usize,
+        /// Texels a frame's row.
+        frame_width: usize,
+        /// The largest side.
+        max: usize,
     },
 }
 

@@ -6,6 +6,7 @@
 //! and octahedral normals instead (DESIGN section 8), both in `0..1`.
 use super::texture::TextureKind;
 use super::vertex_encoding::{encode_normal, Bounds};
+use crate::error::GridError;
 use serde::Serialize;
 
 /// What an image's texels hold, made from the rows its file gathered ([`encode`]).
@@ -109,34 +110,9 @@ pub const ADDRESS: &str = "a = j * texels_per_joint + t, r = first_row + frame, 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ImageError {
-    /// A joint's texels wider than a texture side.
-    #[error("a joint takes {texels_per_joint} texels, more than a texture side of {max}")]
-    JointTooWide {
-        /// Texels a joint takes.
-        texels_per_joint: usize,
-        /// The largest side.
-        max: usize,
-    },
-    /// More frames than the rows and columns of the largest side hold.
-    #[error(
-        "{frames} frames of {joints} joints take {texels} texels ({rows_per_frame} rows of {frame_width} per frame), more \
-         than a texture side of {max} can hold in rows and columns; bake at a lower rate, clip by clip rather than as one \
-         atlas, or raise the maximum texture size"
-    )]
-    FramesDoNotFit {
-        /// Frames of the texture.
-        frames: usize,
-        /// Joints (or vertices) a frame.
-        joints: usize,
-        /// Texels of every frame.
-        texels: usize,
-        /// Rows a frame takes.
-        rows_per_frame: usize,
-        /// Texels a frame's row.
-        frame_width: usize,
-        /// The largest side.
-        max: usize,
-    },
+    /// The frames do not fit an image of the largest side.
+    #[error(transparent)]
+    Grid(#[from] GridError),
     /// A skinned position that is not finite, which no box holds.
     #[error("a skinned position is not finite")]
     NotFinite,
@@ -157,18 +133,18 @@ impl Grid {
     ///
     /// # Errors
     /// The reason in words, naming the limit, when the frames cannot fit.
-    pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, ImageError> {
+    pub fn new(kind: TextureKind, joints: usize, frames: usize, max: usize) -> Result<Self, GridError> {
         let texels_per_joint = kind.texels().len();
         let per_frame = (joints * texels_per_joint).max(1);
         let frame_width = per_frame.min(max / texels_per_joint * texels_per_joint);
         if frame_width == 0 {
-            return Err(ImageError::JointTooWide { texels_per_joint, max });
+            return Err(GridError::JointTooWide { texels_per_joint, max });
         }
         let rows_per_frame = per_frame.div_ceil(frame_width);
         let most_per_column = max / rows_per_frame;
         let columns = frames.max(1).div_ceil(most_per_column.max(1));
         if most_per_column == 0 || columns * frame_width > max {
-            return Err(ImageError::FramesDoNotFit {
+            return Err(GridError::FramesDoNotFit {
                 frames,
                 joints,
                 texels: frames * per_frame,

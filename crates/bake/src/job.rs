@@ -200,7 +200,7 @@ impl BakeJob {
                 .zip(&animation.skins)
                 .map(|(parent, skin)| {
                     babylon::from_world(animation, parent)
-                        .map_err(|error| Refusal::Singular { skin: skin.name.clone(), error })
+                        .map_err(|error| BakeError::from(Refusal::Singular { skin: skin.name.clone(), error }))
                 })
                 .collect::<Result<Vec<_>, _>>()?,
             _ => Vec::new(),

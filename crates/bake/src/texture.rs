@@ -256,9 +256,10 @@ pub fn sheet_rows(
                 clip: animation.clips[clip].name.clone(),
                 frame: frames[row],
                 joint: animation.joints[joints[k]].name.clone(),
-                kind,
+                kind: kind.name(),
                 residual,
-                matrices: if kind.is_skin() { TextureKind::Skin } else { TextureKind::Model },
+                tolerance: SHEAR_TOLERANCE,
+                matrices: if kind.is_skin() { TextureKind::Skin } else { TextureKind::Model }.name(),
             })?
         };
         sheets.push(Sheet { suffix, width, data, shear });

@@ -150,9 +150,10 @@ impl TextureFile {
                 if floats + texels > IMAGE_MEMORY_LIMIT {
                     return Err(Refusal::ImageMemory {
                         texture: what.into(),
-                        format,
+                        format: format.name(),
                         file: path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
                         mib: (floats + texels).div_ceil(1 << 20),
+                        limit: IMAGE_MEMORY_LIMIT,
                     }
                     .into());
                 }
@@ -287,10 +288,11 @@ pub(super) fn open(
             return Err(Refusal::ImagesMemory {
                 texture: what.into(),
                 images: sheets.len(),
-                format: options.format,
+                format: options.format.name(),
                 mib: total.div_ceil(1 << 20),
                 largest: largest.into(),
                 largest_mib: sheets.iter().map(gathered).max().unwrap_or(0).div_ceil(1 << 20),
+                limit: IMAGE_MEMORY_LIMIT,
             }
             .into());
         }

@@ -112,7 +112,7 @@ pub enum JobError {
         limit: u64,
     },
     /// Work that needs several bindings where the pass takes one.
-    #[error("{what} need {bindings} storage bindings of at most {limit} bytes; {pass} takes one")]
+    #[error("{what} need {bindings} storage bindings of {limit} bytes; {pass} keeps them in one")]
     Bindings {
         /// The data (`the rotation curves`).
         what: &'static str,
