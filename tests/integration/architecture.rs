@@ -1,7 +1,7 @@
 //! `ARCHITECTURE.md`'s map held against the code, read from the document itself so the two
 //! cannot drift apart:
-//! - a crate depends only on crates listed above it in the crate table (every workspace member
-//!   is in it);
+//! - a crate depends only on crates listed above it and named on its section's `May import`
+//!   line (every workspace member has a section);
 //! - no module imports from a layer above its own, in any crate;
 //! - inside each directory no file names a sibling listed after it (`mod.rs` last unless listed);
 //! - no circle of imports between files (re-exports, `pub use`, are a module's face, not a use);
@@ -145,17 +145,20 @@ struct Crate {
     library: bool,
 }
 
-/// The crate table's rows `| `package` | `path` | ... |`, in order.
+/// The `## Crates` section's crates, `### `package` (`path`)` each, in order.
 fn crate_table(doc: &str) -> Vec<Crate> {
     let layers = layers(doc);
     let section = doc.split("## Crates").nth(1).expect("ARCHITECTURE.md has a `## Crates` section");
     let section = section.split("\n## ").next().unwrap();
     section
-        .lines()
-        .filter_map(|line| {
-            let cells: Vec<&str> = line.split('|').map(str::trim).collect();
-            let package = quoted(cells.get(1)?).first()?.to_string();
-            let path = quoted(cells.get(2)?).first()?.to_string();
+        .split("\n### ")
+        .skip(1)
+        .filter_map(|entry| {
+            let heading = entry.lines().next()?;
+            let (package, path) = match quoted(heading)[..] {
+                [package, path, ..] => (package.to_string(), path),
+                _ => return None,
+            };
             let module = package.strip_prefix("quatcurve-").filter(|m| layers.contains_key(*m)).map(String::from);
             Some(Crate {
                 ident: package.replace('-', "_"),
@@ -164,6 +167,20 @@ fn crate_table(doc: &str) -> Vec<Crate> {
                 dir: root().join(path),
                 library: true,
             })
+        })
+        .collect()
+}
+
+/// Each crate's `- May import:` line in the `## Crates` section: the workspace crates it names.
+fn may_import(doc: &str) -> HashMap<String, Vec<String>> {
+    let section = doc.split("## Crates").nth(1).unwrap().split("\n## ").next().unwrap();
+    section
+        .split("\n### ")
+        .skip(1)
+        .filter_map(|entry| {
+            let package = quoted(entry.lines().next()?).first()?.to_string();
+            let line = entry.lines().find(|l| l.starts_with("- May import:"))?;
+            Some((package, quoted(line).into_iter().map(String::from).collect()))
         })
         .collect()
 }
@@ -467,10 +484,11 @@ fn layers(doc: &str) -> HashMap<String, usize> {
 }
 
 #[test]
-fn a_crate_depends_only_on_crates_listed_above_it() {
+fn a_crate_depends_only_on_crates_listed_above_it_and_named_in_its_section() {
     let doc = read(&root().join("ARCHITECTURE.md"));
     let crates = crate_table(&doc);
-    assert!(crates.len() >= 2, "the crate table did not parse: {crates:?}");
+    let allowed = may_import(&doc);
+    assert!(crates.len() >= 2, "the crate sections did not parse: {crates:?}");
     let members = read(&root().join("Cargo.toml"));
     let members = members.split("members").nth(1).unwrap().split(']').next().unwrap();
     let mut broken = Vec::new();
@@ -478,13 +496,22 @@ fn a_crate_depends_only_on_crates_listed_above_it() {
         let manifest = read(&root().join(member).join("Cargo.toml"));
         let package = manifest.split("name = \"").nth(1).unwrap().split('"').next().unwrap();
         let Some(rank) = crates.iter().position(|c| c.package == package) else {
-            broken.push(format!("{member}: {package} is not in ARCHITECTURE.md's crate table"));
+            broken.push(format!("{member}: {package} has no section in ARCHITECTURE.md's crates"));
+            continue;
+        };
+        let Some(named) = allowed.get(package) else {
+            broken.push(format!("{member}: {package}'s section has no `- May import:` line"));
             continue;
         };
         for dependency in workspace_dependencies(&manifest, &crates) {
             let theirs = crates.iter().position(|c| c.package == dependency).unwrap();
             if theirs >= rank {
                 broken.push(format!("{member}/Cargo.toml: {package} depends on {dependency}, listed at or after it"));
+            }
+            if !named.contains(&dependency) {
+                broken.push(format!(
+                    "{member}/Cargo.toml: {package} depends on {dependency}, which its section does not name"
+                ));
             }
         }
     }
