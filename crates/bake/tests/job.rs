@@ -3,7 +3,7 @@
 //! exit codes and file names.
 
 use quatcurve_anim::error::{InputError, OutputError};
-use quatcurve_bake::error::BakeError;
+use quatcurve_bake::error::{BakeError, Refusal};
 use quatcurve_bake::sidecar::Sidecar;
 use quatcurve_bake::{BakeJob, BakeOptions};
 use quatcurve_device::{Device, DeviceChoice};
@@ -88,4 +88,25 @@ fn a_pose_archive_baked_into_its_own_directory_is_refused_before_anything_is_rea
         other => panic!("expected the job refused, got {other:?}"),
     }
     assert!(!dir.path().join("walk.json").exists());
+}
+
+#[test]
+fn a_budget_no_rate_up_to_the_cap_meets_is_refused_naming_the_clip_the_rate_and_the_worst_joint() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut job = crowd_job(dir.path(), 1);
+    (job.options.max_error, job.options.max_rate) = (Some(0.01), 10.0);
+    let report = job.run(&cpu(), &()).unwrap();
+    match &report.inputs[0].outcome {
+        Err(BakeError::Refused(refusal)) => match &**refusal {
+            Refusal::NoRateHolds { clip, max_rate, rotation, within, .. } => {
+                assert!(!clip.is_empty() && !rotation.joint.is_empty(), "{refusal}");
+                assert_eq!((*max_rate, within.as_str()), (10.0, "0.01 degrees"));
+                assert!(rotation.value > 0.01, "{refusal}");
+            }
+            other => panic!("expected no rate to hold, got {other}"),
+        },
+        other => panic!("expected the budget refused, got {other:?}"),
+    }
+    let written: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(written.iter().all(|f| !f.to_string_lossy().starts_with("crowd")), "wrote {written:?}");
 }

@@ -13,7 +13,7 @@ use quatcurve::formats::bvh;
 use quatcurve::qcf::decoder::{Decoder, POSE_FLOATS};
 use quatcurve::qcf::fitted::{Fitted, Form};
 use quatcurve::qcf::Container;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// CMU's BVH unit in cm.
 const CMU_UNIT_CM: f64 = 5.644;
@@ -233,8 +233,18 @@ fn small_bvh(path: &Path) {
     std::fs::write(path, text).unwrap();
 }
 
+/// `bend.bvh` (`small_bvh`) in `dir` and its fit, `out/bend.qcf`: (the source, the container).
+fn fitted_bend(dir: &Path) -> (PathBuf, PathBuf) {
+    let source = dir.join("bend.bvh");
+    small_bvh(&source);
+    let out = dir.join("out");
+    let result = fit(&["--input", source.to_str().unwrap(), "--output", out.to_str().unwrap(), "--unit-cm", "1"]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    (source, out.join("bend.qcf"))
+}
+
 #[test]
-fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_container_field() {
+fn a_fit_refuses_what_it_cannot_do_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
     let source = dir.path().join("bend.bvh");
     small_bvh(&source);
@@ -253,8 +263,15 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1"]);
     assert_eq!(result.status.code(), Some(2));
     assert!(stderr(&result).contains("is a directory (nothing was fitted)"), "{}", stderr(&result));
-    std::fs::remove_dir(out.join("bend.qcf")).unwrap();
-    // A budget no fit meets: how close the closest came, by joint and time, and what loosens it.
+}
+
+#[test]
+fn a_budget_no_fit_meets_names_the_closest_fit_and_what_loosens_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("bend.bvh");
+    small_bvh(&source);
+    let out = dir.path().join("out");
+    let (src, dst) = (source.to_str().unwrap(), out.to_str().unwrap());
     // (Rounding a control point to f32 alone moves it by more than 1e-9 cm.)
     let tight = ["--max-error", "1e-9", "--between-error", "1e-9"];
     let result = fit(&[&["--input", src, "--output", dst, "--unit-cm", "1"][..], &tight].concat());
@@ -268,10 +285,12 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
         assert!(stderr(&result).contains(part), "{}\nlacks: {part}", stderr(&result));
     }
     assert!(!out.join("bend.qcf").exists(), "no container for a clip over its budget");
-    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--json"]);
-    assert!(result.status.success(), "{}", stderr(&result));
-    let container = out.join("bend.qcf");
-    let bytes = std::fs::read(&container).unwrap();
+}
+
+#[test]
+fn bench_fitted_times_every_copy_of_every_clip_on_each_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, container) = fitted_bend(dir.path());
     // Decompression timed: every clip, copied, at its source rate (61 frames of 2 joints).
     let bench = quatcurve(&[
         "bench",
@@ -299,9 +318,15 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
     let one_thread =
         |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
     assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");
-    // Buffers kept from bake to bake (a decoder's) give what fresh ones give: the fitted clip,
-    // then its source's keys (another kind of batch, of other sizes), then the fitted clip again.
-    let fitted = Container::from_bytes(&bytes).unwrap().animation();
+}
+
+#[test]
+fn buffers_kept_from_bake_to_bake_give_what_fresh_ones_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let (source, container) = fitted_bend(dir.path());
+    // The fitted clip, then its source's keys (another kind of batch, of other sizes), then the
+    // fitted clip again.
+    let fitted = Container::from_bytes(&std::fs::read(&container).unwrap()).unwrap().animation();
     let keyed = bvh::read(&source).unwrap().animation("bend");
     let device = quatcurve::Device::open(quatcurve::DeviceChoice::Cpu).unwrap();
     let (spec, rates) = (
@@ -315,6 +340,12 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
         assert_eq!(kept, fresh);
         reuse.keep(kept);
     }
+}
+
+#[test]
+fn a_fitted_clip_is_refused_as_a_loop_and_under_an_error_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, container) = fitted_bend(dir.path());
     // Fitted clips are open curves of control points: no loop, no rate budget over keys.
     let baked = dir.path().join("baked");
     for (flags, message) in [
@@ -326,6 +357,14 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work_and_a_bake_names_a_bad_contai
         assert_eq!(result.status.code(), Some(2), "{flags:?}");
         assert!(stderr(&result).contains(message), "{flags:?}: {}", stderr(&result));
     }
+}
+
+#[test]
+fn a_damaged_container_is_refused_naming_its_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, container) = fitted_bend(dir.path());
+    let bytes = std::fs::read(&container).unwrap();
+    let baked = dir.path().join("baked");
     // Truncated, or not a container at all: exit 2, the field named.
     for (name, cut, field) in [
         ("cut.qcf", bytes.len() - 3, "checksum: the bytes before it hash to "),

@@ -941,14 +941,20 @@ fn the_libraries_compile_inside_a_vertex_shader_of_an_engine_s_own() {
 }
 
 #[test]
-fn a_budget_no_rate_meets_and_a_budget_on_matrices_are_refused_with_nothing_written() {
+fn a_budget_no_rate_meets_is_exit_2_with_its_words_and_nothing_written() {
     let Some(data) = data_dir() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let fox = data.join("Fox.glb");
-    let out = dir.path().join("out");
-    let fox_arg = fox.to_str().unwrap();
-    let out_arg = out.to_str().unwrap();
-    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.01", "--max-rate", "10"]);
+    let (fox, out) = (data.join("Fox.glb"), dir.path().join("out"));
+    let result = bake(&[
+        "--input",
+        fox.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--max-error",
+        "0.01",
+        "--max-rate",
+        "10",
+    ]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     for needle in ["clip 'Survey'", "no rate up to 10 Hz (the highest a budget may choose)", "0.01 degrees", "joint '"]
     {
@@ -957,6 +963,16 @@ fn a_budget_no_rate_meets_and_a_budget_on_matrices_are_refused_with_nothing_writ
     let written: Vec<_> =
         std::fs::read_dir(&out).map(|d| d.flatten().map(|e| e.file_name()).collect()).unwrap_or_default();
     assert!(written.iter().all(|f| !f.to_string_lossy().starts_with("Fox.")), "wrote {written:?}");
+}
+
+#[test]
+fn budget_flags_a_bake_cannot_take_are_refused_by_their_flags() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fox = data.join("Fox.glb");
+    let out = dir.path().join("out");
+    let fox_arg = fox.to_str().unwrap();
+    let out_arg = out.to_str().unwrap();
     let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.5", "--texture", "model"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(stderr(&result).contains("--max-error") && stderr(&result).contains("model-trs"), "{}", stderr(&result));
