@@ -233,11 +233,16 @@ fn small_bvh(path: &Path) {
     std::fs::write(path, text).unwrap();
 }
 
-/// `bend.bvh` (`small_bvh`) in `dir` and its fit, `out/bend.qcf`: (the source, the container).
-fn fitted_bend(dir: &Path) -> (PathBuf, PathBuf) {
+/// `bend.bvh` (`small_bvh`) written in `dir`, and the output directory a fit of it would make.
+fn bend(dir: &Path) -> (PathBuf, PathBuf) {
     let source = dir.join("bend.bvh");
     small_bvh(&source);
-    let out = dir.join("out");
+    (source, dir.join("out"))
+}
+
+/// `bend.bvh` in `dir` and its fit, `out/bend.qcf`: (the source, the container).
+fn fitted_bend(dir: &Path) -> (PathBuf, PathBuf) {
+    let (source, out) = bend(dir);
     let result = fit(&["--input", source.to_str().unwrap(), "--output", out.to_str().unwrap(), "--unit-cm", "1"]);
     assert!(result.status.success(), "{}", stderr(&result));
     (source, out.join("bend.qcf"))
@@ -246,9 +251,7 @@ fn fitted_bend(dir: &Path) -> (PathBuf, PathBuf) {
 #[test]
 fn a_fit_refuses_what_it_cannot_do_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
-    let source = dir.path().join("bend.bvh");
-    small_bvh(&source);
-    let out = dir.path().join("out");
+    let (source, out) = bend(dir.path());
     let (src, dst) = (source.to_str().unwrap(), out.to_str().unwrap());
     // A BVH does not say its unit: refused before anything is read or made.
     let result = fit(&["--input", src, "--output", dst]);
@@ -268,9 +271,7 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work() {
 #[test]
 fn a_budget_no_fit_meets_names_the_closest_fit_and_what_loosens_it() {
     let dir = tempfile::tempdir().unwrap();
-    let source = dir.path().join("bend.bvh");
-    small_bvh(&source);
-    let out = dir.path().join("out");
+    let (source, out) = bend(dir.path());
     let (src, dst) = (source.to_str().unwrap(), out.to_str().unwrap());
     // (Rounding a control point to f32 alone moves it by more than 1e-9 cm.)
     let tight = ["--max-error", "1e-9", "--between-error", "1e-9"];
