@@ -21,7 +21,9 @@ Needs numpy and scipy.
 """
 import argparse
 import json
+import shutil
 import subprocess
+import sys
 import time
 
 import numpy as np
@@ -54,6 +56,11 @@ def main():
     parser.add_argument("--samples", type=int, default=1000)
     parser.add_argument("--quatcurve", default="target/release/quatcurve")
     args = parser.parse_args()
+    # The binary is checked before the slow scipy half, and a missing one is one line, not a
+    # traceback.
+    if shutil.which(args.quatcurve) is None:
+        sys.exit(f"error: no quatcurve binary at {args.quatcurve}: build it with `cargo build --release`, "
+                 "or give its path with --quatcurve")
 
     tracks = walk_tracks(args.tracks)
     start = time.perf_counter()
@@ -65,7 +72,10 @@ def main():
 
     command = [args.quatcurve, "bench", "--curve", "bspline-interp", "--devices", "cpu", "--json",
                "--tracks", str(args.tracks), "--samples", str(args.samples), "--keys", str(KEYS)]
-    report = json.loads(subprocess.run(command, check=True, capture_output=True, text=True).stdout)
+    run = subprocess.run(command, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"error: {' '.join(command)} failed (exit {run.returncode}): {run.stderr.strip()}")
+    report = json.loads(run.stdout)
     build = report["workload"]["build_seconds"]
     evaluate = report["results"][0]["seconds"]
     ours = samples / (build + evaluate)

@@ -18,25 +18,30 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Evaluate curves through the tracks of a JSON file; write samples as JSON or .npy.
+    /// Evaluate curves through tracks (JSON, .npz or .npy arrays, or a fitted .qcf); write
+    /// samples as JSON or .npy.
     Eval(cli::eval::EvalArgs),
-    /// Resample glTF/GLB and BVH animation (or a built-in synthetic crowd) at a new rate.
+    /// Resample glTF/GLB, FBX, BVH, SMPL .npz or fitted .qcf animation (or a built-in
+    /// synthetic crowd) at a new rate.
     Bake(cli::bake::BakeArgs),
-    /// Fit glTF/BVH clips as the fewest quantized B-spline control points within an error
-    /// budget (cm), one .qcf container per input, which bake reads as it reads the source.
+    /// Fit glTF/GLB, FBX or BVH clips as the fewest quantized B-spline control points within
+    /// an error budget (cm), one .qcf container per input, which bake reads as it reads the
+    /// source.
     Fit(cli::fit::FitArgs),
-    /// Play a crowd straight from a file's curves: every instance at its own time, two clips
-    /// blended, skin palettes per frame written as one .npy.
+    /// Play a crowd straight from a file's curves (glTF/GLB, FBX, BVH, SMPL .npz, .qcf): every
+    /// instance at its own time, two clips blended, skin palettes per frame written as one .npy.
     Play(cli::play::PlayArgs),
-    /// Time the same synthetic batch on every available device, side by side.
+    /// Time the same synthetic batch on every available device, side by side; or decoding
+    /// (.qcf), skinning (glTF/GLB) or crowd playback (glTF/GLB, FBX, BVH, SMPL .npz, .qcf).
     Bench(cli::bench::BenchArgs),
-    /// Energy, torque and smoothness of curves through the same keys; --paper reruns KKS 6.1.
+    /// Energy, torque and smoothness of curves through the same keys (JSON, .npz or .npy
+    /// tracks); --paper reruns KKS 6.1.
     Analyze(cli::analyze::AnalyzeArgs),
     /// The shaders that read baked bone textures (--format exr|png16): WGSL, or GLSL and HLSL
     /// generated from it.
     Shaders(cli::shaders::ShadersArgs),
-    /// Serve a baked directory to a WebGL2 page that plays it as a crowd (127.0.0.1 only
-    /// unless --address says otherwise).
+    /// Serve a baked directory to a page that plays it as a crowd: its curves through WebGPU,
+    /// its textures through WebGL2 (127.0.0.1 only unless --address says otherwise).
     View(cli::view::ViewArgs),
 }
 

@@ -116,6 +116,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
         let name = tracks[0].name.clone().unwrap_or_else(|| "track 0".into());
         plot::rates(path, &format!("{name}: angular velocity and acceleration"), &series, &key_times(&tracks[0]))
             .map_err(|e| Failure::Input(e.to_string()))?;
+        super::wrote(path);
     }
     let names: Vec<String> =
         tracks.iter().enumerate().map(|(i, t)| t.name.clone().unwrap_or_else(|| format!("track {i}"))).collect();
@@ -243,6 +244,7 @@ fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> R
             setup.seed, large.degrees[0], large.degrees[1]
         );
         plot::rates(path, &title, &series, &key_times(&tracks[0])).map_err(|e| Failure::Input(e.to_string()))?;
+        super::wrote(path);
     }
     if args.json {
         let doc = serde_json::json!({

@@ -75,8 +75,9 @@ pub struct BenchArgs {
     /// With --fitted: copies of every clip in the batch.
     #[arg(long, default_value_t = 10)]
     copies: usize,
-    /// Time crowd playback instead (`quatcurve play`): one frame of this file's clips for
-    /// --instances instances, each blending two clips, palettes out, on each device.
+    /// Time crowd playback instead (`quatcurve play`): one frame of this file's clips (.gltf,
+    /// .glb, .fbx, .bvh, .npz, .qcf) for --instances instances, each blending two clips,
+    /// palettes out, on each device.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["sweep", "skinning", "fitted"])]
     playback: Option<std::path::PathBuf>,
     /// With --playback: crowd sizes, comma-separated.
@@ -210,6 +211,7 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
         );
         quatcurve::plot::log_log(path, &title, "samples in the batch", "samples/s", &lines)
             .map_err(|e| Failure::Input(e.to_string()))?;
+        super::wrote(path);
     }
     print_stdout(|w| {
         if args.json {

@@ -76,6 +76,11 @@ pub fn print_stdout(write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -
     }
 }
 
+/// Says on stderr that `path` was written, so that stdout keeps to the report (`--json`).
+pub fn wrote(path: &Path) {
+    eprintln!("wrote {}", path.display());
+}
+
 /// Every clip's rotation channels of the fitted container at `path`, as tracks
 /// ([`quatcurve::qcf::Container::rotation_tracks`]).
 pub fn read_container_tracks(path: &Path) -> Result<(String, Vec<quatcurve::Track>), Failure> {

@@ -42,8 +42,12 @@ pub fn run(args: &ShadersArgs) -> Result<(), Failure> {
     }
     .map_err(|e| Failure::Internal(e.to_string()))?;
     match &args.output {
-        Some(path) => quatcurve::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
-            .map_err(|e| Failure::Input(format!("--output {e}"))),
+        Some(path) => {
+            quatcurve::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
+                .map_err(|e| Failure::Input(format!("--output {e}")))?;
+            super::wrote(path);
+            Ok(())
+        }
         None => print_stdout(|w| w.write_all(text.as_bytes())),
     }
 }

@@ -602,6 +602,7 @@ fn analyze_plots_decode_and_are_not_blank() {
     for path in [&png, &svg] {
         let out = quatcurve(&["analyze", "--curves", "squad,bspline-interp", "--plot", path.to_str().unwrap()]);
         assert!(out.status.success(), "{}", stderr(&out));
+        assert!(stderr(&out).contains(&format!("wrote {}", path.display())), "{}", stderr(&out));
     }
     let image = image::load_from_memory(&std::fs::read(&png).unwrap()).unwrap().to_rgb8();
     let colored = image.pixels().filter(|p| p.0.iter().max().unwrap() - p.0.iter().min().unwrap() > 60).count();
@@ -698,7 +699,72 @@ fn bench_sweep_covers_long_and_short_batches_of_every_size_and_plots_them() {
     assert!(points.iter().all(|p| p["device"] == "cpu" && p["samples_per_s"].as_f64().unwrap() > 0.0));
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.contains("cpu short") && svg.contains("<polyline"), "{}", &svg[..200.min(svg.len())]);
+    assert!(stderr(&out).contains(&format!("wrote {}", plot.display())), "{}", stderr(&out));
     // --plot belongs to --sweep.
     let out = quatcurve(&["bench", "--plot", plot.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}
+
+/// The formats each subcommand reads, by extension: bake and play (and `bench --playback`)
+/// through the table of importers, fit through its own list, eval and analyze tracks.
+fn formats_read() -> Vec<(&'static str, Vec<String>)> {
+    let importers: Vec<String> = quatcurve::formats::source::input_extensions().map(String::from).collect();
+    let tracks = ["json", "npz", "npy"].map(String::from).to_vec();
+    vec![
+        ("bake", importers.clone()),
+        ("play", importers.clone()),
+        ("bench", importers),
+        ("fit", quatcurve::fit::job::FIT_EXTENSIONS.map(String::from).to_vec()),
+        ("eval", [tracks.clone(), vec!["qcf".into()]].concat()),
+        ("analyze", tracks),
+    ]
+}
+
+#[test]
+fn every_subcommand_s_one_line_help_names_every_format_it_reads() {
+    let top = String::from_utf8(quatcurve(&["--help"]).stdout).unwrap().to_lowercase();
+    for (command, extensions) in formats_read() {
+        let line = top
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{command} ")))
+            .unwrap_or_else(|| panic!("no line for {command} in:\n{top}"));
+        for extension in &extensions {
+            assert!(line.contains(extension.as_str()), "{command}'s help does not name .{extension}: {line}");
+        }
+    }
+}
+
+#[test]
+fn every_input_flag_s_help_names_every_format_its_command_reads() {
+    for (command, extensions) in formats_read() {
+        let flag = if command == "bench" { "--playback" } else { "--input" };
+        let help = String::from_utf8(quatcurve(&[command, "--help"]).stdout).unwrap().to_lowercase();
+        // The flag's paragraph: its line and the indented lines after it, up to the next flag.
+        let mut lines = help.lines().skip_while(|l| !l.trim_start().starts_with(flag));
+        let first = lines.next().unwrap_or_else(|| panic!("{command} --help has no {flag}:\n{help}"));
+        let paragraph: String = std::iter::once(first)
+            .chain(lines.take_while(|l| !l.trim_start().starts_with('-')))
+            .collect::<Vec<_>>()
+            .join(" ");
+        for extension in &extensions {
+            assert!(paragraph.contains(extension.as_str()), "{command} {flag} does not name .{extension}: {paragraph}");
+        }
+    }
+}
+
+#[test]
+fn play_takes_zero_seconds_as_one_frame_and_refuses_fewer_as_design_says() {
+    let Some(data) = crate::bake::data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (fox, out) = (data.join("Fox.glb"), dir.path().join("palettes.npy"));
+    let play = |seconds: &str| {
+        quatcurve(&["play", "--input", fox.to_str().unwrap(), "--seconds", seconds, "--output", out.to_str().unwrap()])
+    };
+    let once = play("0");
+    assert!(once.status.success(), "{}", stderr(&once));
+    assert_eq!(crate::bake::read_npy(&out).0[0], 1, "one frame");
+    std::fs::remove_file(&out).unwrap();
+    let refused = play("-1");
+    assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
+    assert!(!out.exists(), "nothing written");
 }

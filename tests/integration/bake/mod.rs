@@ -5,6 +5,7 @@
 
 mod babylon;
 mod clients;
+mod documented_names;
 mod fbx;
 mod fitted;
 mod hostile;
