@@ -27,7 +27,6 @@ import sys
 import time
 
 import numpy as np
-from scipy.spatial.transform import Rotation, RotationSpline
 
 KEYS = 32
 RATE = 30.0
@@ -61,6 +60,10 @@ def main():
     if shutil.which(args.quatcurve) is None:
         sys.exit(f"error: no quatcurve binary at {args.quatcurve}: build it with `cargo build --release`, "
                  "or give its path with --quatcurve")
+    try:
+        from scipy.spatial.transform import Rotation, RotationSpline
+    except ImportError:
+        sys.exit("error: scipy is not installed (pip install scipy)")
 
     tracks = walk_tracks(args.tracks)
     start = time.perf_counter()

@@ -231,3 +231,17 @@ def test_bad_pose_arrays_are_refused_by_name():
         quatcurve.resample_poses(np.zeros((10, 72)), 60.0, 30.0, trans=np.zeros((9, 3)))
     with pytest.raises(TypeError, match="does not take: texture"):
         quatcurve.resample_poses(np.zeros((10, 72)), 60.0, 30.0, texture="model")
+
+
+def test_the_scipy_comparison_names_a_missing_binary_before_running_scipy():
+    import subprocess
+    import sys
+
+    script = pathlib.Path(__file__).resolve().parents[2] / "benches" / "scipy_rotation_spline.py"
+    run = subprocess.run([sys.executable, str(script), "--quatcurve", "/nonexistent/quatcurve"],
+                         capture_output=True, text=True)
+    assert run.returncode == 1
+    assert "no quatcurve binary at /nonexistent/quatcurve" in run.stderr
+    assert "Traceback" not in run.stderr
+    # Refused before the scipy half, which prints its figures first.
+    assert run.stdout == "", run.stdout
