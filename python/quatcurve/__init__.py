@@ -363,6 +363,10 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         of BVH, FBX and SMPL poses slerped; the sidecar's ``curve`` is ``source``).
     loop : str
         ``auto`` (clips whose rotations end where they start), ``on`` or ``off``.
+    player : str or None
+        Bake for this player: ``three`` (skin-trs EXR, one atlas), ``babylon`` (skin textures
+        as Babylon's JSON) or ``view`` (skin-trs EXR), where texture, format and atlas are
+        left at their defaults; a texture or format it cannot play is refused.
     texture : str
         ``local`` ``[frames, joints, 10]`` (rotation, translation, scale), ``model``
         ``[frames, joints, 12]`` (3x4 matrices by forward kinematics), ``skin`` (model

@@ -83,6 +83,7 @@ def bake(
     tangents: Literal["catmull-rom", "zero", "given"] = "catmull-rom",
     blend: Literal["cubic", "quadratic"] = "cubic",
     loop: Literal["auto", "on", "off"] = "auto",
+    player: Literal["three", "babylon", "view"] | None = None,
     texture: Literal["local", "model", "skin", "model-trs", "skin-trs", "vertex"] = "local",
     precision: Literal["f32", "f16"] = "f32",
     format: Literal["npy", "exr", "png16", "babylon"] = "npy",

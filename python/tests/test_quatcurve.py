@@ -406,3 +406,10 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
         quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
     with pytest.raises(ValueError, match="max_error is 0; it must be a positive length"):
         quatcurve.fit(inputs, tmp_path / "zero", max_error=0)
+
+
+def test_a_bake_for_a_player_gets_the_texture_and_format_it_plays(tmp_path):
+    quatcurve.bake(output=tmp_path / "view", characters=1, player="view")
+    assert list((tmp_path / "view").glob("crowd.*.exr")), list((tmp_path / "view").iterdir())
+    with pytest.raises(ValueError, match="^player view: view plays skin-trs or vertex textures, not model"):
+        quatcurve.bake(output=tmp_path / "view", characters=1, player="view", texture="model")

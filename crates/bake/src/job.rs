@@ -67,11 +67,17 @@ impl BakeJob {
         Self { inputs, output: output.into(), options: BakeOptions::DEFAULT, shard: None, resume: false, jobs: 1 }
     }
 
-    /// Checks the options that do not need the inputs.
+    /// Checks the options that do not need the inputs, as [`BakeOptions::for_player`] resolves
+    /// them.
     ///
     /// # Errors
     /// [`FileJobError::Option`] naming the option.
     pub fn validate(&self) -> Result<(), FileJobError> {
+        Self { options: self.options.for_player()?, ..self.clone() }.validate_resolved()
+    }
+
+    /// [`Self::validate`] of options already resolved for their player.
+    fn validate_resolved(&self) -> Result<(), FileJobError> {
         if !(self.options.rate.is_finite() && self.options.rate > 0.0) {
             return Err(FileJobError::option(
                 "rate",
@@ -237,7 +243,13 @@ impl BakeJob {
     /// A job that cannot start or cannot write its manifest. Inputs that fail are not errors
     /// here: see [`BakeReport::failed`].
     pub fn run(&self, device: &Device, progress: &dyn Progress) -> Result<BakeReport, FileJobError> {
-        self.validate()?;
+        let resolved = Self { options: self.options.for_player()?, ..self.clone() };
+        resolved.run_resolved(device, progress)
+    }
+
+    /// [`Self::run`] of options already resolved for their player.
+    fn run_resolved(&self, device: &Device, progress: &dyn Progress) -> Result<BakeReport, FileJobError> {
+        self.validate_resolved()?;
         let shard = match &self.shard {
             Some(shard) => shard.clone(),
             None => Shard::from_env(&|name| std::env::var(name).ok())?,

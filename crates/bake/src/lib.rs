@@ -15,6 +15,7 @@ pub mod job;
 pub mod manifest;
 pub mod options;
 pub(crate) mod outputs;
+pub mod player;
 pub mod poses;
 mod report;
 pub mod root_motion;

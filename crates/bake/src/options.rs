@@ -4,6 +4,7 @@
 
 use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
+use super::player::Player;
 use super::root_motion::RootMotion;
 use super::texture::{Precision, TextureKind};
 use super::ClipRate;
@@ -14,6 +15,7 @@ use quatcurve_device::DeviceChoice;
 #[cfg(feature = "cli")]
 use quatcurve_eval::options::names;
 use quatcurve_eval::options::CurveOptions;
+use quatcurve_files::FileJobError;
 use quatcurve_formats::crowd;
 use quatcurve_formats::source::Source;
 use serde::{Deserialize, Serialize};
@@ -54,6 +56,11 @@ pub struct BakeOptions {
     /// directory, `file:` URIs). Off by default: only data URIs and files beside the input.
     #[cfg_attr(feature = "cli", arg(long))]
     pub allow_external_uris: bool,
+    /// Bake for this player: the texture, format and atlas it plays where they are left at
+    /// their defaults (three: skin-trs EXR, one atlas; babylon: skin as Babylon's JSON; view:
+    /// skin-trs EXR); a texture or format it cannot play is refused.
+    #[cfg_attr(feature = "cli", arg(long, value_parser = names::<Player>()))]
+    pub player: Option<Player>,
     /// Texture per clip: local (rotation, translation, scale of each joint relative to its
     /// parent), model (3x4 matrices relative to the scene root, by forward kinematics), skin
     /// (model times inverse bind matrix, one texture per glTF skin; BVH and the crowd: model),
@@ -117,6 +124,7 @@ impl BakeOptions {
         looping: LoopMode::Auto,
         device: DeviceChoice::Auto,
         allow_external_uris: false,
+        player: None,
         texture: TextureKind::Local,
         precision: Precision::F32,
         format: Format::Npy,
@@ -130,6 +138,31 @@ impl BakeOptions {
         max_rate: DEFAULT_MAX_RATE,
         root_motion: RootMotion::Keep,
     };
+
+    /// These options with [`Self::player`]'s texture, format and atlas where they are left at
+    /// their defaults; the same options again for a bake already resolved.
+    ///
+    /// # Errors
+    /// [`FileJobError::Option`] (`player`) naming every texture or format given that the player
+    /// cannot play.
+    pub fn for_player(&self) -> Result<Self, FileJobError> {
+        let Some(player) = self.player else { return Ok(self.clone()) };
+        let plays = player.plays();
+        let mut resolved = self.clone();
+        if resolved.texture == Self::DEFAULT.texture && !plays.textures.contains(&resolved.texture) {
+            resolved.texture = plays.textures[0];
+        }
+        if resolved.format == Self::DEFAULT.format && !plays.formats.contains(&resolved.format) {
+            resolved.format = plays.formats[0];
+        }
+        resolved.atlas |= plays.atlas;
+        let refusals = player.refusals(resolved.texture, resolved.format);
+        if refusals.is_empty() {
+            return Ok(resolved);
+        }
+        let words: Vec<String> = refusals.iter().map(ToString::to_string).collect();
+        Err(FileJobError::option("player", format!("{player}: {}", words.join("; "))))
+    }
 
     /// What `source`'s keys are interpolated with: the family asked for, else the source's
     /// own choice ([`quatcurve_formats::source::Input::default_curve`]).

@@ -2,6 +2,7 @@
 //! the request's 422 (or the command's failure), naming the file, clip or primitive.
 
 use quatcurve_anim::error::InputError;
+use quatcurve_bake::player::Unplayable;
 use quatcurve_core::curve::UnknownName;
 use quatcurve_gpu::GpuError;
 use quatcurve_shader::ShaderError;
@@ -54,18 +55,9 @@ pub enum ViewError {
     /// The curves cannot be laid out for the page's WebGPU.
     #[error(transparent)]
     Gpu(#[from] GpuError),
-    /// Textures that are not images.
-    #[error("its textures are {format}; the page samples images: bake exr or png16 textures")]
-    NotImages {
-        /// The bake's format.
-        format: String,
-    },
-    /// Textures of a kind the page does not play.
-    #[error("its textures are {texture}; the page plays skin-trs bone textures (GPU skinning) or vertex textures")]
-    NotPlayed {
-        /// The bake's texture kind.
-        texture: String,
-    },
+    /// A bake the page does not play, every reason named.
+    #[error("{}; bake for player view", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    NotPlayable(Vec<Unplayable>),
     /// Something the bake or the shader should hold and does not.
     #[error("{what}")]
     Lacks {

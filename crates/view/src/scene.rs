@@ -11,6 +11,7 @@ use crate::error::ViewError;
 use base64::Engine as _;
 use naga::ShaderStage;
 use quatcurve_bake::image::{Format, Grid};
+use quatcurve_bake::player::Player;
 use quatcurve_bake::sidecar::{ImageRecord, Sidecar, SidecarClip};
 use quatcurve_bake::texture::TextureKind;
 use quatcurve_bake::vertex_encoding::Bounds;
@@ -44,16 +45,15 @@ pub enum Playback {
 }
 
 impl Playback {
-    /// How a bake of `texture` in `format` plays, or why it cannot.
+    /// How a bake of `texture` in `format` plays, or every reason it cannot (the view
+    /// player's, [`Player::View`]).
     fn of(texture: &str, format: &str) -> Result<Self, ViewError> {
-        if !format.parse::<Format>().is_ok_and(Format::is_image) {
-            return Err(ViewError::NotImages { format: format.into() });
+        let (kind, file) = (texture.parse::<TextureKind>()?, format.parse::<Format>()?);
+        let refusals = Player::View.refusals(kind, file);
+        if !refusals.is_empty() {
+            return Err(ViewError::NotPlayable(refusals));
         }
-        match texture.parse::<TextureKind>() {
-            Ok(TextureKind::SkinTrs) => Ok(Playback::Bones),
-            Ok(TextureKind::Vertex) => Ok(Playback::Vertex),
-            _ => Err(ViewError::NotPlayed { texture: texture.into() }),
-        }
+        Ok(if kind == TextureKind::Vertex { Playback::Vertex } else { Playback::Bones })
     }
 
     fn program(self) -> Program {
@@ -666,6 +666,18 @@ mod tests {
         assert_eq!((listing.bakes.len(), listing.left_out), (MAX_LISTED, 2));
         assert_eq!(listing.bakes[0].sidecar, "00000.json");
         let refusal = listing.bakes[0].refusal.as_deref().unwrap();
-        assert!(refusal.contains("npy") && refusal.contains("exr or png16 textures"), "{refusal}");
+        assert_eq!(refusal, "view reads exr or png16 files, not npy; bake for player view");
+    }
+
+    #[test]
+    fn a_bake_the_page_cannot_play_is_refused_with_every_reason_at_once() {
+        let refused = Playback::of("local", "npy").unwrap_err().to_string();
+        assert_eq!(
+            refused,
+            "view plays skin-trs or vertex textures, not local; view reads exr or png16 files, not npy; bake for \
+             player view"
+        );
+        assert_eq!(Playback::of("skin-trs", "png16").unwrap(), Playback::Bones);
+        assert_eq!(Playback::of("vertex", "exr").unwrap(), Playback::Vertex);
     }
 }

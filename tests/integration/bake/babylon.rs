@@ -18,13 +18,14 @@ use std::path::Path;
 /// by 0.03 to 0.4).
 const MATRIX_TOLERANCE: f64 = 1e-5;
 
-/// CesiumMan one clip at a file, Fox's three clips in one atlas; at 60 Hz on the default curve,
+/// Baked for the babylon player: CesiumMan one clip at a file, Fox's three clips in one atlas;
+/// at 60 Hz on the default curve,
 /// the source's own slerp that Babylon plays glTF's LINEAR keys with, so that its own baker is
 /// comparable frame by frame.
 fn babylon_bakes(dir: &Path, data: &Path) -> [(&'static str, &'static str); 2] {
     // CesiumMan's open clip at exactly 60 Hz, as Babylon's baker samples it; Fox's loops at 60
     // Hz fitted to whole frames of their periods, so that each ends on its seam.
-    let args = ["--texture", "skin", "--format", "babylon", "--rate", "60"];
+    let args = ["--player", "babylon", "--rate", "60"];
     bake_into(dir, "man", &data.join("CesiumMan.glb"), &[&args[..], &["--exact-rate"]].concat());
     bake_into(dir, "fox", &data.join("Fox.glb"), &[&args[..], &["--atlas"]].concat());
     [("man/CesiumMan.json", "CesiumMan.glb"), ("fox/Fox.json", "Fox.glb")]

@@ -462,3 +462,52 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     eprintln!("Walk at {} s: WebGPU against WebGL2 {between:.4}", poses[0].0);
     assert!(between <= SILHOUETTE_TOLERANCE, "WebGPU and WebGL2 differ by {between}");
 }
+
+#[test]
+fn a_bake_for_each_player_is_one_that_player_plays_and_the_view_page_lists_its_own_as_playable() {
+    use quatcurve::bake::player::Player;
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fox = data.join("Fox.glb");
+    for player in [Player::Three, Player::Babylon, Player::View] {
+        let out = dir.path().join(player.name());
+        let baked =
+            bake(&["--input", fox.to_str().unwrap(), "--player", player.name(), "--output", out.to_str().unwrap()]);
+        assert!(baked.status.success(), "{player}: {}", stderr(&baked));
+        let sidecar = json(&out.join("Fox.json"));
+        let (texture, format) = (sidecar["texture"].as_str().unwrap(), sidecar["format"].as_str().unwrap());
+        assert!(player.refusals(texture.parse().unwrap(), format.parse().unwrap()).is_empty(), "{player}: {sidecar}");
+        let options = &json(&out.join("manifest.0-of-1.json"))["options"];
+        assert_eq!(
+            (options["player"].as_str(), options["atlas"].as_bool()),
+            (Some(player.name()), Some(player.plays().atlas))
+        );
+        let listed = quatcurve::view::scene::bakes(&out);
+        let page = listed.bakes.iter().find(|b| b.sidecar == "Fox.json").unwrap();
+        assert_eq!(
+            page.playback.is_some(),
+            player == Player::View || player == Player::Three,
+            "{player}: {:?}",
+            page.refusal
+        );
+    }
+    // A texture the player cannot play is refused before anything is made, named with the player.
+    let out = dir.path().join("refused");
+    let refused = bake(&[
+        "--input",
+        fox.to_str().unwrap(),
+        "--player",
+        "view",
+        "--texture",
+        "model",
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(
+        stderr(&refused).contains("--player view: view plays skin-trs or vertex textures, not model"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!out.exists());
+}
