@@ -17,11 +17,17 @@ use quatcurve_anim::{Animation, Clip, GLTF_UNIT_CM};
 use quatcurve_device::Device;
 use quatcurve_eval::error::Number;
 use quatcurve_eval::skeleton;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Points of each frame interval where the error is measured (the interval's start included,
 /// its end being the next interval's start).
 pub const SUBSTEPS: usize = 16;
+
+/// Points of each interval the search screens a rate at before it measures the one it picks
+/// at [`SUBSTEPS`]: a quarter of them (every fourth, the middle included), so a rate the screen
+/// refuses would be refused at every point too, and a search costs about a third as much.
+pub const SCREEN_SUBSTEPS: usize = SUBSTEPS / 4;
 
 /// The share of the budget a chosen rate may use on the host, so that the shader's own f32
 /// arithmetic and a PNG16's quantization (at most 1/65535 of a channel's range, 0.002 degrees
@@ -184,6 +190,19 @@ pub fn measure(
     setting: &Setting<'_>,
     unit_mm: f64,
 ) -> Result<Measured, BakeError> {
+    measure_at(animation, clip, rate, setting, unit_mm, SUBSTEPS)
+}
+
+/// [`measure`] at `points` points of each interval ([`SUBSTEPS`], or [`SCREEN_SUBSTEPS`] to
+/// screen a rate).
+fn measure_at(
+    animation: &Animation,
+    clip: usize,
+    rate: f64,
+    setting: &Setting<'_>,
+    unit_mm: f64,
+    points: usize,
+) -> Result<Measured, BakeError> {
     let one = only(animation, clip);
     let order = one.parents_first()?;
     let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), BakeError> {
@@ -203,47 +222,55 @@ pub fn measure(
     if intervals == 0 {
         return Ok(measured);
     }
-    let (dense, _, dense_times) = frames_at(fitted * SUBSTEPS as f64)?;
+    let (dense, _, dense_times) = frames_at(fitted * points as f64)?;
     let substeps = (dense_times.len() - 1) / intervals;
     if substeps * intervals != dense_times.len() - 1 {
         let (clip, frames) = (animation.clips[clip].name.clone(), dense_times.len());
-        return Err(InputError::from(InternalError::Grid { clip, frames, substeps: SUBSTEPS, intervals }).into());
+        return Err(InputError::from(InternalError::Grid { clip, frames, substeps: points, intervals }).into());
     }
     let start = times[0];
     for (sheet, truth) in coarse.iter().zip(&dense) {
         let width = sheet.width;
         // The interpolated rows at every dense frame, as the shader blends them.
-        let mut blended = Vec::with_capacity(truth.data.len());
-        for k in 0..dense_times.len() {
+        let frame = width * LOCAL_CHANNELS;
+        let mut blended = vec![0.0f32; dense_times.len() * frame];
+        blended.par_chunks_mut(frame).enumerate().for_each(|(k, out)| {
             // The last dense frame is the end of the last interval.
             let i = (k / substeps).min(intervals - 1);
             let u = (k - i * substeps) as f64 / substeps as f64;
-            for j in 0..width {
-                blended.extend(interpolate(row(&sheet.data, width, i, j), row(&sheet.data, width, i + 1, j), u));
+            for (j, out) in out.chunks_exact_mut(LOCAL_CHANNELS).enumerate() {
+                out.copy_from_slice(&interpolate(row(&sheet.data, width, i, j), row(&sheet.data, width, i + 1, j), u));
             }
-        }
+        });
         let names = joint_names(animation, setting.kind, &sheet.suffix);
-        let frame = width * LOCAL_CHANNELS;
-        for (k, (b, t)) in blended.chunks_exact(frame).zip(truth.data.chunks_exact(frame)).enumerate() {
-            for (j, (b, t)) in b.chunks_exact(LOCAL_CHANNELS).zip(t.chunks_exact(LOCAL_CHANNELS)).enumerate() {
-                let e = angle_degrees(b, t);
-                if e > measured.rotation.value {
-                    measured.rotation = Worst { value: e, joint: names[j].clone(), time: dense_times[k] - start };
-                }
-            }
+        let angles = blended
+            .par_chunks(LOCAL_CHANNELS)
+            .zip(truth.data.par_chunks(LOCAL_CHANNELS))
+            .map(|(b, t)| angle_degrees(b, t))
+            .enumerate();
+        if let Some((at, value)) = first_largest(angles, measured.rotation.value) {
+            measured.rotation =
+                Worst { value, joint: names[at % width].clone(), time: dense_times[at / width] - start };
         }
         let positions = |rows: &[f32]| positions(&one, &order, setting.kind, &sheet.suffix, rows);
         let (p, t) = (positions(&blended), positions(&truth.data));
-        for (k, (p, t)) in p.chunks_exact(width).zip(t.chunks_exact(width)).enumerate() {
-            for (j, (p, t)) in p.iter().zip(t).enumerate() {
-                let e = (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm;
-                if e > measured.position.value {
-                    measured.position = Worst { value: e, joint: names[j].clone(), time: dense_times[k] - start };
-                }
-            }
+        let distances = p
+            .par_iter()
+            .zip(&t)
+            .map(|(p, t)| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm)
+            .enumerate();
+        if let Some((at, value)) = first_largest(distances, measured.position.value) {
+            measured.position =
+                Worst { value, joint: names[at % width].clone(), time: dense_times[at / width] - start };
         }
     }
     Ok(measured)
+}
+
+/// The first of `values` (by index) larger than `above` and than every other, as a scan in
+/// order keeping each strictly larger one finds it; NaN is never larger.
+fn first_largest(values: impl IndexedParallelIterator<Item = (usize, f64)>, above: f64) -> Option<(usize, f64)> {
+    values.filter(|&(_, v)| v > above).reduce_with(|a, b| if b.1 > a.1 || (b.1 == a.1 && b.0 < a.0) { b } else { a })
 }
 
 /// The joints' names of a sheet (`suffix` `.skin<k>`: the skin's joints).
@@ -267,7 +294,7 @@ fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: 
         TextureKind::SkinTrs if !animation.skins.is_empty() => {
             let k: usize = suffix.trim_start_matches(".skin").parse().unwrap_or(0);
             let bind: Vec<[f64; 3]> = animation.skins[k].inverse_bind.iter().map(bind_position).collect();
-            rows.chunks_exact(LOCAL_CHANNELS)
+            rows.par_chunks_exact(LOCAL_CHANNELS)
                 .enumerate()
                 .map(|(i, row)| skeleton::transform_point(&skeleton::trs_row(row), bind[i % bind.len()]))
                 .collect()
@@ -307,9 +334,10 @@ pub fn choose_rates(
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
         let span = end - start;
-        let at = |intervals: f64| {
-            measure(animation, c, if span > 0.0 { intervals / span } else { 1.0 }, setting, budget.unit_mm)
-        };
+        let rate = |intervals: f64| if span > 0.0 { intervals / span } else { 1.0 };
+        let screen =
+            |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SCREEN_SUBSTEPS);
+        let full = |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SUBSTEPS);
         // Intervals per step of the search, and the first step tried.
         let grid =
             key_grid(clip).filter(|&keys| setting.curve.corners_at_keys() && keys as f64 <= span * budget.max_rate);
@@ -319,7 +347,7 @@ pub fn choose_rates(
         };
         let steps = |rate: f64| (span * rate / step).floor().max(1.0);
         let most = steps(budget.max_rate);
-        let best = match lowest(&at, budget, [0.0, first.min(most), most], step)? {
+        let best = match screened(&screen, &full, budget, [0.0, first.min(most), most], step)? {
             Ok(best) => best,
             Err(worst) => {
                 let further = [
@@ -327,7 +355,7 @@ pub fn choose_rates(
                     (most * 2.0).min(steps(budget.max_rate * REFUSAL_SEARCH)),
                     steps(budget.max_rate * REFUSAL_SEARCH),
                 ];
-                let higher = match lowest(&at, budget, further, step)? {
+                let higher = match screened(&screen, &full, budget, further, step)? {
                     Ok(m) => Ok(m.rate),
                     Err(m) => Err(m.rate),
                 };
@@ -348,6 +376,33 @@ pub fn choose_rates(
     Ok(chosen)
 }
 
+/// [`lowest`] over the `screen`'s measures, then the steps it picks measured in `full`: the
+/// answer when they hold, else the search goes on above them in `full` measures. The screen's
+/// points are the full measure's, so a step it refuses the full measure refuses too, and
+/// the rate found is the one a search of full measures alone finds. Refused: the full
+/// measure at `most`.
+fn screened(
+    screen: &impl Fn(f64) -> Result<Measured, BakeError>,
+    full: &impl Fn(f64) -> Result<Measured, BakeError>,
+    budget: &ErrorBudget,
+    [low, first, most]: [f64; 3],
+    step: f64,
+) -> Result<Result<Measured, Measured>, BakeError> {
+    match lowest(screen, budget, [low, first, most], step)? {
+        Ok((steps, _)) => {
+            let m = full(steps * step)?;
+            if budget.holds(&m) {
+                return Ok(Ok(m));
+            }
+            if steps >= most {
+                return Ok(Err(m));
+            }
+            Ok(lowest(full, budget, [steps, (steps + 1.0).min(most), most], step)?.map(|(_, m)| m))
+        }
+        Err(_) => Ok(Err(full(most * step)?)),
+    }
+}
+
 /// The fewest steps above `low` (known to fail; 0: none tried), trying `first` and doubling up
 /// to `most` (each step `step` intervals of the clip), whose frames keep within `budget`, and
 /// what they measured (`Err`: what `most` steps measured, when they do not hold).
@@ -356,7 +411,7 @@ fn lowest(
     budget: &ErrorBudget,
     [mut low, first, most]: [f64; 3],
     step: f64,
-) -> Result<Result<Measured, Measured>, BakeError> {
+) -> Result<Result<(f64, Measured), Measured>, BakeError> {
     let mut high = first;
     let mut best = loop {
         let m = at(high * step)?;
@@ -379,7 +434,7 @@ fn lowest(
             low = mid;
         }
     }
-    Ok(Ok(best))
+    Ok(Ok((high, best)))
 }
 
 /// How far (a fraction of its step) a key may be from a uniform grid and lie on it: exporters
