@@ -473,6 +473,32 @@ fn key_grid(clip: &Clip) -> Option<usize> {
 mod tests {
     use super::*;
 
+    /// A measure whose rotation error at `steps` is `error(steps)` (its rate the steps).
+    fn measured(error: impl Fn(f64) -> f64) -> impl Fn(f64) -> Result<Measured, BakeError> {
+        move |steps| {
+            let rotation = Worst { value: error(steps), ..Worst::default() };
+            Ok(Measured { rate: steps, rotation, ..Measured::default() })
+        }
+    }
+
+    #[test]
+    fn a_screened_search_picks_what_a_search_of_full_measures_picks() {
+        let budget = ErrorBudget { degrees: Some(1.0), millimetres: None, unit_mm: 1.0, max_rate: 480.0 };
+        let full = |steps: f64| 100.0 / steps;
+        // The screen sees the worst point, or misses it and sees half the error.
+        for seen in [1.0, 0.5] {
+            let screen = measured(move |s| seen * full(s));
+            let name = format!("the screen sees {seen} of the error");
+            let alone = lowest(&measured(full), &budget, [0.0, 3.0, 400.0], 1.0).unwrap().unwrap();
+            let picked = screened(&screen, &measured(full), &budget, [0.0, 3.0, 400.0], 1.0).unwrap().unwrap();
+            assert_eq!(picked.rate, alone.1.rate, "{name}");
+            assert_eq!(picked.rate, 102.0, "{name}: 100 / 102 is within 0.99 degrees");
+        }
+        // Refused: the full measure at the most steps.
+        let refused = screened(&measured(full), &measured(full), &budget, [0.0, 3.0, 50.0], 1.0).unwrap().unwrap_err();
+        assert_eq!(refused.rate, 50.0);
+    }
+
     fn about_z(degrees: f64) -> [f32; 4] {
         let h = degrees.to_radians() / 2.0;
         [0.0, 0.0, h.sin() as f32, h.cos() as f32]
