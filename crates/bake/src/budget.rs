@@ -229,8 +229,15 @@ fn measure_at(
         return Err(InputError::from(InternalError::Grid { clip, frames, substeps: points, intervals }).into());
     }
     let start = times[0];
+    let broken = broken_spans(animation, clip);
     for (sheet, truth) in coarse.iter().zip(&dense) {
         let width = sheet.width;
+        let joints = sheet_joints(animation, setting.kind, &sheet.suffix);
+        // A point inside a step of broken source data, the joint's or an ancestor's, is left out.
+        let counted = |at: usize| {
+            let t = dense_times[at / width];
+            !broken[joints[at % width]].iter().any(|&[a, b]| t > a && t < b)
+        };
         // The interpolated rows at every dense frame, as the shader blends them.
         let frame = width * LOCAL_CHANNELS;
         let mut blended = vec![0.0f32; dense_times.len() * frame];
@@ -242,26 +249,25 @@ fn measure_at(
                 out.copy_from_slice(&interpolate(row(&sheet.data, width, i, j), row(&sheet.data, width, i + 1, j), u));
             }
         });
-        let names = joint_names(animation, setting.kind, &sheet.suffix);
+        let name = |at: usize| animation.joints[joints[at % width]].name.clone();
         let angles = blended
             .par_chunks(LOCAL_CHANNELS)
             .zip(truth.data.par_chunks(LOCAL_CHANNELS))
-            .map(|(b, t)| angle_degrees(b, t))
-            .enumerate();
+            .enumerate()
+            .map(|(at, (b, t))| (at, if counted(at) { angle_degrees(b, t) } else { f64::NAN }));
         if let Some((at, value)) = first_largest(angles, measured.rotation.value) {
-            measured.rotation =
-                Worst { value, joint: names[at % width].clone(), time: dense_times[at / width] - start };
+            measured.rotation = Worst { value, joint: name(at), time: dense_times[at / width] - start };
         }
         let positions = |rows: &[f32]| positions(&one, &order, setting.kind, &sheet.suffix, rows);
         let (p, t) = (positions(&blended), positions(&truth.data));
+        let distance = |p: &[f64; 3], t: &[f64; 3]| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm;
         let distances = p
             .par_iter()
             .zip(&t)
-            .map(|(p, t)| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm)
-            .enumerate();
+            .enumerate()
+            .map(|(at, (p, t))| (at, if counted(at) { distance(p, t) } else { f64::NAN }));
         if let Some((at, value)) = first_largest(distances, measured.position.value) {
-            measured.position =
-                Worst { value, joint: names[at % width].clone(), time: dense_times[at / width] - start };
+            measured.position = Worst { value, joint: name(at), time: dense_times[at / width] - start };
         }
     }
     Ok(measured)
@@ -273,13 +279,35 @@ fn first_largest(values: impl IndexedParallelIterator<Item = (usize, f64)>, abov
     values.filter(|&(_, v)| v > above).reduce_with(|a, b| if b.1 > a.1 || (b.1 == a.1 && b.0 < a.0) { b } else { a })
 }
 
-/// The joints' names of a sheet (`suffix` `.skin<k>`: the skin's joints).
-fn joint_names(animation: &Animation, kind: TextureKind, suffix: &str) -> Vec<String> {
+/// The joints of a sheet's columns (`suffix` `.skin<k>`: the skin's joints).
+fn sheet_joints(animation: &Animation, kind: TextureKind, suffix: &str) -> Vec<usize> {
     let skin = suffix.strip_prefix(".skin").and_then(|k| k.parse::<usize>().ok());
     match skin.filter(|_| kind.is_skin()) {
-        Some(k) => animation.skins[k].joints.iter().map(|&j| animation.joints[j].name.clone()).collect(),
-        None => animation.joints.iter().map(|j| j.name.clone()).collect(),
+        Some(k) => animation.skins[k].joints.clone(),
+        None => (0..animation.joints.len()).collect(),
     }
+}
+
+/// Per joint, the key intervals (s) of clip `clip` in which it or an ancestor turns more than
+/// [`super::SOURCE_STEP_WARNING_DEGREES`] between keys ([`super::broken_steps`]): broken
+/// source data the bake warns of, which a budget leaves out rather than chase with a rate no
+/// frame could follow.
+fn broken_spans(animation: &Animation, clip: usize) -> Vec<Vec<[f64; 2]>> {
+    let mut own = vec![Vec::new(); animation.joints.len()];
+    for channel in &animation.clips[clip].channels {
+        let Some((times, _)) = channel.keyed() else { continue };
+        own[channel.joint].extend(super::broken_steps(channel).into_iter().map(|(i, _)| [times[i], times[i + 1]]));
+    }
+    (0..animation.joints.len())
+        .map(|joint| {
+            let (mut spans, mut at) = (Vec::new(), Some(joint));
+            while let Some(j) = at {
+                spans.extend_from_slice(&own[j]);
+                at = animation.joints[j].parent;
+            }
+            spans
+        })
+        .collect()
 }
 
 /// Each row's joint position in model space (model units): forward kinematics of a local
@@ -502,6 +530,45 @@ mod tests {
     fn about_z(degrees: f64) -> [f32; 4] {
         let h = degrees.to_radians() / 2.0;
         [0.0, 0.0, h.sin() as f32, h.cos() as f32]
+    }
+
+    /// A chain of two joints, the child turning about z through 60 keys at 30 Hz on a smooth
+    /// path; with `flip`, one key turned half a turn about x (a tracking flip).
+    fn arm(flip: bool) -> Animation {
+        use quatcurve_anim::{Channel, Joint, Property};
+        let joints = vec![Joint::at("root".into(), None, [0.0; 3]), Joint::at("arm".into(), Some(0), [0.0, 1.0, 0.0])];
+        let times: Vec<f64> = (0..60).map(|k| f64::from(k) / 30.0).collect();
+        let mut values: Vec<[f64; 4]> = times
+            .iter()
+            .map(|t| {
+                let h = (0.8 * (3.0 * t).sin()) / 2.0;
+                [0.0, 0.0, h.sin(), h.cos()]
+            })
+            .collect();
+        if flip {
+            values[30] = [1.0, 0.0, 0.0, 0.0];
+        }
+        let turn = Channel::keys(1, Property::Rotation, times, values);
+        Animation { joints, clips: vec![Clip { name: "wave".into(), channels: vec![turn] }], skins: Vec::new() }
+    }
+
+    #[test]
+    fn a_flipped_key_is_left_out_of_a_budget_not_chased_with_a_higher_rate() {
+        let device = Device::open(quatcurve_device::DeviceChoice::Cpu).unwrap();
+        let curve = CurveChoice::Source;
+        let setting = Setting {
+            curve: &curve,
+            looping: LoopMode::Off,
+            kind: TextureKind::Local,
+            precision: Precision::F32,
+            device: &device,
+        };
+        let budget = ErrorBudget { degrees: Some(0.5), millimetres: None, unit_mm: 1000.0, max_rate: 480.0 };
+        let [clean, flipped] =
+            [false, true].map(|flip| choose_rates(&arm(flip), &budget, &setting).unwrap()[0].clone());
+        assert_eq!(super::super::broken_steps(&arm(true).clips[0].channels[0]).len(), 2, "into the flip and out");
+        assert_eq!(flipped.rate, clean.rate, "the flip chased: {flipped:?}");
+        assert!(flipped.rotation.value <= 0.5, "{flipped:?}");
     }
 
     #[test]

@@ -55,35 +55,46 @@ pub const FITTED_CURVE: &str = "fitted-bspline";
 /// quarter turn between two frames is a tracking flip far more often than motion.
 pub const SOURCE_STEP_WARNING_DEGREES: f64 = 90.0;
 
-/// One warning per rotation channel with steps between consecutive keys over
-/// [`SOURCE_STEP_WARNING_DEGREES`], naming the channel, the first such step and how many
-/// there are. The bake goes on, through the step as the curve takes it.
+/// The steps between consecutive keys of a rotation channel that turn more than
+/// [`SOURCE_STEP_WARNING_DEGREES`]: each as the index of its first key and its angle (rad).
+/// None for a fitted channel, whose control points are not keys.
 #[must_use]
-pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
+pub fn broken_steps(channel: &Channel) -> Vec<(usize, f64)> {
     let limit = SOURCE_STEP_WARNING_DEGREES.to_radians();
     // Steps whose |dot| is clearly above cos(limit / 2) are under the limit: only the others
     // take the exact angle (a quarter of a crowd bake's serial time when every step did).
     let clearly_under = (limit / 2.0).cos() + 1e-9;
+    let Some((_, values)) = channel.keyed().filter(|_| channel.property == Property::Rotation) else {
+        return Vec::new();
+    };
+    values
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| {
+            let (a, b) = (QuatF64::from_array(w[0]).normalize(), QuatF64::from_array(w[1]).normalize());
+            if a.dot(b).abs() > clearly_under {
+                return None;
+            }
+            let angle = a.angle_to(b);
+            (angle > limit).then_some((i, angle))
+        })
+        .collect()
+}
+
+/// One warning per rotation channel with steps between consecutive keys over
+/// [`SOURCE_STEP_WARNING_DEGREES`] ([`broken_steps`]), naming the channel, the first such
+/// step and how many there are. The bake goes on, through the step as the curve takes it; an
+/// error budget leaves the step out of what it measures (`budget::measure`).
+#[must_use]
+pub fn source_step_warnings(animation: &Animation) -> Vec<String> {
     let channels: Vec<(&Clip, &Channel)> = animation
         .clips
         .iter()
         .flat_map(|clip| clip.channels.iter().filter(|c| c.property == Property::Rotation).map(move |c| (clip, c)))
         .collect();
     let warning = |&(clip, channel): &(&Clip, &Channel)| -> Option<String> {
-        // A fitted channel's control points are not keys: it has no steps between keys.
-        let (times, values) = channel.keyed()?;
-        let steps: Vec<(usize, f64)> = values
-            .windows(2)
-            .enumerate()
-            .filter_map(|(i, w)| {
-                let (a, b) = (QuatF64::from_array(w[0]).normalize(), QuatF64::from_array(w[1]).normalize());
-                if a.dot(b).abs() > clearly_under {
-                    return None;
-                }
-                let angle = a.angle_to(b);
-                (angle > limit).then_some((i, angle))
-            })
-            .collect();
+        let times = channel.keyed()?.0;
+        let steps = broken_steps(channel);
         let &(first, angle) = steps.first()?;
         Some(format!(
             "{}: {} step{} between consecutive keys turn{} more than {SOURCE_STEP_WARNING_DEGREES} degrees \
