@@ -85,6 +85,10 @@ impl Progress for Bar {
         self.samples.fetch_add(input.samples, Ordering::Relaxed);
         self.bar.inc(1);
     }
+
+    fn measuring(&self, source: &str, clip: &str, rate: f64) {
+        self.bar.set_message(format!("{source}: clip '{clip}', error budget at {rate:.1} Hz"));
+    }
 }
 
 pub fn run(args: &BakeArgs) -> Result<(), Failure> {

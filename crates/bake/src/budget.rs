@@ -7,6 +7,7 @@
 //! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
+use super::report::Progress;
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
 use super::{bake, ClipRate};
 use crate::error::{BakeError, Refusal};
@@ -176,6 +177,8 @@ pub struct Setting<'a> {
     pub precision: Precision,
     /// The device the frames are evaluated on.
     pub device: &'a Device,
+    /// Told of each rate the search measures, with the input's name.
+    pub progress: (&'a dyn Progress, &'a str),
 }
 
 /// The error of clip `clip` baked at `rate` (fitted to its span) against its curve at
@@ -362,7 +365,11 @@ pub fn choose_rates(
     for (c, clip) in animation.clips.iter().enumerate() {
         let [start, end] = clip.span();
         let span = end - start;
-        let rate = |intervals: f64| if span > 0.0 { intervals / span } else { 1.0 };
+        let rate = |intervals: f64| {
+            let rate = if span > 0.0 { intervals / span } else { 1.0 };
+            setting.progress.0.measuring(setting.progress.1, &clip.name, rate);
+            rate
+        };
         let screen =
             |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SCREEN_SUBSTEPS);
         let full = |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SUBSTEPS);
@@ -562,6 +569,7 @@ mod tests {
             kind: TextureKind::Local,
             precision: Precision::F32,
             device: &device,
+            progress: (&(), "arm"),
         };
         let budget = ErrorBudget { degrees: Some(0.5), millimetres: None, unit_mm: 1000.0, max_rate: 480.0 };
         let [clean, flipped] =

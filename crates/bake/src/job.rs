@@ -303,9 +303,11 @@ impl BakeJob {
                 (Some(record), _) => (resumed(name, record, &self.output), Vec::new()),
                 (None, Some(path)) => {
                     let uris = gltf::UriPolicy { allow_external: self.options.allow_external_uris };
-                    self.bake_one(name, stem, || Source::read(path, ReadOptions { uris }), device)
+                    self.bake_one(name, stem, || Source::read(path, ReadOptions { uris }), device, progress)
                 }
-                (None, None) => self.bake_one(name, stem, || Ok(Source::crowd(self.options.characters)), device),
+                (None, None) => {
+                    self.bake_one(name, stem, || Ok(Source::crowd(self.options.characters)), device, progress)
+                }
             };
             let record = input_record(&report, &written, fingerprint, kept);
             progress.finish(&report);
@@ -402,6 +404,7 @@ impl BakeJob {
         stem: &str,
         read: impl FnOnce() -> Result<Source, InputError>,
         device: &Device,
+        progress: &dyn Progress,
     ) -> (InputReport, Vec<Written>) {
         let start = Instant::now();
         let mut report = InputReport::new(source);
@@ -463,6 +466,7 @@ impl BakeJob {
                     kind: self.options.texture,
                     precision: self.options.precision,
                     device,
+                    progress: (progress, source),
                 };
                 let measured = budget::choose_rates(animation, &budget, &setting)?;
                 let rates: Vec<ClipRate> = measured.iter().map(|m| ClipRate::Fit(m.rate)).collect();

@@ -25,6 +25,11 @@ pub trait Progress: Sync {
     fn finish(&self, input: &InputReport) {
         let _ = input;
     }
+    /// An error budget measures clip `clip` of input `source` baked at `rate` Hz: the search
+    /// tries several rates a clip, which on a long clip take seconds.
+    fn measuring(&self, source: &str, clip: &str, rate: f64) {
+        let _ = (source, clip, rate);
+    }
 }
 
 impl Progress for () {}

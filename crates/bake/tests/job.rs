@@ -110,3 +110,23 @@ fn a_budget_no_rate_up_to_the_cap_meets_is_refused_naming_the_clip_the_rate_and_
     let written: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name()).collect();
     assert!(written.iter().all(|f| !f.to_string_lossy().starts_with("crowd")), "wrote {written:?}");
 }
+
+#[test]
+fn a_budget_tells_progress_of_every_rate_its_search_measures() {
+    struct Rates(std::sync::Mutex<Vec<(String, f64)>>);
+    impl quatcurve_bake::Progress for Rates {
+        fn measuring(&self, source: &str, clip: &str, rate: f64) {
+            assert!(source.starts_with("built-in crowd"), "{source}");
+            self.0.lock().unwrap().push((clip.to_string(), rate));
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut job = crowd_job(dir.path(), 1);
+    job.options.max_error = Some(1.0);
+    let rates = Rates(std::sync::Mutex::new(Vec::new()));
+    let report = job.run(&cpu(), &rates).unwrap();
+    let chosen = report.inputs[0].rates[0].measured.rate;
+    let told = rates.0.into_inner().unwrap();
+    assert!(told.len() >= 2, "a search measures more than one rate: {told:?}");
+    assert!(told.iter().any(|(_, rate)| (rate - chosen).abs() < 1e-9), "the chosen {chosen} Hz among {told:?}");
+}
