@@ -88,7 +88,7 @@ cat "$out/summary.md"
 
 {
     echo
-    echo "| # | workload | device | M samples/s end to end | dispatch only | roofline | dispatch / roofline | end to end / dispatch |"
+    echo "| # | workload | device | M samples/s end to end | prepared (dispatches alone) | roofline | prepared / roofline | end to end / prepared |"
     echo "|---|---|---|---|---|---|---|---|"
 } >>"$out/summary.md"
 
@@ -114,7 +114,7 @@ rows() {
                     printf "| %s | %s | %s | %.1f ns per bone-pose | - | - | - | - |\n", n, name, device, field(r, "ns_per_bone_pose")
                     continue
                 }
-                e = field(r, "samples_per_s"); d = field(r, "dispatch_samples_per_s"); f = field(r, "roofline_samples_per_s")
+                e = field(r, "samples_per_s"); d = field(r, "prepared_samples_per_s"); f = field(r, "roofline_samples_per_s")
                 printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n", n, name, device, mega(e), mega(d), mega(f),
                     (d != "" && f != "") ? sprintf("%.2f", d / f) : "-", (d != "") ? sprintf("%.2f", e / d) : "-"
             }

@@ -1,7 +1,7 @@
 //! `quatcurve bench`: one synthetic batch through every requested device in one process,
 //! median samples per second side by side (DESIGN section 5).
 
-use super::measure::{median_seconds, open_bench_device};
+use super::measure::{host, median_seconds, open_bench_device, run_seconds};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::{
@@ -87,6 +87,8 @@ pub struct BenchArgs {
 
 #[derive(Serialize)]
 struct Report {
+    /// The processor and its cores (each GPU's adapter and driver are its row's).
+    host: String,
     workload: Workload,
     results: Vec<Timing>,
 }
@@ -117,10 +119,19 @@ struct Timing {
     #[serde(skip_serializing_if = "Option::is_none")]
     driver: Option<String>,
     samples_per_s: f64,
+    /// The median of the runs, end to end.
     seconds: f64,
+    /// The fastest and slowest runs.
+    seconds_min: f64,
+    seconds_max: f64,
     samples: usize,
+    /// Its rate over the reference's (the f64 oracle's) on the same workload.
     #[serde(skip_serializing_if = "Option::is_none")]
-    dispatch_samples_per_s: Option<f64>,
+    vs_reference: Option<f64>,
+    /// With the inputs prepared on the device and the output buffer reused (GPU: dispatches
+    /// alone, no upload or read-back; CPU: into a reused buffer, no allocation).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prepared_samples_per_s: Option<f64>,
     /// GPU: the write-only roofline kernel's rate over the same dispatches and output bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     roofline_samples_per_s: Option<f64>,
@@ -225,10 +236,10 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
         writeln!(
             w,
             "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14} {:>16}",
-            "shape", "tracks", "per track", "batch", "device", "M samples/s", "kernel-only M/s"
+            "shape", "tracks", "per track", "batch", "device", "M samples/s", "prepared M/s"
         )?;
         for p in &points {
-            let kernel = p.row.dispatch_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
+            let kernel = p.row.prepared_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
             writeln!(
                 w,
                 "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14.2} {:>16}",
@@ -276,7 +287,13 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
             Device::Cpu(cpu) => time_cpu(args, cpu, &batch, &times)?,
         });
     }
+    if let Some(reference) = results.iter().find(|r| r.device == "reference").map(|r| r.samples_per_s) {
+        for r in &mut results {
+            r.vs_reference = Some(r.samples_per_s / reference);
+        }
+    }
     let report = Report {
+        host: host(),
         workload: Workload {
             tracks: args.tracks,
             samples_per_track: args.samples,
@@ -302,16 +319,19 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
     let (slice, slice_times) =
         synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob::new(&slice, &slice_times).derivatives(args.derivatives);
-    let seconds = median_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
+    let seconds = run_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
     let samples = slice_times.total();
     Ok(Timing {
         device: "reference",
         adapter: "f64, one thread".into(),
         driver: None,
-        samples_per_s: samples as f64 / seconds,
-        seconds,
+        samples_per_s: samples as f64 / seconds.median,
+        seconds: seconds.median,
+        seconds_min: seconds.min,
+        seconds_max: seconds.max,
         samples,
-        dispatch_samples_per_s: None,
+        vs_reference: None,
+        prepared_samples_per_s: None,
         roofline_samples_per_s: None,
     })
 }
@@ -319,7 +339,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
 fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
     let job = EvalJob::new(batch, times).derivatives(args.derivatives);
     let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
-    let seconds = median_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;
+    let seconds = run_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;
     // Dispatch-only and roofline a piece of tracks at a time, each piece about one streamed
     // chunk on the device, the pieces' medians summed: the dispatches `evaluate` streams,
     // without holding the whole batch on the device (on a software adapter, device memory is
@@ -336,10 +356,13 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTime
         device: "gpu",
         adapter: gpu.adapter_name().to_string(),
         driver: Some(gpu.context().driver().to_string()),
-        samples_per_s: samples as f64 / seconds,
-        seconds,
+        samples_per_s: samples as f64 / seconds.median,
+        seconds: seconds.median,
+        seconds_min: seconds.min,
+        seconds_max: seconds.max,
         samples,
-        dispatch_samples_per_s: Some(samples as f64 / dispatch),
+        vs_reference: None,
+        prepared_samples_per_s: Some(samples as f64 / dispatch),
         roofline_samples_per_s: Some(samples as f64 / roofline),
     })
 }
@@ -363,7 +386,7 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
     };
     let job = EvalJob::new(batch, times).with(options);
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
-    let seconds = median_seconds(args.runs, || cpu.evaluate(&job).map(drop).map_err(input))?;
+    let seconds = run_seconds(args.runs, || cpu.evaluate(&job).map(drop).map_err(input))?;
     // The CPU's analogue of dispatch-only: into a reused buffer (no allocation, no page faults).
     let mut buffer = vec![0.0f32; times.total() * options.row().channels()];
     let compute = median_seconds(args.runs, || cpu.evaluate_into(&job, &mut buffer).map_err(input))?;
@@ -375,10 +398,13 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
             None => cpu.name(),
         },
         driver: None,
-        samples_per_s: samples as f64 / seconds,
-        seconds,
+        samples_per_s: samples as f64 / seconds.median,
+        seconds: seconds.median,
+        seconds_min: seconds.min,
+        seconds_max: seconds.max,
         samples,
-        dispatch_samples_per_s: Some(samples as f64 / compute),
+        vs_reference: None,
+        prepared_samples_per_s: Some(samples as f64 / compute),
         roofline_samples_per_s: None,
     })
 }
@@ -397,23 +423,28 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
         if l.derivatives { "with angular velocity and acceleration" } else { "rotation only" },
         l.runs
     )?;
+    writeln!(w, "host: {}", report.host)?;
     writeln!(w, "build: {:.4} s ({:.2} M keys/s)", l.build_seconds, l.build_keys_per_s / 1e6)?;
     writeln!(
         w,
-        "{:<10} {:>12} {:>10} {:>14} {:>16} {:>14}  adapter",
-        "device", "samples", "seconds", "M samples/s", "kernel-only M/s", "roofline M/s"
+        "{:<10} {:>10} {:>20} {:>12} {:>7} {:>12} {:>12}  adapter (driver)",
+        "device", "samples", "s min-med-max", "M samples/s", "x ref", "prepared M/s", "roofline M/s"
     )?;
     let rate = |s: Option<f64>| s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
     for r in &report.results {
-        let (dispatch, roofline) = (rate(r.dispatch_samples_per_s), rate(r.roofline_samples_per_s));
+        let (prepared, roofline) = (rate(r.prepared_samples_per_s), rate(r.roofline_samples_per_s));
+        let spread = format!("{:.4}-{:.4}-{:.4}", r.seconds_min, r.seconds, r.seconds_max);
+        let times = r.vs_reference.map_or_else(|| "-".to_string(), |x| format!("{x:.1}"));
+        let driver = r.driver.as_ref().map_or_else(String::new, |d| format!(" ({d})"));
         writeln!(
             w,
-            "{:<10} {:>12} {:>10.4} {:>14.2} {:>16} {:>14}  {}",
+            "{:<10} {:>10} {:>20} {:>12.2} {:>7} {:>12} {:>12}  {}{driver}",
             r.device,
             r.samples,
-            r.seconds,
+            spread,
             r.samples_per_s / 1e6,
-            dispatch,
+            times,
+            prepared,
             roofline,
             r.adapter
         )?;

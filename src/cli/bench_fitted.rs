@@ -58,7 +58,7 @@ impl FittedLoad {
 #[derive(Serialize)]
 struct FittedTiming {
     device: String,
-    threads: usize,
+    threads: Option<usize>,
     seconds: f64,
     poses_per_s: f64,
     ns_per_bone_pose: f64,
@@ -110,7 +110,12 @@ pub fn measure(
             (poses, bone_poses) = bake_all(device)?;
             Ok(())
         })?;
-        let threads = if matches!(device, Device::Reference) { 1 } else { rayon::current_num_threads() };
+        // The host threads that bake: the GPU's work is its own, so its row has none.
+        let threads = match device {
+            Device::Reference => Some(1),
+            Device::Cpu(_) => Some(rayon::current_num_threads()),
+            _ => None,
+        };
         results.push(FittedTiming {
             device: device.name(),
             threads,
@@ -242,7 +247,11 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         writeln!(
             w,
             "{:<44} {:>8} {:>10.4} {:>14.0} {:>12.2}",
-            r.device, r.threads, r.seconds, r.poses_per_s, r.ns_per_bone_pose
+            r.device,
+            r.threads.map_or_else(|| "-".to_string(), |t| t.to_string()),
+            r.seconds,
+            r.poses_per_s,
+            r.ns_per_bone_pose
         )?;
     }
     Ok(())

@@ -18,8 +18,16 @@ pub fn open_bench_device(choice: DeviceChoice, explicit: bool) -> Result<Option<
     }
 }
 
-/// Median wall time of `runs` calls after one warm-up.
-pub fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
+/// The fastest, median and slowest wall time of timed runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Seconds {
+    pub min: f64,
+    pub median: f64,
+    pub max: f64,
+}
+
+/// Wall times of `runs` calls after one warm-up.
+pub fn run_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<Seconds, Failure> {
     f()?;
     let mut seconds = Vec::with_capacity(runs);
     for _ in 0..runs {
@@ -28,5 +36,23 @@ pub fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -
         seconds.push(start.elapsed().as_secs_f64());
     }
     seconds.sort_by(f64::total_cmp);
-    Ok(seconds[runs / 2])
+    Ok(Seconds { min: seconds[0], median: seconds[runs / 2], max: seconds[runs - 1] })
+}
+
+/// Median wall time of `runs` calls after one warm-up ([`run_seconds`]).
+pub fn median_seconds(runs: usize, f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
+    Ok(run_seconds(runs, f)?.median)
+}
+
+/// The host's processor, as `/proc/cpuinfo` names it, and its logical cores.
+pub fn host() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|info| {
+            info.lines()
+                .find_map(|l| l.strip_prefix("model name").map(|v| v.trim_start_matches([' ', '\t', ':']).to_string()))
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    format!("{model}, {cores} logical cores")
 }

@@ -337,9 +337,15 @@ fn bench_reports_every_requested_device_as_json() {
     for r in results {
         assert!(r["samples_per_s"].as_f64().unwrap() > 0.0 && r["seconds"].as_f64().unwrap() > 0.0, "{r}");
         assert_eq!(r["samples"], 1000, "the reference slice covers the whole small batch");
-        assert_eq!(r["dispatch_samples_per_s"].is_f64(), r["device"] != "reference", "{r}");
+        assert_eq!(r["prepared_samples_per_s"].is_f64(), r["device"] != "reference", "{r}");
         assert_eq!(r["roofline_samples_per_s"].is_f64(), r["device"] == "gpu", "{r}");
+        // The spread beside the median, and the rate over the reference's on the same work.
+        let [low, median, high] = ["seconds_min", "seconds", "seconds_max"].map(|k| r[k].as_f64().unwrap());
+        assert!(low <= median && median <= high, "{r}");
+        let reference = results[0]["samples_per_s"].as_f64().unwrap();
+        assert!((r["vs_reference"].as_f64().unwrap() - r["samples_per_s"].as_f64().unwrap() / reference).abs() < 1e-9);
     }
+    assert!(!doc["host"].as_str().unwrap().is_empty(), "the host's processor named");
     assert!(doc["workload"]["build_keys_per_s"].as_f64().unwrap() > 0.0);
     // A device named explicitly that is not there is a failure, not a skip.
     let out = Command::cargo_bin("quatcurve")

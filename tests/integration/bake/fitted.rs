@@ -319,6 +319,12 @@ fn bench_fitted_times_every_copy_of_every_clip_on_each_device() {
     let one_thread =
         |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
     assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");
+    for row in timed["results"].as_array().unwrap() {
+        // Host threads bake on the CPU rows; a GPU's row has none, and a name says one thread so.
+        let device = row["device"].as_str().unwrap();
+        assert_eq!(row["threads"].is_null(), device.starts_with("gpu"), "{row}");
+        assert!(!device.contains(" 1 threads"), "{row}");
+    }
 }
 
 #[test]

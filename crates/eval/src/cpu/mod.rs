@@ -117,10 +117,11 @@ impl CpuEvaluator {
         self.isa
     }
 
-    /// `f32x8 (<instruction set>), <threads> threads`, for outputs and benchmarks.
+    /// `f32x8 (<instruction set>), <threads> threads` (`1 thread`), for outputs and benchmarks.
     #[must_use]
     pub fn name(&self) -> String {
-        format!("f32x8 ({}), {} threads", self.isa.name(), rayon::current_num_threads())
+        let threads = rayon::current_num_threads();
+        format!("f32x8 ({}), {threads} thread{}", self.isa.name(), if threads == 1 { "" } else { "s" })
     }
 
     /// Evaluates every track of `job` at its sample times: `samples x channels` floats, each
