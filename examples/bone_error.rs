@@ -42,7 +42,7 @@ fn main() {
         kind: TextureKind::Local,
         precision: Precision::F32,
         device: &device,
-        progress: (&(), "bone_error"),
+        measuring: &|_, _| {},
     };
     let budget = ErrorBudget { degrees: Some(0.5), max_rate: 2000.0, ..ErrorBudget::none() };
     let mut lines = Vec::new();

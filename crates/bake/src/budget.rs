@@ -7,7 +7,6 @@
 //! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
-use super::report::Progress;
 use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
 use super::{bake, ClipRate};
 use crate::error::{BakeError, Refusal};
@@ -177,8 +176,8 @@ pub struct Setting<'a> {
     pub precision: Precision,
     /// The device the frames are evaluated on.
     pub device: &'a Device,
-    /// Told of each rate the search measures, with the input's name.
-    pub progress: (&'a dyn Progress, &'a str),
+    /// Told of each rate the search measures (Hz), with its clip's name.
+    pub measuring: &'a dyn Fn(&str, f64),
 }
 
 /// The error of clip `clip` baked at `rate` (fitted to its span) against its curve at
@@ -367,7 +366,7 @@ pub fn choose_rates(
         let span = end - start;
         let rate = |intervals: f64| {
             let rate = if span > 0.0 { intervals / span } else { 1.0 };
-            setting.progress.0.measuring(setting.progress.1, &clip.name, rate);
+            (setting.measuring)(&clip.name, rate);
             rate
         };
         let screen =
@@ -569,7 +568,7 @@ mod tests {
             kind: TextureKind::Local,
             precision: Precision::F32,
             device: &device,
-            progress: (&(), "arm"),
+            measuring: &|_, _| {},
         };
         let budget = ErrorBudget { degrees: Some(0.5), millimetres: None, unit_mm: 1000.0, max_rate: 480.0 };
         let [clean, flipped] =

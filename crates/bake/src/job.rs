@@ -466,7 +466,7 @@ impl BakeJob {
                     kind: self.options.texture,
                     precision: self.options.precision,
                     device,
-                    progress: (progress, source),
+                    measuring: &|clip, rate| progress.measuring(source, clip, rate),
                 };
                 let measured = budget::choose_rates(animation, &budget, &setting)?;
                 let rates: Vec<ClipRate> = measured.iter().map(|m| ClipRate::Fit(m.rate)).collect();
