@@ -14,6 +14,7 @@
 // as three.js's AnimationMixer counts a glTF clip's time: the clip's first frame is at its start),
 // paused (1), azimuth (degrees the camera is turned about +y from +z; dragging turns it),
 // width and height (the drawing buffer in pixels, else the window's), antialias (0 for none).
+// A value out of its parameter's rule is refused: its default is played, the refusal shown.
 // `window.quatcurveViewer` is the test hook: `ready` (a promise), `path()` (webgpu or
 // webgl2), `renderer()`, `capture()`, `measure(frames)`, `frameTimes()`.
 'use strict';
@@ -21,8 +22,23 @@
 (() => {
   const params = new URLSearchParams(location.search);
   const $ = (id) => document.getElementById(id);
+  // URL parameters refused, each with its rule: shown under every message, and the
+  // parameter's default used instead.
+  const refused = [];
+  const refuse = (name, rule) => refused.push(`${name}=${params.get(name)} (${rule})`);
+  // A number parameter that keeps its rule, else `fallback` (also when it is not given).
+  const numberParam = (name, fallback, ok, rule) => {
+    if (!params.has(name)) return fallback;
+    const value = Number(params.get(name));
+    if (params.get(name).trim() !== '' && ok(value)) return value;
+    refuse(name, rule);
+    return fallback;
+  };
+  const WHOLE = (v) => Number.isInteger(v) && v >= 0;
+  const FINITE = (v) => Number.isFinite(v);
   let canvas = $('canvas');
-  const fixedSize = params.has('width') && params.has('height');
+  const size = ['width', 'height'].map((n) => numberParam(n, null, (v) => WHOLE(v) && v > 0, 'a whole number of pixels'));
+  const fixedSize = size.every((s) => s !== null);
   const antialias = params.get('antialias') !== '0';
   const renderer = params.get('renderer');
   if (renderer && renderer !== 'webgpu' && renderer !== 'webgl2') throw new Error(`renderer=${renderer}: webgpu or webgl2`);
@@ -49,7 +65,7 @@
     draws: [],
     camera: null,
     instanceBuffers: null,
-    instances: Math.max(1, parseInt(params.get('instances') || '100', 10)),
+    instances: numberParam('instances', 100, (v) => WHOLE(v) && v > 0, 'a whole number, 1 or more'),
     playing: params.get('paused') !== '1',
     // 'webgpu' (curves on the GPU) or 'webgl2' (the bake's textures), and the canvas's context.
     path: null,
@@ -57,10 +73,10 @@
     gpu: null,
     player: null,
     curves: null,
-    blend: params.has('blend') ? parseInt(params.get('blend'), 10) : null,
-    weight: Math.min(Math.max(parseFloat(params.get('weight') || '0'), 0), 1),
-    time: parseFloat(params.get('time') || '0'),
-    azimuth: parseFloat(params.get('azimuth') || '0'),
+    blend: numberParam('blend', null, WHOLE, 'a clip index'),
+    weight: numberParam('weight', 0, (v) => v >= 0 && v <= 1, 'from 0 to 1'),
+    time: numberParam('time', 0, FINITE, 'seconds'),
+    azimuth: numberParam('azimuth', 0, FINITE, 'degrees'),
     offsets: [],
     viewProjection: null,
     intervals: [],
@@ -68,7 +84,13 @@
     texelCache: new Map(),
   };
 
-  const show = (text) => { $('message').textContent = text; };
+  // The last message, shown again with the refusals found since.
+  let note = '';
+  const show = (text) => {
+    note = text;
+    const lines = refused.length ? [`refused: ${refused.join('; ')}`] : [];
+    $('message').textContent = [text, ...lines].filter(Boolean).join('\n');
+  };
 
   async function fetchOk(url) {
     const response = await fetch(url);
@@ -308,8 +330,7 @@
 
   function resize() {
     if (fixedSize) {
-      canvas.width = parseInt(params.get('width'), 10);
-      canvas.height = parseInt(params.get('height'), 10);
+      [canvas.width, canvas.height] = size;
       canvas.style.width = `${canvas.width}px`;
       canvas.style.height = `${canvas.height}px`;
     } else {
@@ -394,7 +415,11 @@
   // The blend controls: the clip blended towards and its weight, played by the WebGPU path.
   function fillBlend() {
     const clips = state.bake.clips;
-    if (state.blend === null || state.blend >= clips.length) state.blend = state.clip;
+    if (state.blend !== null && state.blend >= clips.length) {
+      refuse('blend', `the bake has ${clips.length} clips: 0 to ${clips.length - 1}`);
+      state.blend = null;
+    }
+    if (state.blend === null) state.blend = state.clip;
     $('blend').replaceChildren(...clips.map((c, i) => new Option(c.name, i)));
     $('blend').value = state.blend;
     $('weight').value = state.weight;
@@ -425,7 +450,13 @@
     $('bake').value = bake.sidecar;
     $('instances').value = state.instances;
     $('play').textContent = state.playing ? 'pause' : 'play';
-    await load(bake, parseInt(params.get('clip') || '0', 10));
+    let clip = numberParam('clip', 0, WHOLE, 'a clip index');
+    if (clip >= bake.clips.length) {
+      refuse('clip', `the bake has ${bake.clips.length} clips: 0 to ${bake.clips.length - 1}`);
+      clip = 0;
+    }
+    await load(bake, clip);
+    show(note);
     fillClips();
     $('bake').onchange = async () => {
       const b = state.bakes.find((x) => x.sidecar === $('bake').value);

@@ -511,3 +511,47 @@ fn a_bake_for_each_player_is_one_that_player_plays_and_the_view_page_lists_its_o
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn the_page_refuses_url_parameters_out_of_their_rules_and_says_which() {
+    let (Some(script), Some(data)) = (browser(), data_dir()) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake(&[
+        "--input",
+        data.join("Fox.glb").to_str().unwrap(),
+        "--player",
+        "view",
+        "--output",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(baked.status.success(), "{}", stderr(&baked));
+    let server = Server::start(dir.path());
+    let size = "width=64&height=64&paused=1&renderer=webgl2";
+    for (query, said) in [
+        (
+            "blend=9&weight=2&time=x&instances=0&clip=7",
+            &[
+                "instances=0 (a whole number, 1 or more)",
+                "weight=2 (from 0 to 1)",
+                "time=x (seconds)",
+                "clip=7 (the bake has 3 clips: 0 to 2)",
+                "blend=9 (the bake has 3 clips: 0 to 2)",
+            ][..],
+        ),
+        ("blend=-1&weight=NaN", &["blend=-1 (a clip index)", "weight=NaN (from 0 to 1)"][..]),
+    ] {
+        // No page error (`page` holds that), every refusal named, and the defaults played.
+        let result = page(&script, &server, &format!("{query}&{size}"), &["--capture"]);
+        let message = result["message"].as_str().unwrap();
+        for part in said {
+            assert!(message.contains(part), "{query}: {message:?} lacks {part:?}");
+        }
+        let capture = &result["capture"];
+        assert_eq!((capture["clip"].as_u64(), capture["blend"].as_u64()), (Some(0), Some(0)), "{query}: {capture}");
+        assert_eq!(capture["weight"].as_f64(), Some(0.0), "{query}");
+    }
+    // Parameters within their rules are not refused.
+    let result = page(&script, &server, &format!("blend=1&weight=0.5&clip=2&{size}"), &["--capture"]);
+    assert!(!result["message"].as_str().unwrap().contains("refused"), "{}", result["message"]);
+    assert_eq!(result["capture"]["blend"].as_u64(), Some(1));
+}
