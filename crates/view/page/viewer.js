@@ -415,11 +415,7 @@
   // The blend controls: the clip blended towards and its weight, played by the WebGPU path.
   function fillBlend() {
     const clips = state.bake.clips;
-    if (state.blend !== null && state.blend >= clips.length) {
-      refuse('blend', `the bake has ${clips.length} clips: 0 to ${clips.length - 1}`);
-      state.blend = null;
-    }
-    if (state.blend === null) state.blend = state.clip;
+    if (state.blend === null || state.blend >= clips.length) state.blend = state.clip;
     $('blend').replaceChildren(...clips.map((c, i) => new Option(c.name, i)));
     $('blend').value = state.blend;
     $('weight').value = state.weight;
@@ -450,10 +446,16 @@
     $('bake').value = bake.sidecar;
     $('instances').value = state.instances;
     $('play').textContent = state.playing ? 'pause' : 'play';
+    // The clip and the blend the URL names, held to the first bake's clips.
+    const clips = `the bake has ${bake.clips.length} clips: 0 to ${bake.clips.length - 1}`;
     let clip = numberParam('clip', 0, WHOLE, 'a clip index');
     if (clip >= bake.clips.length) {
-      refuse('clip', `the bake has ${bake.clips.length} clips: 0 to ${bake.clips.length - 1}`);
+      refuse('clip', clips);
       clip = 0;
+    }
+    if (state.blend !== null && state.blend >= bake.clips.length) {
+      refuse('blend', clips);
+      state.blend = null;
     }
     await load(bake, clip);
     show(note);
