@@ -4,6 +4,7 @@
 
 use super::image::Format;
 use super::texture::TextureKind;
+use quatcurve_eval::error::one_of;
 
 /// A player of bakes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,7 +64,7 @@ impl Player {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum Unplayable {
     /// A texture kind it does not play.
-    #[error("{player} plays {} textures, not {texture}", words(player.plays().textures))]
+    #[error("{player} plays {} textures, not {texture}", one_of(player.plays().textures))]
     Texture {
         /// The player.
         player: Player,
@@ -71,22 +72,13 @@ pub enum Unplayable {
         texture: TextureKind,
     },
     /// A file format it does not read.
-    #[error("{player} reads {} files, not {format}", words(player.plays().formats))]
+    #[error("{player} reads {} files, not {format}", one_of(player.plays().formats))]
     Format {
         /// The player.
         player: Player,
         /// The bake's format.
         format: Format,
     },
-}
-
-/// `a`, `a or b`, `a, b or c`.
-fn words<T: std::fmt::Display>(items: &[T]) -> String {
-    let names: Vec<String> = items.iter().map(ToString::to_string).collect();
-    match names.split_last() {
-        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
-        _ => names.join(""),
-    }
 }
 
 #[cfg(test)]

@@ -20,6 +20,15 @@ impl fmt::Display for TrackId {
     }
 }
 
+/// Choices as messages list them: `a`, `a or b`, `a, b or c`.
+pub fn one_of<T: fmt::Display>(items: impl IntoIterator<Item = T>) -> String {
+    let names: Vec<String> = items.into_iter().map(|i| i.to_string()).collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        _ => names.concat(),
+    }
+}
+
 /// A number as messages print it: plain decimals for everyday magnitudes (`0`, `0.25`,
 /// `12.35`), scientific notation with four digits for the rest (`3.172e-7`), never `0e0`.
 #[derive(Clone, Copy, Debug, PartialEq)]

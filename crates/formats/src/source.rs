@@ -8,6 +8,7 @@ use crate::{bvh, crowd, fbx, gltf, smpl};
 use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::{Animation, ClipFrames};
 use quatcurve_core::curve::{Curve, DEFAULT_CURVE};
+use quatcurve_eval::error::one_of;
 use quatcurve_qcf::BvhSkeleton;
 use std::path::Path;
 
@@ -156,13 +157,7 @@ pub fn importer(path: &Path) -> Option<&'static Importer> {
 
 /// The formats [`IMPORTERS`] read, for messages: ".gltf, .glb, ... or .qcf (a fitted container)".
 fn expected() -> String {
-    let each: Vec<String> =
-        IMPORTERS.iter().flat_map(|i| i.extensions.iter().map(move |e| format!(".{e}{}", i.holds))).collect();
-    match each.split_last() {
-        Some((last, [])) => last.clone(),
-        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
-        None => String::new(),
-    }
+    one_of(IMPORTERS.iter().flat_map(|i| i.extensions.iter().map(move |e| format!(".{e}{}", i.holds))))
 }
 
 /// The extensions read as inputs, lower case, in [`IMPORTERS`]' order.
