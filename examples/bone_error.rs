@@ -1,6 +1,6 @@
 //! How far a renderer interpolating baked bone textures (`shaders/bone_texture.wgsl`'s
 //! `bone_pose`: nlerp between frames) strays from the curve between frames, per real clip and
-//! rate, and the rate `--max-error 0.5` chooses with its bytes against 30 Hz and the source's
+//! rate, and the rate `--max-error-deg 0.5` chooses with its bytes against 30 Hz and the source's
 //! own rate: the README's table and chart (`docs/bone-texture-error.png`).
 //!
 //! Run: `cargo run --release --example bone_error -- ../shared/data [CHART.png]`.
@@ -47,7 +47,7 @@ fn main() {
     let budget = ErrorBudget { degrees: Some(0.5), max_rate: 2000.0, ..ErrorBudget::none() };
     let mut lines = Vec::new();
     let header = RATES.map(|r| format!("{r} Hz")).join(" | ");
-    println!("| clip | {header} | `--max-error 0.5` | bytes against 30 Hz | against the source rate |");
+    println!("| clip | {header} | `--max-error-deg 0.5` | bytes against 30 Hz | against the source rate |");
     println!("|---|{}---|---|---|", "---|".repeat(RATES.len()));
     for file in FILES {
         let path = Path::new(&dir).join(file);
@@ -61,7 +61,8 @@ fn main() {
             let mut points = Vec::new();
             let mut cells = Vec::new();
             for rate in RATES {
-                let m = budget::measure(&animation, c, rate, &setting, budget::GLTF_UNIT_MM).expect("the clip bakes");
+                let m = budget::measure(&animation, c, rate, &setting, quatcurve::anim::GLTF_UNIT_CM)
+                    .expect("the clip bakes");
                 points.push((rate, m.rotation.value));
                 cells.push(format!("{:.3}", m.rotation.value));
             }

@@ -1,6 +1,6 @@
 //! Curve compression measured per real clip: `quatcurve::fit::clip` keeps every channel as
 //! the fewest B-spline control points (or kept keys) that hold ACL's object-space error
-//! (virtual vertices at `--vertex-distance` from each joint) within a budget at every source
+//! (virtual vertices at `--vertex-distance-cm` from each joint) within a budget at every source
 //! frame, and reports the error between frames too. Bytes as ACL counts a raw clip (40 per
 //! joint per frame) against the clip's bytes in the `.qcf` container. CMU's BVH unit is
 //! 5.644 cm, glTF's the metre.

@@ -30,8 +30,8 @@ done
 # name | bench arguments. Each runs on the GPU and the CPU path (the reference is the oracle,
 # not a contender). The large batches take 3 timed runs, the rest 5.
 workloads=(
-    "uniform cubic B-spline 10k x 1000|--tracks 10000 --samples 1000 --curve bspline"
-    "uniform cubic B-spline 10k x 1000, derivatives|--tracks 10000 --samples 1000 --curve bspline --derivatives"
+    "uniform cubic B-spline 10k x 1000|--tracks 10000 --samples 1000 --curve bspline --knots uniform"
+    "uniform cubic B-spline 10k x 1000, derivatives|--tracks 10000 --samples 1000 --curve bspline --knots uniform --derivatives"
     "bspline-interp 10k x 1000|--tracks 10000 --samples 1000 --curve bspline-interp"
     "slerp 10k x 1000|--tracks 10000 --samples 1000 --curve slerp"
     "squad 10k x 1000|--tracks 10000 --samples 1000 --curve squad"
@@ -39,9 +39,9 @@ workloads=(
     "hermite 10k x 1000|--tracks 10000 --samples 1000 --curve hermite"
     "hermite 10k x 1000, derivatives|--tracks 10000 --samples 1000 --curve hermite --derivatives"
     "nam-kim 10k x 1000|--tracks 10000 --samples 1000 --curve nam-kim"
-    "uniform cubic B-spline 100k x 1000|--tracks 100000 --samples 1000 --curve bspline --runs 3"
-    "uniform cubic B-spline 1M x 100|--tracks 1000000 --samples 100 --curve bspline --runs 3"
-    "uniform cubic B-spline 1M x 10|--tracks 1000000 --samples 10 --curve bspline --runs 3"
+    "uniform cubic B-spline 100k x 1000|--tracks 100000 --samples 1000 --curve bspline --knots uniform --runs 3"
+    "uniform cubic B-spline 1M x 100|--tracks 1000000 --samples 100 --curve bspline --knots uniform --runs 3"
+    "uniform cubic B-spline 1M x 10|--tracks 1000000 --samples 10 --curve bspline --knots uniform --runs 3"
 )
 if ((${#fitted[@]})); then
     workloads+=("fitted decode, batched, 100 copies|--fitted ${fitted[*]} --copies 100")

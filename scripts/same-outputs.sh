@@ -22,8 +22,8 @@ hashes() {
         run --device $dev --input $real --exact-rate --rate 24 --curve slerp
         run --device $dev --input "$data/CesiumMan.glb" "$data/Fox.glb" --texture skin-trs --format exr --rate 30
         run --device $dev --input "$data/CesiumMan.glb" --texture skin --format png16 --rate 30
-        run --device $dev --input "$data/CesiumMan.glb" --texture skin-trs --max-error 1 --max-error-mm 5
-        run --device $dev --input "$data/Fox.glb" --texture local --max-error 2 --max-error-mm 50
+        run --device $dev --input "$data/CesiumMan.glb" --texture skin-trs --max-error-deg 1 --max-error-cm 0.5
+        run --device $dev --input "$data/Fox.glb" --texture local --max-error-deg 2 --max-error-cm 5
         run --device $dev --input "$data/CesiumMan.glb" --root-motion extract --rate 30
         run --device $dev --input "$data/CesiumMan.fbx" "$data/Fox.fbx" "$data/Samba_Dancing.fbx" --texture skin --rate 30
         run --device $dev --input "$data/RobotExpressive.glb" --texture skin-trs --format exr --rate 30

@@ -5,7 +5,7 @@
 
 mod cli;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use cli::Failure;
 use std::process::ExitCode;
 
@@ -46,7 +46,12 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = cli::vocabulary::with_refused(Cli::command()).get_matches();
+    if let Some(message) = cli::vocabulary::refused_given(&matches) {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Eval(args) => cli::eval::run(&args),
         Command::Bake(args) => cli::bake::run(&args),

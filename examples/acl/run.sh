@@ -8,7 +8,7 @@
 # Usage: examples/acl/run.sh DATA_DIR FITTED_DIR [ROUNDS]
 #   DATA_DIR    holds cmu_131_01.bvh and cmu_131_03.bvh (../shared/data)
 #   FITTED_DIR  holds their containers: quatcurve fit --input DATA_DIR/cmu_131_0{1,3}.bvh
-#               --unit-cm 5.644 --max-error 0.01 --output FITTED_DIR
+#               --unit-cm 5.644 --max-error-cm 0.01 --output FITTED_DIR
 #   ACL_DIR     ACL v2.1.0's headers with RTM's under external/rtm; by default the copy in
 #               ../shared/vendor/acl-2.1.0 (no network needed)
 set -euo pipefail
@@ -35,7 +35,7 @@ echo "ratios (ACL at its defaults; quatcurve fit at 0.01 cm, its clip bytes as A
 for clip in "${clips[@]}"; do
     for raw in "$work/$clip.raw" "$work/$clip.24hz.raw"; do "$work/harness" "$raw" 1 1 | head -1; done
 done
-target/release/quatcurve fit --input "$work"/24hz/*.bvh --unit-cm 5.644 --max-error 0.01 --output "$work/24fit" \
+target/release/quatcurve fit --input "$work"/24hz/*.bvh --unit-cm 5.644 --max-error-cm 0.01 --output "$work/24fit" \
     2>/dev/null | grep -E '^\| (input|.*cmu)'
 containers=()
 for clip in "${clips[@]}"; do containers+=("$fitted/$clip.qcf"); done

@@ -139,9 +139,9 @@ def evaluate(
         tracks, a list of arrays (one per track).
     sample_times : array_like, ``(m,)`` shared or ``(tracks, m)``, or a list, optional
         Where to evaluate. Otherwise ``samples`` (N per track from domain start to end) or
-        ``rate`` (Hz from the domain start); one of the three is required.
+        ``rate`` (Hz from the domain start, 30 by default, as ``quatcurve eval``).
     rate, samples : float, int
-        Samples per second, or samples per track (not both).
+        Samples per second, or samples per track (which replaces the rate).
     curve : str, default ``"bspline-interp"``
         ``bspline-interp`` (the default of every front end: C2 and through every key, on any
         key times), ``slerp``, ``squad``, ``bezier``, ``hermite``, ``nam-kim``, ``bspline``
@@ -149,12 +149,13 @@ def evaluate(
         phantom/uniform/clamped: it approximates the keys, passing only through the ends) or
         ``normalized-bspline`` (the same B-spline on the keys' components, normalized: cheaper,
         for keys less than a half turn apart within a span).
-    order, knots, tangents, blend
-        B-spline order, knot mode (phantom when not given), tangent source of hermite/nam-kim
+    order, knots, tangents, blend_function
+        B-spline order, knot mode (default phantom), tangent source of hermite/nam-kim
         (``catmull-rom``, ``zero``, ``given`` with ``angular_velocities``), Nam-Kim blend
-        (``cubic``, ``quadratic``).
-    loop : bool
-        Periodic curves; the last key must be the first rotation.
+        function (``cubic``, ``quadratic``).
+    loop : str
+        ``auto`` (the tracks whose last key is their first rotation loop, each on its own),
+        ``on`` (every track; one that does not close is an error) or ``off``.
     derivatives : bool
         Also return body angular velocity and acceleration.
     rotation_type : str, default ``"auto"``
@@ -244,8 +245,6 @@ def evaluate(
             lists = list(shared) if shared.ndim == 2 else [shared] * tracks
         s = _np.ascontiguousarray(_np.concatenate(lists)) if lists else _np.zeros(0)
         s_offsets = _np.concatenate([[0], _np.cumsum([len(v) for v in lists])]).astype(_np.int64)
-    elif options.get("rate") is None and options.get("samples") is None:
-        raise ValueError("give sample_times, samples=N or rate=HZ")
     samples = options.get("samples")
     if samples is not None:
         if isinstance(samples, bool) or int(samples) != samples or samples < 1:
@@ -277,7 +276,7 @@ class Curve:
 
     ``Curve(times, rotations)`` builds the C2 cubic B-spline through every key
     (``curve="bspline-interp"``, KKS section 6.2; natural ends, or periodic with
-    ``loop=True``) — the same conditions as ``RotationSpline`` but in the KKS cumulative
+    ``loop="on"``, or by default where the last key is the first rotation) — the same conditions as ``RotationSpline`` but in the KKS cumulative
     form. Any other curve and option of :func:`evaluate` can be given by keyword
     (``rotation_type``, ``output``, ``device``, ...). ``rotations`` may be a
     ``scipy.spatial.transform.Rotation``, quaternions, rotation vectors or matrices.
@@ -357,8 +356,8 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         Bake open clips at exactly ``rate`` (frames ``start + i / rate`` while not past the
         last key); a clip's end off that grid is not baked, and the row's ``warnings`` say
         how much. Loops always fit.
-    curve, order, knots, tangents, blend
-        As :func:`evaluate` (knots None: phantom); the default (None) is each channel as its
+    curve, order, knots, tangents, blend_function
+        As :func:`evaluate`; the curve's default (None) is each channel as its
         source plays it (glTF's samplers: LINEAR slerp and lerp, STEP, CUBICSPLINE; the frames
         of BVH, FBX and SMPL poses slerped; the sidecar's ``curve`` is ``source``).
     loop : str
@@ -402,16 +401,16 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
     errors : str
         ``raise`` (default): after every input is done, raise ``ValueError`` if any failed,
         naming each with its error; ``report``: return the rows, failures included.
-    max_error : float, optional
+    max_error_deg : float, optional
         Rotation budget in degrees, in place of ``rate``: each clip at the lowest rate whose
         frames, blended as the shipped shader does (``quatcurve shaders``), stay within it
         of the curve at 16 points of every frame interval, every joint (textures ``local``,
         ``model-trs``, ``skin-trs``; DESIGN section 7).
-    max_error_mm : float, optional
-        Position budget in millimetres for joints in model space, with or without
-        ``max_error``.
-    unit_mm : float
-        Millimetres per unit of the input's positions (glTF: metres, 1000).
+    max_error_cm : float, optional
+        Position budget in cm for joints in model space, with or without ``max_error_deg``.
+    unit_cm : float, optional
+        The length of one file unit in cm (default: glTF's metre, 100); BVH files and fitted
+        containers need it with ``max_error_cm`` (CMU's BVH is 5.644).
     max_rate : float
         The highest rate a budget may choose; a clip no rate up to it keeps within fails.
     root_motion : str
@@ -426,7 +425,7 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         ``error`` (the message, or None), ``files`` (``pathlib.Path``s written or kept) and
         ``warnings`` (probably broken source keys, clip ends an exact rate did not bake) and
         ``rates`` (with a budget, per clip: ``clip``, ``rate``, ``frames``, ``rotation`` and
-        ``position`` as ``{value, joint, time}`` in degrees and mm, ``bytes`` and
+        ``position`` as ``{value, joint, time}`` in degrees and cm, ``bytes`` and
         ``fixed_rate_bytes`` at ``rate``) and ``skinning`` (``texture="vertex"``:
         ``{vertex_frames, seconds}`` skinned on the device, else None).
 
@@ -467,17 +466,17 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
         ``.gltf``, ``.glb``, ``.fbx`` and ``.bvh`` files, or directories of them.
     output : str or os.PathLike
         Output directory, created if missing.
-    max_error : float
+    max_error_cm : float
         The largest distance in cm a virtual vertex may move at any source frame (ACL's
         metric: object space, so a parent's error counts in its children's).
-    between_error : float or None
+    between_error_cm : float or None
         The largest between source frames, in cm, against the source's interpolation; None:
         not checked.
-    vertex_distance : float
+    vertex_distance_cm : float
         The virtual vertices' distance from each joint, cm.
     unit_cm : float, optional
-        The length of one file unit in cm (default: glTF's metre); BVH files need it (CMU's
-        is 5.644).
+        The length of one file unit in cm (default: glTF's metre, 100); BVH files and fitted
+        containers need it (CMU's BVH is 5.644).
     errors : str
         ``raise`` (default): raise ``ValueError`` if any input failed, naming each;
         ``report``: return the report, failures included.
@@ -551,7 +550,7 @@ def decode(path, rate=None):
 
 
 # The bake options that apply to arrays in memory (the rest are about files and textures).
-_POSE_OPTIONS = ("exact_rate", "curve", "order", "knots", "tangents", "blend", "loop", "device")
+_POSE_OPTIONS = ("exact_rate", "curve", "order", "knots", "tangents", "blend_function", "loop", "device")
 
 
 def resample_poses(poses, rate, new_rate, trans=None, per_frame=None, **options):
@@ -574,7 +573,7 @@ def resample_poses(poses, rate, new_rate, trans=None, per_frame=None, **options)
     per_frame : dict of array_like, optional
         Other arrays of ``frames`` rows by name (``dmpls``, ``marker_data``, ...), each
         resampled linearly at the new times, as a bake of the archive writes them.
-    exact_rate, curve, order, knots, tangents, blend, loop, device
+    exact_rate, curve, order, knots, tangents, blend_function, loop, device
         As :func:`bake`; the curve is slerp unless asked otherwise.
 
     Returns

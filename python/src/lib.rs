@@ -19,7 +19,7 @@ use quatcurve::fit::job::{FitJob, FitOptions};
 use quatcurve::formats::smpl::SmplFile;
 use quatcurve::options::EvalOptions;
 use quatcurve::qcf::decoder::Decoder;
-use quatcurve::{Batch, Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
+use quatcurve::{Device, DeviceChoice, EvalJob, FloatOutput, QuatF64, Row, SampleTimes, Track, Vec3F64};
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
@@ -184,7 +184,7 @@ fn evaluate_tracks<'py>(
     options: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let options: EvalOptions = named(options)?;
-    let (spec, derivatives, choice) = (options.spec(), options.derivatives, options.device);
+    let (derivatives, choice) = (options.derivatives, options.device);
     let (form, out_form) = (Form::parse("rotation_type", rotation_type)?, Form::parse("output", output)?);
     let device = self::device(choice)?;
     let width = rotations.shape()[1];
@@ -229,7 +229,7 @@ fn evaluate_tracks<'py>(
     let channels = Row { derivatives, matrix: false }.channels();
     let (out, offsets) = py
         .detach(|| -> Result<(Samples, Vec<i64>), String> {
-            let batch = Batch::from_tracks(&tracks, &spec).map_err(|e| e.to_string())?;
+            let batch = options.batch(&tracks).map_err(|e| e.to_string())?;
             let overrides: Vec<Option<&[f64]>> = match &sampled {
                 Some((s, r)) => r.iter().map(|r| Some(&s[r.clone()])).collect(),
                 None => Vec::new(),
@@ -406,7 +406,7 @@ fn resample_pose_arrays<'py>(
 }
 
 /// One clip's rate chosen by an error budget, as a dictionary: `clip, rate, frames, rotation`
-/// and `position` (each `{value, joint, time}`: degrees or mm), `bytes, fixed_rate_bytes`.
+/// and `position` (each `{value, joint, time}`: degrees or cm), `bytes, fixed_rate_bytes`.
 fn chosen_rate<'py>(py: Python<'py>, c: &ChosenRate) -> PyResult<Bound<'py, PyDict>> {
     let worst = |w: &Worst| -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);

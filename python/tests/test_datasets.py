@@ -19,7 +19,7 @@ def test_curves_pickle_and_give_the_same_bits_after():
     keys = random_keys(rng, 1, 9, max_step=0.8)[0]
     times = np.cumsum(rng.uniform(0.2, 0.9, 9))
     t = np.linspace(times[0], times[-1], 101)
-    for options in [{}, {"curve": "hermite", "device": "cpu"}, {"loop": False, "output": "rotvec", "device": "reference"}]:
+    for options in [{}, {"curve": "hermite", "device": "cpu"}, {"loop": "off", "output": "rotvec", "device": "reference"}]:
         curve = quatcurve.Curve(times, keys, **options)
         again = pickle.loads(pickle.dumps(curve))
         assert again.curve == curve.curve and again.options == curve.options

@@ -72,7 +72,7 @@ def test_bspline_interp_about_one_axis_is_scipys_cubic_spline(periodic):
         angles[-1] = angles[0]
     spline = CubicSpline(times, angles, bc_type="periodic" if periodic else "natural")
     t = np.linspace(times[0], times[-1], 200)
-    q, omega, alpha = quatcurve.evaluate(about_z(angles), times, t, curve="bspline-interp", loop=periodic, derivatives=True, device="reference")
+    q, omega, alpha = quatcurve.evaluate(about_z(angles), times, t, curve="bspline-interp", loop="on" if periodic else "off", derivatives=True, device="reference")
     assert angle(q, about_z(spline(t))).max() < 1e-9
     # Body rates about z are the spline's derivatives.
     assert np.abs(omega[:, 2] - spline(t, 1)).max() < 1e-8
@@ -217,12 +217,15 @@ def test_errors_are_value_errors_naming_track_and_key():
         quatcurve.evaluate(good[0], [0.0, 1.0, 1.0, 2.0], samples=3)
     with pytest.raises(ValueError, match="^curve: unknown curve 'spiral'"):
         quatcurve.evaluate(good, samples=3, curve="spiral")
-    with pytest.raises(ValueError, match="sample_times, samples=N or rate"):
-        quatcurve.evaluate(good)
-    with pytest.raises(ValueError, match="^unknown option 'colour' \\(the options are blend, curve, "):
+    # Sampled at eval's default rate when nothing says where.
+    np.testing.assert_array_equal(quatcurve.evaluate(good), quatcurve.evaluate(good, rate=30))
+    with pytest.raises(ValueError, match="^unknown option 'colour' \\(the options are blend_function, curve, "):
         quatcurve.evaluate(good, samples=3, colour="red")
     with pytest.raises(ValueError, match="^samples: give samples or rate, not both$"):
-        quatcurve.evaluate(good, samples=3, rate=30)
+        quatcurve.evaluate(good, samples=3, rate=12)
+    # One vocabulary: a keyword's old spelling names the one that takes its place.
+    with pytest.raises(ValueError, match="^'blend' is now 'blend_function' \\(the Nam-Kim curve's blend function\\)$"):
+        quatcurve.evaluate(good, samples=3, blend="cubic")
 
 
 DATA = REPO.parent / "shared" / "data"
@@ -247,8 +250,8 @@ def outputs(directory):
     (["--texture", "model"], {"texture": "model"}),
     (["--precision", "f16", "--atlas", "--curve", "hermite"], {"precision": "f16", "atlas": True, "curve": "hermite"}),
     (["--rate", "24", "--exact-rate"], {"rate": 24, "exact_rate": True}),
-    (["--max-error", "2", "--max-rate", "1000", "--texture", "skin-trs", "--format", "exr", "--root-motion", "extract"],
-     {"max_error": 2, "max_rate": 1000, "texture": "skin-trs", "format": "exr", "root_motion": "extract"}),
+    (["--max-error-deg", "2", "--max-rate", "1000", "--texture", "skin-trs", "--format", "exr", "--root-motion", "extract"],
+     {"max_error_deg": 2, "max_rate": 1000, "texture": "skin-trs", "format": "exr", "root_motion": "extract"}),
 ])
 def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     binary = cli()
@@ -263,9 +266,9 @@ def test_bake_writes_what_the_cli_writes(options, kwargs, tmp_path):
     assert sorted(pathlib.Path(f).name for row in rows for f in row["files"]) == sorted(expected)
     manifest = json.loads((tmp_path / "py" / "manifest.0-of-1.json").read_text())
     assert [record["status"] for record in manifest["inputs"]] == ["ok", "ok", "ok"]
-    if "max_error" in kwargs:
+    if "max_error_deg" in kwargs:
         for row in rows:
-            assert row["rates"] and all(c["rotation"]["value"] <= kwargs["max_error"] for c in row["rates"]), row["rates"]
+            assert row["rates"] and all(c["rotation"]["value"] <= kwargs["max_error_deg"] for c in row["rates"]), row["rates"]
     else:
         assert all(row["rates"] == [] for row in rows)
 
@@ -308,7 +311,7 @@ def test_evaluate_bake_and_fit_take_the_library_options_and_their_stubs_and_docs
 
     assert quatcurve.BAKE_OPTIONS["rate"] == quatcurve.DEFAULT_RATE
     assert quatcurve.BAKE_OPTIONS["curve"] is None  # each input's own interpolation
-    assert quatcurve.FIT_OPTIONS["max_error"] == 0.01
+    assert quatcurve.FIT_OPTIONS["max_error_cm"] == 0.01
     assert quatcurve.EVAL_OPTIONS["curve"] == quatcurve.DEFAULT_CURVE
     stub = ast.parse((pathlib.Path(quatcurve.__file__).parent / "__init__.pyi").read_text())
     for function, options, job in [
@@ -342,7 +345,7 @@ def test_bake_errors_name_the_option_or_the_input(tmp_path):
     with pytest.raises(ValueError, match="^max_texture_size must be at least 1 texel$"):
         quatcurve.bake(output=tmp_path / "a", max_texture_size=0)
     with pytest.raises(ValueError, match="^exact_rate cannot be set with an error budget"):
-        quatcurve.bake(output=tmp_path / "a", max_error=1, exact_rate=True)
+        quatcurve.bake(output=tmp_path / "a", max_error_deg=1, exact_rate=True)
     with pytest.raises(ValueError, match="shard 3/2: shard 3 of 2 does not exist"):
         quatcurve.bake(output=tmp_path / "a", shard="3/2")
     with pytest.raises(ValueError, match="errors must be"):
@@ -404,8 +407,12 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
         quatcurve.decode(inputs[0])
     with pytest.raises(ValueError, match="unit_cm is needed for"):
         quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
-    with pytest.raises(ValueError, match="max_error is 0; it must be a positive length"):
-        quatcurve.fit(inputs, tmp_path / "zero", max_error=0)
+    with pytest.raises(ValueError, match="max_error_cm is 0; it must be a positive length"):
+        quatcurve.fit(inputs, tmp_path / "zero", max_error_cm=0)
+    with pytest.raises(ValueError, match="'max_error' is now 'max_error_cm' \\(centimetres\\)"):
+        quatcurve.fit(inputs, tmp_path / "old", max_error=0.01)
+    with pytest.raises(ValueError, match="'max_error' is now 'max_error_deg' \\(degrees\\)"):
+        quatcurve.bake(output=tmp_path / "old", max_error=0.5)
 
 
 def test_a_bake_for_a_player_gets_the_texture_and_format_it_plays(tmp_path):

@@ -5,8 +5,9 @@ use super::{names, print_stdout, read_tracks, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::analysis::paper::{self, PaperSetup, RegimeTable, KKS_CURVES};
 use quatcurve::analysis::{analyze, profile, AnalysisError, AnalysisOptions, Metrics};
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::plot::{self, Series};
-use quatcurve::{Batch, Curve, Device, DeviceChoice, KnotMode, Track};
+use quatcurve::{Batch, Curve, Device, DeviceChoice, Track};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -27,9 +28,9 @@ pub struct AnalyzeArgs {
         conflicts_with = "paper"
     )]
     curves: Vec<Curve>,
-    /// Periodic curves (as eval --loop): the seam counts as a joint.
-    #[arg(long = "loop", conflicts_with = "paper")]
-    looping: bool,
+    /// Which tracks loop (as eval's): auto, on, off; a loop's seam counts as a joint.
+    #[arg(long = "loop", default_value_t = LoopMode::Auto, value_parser = names::<LoopMode>(), conflicts_with = "paper")]
+    looping: LoopMode,
     #[command(flatten)]
     options: CurveOptions,
     /// Principal moments of inertia of the body, for the torque tau = I alpha + omega x (I omega).
@@ -101,7 +102,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Failure> {
     curves.dedup();
     let mut results = Vec::new();
     for &curve in &curves {
-        let batch = Batch::from_tracks(&tracks, &args.options.spec(curve, KnotMode::Phantom, args.looping))
+        let batch = (args.options.batch(curve, args.looping, &tracks))
             .map_err(|e| Failure::Input(format!("{source}: {curve}: {e}")))?;
         let metrics =
             analyze(&batch, &device, &options).map_err(|e| Failure::from(e).context(&format!("{source}: {curve}")))?;
@@ -233,7 +234,7 @@ fn run_paper(args: &AnalyzeArgs, options: AnalysisOptions, device: &Device) -> R
         let series = paper::CURVES
             .iter()
             .map(|&(curve, _)| {
-                let spec = args.options.spec(curve, KnotMode::Phantom, false);
+                let spec = args.options.spec(curve, false);
                 let batch =
                     Batch::from_tracks(&tracks, &spec).map_err(|e| Failure::Input(format!("--paper plot: {e}")))?;
                 rates_series(curve.name(), &batch, 0, device)

@@ -181,8 +181,8 @@ impl Fault {
 
 fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> std::io::Result<()> {
     let (shard, rows, options) = (&report.shard, &report.inputs, &args.options);
-    let rate = if options.max_error.is_some() || options.max_error_mm.is_some() {
-        let budget: Vec<String> = [(options.max_error, "degrees"), (options.max_error_mm, "mm")]
+    let rate = if options.max_error_deg.is_some() || options.max_error_cm.is_some() {
+        let budget: Vec<String> = [(options.max_error_deg, "degrees"), (options.max_error_cm, "cm")]
             .iter()
             .filter_map(|(v, unit)| v.map(|v| format!("{v} {unit}")))
             .collect();
@@ -243,7 +243,7 @@ fn summary(w: &mut dyn std::io::Write, report: &BakeReport, args: &BakeArgs) -> 
             let (rot, pos) = (&c.measured.rotation, &c.measured.position);
             writeln!(
                 w,
-                "  clip '{}': {:.3} Hz, {} frames, worst {:.3} deg ('{}', {:.3} s), {:.3} mm ('{}', {:.3} s); \
+                "  clip '{}': {:.3} Hz, {} frames, worst {:.3} deg ('{}', {:.3} s), {:.3} cm ('{}', {:.3} s); \
                  {} bytes, {:.0}% of {} Hz's {}",
                 c.clip,
                 c.measured.rate,

@@ -4,8 +4,9 @@
 use super::measure::{host, median_seconds, open_bench_device, run_seconds};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::{
-    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, GpuDevice, JobOptions, KnotMode,
+    synthetic, Batch, CpuEvaluator, Curve, CurveSpec, Device, DeviceChoice, EvalJob, GpuDevice, JobOptions,
     SampleTimes, Sampling,
 };
 use serde::Serialize;
@@ -21,17 +22,18 @@ pub struct BenchArgs {
     /// Keys per track (a Bezier track's degree is one less).
     #[arg(long, default_value_t = synthetic::WORKLOAD_KEYS)]
     keys: usize,
-    /// Curve family.
-    #[arg(long, default_value = "bspline", value_parser = names::<Curve>())]
+    /// Curve family (as eval's).
+    #[arg(long, default_value_t = quatcurve::DEFAULT_CURVE, value_parser = names::<Curve>())]
     curve: Curve,
     #[command(flatten)]
     options: CurveOptions,
     /// Also compute angular velocity and acceleration.
     #[arg(long)]
     derivatives: bool,
-    /// Loop the tracks (each one whole gait cycle, periodic curves).
-    #[arg(long = "loop")]
-    looping: bool,
+    /// Which tracks loop (as eval's): on makes each one whole gait cycle on a periodic curve;
+    /// the tracks are open otherwise, so auto loops none.
+    #[arg(long = "loop", default_value_t = LoopMode::Auto, value_parser = names::<LoopMode>())]
+    looping: LoopMode,
     /// Devices to time, comma-separated (reference, cpu, gpu). Default: every one available
     /// in this build; a device named here that is missing is an error (exit 1).
     #[arg(long, value_delimiter = ',', value_parser = names::<DeviceChoice>())]
@@ -258,7 +260,7 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
 
 /// Times one batch on every requested device.
 fn measure(args: &BenchArgs) -> Result<Report, Failure> {
-    let spec = args.options.spec(args.curve, KnotMode::Uniform, args.looping);
+    let spec = args.options.spec(args.curve, args.looping == LoopMode::On);
     // The build, timed on its own: the cost a caller pays once per set of keys. The batch of
     // the last run is the one evaluated; one batch is alive at a time.
     let mut batch = None;
@@ -302,7 +304,7 @@ fn measure(args: &BenchArgs) -> Result<Report, Failure> {
             order: args.options.order,
             knots: spec.knots.name(),
             derivatives: args.derivatives,
-            looping: args.looping,
+            looping: spec.looping,
             runs: args.runs,
             build_seconds,
             build_keys_per_s: (args.tracks * args.keys) as f64 / build_seconds,

@@ -57,7 +57,7 @@ pub fn measure(
         // Clips go to the device once; a frame sends only its instances.
         let player = playback.player(&device).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;
         for &count in instances {
-            let schedule = Schedule { instances: count, rate: 30.0, blend: Some(BENCH_BLEND) };
+            let schedule = Schedule { instances: count, rate: 30.0, blend: Some(BENCH_BLEND), blend_clip: None };
             let frame = schedule.frame(&playback, 7);
             let seconds = median_seconds(runs, || {
                 let palettes = player.palettes(&frame).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;

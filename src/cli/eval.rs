@@ -1,7 +1,8 @@
 //! `quatcurve eval`: tracks from a JSON file (or the built-in demo) to samples as JSON or `.npy`.
 
-use super::{flag, print_stdout, read_tracks, Failure};
+use super::{flag, print_stdout, read_tracks, CurveOptions, Failure};
 use clap::{Args, ValueEnum};
+use quatcurve::anim::loops::LoopMode;
 use quatcurve::io::{write_atomic, write_npy, ResultFile};
 use quatcurve::options::{EvalOptions, OptionError};
 use quatcurve::{Batch, Device, EvalJob, FloatOutput, Layout, Output, SampleTimes};
@@ -54,15 +55,15 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
-    let (source, tracks, spec, fitted) = match &args.input {
+    let (source, tracks, fitted) = match &args.input {
         Some(path) if super::is_container(Some(path)) => {
-            let spec = container_spec(args)?;
+            container_options(args)?;
             let (source, tracks) = super::read_container_tracks(path)?;
-            (source, tracks, spec, true)
+            (source, tracks, true)
         }
         input => {
             let (source, tracks) = read_tracks(input.as_deref(), args.key_rate)?;
-            (source, tracks, args.options.spec(), false)
+            (source, tracks, false)
         }
     };
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
@@ -70,7 +71,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         // Each fitted track's order is its own (a cubic, or keys slerped between).
         Batch::from_tracks_each(&tracks, |i| quatcurve::qcf::fitted::track_spec(&tracks[i]))
     } else {
-        Batch::from_tracks(&tracks, &spec)
+        args.options.batch(&tracks)
     }
     .map_err(input_err)?;
     let sampling = args.options.sampling().map_err(|e| match e {
@@ -99,7 +100,12 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let device_name = device.evaluate_into(&job, &mut out).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
     let device = device_name;
-    let json = || ResultFile::new(spec.curve.name(), &device, &tracks, &times, &out, f32);
+    let curve = if fitted {
+        quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::ORDER).curve
+    } else {
+        args.options.curve
+    };
+    let json = || ResultFile::new(curve.name(), &device, &tracks, &times, &out, f32);
     let Some(path) = &args.output else {
         return print_stdout(|w| {
             serde_json::to_writer(&mut *w, &json()).map_err(std::io::Error::from)?;
@@ -124,7 +130,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
         "evaluated {} tracks, {} samples ({} on {device}) from {source} -> {}",
         batch.len(),
         times.total(),
-        spec.curve,
+        curve,
         path.display()
     );
     Ok(())
@@ -133,14 +139,14 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
 /// A fitted container's curves are its own ([`quatcurve::qcf::fitted::spline_spec`], cubic or keys
 /// per channel): a curve option that would change them is refused (the default curve stands for
 /// them).
-fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
+fn container_options(args: &EvalArgs) -> Result<(), Failure> {
     let spec = quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::ORDER);
     let (options, curve) = (&args.options.curve_options, args.options.curve);
     let refused = [
         (curve != spec.curve && curve != EvalOptions::DEFAULT.curve, "--curve"),
         (options.order != spec.order, "--order"),
-        (options.knots.is_some_and(|k| k != spec.knots), "--knots"),
-        (args.options.looping, "--loop"),
+        (options.knots != spec.knots && options.knots != CurveOptions::DEFAULT.knots, "--knots"),
+        (args.options.looping == LoopMode::On, "--loop"),
         (args.key_rate.is_some(), "--key-rate"),
     ];
     match refused.iter().find(|(given, _)| *given) {
@@ -152,7 +158,7 @@ fn container_spec(args: &EvalArgs) -> Result<quatcurve::CurveSpec, Failure> {
                 spec.curve, spec.order, keys.curve, keys.order
             )))
         }
-        None => Ok(spec),
+        None => Ok(()),
     }
 }
 

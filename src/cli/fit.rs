@@ -1,4 +1,4 @@
-//! `quatcurve fit`: glTF/BVH clips to fitted containers (`<stem>.qcf`), each clip's curves
+//! `quatcurve fit`: glTF, FBX or BVH clips to fitted containers (`<stem>.qcf`), each clip's curves
 //! within an error budget in centimetres (DESIGN section 16), and a report per clip.
 
 use super::{print_stdout, Failure};
@@ -19,7 +19,7 @@ pub struct FitArgs {
     options: FitOptions,
     /// Fit the source frames alone: the curve may swing between them (reported all the same);
     /// the command line's spelling of no between-frames error.
-    #[arg(long, conflicts_with = "between_error")]
+    #[arg(long, conflicts_with = "between_error_cm")]
     no_between_check: bool,
     /// Print the report as JSON (DESIGN section 16) instead of a table.
     #[arg(long)]
@@ -29,7 +29,7 @@ pub struct FitArgs {
 pub fn run(args: &FitArgs) -> Result<(), Failure> {
     let mut options = args.options.clone();
     if args.no_between_check {
-        options.between_error = None;
+        options.between_error_cm = None;
     }
     let job = FitJob { inputs: args.input.clone(), output: args.output.clone(), options };
     let report = job.run(&|input, clip| {

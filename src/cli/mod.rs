@@ -12,6 +12,7 @@ mod measure;
 pub mod play;
 pub mod shaders;
 pub mod view;
+pub mod vocabulary;
 
 use quatcurve::{Device, DeviceChoice, DeviceError};
 use std::io::Write;

@@ -34,16 +34,19 @@ pub struct PlayArgs {
     #[arg(long, default_value_t = 1)]
     instances: usize,
     /// Frames per second.
-    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    #[arg(long, value_name = "HZ", default_value_t = quatcurve::DEFAULT_RATE, allow_negative_numbers = true)]
     rate: f64,
     /// Seconds played: frames 0 .. floor(seconds * rate), both ends included.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     seconds: f64,
-    /// Blend every instance towards a second pose with this weight in [0, 1]: the next clip,
-    /// half its span further on (the same clip for a file of one).
-    /// (`--blend` is the Nam-Kim curve's blend function, as in bake.)
-    #[arg(long, allow_negative_numbers = true)]
+    /// Blend every instance towards a second pose with this weight in [0, 1]: the blend clip
+    /// at the same phase of its span as the instance's own clip (the viewer's rule).
+    #[arg(long, value_name = "WEIGHT", allow_negative_numbers = true)]
     blend_weight: Option<f32>,
+    /// The clip blended towards, by name or index (default: each instance's next clip, the
+    /// same clip for a file of one).
+    #[arg(long, value_name = "CLIP", requires = "blend_weight")]
+    blend_clip: Option<String>,
     /// The palettes, `[frames, instances, joints, 12]` float32 (each 3x4 row-major, joints in
     /// the skin's order).
     #[arg(long, default_value = "palettes.npy")]
@@ -101,6 +104,13 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let skin = if args.skin_from.is_some() { Some(0) } else { args.skin };
     let playback =
         Playback::new(animation, &curve, args.looping, skin).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+    let blend_clip = match &args.blend_clip {
+        Some(given) => Some(
+            quatcurve::play::schedule::clip_named(playback.animation(), given)
+                .map_err(|e| Failure::Input(format!("--blend-clip: {input}: {e}")))?,
+        ),
+        None => None,
+    };
     // A product meant to be whole (0.7 s at 30 Hz) can round just below it.
     let frames = (args.seconds * args.rate + FRAME_ROUNDING).floor() as u64 + 1;
     let joints = playback.palette_joints();
@@ -118,7 +128,7 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let mut file = AtomicFile::create(&args.output).map_err(|e| Failure::Input(e.to_string()))?;
     let io = |e: quatcurve::io::IoError| Failure::Internal(e.to_string());
     file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
-    let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight };
+    let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight, blend_clip };
     let failure = |e: PlayError| match e {
         PlayError::Device(d) if d.is_device_failure() => Failure::Internal(format!("{input}: {d}")),
         other => Failure::Input(format!("{input}: {other}")),

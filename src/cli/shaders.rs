@@ -25,7 +25,7 @@ pub struct ShadersArgs {
     #[arg(long)]
     library: bool,
     /// Write to this file (atomically) instead of standard output.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long)]
     output: Option<PathBuf>,
 }
 

@@ -114,9 +114,9 @@ fn eval_defaults_run_on_the_built_in_demo() {
     assert_eq!(doc["tracks"].as_array().unwrap().len(), 3);
 }
 
-/// `--loop`: the demo's gaits close, so they loop; times outside the period wrap (and are
-/// echoed as given); a track that does not close, or a curve that cannot loop, is exit 2
-/// naming the track.
+/// `--loop auto`, the default: a track that closes loops, and times outside the period wrap
+/// (echoed as given); `--loop off` clamps them; `--loop on` with a track that does not
+/// close, or a curve that cannot loop, is exit 2 naming the track.
 #[test]
 fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
     let dir = tempfile::tempdir().unwrap();
@@ -127,28 +127,25 @@ fn eval_loop_wraps_and_rejects_open_tracks_and_non_looping_curves() {
         Track { name: Some("tail".into()), sample_times: Some(vec![0.5, 4.5, -3.5]), ..Track::from_rotations(closed) };
     let input = write_tracks(dir.path(), &[track]);
     let output = dir.path().join("out.json");
-    let out = quatcurve(&[
-        "eval",
-        "--input",
-        &input,
-        "--output",
-        output.to_str().unwrap(),
-        "--loop",
-        "--device",
-        "reference",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
-    let t = &doc["tracks"][0];
-    assert_eq!(t["times"], serde_json::json!([0.5, 4.5, -3.5]));
-    let q = |i: usize| QuatF64::from_array(serde_json::from_value(t["rotations"][i].clone()).unwrap());
-    assert!(q(0).angle_to(q(1)) < 1e-12 && q(0).angle_to(q(2)) < 1e-12, "4.5 and -3.5 wrap to 0.5 over a period of 4");
+    let eval = |more: &[&str]| {
+        let out = quatcurve(&[&["eval", "--input", &input, "--output", output.to_str().unwrap()][..], more].concat());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&output).unwrap()).unwrap();
+        let t = doc["tracks"][0].clone();
+        assert_eq!(t["times"], serde_json::json!([0.5, 4.5, -3.5]));
+        let q = |i: usize| QuatF64::from_array(serde_json::from_value(t["rotations"][i].clone()).unwrap());
+        (q(0).angle_to(q(1)), q(0).angle_to(q(2)))
+    };
+    let (later, earlier) = eval(&["--device", "reference"]);
+    assert!(later < 1e-12 && earlier < 1e-12, "4.5 and -3.5 wrap to 0.5 over a period of 4");
+    let (later, earlier) = eval(&["--device", "reference", "--loop", "off"]);
+    assert!(later > 1e-3 && earlier > 1e-3, "open, 4.5 and -3.5 are held at the ends");
 
     let open = write_tracks(dir.path(), &sample_tracks());
-    let out = quatcurve(&["eval", "--input", &open, "--loop"]);
+    let out = quatcurve(&["eval", "--input", &open, "--loop", "on"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("track 0 \"hips\"") && stderr(&out).contains("first rotation"), "{}", stderr(&out));
-    let out = quatcurve(&["eval", "--input", &input, "--loop", "--curve", "bezier"]);
+    let out = quatcurve(&["eval", "--input", &input, "--loop", "on", "--curve", "bezier"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("bezier cannot loop"), "{}", stderr(&out));
 }
@@ -326,7 +323,7 @@ fn bench_reports_every_requested_device_as_json() {
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(doc["workload"]["tracks"], 40);
     assert_eq!(doc["workload"]["samples_per_track"], 25);
-    assert_eq!(doc["workload"]["knots"], "uniform");
+    assert_eq!([&doc["workload"]["curve"], &doc["workload"]["knots"]], ["bspline-interp", "phantom"], "eval's curve");
     assert_eq!(doc["workload"]["derivatives"], true);
     let results = doc["results"].as_array().unwrap();
     let devices: Vec<&str> = results.iter().map(|r| r["device"].as_str().unwrap()).collect();

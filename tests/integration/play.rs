@@ -209,7 +209,7 @@ fn play_writes_the_schedule_and_its_first_instance_is_the_bake() {
     assert_eq!(shape, [61, 5, joints as u64, PALETTE_CHANNELS as u64]);
     // Frame by frame, the schedule's instances through the library.
     let device = Device::open(DeviceChoice::Cpu).unwrap();
-    let schedule = Schedule { instances: 5, rate: 30.0, blend: Some(0.25) };
+    let schedule = Schedule { instances: 5, rate: 30.0, blend: Some(0.25), blend_clip: None };
     let frame = 5 * joints * PALETTE_CHANNELS;
     for f in [0, 17, 60] {
         let instances = schedule.frame(&playback, f);
@@ -218,11 +218,15 @@ fn play_writes_the_schedule_and_its_first_instance_is_the_bake() {
             let clip = i % 3;
             let phase = (i as f64 * PHASE_STEP).fract() * playback.duration(clip);
             assert_eq!(instance.first.clip, clip);
-            assert_eq!(instance.second.unwrap().0.clip, (clip + 1) % 3);
             let t = phase + f as f64 / 30.0;
             let expected =
                 if playback.looping(clip) || t <= playback.duration(clip) { t } else { t % playback.duration(clip) };
             assert!((instance.first.time - expected).abs() < 1e-12, "frame {f} instance {i}");
+            // The viewer's rule: the next clip at the same fraction of its span (Fox's loop).
+            let (second, next) = (instance.second.unwrap().0, (clip + 1) % 3);
+            assert_eq!(second.clip, next);
+            let fraction = expected / playback.duration(clip);
+            assert!((second.time - fraction * playback.duration(next)).abs() < 1e-9, "frame {f} instance {i}");
         }
         let palettes = playback.palettes(&device, &instances).unwrap();
         assert_eq!(palettes, &data_[f * frame..(f + 1) * frame], "frame {f}");
@@ -259,6 +263,8 @@ fn bad_requests_are_refused_before_anything_is_written() {
         (&["--instances", "100000", "--seconds", "1000"][..], "floats of palettes"),
         (&["--skin", "4"][..], "skin 4 asked for, but the file has 1 skin(s)"),
         (&["--skin-from", input.to_str().unwrap(), "--skin", "2"][..], "skin 2 asked for, but the file has 1"),
+        (&["--blend-weight", "0.5", "--blend-clip", "Run"][..], "no clip 'Run': the clips are 0 'animation0'"),
+        (&["--blend-weight", "0.5", "--blend-clip", "1"][..], "no clip '1': the clips are 0 'animation0'"),
     ] {
         let result = play(&[&base[..], extra].concat());
         assert_eq!(result.status.code(), Some(2), "{extra:?}");
@@ -316,7 +322,7 @@ fn a_crowd_larger_than_a_binding_plays_a_part_at_a_time_on_the_gpu() {
     let Some(data) = data_dir() else { return };
     let Some(gpu) = crate::shared_gpu() else { return };
     let playback = playback(&data.join("Fox.glb"), Some(Curve::BSplineInterp));
-    let schedule = Schedule { instances: 200, rate: 30.0, blend: Some(0.3) };
+    let schedule = Schedule { instances: 200, rate: 30.0, blend: Some(0.3), blend_clip: None };
     let instances = schedule.frame(&playback, 11);
     let whole = Device::Gpu(Box::new(gpu.share_device()));
     let expected = playback.palettes(&whole, &instances).unwrap();
@@ -394,7 +400,7 @@ fn a_frame_stays_on_the_gpu_for_a_vertex_shader_and_reads_back_as_the_palettes()
     let Some(data) = data_dir() else { return };
     let Some(gpu) = crate::shared_gpu() else { return };
     let playback = playback(&data.join("Fox.glb"), Some(Curve::BSplineInterp));
-    let instances = Schedule { instances: 30, rate: 30.0, blend: Some(0.3) }.frame(&playback, 5);
+    let instances = Schedule { instances: 30, rate: 30.0, blend: Some(0.3), blend_clip: None }.frame(&playback, 5);
     let device = Device::Gpu(Box::new(gpu.share_device()));
     let player = playback.player(&device).unwrap();
     let times = player.pose_times(&instances).unwrap();
@@ -408,7 +414,41 @@ fn a_frame_stays_on_the_gpu_for_a_vertex_shader_and_reads_back_as_the_palettes()
     let player = playback.player(&small).unwrap();
     let resident = player.resident().unwrap().gpu();
     assert!(resident.max_frame_instances() < 200);
-    let many = Schedule { instances: 200, rate: 30.0, blend: None }.frame(&playback, 0);
+    let many = Schedule { instances: 200, rate: 30.0, blend: None, blend_clip: None }.frame(&playback, 0);
     let err = resident.frame(&player.pose_times(&many).unwrap()).unwrap_err().to_string();
     assert!(err.contains("200 instances are more than one binding of palettes holds"), "{err}");
+}
+
+/// `--blend-clip` names the clip every instance blends towards, by name or by index, at the
+/// same phase of its span as the instance's own clip.
+#[test]
+fn play_blends_every_instance_towards_the_clip_named_or_numbered() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let input = data.join("Fox.glb");
+    let palettes = |name: &str, clip: &str| {
+        let output = dir.path().join(name);
+        let args = ["--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--device", "cpu"];
+        let more = ["--instances", "4", "--seconds", "0.5", "--blend-weight", "0.4", "--blend-clip", clip];
+        let result = play(&[&args[..], &more].concat());
+        assert!(result.status.success(), "{}", stderr(&result));
+        read_npy(&output).1
+    };
+    let (by_name, by_index) = (palettes("name.npy", "Run"), palettes("index.npy", "2"));
+    assert_eq!(by_name, by_index);
+    let playback = playback(&input, None);
+    let schedule = Schedule { instances: 4, rate: 30.0, blend: Some(0.4), blend_clip: Some(2) };
+    let device = Device::open(DeviceChoice::Cpu).unwrap();
+    let frame = 4 * playback.palette_joints() * PALETTE_CHANNELS;
+    for f in [0, 15] {
+        let instances = schedule.frame(&playback, f);
+        for instance in &instances {
+            let (second, _) = instance.second.unwrap();
+            assert_eq!(second.clip, 2);
+            let fraction = instance.first.time / playback.duration(instance.first.clip);
+            assert!((second.time - fraction * playback.duration(2)).abs() < 1e-9);
+        }
+        assert_eq!(playback.palettes(&device, &instances).unwrap(), &by_name[f * frame..(f + 1) * frame]);
+    }
+    assert_ne!(by_name, palettes("next.npy", "Walk"), "another clip, other palettes");
 }

@@ -6,7 +6,7 @@
 
 use crate::error::InputError;
 use crate::{Animation, ChannelCurve as Stored, Interpolation, Property};
-use quatcurve_core::curve::{Curve, CurveSpec, KnotMode, UnknownName};
+use quatcurve_core::curve::{Curve, CurveSpec, UnknownName};
 use quatcurve_eval::batch::{Batch, BatchBuilder, Spline};
 use quatcurve_eval::error::TrackId;
 use quatcurve_eval::euclidean::VectorCurve;
@@ -33,7 +33,7 @@ impl CurveChoice {
     #[must_use]
     pub fn new(curve: Option<Curve>, options: &CurveOptions) -> Self {
         match curve {
-            Some(curve) => CurveChoice::Family(options.spec(curve, KnotMode::Phantom, false)),
+            Some(curve) => CurveChoice::Family(options.spec(curve, false)),
             None => CurveChoice::Source,
         }
     }

@@ -201,6 +201,14 @@ pub enum AnimationError {
         /// Clips the file has.
         clips: usize,
     },
+    /// A clip named (or numbered) that the file does not have.
+    #[error("no clip '{given}': the clips are {clips}")]
+    NoSuchClip {
+        /// The name or index given.
+        given: String,
+        /// The file's clips, by index and name (`0 'Survey', 1 'Walk' or 2 'Run'`).
+        clips: String,
+    },
     /// An instance at a time that is not finite.
     #[error("instance {instance}: time {time} is not finite")]
     InstanceTime {

@@ -4,22 +4,8 @@
 use crate::curves::CurveChoice;
 use crate::error::{AnimationError, InputError};
 use crate::{Animation, Channel, Clip, Property};
-use quatcurve_core::quat::QuatF64;
 
-/// Which clips bake as loops (DESIGN section 5b).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum LoopMode {
-    /// A clip loops when every rotation channel's last key is the same rotation as its first
-    /// (within [`quatcurve_eval::batch::LOOP_TOLERANCE`]) and the curve can loop.
-    #[default]
-    Auto,
-    /// Every clip loops; a channel that does not close is an error naming it.
-    On,
-    /// No clip loops.
-    Off,
-}
-
-quatcurve_core::curve::names!(LoopMode, "loop mode", Auto => "auto", On => "on", Off => "off");
+pub use quatcurve_eval::options::LoopMode;
 
 /// Whether `clip` bakes as a loop under `mode` with `choice` (DESIGN section 5b).
 ///
@@ -40,12 +26,7 @@ pub fn clip_loops(
             _ => Ok(false),
         };
     }
-    let open = |values: &[[f64; 4]]| {
-        let (first, last) =
-            (QuatF64::from_array(values[0]).normalize(), QuatF64::from_array(values[values.len() - 1]).normalize());
-        let angle = first.angle_to(last);
-        (angle.is_nan() || angle > quatcurve_eval::batch::LOOP_TOLERANCE).then_some(angle)
-    };
+    let open = quatcurve_eval::options::opening;
     let rotations = || {
         clip.channels
             .iter()
@@ -55,7 +36,9 @@ pub fn clip_loops(
     };
     match mode {
         LoopMode::Off => Ok(false),
-        LoopMode::Auto => Ok(spec.can_loop() && rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())),
+        LoopMode::Auto => {
+            Ok(mode.loops(&spec, || rotations().count() > 0 && rotations().all(|(_, v)| open(v).is_none())))
+        }
         LoopMode::On => {
             if !spec.can_loop() {
                 return Err(AnimationError::CurveDoesNotLoop {

@@ -1,4 +1,4 @@
-//! Rates from an error budget (`bake --max-error DEG`, `--max-error-mm MM`; DESIGN section 7):
+//! Rates from an error budget (`bake --max-error-deg DEG`, `--max-error-cm CM`; DESIGN section 7):
 //! per clip, the lowest rate at which a renderer interpolating the baked frames as
 //! `shaders/bone_texture.wgsl` does (nlerp of rotations on the shorter arc, lerp of
 //! translations and scales) stays within the budget of the continuous curve, measured at
@@ -38,20 +38,17 @@ pub const BUDGET_MARGIN: f64 = 0.01;
 /// refused, naming the error there.
 pub const DEFAULT_MAX_RATE: f64 = 480.0;
 
-/// Millimetres per model unit of glTF ([`GLTF_UNIT_CM`]), the default of `--unit-mm`.
-pub const GLTF_UNIT_MM: f64 = 10.0 * GLTF_UNIT_CM;
-
 /// What an interpolated texture may differ from the continuous curve by.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorBudget {
     /// Largest angle (degrees) between a texture's interpolated rotation and the curve's.
     pub degrees: Option<f64>,
-    /// Largest distance (millimetres) between a joint's interpolated model-space position and
+    /// Largest distance (cm) between a joint's interpolated model-space position and
     /// the curve's (forward kinematics of a local texture: errors accumulated down the
     /// hierarchy).
-    pub millimetres: Option<f64>,
-    /// Millimetres per model unit: 1000 for glTF (metres); what a BVH's offsets are in.
-    pub unit_mm: f64,
+    pub centimetres: Option<f64>,
+    /// Centimetres per model unit: 100 for glTF (metres); what a BVH's offsets are in.
+    pub unit_cm: f64,
     /// The highest rate tried (Hz).
     pub max_rate: f64,
 }
@@ -67,7 +64,7 @@ pub struct Measured {
     pub frames: usize,
     /// The largest rotation error (degrees).
     pub rotation: Worst,
-    /// The largest model-space position error (millimetres).
+    /// The largest model-space position error (centimetres).
     pub position: Worst,
 }
 
@@ -89,19 +86,19 @@ impl ErrorBudget {
     /// No budget: every clip at the job's rate.
     #[must_use]
     pub fn none() -> Self {
-        Self { degrees: None, millimetres: None, unit_mm: GLTF_UNIT_MM, max_rate: DEFAULT_MAX_RATE }
+        Self { degrees: None, centimetres: None, unit_cm: GLTF_UNIT_CM, max_rate: DEFAULT_MAX_RATE }
     }
 
-    /// Whether a budget is set (degrees, millimetres or both).
+    /// Whether a budget is set (degrees, centimetres or both).
     #[must_use]
     pub fn is_set(&self) -> bool {
-        self.degrees.is_some() || self.millimetres.is_some()
+        self.degrees.is_some() || self.centimetres.is_some()
     }
 
     /// Whether `m` is within the budget, less [`BUDGET_MARGIN`].
     fn holds(&self, m: &Measured) -> bool {
         let within = |limit: Option<f64>, v: f64| limit.map_or(true, |l| v <= l * (1.0 - BUDGET_MARGIN));
-        within(self.degrees, m.rotation.value) && within(self.millimetres, m.position.value)
+        within(self.degrees, m.rotation.value) && within(self.centimetres, m.position.value)
     }
 
     /// The budget in words, for messages.
@@ -110,8 +107,8 @@ impl ErrorBudget {
         if let Some(d) = self.degrees {
             parts.push(format!("{} degrees", Number(d)));
         }
-        if let Some(mm) = self.millimetres {
-            parts.push(format!("{} mm", Number(mm)));
+        if let Some(cm) = self.centimetres {
+            parts.push(format!("{} cm", Number(cm)));
         }
         parts.join(" and ")
     }
@@ -181,7 +178,7 @@ pub struct Setting<'a> {
 }
 
 /// The error of clip `clip` baked at `rate` (fitted to its span) against its curve at
-/// [`SUBSTEPS`] points of every interval; positions in mm at `unit_mm` per model unit.
+/// [`SUBSTEPS`] points of every interval; positions in cm at `unit_cm` per model unit.
 ///
 /// # Errors
 /// The bake's ([`bake`], [`texture::sheets`]).
@@ -190,9 +187,9 @@ pub fn measure(
     clip: usize,
     rate: f64,
     setting: &Setting<'_>,
-    unit_mm: f64,
+    unit_cm: f64,
 ) -> Result<Measured, BakeError> {
-    measure_at(animation, clip, rate, setting, unit_mm, SUBSTEPS)
+    measure_at(animation, clip, rate, setting, unit_cm, SUBSTEPS)
 }
 
 /// [`measure`] at `points` points of each interval ([`SUBSTEPS`], or [`SCREEN_SUBSTEPS`] to
@@ -202,7 +199,7 @@ fn measure_at(
     clip: usize,
     rate: f64,
     setting: &Setting<'_>,
-    unit_mm: f64,
+    unit_cm: f64,
     points: usize,
 ) -> Result<Measured, BakeError> {
     let one = only(animation, clip);
@@ -262,7 +259,7 @@ fn measure_at(
         }
         let positions = |rows: &[f32]| positions(&one, &order, setting.kind, &sheet.suffix, rows);
         let (p, t) = (positions(&blended), positions(&truth.data));
-        let distance = |p: &[f64; 3], t: &[f64; 3]| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_mm;
+        let distance = |p: &[f64; 3], t: &[f64; 3]| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_cm;
         let distances = p
             .par_iter()
             .zip(&t)
@@ -370,8 +367,8 @@ pub fn choose_rates(
             rate
         };
         let screen =
-            |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SCREEN_SUBSTEPS);
-        let full = |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_mm, SUBSTEPS);
+            |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_cm, SCREEN_SUBSTEPS);
+        let full = |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_cm, SUBSTEPS);
         // Intervals per step of the search, and the first step tried.
         let grid =
             key_grid(clip).filter(|&keys| setting.curve.corners_at_keys() && keys as f64 <= span * budget.max_rate);
@@ -517,7 +514,7 @@ mod tests {
 
     #[test]
     fn a_screened_search_picks_what_a_search_of_full_measures_picks() {
-        let budget = ErrorBudget { degrees: Some(1.0), millimetres: None, unit_mm: 1.0, max_rate: 480.0 };
+        let budget = ErrorBudget { degrees: Some(1.0), centimetres: None, unit_cm: 1.0, max_rate: 480.0 };
         let full = |steps: f64| 100.0 / steps;
         // The screen sees the worst point, or misses it and sees half the error.
         for seen in [1.0, 0.5] {
@@ -570,7 +567,7 @@ mod tests {
             device: &device,
             measuring: &|_, _| {},
         };
-        let budget = ErrorBudget { degrees: Some(0.5), millimetres: None, unit_mm: 1000.0, max_rate: 480.0 };
+        let budget = ErrorBudget { degrees: Some(0.5), centimetres: None, unit_cm: 1000.0, max_rate: 480.0 };
         let [clean, flipped] =
             [false, true].map(|flip| choose_rates(&arm(flip), &budget, &setting).unwrap()[0].clone());
         assert_eq!(super::super::broken_steps(&arm(true).clips[0].channels[0]).len(), 2, "into the flip and out");

@@ -224,7 +224,7 @@ pub enum Refusal {
     /// No rate up to the budget's highest keeps within it.
     #[error(
         "clip '{clip}': no rate up to {} Hz (the highest a budget may choose) keeps within {}: at {} Hz the worst \
-         error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} mm (joint '{}', {:.3} s); {}",
+         error is {:.3} degrees (joint '{}', {:.3} s) and {:.3} cm (joint '{}', {:.3} s); {}",
         Number(*max_rate),
         within,
         Number(*rate),
@@ -242,7 +242,7 @@ pub enum Refusal {
     NoRateHolds {
         /// The clip.
         clip: String,
-        /// The budget, in words (`1 degrees and 5 mm`).
+        /// The budget, in words (`1 degrees and 0.5 cm`).
         within: String,
         /// The highest rate a budget may choose (Hz).
         max_rate: f64,
@@ -250,7 +250,7 @@ pub enum Refusal {
         rate: f64,
         /// Its largest rotation error (degrees).
         rotation: Worst,
-        /// Its largest position error (millimetres).
+        /// Its largest position error (cm).
         position: Worst,
         /// The rate that would hold, or the highest searched.
         higher: Result<f64, f64>,
@@ -260,7 +260,7 @@ pub enum Refusal {
 /// Where an error is largest.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Worst {
-    /// Degrees, or millimetres.
+    /// Degrees, or centimetres.
     pub value: f64,
     /// The joint's name.
     pub joint: String,

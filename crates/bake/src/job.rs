@@ -122,7 +122,7 @@ impl BakeJob {
             ));
         }
         let budget = self.options.budget();
-        for (option, value) in [("max_error", budget.degrees), ("max_error_mm", budget.millimetres)] {
+        for (option, value) in [("max_error_deg", budget.degrees), ("max_error_cm", budget.centimetres)] {
             if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
                 return Err(FileJobError::option(
                     option,
@@ -137,22 +137,24 @@ impl BakeJob {
                     format!("must be a positive number of Hz, not {}", budget.max_rate),
                 ));
             }
-            if !(budget.unit_mm.is_finite() && budget.unit_mm > 0.0) {
+            if !(budget.unit_cm.is_finite() && budget.unit_cm > 0.0) {
                 return Err(FileJobError::option(
-                    "unit_mm",
-                    format!("must be a positive number, not {}", budget.unit_mm),
+                    "unit_cm",
+                    format!("must be a positive number, not {}", budget.unit_cm),
                 ));
             }
+            // The budget given, by its option.
+            let asked = if budget.degrees.is_some() { "max_error_deg" } else { "max_error_cm" };
             if self.options.texture == TextureKind::Vertex {
                 return Err(FileJobError::option(
-                    "max_error",
+                    asked,
                     "measures joints blended between frames, not a vertex texture's positions; bake vertex textures at a \
                      fixed rate",
                 ));
             }
             if !matches!(self.options.texture, TextureKind::Local | TextureKind::ModelTrs | TextureKind::SkinTrs) {
                 return Err(FileJobError::option(
-                    "max_error",
+                    asked,
                     format!(
                         "measures what a shader interpolates between frames, which a {} texture's matrices do not \
                          hold without shearing; bake a local, model-trs or skin-trs texture",
@@ -257,6 +259,9 @@ impl BakeJob {
         let inputs = expand(&self.inputs, &quatcurve_formats::source::input_extensions().collect::<Vec<_>>())?;
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
+        if self.options.max_error_cm.is_some() {
+            quatcurve_files::unit_cm(&inputs, self.options.unit_cm, "nothing was baked")?;
+        }
         let output = OutputDir::create(&self.output, "baked")?;
         if let Err(e) = self.check_output_names(&inputs, &stems) {
             output.remove_if_unused();
@@ -448,7 +453,7 @@ impl BakeJob {
                 ));
             }
             let needs_space = self.options.texture != TextureKind::Local
-                || self.options.max_error_mm.is_some()
+                || self.options.max_error_cm.is_some()
                 || self.options.preview
                 || self.options.root_motion == RootMotion::Extract;
             if needs_space {

@@ -2,7 +2,7 @@
 //! the options that decide a bake's outputs, which the manifest records and `resume` compares.
 //! Which inputs, where to, which shard and how many at once are the job's ([`super::BakeJob`]).
 
-use super::budget::{ErrorBudget, DEFAULT_MAX_RATE, GLTF_UNIT_MM};
+use super::budget::{ErrorBudget, DEFAULT_MAX_RATE};
 use super::image::{Format, DEFAULT_MAX_TEXTURE_SIZE};
 use super::player::Player;
 use super::root_motion::RootMotion;
@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 pub struct BakeOptions {
     /// Output rate in Hz, fitted per clip so that its first and last frames are its first and
     /// last keys (the clip's own rate is in the sidecar).
-    #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.rate, allow_negative_numbers = true))]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "HZ", default_value_t = BakeOptions::DEFAULT.rate, allow_negative_numbers = true))]
     pub rate: f64,
     /// Bake every clip at exactly the rate: frames start + i / rate while not past the last key,
     /// so a clip's end off that grid is not baked (the summary warns how much); a loop's frames
@@ -96,14 +96,15 @@ pub struct BakeOptions {
     /// as `quatcurve shaders` does, stay within it of the curve between frames (16 points
     /// per frame interval, every joint); replaces the rate. Textures local, model-trs, skin-trs.
     #[cfg_attr(feature = "cli", arg(long, value_name = "DEG", allow_negative_numbers = true))]
-    pub max_error: Option<f64>,
-    /// Position budget in millimetres, for joints in model space (local textures: errors
-    /// accumulated down the hierarchy by forward kinematics); with or without the rotation budget.
-    #[cfg_attr(feature = "cli", arg(long, value_name = "MM", allow_negative_numbers = true))]
-    pub max_error_mm: Option<f64>,
-    /// Millimetres per unit of the input's positions (glTF: metres, 1000).
-    #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.unit_mm, value_name = "MM"))]
-    pub unit_mm: f64,
+    pub max_error_deg: Option<f64>,
+    /// Position budget in cm, for joints in model space (local textures: errors accumulated
+    /// down the hierarchy by forward kinematics); with or without the rotation budget.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", allow_negative_numbers = true))]
+    pub max_error_cm: Option<f64>,
+    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files and fitted
+    /// containers do not say theirs, so such an input needs it (CMU's BVH is 5.644).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", allow_negative_numbers = true))]
+    pub unit_cm: Option<f64>,
     /// The highest rate a budget may choose (Hz); a clip no rate up to it holds is refused.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.max_rate, value_name = "HZ"))]
     pub max_rate: f64,
@@ -132,9 +133,9 @@ impl BakeOptions {
         atlas: false,
         preview: false,
         characters: crowd::CHARACTERS,
-        max_error: None,
-        max_error_mm: None,
-        unit_mm: GLTF_UNIT_MM,
+        max_error_deg: None,
+        max_error_cm: None,
+        unit_cm: None,
         max_rate: DEFAULT_MAX_RATE,
         root_motion: RootMotion::Keep,
     };
@@ -188,13 +189,14 @@ impl BakeOptions {
         }
     }
 
-    /// The error budget that chooses each clip's rate (none set: every clip at `rate`).
+    /// The error budget that chooses each clip's rate (none set: every clip at `rate`); lengths
+    /// in glTF's metre where no unit is given (the job refuses inputs that need one first).
     #[must_use]
     pub fn budget(&self) -> ErrorBudget {
         ErrorBudget {
-            degrees: self.max_error,
-            millimetres: self.max_error_mm,
-            unit_mm: self.unit_mm,
+            degrees: self.max_error_deg,
+            centimetres: self.max_error_cm,
+            unit_cm: self.unit_cm.unwrap_or(quatcurve_anim::GLTF_UNIT_CM),
             max_rate: self.max_rate,
         }
     }
@@ -219,11 +221,11 @@ mod tests {
     #[test]
     fn options_by_name_take_the_defaults_they_are_not_given_and_name_what_is_wrong() {
         assert_eq!(given("{}"), Ok(BakeOptions::DEFAULT));
-        let o = given(r#"{"rate": 24, "loop": "on", "texture": "skin-trs", "knots": "uniform", "max_error": 0.5}"#)
+        let o = given(r#"{"rate": 24, "loop": "on", "texture": "skin-trs", "knots": "uniform", "max_error_deg": 0.5}"#)
             .unwrap();
         assert_eq!(
-            (o.rate, o.looping, o.texture, o.curve_options.knots, o.max_error),
-            (24.0, LoopMode::On, TextureKind::SkinTrs, Some(KnotMode::Uniform), Some(0.5))
+            (o.rate, o.looping, o.texture, o.curve_options.knots, o.max_error_deg),
+            (24.0, LoopMode::On, TextureKind::SkinTrs, KnotMode::Uniform, Some(0.5))
         );
         assert_eq!(BakeOptions { rate: 24.0, ..o.clone() }, o);
         let bad = given(r#"{"rate": 24, "texture": "pretty"}"#).unwrap_err().to_string();
@@ -238,7 +240,7 @@ mod tests {
     fn the_options_written_read_back_as_themselves() {
         let o = BakeOptions {
             exact_rate: true,
-            max_error_mm: Some(3.0),
+            max_error_cm: Some(3.0),
             root_motion: RootMotion::Extract,
             ..BakeOptions::DEFAULT
         };

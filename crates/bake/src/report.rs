@@ -86,7 +86,7 @@ pub struct InputReport {
     /// Vertex textures: vertex-frames skinned and the seconds skinning took on the bake's
     /// device (without forward kinematics or writing).
     pub skinning: Option<(u64, f64)>,
-    /// With an error budget ([`super::BakeOptions::max_error`]): per clip, the rate chosen and what
+    /// With an error budget ([`super::BakeOptions::max_error_deg`]): per clip, the rate chosen and what
     /// it measured.
     pub rates: Vec<ChosenRate>,
     /// The box of the joints at rest (model space, the file's units: glTF's and FBX's metres),

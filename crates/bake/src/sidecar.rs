@@ -285,10 +285,10 @@ pub struct ImageRecord {
 pub struct BudgetRecord {
     /// The rotation budget, degrees.
     pub degrees: Option<f64>,
-    /// The position budget, millimetres.
-    pub millimetres: Option<f64>,
-    /// Millimetres per unit of the input's positions.
-    pub unit_mm: f64,
+    /// The position budget, centimetres.
+    pub centimetres: Option<f64>,
+    /// Centimetres per unit of the input's positions.
+    pub unit_cm: f64,
     /// The highest rate the budget could choose, Hz.
     pub max_rate: f64,
     /// Points of each frame interval the error was measured at.
@@ -326,7 +326,7 @@ pub struct SidecarClip {
     /// Its skeleton preview's file name.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preview: Option<String>,
-    /// With an error budget: the worst rotation (degrees) and model-space position (mm)
+    /// With an error budget: the worst rotation (degrees) and model-space position (cm)
     /// errors between this clip's frames, where and when, and its bytes against the fixed
     /// rate's.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -446,8 +446,8 @@ impl Sidecar {
             max_key_error_rad: baked.max_key_error,
             max_error: max_error.map(|b| BudgetRecord {
                 degrees: b.degrees,
-                millimetres: b.millimetres,
-                unit_mm: b.unit_mm,
+                centimetres: b.centimetres,
+                unit_cm: b.unit_cm,
                 max_rate: b.max_rate,
                 substeps: SUBSTEPS,
                 interpolation: "nlerp of rotations on the shorter arc, lerp of translations and scales (bone_pose)"

@@ -94,7 +94,7 @@ fn a_pose_archive_baked_into_its_own_directory_is_refused_before_anything_is_rea
 fn a_budget_no_rate_up_to_the_cap_meets_is_refused_naming_the_clip_the_rate_and_the_worst_joint() {
     let dir = tempfile::tempdir().unwrap();
     let mut job = crowd_job(dir.path(), 1);
-    (job.options.max_error, job.options.max_rate) = (Some(0.01), 10.0);
+    (job.options.max_error_deg, job.options.max_rate) = (Some(0.01), 10.0);
     let report = job.run(&cpu(), &()).unwrap();
     match &report.inputs[0].outcome {
         Err(BakeError::Refused(refusal)) => match &**refusal {
@@ -122,7 +122,7 @@ fn a_budget_tells_progress_of_every_rate_its_search_measures() {
     }
     let dir = tempfile::tempdir().unwrap();
     let mut job = crowd_job(dir.path(), 1);
-    job.options.max_error = Some(1.0);
+    job.options.max_error_deg = Some(1.0);
     let rates = Rates(std::sync::Mutex::new(Vec::new()));
     let report = job.run(&cpu(), &rates).unwrap();
     let chosen = report.inputs[0].rates[0].measured.rate;

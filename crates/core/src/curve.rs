@@ -200,8 +200,18 @@ macro_rules! names {
         }
         impl<'de> ::serde::Deserialize<'de> for $ty {
             fn deserialize<D: ::serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-                let name = <String as ::serde::Deserialize>::deserialize(d)?;
-                name.parse().map_err(<D::Error as ::serde::de::Error>::custom)
+                // A value of another type (a boolean) is refused with the names listed.
+                struct Names;
+                impl ::serde::de::Visitor<'_> for Names {
+                    type Value = $ty;
+                    fn expecting(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
+                        write!(f, "one of: {}", <$ty>::NAMES.join(", "))
+                    }
+                    fn visit_str<E: ::serde::de::Error>(self, name: &str) -> Result<$ty, E> {
+                        name.parse().map_err(E::custom)
+                    }
+                }
+                d.deserialize_str(Names)
             }
         }
         impl $ty {

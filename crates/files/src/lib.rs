@@ -86,6 +86,31 @@ pub fn expand(inputs: &[PathBuf], known: &[&str]) -> Result<Vec<PathBuf>, FileJo
     Ok(files)
 }
 
+/// The length of one file unit in cm for every input: `given`, or glTF's metre (every format
+/// that says its unit is read into metres). An input whose format does not say its unit (BVH,
+/// a fitted container) needs it given: an error naming it.
+///
+/// # Errors
+/// [`FileJobError::Option`] (`unit_cm`) naming the first such input, and what was not done
+/// (`nothing was fitted`).
+pub fn unit_cm(inputs: &[PathBuf], given: Option<f64>, not_done: &str) -> Result<f64, FileJobError> {
+    if let Some(unit) = given {
+        return Ok(unit);
+    }
+    let unsaid = inputs.iter().find(|p| quatcurve_formats::source::importer(p).is_some_and(|i| !i.says_unit));
+    match unsaid {
+        Some(input) => Err(FileJobError::option(
+            "unit_cm",
+            format!(
+                "is needed for {}: a {} file does not say its unit (CMU's BVH is 5.644 cm); {not_done}",
+                input.display(),
+                extension(input).unwrap_or_default()
+            ),
+        )),
+        None => Ok(quatcurve_anim::GLTF_UNIT_CM),
+    }
+}
+
 /// Each input's output stem (its file name without extension). Two inputs with one stem
 /// (`walk/idle.glb`, `run/idle.bvh`) would write the same outputs, the second silently
 /// replacing the first: refused before anything is baked.

@@ -5,7 +5,7 @@
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use quatcurve_anim::error::{InputError, OutputError};
-use quatcurve_anim::{Animation, GLTF_UNIT_CM};
+use quatcurve_anim::Animation;
 use quatcurve_eval::error::Number;
 use quatcurve_eval::io::IoError;
 use quatcurve_files::FileJobError;
@@ -42,17 +42,17 @@ pub struct FitJob {
 pub struct FitOptions {
     /// The largest distance, in cm, a virtual vertex may move at any source frame (ACL's
     /// metric: object space, so a parent's error counts in its children's).
-    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.max_error, allow_negative_numbers = true))]
-    pub max_error: f64,
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.max_error_cm, allow_negative_numbers = true))]
+    pub max_error_cm: f64,
     /// The largest between source frames, in cm, against the source's own interpolation;
     /// none: not checked (the curve may swing between frames; reported all the same).
     #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value = default_between_error(), allow_negative_numbers = true))]
-    pub between_error: Option<f64>,
+    pub between_error_cm: Option<f64>,
     /// The virtual vertices' distance from each joint, cm.
-    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.vertex_distance, allow_negative_numbers = true))]
-    pub vertex_distance: f64,
-    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files do not say
-    /// theirs, so a BVH input needs it (CMU's is 5.644).
+    #[cfg_attr(feature = "cli", arg(long, value_name = "CM", default_value_t = FitOptions::DEFAULT.vertex_distance_cm, allow_negative_numbers = true))]
+    pub vertex_distance_cm: f64,
+    /// The length of one file unit in cm (default: glTF's metre, 100). BVH files and fitted
+    /// containers do not say theirs, so such an input needs it (CMU's BVH is 5.644).
     #[cfg_attr(feature = "cli", arg(long, value_name = "CM", allow_negative_numbers = true))]
     pub unit_cm: Option<f64>,
 }
@@ -60,9 +60,9 @@ pub struct FitOptions {
 impl FitOptions {
     /// Every option's default: ACL's threshold and vertex distance.
     pub const DEFAULT: Self = Self {
-        max_error: 0.01,
-        between_error: Some(DEFAULT_BETWEEN_ERROR_CM),
-        vertex_distance: DEFAULT_VERTEX_DISTANCE_CM,
+        max_error_cm: 0.01,
+        between_error_cm: Some(DEFAULT_BETWEEN_ERROR_CM),
+        vertex_distance_cm: DEFAULT_VERTEX_DISTANCE_CM,
         unit_cm: None,
     };
 }
@@ -144,9 +144,9 @@ pub struct InputFit {
 pub struct FitReport {
     /// The budget, cm.
     pub max_error_cm: f64,
-    /// See [`FitOptions::between_error`].
+    /// See [`FitOptions::between_error_cm`].
     pub between_error_cm: Option<f64>,
-    /// See [`FitOptions::vertex_distance`].
+    /// See [`FitOptions::vertex_distance_cm`].
     pub vertex_distance_cm: f64,
     /// Per input, in path order.
     pub inputs: Vec<InputFit>,
@@ -239,9 +239,9 @@ impl FitJob {
     /// takes no file, two inputs with one stem, a container that would replace its input.
     pub fn run(&self, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> Result<FitReport, FileJobError> {
         for (option, value) in [
-            ("max_error", Some(self.options.max_error)),
-            ("between_error", self.options.between_error),
-            ("vertex_distance", Some(self.options.vertex_distance)),
+            ("max_error_cm", Some(self.options.max_error_cm)),
+            ("between_error_cm", self.options.between_error_cm),
+            ("vertex_distance_cm", Some(self.options.vertex_distance_cm)),
             ("unit_cm", self.options.unit_cm),
         ] {
             if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
@@ -249,30 +249,25 @@ impl FitJob {
             }
         }
         if self.inputs.is_empty() {
-            return Err(FileJobError::option("inputs", "names no file: give the glTF or BVH files to fit"));
+            return Err(FileJobError::option("inputs", "names no file: give the glTF, FBX or BVH files to fit"));
         }
         let inputs = expand(&self.inputs, &FIT_EXTENSIONS)?;
         for input in &inputs {
             match extension(input).as_deref() {
-                Some("bvh") if self.options.unit_cm.is_none() => {
-                    return Err(FileJobError::option(
-                        "unit_cm",
-                        format!(
-                            "is needed for {}: a BVH file does not say its unit (CMU's is 5.644 cm); nothing was \
-                             fitted",
-                            input.display()
-                        ),
-                    ))
-                }
                 Some(e) if FIT_EXTENSIONS.contains(&e) => {}
                 _ => {
                     return Err(FileJobError::option(
                         "input",
-                        format!("{}: not a file to fit: expected .gltf, .glb or .bvh", input.display()),
+                        format!(
+                            "{}: not a file to fit: expected {}",
+                            input.display(),
+                            quatcurve_eval::error::one_of(FIT_EXTENSIONS.iter().map(|e| format!(".{e}")))
+                        ),
                     ))
                 }
             }
         }
+        let unit_cm = quatcurve_files::unit_cm(&inputs, self.options.unit_cm, "nothing was fitted")?;
         let stems = output_stems(&inputs)?;
         let output = OutputDir::create(&self.output, "fitted")?;
         for (input, stem) in inputs.iter().zip(&stems) {
@@ -285,18 +280,24 @@ impl FitJob {
                 return Err(FileJobError::Refused { error: Box::new(e), job: "fitted" });
             }
         }
-        let inputs = inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, progress)).collect();
+        let inputs =
+            inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, unit_cm, progress)).collect();
         Ok(FitReport {
-            max_error_cm: self.options.max_error,
-            between_error_cm: self.options.between_error,
-            vertex_distance_cm: self.options.vertex_distance,
+            max_error_cm: self.options.max_error_cm,
+            between_error_cm: self.options.between_error_cm,
+            vertex_distance_cm: self.options.vertex_distance_cm,
             inputs,
         })
     }
 
-    fn fit_one(&self, input: &Path, stem: &str, progress: &(dyn Fn(&str, &ClipReport) + Sync)) -> InputFit {
+    fn fit_one(
+        &self,
+        input: &Path,
+        stem: &str,
+        unit_cm: f64,
+        progress: &(dyn Fn(&str, &ClipReport) + Sync),
+    ) -> InputFit {
         let name = input.display().to_string();
-        let unit_cm = self.options.unit_cm.unwrap_or(GLTF_UNIT_CM);
         let mut report =
             InputFit { input: name.clone(), output: None, unit_cm, container_bytes: 0, clips: Vec::new(), error: None };
         let result = (|| -> Result<(String, usize), FitInputError> {
@@ -306,9 +307,9 @@ impl FitJob {
                 return Err(FitInputError::Empty);
             }
             let budget = Budget {
-                max_error: self.options.max_error / unit_cm,
-                between_error: self.options.between_error.map_or(f64::INFINITY, |cm| cm / unit_cm),
-                vertex_distance: self.options.vertex_distance / unit_cm,
+                max_error: self.options.max_error_cm / unit_cm,
+                between_error: self.options.between_error_cm.map_or(f64::INFINITY, |cm| cm / unit_cm),
+                vertex_distance: self.options.vertex_distance_cm / unit_cm,
             };
             let mut clips = Vec::with_capacity(animation.clips.len());
             for c in 0..animation.clips.len() {
@@ -318,8 +319,8 @@ impl FitJob {
                     match e {
                         FitClipError::OverBudget { at_frames, between_frames } => FitInputError::OverBudget {
                             clip,
-                            max_error_cm: self.options.max_error,
-                            between_error_cm: self.options.between_error,
+                            max_error_cm: self.options.max_error_cm,
+                            between_error_cm: self.options.between_error_cm,
                             at: Box::new(worst_report(&animation, &at_frames, unit_cm)),
                             between: Box::new(worst_report(&animation, &between_frames, unit_cm)),
                         },
@@ -382,8 +383,8 @@ mod tests {
         names.sort();
         flags.sort();
         assert_eq!(flags, names);
-        let given = serde_json::from_str(r#"{"between_error": null, "unit_cm": 5.644}"#).unwrap();
+        let given = serde_json::from_str(r#"{"between_error_cm": null, "unit_cm": 5.644}"#).unwrap();
         let options: FitOptions = quatcurve_eval::options::from_named(&given).unwrap();
-        assert_eq!(options, FitOptions { between_error: None, unit_cm: Some(5.644), ..FitOptions::DEFAULT });
+        assert_eq!(options, FitOptions { between_error_cm: None, unit_cm: Some(5.644), ..FitOptions::DEFAULT });
     }
 }

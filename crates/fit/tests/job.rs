@@ -32,7 +32,7 @@ fn a_fitted_container_decodes_to_poses_within_the_budget_of_its_source_frames() 
     let report = job.run(&|_, _| {}).unwrap();
     assert_eq!(report.failed(), 0, "{:?}", report.inputs[0].error);
     let fitted = &report.inputs[0].clips[0];
-    assert!(fitted.at_frames.error_cm <= options.max_error, "{fitted:?}");
+    assert!(fitted.at_frames.error_cm <= options.max_error_cm, "{fitted:?}");
 
     let container = std::fs::read(dir.path().join("out/arm.qcf")).unwrap();
     let mut decoder = Decoder::from_bytes(&container).unwrap();
@@ -49,7 +49,7 @@ fn a_fitted_container_decodes_to_poses_within_the_budget_of_its_source_frames() 
         let degrees = 2.0 * dot.acos().to_degrees();
         // A virtual vertex `vertex_distance` from the joint moves at most `max_error`: the
         // rotation is within that chord's angle (the root is still).
-        let bound = (2.0 * (options.max_error / (2.0 * options.vertex_distance)).asin()).to_degrees() * 1.001;
+        let bound = (2.0 * (options.max_error_cm / (2.0 * options.vertex_distance_cm)).asin()).to_degrees() * 1.001;
         assert!(degrees <= bound, "at {t} s the decoded arm is {degrees} degrees from its key (bound {bound})");
     }
 }

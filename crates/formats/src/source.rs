@@ -104,6 +104,9 @@ pub struct Importer {
     pub writes_back: Option<&'static str>,
     /// Whether its inputs may hold meshes ([`Input::gltf`]).
     pub meshes: bool,
+    /// Whether its files say their length unit (read into glTF's metre); a BVH's offsets and a
+    /// container's are in whatever unit their source had.
+    pub says_unit: bool,
     /// Reads one file into the model.
     pub read: fn(&Path, ReadOptions) -> Imported,
 }
@@ -115,6 +118,7 @@ pub static IMPORTERS: [Importer; 5] = [
         holds: "",
         writes_back: Some("glb"),
         meshes: true,
+        says_unit: true,
         read: |path, options| Ok(Box::new(gltf::read(path, options.uris)?)),
     },
     Importer {
@@ -122,6 +126,7 @@ pub static IMPORTERS: [Importer; 5] = [
         holds: "",
         writes_back: Some("glb"),
         meshes: true,
+        says_unit: true,
         read: |path, _| Ok(Box::new(fbx::read(path)?)),
     },
     Importer {
@@ -129,6 +134,7 @@ pub static IMPORTERS: [Importer; 5] = [
         holds: "",
         writes_back: Some("bvh"),
         meshes: false,
+        says_unit: false,
         read: |path, _| Ok(Box::new(Bvh::new(bvh::read(path)?, &clip_name(path)))),
     },
     Importer {
@@ -136,6 +142,7 @@ pub static IMPORTERS: [Importer; 5] = [
         holds: " (SMPL-family poses)",
         writes_back: Some(smpl::EXTENSION),
         meshes: false,
+        says_unit: true,
         read: |path, _| Ok(Box::new(Smpl::new(smpl::read(path)?, &clip_name(path)))),
     },
     Importer {
@@ -144,6 +151,7 @@ pub static IMPORTERS: [Importer; 5] = [
         // A container of a BVH source bakes to BVH again.
         writes_back: Some("bvh"),
         meshes: false,
+        says_unit: false,
         read: |path, _| fitted(&quatcurve_qcf::Container::read(path)?),
     },
 ];

@@ -108,7 +108,7 @@ fn bakes_back_within_the_reported_error(every: usize) -> Option<Vec<u8>> {
         source.to_str().unwrap(),
         "--output",
         fitted.to_str().unwrap(),
-        "--max-error",
+        "--max-error-cm",
         "0.01",
         "--unit-cm",
         &unit,
@@ -258,9 +258,9 @@ fn a_fit_refuses_what_it_cannot_do_before_the_work() {
     assert_eq!(result.status.code(), Some(2));
     assert!(stderr(&result).contains("--unit-cm is needed for"), "{}", stderr(&result));
     assert!(!out.exists(), "nothing made for a refused job");
-    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--max-error", "0"]);
+    let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1", "--max-error-cm", "0"]);
     assert_eq!(result.status.code(), Some(2));
-    assert!(stderr(&result).contains("--max-error is 0; it must be a positive length"), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--max-error-cm is 0; it must be a positive length"), "{}", stderr(&result));
     // The container's place taken by a directory: refused before the fit.
     std::fs::create_dir_all(out.join("bend.qcf")).unwrap();
     let result = fit(&["--input", src, "--output", dst, "--unit-cm", "1"]);
@@ -274,7 +274,7 @@ fn a_budget_no_fit_meets_names_the_closest_fit_and_what_loosens_it() {
     let (source, out) = bend(dir.path());
     let (src, dst) = (source.to_str().unwrap(), out.to_str().unwrap());
     // (Rounding a control point to f32 alone moves it by more than 1e-9 cm.)
-    let tight = ["--max-error", "1e-9", "--between-error", "1e-9"];
+    let tight = ["--max-error-cm", "1e-9", "--between-error-cm", "1e-9"];
     let result = fit(&[&["--input", src, "--output", dst, "--unit-cm", "1"][..], &tight].concat());
     assert_eq!(result.status.code(), Some(2));
     for part in [
@@ -357,7 +357,7 @@ fn a_fitted_clip_is_refused_as_a_loop_and_under_an_error_budget() {
     let baked = dir.path().join("baked");
     for (flags, message) in [
         (&["--loop", "on"][..], "is fitted (an open curve of control points); loop mode on needs keys"),
-        (&["--max-error", "1"][..], "is fitted (control points, not keys)"),
+        (&["--max-error-deg", "1"][..], "is fitted (control points, not keys)"),
     ] {
         let result =
             bake(&[&["--input", container.to_str().unwrap(), "--output", baked.to_str().unwrap()][..], flags].concat());

@@ -102,7 +102,7 @@ fn sidecars_read_back_through_the_types_that_write_them() {
     let out = tempfile::tempdir().unwrap();
     let input = data.join("CesiumMan.glb");
     let cases: [&[&str]; 2] = [
-        &["--texture", "skin-trs", "--format", "png16", "--max-error", "2", "--root-motion", "extract"],
+        &["--texture", "skin-trs", "--format", "png16", "--max-error-deg", "2", "--root-motion", "extract"],
         &["--texture", "vertex", "--format", "exr", "--rate", "5"],
     ];
     for (k, extra) in cases.iter().enumerate() {

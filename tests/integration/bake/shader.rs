@@ -1,6 +1,6 @@
 //! The shipped bone shader (`shaders/bone_texture.wgsl`, through its probe entry point) run on a
 //! GPU API over real baked EXR and PNG16 textures, at in-between times, against the curve
-//! baked densely on the f64 reference device; with `--max-error` every joint of every clip
+//! baked densely on the f64 reference device; with `--max-error-deg` every joint of every clip
 //! within the budget. The GLSL and HLSL `quatcurve shaders` generates, checked by glslang.
 
 use super::{bake, data_dir, json, read_npy, stderr};
@@ -400,7 +400,7 @@ fn the_shader_between_frames_keeps_within_the_budget_the_bake_chose() {
         };
         for &(kind, format) in kinds {
             let dir = tmp.path().join(format!("{stem}-{kind}"));
-            let args = ["--texture", kind, "--format", format, "--max-error", "0.5", "--device", "cpu"];
+            let args = ["--texture", kind, "--format", format, "--max-error-deg", "0.5", "--device", "cpu"];
             run_bake(&dir, &input, &args);
             let sidecar = json(&dir.join(format!("{stem}.json")));
             // The densest clip's rate times 16: at least 16 points of every clip's frame intervals.
@@ -963,7 +963,7 @@ fn a_budget_no_rate_meets_is_exit_2_with_its_words_and_nothing_written() {
         fox.to_str().unwrap(),
         "--output",
         out.to_str().unwrap(),
-        "--max-error",
+        "--max-error-deg",
         "0.01",
         "--max-rate",
         "10",
@@ -986,14 +986,14 @@ fn budget_flags_a_bake_cannot_take_are_refused_by_their_flags() {
     let out = dir.path().join("out");
     let fox_arg = fox.to_str().unwrap();
     let out_arg = out.to_str().unwrap();
-    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.5", "--texture", "model"]);
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-deg", "0.5", "--texture", "model"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(stderr(&result).contains("--max-error") && stderr(&result).contains("model-trs"), "{}", stderr(&result));
-    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-mm", "-1"]);
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-cm", "-1"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
-    assert!(stderr(&result).contains("--max-error-mm must be a positive number"), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--max-error-cm must be a positive number"), "{}", stderr(&result));
     // The library names the option by its own name; the command line shows its flag.
-    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error", "0.5", "--exact-rate"]);
+    let result = bake(&["--input", fox_arg, "--output", out_arg, "--max-error-deg", "0.5", "--exact-rate"]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(
         stderr(&result)

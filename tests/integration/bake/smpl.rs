@@ -323,7 +323,7 @@ fn hostile_smpl_archives_are_refused_naming_the_file_and_field() {
     let input = dir.path().join("walk.npz");
     std::fs::write(&input, &whole).unwrap();
     let out = dir.path().join("out");
-    for asked in [&["--texture", "model"][..], &["--root-motion", "extract"], &["--max-error-mm", "5"]] {
+    for asked in [&["--texture", "model"][..], &["--root-motion", "extract"], &["--max-error-cm", "0.5"]] {
         let result = bake(&[&["--input", input.to_str().unwrap(), "--output", out.to_str().unwrap()], asked].concat());
         assert_eq!(result.status.code(), Some(2), "{asked:?}: {}", stderr(&result));
         assert!(stderr(&result).contains("holds rotations alone"), "{asked:?}: {}", stderr(&result));

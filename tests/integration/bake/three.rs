@@ -84,10 +84,10 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
     // and lerp); Fox's first as the package's README bakes it, for the three player.
     let vertex = ["--texture", "vertex"];
     let bakes: [(&str, &Path, Vec<&str>); 10] = [
-        ("fox-readme", &fox, vec!["--player", "three", "--max-error", "0.5"]),
-        ("man-exr", &man, [&skin[..], &["--format", "exr", "--max-error", "0.5"]].concat()),
-        ("man-half", &man, [&skin[..], &["--format", "exr", "--precision", "f16", "--max-error", "0.5"]].concat()),
-        ("man-png16", &man, [&skin[..], &["--format", "png16", "--max-error", "0.5"]].concat()),
+        ("fox-readme", &fox, vec!["--player", "three", "--max-error-deg", "0.5"]),
+        ("man-exr", &man, [&skin[..], &["--format", "exr", "--max-error-deg", "0.5"]].concat()),
+        ("man-half", &man, [&skin[..], &["--format", "exr", "--precision", "f16", "--max-error-deg", "0.5"]].concat()),
+        ("man-png16", &man, [&skin[..], &["--format", "png16", "--max-error-deg", "0.5"]].concat()),
         ("fox-atlas", &fox, [&skin[..], &["--format", "exr", "--atlas", "--rate", "60"]].concat()),
         ("fox-png16", &fox, [&skin[..], &["--format", "png16", "--rate", "60"]].concat()),
         // Vertex textures: CesiumMan's with normals, Fox's without (lit by its faces).
@@ -95,7 +95,7 @@ fn a_crowd_instance_matches_three_js_s_own_player_for_every_texture_format() {
         ("fox-vertex", &fox, [&vertex[..], &["--format", "png16", "--atlas", "--rate", "60"]].concat()),
         // RobotExpressive's rigid parts (12 of its 14 meshes hang from bones without a skin),
         // as the README bakes it and in a vertex texture.
-        ("robot-readme", &robot, [&skin[..], &["--format", "exr", "--max-error", "0.5", "--atlas"]].concat()),
+        ("robot-readme", &robot, [&skin[..], &["--format", "exr", "--max-error-deg", "0.5", "--atlas"]].concat()),
         ("robot-vertex", &robot, [&vertex[..], &["--format", "exr", "--rate", "48"]].concat()),
     ];
     for (name, source, args) in &bakes {

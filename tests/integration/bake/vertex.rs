@@ -586,7 +586,7 @@ fn vertex_bakes_refuse_what_they_cannot_make_naming_it_and_leave_nothing_behind(
     let cases: [(Vec<String>, &str); 5] = [
         (vec!["--input".into(), input("cmu_131_01.bvh")], "vertex textures skin a glTF's meshes, and this is a BVH file"),
         (vec![], "vertex skins a glTF's meshes, and the built-in crowd has none"),
-        (vec!["--input".into(), input("CesiumMan.glb"), "--max-error".into(), "1".into()], "bake vertex textures at a fixed rate"),
+        (vec!["--input".into(), input("CesiumMan.glb"), "--max-error-deg".into(), "1".into()], "bake vertex textures at a fixed rate"),
         // 11,751 frames (1.958 s at 6 kHz) of 3,273 vertices, 28 bytes each (three floats
         // gathered, one RGBA texel): 1,028 MiB of position image in memory.
         (
