@@ -1,7 +1,7 @@
 //! `quatcurve bench`: one synthetic batch through every requested device in one process,
 //! median samples per second side by side (DESIGN section 5).
 
-use super::measure::{host, median_seconds, open_bench_device, run_seconds};
+use super::measure::{alternate_seconds, host, median_seconds, open_bench_device, run_seconds};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::anim::loops::LoopMode;
@@ -341,18 +341,30 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
 fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
     let job = EvalJob::new(batch, times).derivatives(args.derivatives);
     let device_err = |e: quatcurve::gpu::GpuError| Failure::Internal(format!("gpu: {e}"));
-    let seconds = run_seconds(args.runs, || gpu.evaluate(&job).map(drop).map_err(device_err))?;
+    let evaluate = || gpu.evaluate(&job).map(drop).map_err(device_err);
     // Dispatch-only and roofline a piece of tracks at a time, each piece about one streamed
     // chunk on the device, the pieces' medians summed: the dispatches `evaluate` streams,
     // without holding the whole batch on the device (on a software adapter, device memory is
-    // host memory: a million short tracks held 3 GB more).
-    let (mut dispatch, mut roofline) = (0.0, 0.0);
-    for range in device_pieces(batch, times, job.options.row().channels(), gpu.stream_chunk_bytes()) {
-        let (piece, piece_times) = (batch.subset(range.clone()), times.subset(range));
+    // host memory: a million short tracks held 3 GB more). A batch of one piece is timed in
+    // turns with the end-to-end runs.
+    let pieces = device_pieces(batch, times, job.options.row().channels(), gpu.stream_chunk_bytes());
+    let (mut dispatch, mut roofline, mut seconds) = (0.0, 0.0, None);
+    for range in &pieces {
+        let (piece, piece_times) = (batch.subset(range.clone()), times.subset(range.clone()));
         let prepared = gpu.prepare(&EvalJob::new(&piece, &piece_times).with(job.options)).map_err(device_err)?;
-        dispatch += median_seconds(args.runs, || gpu.dispatch(&prepared).map_err(device_err))?;
+        let dispatched = || gpu.dispatch(&prepared).map_err(device_err);
+        if pieces.len() == 1 {
+            let (whole, alone) = alternate_seconds(args.runs, evaluate, dispatched)?;
+            (seconds, dispatch) = (Some(whole), alone.median);
+        } else {
+            dispatch += median_seconds(args.runs, dispatched)?;
+        }
         roofline += median_seconds(args.runs, || gpu.roofline(&prepared).map_err(device_err))?;
     }
+    let seconds = match seconds {
+        Some(seconds) => seconds,
+        None => run_seconds(args.runs, evaluate)?,
+    };
     let samples = times.total();
     Ok(Timing {
         device: "gpu",
@@ -388,10 +400,14 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
     };
     let job = EvalJob::new(batch, times).with(options);
     let input = |e: quatcurve::Error| Failure::Input(e.to_string());
-    let seconds = run_seconds(args.runs, || cpu.evaluate(&job).map(drop).map_err(input))?;
     // The CPU's analogue of dispatch-only: into a reused buffer (no allocation, no page faults).
     let mut buffer = vec![0.0f32; times.total() * options.row().channels()];
-    let compute = median_seconds(args.runs, || cpu.evaluate_into(&job, &mut buffer).map_err(input))?;
+    let (seconds, compute) = alternate_seconds(
+        args.runs,
+        || cpu.evaluate(&job).map(drop).map_err(input),
+        || cpu.evaluate_into(&job, &mut buffer).map_err(input),
+    )?;
+    let compute = compute.median;
     let samples = times.total();
     Ok(Timing {
         device: "cpu",

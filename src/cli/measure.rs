@@ -39,6 +39,31 @@ pub fn run_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> R
     Ok(Seconds { min: seconds[0], median: seconds[runs / 2], max: seconds[runs - 1] })
 }
 
+/// Wall times of `runs` calls of `a` and of `b` after one warm-up each, taken in turns, so that
+/// the two see the same moments of a shared, noisy machine: two figures of one workload timed
+/// one after the other can trade places on noise alone.
+pub fn alternate_seconds(
+    runs: usize,
+    mut a: impl FnMut() -> Result<(), Failure>,
+    mut b: impl FnMut() -> Result<(), Failure>,
+) -> Result<(Seconds, Seconds), Failure> {
+    let (mut first, mut second) = (Vec::with_capacity(runs + 1), Vec::with_capacity(runs + 1));
+    for _ in 0..=runs {
+        for (f, times) in [(&mut a as &mut dyn FnMut() -> Result<(), Failure>, &mut first), (&mut b, &mut second)] {
+            let start = Instant::now();
+            f()?;
+            times.push(start.elapsed().as_secs_f64());
+        }
+    }
+    let seconds = |mut times: Vec<f64>| {
+        // The first of each is the warm-up.
+        times.remove(0);
+        times.sort_by(f64::total_cmp);
+        Seconds { min: times[0], median: times[runs / 2], max: times[runs - 1] }
+    };
+    Ok((seconds(first), seconds(second)))
+}
+
 /// Median wall time of `runs` calls after one warm-up ([`run_seconds`]).
 pub fn median_seconds(runs: usize, f: impl FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
     Ok(run_seconds(runs, f)?.median)
