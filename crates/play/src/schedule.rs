@@ -27,7 +27,7 @@ pub struct Schedule {
 
 /// The time in a clip `to` seconds long at the phase that `time` is of a clip `from` seconds
 /// long: how far into the clip blended towards its pose is taken. The viewer's WebGPU path
-/// takes it so too (`webgpu.js`, `draw`).
+/// takes it so too (`webgpu.js`, `draw`; a browser test holds the page to this).
 #[must_use]
 pub fn same_phase(time: f64, from: f64, to: f64) -> f64 {
     if from > 0.0 {

@@ -179,7 +179,8 @@
     }
 
     // One frame: instance i plays `clip` at `times[i]`, blended towards `blend` at the same
-    // phase of that clip by `weight`; drawn with `viewProjection` (GL's clip space).
+    // phase of that clip by `weight` (play's rule, `schedule::same_phase`); drawn with
+    // `viewProjection` (GL's clip space).
     draw(clip, blend, weight, times, viewProjection, clear) {
       const { device } = this;
       const view = new DataView(this.recordBytes);

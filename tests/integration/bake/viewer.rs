@@ -14,6 +14,7 @@ use quatcurve::anim::loops::LoopMode;
 use quatcurve::formats::gltf::{self, UriPolicy};
 use quatcurve::formats::mesh::skinned_primitives;
 use quatcurve::output::VERTEX_CHANNELS;
+use quatcurve::play::schedule::same_phase;
 use quatcurve::play::{ClipTime, Instance, Playback};
 use quatcurve::{skeleton, Device, DeviceChoice};
 use std::io::{BufRead, Read, Write};
@@ -394,7 +395,8 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     let args = ["--input", source.to_str().unwrap(), "--texture", "skin-trs", "--format", "exr"];
     let out = bake(&[&args[..], &["--output", bones.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", stderr(&out));
-    // Walk (clip 1) blended towards Run (clip 2) at the same phase of Run.
+    // Walk (clip 1) blended towards Run (clip 2) at the same phase of Run: play's rule, which the
+    // page is held to here.
     let (walk, run) = (1, 2);
     let file = gltf::read(&source, UriPolicy::default()).unwrap();
     let primitive = &skinned_primitives(&file).unwrap().primitives[0];
@@ -402,7 +404,7 @@ fn the_webgpu_page_plays_the_curves_blended_as_the_texture_path_and_the_referenc
     let curve = CurveChoice::from_name(json(&bones.join("Fox.json"))["curve"].as_str().unwrap()).unwrap();
     let playback = Playback::new(file.animation.clone(), &curve, LoopMode::Auto, Some(0)).unwrap();
     let reference = Device::open(DeviceChoice::Reference).unwrap();
-    let phase = |t: f64| t / playback.duration(walk) * playback.duration(run);
+    let phase = |t: f64| same_phase(t, playback.duration(walk), playback.duration(run));
     // The reference's poses (time into Walk, weight), skinned on the CPU.
     let poses = [(0.2, 0.0), (0.2, 0.5), (0.2, 1.0), (0.45, 0.5)];
     let skinned: Vec<Vec<f64>> = poses
