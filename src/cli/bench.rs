@@ -486,7 +486,10 @@ struct SkinningTiming {
     device: &'static str,
     adapter: String,
     vertex_frames_per_s: f64,
+    /// The median of the runs, with the fastest and slowest.
     seconds: f64,
+    seconds_min: f64,
+    seconds_max: f64,
     vertex_frames: usize,
 }
 
@@ -535,7 +538,7 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
                 continue;
             }
         };
-        let seconds = median_seconds(args.runs, || {
+        let seconds = run_seconds(args.runs, || {
             for p in &primitives {
                 device
                     .skin(&p.bind, joints(p), &skins[p.skin])
@@ -551,8 +554,10 @@ fn skinning(args: &BenchArgs, file: &std::path::Path) -> Result<SkinningReport, 
         results.push(SkinningTiming {
             device: name,
             adapter,
-            vertex_frames_per_s: vertex_frames as f64 / seconds,
-            seconds,
+            vertex_frames_per_s: vertex_frames as f64 / seconds.median,
+            seconds: seconds.median,
+            seconds_min: seconds.min,
+            seconds_max: seconds.max,
             vertex_frames,
         });
     }
@@ -572,14 +577,18 @@ fn skinning_table(w: &mut dyn std::io::Write, report: &SkinningReport) -> std::i
         "skinning: {}, {} primitives, {} vertices x {} frames; median of {} runs",
         report.file, report.primitives, report.vertices, report.frames, report.runs
     )?;
-    writeln!(w, "{:<10} {:>14} {:>10} {:>20}  adapter", "device", "vertex-frames", "seconds", "M vertex-frames/s")?;
+    writeln!(
+        w,
+        "{:<10} {:>14} {:>22} {:>20}  adapter",
+        "device", "vertex-frames", "s min-med-max", "M vertex-frames/s"
+    )?;
     for r in &report.results {
         writeln!(
             w,
-            "{:<10} {:>14} {:>10.4} {:>20.2}  {}",
+            "{:<10} {:>14} {:>22} {:>20.2}  {}",
             r.device,
             r.vertex_frames,
-            r.seconds,
+            format!("{:.4}-{:.4}-{:.4}", r.seconds_min, r.seconds, r.seconds_max),
             r.vertex_frames_per_s / 1e6,
             r.adapter
         )?;

@@ -4,7 +4,7 @@
 //! frame (ACL's unit; its published single-core figure is 30-45 ns per bone-pose). The CPU path
 //! is timed on every thread and on one.
 
-use super::measure::{median_seconds, open_bench_device};
+use super::measure::{median_seconds, open_bench_device, run_seconds};
 use super::{print_stdout, Failure};
 use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::loops::LoopMode;
@@ -59,7 +59,10 @@ impl FittedLoad {
 struct FittedTiming {
     device: String,
     threads: Option<usize>,
+    /// The median of the runs, with the fastest and slowest.
     seconds: f64,
+    seconds_min: f64,
+    seconds_max: f64,
     poses_per_s: f64,
     ns_per_bone_pose: f64,
 }
@@ -106,7 +109,7 @@ pub fn measure(
     let (mut poses, mut bone_poses) = (0, 0);
     let mut results = Vec::new();
     let mut time = |device: &Device| -> Result<(), Failure> {
-        let seconds = median_seconds(runs, || {
+        let seconds = run_seconds(runs, || {
             (poses, bone_poses) = bake_all(device)?;
             Ok(())
         })?;
@@ -119,9 +122,11 @@ pub fn measure(
         results.push(FittedTiming {
             device: device.name(),
             threads,
-            seconds,
-            poses_per_s: poses as f64 / seconds,
-            ns_per_bone_pose: seconds * 1e9 / bone_poses as f64,
+            seconds: seconds.median,
+            seconds_min: seconds.min,
+            seconds_max: seconds.max,
+            poses_per_s: poses as f64 / seconds.median,
+            ns_per_bone_pose: seconds.median * 1e9 / bone_poses as f64,
         });
         Ok(())
     };
@@ -242,14 +247,14 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         report.decoded_bytes_per_bone_pose, report.replay.seconds, report.replay.ns_per_bone_pose
     )?;
     writeln!(w, "baking them:")?;
-    writeln!(w, "{:<44} {:>8} {:>10} {:>14} {:>12}", "device", "threads", "seconds", "poses/s", "ns/bone-pose")?;
+    writeln!(w, "{:<44} {:>8} {:>22} {:>14} {:>12}", "device", "threads", "s min-med-max", "poses/s", "ns/bone-pose")?;
     for r in &report.results {
         writeln!(
             w,
-            "{:<44} {:>8} {:>10.4} {:>14.0} {:>12.2}",
+            "{:<44} {:>8} {:>22} {:>14.0} {:>12.2}",
             r.device,
             r.threads.map_or_else(|| "-".to_string(), |t| t.to_string()),
-            r.seconds,
+            format!("{:.4}-{:.4}-{:.4}", r.seconds_min, r.seconds, r.seconds_max),
             r.poses_per_s,
             r.ns_per_bone_pose
         )?;

@@ -3,7 +3,7 @@
 //! device and crowd size: the skin palettes of every instance, in milliseconds a frame and
 //! instance-joints per second.
 
-use super::measure::{median_seconds, open_bench_device};
+use super::measure::{open_bench_device, run_seconds};
 use super::{print_stdout, Failure};
 use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::loops::LoopMode;
@@ -31,7 +31,10 @@ pub struct PlaybackReport {
 struct PlaybackTiming {
     device: String,
     instances: usize,
+    /// The median of the runs, with the fastest and slowest.
     ms_per_frame: f64,
+    ms_per_frame_min: f64,
+    ms_per_frame_max: f64,
     instance_joints_per_s: f64,
 }
 
@@ -59,7 +62,7 @@ pub fn measure(
         for &count in instances {
             let schedule = Schedule { instances: count, rate: 30.0, blend: Some(BENCH_BLEND), blend_clip: None };
             let frame = schedule.frame(&playback, 7);
-            let seconds = median_seconds(runs, || {
+            let seconds = run_seconds(runs, || {
                 let palettes = player.palettes(&frame).map_err(|e| Failure::Internal(format!("{input}: {e}")))?;
                 std::hint::black_box(palettes);
                 Ok(())
@@ -67,8 +70,10 @@ pub fn measure(
             results.push(PlaybackTiming {
                 device: device.name(),
                 instances: count,
-                ms_per_frame: seconds * 1e3,
-                instance_joints_per_s: (count * joints) as f64 / seconds,
+                ms_per_frame: seconds.median * 1e3,
+                ms_per_frame_min: seconds.min * 1e3,
+                ms_per_frame_max: seconds.max * 1e3,
+                instance_joints_per_s: (count * joints) as f64 / seconds.median,
             });
         }
     }
@@ -82,13 +87,10 @@ pub fn table(w: &mut dyn std::io::Write, report: &PlaybackReport) -> std::io::Re
         "playback: {} ({} palette joints), every instance blending two clips at weight {}; median of {} runs",
         report.input, report.joints, report.blend_weight, report.runs
     )?;
-    writeln!(w, "{:<44} {:>10} {:>12} {:>20}", "device", "instances", "ms/frame", "instance-joints/s")?;
+    writeln!(w, "{:<44} {:>10} {:>24} {:>20}", "device", "instances", "ms/frame min-med-max", "instance-joints/s")?;
     for r in &report.results {
-        writeln!(
-            w,
-            "{:<44} {:>10} {:>12.3} {:>20.3e}",
-            r.device, r.instances, r.ms_per_frame, r.instance_joints_per_s
-        )?;
+        let ms = format!("{:.3}-{:.3}-{:.3}", r.ms_per_frame_min, r.ms_per_frame, r.ms_per_frame_max);
+        writeln!(w, "{:<44} {:>10} {:>24} {:>20.3e}", r.device, r.instances, ms, r.instance_joints_per_s)?;
     }
     Ok(())
 }
