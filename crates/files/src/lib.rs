@@ -104,7 +104,7 @@ pub fn unit_cm(inputs: &[PathBuf], given: Option<f64>, not_done: &str) -> Result
             format!(
                 "is needed for {}: a {} file does not say its unit (CMU's BVH is 5.644 cm); {not_done}",
                 input.display(),
-                extension(input).unwrap_or_default()
+                extension(input).unwrap_or_default().to_uppercase()
             ),
         )),
         None => Ok(quatcurve_anim::GLTF_UNIT_CM),

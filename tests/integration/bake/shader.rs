@@ -1002,3 +1002,26 @@ fn budget_flags_a_bake_cannot_take_are_refused_by_their_flags() {
         stderr(&result)
     );
 }
+
+/// A position budget is in cm of the file's own unit: a BVH does not say its unit, so the bake
+/// needs `--unit-cm` and stops before anything is written without it; with it, the worst
+/// position error reported is within the budget.
+#[test]
+fn a_position_budget_over_a_bvh_needs_its_unit() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = data.join("cmu_131_01.bvh");
+    let out = dir.path().join("out");
+    let args = ["--input", bvh.to_str().unwrap(), "--output", out.to_str().unwrap(), "--max-error-cm", "2"];
+    let result = bake(&args);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    let message = "--unit-cm is needed for";
+    assert!(stderr(&result).contains(message) && stderr(&result).contains("a BVH file"), "{}", stderr(&result));
+    assert!(!out.exists(), "nothing written");
+    let result = bake(&[&args[..], &["--unit-cm", "5.644", "--texture", "model-trs"]].concat());
+    assert!(result.status.success(), "{}", stderr(&result));
+    let sidecar = json(&out.join("cmu_131_01.json"));
+    let worst = sidecar["clips"][0]["between_frames"]["position"]["value"].as_f64().unwrap();
+    assert!(worst > 0.0 && worst <= 2.0, "{worst} cm");
+    assert_eq!(sidecar["max_error"]["unit_cm"], 5.644);
+}
