@@ -4,7 +4,7 @@
 //! The command line's flags are derived from these types (clap, with the `cli` feature) and
 //! Python's keywords and the manifests are read and written through them (serde).
 
-use crate::batch::{Batch, LOOP_TOLERANCE};
+use crate::batch::{loop_gap, Batch};
 use crate::sampling::{Sampling, DEFAULT_RATE};
 use crate::track::Track;
 use quatcurve_core::curve::{names, Blend, Curve, CurveSpec, KnotMode, Tangents, DEFAULT_CURVE};
@@ -65,7 +65,7 @@ impl CurveOptions {
 /// Which curves loop (the option `loop`, of tracks and of clips alike; DESIGN section 5b).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LoopMode {
-    /// Those whose rotations end on their first (within [`LOOP_TOLERANCE`]: each track's keys,
+    /// Those whose rotations end on their first (within [`crate::batch::LOOP_TOLERANCE`]: each track's keys,
     /// every rotation channel of a clip) and whose curve can loop.
     #[default]
     Auto,
@@ -91,12 +91,11 @@ impl LoopMode {
 }
 
 /// The angle (rad) between the last of `rotations` and the first, when it is more than
-/// [`LOOP_TOLERANCE`] (or not a number); none for rotations that close.
+/// [`crate::batch::LOOP_TOLERANCE`] (or not a number); none for rotations that close ([`loop_gap`]).
 #[must_use]
 pub fn opening(rotations: &[[f64; 4]]) -> Option<f64> {
-    let (first, last) = (rotations.first()?, rotations.last()?);
-    let angle = QuatF64::from_array(*first).normalize().angle_to(QuatF64::from_array(*last).normalize());
-    (angle.is_nan() || angle > LOOP_TOLERANCE).then_some(angle)
+    let unit = |q: &[f64; 4]| QuatF64::from_array(*q).normalize();
+    loop_gap(unit(rotations.first()?), unit(rotations.last()?))
 }
 
 impl Default for CurveOptions {

@@ -20,11 +20,18 @@ pub(super) fn check_loop(id: &TrackId, spec: &CurveSpec, keys: &[QuatF64]) -> Re
             looping: CurveSpec::looping_curves(),
         });
     }
-    let angle = keys[0].angle_to(keys[keys.len() - 1]);
-    if angle.is_nan() || angle > LOOP_TOLERANCE {
+    if let Some(angle) = loop_gap(keys[0], keys[keys.len() - 1]) {
         return Err(Error::LoopNotClosed { track: id.clone(), last: keys.len() - 1, angle, tolerance: LOOP_TOLERANCE });
     }
     Ok(())
+}
+
+/// The angle (rad) from unit rotation `first` to `last` when it is more than
+/// [`LOOP_TOLERANCE`] (or not a number): the gap of a loop that does not close.
+#[must_use]
+pub fn loop_gap(first: QuatF64, last: QuatF64) -> Option<f64> {
+    let angle = first.angle_to(last);
+    (angle.is_nan() || angle > LOOP_TOLERANCE).then_some(angle)
 }
 
 /// The curve as messages name it: B-splines with their order and knot mode.

@@ -36,7 +36,7 @@ pub use families::MIN_TURN_AXIS;
 pub(crate) use families::{catmull_rom_velocities, squad_points};
 pub use keys::key_times;
 pub use keys::normalized_key;
-pub use keys::{LOOP_TOLERANCE, MIN_KEY_NORM};
+pub use keys::{loop_gap, LOOP_TOLERANCE, MIN_KEY_NORM};
 pub(crate) use knots::bspline_knots;
 pub use knots::{knots_are_uniform, UNIFORM_KNOT_TOLERANCE, UNIFORM_TIME_TOLERANCE};
 
