@@ -46,8 +46,9 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let matches = cli::vocabulary::with_refused(Cli::command()).get_matches();
-    if let Some(message) = cli::vocabulary::refused_given(&matches) {
+    let command = cli::vocabulary::with_refused(Cli::command());
+    let matches = command.clone().get_matches();
+    if let Some(message) = cli::vocabulary::refused_given(&command, &matches) {
         eprintln!("error: {message}");
         return ExitCode::from(2);
     }

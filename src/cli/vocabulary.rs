@@ -41,12 +41,14 @@ pub fn with_refused(mut command: Command) -> Command {
     command
 }
 
-/// The message for a refused spelling given in `matches` (the subcommand's), if one was.
+/// The message for a refused spelling given in `matches` of `command` ([`with_refused`]'s), if
+/// one was: the option of that subcommand that takes its place.
 #[must_use]
-pub fn refused_given(matches: &ArgMatches) -> Option<String> {
-    let (_, sub) = matches.subcommand()?;
+pub fn refused_given(command: &Command, matches: &ArgMatches) -> Option<String> {
+    let (name, sub) = matches.subcommand()?;
     let given = |option: &str| sub.try_contains_id(&id(option)).unwrap_or(false);
-    let known = |option: &str| sub.ids().any(|i| i.as_str() == option);
+    let options = command.find_subcommand(name)?;
+    let known = |option: &str| options.get_arguments().any(|a| a.get_id().as_str() == option);
     REFUSED.iter().find(|r| given(r.old)).map(|r| {
         let now = refused(r.old, known).unwrap_or(r);
         format!("{} is now {} ({})", flag(now.old), flag(now.new), now.note)
@@ -173,7 +175,7 @@ mod tests {
                 let mut given = vec!["quatcurve".to_string(), sub.get_name().to_string(), flag(old), "1".into()];
                 given.extend(required.flat_map(|l| [format!("--{l}"), "x".into()]));
                 let matches = commands().try_get_matches_from(&given).expect("the spelling parses, to be refused");
-                let message = refused_given(&matches).expect("refused");
+                let message = refused_given(&commands(), &matches).expect("refused");
                 assert_eq!(message, format!("{} is now {} ({})", flag(old), flag(r.new), r.note), "{given:?}");
                 refusals += 1;
             }
@@ -182,6 +184,6 @@ mod tests {
         // vertex-distance; eval, play, bench, analyze: blend.
         assert_eq!(refusals, 13);
         let matches = commands().try_get_matches_from(["quatcurve", "bake", "--max-error-deg", "1"]).unwrap();
-        assert_eq!(refused_given(&matches), None);
+        assert_eq!(refused_given(&commands(), &matches), None);
     }
 }

@@ -239,7 +239,8 @@ pub struct Refused {
 }
 
 /// Every refused spelling. One spelling may stand for two options (`max_error`: a bake's
-/// degrees, a fit's centimetres); each set of options takes the one it has.
+/// degrees, a fit's centimetres); each set of options takes the first listed that it has (a
+/// bake has both, and its `max_error` was its degrees).
 pub const REFUSED: [Refused; 7] = [
     Refused { old: "max_error", new: "max_error_deg", note: "degrees" },
     Refused { old: "max_error", new: "max_error_cm", note: "centimetres" },
