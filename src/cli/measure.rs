@@ -26,17 +26,25 @@ pub struct Seconds {
     pub max: f64,
 }
 
+impl Seconds {
+    /// Of the wall times of timed runs (at least one).
+    fn of(mut times: Vec<f64>) -> Self {
+        times.sort_by(f64::total_cmp);
+        Self { min: times[0], median: times[times.len() / 2], max: times[times.len() - 1] }
+    }
+}
+
+/// The wall time of one call of `f`.
+fn timed(f: &mut dyn FnMut() -> Result<(), Failure>) -> Result<f64, Failure> {
+    let start = Instant::now();
+    f()?;
+    Ok(start.elapsed().as_secs_f64())
+}
+
 /// Wall times of `runs` calls after one warm-up.
 pub fn run_seconds(runs: usize, mut f: impl FnMut() -> Result<(), Failure>) -> Result<Seconds, Failure> {
     f()?;
-    let mut seconds = Vec::with_capacity(runs);
-    for _ in 0..runs {
-        let start = Instant::now();
-        f()?;
-        seconds.push(start.elapsed().as_secs_f64());
-    }
-    seconds.sort_by(f64::total_cmp);
-    Ok(Seconds { min: seconds[0], median: seconds[runs / 2], max: seconds[runs - 1] })
+    Ok(Seconds::of((0..runs).map(|_| timed(&mut f)).collect::<Result<_, _>>()?))
 }
 
 /// Wall times of `runs` calls of `a` and of `b` after one warm-up each, taken in turns, so that
@@ -47,21 +55,15 @@ pub fn alternate_seconds(
     mut a: impl FnMut() -> Result<(), Failure>,
     mut b: impl FnMut() -> Result<(), Failure>,
 ) -> Result<(Seconds, Seconds), Failure> {
-    let (mut first, mut second) = (Vec::with_capacity(runs + 1), Vec::with_capacity(runs + 1));
-    for _ in 0..=runs {
-        for (f, times) in [(&mut a as &mut dyn FnMut() -> Result<(), Failure>, &mut first), (&mut b, &mut second)] {
-            let start = Instant::now();
-            f()?;
-            times.push(start.elapsed().as_secs_f64());
-        }
+    // One warm-up each.
+    a()?;
+    b()?;
+    let (mut first, mut second) = (Vec::with_capacity(runs), Vec::with_capacity(runs));
+    for _ in 0..runs {
+        first.push(timed(&mut a)?);
+        second.push(timed(&mut b)?);
     }
-    let seconds = |mut times: Vec<f64>| {
-        // The first of each is the warm-up.
-        times.remove(0);
-        times.sort_by(f64::total_cmp);
-        Seconds { min: times[0], median: times[runs / 2], max: times[runs - 1] }
-    };
-    Ok((seconds(first), seconds(second)))
+    Ok((Seconds::of(first), Seconds::of(second)))
 }
 
 /// Median wall time of `runs` calls after one warm-up ([`run_seconds`]).
