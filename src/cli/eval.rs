@@ -55,19 +55,20 @@ fn format_of(path: &Path) -> Result<Format, Failure> {
 
 pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let format = args.output.as_deref().map(format_of).transpose()?.unwrap_or(Format::Json);
+    // A fitted container's tracks are on its own curve.
     let (source, tracks, fitted) = match &args.input {
         Some(path) if super::is_container(Some(path)) => {
-            container_options(args)?;
+            let curve = container_curve(args)?;
             let (source, tracks) = super::read_container_tracks(path)?;
-            (source, tracks, true)
+            (source, tracks, Some(curve))
         }
         input => {
             let (source, tracks) = read_tracks(input.as_deref(), args.key_rate)?;
-            (source, tracks, false)
+            (source, tracks, None)
         }
     };
     let input_err = |e: quatcurve::Error| Failure::Input(format!("{source}: {e}"));
-    let batch = if fitted {
+    let batch = if fitted.is_some() {
         // Each fitted track's order is its own (a cubic, or keys slerped between).
         Batch::from_tracks_each(&tracks, |i| quatcurve::qcf::fitted::track_spec(&tracks[i]))
     } else {
@@ -100,11 +101,7 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
     let device_name = device.evaluate_into(&job, &mut out).map_err(|e| Failure::from(e).context(&source))?;
     let f32 = !matches!(device, Device::Reference);
     let device = device_name;
-    let curve = if fitted {
-        quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::ORDER).curve
-    } else {
-        args.options.curve
-    };
+    let curve = fitted.unwrap_or(args.options.curve);
     let json = || ResultFile::new(curve.name(), &device, &tracks, &times, &out, f32);
     let Some(path) = &args.output else {
         return print_stdout(|w| {
@@ -138,8 +135,8 @@ pub fn run(args: &EvalArgs) -> Result<(), Failure> {
 
 /// A fitted container's curves are its own ([`quatcurve::qcf::fitted::spline_spec`], cubic or keys
 /// per channel): a curve option that would change them is refused (the default curve stands for
-/// them).
-fn container_options(args: &EvalArgs) -> Result<(), Failure> {
+/// them). Its family, as outputs name it.
+fn container_curve(args: &EvalArgs) -> Result<quatcurve::Curve, Failure> {
     let spec = quatcurve::qcf::fitted::spline_spec(quatcurve::qcf::fitted::ORDER);
     let (options, curve) = (&args.options.curve_options, args.options.curve);
     let refused = [
@@ -158,7 +155,7 @@ fn container_options(args: &EvalArgs) -> Result<(), Failure> {
                 spec.curve, spec.order, keys.curve, keys.order
             )))
         }
-        None => Ok(()),
+        None => Ok(spec.curve),
     }
 }
 
