@@ -7,18 +7,21 @@
 //! [`interpolate`] is that shader's `bone_pose` on the host (one formula per path); the tests
 //! run the shader itself on a GPU API over the chosen textures and hold the two together.
 
-use super::texture::{self, Precision, Sheet, TextureKind, LOCAL_CHANNELS};
-use super::{bake, ClipRate};
+use super::texture::{self, Precision, TextureKind, LOCAL_CHANNELS};
+use super::{clip_frame_grid, evaluate, grid_times, Baked, BakedClip, ClipRate};
 use crate::error::{BakeError, Refusal};
-use quatcurve_anim::curves::CurveChoice;
+use quatcurve_anim::curves::{CurveChoice, Curves};
 use quatcurve_anim::error::{InputError, InternalError};
-use quatcurve_anim::loops::LoopMode;
-use quatcurve_anim::{Animation, Clip, GLTF_UNIT_CM};
+use quatcurve_anim::loops::{clip_loops, LoopMode};
+use quatcurve_anim::{Animation, Clip, Skin, GLTF_UNIT_CM};
 use quatcurve_device::Device;
+use quatcurve_eval::batch::BatchBuilder;
 use quatcurve_eval::error::Number;
-use quatcurve_eval::skeleton;
+use quatcurve_eval::sampling::TrackTimes;
+use quatcurve_eval::skeleton::{self, Trs};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::HashSet;
 
 /// Points of each frame interval where the error is measured (the interval's start included,
 /// its end being the next interval's start).
@@ -131,19 +134,30 @@ pub fn interpolate(a: &[f32], b: &[f32], blend: f64) -> [f32; LOCAL_CHANNELS] {
 }
 
 /// Angle (degrees) between two rotations given as quaternions.
+#[cfg(test)]
 fn angle_degrees(a: &[f32], b: &[f32]) -> f64 {
+    degrees_of_turn(turn(a, b))
+}
+
+/// What [`angle_degrees`] grows with, cheaply: `|a - b|^2 / |a + b|^2` of the unit quaternions
+/// on one side. A measure compares millions of these and takes the angle of the largest.
+fn turn(a: &[f32], b: &[f32]) -> f64 {
     let norm = |q: &[f32]| q[..4].iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>().sqrt();
-    let dot: f64 = (0..4).map(|i| f64::from(a[i]) * f64::from(b[i])).sum::<f64>() / (norm(a) * norm(b));
-    // A rotation turns twice its quaternion's angle: 4 atan2(|a - b|, |a + b|), exact near zero,
-    // where 2 acos(|dot|) loses half its digits.
-    let side = if dot < 0.0 { -1.0 } else { 1.0 };
+    let dot: f64 = (0..4).map(|i| f64::from(a[i]) * f64::from(b[i])).sum();
+    let (ka, kb) = (1.0 / norm(a), if dot < 0.0 { -1.0 } else { 1.0 } / norm(b));
     let (mut minus, mut plus) = (0.0, 0.0);
     for i in 0..4 {
-        let (x, y) = (f64::from(a[i]) / norm(a), side * f64::from(b[i]) / norm(b));
+        let (x, y) = (f64::from(a[i]) * ka, f64::from(b[i]) * kb);
         minus += (x - y) * (x - y);
         plus += (x + y) * (x + y);
     }
-    (4.0 * minus.sqrt().atan2(plus.sqrt())).to_degrees()
+    minus / plus
+}
+
+/// The angle (degrees) of a [`turn`]. A rotation turns twice its quaternion's angle:
+/// 4 atan(|a - b| / |a + b|), exact near zero, where 2 acos(|dot|) loses half its digits.
+fn degrees_of_turn(turn: f64) -> f64 {
+    (4.0 * turn.sqrt().atan()).to_degrees()
 }
 
 /// Joint `j`'s rigid row in frame `frame` of rows `width` joints wide.
@@ -152,13 +166,26 @@ fn row(data: &[f32], width: usize, frame: usize, j: usize) -> &[f32] {
     &data[at..at + LOCAL_CHANNELS]
 }
 
-/// One clip of `animation` alone, so its frames can be baked at rates of their own.
+/// One clip of `animation` alone, so its frames can be baked at rates of their own, with its
+/// skins as one: each joint and inverse bind matrix once, in the skins' order. Skins of one
+/// character share most of their joints and binds (a Mixamo body and its joints mesh: 64 and
+/// 65 of 65), and a column repeated gives the same rows and errors.
 fn only(animation: &Animation, clip: usize) -> Animation {
-    Animation {
-        joints: animation.joints.clone(),
-        clips: vec![animation.clips[clip].clone()],
-        skins: animation.skins.clone(),
+    let mut skins: Vec<Skin> = animation.skins.iter().take(1).cloned().collect();
+    if let Some(merged) = skins.first_mut() {
+        let mut seen: HashSet<(usize, [u64; 12])> = HashSet::new();
+        merged.joints.clear();
+        merged.inverse_bind.clear();
+        for skin in &animation.skins {
+            for (&joint, ibm) in skin.joints.iter().zip(&skin.inverse_bind) {
+                if seen.insert((joint, ibm.map(f64::to_bits))) {
+                    merged.joints.push(joint);
+                    merged.inverse_bind.push(*ibm);
+                }
+            }
+        }
     }
+    Animation { joints: animation.joints.clone(), clips: vec![animation.clips[clip].clone()], skins }
 }
 
 /// What a bake writes and the options that decide it.
@@ -181,7 +208,7 @@ pub struct Setting<'a> {
 /// [`SUBSTEPS`] points of every interval; positions in cm at `unit_cm` per model unit.
 ///
 /// # Errors
-/// The bake's ([`bake`], [`texture::sheets`]).
+/// The bake's ([`super::bake`], [`texture::sheets`]).
 pub fn measure(
     animation: &Animation,
     clip: usize,
@@ -189,101 +216,273 @@ pub fn measure(
     setting: &Setting<'_>,
     unit_cm: f64,
 ) -> Result<Measured, BakeError> {
-    measure_at(animation, clip, rate, setting, unit_cm, SUBSTEPS)
+    Measure::new(animation, clip, setting, unit_cm)?.at(rate, SUBSTEPS, true)
 }
 
-/// [`measure`] at `points` points of each interval ([`SUBSTEPS`], or [`SCREEN_SUBSTEPS`] to
-/// screen a rate).
-fn measure_at(
-    animation: &Animation,
+/// Dense frames of the truth computed at a time: its buffers stay a few megabytes, reused
+/// window after window, where a whole clip's truth at 16 points an interval took gigabytes
+/// and a quarter of a budget's time in page faults.
+pub const WINDOW_FRAMES: usize = 512;
+
+/// One clip's measure, its curves built once for every rate the search tries.
+struct Measure<'a> {
+    animation: &'a Animation,
     clip: usize,
-    rate: f64,
-    setting: &Setting<'_>,
+    /// The clip alone, its skins one ([`only`]): one sheet, its columns `joints`.
+    one: Animation,
+    order: Vec<usize>,
+    /// The sheet's columns' joints.
+    joints: Vec<usize>,
+    /// Whether the clip is baked as a loop.
+    looping: bool,
+    curves: Curves,
+    /// Per joint, the broken source steps left out ([`broken_spans`]).
+    broken: Vec<Vec<[f64; 2]>>,
+    /// For a rigid kind whose binds are rigid: each column's bind (none for model-trs), so
+    /// that the truth composes in quaternions ([`Measure::truth`]).
+    binds: Option<Vec<Option<Trs>>>,
+    /// For skin-trs: each column's joint in bind space ([`bind_position`]).
+    bind_positions: Vec<[f64; 3]>,
+    device: &'a Device,
+    kind: TextureKind,
+    precision: Precision,
     unit_cm: f64,
-    points: usize,
-) -> Result<Measured, BakeError> {
-    let one = only(animation, clip);
-    let order = one.parents_first()?;
-    let frames_at = |rate: f64| -> Result<(Vec<Sheet>, f64, Vec<f64>), BakeError> {
-        let baked = bake(&one, setting.curve, ClipRate::Fit(rate), setting.looping, setting.device)?;
-        let sheets = texture::sheets(&one, &order, &baked, 0, setting.kind, setting.device)?;
-        let clip = &baked.clips[0];
-        Ok((sheets, clip.rate, clip.times.clone()))
-    };
-    let (mut coarse, fitted, times) = frames_at(rate)?;
-    if setting.precision == Precision::F16 {
-        for sheet in &mut coarse {
-            sheet.data.iter_mut().for_each(|v| *v = half::f16::from_f32(*v).to_f32());
-        }
-    }
-    let intervals = times.len() - 1;
-    let mut measured = Measured { rate: fitted, frames: times.len(), ..Measured::default() };
-    if intervals == 0 {
-        return Ok(measured);
-    }
-    let (dense, _, dense_times) = frames_at(fitted * points as f64)?;
-    let substeps = (dense_times.len() - 1) / intervals;
-    if substeps * intervals != dense_times.len() - 1 {
-        let (clip, frames) = (animation.clips[clip].name.clone(), dense_times.len());
-        return Err(InputError::from(InternalError::Grid { clip, frames, substeps: points, intervals }).into());
-    }
-    let start = times[0];
-    let broken = broken_spans(animation, clip);
-    for (sheet, truth) in coarse.iter().zip(&dense) {
-        let width = sheet.width;
-        let joints = sheet_joints(animation, setting.kind, &sheet.suffix);
-        // A point inside a step of broken source data, the joint's or an ancestor's, is left out.
-        let counted = |at: usize| {
-            let t = dense_times[at / width];
-            !broken[joints[at % width]].iter().any(|&[a, b]| t > a && t < b)
-        };
-        // The interpolated rows at every dense frame, as the shader blends them.
-        let frame = width * LOCAL_CHANNELS;
-        let mut blended = vec![0.0f32; dense_times.len() * frame];
-        blended.par_chunks_mut(frame).enumerate().for_each(|(k, out)| {
-            // The last dense frame is the end of the last interval.
-            let i = (k / substeps).min(intervals - 1);
-            let u = (k - i * substeps) as f64 / substeps as f64;
-            for (j, out) in out.chunks_exact_mut(LOCAL_CHANNELS).enumerate() {
-                out.copy_from_slice(&interpolate(row(&sheet.data, width, i, j), row(&sheet.data, width, i + 1, j), u));
+}
+
+/// The worst rotation and position of some frames, each as its value, column and time.
+#[derive(Clone, Copy, Default)]
+struct Worsts {
+    rotation: Option<(f64, usize, f64)>,
+    position: Option<(f64, usize, f64)>,
+}
+
+impl Worsts {
+    /// Takes the worst of later frames where it is larger: the first of equals kept, as one
+    /// scan in order keeps it.
+    fn then(mut self, later: Worsts) -> Self {
+        let larger = |kept: &mut Option<(f64, usize, f64)>, found: Option<(f64, usize, f64)>| {
+            if let Some(found) = found.filter(|f| kept.map_or(true, |k| f.0 > k.0)) {
+                *kept = Some(found);
             }
-        });
-        let name = |at: usize| animation.joints[joints[at % width]].name.clone();
-        let angles = blended
-            .par_chunks(LOCAL_CHANNELS)
-            .zip(truth.data.par_chunks(LOCAL_CHANNELS))
-            .enumerate()
-            .map(|(at, (b, t))| (at, if counted(at) { angle_degrees(b, t) } else { f64::NAN }));
-        if let Some((at, value)) = first_largest(angles, measured.rotation.value) {
-            measured.rotation = Worst { value, joint: name(at), time: dense_times[at / width] - start };
-        }
-        let positions = |rows: &[f32]| positions(&one, &order, setting.kind, &sheet.suffix, rows);
-        let (p, t) = (positions(&blended), positions(&truth.data));
-        let distance = |p: &[f64; 3], t: &[f64; 3]| (0..3).map(|c| (p[c] - t[c]).powi(2)).sum::<f64>().sqrt() * unit_cm;
-        let distances = p
-            .par_iter()
-            .zip(&t)
-            .enumerate()
-            .map(|(at, (p, t))| (at, if counted(at) { distance(p, t) } else { f64::NAN }));
-        if let Some((at, value)) = first_largest(distances, measured.position.value) {
-            measured.position = Worst { value, joint: name(at), time: dense_times[at / width] - start };
+        };
+        larger(&mut self.rotation, later.rotation);
+        larger(&mut self.position, later.position);
+        self
+    }
+}
+
+impl<'a> Measure<'a> {
+    fn new(animation: &'a Animation, clip: usize, setting: &Setting<'a>, unit_cm: f64) -> Result<Self, BakeError> {
+        let one = only(animation, clip);
+        let order = one.parents_first()?;
+        let looping = clip_loops(&one, &one.clips[0], setting.curve, setting.looping)?;
+        let curves = Curves::build(&one, setting.curve, &[looping], BatchBuilder::new())?;
+        let broken = broken_spans(animation, clip);
+        let (device, kind, precision) = (setting.device, setting.kind, setting.precision);
+        let skin = one.skins.first().filter(|_| kind.is_skin());
+        let joints = skin.map_or_else(|| (0..one.joints.len()).collect(), |s| s.joints.clone());
+        let binds = match skin {
+            _ if !kind.is_rigid() => None,
+            Some(skin) => {
+                skin.inverse_bind.iter().map(|ibm| Trs::from_affine(ibm, texture::SHEAR_TOLERANCE).map(Some)).collect()
+            }
+            None => Some(vec![None; joints.len()]),
+        };
+        let bind_positions = match skin {
+            Some(skin) if kind == TextureKind::SkinTrs => skin.inverse_bind.iter().map(bind_position).collect(),
+            _ => Vec::new(),
+        };
+        Ok(Self {
+            animation,
+            clip,
+            one,
+            order,
+            joints,
+            looping,
+            curves,
+            broken,
+            binds,
+            bind_positions,
+            device,
+            kind,
+            precision,
+            unit_cm,
+        })
+    }
+
+    /// The curves on `grid` (a rate's frames, or a window of them).
+    fn evaluate(&self, grid: TrackTimes, rate: f64) -> Result<Baked, BakeError> {
+        let clip = &self.one.clips[0];
+        let clips = vec![BakedClip {
+            times: grid_times(grid),
+            rate,
+            end: clip.span()[1],
+            looping: self.looping,
+            frames: Vec::new(),
+        }];
+        evaluate(&self.curves, clips, &[grid], self.device, Vec::new())
+    }
+
+    /// The clip's rows on `grid` as the bake lays them out (its one sheet's data).
+    fn rows(&self, grid: TrackTimes, rate: f64) -> Result<Vec<f32>, BakeError> {
+        let baked = self.evaluate(grid, rate)?;
+        let frames: Vec<usize> = (0..baked.clips[0].times.len()).collect();
+        let sheets = texture::sheet_rows(&self.one, &self.order, &baked, 0, self.kind, self.device, &frames)?;
+        Ok(sheets.into_iter().next().map(|s| s.data).unwrap_or_default())
+    }
+
+    /// The rows [`Self::rows`] gives on `grid`, for the rigid kinds composed in quaternions
+    /// ([`skeleton::trs_pose`]): the same rows to f32 rounding at a fraction of the cost of
+    /// matrices built and taken apart, which were most of a budget's time. A pose with a
+    /// parent's scales that differ by axis takes the matrices.
+    fn truth(&self, grid: TrackTimes, rate: f64) -> Result<Vec<f32>, BakeError> {
+        let Some(binds) = &self.binds else { return self.rows(grid, rate) };
+        let baked = self.evaluate(grid, rate)?;
+        let frames: Vec<usize> = (0..baked.clips[0].times.len()).collect();
+        let local = texture::local_rows(&self.one, &baked, 0, &frames);
+        let (parents, joints) = (self.one.parents(), self.one.joints.len());
+        let width = self.joints.len() * LOCAL_CHANNELS;
+        let mut data = vec![0.0f32; frames.len() * width];
+        let composed =
+            data.par_chunks_mut(width.max(1)).zip(local.par_chunks(joints * LOCAL_CHANNELS)).try_for_each_init(
+                || vec![Trs::identity(); joints],
+                |object, (out, rows)| {
+                    skeleton::trs_pose(&parents, &self.order, rows, object)?;
+                    for ((out, &j), bind) in out.chunks_exact_mut(LOCAL_CHANNELS).zip(&self.joints).zip(binds) {
+                        let row = match bind {
+                            Some(bind) => object[j].then(bind)?.row(),
+                            None => object[j].row(),
+                        };
+                        out.iter_mut().zip(row).for_each(|(o, v)| *o = v as f32);
+                    }
+                    Some(())
+                },
+            );
+        match composed {
+            Some(()) => Ok(data),
+            None => self.rows(grid, rate),
         }
     }
-    Ok(measured)
-}
 
-/// The first of `values` (by index) larger than `above` and than every other, as a scan in
-/// order keeping each strictly larger one finds it; NaN is never larger.
-fn first_largest(values: impl IndexedParallelIterator<Item = (usize, f64)>, above: f64) -> Option<(usize, f64)> {
-    values.filter(|&(_, v)| v > above).reduce_with(|a, b| if b.1 > a.1 || (b.1 == a.1 && b.0 < a.0) { b } else { a })
-}
+    /// [`measure`] at `points` points of each interval ([`SUBSTEPS`], or [`SCREEN_SUBSTEPS`]
+    /// to screen a rate), positions only where `positions` asks (a screen of a budget in
+    /// degrees alone does not): the rate's frames against the truth a window of dense frames
+    /// at a time, windows on every core.
+    fn at(&self, rate: f64, points: usize, positions: bool) -> Result<Measured, BakeError> {
+        let [start, end] = self.one.clips[0].span();
+        let (grid, fitted) = clip_frame_grid(start, end, ClipRate::Fit(rate), self.looping)?;
+        let mut coarse = self.rows(grid, fitted)?;
+        if self.precision == Precision::F16 {
+            coarse.iter_mut().for_each(|v| *v = half::f16::from_f32(*v).to_f32());
+        }
+        let intervals = grid.count() - 1;
+        let mut measured = Measured { rate: fitted, frames: grid.count(), ..Measured::default() };
+        if intervals == 0 {
+            return Ok(measured);
+        }
+        let (dense, dense_rate) = clip_frame_grid(start, end, ClipRate::Fit(fitted * points as f64), self.looping)?;
+        let substeps = (dense.count() - 1) / intervals;
+        if substeps * intervals != dense.count() - 1 {
+            let (clip, frames) = (self.animation.clips[self.clip].name.clone(), dense.count());
+            return Err(InputError::from(InternalError::Grid { clip, frames, substeps: points, intervals }).into());
+        }
+        let TrackTimes::Uniform { step, .. } = dense else { unreachable!("a fitted grid is uniform") };
+        let window = WINDOW_FRAMES.max(substeps);
+        let windows: Vec<Worsts> = (0..dense.count())
+            .step_by(window)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|first| {
+                let count = window.min(dense.count() - first);
+                let last = if first + count == dense.count() { dense.grid_time(first + count - 1) } else { None };
+                let Some(at) = dense.grid_time(first) else { unreachable!("a fitted grid is uniform") };
+                let truth = self.truth(TrackTimes::Uniform { start: at, step, count, last }, dense_rate)?;
+                let times: Vec<f64> = (first..first + count).filter_map(|k| dense.grid_time(k)).collect();
+                Ok(self.compare(&coarse, &truth, [first, substeps, intervals], &times, positions))
+            })
+            .collect::<Result<_, BakeError>>()?;
+        let worst = windows.into_iter().fold(Worsts::default(), Worsts::then);
+        let named = |(value, column, time): (f64, usize, f64)| Worst {
+            value,
+            joint: self.animation.joints[self.joints[column]].name.clone(),
+            time: time - start,
+        };
+        if let Some(w) = worst.rotation {
+            measured.rotation = named(w);
+        }
+        if let Some(w) = worst.position {
+            measured.position = named(w);
+        }
+        Ok(measured)
+    }
 
-/// The joints of a sheet's columns (`suffix` `.skin<k>`: the skin's joints).
-fn sheet_joints(animation: &Animation, kind: TextureKind, suffix: &str) -> Vec<usize> {
-    let skin = suffix.strip_prefix(".skin").and_then(|k| k.parse::<usize>().ok());
-    match skin.filter(|_| kind.is_skin()) {
-        Some(k) => animation.skins[k].joints.clone(),
-        None => (0..animation.joints.len()).collect(),
+    /// The truth's rows at the dense frames `first..` (times `times`) against the renderer's
+    /// blend of the rate's rows `coarse`, `substeps` dense frames an interval of `intervals`,
+    /// a frame at a time on every core: the largest errors, with their column and time.
+    fn compare(
+        &self,
+        coarse: &[f32],
+        truth: &[f32],
+        [first, substeps, intervals]: [usize; 3],
+        times: &[f64],
+        with_positions: bool,
+    ) -> Worsts {
+        let width = self.joints.len();
+        let frame = width * LOCAL_CHANNELS;
+        let per_frame = truth.par_chunks(frame.max(1)).enumerate().map_init(
+            || vec![0.0f32; frame],
+            |blended, (k, truth)| {
+                // The last dense frame is the end of the last interval.
+                let i = ((first + k) / substeps).min(intervals - 1);
+                let u = (first + k - i * substeps) as f64 / substeps as f64;
+                for (j, out) in blended.chunks_exact_mut(LOCAL_CHANNELS).enumerate() {
+                    out.copy_from_slice(&interpolate(row(coarse, width, i, j), row(coarse, width, i + 1, j), u));
+                }
+                // A point inside a step of broken source data, the joint's or an ancestor's, is
+                // left out.
+                let t = times[k];
+                let counted = |j: usize| !self.broken[self.joints[j]].iter().any(|&[a, b]| t > a && t < b);
+                let largest = |values: &mut dyn Iterator<Item = f64>| {
+                    values.enumerate().filter(|&(j, v)| v > 0.0 && counted(j)).fold(None, |kept, (j, v)| match kept {
+                        Some((_, w)) if w >= v => kept,
+                        _ => Some((j, v)),
+                    })
+                };
+                let pairs = || blended.chunks_exact(LOCAL_CHANNELS).zip(truth.chunks_exact(LOCAL_CHANNELS));
+                let rotation = largest(&mut pairs().map(|(b, t)| turn(b, t)))
+                    .map(|(j, turn)| (degrees_of_turn(turn), j, times[k]));
+                let position = with_positions
+                    .then(|| {
+                        let (p, q) = (self.positions(blended), self.positions(truth));
+                        let distance = |(p, q): (&[f64; 3], &[f64; 3])| {
+                            (0..3).map(|c| (p[c] - q[c]).powi(2)).sum::<f64>().sqrt() * self.unit_cm
+                        };
+                        largest(&mut p.iter().zip(&q).map(distance)).map(|(j, d)| (d, j, times[k]))
+                    })
+                    .flatten();
+                Worsts { rotation, position }
+            },
+        );
+        // In order, so that the first of equals is kept.
+        per_frame.collect::<Vec<_>>().into_iter().fold(Worsts::default(), Worsts::then)
+    }
+
+    /// Each column's joint position in model space (model units) in one frame's rows:
+    /// forward kinematics of a local texture, a model-trs row's translation, a skin-trs row
+    /// applied to the joint's bind position.
+    fn positions(&self, rows: &[f32]) -> Vec<[f64; 3]> {
+        match self.kind {
+            TextureKind::Local => skeleton::forward_kinematics(&self.one.parents(), &self.order, rows)
+                .chunks_exact(texture::MATRIX_CHANNELS)
+                .map(|m| [3, 7, 11].map(|c| f64::from(m[c])))
+                .collect(),
+            TextureKind::SkinTrs if !self.bind_positions.is_empty() => rows
+                .chunks_exact(LOCAL_CHANNELS)
+                .zip(&self.bind_positions)
+                .map(|(row, &bind)| skeleton::transform_point(&skeleton::trs_row(row), bind))
+                .collect(),
+            _ => rows.chunks_exact(LOCAL_CHANNELS).map(|r| [4, 5, 6].map(|c| f64::from(r[c]))).collect(),
+        }
     }
 }
 
@@ -307,27 +506,6 @@ fn broken_spans(animation: &Animation, clip: usize) -> Vec<Vec<[f64; 2]>> {
             spans
         })
         .collect()
-}
-
-/// Each row's joint position in model space (model units): forward kinematics of a local
-/// texture, a model-trs row's translation, a skin-trs row applied to the joint's bind position.
-fn positions(animation: &Animation, order: &[usize], kind: TextureKind, suffix: &str, rows: &[f32]) -> Vec<[f64; 3]> {
-    let translation = |m: &[f64]| [m[3], m[7], m[11]];
-    match kind {
-        TextureKind::Local => skeleton::forward_kinematics(&animation.parents(), order, rows)
-            .chunks_exact(texture::MATRIX_CHANNELS)
-            .map(|m| translation(&m.iter().map(|&v| f64::from(v)).collect::<Vec<_>>()))
-            .collect(),
-        TextureKind::SkinTrs if !animation.skins.is_empty() => {
-            let k: usize = suffix.trim_start_matches(".skin").parse().unwrap_or(0);
-            let bind: Vec<[f64; 3]> = animation.skins[k].inverse_bind.iter().map(bind_position).collect();
-            rows.par_chunks_exact(LOCAL_CHANNELS)
-                .enumerate()
-                .map(|(i, row)| skeleton::transform_point(&skeleton::trs_row(row), bind[i % bind.len()]))
-                .collect()
-        }
-        _ => rows.chunks_exact(LOCAL_CHANNELS).map(|r| [4, 5, 6].map(|c| f64::from(r[c]))).collect(),
-    }
 }
 
 /// Where a joint is in bind space: the point its inverse bind matrix takes to the origin.
@@ -366,9 +544,9 @@ pub fn choose_rates(
             (setting.measuring)(&clip.name, rate);
             rate
         };
-        let screen =
-            |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_cm, SCREEN_SUBSTEPS);
-        let full = |intervals: f64| measure_at(animation, c, rate(intervals), setting, budget.unit_cm, SUBSTEPS);
+        let measure = Measure::new(animation, c, setting, budget.unit_cm)?;
+        let screen = |intervals: f64| measure.at(rate(intervals), SCREEN_SUBSTEPS, budget.centimetres.is_some());
+        let full = |intervals: f64| measure.at(rate(intervals), SUBSTEPS, true);
         // Intervals per step of the search, and the first step tried.
         let grid =
             key_grid(clip).filter(|&keys| setting.curve.corners_at_keys() && keys as f64 <= span * budget.max_rate);
@@ -573,6 +751,64 @@ mod tests {
         assert_eq!(super::super::broken_steps(&arm(true).clips[0].channels[0]).len(), 2, "into the flip and out");
         assert_eq!(flipped.rate, clean.rate, "the flip chased: {flipped:?}");
         assert!(flipped.rotation.value <= 0.5, "{flipped:?}");
+    }
+
+    /// [`arm`] with three skins: a body over both joints, its joints mesh (the same), and a
+    /// hand bound to the arm twice as far out.
+    fn skinned_arm() -> Animation {
+        let mut animation = arm(false);
+        let bind = |y: f64| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -y, 0.0, 0.0, 1.0, 0.0];
+        let skin = |name: &str, joints: Vec<usize>, at: &[f64]| Skin {
+            name: name.into(),
+            joints,
+            inverse_bind: at.iter().map(|&y| bind(y)).collect(),
+            skeleton: None,
+        };
+        animation.skins = vec![
+            skin("body", vec![0, 1], &[0.0, 1.0]),
+            skin("joints", vec![0, 1], &[0.0, 1.0]),
+            skin("hand", vec![1], &[2.0]),
+        ];
+        animation
+    }
+
+    #[test]
+    fn the_truth_composed_in_quaternions_is_the_bake_s_rows_and_skins_are_measured_as_one() {
+        let device = Device::open(quatcurve_device::DeviceChoice::Cpu).unwrap();
+        let curve = CurveChoice::Source;
+        let setting = Setting {
+            curve: &curve,
+            looping: LoopMode::Off,
+            kind: TextureKind::SkinTrs,
+            precision: Precision::F32,
+            device: &device,
+            measuring: &|_, _| {},
+        };
+        let animation = skinned_arm();
+        let measure = Measure::new(&animation, 0, &setting, 100.0).unwrap();
+        assert_eq!(measure.joints, [0, 1, 1], "each joint and bind once");
+        assert!(measure.binds.is_some(), "rigid binds compose in quaternions");
+        let grid = TrackTimes::Uniform { start: 0.0, step: 1.0 / 97.0, count: 190, last: None };
+        let (truth, rows) = (measure.truth(grid, 97.0).unwrap(), measure.rows(grid, 97.0).unwrap());
+        assert_eq!(truth.len(), rows.len());
+        for (k, (t, r)) in truth.chunks(LOCAL_CHANNELS).zip(rows.chunks(LOCAL_CHANNELS)).enumerate() {
+            assert!(angle_degrees(t, r) < 1e-4, "row {k}: {t:?} against {r:?}");
+            assert!(t[4..].iter().zip(&r[4..]).all(|(a, b)| (a - b).abs() < 1e-6), "row {k}: {t:?} against {r:?}");
+        }
+        // The skins as one measure each skin's worst: here the hand's, the farthest out.
+        let alone = |k: usize| {
+            let mut alone = animation.clone();
+            alone.skins = vec![animation.skins[k].clone()];
+            measure_of(&alone, 45.0, &setting)
+        };
+        let (all, body, hand) = (measure.at(45.0, SUBSTEPS, true).unwrap(), alone(0), alone(2));
+        assert_eq!(all.rotation.value, body.rotation.value.max(hand.rotation.value));
+        assert_eq!(all.position, hand.position);
+        assert!(hand.position.value > body.position.value * 1.5, "{hand:?} against {body:?}");
+    }
+
+    fn measure_of(animation: &Animation, rate: f64, setting: &Setting<'_>) -> Measured {
+        measure(animation, 0, rate, setting, 100.0).unwrap()
     }
 
     #[test]

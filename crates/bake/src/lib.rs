@@ -389,10 +389,30 @@ pub fn bake_reusing(
     reuse: &mut Reuse,
 ) -> Result<Baked, BakeError> {
     assert_eq!(rates.len(), animation.clips.len(), "one rate per clip");
-    let (mut clips, grids) = plan_clips(animation, choice, rates, loops)?;
+    let (clips, grids) = plan_clips(animation, choice, rates, loops)?;
     let looping: Vec<bool> = clips.iter().map(|c| c.looping).collect();
     let builder = reuse.batch.take().map_or_else(BatchBuilder::new, BatchBuilder::reusing);
     let curves = Curves::build(animation, choice, &looping, builder)?;
+    let mut baked = evaluate(&curves, clips, &grids, device, std::mem::take(&mut reuse.rotations))?;
+    if let Some(batch) = &curves.batch {
+        // A fitted clip's control points are not keys the curve passes through.
+        if choice.interpolates() && !animation.is_fitted() {
+            baked.max_key_error = Some(key_error(&curves.tracks, batch, device)?);
+        }
+    }
+    reuse.batch = curves.batch;
+    Ok(baked)
+}
+
+/// The frames of `clips` on their `grids` (one each) from curves already built: host
+/// channels on every core, rotation tracks on `device` into `rotations` (a kept buffer).
+fn evaluate(
+    curves: &Curves,
+    mut clips: Vec<BakedClip>,
+    grids: &[TrackTimes],
+    device: &Device,
+    rotations: Vec<f32>,
+) -> Result<Baked, BakeError> {
     // The host's channels at their clip's frames, on every core.
     let host_channels: Vec<(usize, &ChannelEval)> = curves
         .channels
@@ -419,21 +439,21 @@ pub fn bake_reusing(
     }
     let mut baked =
         Baked { clips, max_key_error: None, device: None, rotations: Vec::new(), host, in_place: Vec::new() };
-    let Some(batch) = curves.batch else {
+    let Some(batch) = &curves.batch else {
         return Ok(baked);
     };
     let track_clips = &curves.track_clips;
     // Each channel on its clip's frame grid (three numbers, not a list per channel); a
     // looping channel whose keys span less than its clip gets the list, which wraps.
     let clips = &baked.clips;
-    let times = SampleTimes::per_track(&batch, |i, [first, last]| {
+    let times = SampleTimes::per_track(batch, |i, [first, last]| {
         let c = track_clips[i];
         let frames = &clips[c].times;
         let inside = first <= frames[0] && frames[frames.len() - 1] <= last;
         Ok(if clips[c].looping && !inside { PerTrack::List(frames) } else { PerTrack::Grid(grids[c]) })
     })?;
-    let mut rotations = FloatOutput { channels: 4, data: std::mem::take(&mut reuse.rotations) };
-    let name = device.evaluate_into(&EvalJob::new(&batch, &times), &mut rotations)?;
+    let mut rotations = FloatOutput { channels: 4, data: rotations };
+    let name = device.evaluate_into(&EvalJob::new(batch, &times), &mut rotations)?;
     let mut next = 0;
     for clip in &mut baked.clips {
         for frames in clip.frames.iter_mut().filter(|f| matches!(f, Frames::Device(..))) {
@@ -443,11 +463,6 @@ pub fn bake_reusing(
     }
     baked.rotations = rotations.data;
     baked.device = Some(name);
-    // A fitted clip's control points are not keys the curve passes through.
-    if choice.interpolates() && !animation.is_fitted() {
-        baked.max_key_error = Some(key_error(&curves.tracks, &batch, device)?);
-    }
-    reuse.batch = Some(batch);
     Ok(baked)
 }
 
