@@ -1,7 +1,7 @@
 //! `quatcurve bench`: one synthetic batch through every requested device in one process,
 //! median samples per second side by side (DESIGN section 5).
 
-use super::measure::{alternate_seconds, host, median_seconds, open_bench_device, run_seconds};
+use super::measure::{alternate_seconds, host, median_seconds, open_bench_device, run_seconds, Seconds};
 use super::{names, print_stdout, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::anim::loops::LoopMode;
@@ -134,9 +134,119 @@ struct Timing {
     /// alone, no upload or read-back; CPU: into a reused buffer, no allocation).
     #[serde(skip_serializing_if = "Option::is_none")]
     prepared_samples_per_s: Option<f64>,
+    /// The fastest and slowest prepared runs, where they were timed in turns with the
+    /// end-to-end ones (a GPU batch of several streamed pieces sums each piece's median).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prepared_seconds_min: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prepared_seconds_max: Option<f64>,
+    /// Where prepared is below end to end, which can only be noise: whether the two ranges of
+    /// runs overlap ([`PreparedBelow`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prepared_below_end_to_end: Option<PreparedBelow>,
     /// GPU: the write-only roofline kernel's rate over the same dispatches and output bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     roofline_samples_per_s: Option<f64>,
+}
+
+/// A prepared figure below its end-to-end one: prepared does less of the same work, so it is
+/// the machine's noise, told by the runs' spread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+enum PreparedBelow {
+    /// The two ranges of runs overlap: noise.
+    WithinSpread,
+    /// Every prepared run was slower than every end-to-end run: not this run's noise.
+    OutsideSpread,
+    /// Not timed in turns (a GPU batch of several streamed pieces): no spread to tell by.
+    NotInTurns,
+}
+
+impl PreparedBelow {
+    /// Whether, and how, prepared `prepared` (median, and min-max where timed in turns) is
+    /// below end to end `seconds` (median and max).
+    fn of(seconds: [f64; 2], prepared: f64, range: Option<[f64; 2]>) -> Option<Self> {
+        let [median, max] = seconds;
+        let below = match range {
+            Some([fastest, _]) if fastest <= max => Self::WithinSpread,
+            Some(_) => Self::OutsideSpread,
+            None => Self::NotInTurns,
+        };
+        (prepared > median).then_some(below)
+    }
+
+    /// The table's mark after the prepared figure.
+    fn mark(self) -> &'static str {
+        match self {
+            Self::WithinSpread => "~",
+            Self::OutsideSpread => "!",
+            Self::NotInTurns => "?",
+        }
+    }
+
+    /// The line under the table that explains the mark.
+    fn explained(self) -> &'static str {
+        match self {
+            Self::WithinSpread => "~ prepared below end to end within the runs' spread (their ranges overlap): noise",
+            Self::OutsideSpread => {
+                "! prepared below end to end outside the runs' spread: not this run's noise; run again"
+            }
+            Self::NotInTurns => {
+                "? prepared below end to end, its pieces not timed in turns with it: no spread to tell by"
+            }
+        }
+    }
+}
+
+/// A prepared rate's cell, marked where it is below end to end, and the marks used so far.
+fn prepared_cell(r: &Timing, marks: &mut Vec<PreparedBelow>) -> String {
+    let Some(rate) = r.prepared_samples_per_s else { return "-".to_string() };
+    match r.prepared_below_end_to_end {
+        Some(below) => {
+            if !marks.contains(&below) {
+                marks.push(below);
+            }
+            format!("{:.2} {}", rate / 1e6, below.mark())
+        }
+        None => format!("{:.2}", rate / 1e6),
+    }
+}
+
+impl Timing {
+    /// `samples` timed end to end in `seconds`, with no other figure yet.
+    fn end_to_end(
+        device: &'static str,
+        adapter: String,
+        driver: Option<String>,
+        samples: usize,
+        seconds: Seconds,
+    ) -> Self {
+        Self {
+            device,
+            adapter,
+            driver,
+            samples_per_s: samples as f64 / seconds.median,
+            seconds: seconds.median,
+            seconds_min: seconds.min,
+            seconds_max: seconds.max,
+            samples,
+            vs_reference: None,
+            prepared_samples_per_s: None,
+            prepared_seconds_min: None,
+            prepared_seconds_max: None,
+            prepared_below_end_to_end: None,
+            roofline_samples_per_s: None,
+        }
+    }
+
+    /// Sets the prepared figures from `samples` and the prepared runs' median (and range, where
+    /// timed in turns), labelling a prepared figure below end to end.
+    fn with_prepared(mut self, median: f64, range: Option<[f64; 2]>) -> Self {
+        self.prepared_samples_per_s = Some(self.samples as f64 / median);
+        (self.prepared_seconds_min, self.prepared_seconds_max) = (range.map(|r| r[0]), range.map(|r| r[1]));
+        self.prepared_below_end_to_end = PreparedBelow::of([self.seconds, self.seconds_max], median, range);
+        self
+    }
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), Failure> {
@@ -240,8 +350,9 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
             "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14} {:>16}",
             "shape", "tracks", "per track", "batch", "device", "M samples/s", "prepared M/s"
         )?;
+        let mut marks = Vec::new();
         for p in &points {
-            let kernel = p.row.prepared_samples_per_s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
+            let kernel = prepared_cell(&p.row, &mut marks);
             writeln!(
                 w,
                 "{:<7} {:>10} {:>9} {:>12} {:<10} {:>14.2} {:>16}",
@@ -254,7 +365,7 @@ fn sweep(args: &BenchArgs) -> Result<(), Failure> {
                 kernel
             )?;
         }
-        Ok(())
+        marks.iter().try_for_each(|m| writeln!(w, "{}", m.explained()))
     })
 }
 
@@ -322,20 +433,7 @@ fn time_reference(args: &BenchArgs, spec: &CurveSpec) -> Result<Timing, Failure>
         synthetic::workload(tracks, args.samples, args.keys, spec).map_err(|e| Failure::Input(e.to_string()))?;
     let job = EvalJob::new(&slice, &slice_times).derivatives(args.derivatives);
     let seconds = run_seconds(args.runs, || job.run().map(drop).map_err(|e| Failure::Input(e.to_string())))?;
-    let samples = slice_times.total();
-    Ok(Timing {
-        device: "reference",
-        adapter: "f64, one thread".into(),
-        driver: None,
-        samples_per_s: samples as f64 / seconds.median,
-        seconds: seconds.median,
-        seconds_min: seconds.min,
-        seconds_max: seconds.max,
-        samples,
-        vs_reference: None,
-        prepared_samples_per_s: None,
-        roofline_samples_per_s: None,
-    })
+    Ok(Timing::end_to_end("reference", "f64, one thread".into(), None, slice_times.total(), seconds))
 }
 
 fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTimes) -> Result<Timing, Failure> {
@@ -348,14 +446,14 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTime
     // host memory: a million short tracks held 3 GB more). A batch of one piece is timed in
     // turns with the end-to-end runs.
     let pieces = device_pieces(batch, times, job.options.row().channels(), gpu.stream_chunk_bytes());
-    let (mut dispatch, mut roofline, mut seconds) = (0.0, 0.0, None);
+    let (mut dispatch, mut roofline, mut seconds, mut spread) = (0.0, 0.0, None, None);
     for range in &pieces {
         let (piece, piece_times) = (batch.subset(range.clone()), times.subset(range.clone()));
         let prepared = gpu.prepare(&EvalJob::new(&piece, &piece_times).with(job.options)).map_err(device_err)?;
         let dispatched = || gpu.dispatch(&prepared).map_err(device_err);
         if pieces.len() == 1 {
             let (whole, alone) = alternate_seconds(args.runs, evaluate, dispatched)?;
-            (seconds, dispatch) = (Some(whole), alone.median);
+            (seconds, dispatch, spread) = (Some(whole), alone.median, Some([alone.min, alone.max]));
         } else {
             dispatch += median_seconds(args.runs, dispatched)?;
         }
@@ -365,19 +463,11 @@ fn time_gpu(args: &BenchArgs, gpu: &GpuDevice, batch: &Batch, times: &SampleTime
         Some(seconds) => seconds,
         None => run_seconds(args.runs, evaluate)?,
     };
-    let samples = times.total();
+    let driver = Some(gpu.context().driver().to_string());
+    let timing = Timing::end_to_end("gpu", gpu.adapter_name().to_string(), driver, times.total(), seconds);
     Ok(Timing {
-        device: "gpu",
-        adapter: gpu.adapter_name().to_string(),
-        driver: Some(gpu.context().driver().to_string()),
-        samples_per_s: samples as f64 / seconds.median,
-        seconds: seconds.median,
-        seconds_min: seconds.min,
-        seconds_max: seconds.max,
-        samples,
-        vs_reference: None,
-        prepared_samples_per_s: Some(samples as f64 / dispatch),
-        roofline_samples_per_s: Some(samples as f64 / roofline),
+        roofline_samples_per_s: Some(times.total() as f64 / roofline),
+        ..timing.with_prepared(dispatch, spread)
     })
 }
 
@@ -407,24 +497,12 @@ fn time_cpu(args: &BenchArgs, cpu: &CpuEvaluator, batch: &Batch, times: &SampleT
         || cpu.evaluate(&job).map(drop).map_err(input),
         || cpu.evaluate_into(&job, &mut buffer).map_err(input),
     )?;
-    let compute = compute.median;
-    let samples = times.total();
-    Ok(Timing {
-        device: "cpu",
-        adapter: match args.forward_difference {
-            Some(n) => format!("{}, forward differences every {n}", cpu.name()),
-            None => cpu.name(),
-        },
-        driver: None,
-        samples_per_s: samples as f64 / seconds.median,
-        seconds: seconds.median,
-        seconds_min: seconds.min,
-        seconds_max: seconds.max,
-        samples,
-        vs_reference: None,
-        prepared_samples_per_s: Some(samples as f64 / compute),
-        roofline_samples_per_s: None,
-    })
+    let adapter = match args.forward_difference {
+        Some(n) => format!("{}, forward differences every {n}", cpu.name()),
+        None => cpu.name(),
+    };
+    let timing = Timing::end_to_end("cpu", adapter, None, times.total(), seconds);
+    Ok(timing.with_prepared(compute.median, Some([compute.min, compute.max])))
 }
 
 fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
@@ -449,8 +527,9 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
         "device", "samples", "s min-med-max", "M samples/s", "x ref", "prepared M/s", "roofline M/s"
     )?;
     let rate = |s: Option<f64>| s.map_or_else(|| "-".to_string(), |s| format!("{:.2}", s / 1e6));
+    let mut marks = Vec::new();
     for r in &report.results {
-        let (prepared, roofline) = (rate(r.prepared_samples_per_s), rate(r.roofline_samples_per_s));
+        let (prepared, roofline) = (prepared_cell(r, &mut marks), rate(r.roofline_samples_per_s));
         let spread = format!("{:.4}-{:.4}-{:.4}", r.seconds_min, r.seconds, r.seconds_max);
         let times = r.vs_reference.map_or_else(|| "-".to_string(), |x| format!("{x:.1}"));
         let driver = r.driver.as_ref().map_or_else(String::new, |d| format!(" ({d})"));
@@ -467,7 +546,7 @@ fn table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
             r.adapter
         )?;
     }
-    Ok(())
+    marks.iter().try_for_each(|m| writeln!(w, "{}", m.explained()))
 }
 
 /// `--skinning`: what was skinned and how fast on each device.
@@ -594,4 +673,23 @@ fn skinning_table(w: &mut dyn std::io::Write, report: &SkinningReport) -> std::i
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PreparedBelow;
+
+    #[test]
+    fn a_prepared_figure_below_end_to_end_is_labelled_by_the_runs_spread() {
+        // End to end: a median of 1.0 s, the slowest run 1.2 s.
+        let e2e = [1.0, 1.2];
+        assert_eq!(PreparedBelow::of(e2e, 0.9, Some([0.8, 1.0])), None, "prepared faster: as it should be");
+        assert_eq!(PreparedBelow::of(e2e, 1.1, Some([1.05, 1.3])), Some(PreparedBelow::WithinSpread));
+        assert_eq!(PreparedBelow::of(e2e, 1.5, Some([1.3, 1.6])), Some(PreparedBelow::OutsideSpread));
+        assert_eq!(PreparedBelow::of(e2e, 1.1, None), Some(PreparedBelow::NotInTurns));
+        let marks: Vec<&str> = [PreparedBelow::WithinSpread, PreparedBelow::OutsideSpread, PreparedBelow::NotInTurns]
+            .map(PreparedBelow::mark)
+            .to_vec();
+        assert_eq!(marks, ["~", "!", "?"]);
+    }
 }

@@ -339,6 +339,16 @@ fn bench_reports_every_requested_device_as_json() {
         // The spread beside the median, and the rate over the reference's on the same work.
         let [low, median, high] = ["seconds_min", "seconds", "seconds_max"].map(|k| r[k].as_f64().unwrap());
         assert!(low <= median && median <= high, "{r}");
+        // Prepared's spread too, where it was timed in turns with end to end (one GPU piece
+        // here), and a prepared figure below end to end labelled by the two spreads.
+        if r["device"] != "reference" {
+            let [fastest, slowest] = ["prepared_seconds_min", "prepared_seconds_max"].map(|k| r[k].as_f64().unwrap());
+            assert!(fastest <= slowest, "{r}");
+            let below = r["prepared_samples_per_s"].as_f64().unwrap() < r["samples_per_s"].as_f64().unwrap();
+            let label = r["prepared_below_end_to_end"].as_str();
+            let expected = if fastest <= high { "within_spread" } else { "outside_spread" };
+            assert_eq!(label, below.then_some(expected), "{r}");
+        }
         let reference = results[0]["samples_per_s"].as_f64().unwrap();
         assert!((r["vs_reference"].as_f64().unwrap() - r["samples_per_s"].as_f64().unwrap() / reference).abs() < 1e-9);
     }
