@@ -382,8 +382,10 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
         DESIGN section 10).
     max_texture_size : int
         Largest side of an image texture, in texels.
-    atlas, preview : bool
-        Stack every clip of an input in one texture; draw a skeleton PNG per clip.
+    atlas, preview, usd : bool
+        Stack every clip of an input in one texture; draw a skeleton PNG per clip; also
+        write ``<stem>.usda``, OpenUSD skeletal animation (each clip a ``SkelAnimation``
+        chosen by the skeleton's variant set ``clip``; DESIGN section 7).
     characters : int
         Characters in the built-in crowd, baked when no input is named.
     allow_external_uris : bool

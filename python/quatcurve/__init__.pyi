@@ -90,6 +90,7 @@ def bake(
     max_texture_size: int = 4096,
     atlas: bool = False,
     preview: bool = False,
+    usd: bool = False,
     characters: int = 1000,
     allow_external_uris: bool = False,
     device: DeviceName = "auto",

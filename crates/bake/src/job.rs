@@ -259,7 +259,8 @@ impl BakeJob {
         let inputs = expand(&self.inputs, &quatcurve_formats::source::input_extensions().collect::<Vec<_>>())?;
         // Over the whole job, so every shard refuses the same clashes.
         let stems = output_stems(&inputs)?;
-        if self.options.max_error_cm.is_some() {
+        // A stage says its unit (`metersPerUnit`), as a position budget counts in cm.
+        if self.options.max_error_cm.is_some() || self.options.usd {
             quatcurve_files::unit_cm(&inputs, self.options.unit_cm, "nothing was baked")?;
         }
         let output = OutputDir::create(&self.output, "baked")?;
@@ -571,6 +572,13 @@ impl BakeJob {
         let slerped = self.options.choice(src) == CurveChoice::Source;
         let baked_file =
             src.write_back(&baked.frames(), slerped)?.map(|file| (format!("{stem}.{}", file.extension), file.bytes));
+        let usd_file = self.options.usd.then(|| {
+            let metres = self.options.unit_cm.unwrap_or(quatcurve_anim::GLTF_UNIT_CM) / 100.0;
+            (
+                format!("{stem}.usda"),
+                super::usd::stage(animation, &order, baked, stem, metres, self.options.rate).into_bytes(),
+            )
+        });
         let mesh_file = match vertex {
             Some(vertex) => Some((
                 format!("{stem}{MESH_GLB_SUFFIX}"),
@@ -578,7 +586,7 @@ impl BakeJob {
             )),
             None => None,
         };
-        for (name, bytes) in baked_file.iter().chain(&mesh_file) {
+        for (name, bytes) in baked_file.iter().chain(&mesh_file).chain(&usd_file) {
             let path = dir.join(name);
             refuse_overwriting_input(&path, out.source)?;
             write_atomic(&path, |w| w.write_all(bytes)).map_err(OutputError::from)?;

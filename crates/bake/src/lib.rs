@@ -23,6 +23,7 @@ pub mod sidecar;
 pub mod texture;
 mod texture_file;
 pub mod uniforms;
+pub mod usd;
 pub mod vertex_encoding;
 mod vertex_glb;
 mod vertex_texture;

@@ -89,6 +89,10 @@ pub struct BakeOptions {
     /// `<stem>.<clip>.preview.png` (cargo feature `plot`).
     #[cfg_attr(feature = "cli", arg(long))]
     pub preview: bool,
+    /// Also write the bake as OpenUSD skeletal animation, `<stem>.usda`: the skeleton, and
+    /// each clip a `SkelAnimation` chosen by the skeleton's variant set `clip`.
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub usd: bool,
     /// Characters in the built-in crowd (baked when no input is named).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = BakeOptions::DEFAULT.characters))]
     pub characters: usize,
@@ -132,6 +136,7 @@ impl BakeOptions {
         max_texture_size: DEFAULT_MAX_TEXTURE_SIZE,
         atlas: false,
         preview: false,
+        usd: false,
         characters: crowd::CHARACTERS,
         max_error_deg: None,
         max_error_cm: None,

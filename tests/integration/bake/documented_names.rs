@@ -66,6 +66,9 @@ const TABLE: &[Documented] = &[
     ("docs/DESIGN.md", "`<stem>.npz`.", "<stem>.npz", "amass_sample.npz", &[]),
     ("docs/DESIGN.md", "The baked file is `<stem>.glb`", "<stem>.glb", "CesiumMan.fbx", &[]),
     ("README.md", "beside `<stem>.mesh.glb`", "<stem>.mesh.glb", "CesiumMan.glb", &["--texture", "vertex"]),
+    ("docs/BAKING.md", "`--usd` also writes", "<stem>.usda", "CesiumMan.glb", &["--usd"]),
+    ("docs/DESIGN.md", "- **OpenUSD** (`--usd`)", "<stem>.usda", "CesiumMan.glb", &["--usd"]),
+    ("docs/ENGINES.md", "`bake --usd` writes", "<stem>.usda", "Fox.glb", &["--usd"]),
 ];
 
 /// Whether `file` is a name of `pattern` for an input of stem `stem`: `<stem>` and `<name>`

@@ -20,6 +20,7 @@ mod shards;
 mod smpl;
 mod textures;
 mod three;
+mod usd;
 mod vertex;
 mod vertex_shader;
 mod viewer;

@@ -1,0 +1,191 @@
+//! OpenUSD's skeletal animation as text (`bake --usd`, DESIGN section 7): one stage per
+//! input, its joints a `Skeleton` and each baked clip a `SkelAnimation` of the joints' local
+//! frames at their times, chosen on the skeleton by a variant set (`clip`), as USD picks one
+//! animation of several.
+
+use super::texture::{self, LOCAL_CHANNELS};
+use super::Baked;
+use quatcurve_anim::Animation;
+use quatcurve_eval::skeleton::{self, Affine};
+use std::collections::HashSet;
+use std::fmt::Write;
+
+/// The stage of one input's bake, `name` its root prim: the skeleton at rest and bound as
+/// `animation`'s skins bind it, its joints in `order` (parents first, as UsdSkel wants them:
+/// [`Animation::parents_first`]), every clip of `baked` sampled at its frames, time codes
+/// `time_codes` a second and lengths in metres `metres_per_unit`.
+#[must_use]
+pub fn stage(
+    animation: &Animation,
+    order: &[usize],
+    baked: &Baked,
+    name: &str,
+    metres_per_unit: f64,
+    time_codes: f64,
+) -> String {
+    let root = identifier(name, &mut HashSet::new());
+    let paths = joint_paths(animation, order);
+    let joints: Vec<&String> = order.iter().map(|&j| &paths[j]).collect();
+    let tokens = joints.iter().map(|p| format!("\"{p}\"")).collect::<Vec<_>>().join(", ");
+    let mut clip_names = HashSet::new();
+    let clips: Vec<String> = animation.clips.iter().map(|c| identifier(&c.name, &mut clip_names)).collect();
+    let last_code = baked
+        .clips
+        .iter()
+        .map(|c| (c.times.last().unwrap_or(&0.0) - c.times.first().unwrap_or(&0.0)) * time_codes)
+        .fold(0.0, f64::max);
+    let mut s = String::new();
+    let _ = writeln!(s, "#usda 1.0\n(\n    defaultPrim = \"{root}\"");
+    let _ = writeln!(
+        s,
+        "    doc = \"quatcurve bake: each clip a SkelAnimation, chosen by the skeleton's variant set 'clip'\""
+    );
+    let _ = writeln!(s, "    metersPerUnit = {metres_per_unit}\n    upAxis = \"Y\"");
+    let _ =
+        writeln!(s, "    timeCodesPerSecond = {time_codes}\n    startTimeCode = 0\n    endTimeCode = {last_code}\n)\n");
+    let _ = writeln!(s, "def SkelRoot \"{root}\"\n{{");
+    let _ = writeln!(s, "    def Skeleton \"Skeleton\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]");
+    if let Some(first) = clips.first() {
+        let _ = writeln!(s, "        variants = {{\n            string clip = \"{first}\"\n        }}");
+        let _ = writeln!(s, "        prepend variantSets = \"clip\"");
+    }
+    let _ = writeln!(s, "    )\n    {{\n        uniform token[] joints = [{tokens}]");
+    let matrices = |m: &[Affine]| m.iter().map(matrix).collect::<Vec<_>>().join(", ");
+    let bind = bind_transforms(animation, order);
+    let _ = writeln!(
+        s,
+        "        uniform matrix4d[] bindTransforms = [{}]",
+        matrices(&order.iter().map(|&j| bind[j]).collect::<Vec<_>>())
+    );
+    let rest: Vec<Affine> = order
+        .iter()
+        .map(|&j| &animation.joints[j])
+        .map(|j| skeleton::trs(j.rotation, j.translation, j.scale))
+        .collect();
+    let _ = writeln!(s, "        uniform matrix4d[] restTransforms = [{}]", matrices(&rest));
+    if !clips.is_empty() {
+        let _ = writeln!(s, "        variantSet \"clip\" = {{");
+        for clip in &clips {
+            let _ = writeln!(s, "            \"{clip}\" {{\n                rel skel:animationSource = </{root}/Animations/{clip}>\n            }}");
+        }
+        let _ = writeln!(s, "        }}");
+    }
+    let _ = writeln!(s, "    }}\n\n    def Scope \"Animations\"\n    {{");
+    for (c, clip) in clips.iter().enumerate() {
+        let times = &baked.clips[c].times;
+        let frames: Vec<usize> = (0..times.len()).collect();
+        let rows = texture::local_rows(animation, baked, c, &frames);
+        let per_frame = |f: &dyn Fn(&[f32]) -> String| -> String {
+            rows.chunks_exact(animation.joints.len() * LOCAL_CHANNELS)
+                .zip(times)
+                .map(|(frame, t)| {
+                    let values: Vec<String> =
+                        order.iter().map(|&j| f(&frame[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS])).collect();
+                    format!("            {}: [{}],", (t - times[0]) * time_codes, values.join(", "))
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        };
+        let _ = writeln!(
+            s,
+            "        def SkelAnimation \"{clip}\"\n        {{\n            uniform token[] joints = [{tokens}]"
+        );
+        let _ = writeln!(
+            s,
+            "            quatf[] rotations.timeSamples = {{\n{}\n            }}",
+            per_frame(&|r| format!("({}, {}, {}, {})", r[3], r[0], r[1], r[2]))
+        );
+        let _ = writeln!(
+            s,
+            "            float3[] translations.timeSamples = {{\n{}\n            }}",
+            per_frame(&|r| format!("({}, {}, {})", r[4], r[5], r[6]))
+        );
+        let _ = writeln!(
+            s,
+            "            half3[] scales.timeSamples = {{\n{}\n            }}",
+            per_frame(&|r| format!("({}, {}, {})", r[7], r[8], r[9]))
+        );
+        let _ = writeln!(s, "        }}");
+    }
+    let _ = writeln!(s, "    }}\n}}");
+    s
+}
+
+/// A 3x4 row-major matrix (column vectors) as USD's `matrix4d` (row vectors: the transpose,
+/// its translation the last row).
+fn matrix(m: &Affine) -> String {
+    let row = |c: usize| format!("({}, {}, {}, {})", m[c], m[4 + c], m[8 + c], if c == 3 { 1 } else { 0 });
+    format!("({}, {}, {}, {})", row(0), row(1), row(2), row(3))
+}
+
+/// Each joint's bind transform in the skeleton's space: the inverse of its inverse bind
+/// matrix in the first skin that binds it, else its place at rest.
+fn bind_transforms(animation: &Animation, order: &[usize]) -> Vec<Affine> {
+    let rest = skeleton::pose(&animation.parents(), order, |j| {
+        let joint = &animation.joints[j];
+        skeleton::trs(joint.rotation, joint.translation, joint.scale)
+    });
+    let mut bind = rest;
+    let mut bound = vec![false; animation.joints.len()];
+    for skin in &animation.skins {
+        for (&j, ibm) in skin.joints.iter().zip(&skin.inverse_bind) {
+            if !bound[j] {
+                if let Some(m) = skeleton::inverse(ibm) {
+                    (bind[j], bound[j]) = (m, true);
+                }
+            }
+        }
+    }
+    bind
+}
+
+/// Each joint's path from its root (`order`: parents first), names made identifiers and
+/// unique among siblings.
+fn joint_paths(animation: &Animation, order: &[usize]) -> Vec<String> {
+    let mut paths = vec![String::new(); animation.joints.len()];
+    let mut siblings: Vec<HashSet<String>> = vec![HashSet::new(); animation.joints.len() + 1];
+    for &j in order {
+        let joint = &animation.joints[j];
+        let taken = &mut siblings[joint.parent.map_or(animation.joints.len(), |p| p)];
+        let own = identifier(&joint.name, taken);
+        paths[j] = match joint.parent {
+            Some(p) => format!("{}/{own}", paths[p]),
+            None => own,
+        };
+    }
+    paths
+}
+
+/// `name` as a USD identifier (letters, digits and `_`, not starting with a digit), made
+/// unique among `taken` with a number, and taken.
+fn identifier(name: &str, taken: &mut HashSet<String>) -> String {
+    let mut base: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    if base.is_empty() || base.starts_with(|c: char| c.is_ascii_digit()) {
+        base.insert(0, '_');
+    }
+    let mut unique = base.clone();
+    let mut k = 2;
+    while !taken.insert(unique.clone()) {
+        unique = format!("{base}_{k}");
+        k += 1;
+    }
+    unique
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_become_identifiers_unique_among_their_siblings() {
+        let mut taken = HashSet::new();
+        let names = ["mixamorig:Hips", "mixamorig_Hips", "3d", "", "Run"].map(|n| identifier(n, &mut taken));
+        assert_eq!(names, ["mixamorig_Hips", "mixamorig_Hips_2", "_3d", "_", "Run"]);
+    }
+
+    #[test]
+    fn a_matrix_is_written_transposed_its_translation_the_last_row() {
+        let m = [1.0, 2.0, 3.0, 10.0, 4.0, 5.0, 6.0, 20.0, 7.0, 8.0, 9.0, 30.0];
+        assert_eq!(matrix(&m), "((1, 4, 7, 0), (2, 5, 8, 0), (3, 6, 9, 0), (10, 20, 30, 1))");
+    }
+}
