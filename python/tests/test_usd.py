@@ -1,7 +1,8 @@
 """The bake's OpenUSD stage (`bake --usd`) read by Pixar's own library (usd-core): each joint's
 transform at each clip's every time sample, as UsdSkel computes it, is the bake's model texture
-(within 1e-5 of the model's extent), each clip chosen by the skeleton's variant set, and
-usdchecker's validators (UsdValidation) report no error. CI requires usd-core (`QUATCURVE_REQUIRE_USD=1`)."""
+(within 1e-5 of the model's extent), each clip chosen by the skeleton's variant set; each mesh
+skinned by UsdSkel is the bake's vertex texture; and usdchecker's validators (UsdValidation)
+report no error. CI requires usd-core (`QUATCURVE_REQUIRE_USD=1`)."""
 
 import importlib.util
 import json
@@ -20,7 +21,7 @@ if importlib.util.find_spec("pxr") is None:
         raise RuntimeError("QUATCURVE_REQUIRE_USD=1 but usd-core is not installed (pip install usd-core)")
     pytest.skip("usd-core is not installed (pip install usd-core)", allow_module_level=True)
 
-from pxr import Usd, UsdSkel, UsdValidation  # noqa: E402
+from pxr import Usd, UsdGeom, UsdSkel, UsdValidation, Vt  # noqa: E402
 
 
 def identifier(name, taken):
@@ -88,6 +89,38 @@ def hold(stage_path, sidecar, model_dir):
     assert not errors, [f"{e.GetName()}: {e.GetMessage()}" for e in errors]
 
 
+def hold_meshes(stage_path, sidecar, vertex_dir):
+    """Every mesh of the stage, skinned by UsdSkel at every clip's every time sample, is the
+    bake's vertex texture of its primitive (within 1e-5 of the skinned points' extent)."""
+    stage = Usd.Stage.Open(str(stage_path))
+    root = stage.GetDefaultPrim()
+    skeleton = UsdSkel.Skeleton(root.GetChild("Skeleton"))
+    taken = {"Skeleton", "Animations"}
+    names = [identifier(p["name"], taken) for p in sidecar["vertex"]["primitives"]]
+    assert names and all(root.GetChild(n).IsValid() for n in names), names
+    clips = skeleton.GetPrim().GetVariantSets().GetVariantSet("clip")
+    tcps = stage.GetTimeCodesPerSecond()
+    taken_clips = set()
+    for clip in sidecar["clips"]:
+        clips.SetVariantSelection(identifier(clip["name"], taken_clips))
+        cache = UsdSkel.Cache()
+        cache.Populate(UsdSkel.Root(root), Usd.PrimDefaultPredicate)
+        query = cache.GetSkelQuery(skeleton)
+        for k, name in enumerate(names):
+            mesh = root.GetChild(name)
+            skinning = cache.GetSkinningQuery(mesh)
+            rest = UsdGeom.Mesh(mesh).GetPointsAttr().Get()
+            expected = np.load(vertex_dir / clip["files"][k])[:, :, :3]
+            extent = np.ptp(expected.reshape(-1, 3), axis=0).max()
+            worst = 0.0
+            for f in range(clip["frames"]):
+                code = f / clip["rate"] * tcps
+                points = Vt.Vec3fArray(rest)
+                assert skinning.ComputeSkinnedPoints(query.ComputeSkinningTransforms(code), points, code)
+                worst = max(worst, np.abs(np.array(points) - expected[f]).max())
+            assert worst <= 1e-5 * extent, f"{clip['name']}, {name}: {worst} against an extent of {extent}"
+
+
 def test_the_crowd_s_stage_poses_as_its_model_texture_in_usd(tmp_path):
     stage, sidecar, model = bake_both(cli(), tmp_path, ["--characters", "3"], "crowd")
     hold(stage, sidecar, model)
@@ -99,6 +132,11 @@ def test_a_real_file_s_stage_poses_as_its_model_texture_in_usd(name, tmp_path):
     extra = ["--unit-cm", "5.644"] if name.endswith(".bvh") else []
     stage, sidecar, model = bake_both(cli(), tmp_path, ["--input", str(path), *extra], path.stem)
     hold(stage, sidecar, model)
+    if path.suffix == ".glb":
+        vertex = tmp_path / "vertex"
+        args = [str(cli()), "bake", "--input", str(path), "--texture", "vertex", "--output", str(vertex)]
+        subprocess.run(args, check=True, capture_output=True)
+        hold_meshes(stage, json.loads((vertex / f"{path.stem}.json").read_text()), vertex)
 
 
 def test_python_s_bake_writes_the_stage_the_cli_writes(tmp_path):

@@ -7,17 +7,23 @@ use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
 use quatcurve_anim::Animation;
 use quatcurve_eval::skeleton::{self, Affine};
+use quatcurve_formats::mesh::SkinnedPrimitive;
 use std::collections::HashSet;
 use std::fmt::Write;
 
+/// glTF's `mode` of a primitive of triangles.
+const TRIANGLES: u32 = 4;
+
 /// The stage of one input's bake, `name` its root prim: the skeleton at rest and bound as
 /// `animation`'s skins bind it, its joints in `order` (parents first, as UsdSkel wants them:
-/// [`Animation::parents_first`]), every clip of `baked` sampled at its frames, time codes
-/// `time_codes` a second and lengths in metres `metres_per_unit`.
+/// [`Animation::parents_first`]), the triangle primitives of `meshes` bound to it, every clip
+/// of `baked` sampled at its frames, time codes `time_codes` a second and lengths in metres
+/// `metres_per_unit`.
 #[must_use]
 pub fn stage(
     animation: &Animation,
     order: &[usize],
+    meshes: &[SkinnedPrimitive],
     baked: &Baked,
     name: &str,
     metres_per_unit: f64,
@@ -70,7 +76,14 @@ pub fn stage(
         }
         let _ = writeln!(s, "        }}");
     }
-    let _ = writeln!(s, "    }}\n\n    def Scope \"Animations\"\n    {{");
+    let _ = writeln!(s, "    }}\n");
+    let mut taken: HashSet<String> = ["Skeleton", "Animations"].map(String::from).into();
+    // glTF's triangles (mode 4); points, lines, strips and fans are not USD meshes.
+    for primitive in meshes.iter().filter(|p| p.mode == TRIANGLES) {
+        let skin_joints: Vec<&String> = animation.skins[primitive.skin].joints.iter().map(|&j| &paths[j]).collect();
+        mesh(&mut s, &root, primitive, &skin_joints, &mut taken);
+    }
+    let _ = writeln!(s, "    def Scope \"Animations\"\n    {{");
     for (c, clip) in clips.iter().enumerate() {
         let times = &baked.clips[c].times;
         let frames: Vec<usize> = (0..times.len()).collect();
@@ -109,6 +122,62 @@ pub fn stage(
     }
     let _ = writeln!(s, "    }}\n}}");
     s
+}
+
+/// One mesh primitive as a USD `Mesh` bound to the skeleton as glTF binds it: its bind-space
+/// points and normals, triangles, and per vertex its joints (indices into `skin_joints`, the
+/// skin's joints as the skeleton's paths) and weights; the geometry's bind transform the
+/// identity, its points being in bind space already.
+fn mesh(
+    s: &mut String,
+    root: &str,
+    primitive: &SkinnedPrimitive,
+    skin_joints: &[&String],
+    taken: &mut HashSet<String>,
+) {
+    let bind = &primitive.bind;
+    let name = identifier(&primitive.name, taken);
+    let triangles: Vec<u32> = match &primitive.indices {
+        Some(indices) => indices.clone(),
+        None => (0..bind.vertices() as u32).collect(),
+    };
+    let list = |values: &mut dyn Iterator<Item = String>| values.collect::<Vec<_>>().join(", ");
+    let point = |p: &[f64; 3]| format!("({}, {}, {})", p[0] as f32, p[1] as f32, p[2] as f32);
+    let _ = writeln!(s, "    def Mesh \"{name}\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]\n    )\n    {{");
+    let _ = writeln!(s, "        uniform token subdivisionScheme = \"none\"");
+    let _ = writeln!(s, "        point3f[] points = [{}]", list(&mut bind.positions.iter().map(point)));
+    if let Some(normals) = &bind.normals {
+        let _ = writeln!(
+            s,
+            "        normal3f[] normals = [{}] (\n            interpolation = \"vertex\"\n        )",
+            list(&mut normals.iter().map(point))
+        );
+    }
+    let _ = writeln!(
+        s,
+        "        int[] faceVertexCounts = [{}]",
+        list(&mut (0..triangles.len() / 3).map(|_| "3".to_string()))
+    );
+    let _ = writeln!(s, "        int[] faceVertexIndices = [{}]", list(&mut triangles.iter().map(u32::to_string)));
+    let n = bind.influences;
+    let _ = writeln!(
+        s,
+        "        int[] primvars:skel:jointIndices = [{}] (\n            elementSize = {n}\n            interpolation = \"vertex\"\n        )",
+        list(&mut bind.joints.iter().map(u32::to_string))
+    );
+    let _ = writeln!(
+        s,
+        "        float[] primvars:skel:jointWeights = [{}] (\n            elementSize = {n}\n            interpolation = \"vertex\"\n        )",
+        list(&mut bind.weights.iter().map(|&w| (w as f32).to_string()))
+    );
+    let identity = matrix(&[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let _ = writeln!(s, "        matrix4d primvars:skel:geomBindTransform = {identity}");
+    let _ = writeln!(
+        s,
+        "        uniform token[] skel:joints = [{}]",
+        list(&mut skin_joints.iter().map(|p| format!("\"{p}\"")))
+    );
+    let _ = writeln!(s, "        rel skel:skeleton = </{root}/Skeleton>\n    }}\n");
 }
 
 /// A 3x4 row-major matrix (column vectors) as USD's `matrix4d` (row vectors: the transpose,
