@@ -733,18 +733,22 @@ mod tests {
         Animation { joints, clips: vec![Clip { name: "wave".into(), channels: vec![turn] }], skins: Vec::new() }
     }
 
+    /// The source's curves, no loop, f32, on `device`, for a texture of `kind`.
+    fn setting(kind: TextureKind, device: &Device) -> Setting<'_> {
+        Setting {
+            curve: &CurveChoice::Source,
+            looping: LoopMode::Off,
+            kind,
+            precision: Precision::F32,
+            device,
+            measuring: &|_, _| {},
+        }
+    }
+
     #[test]
     fn a_flipped_key_is_left_out_of_a_budget_not_chased_with_a_higher_rate() {
         let device = Device::open(quatcurve_device::DeviceChoice::Cpu).unwrap();
-        let curve = CurveChoice::Source;
-        let setting = Setting {
-            curve: &curve,
-            looping: LoopMode::Off,
-            kind: TextureKind::Local,
-            precision: Precision::F32,
-            device: &device,
-            measuring: &|_, _| {},
-        };
+        let setting = setting(TextureKind::Local, &device);
         let budget = ErrorBudget { degrees: Some(0.5), centimetres: None, unit_cm: 1000.0, max_rate: 480.0 };
         let [clean, flipped] =
             [false, true].map(|flip| choose_rates(&arm(flip), &budget, &setting).unwrap()[0].clone());
@@ -775,15 +779,7 @@ mod tests {
     #[test]
     fn the_truth_composed_in_quaternions_is_the_bake_s_rows_and_skins_are_measured_as_one() {
         let device = Device::open(quatcurve_device::DeviceChoice::Cpu).unwrap();
-        let curve = CurveChoice::Source;
-        let setting = Setting {
-            curve: &curve,
-            looping: LoopMode::Off,
-            kind: TextureKind::SkinTrs,
-            precision: Precision::F32,
-            device: &device,
-            measuring: &|_, _| {},
-        };
+        let setting = setting(TextureKind::SkinTrs, &device);
         let animation = skinned_arm();
         let measure = Measure::new(&animation, 0, &setting, 100.0).unwrap();
         assert_eq!(measure.joints, [0, 1, 1], "each joint and bind once");
