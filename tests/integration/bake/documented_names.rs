@@ -69,6 +69,7 @@ const TABLE: &[Documented] = &[
     ("docs/BAKING.md", "`--usd` also writes", "<stem>.usda", "CesiumMan.glb", &["--usd"]),
     ("docs/DESIGN.md", "- **OpenUSD** (`--usd`)", "<stem>.usda", "CesiumMan.glb", &["--usd"]),
     ("docs/ENGINES.md", "`bake --usd` writes", "<stem>.usda", "Fox.glb", &["--usd"]),
+    ("README.md", "`--usd` also writes", "<stem>.usda", "CesiumMan.glb", &["--usd"]),
 ];
 
 /// Whether `file` is a name of `pattern` for an input of stem `stem`: `<stem>` and `<name>`
