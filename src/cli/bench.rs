@@ -185,16 +185,13 @@ impl PreparedBelow {
     }
 
     /// The line under the table that explains the mark.
-    fn explained(self) -> &'static str {
-        match self {
-            Self::WithinSpread => "~ prepared below end to end within the runs' spread (their ranges overlap): noise",
-            Self::OutsideSpread => {
-                "! prepared below end to end outside the runs' spread: not this run's noise; run again"
-            }
-            Self::NotInTurns => {
-                "? prepared below end to end, its pieces not timed in turns with it: no spread to tell by"
-            }
-        }
+    fn explained(self) -> String {
+        let why = match self {
+            Self::WithinSpread => "within the runs' spread (their ranges overlap): noise",
+            Self::OutsideSpread => "outside the runs' spread: not this run's noise; run again",
+            Self::NotInTurns => "its pieces not timed in turns with it: no spread to tell by",
+        };
+        format!("{} prepared below end to end, {why}", self.mark())
     }
 }
 

@@ -572,20 +572,18 @@ impl BakeJob {
         let slerped = self.options.choice(src) == CurveChoice::Source;
         let baked_file =
             src.write_back(&baked.frames(), slerped)?.map(|file| (format!("{stem}.{}", file.extension), file.bytes));
-        let usd_file = match self.options.usd {
-            true => {
-                // The meshes a skin draws, as a vertex texture reads them (none without a skin).
-                let read = match (vertex, src.gltf()) {
-                    (Some(_), _) => Vec::new(),
-                    (None, Some(file)) if !animation.skins.is_empty() => mesh::skinned_primitives(file)?.primitives,
-                    (None, _) => Vec::new(),
-                };
-                let meshes = vertex.map_or(&read[..], |v| &v.primitives[..]);
-                let metres = self.options.unit_cm.unwrap_or(quatcurve_anim::GLTF_UNIT_CM) / 100.0;
-                let stage = super::usd::stage(animation, &order, meshes, baked, stem, metres, self.options.rate);
-                Some((format!("{stem}.usda"), stage.into_bytes()))
-            }
-            false => None,
+        let usd_file = if self.options.usd {
+            // The meshes a skin draws, as a vertex texture reads them (none without a skin).
+            let read = match (vertex, src.gltf()) {
+                (None, Some(file)) if !animation.skins.is_empty() => mesh::skinned_primitives(file)?.primitives,
+                _ => Vec::new(),
+            };
+            let meshes = vertex.map_or(&read[..], |v| &v.primitives[..]);
+            let metres = self.options.unit_cm.unwrap_or(quatcurve_anim::GLTF_UNIT_CM) / 100.0;
+            let stage = super::usd::stage(animation, &order, meshes, baked, stem, metres, self.options.rate);
+            Some((format!("{stem}.usda"), stage.into_bytes()))
+        } else {
+            None
         };
         let mesh_file = match vertex {
             Some(vertex) => Some((
