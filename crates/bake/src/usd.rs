@@ -88,36 +88,34 @@ pub fn stage(
         let times = &baked.clips[c].times;
         let frames: Vec<usize> = (0..times.len()).collect();
         let rows = texture::local_rows(animation, baked, c, &frames);
-        let per_frame = |f: &dyn Fn(&[f32]) -> String| -> String {
-            rows.chunks_exact(animation.joints.len() * LOCAL_CHANNELS)
-                .zip(times)
-                .map(|(frame, t)| {
-                    let values: Vec<String> =
-                        order.iter().map(|&j| f(&frame[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS])).collect();
-                    format!("            {}: [{}],", (t - times[0]) * time_codes, values.join(", "))
+        // An attribute the same at every frame (every joint's scale, most often) is written
+        // once, as its value at all times, not once a frame.
+        let attribute = |kind: &str, f: &dyn Fn(&[f32]) -> String| -> String {
+            let frames: Vec<String> = rows
+                .chunks_exact(animation.joints.len() * LOCAL_CHANNELS)
+                .map(|frame| {
+                    let values = order.iter().map(|&j| f(&frame[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]));
+                    values.collect::<Vec<_>>().join(", ")
                 })
-                .collect::<Vec<_>>()
-                .join("\n")
+                .collect();
+            if frames.windows(2).all(|w| w[0] == w[1]) {
+                return format!("            {kind} = [{}]", frames.first().map_or("", String::as_str));
+            }
+            let samples: Vec<String> = frames
+                .iter()
+                .zip(times)
+                .map(|(values, t)| format!("                {}: [{values}],", (t - times[0]) * time_codes))
+                .collect();
+            format!("            {kind}.timeSamples = {{\n{}\n            }}", samples.join("\n"))
         };
         let _ = writeln!(
             s,
             "        def SkelAnimation \"{clip}\"\n        {{\n            uniform token[] joints = [{tokens}]"
         );
-        let _ = writeln!(
-            s,
-            "            quatf[] rotations.timeSamples = {{\n{}\n            }}",
-            per_frame(&|r| format!("({}, {}, {}, {})", r[3], r[0], r[1], r[2]))
-        );
-        let _ = writeln!(
-            s,
-            "            float3[] translations.timeSamples = {{\n{}\n            }}",
-            per_frame(&|r| format!("({}, {}, {})", r[4], r[5], r[6]))
-        );
-        let _ = writeln!(
-            s,
-            "            half3[] scales.timeSamples = {{\n{}\n            }}",
-            per_frame(&|r| format!("({}, {}, {})", r[7], r[8], r[9]))
-        );
+        let _ =
+            writeln!(s, "{}", attribute("quatf[] rotations", &|r| format!("({}, {}, {}, {})", r[3], r[0], r[1], r[2])));
+        let _ = writeln!(s, "{}", attribute("float3[] translations", &|r| format!("({}, {}, {})", r[4], r[5], r[6])));
+        let _ = writeln!(s, "{}", attribute("half3[] scales", &|r| format!("({}, {}, {})", r[7], r[8], r[9])));
         let _ = writeln!(s, "        }}");
     }
     let _ = writeln!(s, "    }}\n}}");
