@@ -226,8 +226,6 @@ pub const WINDOW_FRAMES: usize = 512;
 
 /// One clip's measure, its curves built once for every rate the search tries.
 struct Measure<'a> {
-    animation: &'a Animation,
-    clip: usize,
     /// The clip alone, its skins one ([`only`]): one sheet, its columns `joints`.
     one: Animation,
     order: Vec<usize>,
@@ -293,8 +291,6 @@ impl<'a> Measure<'a> {
             _ => Vec::new(),
         };
         Ok(Self {
-            animation,
-            clip,
             one,
             order,
             joints,
@@ -383,7 +379,7 @@ impl<'a> Measure<'a> {
         let (dense, dense_rate) = clip_frame_grid(start, end, ClipRate::Fit(fitted * points as f64), self.looping)?;
         let substeps = (dense.count() - 1) / intervals;
         if substeps * intervals != dense.count() - 1 {
-            let (clip, frames) = (self.animation.clips[self.clip].name.clone(), dense.count());
+            let (clip, frames) = (self.one.clips[0].name.clone(), dense.count());
             return Err(InputError::from(InternalError::Grid { clip, frames, substeps: points, intervals }).into());
         }
         let TrackTimes::Uniform { step, .. } = dense else { unreachable!("a fitted grid is uniform") };
@@ -404,7 +400,7 @@ impl<'a> Measure<'a> {
         let worst = windows.into_iter().fold(Worsts::default(), Worsts::then);
         let named = |(value, column, time): (f64, usize, f64)| Worst {
             value,
-            joint: self.animation.joints[self.joints[column]].name.clone(),
+            joint: self.one.joints[self.joints[column]].name.clone(),
             time: time - start,
         };
         if let Some(w) = worst.rotation {
