@@ -3,7 +3,9 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::formats::bvh;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::bake;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {
@@ -16,7 +18,7 @@ fuzz_target!(|bytes: &[u8]| {
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     if let Ok(baked) = bake::bake(
         &animation,
-        &CurveSpec::new(Curve::BSplineInterp),
+        &CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
         bake::ClipRate::Fit(10.0),
         LoopMode::Auto,
         &device,

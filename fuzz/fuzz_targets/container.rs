@@ -4,7 +4,9 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::formats::bvh;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::bake;
 use quatcurve::qcf::decoder::Decoder;
 use quatcurve::qcf::Container;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
@@ -14,7 +16,8 @@ fuzz_target!(|bytes: &[u8]| {
     let mut bytes = bytes.to_vec();
     quatcurve::qcf::reseal(&mut bytes);
     if let Ok(decoder) = Decoder::from_bytes(&bytes) {
-        for mut clip in decoder.clips {
+        for index in 0..decoder.clips().len() {
+            let Ok(mut clip) = decoder.open(index) else { continue };
             let [start, end] = clip.span();
             let mut pose = vec![0.0; clip.pose_floats()];
             for i in -2..=14 {
@@ -30,7 +33,7 @@ fuzz_target!(|bytes: &[u8]| {
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     if let Ok(baked) = bake::bake(
         &animation,
-        &CurveSpec::new(Curve::BSplineInterp),
+        &CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
         bake::ClipRate::Fit(10.0),
         LoopMode::Auto,
         &device,

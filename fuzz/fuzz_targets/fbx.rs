@@ -4,7 +4,9 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::formats::fbx;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::bake;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {
@@ -14,7 +16,7 @@ fuzz_target!(|bytes: &[u8]| {
         return;
     }
     let device = Device::open(DeviceChoice::Cpu).unwrap();
-    let spec = CurveSpec::new(Curve::BSplineInterp);
+    let spec = CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp));
     if let Ok(baked) = bake::bake(&file.animation, &spec, bake::ClipRate::Fit(10.0), LoopMode::Auto, &device) {
         let _ = file.to_glb(&baked.frames());
         if let Ok(order) = file.animation.parents_first() {

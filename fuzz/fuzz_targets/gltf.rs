@@ -4,7 +4,9 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::formats::gltf;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::bake;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 use std::path::Path;
 
@@ -15,7 +17,7 @@ fuzz_target!(|bytes: &[u8]| {
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     if let Ok(baked) = bake::bake(
         &file.animation,
-        &CurveSpec::new(Curve::BSplineInterp),
+        &CurveChoice::Family(CurveSpec::new(Curve::BSplineInterp)),
         bake::ClipRate::Fit(10.0),
         LoopMode::Auto,
         &device,

@@ -4,7 +4,9 @@
 
 use libfuzzer_sys::fuzz_target;
 use quatcurve::formats::smpl;
-use quatcurve::bake::{self, LoopMode};
+use quatcurve::anim::loops::LoopMode;
+use quatcurve::anim::curves::CurveChoice;
+use quatcurve::bake;
 use quatcurve::{Curve, CurveSpec, Device, DeviceChoice};
 
 fuzz_target!(|bytes: &[u8]| {
@@ -12,8 +14,8 @@ fuzz_target!(|bytes: &[u8]| {
     let animation = file.animation("clip");
     let device = Device::open(DeviceChoice::Cpu).unwrap();
     if let Ok(baked) =
-        bake::bake(&animation, &CurveSpec::new(Curve::Slerp), bake::ClipRate::Fit(10.0), LoopMode::Auto, &device)
+        bake::bake(&animation, &CurveChoice::Family(CurveSpec::new(Curve::Slerp)), bake::ClipRate::Fit(10.0), LoopMode::Auto, &device)
     {
-        let _ = file.to_npz(&baked.frames()[0]);
+        let _ = file.to_npz(&baked.frames()[0], false);
     }
 });

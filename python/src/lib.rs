@@ -457,8 +457,9 @@ fn decode_container<'py>(
     let decoder = Decoder::from_bytes(&bytes).map_err(|e| failed(&format!("fitted container {e}")))?;
     let names = decoder.joints.iter().map(|j| j.name.clone()).collect();
     let parents = decoder.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i64)).collect();
-    let mut clips = Vec::with_capacity(decoder.clips.len());
-    for mut clip in decoder.clips {
+    let mut clips = Vec::with_capacity(decoder.clips().len());
+    for index in 0..decoder.clips().len() {
+        let mut clip = decoder.open(index).map_err(|e| failed(&format!("fitted container {e}")))?;
         let [start, end] = clip.span();
         let (grid, _) = fitted_frame_grid(start, end, rate.unwrap_or(clip.rate)).map_err(|e| failed(&e))?;
         let times = grid_times(grid);
@@ -467,7 +468,7 @@ fn decode_container<'py>(
         py.detach(|| clip.poses(&times, &mut poses)).map_err(|e| failed(&e))?;
         let frames = times.len();
         let poses = PyArray1::from_vec(py, poses).reshape([frames, width])?.into_any();
-        clips.push((clip.name, PyArray1::from_vec(py, times).into_any(), poses));
+        clips.push((clip.name.to_string(), PyArray1::from_vec(py, times).into_any(), poses));
     }
     Ok((names, parents, clips))
 }

@@ -10,7 +10,7 @@ use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::loops::LoopMode;
 use quatcurve::anim::Animation;
 use quatcurve::bake::{self, ClipRate, Reuse};
-use quatcurve::qcf::decoder::{ClipDecoder, Decoder};
+use quatcurve::qcf::decoder::{Clip, ClipDecoder, Decoder};
 use quatcurve::qcf::Container;
 use quatcurve::{Device, DeviceChoice};
 use serde::Serialize;
@@ -30,15 +30,20 @@ pub struct FittedReport {
     bone_poses: usize,
     runs: usize,
     acl_ns_per_bone_pose: [f64; 2],
-    /// Reading the containers' bytes, once per copy: before any decode.
+    /// Reading the containers' bytes into the model a bake starts from, once per copy.
     load: FittedLoad,
-    /// The runtime's way: from the bytes to every frame's local poses in order, one thread.
+    /// Checking a container whole before its clips are opened (every field, code and the
+    /// checksum), once per copy: what a player pays once per file it loads.
+    check: FittedLoad,
+    /// The runtime's way: each clip opened from the checked bytes, then every frame's local
+    /// pose in order, one thread.
     decoder: FittedLoad,
-    /// A decoded clip played again: every frame's local poses in order from the control
-    /// points a player kept, one thread.
-    replay: FittedLoad,
-    /// What the kept decoded clips hold in memory, per bone-pose of one play.
-    decoded_bytes_per_bone_pose: f64,
+    /// Opening a clip alone, microseconds a clip (the median of the runs).
+    open_us_per_clip: f64,
+    /// What the runtime decoder holds: the containers' bytes, per bone-pose of one copy.
+    held_bytes_per_bone_pose: f64,
+    /// What one clip being decoded holds besides them (its cursors and pose), the largest.
+    state_bytes_per_clip: usize,
     results: Vec<FittedTiming>,
 }
 
@@ -153,40 +158,54 @@ pub fn measure(
         }
         Ok(())
     })?;
-    // The runtime's way ([`Decoder`]): each copy read from its bytes, then every frame's local
-    // pose in order into one pose buffer, as a player keeps one.
-    let mut pose = Vec::new();
-    let decoder_seconds = median_seconds(runs, || {
+    // The runtime's way ([`Decoder`]): each container checked once, as a player loads a file;
+    // then each copy of each clip opened and every frame's local pose decoded in order into
+    // one pose buffer, as a player keeps one.
+    let check_seconds = median_seconds(runs, || {
         for bytes in &files_bytes {
             for _ in 0..copies {
-                let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
-                for mut clip in decoder.clips {
-                    let times = frame_times(&clip)?;
-                    play(&mut clip, &times, &mut pose)?;
-                }
+                std::hint::black_box(Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?);
             }
         }
         Ok(())
     })?;
-    // A decoded clip played again: each copy decoded once beforehand and kept, as a player that
-    // keeps its clips does, then every frame's pose in order; the memory it keeps is the price.
-    let mut kept = Vec::new();
-    for bytes in &files_bytes {
+    let decoders = files_bytes
+        .iter()
+        .map(|bytes| Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string())))
+        .collect::<Result<Vec<_>, _>>()?;
+    let clips: Vec<(&Decoder, usize, Vec<f64>)> = decoders
+        .iter()
+        .flat_map(|decoder| (0..decoder.clips().len()).map(move |index| (decoder, index)))
+        .map(|(decoder, index)| Ok((decoder, index, frame_times(&decoder.clips()[index])?)))
+        .collect::<Result<_, Failure>>()?;
+    let mut pose = Vec::new();
+    let decoder_seconds = median_seconds(runs, || {
         for _ in 0..copies {
-            let decoder = Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string()))?;
-            for clip in decoder.clips {
-                let times = frame_times(&clip)?;
-                kept.push((clip, times));
+            for (decoder, index, times) in &clips {
+                play(&mut open(decoder, *index)?, times, &mut pose)?;
             }
         }
+        Ok(())
+    })?;
+    let open_seconds = median_seconds(runs, || {
+        for _ in 0..copies {
+            for (decoder, index, _) in &clips {
+                std::hint::black_box(open(decoder, *index)?);
+            }
+        }
+        Ok(())
+    })?;
+    let mut state_bytes = 0;
+    for (decoder, index, _) in &clips {
+        state_bytes = state_bytes.max(open(decoder, *index)?.state_bytes());
     }
-    let decoded_bytes: usize = kept.iter().map(|(clip, _)| clip.heap_bytes()).sum();
-    let replay_seconds =
-        median_seconds(runs, || kept.iter_mut().try_for_each(|(clip, times)| play(clip, times, &mut pose)))?;
+    let held: usize = decoders.iter().map(Decoder::bytes).sum();
     Ok(FittedReport {
-        replay: FittedLoad::of(replay_seconds, bone_poses),
-        decoded_bytes_per_bone_pose: decoded_bytes as f64 / bone_poses as f64,
+        check: FittedLoad::of(check_seconds, bone_poses),
         decoder: FittedLoad::of(decoder_seconds, bone_poses),
+        open_us_per_clip: open_seconds * 1e6 / (copies * clips.len()) as f64,
+        held_bytes_per_bone_pose: (held * copies) as f64 / bone_poses as f64,
+        state_bytes_per_clip: state_bytes,
         load: FittedLoad::of(load_seconds, bone_poses),
         files: files.iter().map(|f| f.display().to_string()).collect(),
         copies,
@@ -199,11 +218,16 @@ pub fn measure(
     })
 }
 
-/// A decoded clip's frame times at its source rate, as a bake of it takes them.
-fn frame_times(clip: &ClipDecoder) -> Result<Vec<f64>, Failure> {
-    let [start, end] = clip.span();
+/// A clip's frame times at its source rate, as a bake of it takes them.
+fn frame_times(clip: &Clip) -> Result<Vec<f64>, Failure> {
+    let [start, end] = clip.span;
     let (grid, _) = bake::fitted_frame_grid(start, end, clip.rate).map_err(|e| Failure::Internal(e.to_string()))?;
     Ok(bake::grid_times(grid))
+}
+
+/// Clip `index` of `decoder` opened.
+fn open(decoder: &Decoder, index: usize) -> Result<ClipDecoder<'_>, Failure> {
+    decoder.open(index).map_err(|e| Failure::Internal(e.to_string()))
 }
 
 /// Every pose of `clip` at `times`, in order, into one pose buffer as a player keeps one.
@@ -238,13 +262,19 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
     )?;
     writeln!(
         w,
-        "the runtime decoder (bytes to every frame's local poses in order, one thread): {:.4} s, {:.2} ns a bone-pose",
-        report.decoder.seconds, report.decoder.ns_per_bone_pose
+        "checking the containers (every field and code, once a file, one thread): {:.4} s, {:.2} ns a bone-pose",
+        report.check.seconds, report.check.ns_per_bone_pose
     )?;
     writeln!(
         w,
-        "a decoded clip played again (its control points kept, {:.1} bytes a bone-pose): {:.4} s, {:.2} ns a bone-pose",
-        report.decoded_bytes_per_bone_pose, report.replay.seconds, report.replay.ns_per_bone_pose
+        "the runtime decoder (each clip opened, then every frame's local pose in order, one thread): {:.4} s, {:.2} ns \
+         a bone-pose; opening {:.2} us a clip; it holds the containers ({:.2} bytes a bone-pose) and up to {} bytes a \
+         clip being decoded",
+        report.decoder.seconds,
+        report.decoder.ns_per_bone_pose,
+        report.open_us_per_clip,
+        report.held_bytes_per_bone_pose,
+        report.state_bytes_per_clip
     )?;
     writeln!(w, "baking them:")?;
     writeln!(w, "{:<44} {:>8} {:>22} {:>14} {:>12}", "device", "threads", "s min-med-max", "poses/s", "ns/bone-pose")?;

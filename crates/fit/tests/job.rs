@@ -35,8 +35,8 @@ fn a_fitted_container_decodes_to_poses_within_the_budget_of_its_source_frames() 
     assert!(fitted.at_frames.error_cm <= options.max_error_cm, "{fitted:?}");
 
     let container = std::fs::read(dir.path().join("out/arm.qcf")).unwrap();
-    let mut decoder = Decoder::from_bytes(&container).unwrap();
-    let clip = &mut decoder.clips[0];
+    let decoder = Decoder::from_bytes(&container).unwrap();
+    let clip = &mut decoder.open(0).unwrap();
     let source = Source::read(&input, ReadOptions::default()).unwrap();
     let keys = source.animation().clips[0].channels.iter().find(|c| c.joint == 1).unwrap().keyed().unwrap();
     let mut pose = vec![0.0f32; clip.pose_floats()];

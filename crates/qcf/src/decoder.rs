@@ -1,13 +1,19 @@
 //! The fitted clip decoded as a runtime decodes it (DESIGN section 16): local poses at times
-//! taken in order, in f32, from per-channel cursors that step from span to span. What a span
-//! needs that does not depend on the time (its knot offsets, the basis's reciprocals, its
-//! control points, sign-aligned) is computed once when a cursor enters it, so a sample costs
-//! a cubic's basis and weighted sum, or two sines; no batch is built and no logarithm taken.
-//! It is a fourth evaluator of the fitted families beside the CPU path, the reference and the
-//! GPU, held to the reference by tests ([`super::fitted::Fitted::at`]).
+//! taken in order, in f32, straight from the container's bytes. A [`Decoder`] checks a
+//! container once and keeps its bytes; opening a clip reads its channels' fields and nothing
+//! else, and each curve's cursor reads its knots and control points from their packed
+//! streams as it steps onto them. What a span needs that does not depend on the time (its knot
+//! offsets, the basis's reciprocals, its control points, sign-aligned) is computed once when a
+//! cursor enters it, so a sample costs a cubic's basis and weighted sum, or two sines; no
+//! batch is built and no logarithm taken. It is a fourth evaluator of the fitted families
+//! beside the CPU path, the reference and the GPU, held to the reference by tests
+//! ([`super::fitted::Fitted::at`]).
 
-use super::fitted::{knot_times, source_rate, Form, KEYS_ORDER, ORDER};
-use super::{Stored, StoredClip, StoredCurve};
+use super::fitted::{source_rate, Form, ORDER};
+use super::packed::{FixedCodes, FixedKnots};
+use super::quantize::{rotation, step, value};
+use super::timeline::KeyTimes;
+use super::{least_delta, runtime_clips, Channel, ChannelFields, CurveFields, Largest, Reader, Stored};
 use quatcurve_anim::error::ContainerError;
 use quatcurve_anim::{Joint, Property};
 
@@ -24,14 +30,33 @@ fn slot(joint: usize, property: Property) -> usize {
         }
 }
 
-/// A container's clips ready to decode, read from its bytes: each curve's codes decoded once
-/// into f32 control points, in order, with nothing else built.
+/// A container's clips ready to open: every field and code checked once, then each clip's
+/// timelines and channels kept as the container stores them but for their knots' and codes'
+/// packing, fixed widths instead of Rice codes ([`super::runtime_clips`]): a few percent more
+/// bytes, read without each value waiting on the one before it. That is all a clip is decoded
+/// from.
 #[derive(Clone, Debug)]
 pub struct Decoder {
     /// The skeleton at rest, parents by index: what the poses' joints are.
     pub joints: Vec<Joint>,
-    /// One per clip, in the container's order.
-    pub clips: Vec<ClipDecoder>,
+    /// Every joint's rest pose, [`POSE_FLOATS`] a joint.
+    rest: Vec<f32>,
+    clips: Vec<Clip>,
+    /// Every clip's body, at fixed widths.
+    bytes: Vec<u8>,
+}
+
+/// One clip of a [`Decoder`].
+#[derive(Clone, Debug)]
+pub struct Clip {
+    /// The source clip's name.
+    pub name: String,
+    /// The source's frames a second ([`super::fitted::FittedClip::source_rate`]).
+    pub rate: f64,
+    /// The clip's first and last key times, seconds.
+    pub span: [f64; 2],
+    /// Where its body starts in the decoder's bytes.
+    body: usize,
 }
 
 impl Decoder {
@@ -42,108 +67,144 @@ impl Decoder {
     /// range, or a checksum that does not match.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ContainerError> {
         let stored = Stored::from_bytes(bytes)?;
-        let clips = stored.clips.into_iter().map(|clip| ClipDecoder::new(&stored.joints, clip)).collect();
-        Ok(Self { joints: stored.joints, clips })
+        let rest = stored
+            .joints
+            .iter()
+            .flat_map(|joint| joint.rotation.iter().chain(&joint.translation).chain(&joint.scale))
+            .map(|&v| v as f32)
+            .collect();
+        let (bytes, bodies) = runtime_clips(&stored.clips);
+        let clips = stored
+            .clips
+            .iter()
+            .zip(bodies)
+            .map(|(clip, body)| Clip {
+                name: clip.name.clone(),
+                rate: source_rate(&clip.timelines),
+                span: clip.span,
+                body,
+            })
+            .collect();
+        Ok(Self { joints: stored.joints, rest, clips, bytes })
+    }
+
+    /// The clips, in the container's order.
+    #[must_use]
+    pub fn clips(&self) -> &[Clip] {
+        &self.clips
+    }
+
+    /// Bytes the decoder holds for its clips: their bodies and the rest pose (the joints'
+    /// names, read into [`Self::joints`], besides).
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.bytes.len() + std::mem::size_of_val(&self.rest[..])
+    }
+
+    /// Clip `index` at its start: its channels' fields read, each curve's cursor before its
+    /// first span.
+    ///
+    /// # Errors
+    /// `index` is not one of the clips.
+    pub fn open(&self, index: usize) -> Result<ClipDecoder<'_>, ContainerError> {
+        let clip = self.clips.get(index).ok_or_else(|| ContainerError {
+            offset: 0,
+            field: format!("clip {index}"),
+            reason: format!("not one of the container's {} clips", self.clips.len()),
+        })?;
+        let mut r = Reader { bytes: &self.bytes, at: clip.body };
+        let timelines = r.timelines(&clip.name, false)?;
+        let count = r.channel_count(&clip.name)?;
+        let mut decoder = ClipDecoder {
+            name: &clip.name,
+            rate: clip.rate,
+            span: clip.span,
+            fixed: self.rest.clone(),
+            // Room for every channel in each: a vector grown push by push moved its cursors
+            // again and again, a third of opening a clip.
+            cubic_rotations: Vec::with_capacity(count),
+            cubic_vectors: Vec::with_capacity(count),
+            slerps: Vec::with_capacity(count),
+            lerps: Vec::with_capacity(count),
+        };
+        for index in 0..count {
+            let field = Channel { clip: &clip.name, index, joint: None };
+            let (joint, property, fields) = r.channel(field, &self.joints, &timelines)?;
+            let at = slot(joint, property);
+            match fields {
+                ChannelFields::Constant(v) => {
+                    let n = if property == Property::Rotation { 4 } else { 3 };
+                    decoder.fixed[at..at + n].iter_mut().zip(v).for_each(|(o, v)| *o = v as f32);
+                }
+                ChannelFields::Curve(curve, largest) => {
+                    let times = timelines[curve.line];
+                    let bytes = &self.bytes[..];
+                    match (largest, curve.form) {
+                        (Some(largest), Form::Cubic) => {
+                            let points = Ahead::new(Rotations::new(bytes, &curve, largest));
+                            decoder.cubic_rotations.push(Cubic::new(at, bytes, times, &curve, points));
+                        }
+                        (Some(largest), Form::Keys) => {
+                            let points = Ahead::new(Rotations::new(bytes, &curve, largest));
+                            decoder.slerps.push(Slerp { keys: Keys::new(at, bytes, times, &curve, points), arc: None });
+                        }
+                        (None, Form::Cubic) => {
+                            decoder.cubic_vectors.push(Cubic::new(
+                                at,
+                                bytes,
+                                times,
+                                &curve,
+                                Ahead::new(Vectors::new(bytes, &curve)),
+                            ));
+                        }
+                        (None, Form::Keys) => {
+                            let keys = Keys::new(at, bytes, times, &curve, Ahead::new(Vectors::new(bytes, &curve)));
+                            decoder.lerps.push(Lerp { keys });
+                        }
+                    }
+                }
+            }
+        }
+        Ok(decoder)
     }
 }
 
-/// One fitted clip ready to decode: its rest-and-constant pose, and a cursor per curve.
+/// One fitted clip being decoded: its rest-and-constant pose, and a cursor per curve on the
+/// container's bytes.
 #[derive(Clone, Debug)]
-pub struct ClipDecoder {
+pub struct ClipDecoder<'a> {
     /// The source clip's name.
-    pub name: String,
+    pub name: &'a str,
     /// The source's frames a second ([`super::fitted::FittedClip::source_rate`]).
     pub rate: f64,
     /// The clip's first and last key times.
     span: [f64; 2],
     /// Every joint's rest pose with the clip's constant channels written over it.
     fixed: Vec<f32>,
-    cubic_rotations: Vec<Cubic<4>>,
-    cubic_vectors: Vec<Cubic<3>>,
-    slerps: Vec<Slerp>,
-    lerps: Vec<Lerp>,
+    cubic_rotations: Vec<Cubic<'a, Ahead<Rotations<'a>, 4>, 4>>,
+    cubic_vectors: Vec<Cubic<'a, Ahead<Vectors<'a>, 3>, 3>>,
+    slerps: Vec<Slerp<'a>>,
+    lerps: Vec<Lerp<'a>>,
 }
 
-impl ClipDecoder {
-    /// A stored clip of a container of `joints`.
-    fn new(joints: &[Joint], clip: StoredClip) -> Self {
-        let mut fixed: Vec<f32> = Vec::with_capacity(joints.len() * POSE_FLOATS);
-        for joint in joints {
-            let pose = joint.rotation.iter().chain(&joint.translation).chain(&joint.scale);
-            fixed.extend(pose.map(|&v| v as f32));
-        }
-        let mut decoder = Self {
-            name: clip.name,
-            rate: source_rate(&clip.timelines),
-            span: clip.span,
-            fixed,
-            cubic_rotations: Vec::new(),
-            cubic_vectors: Vec::new(),
-            slerps: Vec::new(),
-            lerps: Vec::new(),
-        };
-        for channel in clip.channels {
-            let at = slot(channel.joint, channel.property);
-            match channel.curve {
-                StoredCurve::Constant(v) => {
-                    let n = if channel.property == Property::Rotation { 4 } else { 3 };
-                    decoder.fixed[at..at + n].iter_mut().zip(v).for_each(|(o, v)| *o = v as f32);
-                }
-                StoredCurve::Rotation(line, form, knots, codes) => {
-                    // Each control point on the side of the one before it, as the batch packs
-                    // them: the sign flips where a point's dot with the one before, as decoded,
-                    // is negative, so that no point waits for the one before it to be aligned.
-                    let mut points: Vec<[f32; 4]> = Vec::with_capacity(codes.largest.len());
-                    let (mut previous, mut sign) = ([0.0f64; 4], 1.0f64);
-                    for q in codes.decoded() {
-                        let q = q.to_array();
-                        let dot = q[0] * previous[0] + q[1] * previous[1] + q[2] * previous[2] + q[3] * previous[3];
-                        if dot < 0.0 {
-                            sign = -sign;
-                        }
-                        previous = q;
-                        points.push(q.map(|v| (sign * v) as f32));
-                    }
-                    let knots = knot_times(&clip.timelines, line, form, &knots);
-                    match form {
-                        Form::Cubic => decoder.cubic_rotations.push(Cubic::new(at, knots, points)),
-                        Form::Keys => decoder.slerps.push(Slerp { keys: Keys::new(at, knots), points, arc: None }),
-                    }
-                }
-                StoredCurve::Vector(line, form, knots, codes) => {
-                    let points = codes.decoded().map(|p| p.map(|v| v as f32)).collect();
-                    let knots = knot_times(&clip.timelines, line, form, &knots);
-                    match form {
-                        Form::Cubic => decoder.cubic_vectors.push(Cubic::new(at, knots, points)),
-                        Form::Keys => decoder.lerps.push(Lerp { keys: Keys::new(at, knots), points }),
-                    }
-                }
-            }
-        }
-        decoder
-    }
-
+impl ClipDecoder<'_> {
     /// Floats of one pose: [`POSE_FLOATS`] per joint.
     #[must_use]
     pub fn pose_floats(&self) -> usize {
         self.fixed.len()
     }
 
-    /// Bytes the decoded clip holds on the heap (its control points and knot times, its
-    /// cursors and fixed pose): what a player that keeps it to play it again pays in memory
-    /// for not reading its codes again.
+    /// Bytes this decoding holds besides the container's: its fixed pose and its cursors
+    /// (each a span's knots and control points and where its streams are), what every clip
+    /// played at once costs.
     #[must_use]
-    pub fn heap_bytes(&self) -> usize {
+    pub fn state_bytes(&self) -> usize {
         use std::mem::size_of_val as size;
-        let rotations: usize = self.cubic_rotations.iter().map(|c| size(&c.knots[..]) + size(&c.points[..])).sum();
-        let vectors: usize = self.cubic_vectors.iter().map(|c| size(&c.knots[..]) + size(&c.points[..])).sum();
-        let slerps: usize = self.slerps.iter().map(|s| size(&s.keys.knots[..]) + size(&s.points[..])).sum();
-        let lerps: usize = self.lerps.iter().map(|l| size(&l.keys.knots[..]) + size(&l.points[..])).sum();
-        let cursors = size(&self.cubic_rotations[..])
+        size(&self.fixed[..])
+            + size(&self.cubic_rotations[..])
             + size(&self.cubic_vectors[..])
             + size(&self.slerps[..])
-            + size(&self.lerps[..]);
-        size(&self.fixed[..]) + cursors + rotations + vectors + slerps + lerps
+            + size(&self.lerps[..])
     }
 
     /// The clip's first and last key times, seconds.
@@ -153,23 +214,23 @@ impl ClipDecoder {
     }
 
     /// The local pose at `t` (clamped to the clip's span) into `pose` ([`Self::pose_floats`]
-    /// floats). Fastest at times taken in order: a cursor steps forward from its span, and
-    /// starts over at the clip's start for an earlier time.
+    /// floats). Fastest at times taken in order: a cursor steps forward from its span, reading
+    /// its next knot and control point, and starts over at its first span for an earlier time.
     ///
     /// # Errors
     /// `t` is not finite, or `pose` is not [`Self::pose_floats`] long; `pose` is left as it was.
     pub fn pose(&mut self, t: f64, pose: &mut [f32]) -> Result<(), PoseError> {
         if !t.is_finite() {
-            return Err(PoseError::Time { clip: self.name.clone(), time: t });
+            return Err(PoseError::Time { clip: self.name.to_string(), time: t });
         }
         if pose.len() != self.fixed.len() {
-            return Err(PoseError::Length { clip: self.name.clone(), floats: self.fixed.len(), given: pose.len() });
+            return Err(PoseError::Length { clip: self.name.to_string(), floats: self.fixed.len(), given: pose.len() });
         }
         let t = t.clamp(self.span[0], self.span[1]);
         pose.copy_from_slice(&self.fixed);
         for c in &mut self.cubic_rotations {
             let q = c.at(t);
-            let inv = 1.0 / q.iter().map(|v| v * v).sum::<f32>().sqrt();
+            let inv = inverse_sqrt(q.iter().map(|v| v * v).sum::<f32>());
             pose[c.slot..c.slot + 4].iter_mut().zip(q).for_each(|(o, v)| *o = v * inv);
         }
         for c in &mut self.cubic_vectors {
@@ -195,12 +256,30 @@ impl ClipDecoder {
     pub fn poses(&mut self, times: &[f64], poses: &mut [f32]) -> Result<(), PoseError> {
         let n = self.fixed.len();
         if poses.len() != times.len() * n {
-            return Err(PoseError::Length { clip: self.name.clone(), floats: times.len() * n, given: poses.len() });
+            return Err(PoseError::Length { clip: self.name.to_string(), floats: times.len() * n, given: poses.len() });
         }
         for (&t, pose) in times.iter().zip(poses.chunks_exact_mut(n.max(1))) {
             self.pose(t, pose)?;
         }
         Ok(())
+    }
+}
+
+/// `1 / sqrt(x)` for `x` near 1 (a cubic's unnormalized rotation: its control points lie a
+/// few degrees apart), within 2 ulp of f32: the processor's estimate (12 bits) and one Newton
+/// step, where a square root and a division waited on each other (a seventh of a pose).
+#[inline(always)]
+fn inverse_sqrt(x: f32) -> f32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cvtss_f32, _mm_rsqrt_ss, _mm_set_ss};
+        // SAFETY: SSE is part of x86_64; the intrinsics read and write registers only.
+        let y = unsafe { _mm_cvtss_f32(_mm_rsqrt_ss(_mm_set_ss(x))) };
+        y * (1.5 - 0.5 * x * y * y)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        1.0 / x.sqrt()
     }
 }
 
@@ -227,15 +306,166 @@ pub enum PoseError {
     },
 }
 
-/// A clamped cubic B-spline's cursor: its span `l` (`knots[l] <= t < knots[l + 1]`, the last
-/// span taking its end) and what the span's basis needs besides the time.
+/// A curve's control points, read from its codes one after another as its cursor steps.
+trait Points<const C: usize> {
+    /// The next control point.
+    fn next(&mut self) -> [f32; C];
+    /// Back to the first.
+    fn restart(&mut self);
+}
+
+/// A stream read one point ahead of its cursor: the point a step takes was decoded at the step
+/// before, so that its codes, square root and alignment are in no sample's wait, and the
+/// processor decodes it beside other channels' samples.
 #[derive(Clone, Debug)]
-struct Cubic<const C: usize> {
+struct Ahead<P, const C: usize> {
+    stream: P,
+    ahead: [f32; C],
+}
+
+impl<P: Points<C>, const C: usize> Ahead<P, C> {
+    fn new(stream: P) -> Self {
+        Self { stream, ahead: [0.0; C] }
+    }
+}
+
+impl<P: Points<C>, const C: usize> Points<C> for Ahead<P, C> {
+    #[inline(always)]
+    fn next(&mut self) -> [f32; C] {
+        // Past the last point the stream gives zeros, which no span takes.
+        std::mem::replace(&mut self.ahead, self.stream.next())
+    }
+
+    fn restart(&mut self) {
+        self.stream.restart();
+        self.ahead = self.stream.next();
+    }
+}
+
+/// A translation's or scale's control points.
+#[derive(Clone, Debug)]
+struct Vectors<'a> {
+    codes: FixedCodes<'a>,
+    low: [f64; 3],
+    step: f64,
+}
+
+impl<'a> Vectors<'a> {
+    fn new(bytes: &'a [u8], curve: &CurveFields<'a>) -> Self {
+        let codes = FixedCodes::new(bytes, curve.codes_at, curve.bits);
+        Self { codes, low: curve.low, step: step(curve.span, curve.bits) }
+    }
+}
+
+impl Points<3> for Vectors<'_> {
+    #[inline(always)]
+    fn next(&mut self) -> [f32; 3] {
+        value(&self.low, self.step, &self.codes.next()).map(|v| v as f32)
+    }
+
+    fn restart(&mut self) {
+        self.codes.restart();
+    }
+}
+
+/// A rotation's control points, each on the side of the one before it, as the batch packs
+/// them: the sign flips where a point's dot with the one before, as decoded, is negative, so
+/// that no point waits for the one before it to be aligned.
+#[derive(Clone, Debug)]
+struct Rotations<'a> {
+    vectors: Vectors<'a>,
+    largest: Largest<'a>,
+    /// The next point's index, the point before it as decoded, and the sign it took.
+    index: usize,
+    previous: [f32; 4],
+    sign: f32,
+}
+
+impl<'a> Rotations<'a> {
+    fn new(bytes: &'a [u8], curve: &CurveFields<'a>, largest: Largest<'a>) -> Self {
+        Self { vectors: Vectors::new(bytes, curve), largest, index: 0, previous: [0.0; 4], sign: 1.0 }
+    }
+}
+
+impl Points<4> for Rotations<'_> {
+    #[inline(always)]
+    fn next(&mut self) -> [f32; 4] {
+        let Vectors { codes, low, step } = &mut self.vectors;
+        let rest = value(low, *step, &codes.next()).map(|v| v as f32);
+        let q = rotation(rest, self.largest.at(self.index));
+        self.index += 1;
+        let dot = q[0] * self.previous[0] + q[1] * self.previous[1] + q[2] * self.previous[2] + q[3] * self.previous[3];
+        if dot < 0.0 {
+            self.sign = -self.sign;
+        }
+        self.previous = q;
+        q.map(|v| self.sign * v)
+    }
+
+    fn restart(&mut self) {
+        self.vectors.restart();
+        (self.index, self.previous, self.sign) = (0, [0.0; 4], 1.0);
+    }
+}
+
+/// A curve's knot times, read one after another from its knots' stream as its cursor steps:
+/// its clamped ends, then each interior knot at its sample (a cubic's) or key (keys').
+#[derive(Clone, Debug)]
+struct KnotTimes<'a> {
+    times: KeyTimes<'a>,
+    form: Form,
+    stream: FixedKnots<'a>,
+    interior: usize,
+    unread: usize,
+}
+
+impl<'a> KnotTimes<'a> {
+    fn new(bytes: &'a [u8], times: KeyTimes<'a>, curve: &CurveFields<'a>) -> Self {
+        let stream = FixedKnots::new(bytes, curve.knots_at, curve.knot_rice, least_delta(curve.form));
+        Self { times, form: curve.form, stream, interior: curve.knot_count, unread: curve.knot_count }
+    }
+
+    fn first(&self) -> f64 {
+        self.times.key(0)
+    }
+
+    /// The next interior knot's time, or the last key's once every interior knot is read.
+    #[inline(always)]
+    fn next(&mut self) -> f64 {
+        if self.unread == 0 {
+            return self.times.key(self.times.keys() - 1);
+        }
+        self.unread -= 1;
+        let at = self.stream.next() as usize;
+        match self.form {
+            Form::Cubic => self.times.sample(at),
+            Form::Keys => self.times.key(at),
+        }
+    }
+
+    fn restart(&mut self) {
+        self.stream.restart();
+        self.unread = self.interior;
+    }
+}
+
+/// A clamped cubic B-spline's cursor: its span `l` (`knots[l] <= t < knots[l + 1]`, the last
+/// span taking its end), that span's knots and control points, and what its basis needs
+/// besides the time. Interior knots lie strictly inside the timeline, so neither end span is
+/// empty; an empty span inside is stepped over.
+#[derive(Clone, Debug)]
+struct Cubic<'a, P, const C: usize> {
     slot: usize,
-    knots: Vec<f64>,
-    points: Vec<[f32; C]>,
-    /// The span; 0 before the first sample.
+    knots: KnotTimes<'a>,
+    points: P,
+    /// Control points: the last span is `points - 1`.
+    count: usize,
+    /// The span; 0 before the cursor first starts.
     l: usize,
+    /// Knots `l - 2..=l + 3`.
+    window: [f64; 6],
+    /// Control points `l - 3..=l`.
+    p: [[f32; C]; ORDER],
     /// `knots[l]`, the origin of the span's time `u`, and `knots[l + 1]`, where it ends.
     origin: f64,
     end: f64,
@@ -248,14 +478,16 @@ struct Cubic<const C: usize> {
     inv: [f32; 6],
 }
 
-impl<const C: usize> Cubic<C> {
-    fn new(slot: usize, knots: Vec<f64>, points: Vec<[f32; C]>) -> Self {
-        debug_assert_eq!(knots.len(), points.len() + ORDER);
+impl<'a, P: Points<C>, const C: usize> Cubic<'a, P, C> {
+    fn new(slot: usize, bytes: &'a [u8], times: KeyTimes<'a>, curve: &CurveFields<'a>, points: P) -> Self {
         Self {
             slot,
-            knots,
+            knots: KnotTimes::new(bytes, times, curve),
             points,
+            count: curve.points,
             l: 0,
+            window: [0.0; 6],
+            p: [[0.0; C]; ORDER],
             origin: f64::INFINITY,
             end: f64::NEG_INFINITY,
             a: [0.0; 2],
@@ -264,25 +496,41 @@ impl<const C: usize> Cubic<C> {
         }
     }
 
+    /// Onto the first span: its knots and control points read from the streams' starts.
+    fn start(&mut self) {
+        self.knots.restart();
+        self.points.restart();
+        let first = self.knots.first();
+        self.window = [first, first, first, self.knots.next(), self.knots.next(), self.knots.next()];
+        self.p = std::array::from_fn(|_| self.points.next());
+        self.l = ORDER - 1;
+    }
+
+    /// Onto the next span: one more knot and control point read.
+    #[inline(always)]
+    fn step(&mut self) {
+        self.l += 1;
+        self.window.rotate_left(1);
+        self.window[5] = self.knots.next();
+        self.p.rotate_left(1);
+        self.p[ORDER - 1] = self.points.next();
+    }
+
     /// Moves to the span of `t`, from the start when `t` is before the current one.
-    #[inline]
+    #[inline(always)]
     fn seek(&mut self, t: f64) {
-        let last = self.points.len() - 1;
-        if t < self.origin {
-            self.l = ORDER - 1;
+        if self.l == 0 || (t < self.origin && self.l > ORDER - 1) {
+            self.start();
         }
-        while self.l < last && t >= self.knots[self.l + 1] {
-            self.l += 1;
+        let last = self.count - 1;
+        while self.l < last && t >= self.window[3] {
+            self.step();
         }
-        // A last span of no length (an interior knot at the end) takes the one before it.
-        while self.l > ORDER - 1 && self.knots[self.l] == self.knots[self.l + 1] {
-            self.l -= 1;
-        }
-        let (k, l) = (&self.knots, self.l);
-        self.origin = k[l];
-        self.end = if l == last { f64::INFINITY } else { k[l + 1] };
+        let k = &self.window;
+        self.origin = k[2];
+        self.end = if self.l == last { f64::INFINITY } else { k[3] };
         let d = |i: usize, j: usize| (k[i] - k[j]) as f32;
-        let ([a2, a3], [b1, b2, b3]) = ([d(l, l - 1), d(l, l - 2)], [d(l + 1, l), d(l + 2, l), d(l + 3, l)]);
+        let ([a2, a3], [b1, b2, b3]) = ([d(2, 1), d(2, 0)], [d(3, 2), d(4, 2), d(5, 2)]);
         self.a = [a2, a3];
         self.b = [b1, b2, b3];
         // One division of eight lanes rather than six of one.
@@ -313,7 +561,7 @@ impl<const C: usize> Cubic<C> {
         let t1 = n1 * i[4];
         let t2 = n2 * i[5];
         let w = [r1 * t0, l3 * t0 + r2 * t1, l2 * t1 + r3 * t2, l1 * t2];
-        let p: &[[f32; C]; ORDER] = self.points[self.l + 1 - ORDER..=self.l].try_into().expect("a span's four points");
+        let p = &self.p;
         let mut sum = [0.0f32; C];
         for (c, s) in sum.iter_mut().enumerate() {
             *s = w[0] * p[0][c] + w[1] * p[1][c] + w[2] * p[2][c] + w[3] * p[3][c];
@@ -322,21 +570,39 @@ impl<const C: usize> Cubic<C> {
     }
 }
 
-/// An order-2 B-spline's cursor on its keys: span `l` from key `l - 1` to key `l`.
+/// An order-2 B-spline's cursor on its keys: span `l` from control point `l - 1` to `l`, the
+/// two and their knots held.
 #[derive(Clone, Debug)]
-struct Keys {
+struct Keys<'a, P, const C: usize> {
     slot: usize,
-    knots: Vec<f64>,
+    knots: KnotTimes<'a>,
+    points: P,
+    count: usize,
+    /// The span; 0 before the cursor first starts.
     l: usize,
+    /// Knots `l` and `l + 1`, and control points `l - 1` and `l`.
+    k: [f64; 2],
+    p: [[f32; C]; 2],
     origin: f64,
     end: f64,
     /// `1 / (knots[l + 1] - knots[l])`.
     inv: f64,
 }
 
-impl Keys {
-    fn new(slot: usize, knots: Vec<f64>) -> Self {
-        Self { slot, knots, l: 0, origin: f64::INFINITY, end: f64::NEG_INFINITY, inv: 0.0 }
+impl<'a, P: Points<C>, const C: usize> Keys<'a, P, C> {
+    fn new(slot: usize, bytes: &'a [u8], times: KeyTimes<'a>, curve: &CurveFields<'a>, points: P) -> Self {
+        Self {
+            slot,
+            knots: KnotTimes::new(bytes, times, curve),
+            points,
+            count: curve.points,
+            l: 0,
+            k: [0.0; 2],
+            p: [[0.0; C]; 2],
+            origin: f64::INFINITY,
+            end: f64::NEG_INFINITY,
+            inv: 0.0,
+        }
     }
 
     /// The span of `t` and `t`'s fraction of it; whether the span changed.
@@ -344,17 +610,22 @@ impl Keys {
     fn seek(&mut self, t: f64) -> (f32, bool) {
         let moved = t >= self.end || t < self.origin;
         if moved {
-            let last = self.knots.len() - KEYS_ORDER - 1;
-            if t < self.origin {
-                self.l = KEYS_ORDER - 1;
+            if self.l == 0 || (t < self.origin && self.l > 1) {
+                self.knots.restart();
+                self.points.restart();
+                self.k = [self.knots.first(), self.knots.next()];
+                self.p = [self.points.next(), self.points.next()];
+                self.l = 1;
             }
-            while self.l < last && t >= self.knots[self.l + 1] {
+            let last = self.count - 1;
+            while self.l < last && t >= self.k[1] {
                 self.l += 1;
+                self.k = [self.k[1], self.knots.next()];
+                self.p = [self.p[1], self.points.next()];
             }
-            let k = &self.knots;
-            self.origin = k[self.l];
-            self.end = if self.l == last { f64::INFINITY } else { k[self.l + 1] };
-            self.inv = 1.0 / (k[self.l + 1] - k[self.l]);
+            self.origin = self.k[0];
+            self.end = if self.l == last { f64::INFINITY } else { self.k[1] };
+            self.inv = 1.0 / (self.k[1] - self.k[0]);
         }
         (((t - self.origin) * self.inv).min(1.0) as f32, moved)
     }
@@ -366,19 +637,18 @@ const ON_KEY: f32 = f32::EPSILON / 2.0;
 
 /// Rotation keys slerped (KKS's order 2).
 #[derive(Clone, Debug)]
-struct Slerp {
-    keys: Keys,
-    points: Vec<[f32; 4]>,
+struct Slerp<'a> {
+    keys: Keys<'a, Ahead<Rotations<'a>, 4>, 4>,
     /// The span's angle between its keys and its sine's reciprocal (0 for keys too close to
     /// part, which are lerped), once a time inside the span asked for them.
     arc: Option<[f32; 2]>,
 }
 
-impl Slerp {
+impl Slerp<'_> {
     #[inline]
     fn at(&mut self, t: f64) -> [f32; 4] {
         let (h, moved) = self.keys.seek(t);
-        let (a, b) = (self.points[self.keys.l - 1], self.points[self.keys.l]);
+        let [a, b] = self.keys.p;
         if moved {
             self.arc = None;
         }
@@ -428,16 +698,15 @@ fn sin_poly(x: f32) -> f32 {
 
 /// Vector keys lerped.
 #[derive(Clone, Debug)]
-struct Lerp {
-    keys: Keys,
-    points: Vec<[f32; 3]>,
+struct Lerp<'a> {
+    keys: Keys<'a, Ahead<Vectors<'a>, 3>, 3>,
 }
 
-impl Lerp {
+impl Lerp<'_> {
     #[inline]
     fn at(&mut self, t: f64) -> [f32; 3] {
         let (h, _) = self.keys.seek(t);
-        let (a, b) = (self.points[self.keys.l - 1], self.points[self.keys.l]);
+        let [a, b] = self.keys.p;
         std::array::from_fn(|c| a[c] + (b[c] - a[c]) * h)
     }
 }
@@ -495,8 +764,9 @@ mod tests {
     #[test]
     fn every_form_decodes_as_the_reference_evaluates_it_in_order_and_out_of_it() {
         let container = container();
-        let mut decoder = Decoder::from_bytes(&container.to_bytes()).unwrap().clips.remove(0);
-        assert_eq!((decoder.name.as_str(), decoder.rate), ("turn", container.clips[0].source_rate()));
+        let decoded = Decoder::from_bytes(&container.to_bytes()).unwrap();
+        let mut decoder = decoded.open(0).unwrap();
+        assert_eq!((decoder.name, decoder.rate), ("turn", container.clips[0].source_rate()));
         assert_eq!(decoder.pose_floats(), 3 * POSE_FLOATS);
         // In order, on and between knots, and past both ends (clamped).
         let times: Vec<f64> = (-10..=1210).map(|i| f64::from(i) / 600.0).collect();
@@ -510,7 +780,8 @@ mod tests {
 
     #[test]
     fn a_time_a_rounding_either_side_of_a_key_is_that_key() {
-        let mut decoder = Decoder::from_bytes(&container().to_bytes()).unwrap().clips.remove(0);
+        let decoded = Decoder::from_bytes(&container().to_bytes()).unwrap();
+        let mut decoder = decoded.open(0).unwrap();
         // Joint 2's rotation keeps keys at 0, 0.5 and 2 s.
         let mut rotation = |t: f64| {
             let mut pose = vec![0.0; decoder.pose_floats()];
@@ -525,7 +796,8 @@ mod tests {
 
     #[test]
     fn a_time_that_is_not_finite_or_an_output_of_another_length_is_named() {
-        let mut decoder = Decoder::from_bytes(&container().to_bytes()).unwrap().clips.remove(0);
+        let decoded = Decoder::from_bytes(&container().to_bytes()).unwrap();
+        let mut decoder = decoded.open(0).unwrap();
         let mut pose = vec![7.0; decoder.pose_floats()];
         let e = decoder.pose(f64::NAN, &mut pose).unwrap_err();
         assert_eq!(e.to_string(), "clip 'turn': the time NaN s is not finite");

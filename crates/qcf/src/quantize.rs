@@ -8,6 +8,7 @@
 //! fit's decoded control points are the container's to the bit.
 
 use quatcurve_core::quat::QuatF64;
+use std::ops::{Add, Div, Mul, Sub};
 
 /// The most bits a component takes.
 pub const MAX_BITS: u32 = 24;
@@ -71,10 +72,21 @@ impl Quantized {
 
     /// [`Quantized::values`] one at a time.
     pub fn decoded(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
-        // One step multiplied, not a division per component: a fifth of loading a container.
-        let step = self.span / f64::from((1u32 << self.bits) - 1);
-        self.codes.iter().map(move |code| std::array::from_fn(|c| self.low[c] + f64::from(code[c]) * step))
+        let step = step(self.span, self.bits);
+        self.codes.iter().map(move |code| value(&self.low, step, code))
     }
+}
+
+/// The value between two codes of width `bits` over `span`.
+pub(crate) fn step(span: f64, bits: u32) -> f64 {
+    span / f64::from((1u32 << bits) - 1)
+}
+
+/// A point's three components from its codes: one step multiplied, not a division per
+/// component (a fifth of loading a container).
+#[inline(always)]
+pub(crate) fn value(low: &[f64; 3], step: f64, code: &[u32; 3]) -> [f64; 3] {
+    std::array::from_fn(|c| low[c] + f64::from(code[c]) * step)
 }
 
 /// Each component's smallest value over `components`, and the widest component's range
@@ -131,20 +143,56 @@ impl QuantizedRotations {
     /// `match`, not a store at a computed index, which kept each point in memory: a third of
     /// loading a container.
     pub fn decoded(&self) -> impl Iterator<Item = QuatF64> + '_ {
-        self.smallest.decoded().zip(&self.largest).map(|(rest, &largest)| {
-            let rest_squared = rest[0] * rest[0] + rest[1] * rest[1] + rest[2] * rest[2];
-            let big = (1.0 - rest_squared).max(0.0).sqrt();
-            // Unit to rounding unless rounding pushed the three past 1 (and the largest to 0).
-            let scale = if rest_squared > 1.0 { 1.0 / rest_squared.sqrt() } else { 1.0 };
-            let [a, b, c] = rest.map(|v| v * scale);
-            // The three in `x, y, z, w` order with the largest left out ([`SMALLEST`]).
-            QuatF64::from_array(match largest {
-                0 => [big, a, b, c],
-                1 => [a, big, b, c],
-                2 => [a, b, big, c],
-                _ => [a, b, c, big],
-            })
-        })
+        self.smallest.decoded().zip(&self.largest).map(|(rest, &largest)| QuatF64::from_array(rotation(rest, largest)))
+    }
+}
+
+/// The floats a rotation is rebuilt in: `f64` for the container's model, `f32` for the runtime
+/// decoder, whose poses are `f32` (a `f64` square root there was a sixth of a pose).
+pub(crate) trait Component:
+    Copy + PartialOrd + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
+{
+    const ZERO: Self;
+    const ONE: Self;
+    #[must_use]
+    fn sqrt(self) -> Self;
+}
+
+impl Component for f64 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+}
+
+impl Component for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    fn sqrt(self) -> Self {
+        f32::sqrt(self)
+    }
+}
+
+/// A rotation, `x, y, z, w`, from its three smallest components and its largest's index,
+/// unit to rounding unless rounding pushed the three past 1 (and the largest to 0). The
+/// largest goes in by a `match`, not a store at a computed index, which kept each point in
+/// memory.
+#[inline(always)]
+pub(crate) fn rotation<F: Component>(rest: [F; 3], largest: u8) -> [F; 4] {
+    let rest_squared = rest[0] * rest[0] + rest[1] * rest[1] + rest[2] * rest[2];
+    let (big, scale) = if rest_squared > F::ONE {
+        (F::ZERO, F::ONE / rest_squared.sqrt())
+    } else {
+        ((F::ONE - rest_squared).sqrt(), F::ONE)
+    };
+    let [a, b, c] = rest.map(|v| v * scale);
+    // The three in `x, y, z, w` order with the largest left out ([`SMALLEST`]).
+    match largest {
+        0 => [big, a, b, c],
+        1 => [a, big, b, c],
+        2 => [a, b, big, c],
+        _ => [a, b, c, big],
     }
 }
 

@@ -52,13 +52,7 @@ impl Timeline {
     #[must_use]
     pub fn key(&self, i: usize) -> f64 {
         match self {
-            Timeline::Even { first, last, count } => {
-                if i + 1 == *count {
-                    *last
-                } else {
-                    first + (last - first) * i as f64 / (count - 1) as f64
-                }
-            }
+            Timeline::Even { first, last, count } => even_key(*first, *last, *count, i),
             Timeline::Listed(times) => times[i],
         }
     }
@@ -72,18 +66,79 @@ impl Timeline {
     /// Sample `s`'s time: key `s / (BETWEEN_POINTS + 1)`, or a point between it and the next.
     #[must_use]
     pub fn sample(&self, s: usize) -> f64 {
-        let (key, step) = (s / (BETWEEN_POINTS + 1), s % (BETWEEN_POINTS + 1));
-        if step == 0 {
-            return self.key(key);
-        }
-        let (a, b) = (self.key(key), self.key(key + 1));
-        a + (b - a) * step as f64 / (BETWEEN_POINTS + 1) as f64
+        sample(|i| self.key(i), s)
     }
 
     /// Every sample's time, and whether it is a key.
     #[must_use]
     pub fn sample_times(&self) -> Vec<(f64, bool)> {
         (0..self.samples()).map(|s| (self.sample(s), s % (BETWEEN_POINTS + 1) == 0)).collect()
+    }
+}
+
+/// Key `i`'s time of `count` keys evenly spaced from `first` to `last`.
+#[inline(always)]
+fn even_key(first: f64, last: f64, count: usize, i: usize) -> f64 {
+    if i + 1 == count {
+        last
+    } else {
+        first + (last - first) * i as f64 / (count - 1) as f64
+    }
+}
+
+/// Sample `s`'s time of the keys `key` gives.
+#[inline(always)]
+fn sample(key: impl Fn(usize) -> f64, s: usize) -> f64 {
+    let (k, step) = (s / (BETWEEN_POINTS + 1), s % (BETWEEN_POINTS + 1));
+    if step == 0 {
+        return key(k);
+    }
+    let (a, b) = (key(k), key(k + 1));
+    a + (b - a) * step as f64 / (BETWEEN_POINTS + 1) as f64
+}
+
+/// A [`Timeline`] as a container's bytes hold it: a listed one's times read where they lie, so
+/// that the runtime decoder opens a clip without copying them.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum KeyTimes<'a> {
+    /// As [`Timeline::Even`].
+    Even { first: f64, last: f64, count: usize },
+    /// Each key's time, a little-endian `f64` each.
+    Listed(&'a [u8]),
+}
+
+impl KeyTimes<'_> {
+    /// How many keys.
+    pub(crate) fn keys(&self) -> usize {
+        match self {
+            KeyTimes::Even { count, .. } => *count,
+            KeyTimes::Listed(bytes) => bytes.len() / 8,
+        }
+    }
+
+    /// How many samples ([`Timeline::samples`]).
+    pub(crate) fn samples(&self) -> usize {
+        (self.keys() - 1) * (BETWEEN_POINTS + 1) + 1
+    }
+
+    /// Key `i`'s time.
+    #[inline(always)]
+    pub(crate) fn key(&self, i: usize) -> f64 {
+        match self {
+            KeyTimes::Even { first, last, count } => even_key(*first, *last, *count, i),
+            // A key past the last is the last (the runtime decoder reads what a checked
+            // container held, and panics on nothing).
+            KeyTimes::Listed(bytes) => {
+                let i = i.min(bytes.len() / 8 - 1);
+                f64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().expect("eight bytes"))
+            }
+        }
+    }
+
+    /// Sample `s`'s time ([`Timeline::sample`]).
+    #[inline(always)]
+    pub(crate) fn sample(&self, s: usize) -> f64 {
+        sample(|i| self.key(i), s)
     }
 }
 
