@@ -12,7 +12,7 @@ pub struct FitArgs {
     /// Input files (.gltf, .glb, .fbx, .bvh) or directories of them.
     #[arg(long, num_args = 1.., required = true)]
     input: Vec<PathBuf>,
-    /// Output directory (created if missing): one `<stem>.qcf` per input.
+    /// Output directory (created if missing): one `<stem>.qcf` per input, or the library.
     #[arg(long, default_value = "fitted")]
     output: PathBuf,
     #[command(flatten)]
@@ -86,6 +86,29 @@ fn table(w: &mut dyn Write, report: &FitReport) -> std::io::Result<()> {
                 c.between_frames.time,
                 c.seconds
             )?;
+        }
+    }
+    // The whole file's ratio beside the clips': the skeleton (and a BVH's hierarchy) stored
+    // once per container.
+    let whole = |output: &Option<String>, bytes: usize, ratio: f64, clips: usize| match output {
+        Some(path) => format!("{path}: {clips} clips, {:.1} KB, {ratio:.1}:1 as a whole file", bytes as f64 / 1024.0),
+        None => String::new(),
+    };
+    match &report.library {
+        Some(l) => writeln!(
+            w,
+            "{} (clips alone {:.1}:1)",
+            whole(&l.output, l.container_bytes, l.whole_file_ratio, l.clips),
+            l.ratio
+        )?,
+        None => {
+            for input in report.inputs.iter().filter(|i| i.output.is_some()) {
+                writeln!(
+                    w,
+                    "{}",
+                    whole(&input.output, input.container_bytes, input.whole_file_ratio, input.clips.len())
+                )?;
+            }
         }
     }
     Ok(())

@@ -1,7 +1,9 @@
-//! A fit job: glTF/BVH inputs to one container each (`<stem>.qcf`), with a report per clip.
-//! Everything that can be found wrong before fitting is (a BVH without its unit, an output
-//! directory that takes no file, two inputs with one stem, an output that would replace its
-//! input); a failed input is reported and the others still finish.
+//! A fit job: glTF/BVH inputs to one container each (`<stem>.qcf`), or every input's clips to
+//! one container on their one skeleton (a clip library, `<library>.qcf`), with a report per
+//! clip. Everything that can be found wrong before fitting is (a BVH without its unit, an
+//! output directory that takes no file, two inputs with one stem, an output that would replace
+//! its input, a library's inputs on other skeletons); a failed input is reported and the others
+//! still finish (a library is then not written).
 
 use super::clip::{fit_clip, Budget, ClipFit, FitClipError, Worst};
 use quatcurve_anim::error::{InputError, OutputError};
@@ -14,7 +16,8 @@ use quatcurve_files::{refuse_overwriting_input, OutputDir};
 use quatcurve_formats::fbx;
 use quatcurve_formats::source::extension;
 use quatcurve_formats::source::{ReadOptions, Source};
-use quatcurve_qcf::{Container, EXTENSION};
+use quatcurve_qcf::fitted::FittedClip;
+use quatcurve_qcf::{BvhSkeleton, Container, EXTENSION};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -55,6 +58,11 @@ pub struct FitOptions {
     /// containers do not say theirs, so such an input needs it (CMU's BVH is 5.644).
     #[cfg_attr(feature = "cli", arg(long, value_name = "CM", allow_negative_numbers = true))]
     pub unit_cm: Option<f64>,
+    /// One container, `<output>/<NAME>.qcf`, holding every input's clips on their one
+    /// skeleton, stored once (a clip library; a clip name two inputs share is prefixed with
+    /// its input's stem and a slash); none: one container per input.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
+    pub library: Option<String>,
 }
 
 impl FitOptions {
@@ -64,6 +72,7 @@ impl FitOptions {
         between_error_cm: Some(DEFAULT_BETWEEN_ERROR_CM),
         vertex_distance_cm: DEFAULT_VERTEX_DISTANCE_CM,
         unit_cm: None,
+        library: None,
     };
 }
 
@@ -131,8 +140,11 @@ pub struct InputFit {
     pub output: Option<String>,
     /// The file's unit, cm.
     pub unit_cm: f64,
-    /// Its bytes.
+    /// Its bytes (0 in a library: [`FitReport::library`]).
     pub container_bytes: usize,
+    /// Its clips' raw bytes over the container's (skeleton and BVH hierarchy included; 0 in
+    /// a library).
+    pub whole_file_ratio: f64,
     /// Per clip.
     pub clips: Vec<ClipReport>,
     /// Why the input failed, when it did.
@@ -150,6 +162,27 @@ pub struct FitReport {
     pub vertex_distance_cm: f64,
     /// Per input, in path order.
     pub inputs: Vec<InputFit>,
+    /// The clip library, when one was asked for.
+    pub library: Option<LibraryFit>,
+}
+
+/// A clip library's container.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LibraryFit {
+    /// The container written, when every input fitted.
+    pub output: Option<String>,
+    /// Its clips.
+    pub clips: usize,
+    /// Their raw bytes as ACL counts them.
+    pub raw_bytes: usize,
+    /// Their bytes in the container.
+    pub clip_bytes: usize,
+    /// The container's bytes: the clips, the skeleton once and the checksum.
+    pub container_bytes: usize,
+    /// `raw_bytes / clip_bytes`.
+    pub ratio: f64,
+    /// `raw_bytes / container_bytes`.
+    pub whole_file_ratio: f64,
 }
 
 impl FitReport {
@@ -269,8 +302,18 @@ impl FitJob {
         }
         let unit_cm = quatcurve_files::unit_cm(&inputs, self.options.unit_cm, "nothing was fitted")?;
         let stems = output_stems(&inputs)?;
+        if let Some(name) = &self.options.library {
+            if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+                let reason = format!("'{name}' is not a file name: the library is <output>/<NAME>.{EXTENSION}");
+                return Err(FileJobError::option("library", reason));
+            }
+        }
+        let outputs: Vec<&str> = match &self.options.library {
+            Some(name) => vec![name],
+            None => stems.iter().map(String::as_str).collect(),
+        };
         let output = OutputDir::create(&self.output, "fitted")?;
-        for (input, stem) in inputs.iter().zip(&stems) {
+        for (input, stem) in inputs.iter().flat_map(|input| outputs.iter().map(move |stem| (input, stem))) {
             let path = self.output.join(format!("{stem}.{EXTENSION}"));
             let refused = refuse_overwriting_input(&path, &input.display().to_string())
                 .err()
@@ -280,14 +323,125 @@ impl FitJob {
                 return Err(FileJobError::Refused { error: Box::new(e), job: "fitted" });
             }
         }
-        let inputs =
-            inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, unit_cm, progress)).collect();
+        let (inputs, library) = match &self.options.library {
+            None => {
+                let fits =
+                    inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, unit_cm, progress));
+                (fits.collect(), None)
+            }
+            Some(name) => {
+                let (inputs, library) =
+                    self.fit_library(&inputs, &stems, name, unit_cm, progress).inspect_err(|_| {
+                        output.remove_if_unused();
+                    })?;
+                (inputs, Some(library))
+            }
+        };
         Ok(FitReport {
             max_error_cm: self.options.max_error_cm,
             between_error_cm: self.options.between_error_cm,
             vertex_distance_cm: self.options.vertex_distance_cm,
             inputs,
+            library,
         })
+    }
+
+    /// Every input read, held to the first's skeleton, fitted side by side, then written as
+    /// one container when every one fitted.
+    fn fit_library(
+        &self,
+        inputs: &[PathBuf],
+        stems: &[String],
+        name: &str,
+        unit_cm: f64,
+        progress: &(dyn Fn(&str, &ClipReport) + Sync),
+    ) -> Result<(Vec<InputFit>, LibraryFit), FileJobError> {
+        let refused = |error: InputError| FileJobError::Refused { error: Box::new(error), job: "fitted" };
+        let sources = inputs
+            .par_iter()
+            .map(|input| Source::read(input, ReadOptions::default()).map(|s| (s.animation().clone(), s.skeleton())))
+            .collect::<Result<Vec<_>, InputError>>()
+            .map_err(refused)?;
+        let (first, first_skeleton) = &sources[0];
+        for ((animation, skeleton), input) in sources.iter().zip(inputs).skip(1) {
+            if let Some(difference) = skeleton_difference(first, first_skeleton.as_ref(), animation, skeleton.as_ref())
+            {
+                let reason = format!(
+                    "holds clips of one skeleton: {}'s is not {}'s ({difference}); fit them into separate libraries",
+                    input.display(),
+                    inputs[0].display()
+                );
+                return Err(FileJobError::option("library", reason));
+            }
+        }
+        // A clip keeps its name unless another input has a clip of that name too.
+        let mut names: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for (animation, _) in &sources {
+            for clip in &animation.clips {
+                *names.entry(&clip.name).or_default() += 1;
+            }
+        }
+        let fits: Vec<(InputFit, Option<Vec<FittedClip>>)> = sources
+            .par_iter()
+            .zip(inputs)
+            .zip(stems)
+            .map(|(((animation, _), input), stem)| {
+                let mut report = InputFit::new(input, unit_cm);
+                let clips = match self.fit_clips(&report.input, animation, unit_cm, progress, &mut report.clips) {
+                    Ok(clips) => Some(clips),
+                    Err(e) => {
+                        report.error = Some(e.to_string());
+                        None
+                    }
+                };
+                let renamed = clips.map(|clips| {
+                    clips
+                        .into_iter()
+                        .map(|clip| match names[clip.name.as_str()] {
+                            1 => clip,
+                            _ => FittedClip { name: format!("{stem}/{}", clip.name), ..clip },
+                        })
+                        .collect()
+                });
+                (report, renamed)
+            })
+            .collect();
+        let (mut reports, clips): (Vec<InputFit>, Vec<Option<Vec<FittedClip>>>) = fits.into_iter().unzip();
+        for (report, clips) in reports.iter_mut().zip(&clips) {
+            for (clip, fitted) in report.clips.iter_mut().zip(clips.iter().flatten()) {
+                clip.clip.clone_from(&fitted.name);
+            }
+        }
+        let raw_bytes: usize = reports.iter().flat_map(|r| &r.clips).map(|c| c.raw_bytes).sum();
+        let clip_bytes: usize = reports.iter().flat_map(|r| &r.clips).map(|c| c.compressed_bytes).sum();
+        let mut library = LibraryFit {
+            output: None,
+            clips: reports.iter().map(|r| r.clips.len()).sum(),
+            raw_bytes,
+            clip_bytes,
+            container_bytes: 0,
+            ratio: raw_bytes as f64 / clip_bytes.max(1) as f64,
+            whole_file_ratio: 0.0,
+        };
+        let Some(clips) = clips.into_iter().collect::<Option<Vec<_>>>() else { return Ok((reports, library)) };
+        let (first, skeleton) = sources.into_iter().next().expect("an input");
+        let bytes =
+            Container { joints: first.joints, bvh: skeleton, clips: clips.into_iter().flatten().collect() }.to_bytes();
+        let path = self.output.join(format!("{name}.{EXTENSION}"));
+        match quatcurve_eval::io::write_atomic(&path, |w| w.write_all(&bytes)) {
+            Ok(()) => {
+                let written = path.display().to_string();
+                reports.iter_mut().for_each(|r| r.output = Some(written.clone()));
+                library.output = Some(written);
+                library.container_bytes = bytes.len();
+                library.whole_file_ratio = raw_bytes as f64 / bytes.len() as f64;
+            }
+            Err(e) => {
+                let error = FitInputError::from(e).to_string();
+                reports.iter_mut().for_each(|r| r.error = Some(error.clone()));
+            }
+        }
+        Ok((reports, library))
     }
 
     fn fit_one(
@@ -297,42 +451,12 @@ impl FitJob {
         unit_cm: f64,
         progress: &(dyn Fn(&str, &ClipReport) + Sync),
     ) -> InputFit {
-        let name = input.display().to_string();
-        let mut report =
-            InputFit { input: name.clone(), output: None, unit_cm, container_bytes: 0, clips: Vec::new(), error: None };
+        let mut report = InputFit::new(input, unit_cm);
         let result = (|| -> Result<(String, usize), FitInputError> {
             let source = Source::read(input, ReadOptions::default())?;
-            let (animation, skeleton) = (source.animation().clone(), source.skeleton());
-            if animation.clips.is_empty() {
-                return Err(FitInputError::Empty);
-            }
-            let budget = Budget {
-                max_error: self.options.max_error_cm / unit_cm,
-                between_error: self.options.between_error_cm.map_or(f64::INFINITY, |cm| cm / unit_cm),
-                vertex_distance: self.options.vertex_distance_cm / unit_cm,
-            };
-            let mut clips = Vec::with_capacity(animation.clips.len());
-            for c in 0..animation.clips.len() {
-                let started = Instant::now();
-                let fit = fit_clip(&animation, c, &budget).map_err(|e| {
-                    let clip = animation.clips[c].name.clone();
-                    match e {
-                        FitClipError::OverBudget { at_frames, between_frames } => FitInputError::OverBudget {
-                            clip,
-                            max_error_cm: self.options.max_error_cm,
-                            between_error_cm: self.options.between_error_cm,
-                            at: Box::new(worst_report(&animation, &at_frames, unit_cm)),
-                            between: Box::new(worst_report(&animation, &between_frames, unit_cm)),
-                        },
-                        error => FitInputError::Clip { clip, error },
-                    }
-                })?;
-                let clip = clip_report(&animation, &fit, unit_cm, started.elapsed().as_secs_f64());
-                progress(&name, &clip);
-                report.clips.push(clip);
-                clips.push(fit.clip);
-            }
-            let bytes = Container { joints: animation.joints, bvh: skeleton, clips }.to_bytes();
+            let clips = self.fit_clips(&report.input, source.animation(), unit_cm, progress, &mut report.clips)?;
+            let joints = source.animation().joints.clone();
+            let bytes = Container { joints, bvh: source.skeleton(), clips }.to_bytes();
             let path = self.output.join(format!("{stem}.{EXTENSION}"));
             quatcurve_eval::io::write_atomic(&path, |w| w.write_all(&bytes))?;
             Ok((path.display().to_string(), bytes.len()))
@@ -341,12 +465,97 @@ impl FitJob {
             Ok((path, bytes)) => {
                 report.output = Some(path);
                 report.container_bytes = bytes;
+                let raw: usize = report.clips.iter().map(|c| c.raw_bytes).sum();
+                report.whole_file_ratio = raw as f64 / bytes as f64;
             }
             Err(e) => report.error = Some(e.to_string()),
         }
         report
     }
+
+    /// Every clip of `animation` fitted within the budget, in order, each reported to
+    /// `reports` and `progress` as it finishes.
+    fn fit_clips(
+        &self,
+        name: &str,
+        animation: &Animation,
+        unit_cm: f64,
+        progress: &(dyn Fn(&str, &ClipReport) + Sync),
+        reports: &mut Vec<ClipReport>,
+    ) -> Result<Vec<FittedClip>, FitInputError> {
+        if animation.clips.is_empty() {
+            return Err(FitInputError::Empty);
+        }
+        let budget = Budget {
+            max_error: self.options.max_error_cm / unit_cm,
+            between_error: self.options.between_error_cm.map_or(f64::INFINITY, |cm| cm / unit_cm),
+            vertex_distance: self.options.vertex_distance_cm / unit_cm,
+        };
+        let mut clips = Vec::with_capacity(animation.clips.len());
+        for c in 0..animation.clips.len() {
+            let started = Instant::now();
+            let fit = fit_clip(animation, c, &budget).map_err(|e| {
+                let clip = animation.clips[c].name.clone();
+                match e {
+                    FitClipError::OverBudget { at_frames, between_frames } => FitInputError::OverBudget {
+                        clip,
+                        max_error_cm: self.options.max_error_cm,
+                        between_error_cm: self.options.between_error_cm,
+                        at: Box::new(worst_report(animation, &at_frames, unit_cm)),
+                        between: Box::new(worst_report(animation, &between_frames, unit_cm)),
+                    },
+                    error => FitInputError::Clip { clip, error },
+                }
+            })?;
+            let clip = clip_report(animation, &fit, unit_cm, started.elapsed().as_secs_f64());
+            progress(name, &clip);
+            reports.push(clip);
+            clips.push(fit.clip);
+        }
+        Ok(clips)
+    }
 }
+
+impl InputFit {
+    /// An input's report before its fit.
+    fn new(input: &Path, unit_cm: f64) -> Self {
+        let input = input.display().to_string();
+        Self { input, output: None, unit_cm, container_bytes: 0, whole_file_ratio: 0.0, clips: Vec::new(), error: None }
+    }
+}
+
+/// How `other`'s skeleton differs from `first`'s, in words, or `None` for the same one: the
+/// same joints (names, parents, rest poses within [`REST_TOLERANCE`]) and, for BVH sources,
+/// the same hierarchy text.
+fn skeleton_difference(
+    first: &Animation,
+    first_bvh: Option<&BvhSkeleton>,
+    other: &Animation,
+    other_bvh: Option<&BvhSkeleton>,
+) -> Option<String> {
+    if first.joints.len() != other.joints.len() {
+        return Some(format!("{} joints, not {}", other.joints.len(), first.joints.len()));
+    }
+    for (j, (a, b)) in first.joints.iter().zip(&other.joints).enumerate() {
+        let pose = |j: &quatcurve_anim::Joint| -> Vec<f64> {
+            j.rotation.iter().chain(&j.translation).chain(&j.scale).copied().collect()
+        };
+        let near = pose(a).iter().zip(pose(b)).all(|(x, y)| (x - y).abs() <= REST_TOLERANCE * x.abs().max(1.0));
+        if a.name != b.name || a.parent != b.parent || !near {
+            return Some(format!("joint {j}: '{}' is not '{}' as it hangs and rests", b.name, a.name));
+        }
+    }
+    match (first_bvh, other_bvh) {
+        (None, None) => None,
+        (Some(a), Some(b)) if a.hierarchy == b.hierarchy => None,
+        (Some(_), Some(_)) => Some("another BVH hierarchy".into()),
+        _ => Some("one is BVH, the other not".into()),
+    }
+}
+
+/// How far two library inputs' rest poses may differ (relative to values over 1): a skeleton
+/// written twice by one tool.
+const REST_TOLERANCE: f64 = 1e-6;
 
 fn worst_report(animation: &Animation, w: &Worst, unit_cm: f64) -> WorstReport {
     WorstReport { error_cm: w.error * unit_cm, joint: animation.joints[w.joint].name.clone(), time: w.time }

@@ -64,3 +64,69 @@ fn a_bvh_without_its_unit_is_refused_before_any_input_is_fitted() {
     assert!(matches!(error, quatcurve_files::FileJobError::Option { option: "unit_cm", .. }), "{error}");
     assert!(!dir.path().join("out").exists());
 }
+
+#[test]
+fn a_library_holds_every_input_s_clips_on_one_skeleton_stored_once_and_refuses_another_skeleton() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut inputs = Vec::new();
+    for (stem, frames) in [("swing", 60), ("sway", 45)] {
+        let input = dir.path().join(format!("{stem}.bvh"));
+        std::fs::write(&input, swinging_arm(frames)).unwrap();
+        inputs.push(input);
+    }
+    let options = FitOptions { unit_cm: Some(1.0), ..FitOptions::DEFAULT };
+    let apart = FitJob { inputs: inputs.clone(), output: dir.path().join("apart"), options: options.clone() };
+    let apart = apart.run(&|_, _| {}).unwrap();
+    let library = FitOptions { library: Some("arm".into()), ..options.clone() };
+    let job = FitJob { inputs: inputs.clone(), output: dir.path().join("library"), options: library.clone() };
+    let report = job.run(&|_, _| {}).unwrap();
+    assert_eq!(report.failed(), 0, "{report:?}");
+    let written = report.library.as_ref().unwrap();
+    let path = dir.path().join("library/arm.qcf");
+    assert_eq!(written.output.as_deref(), Some(path.to_str().unwrap()));
+    assert_eq!(std::fs::read_dir(dir.path().join("library")).unwrap().count(), 1, "the library alone");
+    // The clips as each input's own container holds them, the skeleton and hierarchy once.
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(written.container_bytes, bytes.len());
+    let apart_bytes: usize = apart.inputs.iter().map(|i| i.container_bytes).sum();
+    let clip_bytes: usize = apart.inputs.iter().flat_map(|i| &i.clips).map(|c| c.compressed_bytes).sum();
+    assert_eq!(written.clip_bytes, clip_bytes);
+    assert!(bytes.len() < apart_bytes, "{} bytes, {apart_bytes} apart", bytes.len());
+    assert!(written.whole_file_ratio > apart.inputs[0].whole_file_ratio, "{written:?}");
+    let decoder = Decoder::from_bytes(&bytes).unwrap();
+    let names: Vec<&str> = decoder.clips().iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["sway", "swing"], "in the inputs' order, by path");
+    for (index, apart) in apart.inputs.iter().enumerate() {
+        let alone = Decoder::from_bytes(&std::fs::read(apart.output.as_ref().unwrap()).unwrap()).unwrap();
+        let (mut one, mut other) = (decoder.open(index).unwrap(), alone.open(0).unwrap());
+        let (mut a, mut b) = (vec![0.0; one.pose_floats()], vec![0.0; other.pose_floats()]);
+        for f in 0..40 {
+            one.pose(f64::from(f) / 30.0, &mut a).unwrap();
+            other.pose(f64::from(f) / 30.0, &mut b).unwrap();
+            assert_eq!(a, b, "clip {index} frame {f}");
+        }
+    }
+    // Another skeleton: refused before any fit, naming both files and the joint.
+    let other = dir.path().join("other.bvh");
+    std::fs::write(&other, swinging_arm(30).replace("JOINT arm", "JOINT leg")).unwrap();
+    let job = FitJob {
+        inputs: vec![inputs[0].clone(), other.clone()],
+        output: dir.path().join("mixed"),
+        options: library.clone(),
+    };
+    let error = job.run(&|_, _| {}).unwrap_err().to_string();
+    assert!(
+        error.starts_with("library holds clips of one skeleton: ")
+            && error.contains("swing.bvh's is not")
+            && error.contains("other.bvh's (joint 1: 'arm' is not 'leg' as it hangs and rests)"),
+        "{error}"
+    );
+    assert!(!dir.path().join("mixed").exists(), "nothing written");
+    let job = FitJob {
+        inputs,
+        output: dir.path().join("named"),
+        options: FitOptions { library: Some("a/b".into()), ..library },
+    };
+    let error = job.run(&|_, _| {}).unwrap_err().to_string();
+    assert_eq!(error, "library 'a/b' is not a file name: the library is <output>/<NAME>.qcf");
+}

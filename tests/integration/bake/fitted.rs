@@ -442,3 +442,44 @@ fn eval_reads_a_container_and_samples_what_the_bake_decodes() {
     assert_eq!(refused.status.code(), Some(2));
     assert!(stderr(&refused).contains("a fitted container holds curves, not keys"), "{}", stderr(&refused));
 }
+
+/// A clip library of two copies of CesiumMan: one container, the skeleton once, each clip named
+/// by its input's stem as both inputs name theirs alike; `bake` and the decoder read it.
+#[test]
+fn a_library_of_one_skeleton_s_files_is_one_container_that_bakes_and_decodes_every_clip() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for stem in ["walk", "stroll"] {
+        std::fs::copy(data.join("CesiumMan.glb"), dir.path().join(format!("{stem}.glb"))).unwrap();
+    }
+    let out = dir.path().join("fitted");
+    let fitted = quatcurve(&[
+        "fit",
+        "--input",
+        dir.path().join("stroll.glb").to_str().unwrap(),
+        dir.path().join("walk.glb").to_str().unwrap(),
+        "--library",
+        "men",
+        "--output",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(fitted.status.success(), "{}", stderr(&fitted));
+    let report: serde_json::Value = serde_json::from_slice(&fitted.stdout).unwrap();
+    let library = &report["library"];
+    let bytes = std::fs::read(out.join("men.qcf")).unwrap();
+    assert_eq!(library["container_bytes"].as_u64(), Some(bytes.len() as u64), "{report}");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+    let clip = report["inputs"][0]["clips"][0]["clip"].as_str().unwrap().to_string();
+    assert!(clip.starts_with("stroll/"), "{clip}");
+    let names: Vec<String> = Decoder::from_bytes(&bytes).unwrap().clips().iter().map(|c| c.name.clone()).collect();
+    assert_eq!(names, [clip.clone(), clip.replacen("stroll/", "walk/", 1)]);
+    assert!(library["whole_file_ratio"].as_f64().unwrap() < library["ratio"].as_f64().unwrap(), "{report}");
+    let baked = dir.path().join("baked");
+    let result = bake(&["--input", out.join("men.qcf").to_str().unwrap(), "--output", baked.to_str().unwrap()]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let sidecar = super::json(&baked.join("men.json"));
+    let baked_names: Vec<&str> =
+        sidecar["clips"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(baked_names, names);
+}
