@@ -447,7 +447,7 @@ fn read_clip(r: &mut Reader, c: usize, joints: &[Joint]) -> Result<StoredClip, C
     let timelines: Vec<Timeline> = views
         .iter()
         .map(|view| match *view {
-            KeyTimes::Even { first, last, count } => Timeline::Even { first, last, count },
+            KeyTimes::Even { first, last, count, .. } => Timeline::Even { first, last, count },
             KeyTimes::Listed(_) => Timeline::Listed((0..view.keys()).map(|k| view.key(k)).collect()),
         })
         .collect();
@@ -832,7 +832,7 @@ impl<'a> Reader<'a> {
                     if last <= first {
                         return Err(self.bad(field, format!("its last key {last} s is not after its first {first} s")));
                     }
-                    KeyTimes::Even { first, last, count: keys }
+                    KeyTimes::even(first, last, keys)
                 }
                 1 if every_key => {
                     let start = self.at;

@@ -52,7 +52,7 @@ impl Timeline {
     #[must_use]
     pub fn key(&self, i: usize) -> f64 {
         match self {
-            Timeline::Even { first, last, count } => even_key(*first, *last, *count, i),
+            Timeline::Even { first, last, count } => even_key(*first, *last, *count, per_key(*count), i),
             Timeline::Listed(times) => times[i],
         }
     }
@@ -76,15 +76,24 @@ impl Timeline {
     }
 }
 
-/// Key `i`'s time of `count` keys evenly spaced from `first` to `last`.
+/// Key `i`'s time of `count` keys evenly spaced from `first` to `last`, `per_key` their
+/// [`per_key`]: a multiplication, where a division per key was a twentieth of decoding a pose.
 #[inline(always)]
-fn even_key(first: f64, last: f64, count: usize, i: usize) -> f64 {
+fn even_key(first: f64, last: f64, count: usize, per_key: f64, i: usize) -> f64 {
     if i + 1 == count {
         last
     } else {
-        first + (last - first) * i as f64 / (count - 1) as f64
+        first + (last - first) * (i as f64 * per_key)
     }
 }
+
+/// The fraction of an even timeline between two of its `count` keys.
+fn per_key(count: usize) -> f64 {
+    1.0 / (count - 1) as f64
+}
+
+/// The fraction of a key's span between two consecutive samples.
+const BETWEEN_STEP: f64 = 1.0 / (BETWEEN_POINTS + 1) as f64;
 
 /// Sample `s`'s time of the keys `key` gives.
 #[inline(always)]
@@ -94,20 +103,25 @@ fn sample(key: impl Fn(usize) -> f64, s: usize) -> f64 {
         return key(k);
     }
     let (a, b) = (key(k), key(k + 1));
-    a + (b - a) * step as f64 / (BETWEEN_POINTS + 1) as f64
+    a + (b - a) * (step as f64 * BETWEEN_STEP)
 }
 
 /// A [`Timeline`] as a container's bytes hold it: a listed one's times read where they lie, so
 /// that the runtime decoder opens a clip without copying them.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum KeyTimes<'a> {
-    /// As [`Timeline::Even`].
-    Even { first: f64, last: f64, count: usize },
+    /// As [`Timeline::Even`], with its [`per_key`].
+    Even { first: f64, last: f64, count: usize, per_key: f64 },
     /// Each key's time, a little-endian `f64` each.
     Listed(&'a [u8]),
 }
 
 impl KeyTimes<'_> {
+    /// An even timeline's key times.
+    pub(crate) fn even(first: f64, last: f64, count: usize) -> Self {
+        KeyTimes::Even { first, last, count, per_key: per_key(count) }
+    }
+
     /// How many keys.
     pub(crate) fn keys(&self) -> usize {
         match self {
@@ -125,7 +139,7 @@ impl KeyTimes<'_> {
     #[inline(always)]
     pub(crate) fn key(&self, i: usize) -> f64 {
         match self {
-            KeyTimes::Even { first, last, count } => even_key(*first, *last, *count, i),
+            KeyTimes::Even { first, last, count, per_key } => even_key(*first, *last, *count, *per_key, i),
             // A key past the last is the last (the runtime decoder reads what a checked
             // container held, and panics on nothing).
             KeyTimes::Listed(bytes) => {
