@@ -3,6 +3,7 @@
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 
 import numpy as np
@@ -405,6 +406,18 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
         assert np.abs(clip["poses"][..., 4:] - texture[..., 4:]).max() < 1e-4 * max(1.0, np.abs(texture[..., 4:]).max())
     with pytest.raises(ValueError, match="CesiumMan.glb: fitted container byte 0: magic"):
         quatcurve.decode(inputs[0])
+    # A library of two copies: one container, the clips named by their inputs' stems, decoded
+    # as each copy's own container decodes.
+    for stem in ("a", "b"):
+        shutil.copy(inputs[0], tmp_path / f"{stem}.glb")
+    report = quatcurve.fit([tmp_path / "a.glb", tmp_path / "b.glb"], tmp_path / "library", library="men")
+    assert report["library"]["output"] == str(tmp_path / "library" / "men.qcf")
+    assert report["library"]["whole_file_ratio"] < report["library"]["ratio"]
+    library = quatcurve.decode(tmp_path / "library" / "men.qcf")
+    alone = quatcurve.decode(tmp_path / "py" / "CesiumMan.qcf")["clips"][0]
+    assert [c["name"] for c in library["clips"]] == [f"{stem}/{alone['name']}" for stem in ("a", "b")]
+    for clip in library["clips"]:
+        assert np.array_equal(clip["poses"], alone["poses"])
     with pytest.raises(ValueError, match="unit_cm is needed for"):
         quatcurve.fit(data_files("cmu_131_01.bvh"), tmp_path / "bvh")
     with pytest.raises(ValueError, match="max_error_cm is 0; it must be a positive length"):
