@@ -7,7 +7,7 @@
 #   120hz   the two clips as captured (994 and 1102 frames)
 #   24hz    each baked to 24 Hz with slerp, as ACL's published CMU figure resamples
 #   short   the 24 Hz clips cut into 2 s pieces (48 frames, eight clips): a game's clip length
-# quatcurve fits each set into one clip library (`fit --library`: the skeleton stored once).
+# quatcurve fits each set into one clip library (`fit --clip-library`: the skeleton stored once).
 # Printed: each set's ratios (clip bytes, as ACL counts them), the bytes a bone-pose each
 # decoder holds, and per round the ns a bone-pose of each; then each set's min-median-max.
 #
@@ -61,7 +61,7 @@ for set in "${sets[@]}"; do
         target/release/examples/acl_raw "$bvh" "$work/$set/raw/$(basename "$bvh" .bvh).raw" "$unit" >/dev/null
     done
     # Each set's clips in one library, as a game keeps a skeleton's clips.
-    "$qc" fit --input "$work/$set"/bvh/*.bvh --unit-cm "$unit" --max-error-cm 0.01 --library "$set" --json \
+    "$qc" fit --input "$work/$set"/bvh/*.bvh --unit-cm "$unit" --max-error-cm 0.01 --clip-library "$set" --json \
         --output "$work/$set/qcf" >"$work/$set/fit.json" 2>/dev/null
 done
 
@@ -74,7 +74,7 @@ for set in "${sets[@]}"; do
                poses += f * j; bytes += b; n++ }
              END { printf "%d %.2f:1 %.2f", n, poses * 40 / bytes, bytes / poses }')
     ours=$(awk -F'[:,]' '/"raw_bytes"/ && !library { raw += $2 } /"compressed_bytes"/ { packed += $2 }
-               /"library"/ { library = 1 } END { printf "%.2f:1", raw / packed }' "$work/$set/fit.json")
+               /"clip_library"/ { library = 1 } END { printf "%.2f:1", raw / packed }' "$work/$set/fit.json")
     held=$(RAYON_NUM_THREADS=1 "$qc" bench --fitted "$work/$set"/qcf/*.qcf --copies 1 --runs 1 --devices cpu --json |
         sed 's/.*"held_bytes_per_bone_pose":\([0-9.]*\).*/\1/')
     read -r n ratio bpp <<<"$acl_line"

@@ -479,8 +479,8 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
     unit_cm : float, optional
         The length of one file unit in cm (default: glTF's metre, 100); BVH files and fitted
         containers need it (CMU's BVH is 5.644).
-    library : str, optional
-        One container, ``<output>/<library>.qcf``, holding every input's clips on their one
+    clip_library : str, optional
+        One container, ``<output>/<clip_library>.qcf``, holding every input's clips on their one
         skeleton, stored once (a clip library; inputs on another skeleton are refused); a clip
         name two inputs share is prefixed with its input's stem and a slash. None: one
         container per input.
@@ -492,7 +492,7 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
     -------
     dict
         The report: ``max_error_cm``, ``between_error_cm``, ``vertex_distance_cm``,
-        ``inputs`` and ``library`` (None, or ``output``, ``clips``, ``raw_bytes``,
+        ``inputs`` and ``clip_library`` (None, or ``output``, ``clips``, ``raw_bytes``,
         ``clip_bytes``, ``container_bytes``, ``ratio`` and ``whole_file_ratio``), per input
         ``input``, ``output``, ``unit_cm``, ``container_bytes``, ``whole_file_ratio``,
         ``error`` and ``clips``, per clip ``clip``, ``frames``, ``joints``, ``raw_bytes``,

@@ -113,7 +113,7 @@ def fit(
     between_error_cm: float | None = 0.3,
     vertex_distance_cm: float = 3.0,
     unit_cm: float | None = None,
-    library: str | None = None,
+    clip_library: str | None = None,
     errors: Literal["raise", "report"] = "raise",
 ) -> dict[str, Any]: ...
 

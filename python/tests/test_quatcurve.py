@@ -410,9 +410,9 @@ def test_fit_writes_what_the_cli_writes_and_bake_reads_the_container(tmp_path):
     # as each copy's own container decodes.
     for stem in ("a", "b"):
         shutil.copy(inputs[0], tmp_path / f"{stem}.glb")
-    report = quatcurve.fit([tmp_path / "a.glb", tmp_path / "b.glb"], tmp_path / "library", library="men")
-    assert report["library"]["output"] == str(tmp_path / "library" / "men.qcf")
-    assert report["library"]["whole_file_ratio"] < report["library"]["ratio"]
+    report = quatcurve.fit([tmp_path / "a.glb", tmp_path / "b.glb"], tmp_path / "library", clip_library="men")
+    assert report["clip_library"]["output"] == str(tmp_path / "library" / "men.qcf")
+    assert report["clip_library"]["whole_file_ratio"] < report["clip_library"]["ratio"]
     library = quatcurve.decode(tmp_path / "library" / "men.qcf")
     alone = quatcurve.decode(tmp_path / "py" / "CesiumMan.qcf")["clips"][0]
     assert [c["name"] for c in library["clips"]] == [f"{stem}/{alone['name']}" for stem in ("a", "b")]

@@ -94,7 +94,7 @@ fn table(w: &mut dyn Write, report: &FitReport) -> std::io::Result<()> {
         Some(path) => format!("{path}: {clips} clips, {:.1} KB, {ratio:.1}:1 as a whole file", bytes as f64 / 1024.0),
         None => String::new(),
     };
-    match &report.library {
+    match &report.clip_library {
         Some(l) => writeln!(
             w,
             "{} (clips alone {:.1}:1)",

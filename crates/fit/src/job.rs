@@ -62,7 +62,7 @@ pub struct FitOptions {
     /// skeleton, stored once (a clip library; a clip name two inputs share is prefixed with
     /// its input's stem and a slash); none: one container per input.
     #[cfg_attr(feature = "cli", arg(long, value_name = "NAME"))]
-    pub library: Option<String>,
+    pub clip_library: Option<String>,
 }
 
 impl FitOptions {
@@ -72,7 +72,7 @@ impl FitOptions {
         between_error_cm: Some(DEFAULT_BETWEEN_ERROR_CM),
         vertex_distance_cm: DEFAULT_VERTEX_DISTANCE_CM,
         unit_cm: None,
-        library: None,
+        clip_library: None,
     };
 }
 
@@ -140,7 +140,7 @@ pub struct InputFit {
     pub output: Option<String>,
     /// The file's unit, cm.
     pub unit_cm: f64,
-    /// Its bytes (0 in a library: [`FitReport::library`]).
+    /// Its bytes (0 in a library: [`FitReport::clip_library`]).
     pub container_bytes: usize,
     /// Its clips' raw bytes over the container's (skeleton and BVH hierarchy included; 0 in
     /// a library).
@@ -163,7 +163,7 @@ pub struct FitReport {
     /// Per input, in path order.
     pub inputs: Vec<InputFit>,
     /// The clip library, when one was asked for.
-    pub library: Option<LibraryFit>,
+    pub clip_library: Option<LibraryFit>,
 }
 
 /// A clip library's container.
@@ -302,13 +302,13 @@ impl FitJob {
         }
         let unit_cm = quatcurve_files::unit_cm(&inputs, self.options.unit_cm, "nothing was fitted")?;
         let stems = output_stems(&inputs)?;
-        if let Some(name) = &self.options.library {
+        if let Some(name) = &self.options.clip_library {
             if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
                 let reason = format!("'{name}' is not a file name: the library is <output>/<NAME>.{EXTENSION}");
-                return Err(FileJobError::option("library", reason));
+                return Err(FileJobError::option("clip_library", reason));
             }
         }
-        let outputs: Vec<&str> = match &self.options.library {
+        let outputs: Vec<&str> = match &self.options.clip_library {
             Some(name) => vec![name],
             None => stems.iter().map(String::as_str).collect(),
         };
@@ -323,7 +323,7 @@ impl FitJob {
                 return Err(FileJobError::Refused { error: Box::new(e), job: "fitted" });
             }
         }
-        let (inputs, library) = match &self.options.library {
+        let (inputs, clip_library) = match &self.options.clip_library {
             None => {
                 let fits =
                     inputs.par_iter().zip(&stems).map(|(input, stem)| self.fit_one(input, stem, unit_cm, progress));
@@ -342,7 +342,7 @@ impl FitJob {
             between_error_cm: self.options.between_error_cm,
             vertex_distance_cm: self.options.vertex_distance_cm,
             inputs,
-            library,
+            clip_library,
         })
     }
 
@@ -371,7 +371,7 @@ impl FitJob {
                     input.display(),
                     inputs[0].display()
                 );
-                return Err(FileJobError::option("library", reason));
+                return Err(FileJobError::option("clip_library", reason));
             }
         }
         // A clip keeps its name unless another input has a clip of that name too.

@@ -77,11 +77,11 @@ fn a_library_holds_every_input_s_clips_on_one_skeleton_stored_once_and_refuses_a
     let options = FitOptions { unit_cm: Some(1.0), ..FitOptions::DEFAULT };
     let apart = FitJob { inputs: inputs.clone(), output: dir.path().join("apart"), options: options.clone() };
     let apart = apart.run(&|_, _| {}).unwrap();
-    let library = FitOptions { library: Some("arm".into()), ..options.clone() };
+    let library = FitOptions { clip_library: Some("arm".into()), ..options.clone() };
     let job = FitJob { inputs: inputs.clone(), output: dir.path().join("library"), options: library.clone() };
     let report = job.run(&|_, _| {}).unwrap();
     assert_eq!(report.failed(), 0, "{report:?}");
-    let written = report.library.as_ref().unwrap();
+    let written = report.clip_library.as_ref().unwrap();
     let path = dir.path().join("library/arm.qcf");
     assert_eq!(written.output.as_deref(), Some(path.to_str().unwrap()));
     assert_eq!(std::fs::read_dir(dir.path().join("library")).unwrap().count(), 1, "the library alone");
@@ -116,7 +116,7 @@ fn a_library_holds_every_input_s_clips_on_one_skeleton_stored_once_and_refuses_a
     };
     let error = job.run(&|_, _| {}).unwrap_err().to_string();
     assert!(
-        error.starts_with("library holds clips of one skeleton: ")
+        error.starts_with("clip_library holds clips of one skeleton: ")
             && error.contains("swing.bvh's is not")
             && error.contains("other.bvh's (joint 1: 'arm' is not 'leg' as it hangs and rests)"),
         "{error}"
@@ -125,8 +125,8 @@ fn a_library_holds_every_input_s_clips_on_one_skeleton_stored_once_and_refuses_a
     let job = FitJob {
         inputs,
         output: dir.path().join("named"),
-        options: FitOptions { library: Some("a/b".into()), ..library },
+        options: FitOptions { clip_library: Some("a/b".into()), ..library },
     };
     let error = job.run(&|_, _| {}).unwrap_err().to_string();
-    assert_eq!(error, "library 'a/b' is not a file name: the library is <output>/<NAME>.qcf");
+    assert_eq!(error, "clip_library 'a/b' is not a file name: the library is <output>/<NAME>.qcf");
 }

@@ -458,7 +458,7 @@ fn a_library_of_one_skeleton_s_files_is_one_container_that_bakes_and_decodes_eve
         "--input",
         dir.path().join("stroll.glb").to_str().unwrap(),
         dir.path().join("walk.glb").to_str().unwrap(),
-        "--library",
+        "--clip-library",
         "men",
         "--output",
         out.to_str().unwrap(),
@@ -466,7 +466,7 @@ fn a_library_of_one_skeleton_s_files_is_one_container_that_bakes_and_decodes_eve
     ]);
     assert!(fitted.status.success(), "{}", stderr(&fitted));
     let report: serde_json::Value = serde_json::from_slice(&fitted.stdout).unwrap();
-    let library = &report["library"];
+    let library = &report["clip_library"];
     let bytes = std::fs::read(out.join("men.qcf")).unwrap();
     assert_eq!(library["container_bytes"].as_u64(), Some(bytes.len() as u64), "{report}");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
