@@ -32,7 +32,7 @@ fn slot(joint: usize, property: Property) -> usize {
 
 /// A container's clips ready to open: every field and code checked once, then each clip's
 /// timelines and channels kept as the container stores them but for their knots' and codes'
-/// packing, fixed widths instead of Rice codes ([`super::runtime_clips`]): a few percent more
+/// packing, fixed widths instead of Rice codes (`runtime_clips`, DESIGN section 16): a few percent more
 /// bytes, read without each value waiting on the one before it. That is all a clip is decoded
 /// from.
 #[derive(Clone, Debug)]
