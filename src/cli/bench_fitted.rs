@@ -44,6 +44,8 @@ pub struct FittedReport {
     held_bytes_per_bone_pose: f64,
     /// What one clip being decoded holds besides them (its cursors and pose), the largest.
     state_bytes_per_clip: usize,
+    /// Each clip of the containers alone, opened and decoded `copies` times.
+    per_clip: Vec<FittedClipTiming>,
     results: Vec<FittedTiming>,
 }
 
@@ -58,6 +60,19 @@ impl FittedLoad {
     fn of(seconds: f64, bone_poses: usize) -> Self {
         Self { seconds, ns_per_bone_pose: seconds * 1e9 / bone_poses as f64 }
     }
+}
+
+#[derive(Serialize)]
+struct FittedClipTiming {
+    file: String,
+    clip: String,
+    frames: usize,
+    joints: usize,
+    /// Its runtime form ([`Decoder::clip_bytes`]), and that per bone-pose of one decode.
+    held_bytes: usize,
+    held_bytes_per_bone_pose: f64,
+    /// Opening it and decoding every frame, per bone-pose (the median of the runs).
+    ns_per_bone_pose: f64,
 }
 
 #[derive(Serialize)]
@@ -200,12 +215,34 @@ pub fn measure(
         state_bytes = state_bytes.max(open(decoder, *index)?.state_bytes());
     }
     let held: usize = decoders.iter().map(Decoder::bytes).sum();
+    let mut per_clip = Vec::with_capacity(clips.len());
+    for (decoder, index, times) in &clips {
+        let seconds = median_seconds(runs, || {
+            for _ in 0..copies {
+                play(&mut open(decoder, *index)?, times, &mut pose)?;
+            }
+            Ok(())
+        })?;
+        let file = files[decoders.iter().position(|d| std::ptr::eq(d, *decoder)).unwrap_or(0)].display().to_string();
+        let (frames, joints, held_bytes) = (times.len(), decoder.joints.len(), decoder.clip_bytes(*index));
+        let bone_poses = (frames * joints).max(1) as f64;
+        per_clip.push(FittedClipTiming {
+            file,
+            clip: decoder.clips()[*index].name.clone(),
+            frames,
+            joints,
+            held_bytes,
+            held_bytes_per_bone_pose: held_bytes as f64 / bone_poses,
+            ns_per_bone_pose: seconds * 1e9 / (bone_poses * copies as f64),
+        });
+    }
     Ok(FittedReport {
         check: FittedLoad::of(check_seconds, bone_poses),
         decoder: FittedLoad::of(decoder_seconds, bone_poses),
         open_us_per_clip: open_seconds * 1e6 / (copies * clips.len()) as f64,
         held_bytes_per_bone_pose: (held * copies) as f64 / bone_poses as f64,
         state_bytes_per_clip: state_bytes,
+        per_clip,
         load: FittedLoad::of(load_seconds, bone_poses),
         files: files.iter().map(|f| f.display().to_string()).collect(),
         copies,
@@ -276,6 +313,22 @@ pub fn table(w: &mut dyn std::io::Write, report: &FittedReport) -> std::io::Resu
         report.held_bytes_per_bone_pose,
         report.state_bytes_per_clip
     )?;
+    writeln!(w, "each clip alone (opened and decoded {} times):", report.copies)?;
+    writeln!(w, "| file | clip | frames | joints | held KB | bytes/bone-pose | ns/bone-pose |")?;
+    writeln!(w, "|---|---|---:|---:|---:|---:|---:|")?;
+    for c in &report.per_clip {
+        writeln!(
+            w,
+            "| {} | {} | {} | {} | {:.1} | {:.2} | {:.2} |",
+            c.file,
+            c.clip,
+            c.frames,
+            c.joints,
+            c.held_bytes as f64 / 1024.0,
+            c.held_bytes_per_bone_pose,
+            c.ns_per_bone_pose
+        )?;
+    }
     writeln!(w, "baking them:")?;
     writeln!(w, "{:<44} {:>8} {:>22} {:>14} {:>12}", "device", "threads", "s min-med-max", "poses/s", "ns/bone-pose")?;
     for r in &report.results {

@@ -13,7 +13,9 @@ use super::fitted::{source_rate, Form, ORDER};
 use super::packed::{FixedCodes, FixedKnots};
 use super::quantize::{rotation, step, value};
 use super::timeline::KeyTimes;
-use super::{least_delta, runtime_clips, Channel, ChannelFields, CurveFields, Largest, Reader, Stored};
+use super::{
+    least_delta, runtime_clips, Channel, ChannelFields, CurveFields, Largest, Reader, Stored, RUNTIME_PADDING,
+};
 use quatcurve_anim::error::ContainerError;
 use quatcurve_anim::{Joint, Property};
 
@@ -99,6 +101,13 @@ impl Decoder {
     #[must_use]
     pub fn bytes(&self) -> usize {
         self.bytes.len() + std::mem::size_of_val(&self.rest[..])
+    }
+
+    /// Bytes of clip `index`'s runtime form (0 for no such clip).
+    #[must_use]
+    pub fn clip_bytes(&self, index: usize) -> usize {
+        let end = self.clips.get(index + 1).map_or(self.bytes.len() - RUNTIME_PADDING, |next| next.body);
+        self.clips.get(index).map_or(0, |clip| end - clip.body)
     }
 
     /// Clip `index` at its start: its channels' fields read, each curve's cursor before its

@@ -420,9 +420,12 @@ fn write_channel(out: &mut Writer, joint: usize, property: Property, parts: Part
     }
 }
 
+/// Zero bytes after the runtime form's clips: a fixed-width read loads 8 bytes wherever it starts.
+pub(crate) const RUNTIME_PADDING: usize = 8;
+
 /// The clips of a checked container as the runtime decoder reads them: each clip's body
 /// (timelines and channels, [`Writer::clip_body`]) with its streams at fixed widths, one after
-/// another and padded with 8 zero bytes (every fixed-width read takes 8), and where each
+/// another and padded with [`RUNTIME_PADDING`] zero bytes (a fixed-width read takes 8), and where each
 /// body starts.
 pub(crate) fn runtime_clips(clips: &[StoredClip]) -> (Vec<u8>, Vec<usize>) {
     let mut out = Writer::default();
@@ -432,7 +435,7 @@ pub(crate) fn runtime_clips(clips: &[StoredClip]) -> (Vec<u8>, Vec<usize>) {
         let channels = clip.channels.iter().map(|channel| (channel.joint, channel.property, channel.curve.parts()));
         out.clip_body(&clip.timelines, channels, Packing::Fixed);
     }
-    out.bytes(&[0; 8]);
+    out.bytes(&[0; RUNTIME_PADDING]);
     (out.bytes, starts)
 }
 

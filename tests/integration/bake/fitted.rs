@@ -311,6 +311,11 @@ fn bench_fitted_times_every_copy_of_every_clip_on_each_device() {
         assert!(timed[field].as_f64().unwrap() > 0.0, "{field}: {timed}");
     }
     assert!(timed["state_bytes_per_clip"].as_u64().unwrap() > 0, "{timed}");
+    // Each clip alone: the one clip of 61 frames of 2 joints, what it holds and its rate.
+    let per_clip = timed["per_clip"].as_array().unwrap();
+    assert_eq!(per_clip.len(), 1, "{timed}");
+    assert_eq!((per_clip[0]["frames"].as_u64(), per_clip[0]["joints"].as_u64()), (Some(61), Some(2)));
+    assert!(per_clip[0]["held_bytes"].as_u64().unwrap() > 0 && per_clip[0]["ns_per_bone_pose"].as_f64().unwrap() > 0.0);
     let one_thread =
         |row: &serde_json::Value| row["device"].as_str().unwrap().starts_with("cpu") && row["threads"] == 1;
     assert!(timed["results"].as_array().unwrap().iter().any(one_thread), "the CPU path on one thread: {timed}");
