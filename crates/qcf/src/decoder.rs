@@ -140,7 +140,7 @@ impl Decoder {
         };
         for index in 0..count {
             let field = Channel { clip: &clip.name, index, joint: None };
-            let (joint, property, fields) = r.channel(field, &self.joints, &timelines)?;
+            let (joint, property, fields) = r.channel(&field, &self.joints, &timelines)?;
             let at = slot(joint, property);
             match fields {
                 ChannelFields::Constant(v) => {
