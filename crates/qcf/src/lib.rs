@@ -11,9 +11,7 @@ pub mod quantize;
 pub mod timeline;
 
 use fitted::{Fitted, FittedChannel, FittedClip, Form, KEYS_ORDER, ORDER};
-use packed::{
-    pack_codes, pack_codes_fixed, rice_parameter, unpack_codes, width_of, BitWriter, Knots, Places, MOST_RICE,
-};
+use packed::{pack_codes, rice_parameter, unpack_codes, width_of, BitWriter, Knots, Packing, Places, MOST_RICE};
 use quantize::{Quantized, QuantizedRotations, MAX_BITS};
 use quatcurve_anim::error::{ContainerError, InputError};
 use quatcurve_anim::{Animation, Joint, Property};
@@ -327,17 +325,6 @@ fn clip_section(clip: &FittedClip) -> Vec<u8> {
     out.bytes
 }
 
-/// How a curve's knots and codes are packed: as the container stores them, or as the runtime
-/// decoder reads them ([`decoder`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Packing {
-    /// Rice codes: the fewest bytes, read one after another.
-    Rice,
-    /// A fixed width per curve's knots and per block's component: each value's place known
-    /// before the values ahead of it are read.
-    Fixed,
-}
-
 /// A channel's stored values, whichever model holds them.
 enum Parts<'x> {
     Constant(&'x [f64; 4]),
@@ -616,10 +603,7 @@ impl Writer {
         self.knots(knots, least_delta(form), packing);
         self.u8(codes.bits as u8);
         codes.low.iter().chain([&codes.span]).for_each(|&v| self.f32(v as f32));
-        let packed = match packing {
-            Packing::Rice => pack_codes(&codes.codes, codes.bits),
-            Packing::Fixed => pack_codes_fixed(&codes.codes, codes.bits),
-        };
+        let packed = pack_codes(&codes.codes, codes.bits, packing);
         self.count(packed.len());
         self.bytes(&packed);
     }

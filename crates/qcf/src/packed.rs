@@ -30,23 +30,44 @@ pub(crate) fn rice_parameter(values: impl Iterator<Item = u64> + Clone) -> u32 {
     (0..=MOST_RICE).min_by_key(|&k| values.clone().map(|z| rice_bits(z, k)).sum::<u64>()).unwrap_or(0)
 }
 
+/// How a curve's knots and codes are packed: as the container stores them, or as the runtime
+/// decoder reads them ([`super::decoder`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Packing {
+    /// Rice codes: the fewest bytes, read one after another.
+    Rice,
+    /// A fixed width per curve's knots and per block's component: each value's place known
+    /// before the values ahead of it are read.
+    Fixed,
+}
+
 /// Codes packed low bit first: the first point's at `bits` each, then per block of [`BLOCK`]
-/// points each component's Rice parameter ([`RICE_BITS`], the one of fewest bits for the
-/// block) and the points' zigzagged residuals from [`predicted`] as Rice codes. Residuals
-/// are about Laplacian, which Rice codes fit: 4-7% fewer bytes than one width per block, for
-/// about twice the time to unpack (a code's length is known only once it is read).
-pub(crate) fn pack_codes(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
+/// points each component's parameter ([`RICE_BITS`]) and the points' zigzagged residuals from
+/// [`predicted`]. As Rice codes ([`Packing::Rice`], the container's: the parameter of fewest
+/// bits for the block; residuals are about Laplacian, which Rice codes fit: 4-7% fewer bytes
+/// than one width per block, for about twice the time to unpack, a code's length known only
+/// once it is read), or at the block's widest residual's width ([`Packing::Fixed`], the
+/// runtime's, [`FixedCodes`]).
+pub(crate) fn pack_codes(codes: &[[u32; 3]], bits: u32, packing: Packing) -> Vec<u8> {
     let mut out = BitWriter::default();
     let Some(first) = codes.first() else { return out.finish() };
     first.iter().for_each(|&c| out.push(u64::from(c), bits));
-    let zigzag = |i: usize, c: usize| residual(codes, i, c);
     for block in (1..codes.len()).step_by(BLOCK) {
         let points = block..(block + BLOCK).min(codes.len());
-        let ks: [u32; 3] = std::array::from_fn(|c| rice_parameter(points.clone().map(|i| zigzag(i, c))));
-        ks.iter().for_each(|&k| out.push(u64::from(k), RICE_BITS));
+        let parameters: [u32; 3] = std::array::from_fn(|c| {
+            let residuals = points.clone().map(|i| residual(codes, i, c));
+            match packing {
+                Packing::Rice => rice_parameter(residuals),
+                Packing::Fixed => width_of(residuals),
+            }
+        });
+        parameters.iter().for_each(|&p| out.push(u64::from(p), RICE_BITS));
         for i in points {
-            for (c, &k) in ks.iter().enumerate() {
-                out.rice(zigzag(i, c), k);
+            for (c, &p) in parameters.iter().enumerate() {
+                match packing {
+                    Packing::Rice => out.rice(residual(codes, i, c), p),
+                    Packing::Fixed => out.push(residual(codes, i, c), p),
+                }
             }
         }
     }
@@ -243,27 +264,6 @@ fn unzigzag(z: u64) -> i64 {
     (z >> 1) as i64 ^ -((z & 1) as i64)
 }
 
-/// Codes packed as the runtime decoder reads them ([`FixedCodes`]): as [`pack_codes`], but each
-/// block's component at one width, its largest residual's, in [`RICE_BITS`], instead of a Rice
-/// parameter. A point's place is then known before the points ahead of it are read.
-pub(crate) fn pack_codes_fixed(codes: &[[u32; 3]], bits: u32) -> Vec<u8> {
-    let mut out = BitWriter::default();
-    let Some(first) = codes.first() else { return out.finish() };
-    first.iter().for_each(|&c| out.push(u64::from(c), bits));
-    let residual = |i: usize, c: usize| residual(codes, i, c);
-    for block in (1..codes.len()).step_by(BLOCK) {
-        let points = block..(block + BLOCK).min(codes.len());
-        let widths: [u32; 3] = std::array::from_fn(|c| width_of(points.clone().map(|i| residual(i, c))));
-        widths.iter().for_each(|&w| out.push(u64::from(w), RICE_BITS));
-        for i in points {
-            for (c, &w) in widths.iter().enumerate() {
-                out.push(residual(i, c), w);
-            }
-        }
-    }
-    out.finish()
-}
-
 /// `width` (at most 32) bits at bit `at` of `bytes`, low bit first: one unaligned read of the 8
 /// bytes there (the runtime clips end in 8 zero bytes), 0 past the end.
 #[inline(always)]
@@ -273,8 +273,9 @@ pub(crate) fn bits_at(bytes: &[u8], at: usize, width: u32) -> u64 {
     (word >> (at & 7)) & ((1u64 << width) - 1)
 }
 
-/// A curve's control-point codes as [`pack_codes_fixed`] packs them, read one point after
-/// another. The runtime's clips were made from a checked container, so nothing is checked.
+/// A curve's control-point codes packed at fixed widths ([`pack_codes`], [`Packing::Fixed`]),
+/// read one point after another. The runtime's clips were made from a checked container, so
+/// nothing is checked.
 #[derive(Clone, Debug)]
 pub(crate) struct FixedCodes<'a> {
     bytes: &'a [u8],
@@ -579,7 +580,7 @@ mod tests {
         let mut codes: Vec<[u32; 3]> =
             (0..100u32).map(|i| [1000 + 37 * i, 500_000 - i * i, if i < 50 { 0 } else { top }]).collect();
         codes.push([top, 0, top]);
-        let packed = pack_codes(&codes, bits);
+        let packed = pack_codes(&codes, bits, Packing::Rice);
         assert!(packed.len() * 8 < codes.len() * 3 * bits as usize / 2, "{} bytes: residuals are small", packed.len());
         assert_eq!(unpack_codes(&packed, codes.len(), bits).unwrap(), codes);
         assert_eq!(
@@ -614,7 +615,7 @@ mod tests {
             (0..100u32).map(|i| [1000 + 37 * i, 500_000 - i * i, if i < 50 { 0 } else { top }]).collect();
         codes.push([top, 0, top]);
         codes.extend(std::iter::repeat([7, 7, 7]).take(20));
-        let (rice, fixed) = (pack_codes(&codes, bits), pack_codes_fixed(&codes, bits));
+        let (rice, fixed) = (pack_codes(&codes, bits, Packing::Rice), pack_codes(&codes, bits, Packing::Fixed));
         assert!(
             fixed.len() < rice.len() * 5 / 4,
             "{} bytes at fixed widths, {} as Rice codes",
@@ -628,11 +629,11 @@ mod tests {
         assert_eq!((0..codes.len()).map(|_| stream.next()).collect::<Vec<_>>(), codes);
         stream.restart();
         assert_eq!(stream.next(), codes[0]);
-        let one = pack_codes_fixed(&[[5, 6, 7]], 3);
+        let one = pack_codes(&[[5, 6, 7]], 3, Packing::Fixed);
         assert_eq!(FixedCodes::new(&[one, vec![0; 8]].concat(), 0, 3).next(), [5, 6, 7]);
         // Keys' knots (deltas less one) at one width: 2, 3, 9, 200.
         let mut out = super::super::Writer::default();
-        out.knots(&[2, 3, 9, 200], 1, super::super::Packing::Fixed);
+        out.knots(&[2, 3, 9, 200], 1, Packing::Fixed);
         // Count 4, width 8 (190 is the largest delta less one), byte length 4, the deltas.
         assert_eq!(out.bytes, [4, 8, 4, 1, 0, 5, 190]);
         let padded = [&out.bytes[..], &[0; 8]].concat();
