@@ -1,7 +1,7 @@
 //! The fitted clip decoded as a runtime decodes it (DESIGN section 16): local poses at times
-//! taken in order, in f32, straight from the container's bytes. A [`Decoder`] checks a
-//! container once and keeps its bytes; opening a clip reads its channels' fields and nothing
-//! else, and each curve's cursor reads its knots and control points from their packed
+//! taken in order, in f32, straight from compressed bytes. A [`Decoder`] checks a container
+//! once and keeps its clips in a runtime form (fixed-width streams); opening a clip reads its
+//! channels' fields and nothing else, and each curve's cursor reads its knots and control points from their packed
 //! streams as it steps onto them. What a span needs that does not depend on the time (its knot
 //! offsets, the basis's reciprocals, its control points, sign-aligned) is computed once when a
 //! cursor enters it, so a sample costs a cubic's basis and weighted sum, or two sines; no
@@ -130,8 +130,7 @@ impl Decoder {
             rate: clip.rate,
             span: clip.span,
             fixed: self.rest.clone(),
-            // Room for every channel in each: a vector grown push by push moved its cursors
-            // again and again, a third of opening a clip.
+            // Room for every channel in each, so that no push moves the cursors again.
             cubic_rotations: Vec::with_capacity(count),
             groups: Vec::new(),
             cubic_vectors: Vec::with_capacity(count),
@@ -182,7 +181,7 @@ impl Decoder {
 }
 
 /// One fitted clip being decoded: its rest-and-constant pose, and a cursor per curve on the
-/// container's bytes.
+/// decoder's runtime form.
 #[derive(Clone, Debug)]
 pub struct ClipDecoder<'a> {
     /// The source clip's name.
@@ -208,9 +207,9 @@ impl ClipDecoder<'_> {
         self.fixed.len()
     }
 
-    /// Bytes this decoding holds besides the container's: its fixed pose and its cursors
-    /// (each a span's knots and control points and where its streams are), what every clip
-    /// played at once costs.
+    /// Bytes this decoding holds besides the decoder's: its fixed pose, its cursors (each a
+    /// span's knots and control points and where its streams are) and the cubic rotations'
+    /// groups, what every clip played at once costs.
     #[must_use]
     pub fn state_bytes(&self) -> usize {
         use std::mem::size_of_val as size;
@@ -310,7 +309,7 @@ impl Group {
     #[inline(always)]
     fn set<P>(&mut self, lane: usize, c: &Cubic<'_, P, 4>) {
         self.origin[lane] = c.origin;
-        // Each field written by name: an iterator chaining them cost a tenth of a pose.
+        // Each field written by name: an iterator chaining them cost a quarter of a pose.
         let f = &mut self.fields;
         f[0].as_array_mut()[lane] = c.a[0];
         f[1].as_array_mut()[lane] = c.a[1];
@@ -401,7 +400,7 @@ impl<P: Points<C>, const C: usize> Ahead<P, C> {
 impl<P: Points<C>, const C: usize> Points<C> for Ahead<P, C> {
     #[inline(always)]
     fn next(&mut self) -> [f32; C] {
-        // Past the last point the stream gives zeros, which no span takes.
+        // Past the last point the stream reads the bytes after it, which no span takes.
         std::mem::replace(&mut self.ahead, self.stream.next())
     }
 
@@ -490,7 +489,7 @@ struct KnotTimes<'a> {
 
 impl<'a> KnotTimes<'a> {
     fn new(bytes: &'a [u8], times: KeyTimes<'a>, curve: &CurveFields<'a>) -> Self {
-        let stream = FixedKnots::new(bytes, curve.knots_at, curve.knot_rice, least_delta(curve.form));
+        let stream = FixedKnots::new(bytes, curve.knots_at, curve.knot_parameter, least_delta(curve.form));
         Self { times, form: curve.form, stream, interior: curve.knot_count, unread: curve.knot_count }
     }
 

@@ -513,8 +513,9 @@ pub(crate) struct CurveFields<'a> {
     /// Where its knots may lie, and how many there are.
     pub(crate) places: Places,
     pub(crate) knot_count: usize,
-    /// The knots' Rice parameter, their packed deltas and the offset of those in the container.
-    pub(crate) knot_rice: u32,
+    /// The knots' parameter (a Rice parameter, or in the runtime form a width), their packed
+    /// deltas and the offset of those.
+    pub(crate) knot_parameter: u32,
     pub(crate) knot_bytes: &'a [u8],
     pub(crate) knots_at: usize,
     /// Control points, their bit width, ranges ([`Quantized`]) and packed codes, and the
@@ -530,7 +531,7 @@ pub(crate) struct CurveFields<'a> {
 impl<'a> CurveFields<'a> {
     /// The knots' stream.
     pub(crate) fn knot_stream(&self) -> Knots<'a> {
-        Knots::new(self.knot_bytes, self.knot_rice, self.places)
+        Knots::new(self.knot_bytes, self.knot_parameter, self.places)
     }
 }
 
@@ -941,12 +942,12 @@ impl<'a> Reader<'a> {
             let reason = format!("{knot_count} knots of a bit at least cannot fit in the {left} bytes left");
             return Err(self.bad_at(start, name, reason));
         }
-        let (mut knot_rice, mut knot_bytes, mut knots_at) = (0, &self.bytes[..0], self.at);
+        let (mut knot_parameter, mut knot_bytes, mut knots_at) = (0, &self.bytes[..0], self.at);
         if knot_count > 0 {
             let name = &Sub(field, "knot Rice parameter");
-            knot_rice = u32::from(self.u8(name)?);
-            if knot_rice > MOST_RICE {
-                return Err(self.bad_at(self.at - 1, name, format!("{knot_rice} is more than {MOST_RICE}")));
+            knot_parameter = u32::from(self.u8(name)?);
+            if knot_parameter > MOST_RICE {
+                return Err(self.bad_at(self.at - 1, name, format!("{knot_parameter} is more than {MOST_RICE}")));
             }
             let name = &Sub(field, "knots");
             let length = self.count(name, 1)?;
@@ -975,7 +976,7 @@ impl<'a> Reader<'a> {
             form,
             places,
             knot_count,
-            knot_rice,
+            knot_parameter,
             knot_bytes,
             knots_at,
             points: knot_count + order,
