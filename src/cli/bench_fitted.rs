@@ -35,12 +35,13 @@ pub struct FittedReport {
     /// Checking a container whole before its clips are opened (every field, code and the
     /// checksum), once per copy: what a player pays once per file it loads.
     check: FittedLoad,
-    /// The runtime's way: each clip opened from the checked bytes, then every frame's local
-    /// pose in order, one thread.
+    /// The runtime's way: each clip opened from its checked container's runtime form, then
+    /// every frame's local pose in order, one thread.
     decoder: FittedLoad,
     /// Opening a clip alone, microseconds a clip (the median of the runs).
     open_us_per_clip: f64,
-    /// What the runtime decoder holds: the containers' bytes, per bone-pose of one copy.
+    /// What the runtime decoders hold ([`Decoder::bytes`]: the clips' runtime form and the rest
+    /// pose), per bone-pose of one copy.
     held_bytes_per_bone_pose: f64,
     /// What one clip being decoded holds besides them (its cursors and pose), the largest.
     state_bytes_per_clip: usize,
