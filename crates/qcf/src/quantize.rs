@@ -148,7 +148,7 @@ impl QuantizedRotations {
 }
 
 /// The floats a rotation is rebuilt in: `f64` for the container's model, `f32` for the runtime
-/// decoder, whose poses are `f32` (a `f64` square root there was a sixth of a pose).
+/// decoder, whose poses are `f32`.
 pub(crate) trait Component:
     Copy + PartialOrd + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
 {
