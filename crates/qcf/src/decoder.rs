@@ -115,13 +115,10 @@ impl Decoder {
     /// first span.
     ///
     /// # Errors
-    /// `index` is not one of the clips.
-    pub fn open(&self, index: usize) -> Result<ClipDecoder<'_>, ContainerError> {
-        let clip = self.clips.get(index).ok_or_else(|| ContainerError {
-            offset: 0,
-            field: format!("clip {index}"),
-            reason: format!("not one of the container's {} clips", self.clips.len()),
-        })?;
+    /// `index` is not one of the clips; or a field of the runtime form does not read, which a
+    /// checked container's cannot fail to (its reader returns errors all the same).
+    pub fn open(&self, index: usize) -> Result<ClipDecoder<'_>, OpenError> {
+        let clip = self.clips.get(index).ok_or(OpenError::NoClip { index, clips: self.clips.len() })?;
         let mut r = Reader { bytes: &self.bytes, at: clip.body };
         let timelines = r.timelines(&clip.name, false)?;
         let count = r.channel_count(&clip.name)?;
@@ -349,6 +346,22 @@ impl Group {
         let scale = y * (f32x4::splat(1.5) - f32x4::splat(0.5) * length * y * y);
         q.map(|q| (q * scale).to_array())
     }
+}
+
+/// Why a clip was not opened.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OpenError {
+    /// The index is past the last clip.
+    #[error("clip {index} is not one of the container's {clips} clips")]
+    NoClip {
+        /// The index asked for.
+        index: usize,
+        /// How many clips there are.
+        clips: usize,
+    },
+    /// A field of the clip's runtime form did not read.
+    #[error(transparent)]
+    Container(#[from] ContainerError),
 }
 
 /// Why a pose was not decoded.
@@ -860,6 +873,14 @@ mod tests {
         let (below, above) = (f64::from_bits(0.5f64.to_bits() - 1), f64::from_bits(0.5f64.to_bits() + 1));
         assert_eq!((rotation(below), rotation(above)), (key.clone(), key.clone()));
         assert_ne!(rotation(0.5 + 1e-4), key, "a time inside the span slerps");
+    }
+
+    #[test]
+    fn a_clip_past_the_last_is_named() {
+        let decoded = Decoder::from_bytes(&container().to_bytes()).unwrap();
+        let e = decoded.open(1).unwrap_err();
+        assert_eq!(e, OpenError::NoClip { index: 1, clips: 1 });
+        assert_eq!(e.to_string(), "clip 1 is not one of the container's 1 clips");
     }
 
     #[test]
