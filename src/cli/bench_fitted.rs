@@ -189,15 +189,17 @@ pub fn measure(
         .iter()
         .map(|bytes| Decoder::from_bytes(bytes).map_err(|e| Failure::Internal(e.to_string())))
         .collect::<Result<Vec<_>, _>>()?;
-    let clips: Vec<(&Decoder, usize, Vec<f64>)> = decoders
+    // Each clip with its file, its decoder and its frame times.
+    let clips: Vec<(&PathBuf, &Decoder, usize, Vec<f64>)> = files
         .iter()
-        .flat_map(|decoder| (0..decoder.clips().len()).map(move |index| (decoder, index)))
-        .map(|(decoder, index)| Ok((decoder, index, frame_times(&decoder.clips()[index])?)))
+        .zip(&decoders)
+        .flat_map(|(file, decoder)| (0..decoder.clips().len()).map(move |index| (file, decoder, index)))
+        .map(|(file, decoder, index)| Ok((file, decoder, index, frame_times(&decoder.clips()[index])?)))
         .collect::<Result<_, Failure>>()?;
     let mut pose = Vec::new();
     let decoder_seconds = median_seconds(runs, || {
         for _ in 0..copies {
-            for (decoder, index, times) in &clips {
+            for (_, decoder, index, times) in &clips {
                 play(&mut open(decoder, *index)?, times, &mut pose)?;
             }
         }
@@ -205,30 +207,29 @@ pub fn measure(
     })?;
     let open_seconds = median_seconds(runs, || {
         for _ in 0..copies {
-            for (decoder, index, _) in &clips {
+            for (_, decoder, index, _) in &clips {
                 std::hint::black_box(open(decoder, *index)?);
             }
         }
         Ok(())
     })?;
     let mut state_bytes = 0;
-    for (decoder, index, _) in &clips {
+    for (_, decoder, index, _) in &clips {
         state_bytes = state_bytes.max(open(decoder, *index)?.state_bytes());
     }
     let held: usize = decoders.iter().map(Decoder::bytes).sum();
     let mut per_clip = Vec::with_capacity(clips.len());
-    for (decoder, index, times) in &clips {
+    for (file, decoder, index, times) in &clips {
         let seconds = median_seconds(runs, || {
             for _ in 0..copies {
                 play(&mut open(decoder, *index)?, times, &mut pose)?;
             }
             Ok(())
         })?;
-        let file = files[decoders.iter().position(|d| std::ptr::eq(d, *decoder)).unwrap_or(0)].display().to_string();
         let (frames, joints, held_bytes) = (times.len(), decoder.joints.len(), decoder.clip_bytes(*index));
         let bone_poses = (frames * joints).max(1) as f64;
         per_clip.push(FittedClipTiming {
-            file,
+            file: file.display().to_string(),
             clip: decoder.clips()[*index].name.clone(),
             frames,
             joints,
