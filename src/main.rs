@@ -21,18 +21,18 @@ enum Command {
     /// Evaluate curves through tracks (JSON, .npz or .npy arrays, or a fitted .qcf); write
     /// samples as JSON or .npy.
     Eval(cli::eval::EvalArgs),
-    /// Resample glTF/GLB, FBX, BVH, SMPL .npz or fitted .qcf animation (or a built-in
+    /// Resample glTF/GLB, FBX, USD (.usd/.usda/.usdc/.usdz), BVH, SMPL .npz or fitted .qcf animation (or a built-in
     /// synthetic crowd) at a new rate.
     Bake(cli::bake::BakeArgs),
-    /// Fit glTF/GLB, FBX or BVH clips as the fewest quantized B-spline control points within
+    /// Fit glTF/GLB, FBX, USD (.usd/.usda/.usdc/.usdz) or BVH clips as the fewest quantized B-spline control points within
     /// an error budget (cm), one .qcf container per input, which bake reads as it reads the
     /// source.
     Fit(cli::fit::FitArgs),
-    /// Play a crowd straight from a file's curves (glTF/GLB, FBX, BVH, SMPL .npz, .qcf): every
+    /// Play a crowd straight from a file's curves (glTF/GLB, FBX, USD (.usd/.usda/.usdc/.usdz), BVH, SMPL .npz, .qcf): every
     /// instance at its own time, two clips blended, skin palettes per frame written as one .npy.
     Play(cli::play::PlayArgs),
     /// Time the same synthetic batch on every available device, side by side; or decoding
-    /// (.qcf), skinning (glTF/GLB) or crowd playback (glTF/GLB, FBX, BVH, SMPL .npz, .qcf).
+    /// (.qcf), skinning (glTF/GLB) or crowd playback (glTF/GLB, FBX, USD (.usd/.usda/.usdc/.usdz), BVH, SMPL .npz, .qcf).
     Bench(cli::bench::BenchArgs),
     /// Energy, torque and smoothness of curves through the same keys (JSON, .npz or .npy
     /// tracks); --paper reruns KKS 6.1.

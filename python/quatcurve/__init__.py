@@ -341,7 +341,7 @@ def bake(inputs=None, output="baked", *, shard=None, resume=False, jobs=1, error
     Parameters
     ----------
     inputs : str, os.PathLike or a list of them, optional
-        ``.gltf``, ``.glb``, ``.fbx``, ``.bvh``, ``.npz`` (SMPL-family poses in AMASS's
+        ``.gltf``, ``.glb``, ``.fbx``, USD (``.usd``, ``.usda``, ``.usdc``, ``.usdz``), ``.bvh``, ``.npz`` (SMPL-family poses in AMASS's
         layout, docs/DATASETS.md) and ``.qcf`` files, or directories of them. None (or an empty
         list): the built-in synthetic crowd of ``characters`` characters.
     output : str or os.PathLike
@@ -465,7 +465,7 @@ def fit(inputs, output="fitted", *, errors="raise", **options):
     Parameters
     ----------
     inputs : str, os.PathLike or a list of them
-        ``.gltf``, ``.glb``, ``.fbx`` and ``.bvh`` files, or directories of them.
+        ``.gltf``, ``.glb``, ``.fbx``, USD and ``.bvh`` files, or directories of them.
     output : str or os.PathLike
         Output directory, created if missing.
     max_error_cm : float

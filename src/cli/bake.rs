@@ -17,7 +17,7 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
-    /// Input files (.gltf, .glb, .fbx, .bvh, .npz of SMPL poses, .qcf) or directories of them; without it, the built-in
+    /// Input files (.gltf, .glb, .fbx, .usd/.usda/.usdc/.usdz, .bvh, .npz of SMPL poses, .qcf) or directories of them; without it, the built-in
     /// synthetic crowd.
     #[arg(long, num_args = 1..)]
     input: Vec<PathBuf>,

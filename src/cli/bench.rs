@@ -78,7 +78,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 10)]
     copies: usize,
     /// Time crowd playback instead (`quatcurve play`): one frame of this file's clips (.gltf,
-    /// .glb, .fbx, .bvh, .npz, .qcf) for --instances instances, each blending two clips,
+    /// .glb, .fbx, .usd, .usda, .usdc, .usdz, .bvh, .npz, .qcf) for --instances instances, each blending two clips,
     /// palettes out, on each device.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["sweep", "skinning", "fitted"])]
     playback: Option<std::path::PathBuf>,

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct FitArgs {
-    /// Input files (.gltf, .glb, .fbx, .bvh) or directories of them.
+    /// Input files (.gltf, .glb, .fbx, .usd/.usda/.usdc/.usdz, .bvh) or directories of them.
     #[arg(long, num_args = 1.., required = true)]
     input: Vec<PathBuf>,
     /// Output directory (created if missing): one `<stem>.qcf` per input, or the library.

@@ -26,7 +26,7 @@ const FRAME_ROUNDING: f64 = 1e-9;
 
 #[derive(Args, Debug)]
 pub struct PlayArgs {
-    /// The file whose clips are played (.gltf, .glb, .fbx, .bvh, .npz, .qcf).
+    /// The file whose clips are played (.gltf, .glb, .fbx, .usd/.usda/.usdc/.usdz, .bvh, .npz, .qcf).
     #[arg(long)]
     input: PathBuf,
     /// Instances per frame; instance i plays clip i mod clips from phase frac(i * 0.618...) of

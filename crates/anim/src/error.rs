@@ -33,6 +33,10 @@ pub enum InputError {
     /// An FBX file ufbx cannot load, or a stack it cannot bake; the description is ufbx's.
     #[error("{0}")]
     Fbx(FormatError),
+    /// A USD stage openusd cannot read, or a skeleton, animation or mesh breaking a rule of
+    /// UsdSkel, named by its prim path.
+    #[error("{0}")]
+    Usd(FormatError),
     /// A glTF file that is corrupt or breaks a rule of the format; the rule names the node,
     /// accessor, skin or buffer.
     #[error("{0}")]

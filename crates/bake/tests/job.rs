@@ -57,7 +57,11 @@ fn an_input_no_importer_takes_fails_alone_naming_every_format_read() {
     assert_eq!(failed.len(), 1);
     match &failed[0].outcome {
         Err(BakeError::Input(InputError::UnknownFormat { expected })) => {
-            assert_eq!(expected, ".gltf, .glb, .fbx, .bvh, .npz (SMPL-family poses) or .qcf (a fitted container)");
+            assert_eq!(
+                expected,
+                ".gltf, .glb, .fbx, .usd, .usda, .usdc, .usdz, .bvh, .npz (SMPL-family poses) or .qcf (a fitted \
+                 container)"
+            );
         }
         other => panic!("expected an unknown format, got {other:?}"),
     }

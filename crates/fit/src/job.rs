@@ -13,9 +13,9 @@ use quatcurve_eval::io::IoError;
 use quatcurve_files::FileJobError;
 use quatcurve_files::{expand, output_stems};
 use quatcurve_files::{refuse_overwriting_input, OutputDir};
-use quatcurve_formats::fbx;
 use quatcurve_formats::source::extension;
 use quatcurve_formats::source::{ReadOptions, Source};
+use quatcurve_formats::{fbx, usd};
 use quatcurve_qcf::fitted::FittedClip;
 use quatcurve_qcf::{BvhSkeleton, Container, EXTENSION};
 use rayon::prelude::*;
@@ -24,7 +24,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The extensions a fit reads (sources with keys; a container holds control points).
-pub const FIT_EXTENSIONS: [&str; 4] = ["gltf", "glb", fbx::EXTENSION, "bvh"];
+pub const FIT_EXTENSIONS: [&str; 8] = [
+    "gltf",
+    "glb",
+    fbx::EXTENSION,
+    usd::EXTENSIONS[0],
+    usd::EXTENSIONS[1],
+    usd::EXTENSIONS[2],
+    usd::EXTENSIONS[3],
+    "bvh",
+];
 
 /// What to fit, where to, and within what ([`FitOptions`]).
 #[derive(Clone, Debug)]
@@ -282,7 +291,7 @@ impl FitJob {
             }
         }
         if self.inputs.is_empty() {
-            return Err(FileJobError::option("inputs", "names no file: give the glTF, FBX or BVH files to fit"));
+            return Err(FileJobError::option("inputs", "names no file: give the glTF, FBX, USD or BVH files to fit"));
         }
         let inputs = expand(&self.inputs, &FIT_EXTENSIONS)?;
         for input in &inputs {

@@ -13,6 +13,7 @@
 //! its parent's scale (Mixamo's bones) is compensated by ufbx so that glTF's inheritance,
 //! which always multiplies scales down the chain, poses it as FBX does.
 
+use crate::glb_builder::{heaviest, Buffer};
 use crate::gltf::{self, GltfFile, UriPolicy};
 use quatcurve_anim::error::{FormatError, InputError};
 use serde_json::{json, Value};
@@ -21,10 +22,6 @@ use std::path::Path;
 
 /// The extension of FBX files.
 pub const EXTENSION: &str = "fbx";
-
-/// Skin weights a glTF vertex holds (`JOINTS_0`, `WEIGHTS_0`); an FBX vertex's heaviest four
-/// are kept, renormalized.
-const WEIGHTS_PER_VERTEX: usize = 4;
 
 /// An FBX file read for baking: the glTF scene it converts to.
 #[derive(Clone, Debug)]
@@ -79,79 +76,6 @@ pub fn from_bytes(bytes: &[u8]) -> Result<FbxFile, InputError> {
     let gltf = gltf::from_bytes(&glb, Path::new(""), UriPolicy::default())?;
     let settings = &scene.settings;
     Ok(FbxFile { gltf, source_unit_metres: settings.unit_meters, source_up: axis_name(settings.axes.up) })
-}
-
-/// glTF's buffer view target of vertex attributes.
-const ARRAY_BUFFER: u32 = 34962;
-
-/// glTF's buffer view target of vertex indices.
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-
-/// The GLB's BIN chunk and its accessors, written as they are added.
-#[derive(Default)]
-struct Buffer {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Buffer {
-    /// An accessor of `values` (`width` floats an element, glTF `kind`), with its bounds when
-    /// glTF asks for them (`bounds`).
-    fn floats(&mut self, values: &[f32], width: usize, kind: &str, bounds: bool) -> usize {
-        let count = values.len() / width;
-        let accessor = json!({"componentType": 5126, "count": count, "type": kind});
-        self.floats_with(values, width, accessor, bounds)
-    }
-
-    /// A vertex attribute's accessor ([`Buffer::floats`] with its view marked as one).
-    fn attribute(&mut self, values: &[f32], width: usize, kind: &str, bounds: bool) -> usize {
-        let accessor =
-            json!({"componentType": 5126, "count": values.len() / width, "type": kind, "target": ARRAY_BUFFER});
-        self.floats_with(values, width, accessor, bounds)
-    }
-
-    fn floats_with(&mut self, values: &[f32], width: usize, mut accessor: Value, bounds: bool) -> usize {
-        if bounds {
-            let (mut lo, mut hi) = (vec![f32::MAX; width], vec![f32::MIN; width]);
-            for element in values.chunks_exact(width) {
-                for (c, &v) in element.iter().enumerate() {
-                    lo[c] = lo[c].min(v);
-                    hi[c] = hi[c].max(v);
-                }
-            }
-            accessor["min"] = json!(lo);
-            accessor["max"] = json!(hi);
-        }
-        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
-    }
-
-    /// A vertex attribute of unsigned shorts (`JOINTS_0`).
-    fn shorts(&mut self, values: &[u16], width: usize, kind: &str) -> usize {
-        let accessor =
-            json!({"componentType": 5123, "count": values.len() / width, "type": kind, "target": ARRAY_BUFFER});
-        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
-    }
-
-    /// A primitive's triangle indices.
-    fn indices(&mut self, values: &[u32]) -> usize {
-        let accessor =
-            json!({"componentType": 5125, "count": values.len(), "type": "SCALAR", "target": ELEMENT_ARRAY_BUFFER});
-        self.add(values.iter().flat_map(|v| v.to_le_bytes()).collect(), accessor)
-    }
-
-    fn add(&mut self, bytes: Vec<u8>, mut accessor: Value) -> usize {
-        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
-        let mut view = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
-        if let Some(target) = accessor.as_object_mut().and_then(|a| a.remove("target")) {
-            view["target"] = target;
-        }
-        self.views.push(view);
-        self.bin.extend(bytes);
-        accessor["bufferView"] = json!(self.views.len() - 1);
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
 }
 
 /// The scene as a GLB (see the module's documentation).
@@ -215,10 +139,7 @@ fn to_glb(scene: &ufbx::Scene) -> Result<Vec<u8>, InputError> {
             document[key] = Value::Array(list);
         }
     }
-    document["accessors"] = Value::Array(std::mem::take(&mut buffer.accessors));
-    document["bufferViews"] = Value::Array(std::mem::take(&mut buffer.views));
-    document["buffers"] = json!([{"byteLength": buffer.bin.len()}]);
-    crate::glb::assemble(&document, buffer.bin, "the FBX's scene would exceed 4 GiB as a GLB")
+    buffer.glb(document, "the FBX's scene would exceed 4 GiB as a GLB")
 }
 
 /// Every skin deformer as a glTF skin: its clusters' bones and their geometry-to-bone
@@ -302,35 +223,25 @@ fn mesh_json(mesh: &ufbx::Mesh, skin: Option<&ufbx::SkinDeformer>, buffer: &mut 
         attributes["TEXCOORD_0"] = json!(buffer.attribute(&values, 2, "VEC2", false));
     }
     if let Some(skin) = skin {
-        let (mut joints, mut weights) = (Vec::with_capacity(corners.len() * 4), Vec::with_capacity(corners.len() * 4));
-        for &c in &corners {
-            let vertex = mesh.vertex_indices[c as usize] as usize;
-            let mut influences: Vec<(u32, f64)> = skin
-                .vertices
-                .get(vertex)
-                .map(|v| {
-                    (v.weight_begin..v.weight_begin + v.num_weights)
-                        .filter_map(|w| skin.weights.get(w as usize).map(|w| (w.cluster_index, w.weight)))
-                        .collect()
-                })
-                .unwrap_or_default();
-            influences.sort_by(|a, b| b.1.total_cmp(&a.1));
-            influences.truncate(WEIGHTS_PER_VERTEX);
-            let total: f64 = influences.iter().map(|(_, w)| w).sum();
-            for k in 0..WEIGHTS_PER_VERTEX {
-                let (joint, weight) = influences.get(k).copied().unwrap_or((0, 0.0));
-                joints.push(u16::try_from(joint).unwrap_or(0));
-                weights.push(if total > 0.0 {
-                    (weight / total) as f32
-                } else if k == 0 {
-                    1.0
-                } else {
-                    0.0
-                });
-            }
-        }
-        attributes["JOINTS_0"] = json!(buffer.shorts(&joints, 4, "VEC4"));
-        attributes["WEIGHTS_0"] = json!(buffer.attribute(&weights, 4, "VEC4", false));
+        let influences: Vec<_> = corners
+            .iter()
+            .map(|&c| {
+                let vertex = mesh.vertex_indices[c as usize] as usize;
+                heaviest(
+                    skin.vertices
+                        .get(vertex)
+                        .map(|v| {
+                            (v.weight_begin..v.weight_begin + v.num_weights)
+                                .filter_map(|w| skin.weights.get(w as usize).map(|w| (w.cluster_index, w.weight)))
+                                .collect()
+                        })
+                        .unwrap_or_default(),
+                )
+            })
+            .collect();
+        let (joints, weights) = buffer.influences(&influences);
+        attributes["JOINTS_0"] = json!(joints);
+        attributes["WEIGHTS_0"] = json!(weights);
     }
     let indices = buffer.indices(&indices);
     json!({"name": &*mesh.element.name, "primitives": [{"attributes": attributes, "indices": indices, "mode": 4}]})

@@ -1,6 +1,6 @@
 //! Every format quatcurve reads into the animation model (`quatcurve_anim`) and writes baked
 //! frames back to: glTF and GLB with their skinned meshes ([`gltf`], [`glb`], [`mesh`], Draco),
-//! FBX through ufbx ([`fbx`]), BVH ([`bvh`]), SMPL-family pose archives ([`smpl`]), the
+//! FBX through ufbx ([`fbx`]), OpenUSD's UsdSkel through openusd ([`usd`]), BVH ([`bvh`]), SMPL-family pose archives ([`smpl`]), the
 //! fitted container (`quatcurve_qcf`) and the synthetic crowd ([`crowd`]). [`source`] picks
 //! one by the file's extension.
 
@@ -9,7 +9,9 @@ pub mod crowd;
 mod draco;
 pub mod fbx;
 pub mod glb;
+mod glb_builder;
 pub mod gltf;
 pub mod mesh;
 pub mod smpl;
 pub mod source;
+pub mod usd;

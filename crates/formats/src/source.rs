@@ -4,7 +4,7 @@
 //! files; the synthetic crowd is an input too. A job over inputs ([`Source`]) never names a
 //! format: a new one is its module, its [`Input`] and a row of [`IMPORTERS`].
 
-use crate::{bvh, crowd, fbx, gltf, smpl};
+use crate::{bvh, crowd, fbx, gltf, smpl, usd};
 use quatcurve_anim::error::{AnimationError, InputError};
 use quatcurve_anim::{Animation, ClipFrames};
 use quatcurve_core::curve::{Curve, DEFAULT_CURVE};
@@ -112,7 +112,7 @@ pub struct Importer {
 }
 
 /// Every format read as an input, by extension.
-pub static IMPORTERS: [Importer; 5] = [
+pub static IMPORTERS: [Importer; 6] = [
     Importer {
         extensions: &["gltf", "glb"],
         holds: "",
@@ -128,6 +128,14 @@ pub static IMPORTERS: [Importer; 5] = [
         meshes: true,
         says_unit: true,
         read: |path, _| Ok(Box::new(fbx::read(path)?)),
+    },
+    Importer {
+        extensions: &usd::EXTENSIONS,
+        holds: "",
+        writes_back: Some("glb"),
+        meshes: true,
+        says_unit: true,
+        read: |path, _| Ok(Box::new(usd::read(path)?)),
     },
     Importer {
         extensions: &["bvh"],
@@ -264,6 +272,33 @@ impl Input for fbx::FbxFile {
             from_up: self.source_up.to_string(),
             to: "metres, +Y up, right-handed (glTF's space), by adjusting the nodes' transforms as ufbx loads the \
                  file; mesh data and inverse bind matrices are the file's",
+        })
+    }
+}
+
+impl Input for usd::UsdFile {
+    fn kind(&self) -> &'static str {
+        "a USD stage"
+    }
+
+    fn animation(&self) -> &Animation {
+        &self.gltf.animation
+    }
+
+    fn gltf(&self) -> Option<&gltf::GltfFile> {
+        Some(&self.gltf)
+    }
+
+    fn write_back(&self, frames: &[ClipFrames<'_>], _: bool) -> Result<Option<WrittenBack>, InputError> {
+        Ok(Some(WrittenBack { extension: "glb", bytes: self.gltf.to_glb(frames)? }))
+    }
+
+    fn conversion(&self) -> Option<Conversion> {
+        Some(Conversion {
+            from_unit_metres: self.source_unit_metres,
+            from_up: self.source_up.to_string(),
+            to: "metres, +Y up (glTF's space), by each skeleton's node; joints, mesh data and inverse bind matrices \
+                 are the stage's",
         })
     }
 }

@@ -192,7 +192,11 @@ fn a_directory_without_animation_is_an_error_not_the_crowd() {
     let out = dir.path().join("out");
     let result = bake(&["--input", dir.path().to_str().unwrap(), "--output", out.to_str().unwrap()]);
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
-    assert!(stderr(&result).contains("holds no file of .gltf, .glb, .fbx, .bvh, .npz, .qcf"), "{}", stderr(&result));
+    assert!(
+        stderr(&result).contains("holds no file of .gltf, .glb, .fbx, .usd, .usda, .usdc, .usdz, .bvh, .npz, .qcf"),
+        "{}",
+        stderr(&result)
+    );
     assert!(!out.exists());
 }
 
