@@ -249,59 +249,51 @@ impl Input for gltf::GltfFile {
     }
 }
 
-impl Input for fbx::FbxFile {
-    fn kind(&self) -> &'static str {
-        "an FBX file"
-    }
+/// The [`Input`] of a scene converted to glTF as it was read (`$kind`, "an FBX file"), with its
+/// `gltf`, `source_unit_metres` and `source_up`, and what it was converted to (`$to`).
+macro_rules! converted_input {
+    ($file:ty, $kind:expr, $to:expr) => {
+        impl Input for $file {
+            fn kind(&self) -> &'static str {
+                $kind
+            }
 
-    fn animation(&self) -> &Animation {
-        &self.gltf.animation
-    }
+            fn animation(&self) -> &Animation {
+                &self.gltf.animation
+            }
 
-    fn gltf(&self) -> Option<&gltf::GltfFile> {
-        Some(&self.gltf)
-    }
+            fn gltf(&self) -> Option<&gltf::GltfFile> {
+                Some(&self.gltf)
+            }
 
-    fn write_back(&self, frames: &[ClipFrames<'_>], _: bool) -> Result<Option<WrittenBack>, InputError> {
-        Ok(Some(WrittenBack { extension: "glb", bytes: self.gltf.to_glb(frames)? }))
-    }
+            fn write_back(&self, frames: &[ClipFrames<'_>], _: bool) -> Result<Option<WrittenBack>, InputError> {
+                Ok(Some(WrittenBack { extension: "glb", bytes: self.gltf.to_glb(frames)? }))
+            }
 
-    fn conversion(&self) -> Option<Conversion> {
-        Some(Conversion {
-            from_unit_metres: self.source_unit_metres,
-            from_up: self.source_up.to_string(),
-            to: "metres, +Y up, right-handed (glTF's space), by adjusting the nodes' transforms as ufbx loads the \
-                 file; mesh data and inverse bind matrices are the file's",
-        })
-    }
+            fn conversion(&self) -> Option<Conversion> {
+                Some(Conversion {
+                    from_unit_metres: self.source_unit_metres,
+                    from_up: self.source_up.to_string(),
+                    to: $to,
+                })
+            }
+        }
+    };
 }
 
-impl Input for usd::UsdFile {
-    fn kind(&self) -> &'static str {
-        "a USD stage"
-    }
+converted_input!(
+    fbx::FbxFile,
+    "an FBX file",
+    "metres, +Y up, right-handed (glTF's space), by adjusting the nodes' transforms as ufbx loads the file; mesh \
+     data and inverse bind matrices are the file's"
+);
 
-    fn animation(&self) -> &Animation {
-        &self.gltf.animation
-    }
-
-    fn gltf(&self) -> Option<&gltf::GltfFile> {
-        Some(&self.gltf)
-    }
-
-    fn write_back(&self, frames: &[ClipFrames<'_>], _: bool) -> Result<Option<WrittenBack>, InputError> {
-        Ok(Some(WrittenBack { extension: "glb", bytes: self.gltf.to_glb(frames)? }))
-    }
-
-    fn conversion(&self) -> Option<Conversion> {
-        Some(Conversion {
-            from_unit_metres: self.source_unit_metres,
-            from_up: self.source_up.to_string(),
-            to: "metres, +Y up (glTF's space), by each skeleton's node; joints, mesh data and inverse bind matrices \
-                 are the stage's",
-        })
-    }
-}
+converted_input!(
+    usd::UsdFile,
+    "a USD stage",
+    "metres, +Y up (glTF's space), by each skeleton's node; joints, mesh data and inverse bind matrices are the \
+     stage's"
+);
 
 /// A BVH file (or a fitted container of one), read as its one clip.
 struct Bvh {
