@@ -367,3 +367,43 @@ def test_a_stage_usd_core_writes_bakes_as_usd_skel_poses_it(name, tmp_path):
             worst_point = max(worst_point, np.abs(expected_points - skinned[f]).max())
         assert worst <= 1e-5 * extent, f"{clip['name']}: {worst} against an extent of {extent}"
         assert worst_point <= 1e-5 * skinned_extent, f"{clip['name']}: {worst_point} against {skinned_extent}"
+
+
+@pytest.mark.parametrize(
+    "name, extra", [("Fox.glb", ["--instances", "7"]), ("CesiumMan.glb", ["--instances", "4", "--blend-weight", "0.3"])]
+)
+def test_play_s_crowd_stage_poses_each_instance_as_its_palette(name, extra, tmp_path):
+    """`play --usd`: each instance of the crowd stage, an instance of the one character (a
+    shared prototype), posed by UsdSkel at every frame (its skinning transforms, the skin's
+    joints by `skel:joints`) is play's palette for that instance within 1e-5 of the extent,
+    over three seconds (past a clip's end, where play starts it again); usdchecker's
+    validators report no error."""
+    (path,) = map(pathlib.Path, data_files(name))
+    output = tmp_path / "crowd.npy"
+    args = [str(cli()), "play", "--input", str(path), *extra, "--seconds", "3", "--output", str(output), "--usd"]
+    subprocess.run(args, check=True, capture_output=True)
+    palettes = np.load(output)
+    frames, instances, joints, _ = palettes.shape
+    palettes = palettes.reshape(frames, instances, joints, 3, 4)
+    extent = np.ptp(palettes[..., 3].reshape(-1, 3), axis=0).max()
+    stage = Usd.Stage.Open(str(tmp_path / "crowd.usda"))
+    assert len(stage.GetPrototypes()) == 1, "the character shared by every instance"
+    cache = UsdSkel.Cache()
+    worst = 0.0
+    for i in range(instances):
+        root = stage.GetPrimAtPath(f"/Crowd/Instance_{i}")
+        assert root.IsInstance()
+        cache.Populate(UsdSkel.Root(root), Usd.TraverseInstanceProxies())
+        query = cache.GetSkelQuery(UsdSkel.Skeleton(root.GetChild("Skeleton")))
+        assert query.GetAnimQuery().GetPrim().GetPath() == f"/Crowd/Motion/Instance_{i}"
+        order = [str(t) for t in query.GetJointOrder()]
+        mesh = next(c for c in root.GetFilteredChildren(Usd.TraverseInstanceProxies()) if c.IsA(UsdGeom.Mesh))
+        columns = [order.index(str(j)) for j in mesh.GetAttribute("skel:joints").Get()]
+        for k in range(frames):
+            # USD's row vectors: each matrix transposed is the palette's 3x4 rows.
+            got = np.array([np.array(m).T[:3] for m in query.ComputeSkinningTransforms(k)])[columns]
+            worst = max(worst, np.abs(got - palettes[k, i]).max())
+    assert worst <= 1e-5 * extent, f"{worst} against an extent of {extent}"
+    validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
+    errors = UsdValidation.ValidationContext(validators).Validate(stage)
+    assert not errors, [f"{e.GetName()}: {e.GetMessage()}" for e in errors]

@@ -5,12 +5,15 @@ use super::{names, open_device, CurveOptions, Failure};
 use clap::Args;
 use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::loops::LoopMode;
+use quatcurve::bake::usd::CrowdInstance;
 use quatcurve::curve::Curve;
-use quatcurve::formats::source::Source;
+use quatcurve::formats::mesh::skinned_primitives;
+use quatcurve::formats::source::{importer, Source};
 use quatcurve::io::{npy_header, AtomicFile, NpyElement};
 use quatcurve::play::error::PlayError;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
+use quatcurve::skeleton;
 use quatcurve::DeviceChoice;
 use std::io::Write;
 use std::path::PathBuf;
@@ -71,7 +74,19 @@ pub struct PlayArgs {
     /// Evaluation device (as bake's).
     #[arg(long, default_value_t = DeviceChoice::Auto, value_parser = names::<DeviceChoice>())]
     device: DeviceChoice,
+    /// Also write the crowd as one OpenUSD stage, the output's name with `.usda`: the
+    /// character once, each instance an instanced reference to it playing its own
+    /// `SkelAnimation` of its poses at every frame.
+    #[arg(long)]
+    usd: bool,
+    /// The length of one file unit in cm, for --usd (as bake's: BVH files and fitted
+    /// containers do not say theirs).
+    #[arg(long, value_name = "CM", allow_negative_numbers = true)]
+    unit_cm: Option<f64>,
 }
+
+/// How far apart a crowd stage sets its instances, in rest skeletons' largest sides.
+const CROWD_SPACING: f64 = 1.5;
 
 pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     if !(args.rate.is_finite() && args.rate > 0.0) {
@@ -87,6 +102,19 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
         return Err(Failure::Input("--instances must be 1 or more".into()));
     }
     let input = args.input.display().to_string();
+    if let Some(unit) = args.unit_cm.filter(|u| !(u.is_finite() && *u > 0.0)) {
+        return Err(Failure::Input(format!("--unit-cm {unit} must be a positive length")));
+    }
+    let says_unit = importer(&args.input).is_some_and(|i| i.says_unit);
+    if args.usd && !says_unit && args.unit_cm.is_none() {
+        return Err(Failure::Input(format!(
+            "--unit-cm is needed for --usd: {input} does not say its length unit (CMU's BVH is 5.644)"
+        )));
+    }
+    let usd_path = args.output.with_extension("usda");
+    if args.usd && usd_path == args.output {
+        return Err(Failure::Input(format!("--output {} is where --usd writes its stage", args.output.display())));
+    }
     let source = Source::read(&args.input, Default::default()).map_err(|e| Failure::Input(format!("{input}: {e}")))?;
     // Palettes are matrices of positions.
     source
@@ -126,6 +154,8 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     // An output that cannot be created is the request's fault (exit 2); one that fails while
     // written, the machine's (exit 1).
     let mut file = AtomicFile::create(&args.output).map_err(|e| Failure::Input(e.to_string()))?;
+    let usd_file =
+        if args.usd { Some(AtomicFile::create(&usd_path).map_err(|e| Failure::Input(e.to_string()))?) } else { None };
     let io = |e: quatcurve::io::IoError| Failure::Internal(e.to_string());
     file.write_all(&npy_header("<f4", &shape)).map_err(|e| io(file.error(e)))?;
     let schedule = Schedule { instances: args.instances, rate: args.rate, blend: args.blend_weight, blend_clip };
@@ -135,11 +165,23 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     };
     let player = playback.player(&device).map_err(failure)?;
     let started = Instant::now();
+    let mut poses = Vec::new();
     for frame in 0..frames as usize {
-        let palettes = player.palettes(&schedule.frame(&playback, frame)).map_err(failure)?;
+        let instances = schedule.frame(&playback, frame);
+        let palettes = player.palettes(&instances).map_err(failure)?;
         file.write_all(&NpyElement::F32.bytes(&palettes)).map_err(|e| io(file.error(e)))?;
+        if usd_file.is_some() {
+            poses.extend(playback.local_poses(&device, &instances).map_err(failure)?);
+        }
     }
     let seconds = started.elapsed().as_secs_f64();
+    if let Some(mut stage_file) = usd_file {
+        let stem = args.input.file_stem().map_or_else(|| "character".into(), |s| s.to_string_lossy());
+        let stage = crowd_stage(&source, &stem, &playback, &schedule, &poses, args.unit_cm)
+            .map_err(|e| Failure::Input(format!("{input}: {e}")))?;
+        stage_file.write_all(stage.as_bytes()).map_err(|e| io(stage_file.error(e)))?;
+        stage_file.commit().map_err(io)?;
+    }
     file.commit().map_err(io)?;
     let per_frame = seconds / frames as f64;
     eprintln!(
@@ -151,5 +193,61 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
         (args.instances * joints) as f64 / per_frame,
         args.output.display()
     );
+    if args.usd {
+        eprintln!("{input}: the crowd as a USD stage -> {}", usd_path.display());
+    }
     Ok(())
+}
+
+/// The crowd of `schedule` as one USD stage ([`quatcurve::bake::usd::crowd_stage`]): the
+/// character of `source` (its skeleton and skinned meshes), named `stem`, each instance's clip, phase and
+/// blend as at frame 0, and its local `poses` at every frame; lengths in `unit_cm` (else the
+/// file's, metres).
+fn crowd_stage(
+    source: &Source,
+    stem: &str,
+    playback: &Playback,
+    schedule: &Schedule,
+    poses: &[f32],
+    unit_cm: Option<f64>,
+) -> Result<String, quatcurve::anim::error::InputError> {
+    let animation = playback.animation();
+    let order = animation.parents_first()?;
+    let meshes = match source.gltf() {
+        Some(file) if !animation.skins.is_empty() => skinned_primitives(file)?.primitives,
+        _ => Vec::new(),
+    };
+    let name = |clip: usize| animation.clips[clip].name.clone();
+    let instances: Vec<CrowdInstance> = schedule
+        .frame(playback, 0)
+        .iter()
+        .map(|i| CrowdInstance {
+            clip: name(i.first.clip),
+            phase: i.first.time,
+            blend: i.second.map(|(pose, weight)| (name(pose.clip), weight)),
+        })
+        .collect();
+    // Instances a rest skeleton's largest side apart, and a half more.
+    let rest = skeleton::pose(&animation.parents(), &order, |j| {
+        let joint = &animation.joints[j];
+        skeleton::trs(joint.rotation, joint.translation, joint.scale)
+    });
+    let side = (0..3)
+        .map(|axis| {
+            let along = rest.iter().map(|m| m[4 * axis + 3]);
+            along.clone().fold(f64::MIN, f64::max) - along.fold(f64::MAX, f64::min)
+        })
+        .fold(0.0, f64::max);
+    let metres = unit_cm.unwrap_or(quatcurve::anim::GLTF_UNIT_CM) / 100.0;
+    Ok(quatcurve::bake::usd::crowd_stage(
+        animation,
+        &order,
+        &meshes,
+        stem,
+        &instances,
+        poses,
+        schedule.rate,
+        metres,
+        CROWD_SPACING * if side > 0.0 { side } else { 1.0 },
+    ))
 }

@@ -181,8 +181,8 @@ mod tests {
             }
         }
         // bake: max-error, max-error-mm, unit-mm, blend; fit: those but blend, and between-error,
-        // vertex-distance; eval, play, bench, analyze: blend.
-        assert_eq!(refusals, 13);
+        // vertex-distance; play: blend, unit-mm; eval, bench, analyze: blend.
+        assert_eq!(refusals, 14);
         let matches = commands().try_get_matches_from(["quatcurve", "bake", "--max-error-deg", "1"]).unwrap();
         assert_eq!(refused_given(&commands(), &matches), None);
     }

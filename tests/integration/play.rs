@@ -452,3 +452,40 @@ fn play_blends_every_instance_towards_the_clip_named_or_numbered() {
     }
     assert_ne!(by_name, palettes("next.npy", "Walk"), "another clip, other palettes");
 }
+
+/// `play --usd` writes the crowd beside its palettes: the character once (a class prim), each
+/// instance an instanceable reference to it bound to its own animation, its clip and phase as
+/// the schedule's (instance i plays clip i mod clips from frac(i * PHASE_STEP) of its span).
+/// Pixar's library poses each instance as its palette (`python/tests/test_usd.py`). A BVH
+/// needs its unit given, refused before anything is written.
+#[test]
+fn the_crowd_stage_is_one_character_referenced_by_each_instance_playing_its_schedule() {
+    let Some(data) = data_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fox = data.join("Fox.glb");
+    let output = dir.path().join("crowd.npy");
+    let result =
+        play(&["--input", fox.to_str().unwrap(), "--instances", "5", "--output", output.to_str().unwrap(), "--usd"]);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let stage = std::fs::read_to_string(dir.path().join("crowd.usda")).unwrap();
+    assert!(stage.contains("\nclass SkelRoot \"Fox\"\n"), "the character once, not drawn itself");
+    assert_eq!(stage.matches("prepend references = </Fox>").count(), 5);
+    assert_eq!(stage.matches("instanceable = true").count(), 5);
+    let playback = playback(&fox, None);
+    for i in 0..5 {
+        let clip = i % playback.animation().clips.len();
+        let phase = (i as f64 * PHASE_STEP).fract() * playback.duration(clip);
+        let name = &playback.animation().clips[clip].name;
+        let declared = format!("string clip = \"{name}\"\n            double phase = {phase}\n");
+        let at = stage.find(&format!("def SkelRoot \"Instance_{i}\"")).unwrap();
+        assert!(stage[at..].contains(&declared), "instance {i}: {declared}");
+        assert!(stage.contains(&format!("rel skel:animationSource = </Crowd/Motion/Instance_{i}>")));
+        assert!(stage.contains(&format!("def SkelAnimation \"Instance_{i}\"")));
+    }
+    let bvh = data.join("cmu_131_01.bvh");
+    let output = dir.path().join("bvh.npy");
+    let result = play(&["--input", bvh.to_str().unwrap(), "--output", output.to_str().unwrap(), "--usd"]);
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    assert!(stderr(&result).contains("--unit-cm is needed for --usd"), "{}", stderr(&result));
+    assert!(!output.exists() && !dir.path().join("bvh.usda").exists(), "nothing written");
+}

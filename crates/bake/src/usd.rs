@@ -1,7 +1,8 @@
 //! OpenUSD's skeletal animation as text (`bake --usd`, DESIGN section 7): one stage per
 //! input, its joints a `Skeleton` and each baked clip a `SkelAnimation` of the joints' local
 //! frames at their times, chosen on the skeleton by a variant set (`clip`), as USD picks one
-//! animation of several.
+//! animation of several; and a crowd (`play --usd`, DESIGN section 17): the character once,
+//! each instance an instanced reference to it playing its own `SkelAnimation`.
 
 use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
@@ -30,9 +31,7 @@ pub fn stage(
     time_codes: f64,
 ) -> String {
     let root = identifier(name, &mut HashSet::new());
-    let paths = joint_paths(animation, order);
-    let joints: Vec<&String> = order.iter().map(|&j| &paths[j]).collect();
-    let tokens = joints.iter().map(|p| format!("\"{p}\"")).collect::<Vec<_>>().join(", ");
+    let character = Character::new(animation, order);
     let mut clip_names = HashSet::new();
     let clips: Vec<String> = animation.clips.iter().map(|c| identifier(&c.name, &mut clip_names)).collect();
     let last_code = baked
@@ -41,76 +40,178 @@ pub fn stage(
         .map(|c| (c.times.last().unwrap_or(&0.0) - c.times.first().unwrap_or(&0.0)) * time_codes)
         .fold(0.0, f64::max);
     let mut s = String::new();
-    let _ = writeln!(s, "#usda 1.0\n(\n    defaultPrim = \"{root}\"");
-    let _ = writeln!(
-        s,
-        "    doc = \"quatcurve bake: each clip a SkelAnimation, chosen by the skeleton's variant set 'clip'\""
-    );
-    let _ = writeln!(s, "    metersPerUnit = {metres_per_unit}\n    upAxis = \"Y\"");
-    let _ =
-        writeln!(s, "    timeCodesPerSecond = {time_codes}\n    startTimeCode = 0\n    endTimeCode = {last_code}\n)\n");
+    let doc = "quatcurve bake: each clip a SkelAnimation, chosen by the skeleton's variant set 'clip'";
+    header(&mut s, &root, doc, metres_per_unit, time_codes, last_code);
     let _ = writeln!(s, "def SkelRoot \"{root}\"\n{{");
-    let _ = writeln!(s, "    def Skeleton \"Skeleton\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]");
-    if let Some(first) = clips.first() {
-        let _ = writeln!(s, "        variants = {{\n            string clip = \"{first}\"\n        }}");
-        let _ = writeln!(s, "        prepend variantSets = \"clip\"");
-    }
-    let _ = writeln!(s, "    )\n    {{\n        uniform token[] joints = [{tokens}]");
-    let matrices = |m: &[Affine]| m.iter().map(matrix).collect::<Vec<_>>().join(", ");
-    let bind = bind_transforms(animation, order);
-    let _ = writeln!(
-        s,
-        "        uniform matrix4d[] bindTransforms = [{}]",
-        matrices(&order.iter().map(|&j| bind[j]).collect::<Vec<_>>())
-    );
-    let rest: Vec<Affine> = order
-        .iter()
-        .map(|&j| &animation.joints[j])
-        .map(|j| skeleton::trs(j.rotation, j.translation, j.scale))
-        .collect();
-    let _ = writeln!(s, "        uniform matrix4d[] restTransforms = [{}]", matrices(&rest));
-    if !clips.is_empty() {
-        let _ = writeln!(s, "        variantSet \"clip\" = {{");
-        for clip in &clips {
-            let _ = writeln!(s, "            \"{clip}\" {{\n                rel skel:animationSource = </{root}/Animations/{clip}>\n            }}");
-        }
-        let _ = writeln!(s, "        }}");
-    }
-    let _ = writeln!(s, "    }}\n");
-    let mut taken: HashSet<String> = ["Skeleton", "Animations"].map(String::from).into();
-    // glTF's triangles (mode 4); points, lines, strips and fans are not USD meshes.
-    for primitive in meshes.iter().filter(|p| p.mode == TRIANGLES) {
-        let skin_joints: Vec<&String> = animation.skins[primitive.skin].joints.iter().map(|&j| &paths[j]).collect();
-        mesh(&mut s, &root, primitive, &skin_joints, &mut taken);
-    }
+    character.write(&mut s, &root, meshes, &clips);
     let _ = writeln!(s, "    def Scope \"Animations\"\n    {{");
     for (c, clip) in clips.iter().enumerate() {
         let times = &baked.clips[c].times;
         let frames: Vec<usize> = (0..times.len()).collect();
         let rows = texture::local_rows(animation, baked, c, &frames);
-        // An attribute the same at every frame (every joint's scale, most often) is written
-        // once, as its value at all times, not once a frame.
+        let codes: Vec<f64> = times.iter().map(|t| (t - times[0]) * time_codes).collect();
+        character.animation(&mut s, clip, &rows, &codes);
+    }
+    let _ = writeln!(s, "    }}\n}}");
+    s
+}
+
+/// One instance of a crowd stage ([`crowd_stage`]): the clip it plays and from where, for
+/// the reader (its pose is its own animation's).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CrowdInstance {
+    /// The clip it plays.
+    pub clip: String,
+    /// Where in the clip it starts, in seconds.
+    pub phase: f64,
+    /// The clip it blends towards and the weight, if any.
+    pub blend: Option<(String, f32)>,
+}
+
+/// A crowd as one stage: the character of `animation` (its skeleton and the meshes bound to
+/// it, as [`stage`] writes them) once, as the class prim `name`, and each of `instances` an
+/// instanceable `SkelRoot` referencing it, set out on a grid `spacing` apart, bound
+/// (`skel:animationSource` on the instance, which UsdSkel inherits into the shared skeleton)
+/// to its own `SkelAnimation` of `poses`: `[frames, instances, joints, 10]` local rows (the
+/// animation's joint order), frame `k` at time code `k`, `rate` time codes a second. Each
+/// instance's clip, phase and blend are in its `customData`.
+#[must_use]
+#[allow(clippy::too_many_arguments)]
+pub fn crowd_stage(
+    animation: &Animation,
+    order: &[usize],
+    meshes: &[SkinnedPrimitive],
+    name: &str,
+    instances: &[CrowdInstance],
+    poses: &[f32],
+    rate: f64,
+    metres_per_unit: f64,
+    spacing: f64,
+) -> String {
+    let root = identifier(name, &mut ["Crowd".to_string()].into());
+    let character = Character::new(animation, order);
+    let row = animation.joints.len() * LOCAL_CHANNELS;
+    let frames = poses.len() / (row * instances.len()).max(1);
+    let mut s = String::new();
+    let doc = "quatcurve play: each instance references the character and plays its own SkelAnimation";
+    header(&mut s, "Crowd", doc, metres_per_unit, rate, frames.saturating_sub(1) as f64);
+    let _ = writeln!(s, "class SkelRoot \"{root}\"\n{{");
+    character.write(&mut s, &root, meshes, &[]);
+    let _ = writeln!(s, "}}\n\ndef Xform \"Crowd\"\n{{");
+    let columns = (instances.len() as f64).sqrt().ceil().max(1.0) as usize;
+    for (i, instance) in instances.iter().enumerate() {
+        let (x, z) = ((i % columns) as f64 * spacing, (i / columns) as f64 * spacing);
+        let blend = instance.blend.as_ref().map_or(String::new(), |(clip, weight)| {
+            format!("\n            string blendClip = \"{clip}\"\n            double blendWeight = {weight}")
+        });
+        let _ = writeln!(
+            s,
+            "    def SkelRoot \"Instance_{i}\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]\n        customData = {{\n            string clip = \"{}\"\n            double phase = {}{blend}\n        }}\n        instanceable = true\n        prepend references = </{root}>\n    )\n    {{",
+            instance.clip, instance.phase
+        );
+        let _ = writeln!(s, "        rel skel:animationSource = </Crowd/Motion/Instance_{i}>");
+        let _ = writeln!(s, "        double3 xformOp:translate = ({x}, 0, {z})\n        uniform token[] xformOpOrder = [\"xformOp:translate\"]\n    }}\n");
+    }
+    let _ = writeln!(s, "    def Scope \"Motion\"\n    {{");
+    let codes: Vec<f64> = (0..frames).map(|k| k as f64).collect();
+    for i in 0..instances.len() {
+        let rows: Vec<f32> = (0..frames)
+            .flat_map(|k| poses[(k * instances.len() + i) * row..(k * instances.len() + i + 1) * row].iter().copied())
+            .collect();
+        character.animation(&mut s, &format!("Instance_{i}"), &rows, &codes);
+    }
+    let _ = writeln!(s, "    }}\n}}");
+    s
+}
+
+/// A stage's metadata: its default prim, what wrote it, its unit, +Y up and its time codes.
+fn header(s: &mut String, default_prim: &str, doc: &str, metres_per_unit: f64, time_codes: f64, last_code: f64) {
+    let _ = writeln!(s, "#usda 1.0\n(\n    defaultPrim = \"{default_prim}\"\n    doc = \"{doc}\"");
+    let _ = writeln!(s, "    metersPerUnit = {metres_per_unit}\n    upAxis = \"Y\"");
+    let _ =
+        writeln!(s, "    timeCodesPerSecond = {time_codes}\n    startTimeCode = 0\n    endTimeCode = {last_code}\n)\n");
+}
+
+/// A character as UsdSkel holds it: its joints as paths, in `order`.
+struct Character<'a> {
+    animation: &'a Animation,
+    order: &'a [usize],
+    paths: Vec<String>,
+    tokens: String,
+}
+
+impl<'a> Character<'a> {
+    fn new(animation: &'a Animation, order: &'a [usize]) -> Self {
+        let paths = joint_paths(animation, order);
+        let tokens = order.iter().map(|&j| format!("\"{}\"", paths[j])).collect::<Vec<_>>().join(", ");
+        Self { animation, order, paths, tokens }
+    }
+
+    /// The `Skeleton` (rest and bind transforms; with `clips`, the variant set `clip` choosing
+    /// its animation among `</root/Animations/...>`) and the triangle primitives of `meshes`
+    /// bound to it, inside the prim `root`.
+    fn write(&self, s: &mut String, root: &str, meshes: &[SkinnedPrimitive], clips: &[String]) {
+        let (animation, order) = (self.animation, self.order);
+        let _ = writeln!(s, "    def Skeleton \"Skeleton\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]");
+        if let Some(first) = clips.first() {
+            let _ = writeln!(s, "        variants = {{\n            string clip = \"{first}\"\n        }}");
+            let _ = writeln!(s, "        prepend variantSets = \"clip\"");
+        }
+        let _ = writeln!(s, "    )\n    {{\n        uniform token[] joints = [{}]", self.tokens);
+        let matrices = |m: &[Affine]| m.iter().map(matrix).collect::<Vec<_>>().join(", ");
+        let bind = bind_transforms(animation, order);
+        let _ = writeln!(
+            s,
+            "        uniform matrix4d[] bindTransforms = [{}]",
+            matrices(&order.iter().map(|&j| bind[j]).collect::<Vec<_>>())
+        );
+        let rest: Vec<Affine> = order
+            .iter()
+            .map(|&j| &animation.joints[j])
+            .map(|j| skeleton::trs(j.rotation, j.translation, j.scale))
+            .collect();
+        let _ = writeln!(s, "        uniform matrix4d[] restTransforms = [{}]", matrices(&rest));
+        if !clips.is_empty() {
+            let _ = writeln!(s, "        variantSet \"clip\" = {{");
+            for clip in clips {
+                let _ = writeln!(s, "            \"{clip}\" {{\n                rel skel:animationSource = </{root}/Animations/{clip}>\n            }}");
+            }
+            let _ = writeln!(s, "        }}");
+        }
+        let _ = writeln!(s, "    }}\n");
+        let mut taken: HashSet<String> = ["Skeleton", "Animations"].map(String::from).into();
+        // glTF's triangles (mode 4); points, lines, strips and fans are not USD meshes.
+        for primitive in meshes.iter().filter(|p| p.mode == TRIANGLES) {
+            let skin_joints: Vec<&String> =
+                animation.skins[primitive.skin].joints.iter().map(|&j| &self.paths[j]).collect();
+            mesh(s, root, primitive, &skin_joints, &mut taken);
+        }
+    }
+
+    /// A `SkelAnimation` `name` of the joints' local `rows` (a frame's every joint, the
+    /// animation's order, [`LOCAL_CHANNELS`] each) at time codes `codes`. An attribute the same
+    /// at every frame (every joint's scale, most often) is written once, as its value at all
+    /// times, not once a frame.
+    fn animation(&self, s: &mut String, name: &str, rows: &[f32], codes: &[f64]) {
         let attribute = |kind: &str, f: &dyn Fn(&[f32]) -> String| -> String {
             let frames: Vec<String> = rows
-                .chunks_exact(animation.joints.len() * LOCAL_CHANNELS)
+                .chunks_exact(self.animation.joints.len() * LOCAL_CHANNELS)
                 .map(|frame| {
-                    let values = order.iter().map(|&j| f(&frame[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]));
+                    let values = self.order.iter().map(|&j| f(&frame[j * LOCAL_CHANNELS..(j + 1) * LOCAL_CHANNELS]));
                     values.collect::<Vec<_>>().join(", ")
                 })
                 .collect();
             if frames.windows(2).all(|w| w[0] == w[1]) {
                 return format!("            {kind} = [{}]", frames.first().map_or("", String::as_str));
             }
-            let samples: Vec<String> = frames
-                .iter()
-                .zip(times)
-                .map(|(values, t)| format!("                {}: [{values}],", (t - times[0]) * time_codes))
-                .collect();
+            let samples: Vec<String> =
+                frames.iter().zip(codes).map(|(values, code)| format!("                {code}: [{values}],")).collect();
             format!("            {kind}.timeSamples = {{\n{}\n            }}", samples.join("\n"))
         };
         let _ = writeln!(
             s,
-            "        def SkelAnimation \"{clip}\"\n        {{\n            uniform token[] joints = [{tokens}]"
+            "        def SkelAnimation \"{name}\"\n        {{\n            uniform token[] joints = [{}]",
+            self.tokens
         );
         let _ =
             writeln!(s, "{}", attribute("quatf[] rotations", &|r| format!("({}, {}, {}, {})", r[3], r[0], r[1], r[2])));
@@ -118,8 +219,6 @@ pub fn stage(
         let _ = writeln!(s, "{}", attribute("half3[] scales", &|r| format!("({}, {}, {})", r[7], r[8], r[9])));
         let _ = writeln!(s, "        }}");
     }
-    let _ = writeln!(s, "    }}\n}}");
-    s
 }
 
 /// One mesh primitive as a USD `Mesh` bound to the skeleton as glTF binds it: its bind-space
