@@ -676,6 +676,8 @@ def SkelRoot "Rig"
         assert_eq!(primitives[0].indices.as_deref(), Some(&[0, 1, 2, 0, 2, 3][..]), "a quad as a fan");
     }
 
+    /// The `.usdc` here is openusd's own (usd-core 26.11 refuses openusd 0.6's crate files:
+    /// "invalid children in primChildren"); `python/tests/test_usd.py` reads one usd-core writes.
     #[test]
     fn the_binary_form_reads_as_the_text_form() {
         let dir = tempfile::tempdir().unwrap();
