@@ -7,9 +7,11 @@ use quatcurve::anim::curves::CurveChoice;
 use quatcurve::anim::loops::LoopMode;
 use quatcurve::bake::usd::CrowdInstance;
 use quatcurve::curve::Curve;
+use quatcurve::formats::gltf::GltfFile;
 use quatcurve::formats::mesh::skinned_primitives;
 use quatcurve::formats::source::{importer, Source};
 use quatcurve::io::{npy_header, AtomicFile, NpyElement};
+use quatcurve::output::LOCAL_CHANNELS;
 use quatcurve::play::error::PlayError;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
@@ -88,6 +90,10 @@ pub struct PlayArgs {
 /// How far apart a crowd stage sets its instances, in rest skeletons' largest sides.
 const CROWD_SPACING: f64 = 1.5;
 
+/// Most local-pose floats a crowd stage may hold (about 0.7 GB of text): counted before
+/// anything is evaluated.
+pub const MAX_STAGE_FLOATS: u64 = 1 << 26;
+
 pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     if !(args.rate.is_finite() && args.rate > 0.0) {
         return Err(Failure::Input(format!("--rate {} must be a positive number of frames per second", args.rate)));
@@ -150,6 +156,15 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
             args.instances
         )));
     }
+    let pose_floats = shape[0] * shape[1] * (playback.animation().joints.len() * LOCAL_CHANNELS) as u64;
+    if args.usd && pose_floats > MAX_STAGE_FLOATS {
+        return Err(Failure::Input(format!(
+            "{frames} frames of {} instances of {} joints are more than {MAX_STAGE_FLOATS} floats of poses for --usd's \
+             text stage; play fewer seconds, instances or a lower rate",
+            args.instances,
+            playback.animation().joints.len()
+        )));
+    }
     let device = open_device(args.device, "--device")?;
     // An output that cannot be created is the request's fault (exit 2); one that fails while
     // written, the machine's (exit 1).
@@ -177,7 +192,9 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
     let seconds = started.elapsed().as_secs_f64();
     if let Some(mut stage_file) = usd_file {
         let stem = args.input.file_stem().map_or_else(|| "character".into(), |s| s.to_string_lossy());
-        let stage = crowd_stage(&source, &stem, &playback, &schedule, &poses, args.unit_cm)
+        // A skin taken from another file binds none of this file's meshes.
+        let meshes = if args.skin_from.is_none() { source.gltf() } else { None };
+        let stage = crowd_stage(meshes, &stem, &playback, &schedule, &poses, args.unit_cm)
             .map_err(|e| Failure::Input(format!("{input}: {e}")))?;
         stage_file.write_all(stage.as_bytes()).map_err(|e| io(stage_file.error(e)))?;
         stage_file.commit().map_err(io)?;
@@ -200,11 +217,11 @@ pub fn run(args: &PlayArgs) -> Result<(), Failure> {
 }
 
 /// The crowd of `schedule` as one USD stage ([`quatcurve::bake::usd::crowd_stage`]): the
-/// character of `source` (its skeleton and skinned meshes), named `stem`, each instance's clip, phase and
-/// blend as at frame 0, and its local `poses` at every frame; lengths in `unit_cm` (else the
-/// file's, metres).
+/// character `stem` of `playback` (its skeleton, and the skinned meshes of `file`), each
+/// instance's clip, phase and blend as at frame 0, and its local `poses` at every frame;
+/// lengths in `unit_cm` (else the file's, metres).
 fn crowd_stage(
-    source: &Source,
+    file: Option<&GltfFile>,
     stem: &str,
     playback: &Playback,
     schedule: &Schedule,
@@ -213,7 +230,7 @@ fn crowd_stage(
 ) -> Result<String, quatcurve::anim::error::InputError> {
     let animation = playback.animation();
     let order = animation.parents_first()?;
-    let meshes = match source.gltf() {
+    let meshes = match file {
         Some(file) if !animation.skins.is_empty() => skinned_primitives(file)?.primitives,
         _ => Vec::new(),
     };

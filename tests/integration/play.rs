@@ -457,7 +457,8 @@ fn play_blends_every_instance_towards_the_clip_named_or_numbered() {
 /// instance an instanceable reference to it bound to its own animation, its clip and phase as
 /// the schedule's (instance i plays clip i mod clips from frac(i * PHASE_STEP) of its span).
 /// Pixar's library poses each instance as its palette (`python/tests/test_usd.py`). A BVH
-/// needs its unit given, refused before anything is written.
+/// without its unit, and a crowd too large for a text stage, are refused before anything is
+/// written.
 #[test]
 fn the_crowd_stage_is_one_character_referenced_by_each_instance_playing_its_schedule() {
     let Some(data) = data_dir() else { return };
@@ -488,4 +489,11 @@ fn the_crowd_stage_is_one_character_referenced_by_each_instance_playing_its_sche
     assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
     assert!(stderr(&result).contains("--unit-cm is needed for --usd"), "{}", stderr(&result));
     assert!(!output.exists() && !dir.path().join("bvh.usda").exists(), "nothing written");
+    // A crowd whose poses would make gigabytes of text is refused before any is evaluated.
+    let output = dir.path().join("large.npy");
+    let large = ["--instances", "2000", "--seconds", "10", "--output", output.to_str().unwrap(), "--usd"];
+    let result = play(&[&["--input", fox.to_str().unwrap()], &large[..]].concat());
+    assert_eq!(result.status.code(), Some(2), "{}", stderr(&result));
+    assert!(stderr(&result).contains("floats of poses for --usd's text stage"), "{}", stderr(&result));
+    assert!(!output.exists() && !dir.path().join("large.usda").exists(), "nothing written");
 }

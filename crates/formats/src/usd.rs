@@ -446,8 +446,8 @@ fn mesh(
     }
     let influences: Vec<_> = (0..points.len())
         .map(|v| {
-            let at = if rigid { 0 } else { v * per };
-            (at..at + per)
+            let first = if rigid { 0 } else { v * per };
+            (first..first + per)
                 .map(|k| {
                     let joint = usize::try_from(indices[k]).ok().and_then(|i| to_skeleton.get(i)).ok_or_else(|| {
                         named(format!(
