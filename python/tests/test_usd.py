@@ -2,7 +2,9 @@
 transform at each clip's every time sample, as UsdSkel computes it, is the bake's model texture
 (within 1e-5 of the model's extent), each clip chosen by the skeleton's variant set; each mesh
 skinned by UsdSkel is the bake's vertex texture; and usdchecker's validators (UsdValidation)
-report no error. CI requires usd-core (`QUATCURVE_REQUIRE_USD=1`)."""
+report no error. A stage usd-core writes from a glTF's data bakes as UsdSkel poses it, and
+`play --usd`'s crowd poses each instance as its palette. CI requires usd-core
+(`QUATCURVE_REQUIRE_USD=1`)."""
 
 import importlib.util
 import json

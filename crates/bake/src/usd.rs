@@ -102,12 +102,13 @@ pub fn crowd_stage(
     for (i, instance) in instances.iter().enumerate() {
         let (x, z) = ((i % columns) as f64 * spacing, (i / columns) as f64 * spacing);
         let blend = instance.blend.as_ref().map_or(String::new(), |(clip, weight)| {
-            format!("\n            string blendClip = \"{clip}\"\n            double blendWeight = {weight}")
+            format!("\n            string blendClip = {}\n            double blendWeight = {weight}", quoted(clip))
         });
         let _ = writeln!(
             s,
-            "    def SkelRoot \"Instance_{i}\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]\n        customData = {{\n            string clip = \"{}\"\n            double phase = {}{blend}\n        }}\n        instanceable = true\n        prepend references = </{root}>\n    )\n    {{",
-            instance.clip, instance.phase
+            "    def SkelRoot \"Instance_{i}\" (\n        prepend apiSchemas = [\"SkelBindingAPI\"]\n        customData = {{\n            string clip = {}\n            double phase = {}{blend}\n        }}\n        instanceable = true\n        prepend references = </{root}>\n    )\n    {{",
+            quoted(&instance.clip),
+            instance.phase
         );
         let _ = writeln!(s, "        rel skel:animationSource = </Crowd/Motion/Instance_{i}>");
         let _ = writeln!(s, "        double3 xformOp:translate = ({x}, 0, {z})\n        uniform token[] xformOpOrder = [\"xformOp:translate\"]\n    }}\n");
@@ -122,6 +123,11 @@ pub fn crowd_stage(
     }
     let _ = writeln!(s, "    }}\n}}");
     s
+}
+
+/// `text` as a USD string literal: quoted, its backslashes, quotes and line breaks escaped.
+fn quoted(text: &str) -> String {
+    format!("\"{}\"", text.replace('\\', "\\\\").replace('"', "\\\"").replace('\n', "\\n"))
 }
 
 /// A stage's metadata: its default prim, what wrote it, its unit, +Y up and its time codes.
@@ -347,6 +353,12 @@ mod tests {
         let mut taken = HashSet::new();
         let names = ["mixamorig:Hips", "mixamorig_Hips", "3d", "", "Run"].map(|n| identifier(n, &mut taken));
         assert_eq!(names, ["mixamorig_Hips", "mixamorig_Hips_2", "_3d", "_", "Run"]);
+    }
+
+    #[test]
+    fn a_name_is_a_string_literal_with_its_quotes_backslashes_and_line_breaks_escaped() {
+        assert_eq!(quoted("Run"), "\"Run\"");
+        assert_eq!(quoted("a \"b\"\\c\nd"), "\"a \\\"b\\\"\\\\c\\nd\"");
     }
 
     #[test]
