@@ -15,7 +15,6 @@ use quatcurve::output::LOCAL_CHANNELS;
 use quatcurve::play::error::PlayError;
 use quatcurve::play::schedule::Schedule;
 use quatcurve::play::{skin_by_name, Playback, PALETTE_CHANNELS};
-use quatcurve::skeleton;
 use quatcurve::DeviceChoice;
 use std::io::Write;
 use std::path::PathBuf;
@@ -86,9 +85,6 @@ pub struct PlayArgs {
     #[arg(long, value_name = "CM", allow_negative_numbers = true)]
     unit_cm: Option<f64>,
 }
-
-/// How far apart a crowd stage sets its instances, in rest skeletons' largest sides.
-const CROWD_SPACING: f64 = 1.5;
 
 /// Most local-pose floats a crowd stage may hold (about 0.7 GB of text): counted before
 /// anything is evaluated.
@@ -229,7 +225,6 @@ fn crowd_stage(
     unit_cm: Option<f64>,
 ) -> Result<String, quatcurve::anim::error::InputError> {
     let animation = playback.animation();
-    let order = animation.parents_first()?;
     let meshes = match file {
         Some(file) if !animation.skins.is_empty() => skinned_primitives(file)?.primitives,
         _ => Vec::new(),
@@ -244,27 +239,6 @@ fn crowd_stage(
             blend: i.second.map(|(pose, weight)| (name(pose.clip), weight)),
         })
         .collect();
-    // Instances a rest skeleton's largest side apart, and a half more.
-    let rest = skeleton::pose(&animation.parents(), &order, |j| {
-        let joint = &animation.joints[j];
-        skeleton::trs(joint.rotation, joint.translation, joint.scale)
-    });
-    let side = (0..3)
-        .map(|axis| {
-            let along = rest.iter().map(|m| m[4 * axis + 3]);
-            along.clone().fold(f64::MIN, f64::max) - along.fold(f64::MAX, f64::min)
-        })
-        .fold(0.0, f64::max);
     let metres = unit_cm.unwrap_or(quatcurve::anim::GLTF_UNIT_CM) / 100.0;
-    Ok(quatcurve::bake::usd::crowd_stage(
-        animation,
-        &order,
-        &meshes,
-        stem,
-        &instances,
-        poses,
-        schedule.rate,
-        metres,
-        CROWD_SPACING * if side > 0.0 { side } else { 1.0 },
-    ))
+    quatcurve::bake::usd::crowd_stage(animation, &meshes, stem, &instances, poses, schedule.rate, metres)
 }

@@ -6,6 +6,7 @@
 
 use super::texture::{self, LOCAL_CHANNELS};
 use super::Baked;
+use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use quatcurve_eval::skeleton::{self, Affine};
 use quatcurve_formats::mesh::SkinnedPrimitive;
@@ -56,6 +57,9 @@ pub fn stage(
     s
 }
 
+/// How far apart a crowd stage sets its instances, in rest skeletons' largest sides.
+pub const CROWD_SPACING: f64 = 1.5;
+
 /// One instance of a crowd stage ([`crowd_stage`]): the clip it plays and from where, for
 /// the reader (its pose is its own animation's).
 #[derive(Clone, Debug, PartialEq)]
@@ -70,26 +74,29 @@ pub struct CrowdInstance {
 
 /// A crowd as one stage: the character of `animation` (its skeleton and the meshes bound to
 /// it, as [`stage`] writes them) once, as the class prim `name`, and each of `instances` an
-/// instanceable `SkelRoot` referencing it, set out on a grid `spacing` apart, bound
+/// instanceable `SkelRoot` referencing it, set out on a grid [`CROWD_SPACING`] rest skeletons'
+/// largest sides apart (the joints' box at rest), bound
 /// (`skel:animationSource` on the instance, which UsdSkel inherits into the shared skeleton)
 /// to its own `SkelAnimation` of `poses`: `[frames, instances, joints, 10]` local rows (the
 /// animation's joint order), frame `k` at time code `k`, `rate` time codes a second. Each
 /// instance's clip, phase and blend are in its `customData`.
-#[must_use]
-#[allow(clippy::too_many_arguments)]
+///
+/// # Errors
+/// [`InputError::Animation`] for joints whose parents do not form a tree.
 pub fn crowd_stage(
     animation: &Animation,
-    order: &[usize],
     meshes: &[SkinnedPrimitive],
     name: &str,
     instances: &[CrowdInstance],
     poses: &[f32],
     rate: f64,
     metres_per_unit: f64,
-    spacing: f64,
-) -> String {
+) -> Result<String, InputError> {
+    let order = animation.parents_first()?;
+    let side = super::report::rig_extent(animation)?.into_iter().fold(0.0, f64::max);
+    let spacing = CROWD_SPACING * if side > 0.0 { side } else { 1.0 };
     let root = identifier(name, &mut ["Crowd".to_string()].into());
-    let character = Character::new(animation, order);
+    let character = Character::new(animation, &order);
     let row = animation.joints.len() * LOCAL_CHANNELS;
     let frames = poses.len() / (row * instances.len()).max(1);
     let mut s = String::new();
@@ -122,7 +129,7 @@ pub fn crowd_stage(
         character.animation(&mut s, &format!("Instance_{i}"), &rows, &codes);
     }
     let _ = writeln!(s, "    }}\n}}");
-    s
+    Ok(s)
 }
 
 /// `text` as a USD string literal: quoted, its backslashes, quotes and line breaks escaped.

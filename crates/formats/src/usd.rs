@@ -157,21 +157,20 @@ fn node(name: &str, m: &DMat4) -> Json {
 
 /// The stage as a GLB (see the module's documentation).
 fn to_glb(stage: &Stage, metres: f64, z_up: bool) -> Result<Vec<u8>, InputError> {
-    let mut found: HashMap<&'static str, Vec<sdf::Path>> = HashMap::new();
+    let (mut skeleton_paths, mut animation_paths, mut mesh_paths) = (Vec::new(), Vec::new(), Vec::new());
     let mut failed = None;
     stage
-        .traverse(PrimPredicate::DEFAULT, |path| {
-            let kind = match stage.prim(path.clone()).type_name() {
-                Ok(Some(t)) if t.as_str() == "Skeleton" => "Skeleton",
-                Ok(Some(t)) if t.as_str() == "SkelAnimation" => "SkelAnimation",
-                Ok(Some(t)) if t.as_str() == "Mesh" => "Mesh",
-                Ok(_) => return,
-                Err(e) => {
-                    failed.get_or_insert(refused(format!("prim <{}>", path.as_str()), e));
-                    return;
-                }
-            };
-            found.entry(kind).or_default().push(path.clone());
+        .traverse(PrimPredicate::DEFAULT, |path| match stage.prim(path.clone()).type_name() {
+            Ok(Some(t)) => match t.as_str() {
+                "Skeleton" => skeleton_paths.push(path.clone()),
+                "SkelAnimation" => animation_paths.push(path.clone()),
+                "Mesh" => mesh_paths.push(path.clone()),
+                _ => {}
+            },
+            Ok(None) => {}
+            Err(e) => {
+                failed.get_or_insert(refused(format!("prim <{}>", path.as_str()), e));
+            }
         })
         .map_err(|e| refused("the stage's prims".into(), e))?;
     if let Some(e) = failed {
@@ -182,7 +181,7 @@ fn to_glb(stage: &Stage, metres: f64, z_up: bool) -> Result<Vec<u8>, InputError>
         DMat4::from_quat(if z_up { DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2) } else { DQuat::IDENTITY })
             * DMat4::from_scale(DVec3::splat(metres));
     let (mut nodes, mut roots, mut skeletons) = (Vec::new(), Vec::new(), Vec::new());
-    for path in found.remove("Skeleton").unwrap_or_default() {
+    for path in skeleton_paths {
         skeletons.push(skeleton(stage, &path, &space, &mut nodes, &mut roots)?);
     }
     if skeletons.is_empty() {
@@ -190,7 +189,7 @@ fn to_glb(stage: &Stage, metres: f64, z_up: bool) -> Result<Vec<u8>, InputError>
     }
     let mut buffer = Buffer::default();
     let (mut meshes, mut skins) = (Vec::new(), Vec::new());
-    for path in found.remove("Mesh").unwrap_or_default() {
+    for path in mesh_paths {
         let Some(binding) = SkelBindingAPI::get(stage, path.clone()).map_err(|e| at(&path, e))? else { continue };
         let Some(target) = binding.inherited_skeleton().map_err(|e| at(&path, e))? else { continue };
         let Some(skel) = skeletons.iter().find(|s| s.path == target) else {
@@ -218,7 +217,7 @@ fn to_glb(stage: &Stage, metres: f64, z_up: bool) -> Result<Vec<u8>, InputError>
         return Err(bad(format!("timeCodesPerSecond {seconds} is not a positive rate")));
     }
     let mut animations = Vec::new();
-    for path in found.remove("SkelAnimation").unwrap_or_default() {
+    for path in animation_paths {
         if let Some(a) = animation(stage, &path, &skeletons, seconds, step, &mut buffer)? {
             animations.push(a);
         }
