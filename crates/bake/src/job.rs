@@ -424,7 +424,7 @@ impl BakeJob {
             }
             report.warnings = super::source_step_warnings(animation);
             if src.has_offsets() {
-                report.rig = Some(super::report::rig_extent(animation)?);
+                report.rig = Some(super::texture::rig_extent(animation)?);
             }
             // Checked before the curves are baked; what a skin texture draws, for the sidecar.
             let mut skinned = Vec::new();

@@ -5,7 +5,6 @@ use super::manifest::{FileRecord, InputRecord};
 use super::texture_file::Written;
 use super::Baked;
 use crate::error::BakeError;
-use quatcurve_anim::error::InputError;
 use quatcurve_anim::Animation;
 use quatcurve_files::shard::Shard;
 use std::path::{Path, PathBuf};
@@ -118,20 +117,6 @@ impl InputReport {
             not_drawn: Vec::new(),
         }
     }
-}
-
-/// The box of `animation`'s joints at rest, in model space: `x, y, z` extents.
-pub(super) fn rig_extent(animation: &Animation) -> Result<[f64; 3], InputError> {
-    let order = animation.parents_first()?;
-    let model = quatcurve_eval::skeleton::forward_kinematics(&animation.parents(), &order, &animation.rest_row());
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for m in model.chunks_exact(super::texture::MATRIX_CHANNELS) {
-        for (c, &at) in [3, 7, 11].iter().enumerate() {
-            lo[c] = lo[c].min(f64::from(m[at]));
-            hi[c] = hi[c].max(f64::from(m[at]));
-        }
-    }
-    Ok(std::array::from_fn(|c| (hi[c] - lo[c]).max(0.0)))
 }
 
 /// A warning per clip whose end an exact rate left unbaked ([`super::BakedClip::unbaked_end`]).

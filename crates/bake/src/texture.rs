@@ -16,6 +16,7 @@
 
 use super::Baked;
 use crate::error::{BakeError, Refusal};
+use quatcurve_anim::error::InputError;
 use quatcurve_anim::{Animation, Property, Skin};
 use quatcurve_device::Device;
 use quatcurve_eval::skeleton::{self, rigid, PaletteSkin};
@@ -172,6 +173,20 @@ pub fn local_rows(animation: &Animation, baked: &Baked, clip: usize, frames: &[u
 #[must_use]
 pub fn skin(skin: &Skin, joints: usize, model: &[f32]) -> Vec<f32> {
     skeleton::palettes(PaletteSkin { joints: &skin.joints, inverse_binds: &skin.inverse_bind }, joints, model)
+}
+
+/// The box of `animation`'s joints at rest, in model space: `x, y, z` extents.
+pub(super) fn rig_extent(animation: &Animation) -> Result<[f64; 3], InputError> {
+    let order = animation.parents_first()?;
+    let model = quatcurve_eval::skeleton::forward_kinematics(&animation.parents(), &order, &animation.rest_row());
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for m in model.chunks_exact(MATRIX_CHANNELS) {
+        for (c, &at) in [3, 7, 11].iter().enumerate() {
+            lo[c] = lo[c].min(f64::from(m[at]));
+            hi[c] = hi[c].max(f64::from(m[at]));
+        }
+    }
+    Ok(std::array::from_fn(|c| (hi[c] - lo[c]).max(0.0)))
 }
 
 /// One texture of a clip, `[frames, width, channels]`.

@@ -93,7 +93,7 @@ pub fn crowd_stage(
     metres_per_unit: f64,
 ) -> Result<String, InputError> {
     let order = animation.parents_first()?;
-    let side = super::report::rig_extent(animation)?.into_iter().fold(0.0, f64::max);
+    let side = super::texture::rig_extent(animation)?.into_iter().fold(0.0, f64::max);
     let spacing = CROWD_SPACING * if side > 0.0 { side } else { 1.0 };
     let root = identifier(name, &mut ["Crowd".to_string()].into());
     let character = Character::new(animation, &order);
