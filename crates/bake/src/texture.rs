@@ -178,7 +178,7 @@ pub fn skin(skin: &Skin, joints: usize, model: &[f32]) -> Vec<f32> {
 /// The box of `animation`'s joints at rest, in model space: `x, y, z` extents.
 pub(super) fn rig_extent(animation: &Animation) -> Result<[f64; 3], InputError> {
     let order = animation.parents_first()?;
-    let model = quatcurve_eval::skeleton::forward_kinematics(&animation.parents(), &order, &animation.rest_row());
+    let model = skeleton::forward_kinematics(&animation.parents(), &order, &animation.rest_row());
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for m in model.chunks_exact(MATRIX_CHANNELS) {
         for (c, &at) in [3, 7, 11].iter().enumerate() {
