@@ -13,7 +13,7 @@
 //! its parent's scale (Mixamo's bones) is compensated by ufbx so that glTF's inheritance,
 //! which always multiplies scales down the chain, poses it as FBX does.
 
-use crate::glb_builder::{heaviest, Buffer};
+use crate::glb_builder::{heaviest, Buffer, Scene};
 use crate::gltf::{self, GltfFile, UriPolicy};
 use quatcurve_anim::error::{FormatError, InputError};
 use serde_json::{json, Value};
@@ -128,18 +128,8 @@ fn to_glb(scene: &ufbx::Scene) -> Result<Vec<u8>, InputError> {
         }
     }
     let animations = animations(scene, &nodes, &index, &mut buffer)?;
-    let mut document = json!({
-        "asset": {"version": "2.0", "generator": "quatcurve (FBX through ufbx)"},
-        "scene": 0,
-        "scenes": [{"nodes": roots}],
-        "nodes": node_json,
-    });
-    for (key, list) in [("meshes", meshes), ("skins", skins), ("animations", animations)] {
-        if !list.is_empty() {
-            document[key] = Value::Array(list);
-        }
-    }
-    buffer.glb(document, "the FBX's scene would exceed 4 GiB as a GLB")
+    let scene = Scene { generator: "quatcurve (FBX through ufbx)", roots, nodes: node_json, meshes, skins, animations };
+    buffer.glb(scene, "the FBX's scene would exceed 4 GiB as a GLB")
 }
 
 /// Every skin deformer as a glTF skin: its clusters' bones and their geometry-to-bone

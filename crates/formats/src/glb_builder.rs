@@ -44,16 +44,41 @@ pub struct Buffer {
     accessors: Vec<Value>,
 }
 
+/// A converted scene's glTF parts, made one GLB by [`Buffer::glb`].
+pub struct Scene {
+    /// Who converted it: glTF's `asset.generator`.
+    pub generator: &'static str,
+    /// The nodes of glTF's one scene.
+    pub roots: Vec<usize>,
+    /// glTF's lists; meshes, skins and animations are left out when empty.
+    pub nodes: Vec<Value>,
+    pub meshes: Vec<Value>,
+    pub skins: Vec<Value>,
+    pub animations: Vec<Value>,
+}
+
 impl Buffer {
-    /// The GLB of `document` (a glTF's JSON but for its accessors, views and buffers) with
-    /// this as its one buffer; `too_large` is the message past the 4 GiB a GLB holds.
+    /// The GLB of `scene` with this as its one buffer; `too_large` is the message past the
+    /// 4 GiB a GLB holds.
     ///
     /// # Errors
     /// As [`crate::glb::assemble`].
-    pub fn glb(self, mut document: Value, too_large: &'static str) -> Result<Vec<u8>, InputError> {
-        document["accessors"] = Value::Array(self.accessors);
-        document["bufferViews"] = Value::Array(self.views);
-        document["buffers"] = json!([{"byteLength": self.bin.len()}]);
+    pub fn glb(self, scene: Scene, too_large: &'static str) -> Result<Vec<u8>, InputError> {
+        let mut document = json!({
+            "asset": {"version": "2.0", "generator": scene.generator},
+            "scene": 0,
+            "scenes": [{"nodes": scene.roots}],
+            "nodes": scene.nodes,
+            "accessors": self.accessors,
+            "bufferViews": self.views,
+            "buffers": [{"byteLength": self.bin.len()}],
+        });
+        // glTF forbids empty arrays.
+        for (key, list) in [("meshes", scene.meshes), ("skins", scene.skins), ("animations", scene.animations)] {
+            if !list.is_empty() {
+                document[key] = Value::Array(list);
+            }
+        }
         crate::glb::assemble(&document, self.bin, too_large)
     }
 

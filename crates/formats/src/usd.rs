@@ -13,7 +13,7 @@
 //! mesh's points are taken into the skeleton's space by its `geomBindTransform` and drawn
 //! from there, as UsdSkel skins them.
 
-use crate::glb_builder::{heaviest, Buffer};
+use crate::glb_builder::{heaviest, Buffer, Scene};
 use crate::gltf::{self, GltfFile, UriPolicy};
 use glam::{DMat4, DQuat, DVec3};
 use openusd::gf::Matrix4d;
@@ -222,18 +222,8 @@ fn to_glb(stage: &Stage, metres: f64, z_up: bool) -> Result<Vec<u8>, InputError>
             animations.push(a);
         }
     }
-    let mut document = json!({
-        "asset": {"version": "2.0", "generator": "quatcurve (USD through openusd)"},
-        "scene": 0,
-        "scenes": [{"nodes": roots}],
-        "nodes": nodes,
-    });
-    for (key, list) in [("meshes", meshes), ("skins", skins), ("animations", animations)] {
-        if !list.is_empty() {
-            document[key] = Json::Array(list);
-        }
-    }
-    buffer.glb(document, "the USD stage would exceed 4 GiB as a GLB")
+    let scene = Scene { generator: "quatcurve (USD through openusd)", roots, nodes, meshes, skins, animations };
+    buffer.glb(scene, "the USD stage would exceed 4 GiB as a GLB")
 }
 
 /// openusd's refusal of what is at `path`.
